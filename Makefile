@@ -1,0 +1,152 @@
+# pmtk: SIMD packet photon mapping as small programs that exchange files.
+#
+#   make            build every program into bin/
+#   make test       install missing Debian packages, build with -Werror, run every test,
+#                   then the same tests under AddressSanitizer + UBSan
+#   make asan       sanitizer build into build/asan/bin
+#   make demo       render the Cornell box with what exists (see README)
+#   make bench      benchmarks into docs/benchmarks.md
+#   make fuzz       libFuzzer targets for every reader (clang), not part of test
+#   make deps       install the Debian packages (apt-get, when root)
+#   make clean
+#
+# Out-of-tree objects in $(BUILD); dependencies from -MMD -MP; a change of flags
+# rebuilds everything; quiet unless V=1.
+
+BUILD ?= build
+BIN ?= bin
+CC ?= gcc
+SAN ?=
+WERROR ?= $(if $(CI),1,)
+
+# Debian packages this project builds, tests and runs with (README says why each).
+DEBS := gcc make pkg-config libembree-dev libopenexr-dev openexr libassimp-dev libjansson-dev \
+        libpng-dev libxxhash-dev libcmocka-dev
+
+ifeq ($(V),1)
+Q :=
+else
+Q := @
+endif
+
+PKGS := OpenEXR assimp jansson libpng libxxhash
+# Debian's libembree-dev ships no .pc file; use pkg-config when there is one.
+EMBREE_CFLAGS := $(shell pkg-config --cflags embree3 2>/dev/null)
+EMBREE_LIBS := $(shell pkg-config --libs embree3 2>/dev/null || echo -lembree3)
+PKG_CFLAGS := $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
+# Only OpenEXR's C API (OpenEXRCore) is used; the C++ libraries are not linked.
+PKG_LIBS := -lOpenEXRCore-3_1 $(shell pkg-config --libs assimp jansson libpng libxxhash 2>/dev/null)
+CMOCKA_LIBS := $(shell pkg-config --libs cmocka 2>/dev/null || echo -lcmocka)
+
+# snprintf truncation is how this code bounds names and messages, so it is not warned about.
+WARN := -Wall -Wextra -Wshadow -Wstrict-prototypes -Wmissing-prototypes -Wpointer-arith -Wformat=2 \
+        -Wundef -Wvla -Wno-unused-parameter -Wno-format-truncation
+CFLAGS ?= -O2 -g
+ALL_CFLAGS := -std=c17 -D_GNU_SOURCE $(WARN) $(if $(WERROR),-Werror,) -fopenmp -fno-math-errno \
+              $(SAN) $(PKG_CFLAGS) $(EMBREE_CFLAGS) $(CFLAGS)
+ALL_LDFLAGS := -fopenmp $(SAN) $(LDFLAGS)
+LIBS := $(EMBREE_LIBS) $(PKG_LIBS) -lm
+
+LIB_SRC := $(wildcard common/*.c formats/*.c)
+LIB_OBJ := $(LIB_SRC:%.c=$(BUILD)/%.o)
+LIB := $(BUILD)/libpmtk.a
+
+STAGES := $(notdir $(wildcard stages/*))
+PROGS := $(STAGES:%=$(BIN)/%)
+
+UNIT_SRC := $(wildcard tests/unit/*.c)
+UNIT_OBJ := $(UNIT_SRC:%.c=$(BUILD)/%.o)
+UNIT := $(BUILD)/tests/unit
+TESTGEN := $(BUILD)/tests/pm-testgen
+ATRIUM_GEN := $(BUILD)/scenes/make-atrium
+ATRIUM_OBJ := scenes/atrium/atrium.obj
+
+.PHONY: all test test-run asan test-asan demo bench fuzz deps clean check-deps
+all: $(PROGS) $(ATRIUM_OBJ)
+
+# Rebuild everything when the flags change.
+FLAGS_FILE := $(BUILD)/.flags
+FLAGS_NOW := $(CC) $(ALL_CFLAGS) $(ALL_LDFLAGS) $(LIBS)
+$(FLAGS_FILE): FORCE
+	@mkdir -p $(@D)
+	@echo '$(FLAGS_NOW)' | cmp -s - $@ || echo '$(FLAGS_NOW)' > $@
+FORCE:
+
+$(BUILD)/%.o: %.c $(FLAGS_FILE)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  CC      $<",true)
+	$(Q)$(CC) $(ALL_CFLAGS) -MMD -MP -c $< -o $@
+
+$(LIB): $(LIB_OBJ)
+	@$(if $(Q),echo "  AR      $@",true)
+	$(Q)rm -f $@ && ar rcs $@ $^
+
+$(BIN)/%: $(BUILD)/stages/%/main.o $(LIB)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  LINK    $@",true)
+	$(Q)$(CC) $(ALL_LDFLAGS) $< $(LIB) $(LIBS) -o $@
+
+$(UNIT): $(UNIT_OBJ) $(LIB)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  LINK    $@",true)
+	$(Q)$(CC) $(ALL_LDFLAGS) $(UNIT_OBJ) $(LIB) $(LIBS) $(CMOCKA_LIBS) -o $@
+
+$(TESTGEN): $(BUILD)/tests/pm-testgen.o $(LIB)
+	@mkdir -p $(@D)
+	$(Q)$(CC) $(ALL_LDFLAGS) $< $(LIB) $(LIBS) -o $@
+
+$(ATRIUM_GEN): scenes/atrium/make-atrium.c $(FLAGS_FILE)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  CC      $<",true)
+	$(Q)$(CC) -std=c17 -O2 $(WARN) $(if $(WERROR),-Werror,) $< -lm -o $@
+
+$(ATRIUM_OBJ): $(ATRIUM_GEN)
+	@$(if $(Q),echo "  GEN     $@",true)
+	$(Q)$(ATRIUM_GEN) -o scenes/atrium
+
+# ---- tests ----
+check-deps:
+	@sh tests/install-deps.sh $(DEBS)
+
+test: check-deps
+	$(Q)$(MAKE) --no-print-directory WERROR=1 test-run
+	$(Q)$(MAKE) --no-print-directory WERROR=1 test-asan
+
+test-run: all $(UNIT) $(TESTGEN)
+	$(Q)BIN=$(abspath $(BIN)) BUILD=$(abspath $(BUILD)) bash tests/run
+
+asan:
+	$(Q)$(MAKE) --no-print-directory BUILD=build/asan BIN=build/asan/bin CFLAGS="-O1 -g" \
+	    SAN="-fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer" all
+
+test-asan:
+	$(Q)ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
+	    $(MAKE) --no-print-directory BUILD=build/asan BIN=build/asan/bin CFLAGS="-O1 -g" \
+	    SAN="-fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer" test-run
+
+# ---- demo, bench, fuzz ----
+demo: check-deps all
+	$(Q)bash pipelines/demo
+
+bench: check-deps all $(TESTGEN)
+	$(Q)BIN=$(abspath $(BIN)) BUILD=$(abspath $(BUILD)) bash tests/bench/run
+
+FUZZ_TARGETS := $(basename $(notdir $(wildcard tests/fuzz/*.c)))
+fuzz:
+	$(Q)$(MAKE) --no-print-directory BUILD=build/fuzz BIN=build/fuzz/bin CC=clang CFLAGS="-O1 -g" \
+	    SAN="-fsanitize=fuzzer-no-link,address,undefined" build/fuzz/libpmtk.a
+	$(Q)for t in $(FUZZ_TARGETS); do \
+	    clang -std=c17 -D_GNU_SOURCE -O1 -g -fsanitize=fuzzer,address,undefined -fopenmp $(PKG_CFLAGS) \
+	        tests/fuzz/$$t.c build/fuzz/libpmtk.a $(LIBS) -o build/fuzz/$$t || exit 1; \
+	    echo "  FUZZ    $$t ($${FUZZ_SECONDS:-60} s)"; \
+	    mkdir -p build/fuzz/corpus-$$t; \
+	    build/fuzz/$$t -max_total_time=$${FUZZ_SECONDS:-60} build/fuzz/corpus-$$t tests/golden || exit 1; \
+	done
+
+deps:
+	@sh tests/install-deps.sh $(DEBS)
+
+clean:
+	rm -rf $(BUILD) $(BIN) $(ATRIUM_OBJ) scenes/atrium/atrium.mtl
+
+-include $(LIB_OBJ:.o=.d) $(UNIT_OBJ:.o=.d) $(STAGES:%=$(BUILD)/stages/%/main.d) $(BUILD)/tests/pm-testgen.d

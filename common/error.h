@@ -1,0 +1,40 @@
+/* error.h: result codes and the per-thread error message of the pmtk library.
+ *
+ * Library functions never exit: they return a pm_result_t and, on failure, leave
+ * a one-line message naming the subject and the values in a thread-local buffer
+ * (pm_error_message). Only a stage's main decides the exit status, by class:
+ * PM_ERR_USAGE exits 2, every other failure exits 1 (see docs/cli.md). */
+#ifndef PM_ERROR_H
+#define PM_ERROR_H
+
+#include <stdint.h>
+
+typedef int32_t pm_result_t;
+
+enum {
+    PM_OK = 0,
+    PM_ERR_USAGE = 1,    /* bad command line: unknown option, bad number, missing argument */
+    PM_ERR_INPUT = 2,    /* bad input data: malformed file, scene, value out of range */
+    PM_ERR_IO = 3,       /* the system failed us: open, read, write, rename */
+    PM_ERR_NOMEM = 4,    /* an allocation failed */
+    PM_ERR_INTERNAL = 5  /* a bug in pmtk: an invariant did not hold */
+};
+
+/* Sets the thread's message (printf-style) and returns code, so that
+ * `return pm_error_set(PM_ERR_INPUT, "...", ...)` reads as one statement. */
+pm_result_t pm_error_set(pm_result_t code, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3)));
+
+/* The message of the last failure on this thread ("" when none). */
+const char *pm_error_message(void);
+
+/* Prefixes the current message with "prefix: " (for adding a file name upstream). */
+void pm_error_prefix(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+
+/* A short name of a result code: "ok", "usage", "input", "io", "nomem", "internal". */
+const char *pm_result_string(pm_result_t code);
+
+/* Exit status for a result code: 0 ok, 2 usage, 1 anything else. */
+int pm_result_exit_code(pm_result_t code);
+
+#endif

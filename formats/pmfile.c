@@ -1,0 +1,1172 @@
+/* pmfile.c: reader and writer of the pmtk container (see pmfile.h, docs/formats.md). */
+#define _POSIX_C_SOURCE 200809L
+#include "pmfile.h"
+
+#include <errno.h>
+#include <inttypes.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <xxhash.h>
+
+#include "../common/args.h"
+#include "../common/atomic.h"
+#include "../common/version.h"
+
+_Static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "pmtk files are little-endian; port the codecs");
+_Static_assert(sizeof(float) == 4 && sizeof(double) == 8, "IEEE binary32 and binary64 expected");
+
+/* The byte-order marker: the 32-bit value 0x01020304 as written by a little-endian
+ * writer. A big-endian file would show 01 02 03 04. */
+static const unsigned char pm_bom[4] = {0x04, 0x03, 0x02, 0x01};
+
+#define PM_CHUNK_RECORDS 4096 /* records per I/O and transposition step */
+
+/* ------------------------------------------------------------------ schemas */
+
+size_t pm_type_size(pm_type_t t)
+{
+    switch (t) {
+    case PM_TYPE_U16: return 2;
+    case PM_TYPE_U32: return 4;
+    case PM_TYPE_F32: return 4;
+    case PM_TYPE_F64: return 8;
+    }
+    return 0;
+}
+
+static size_t channel_size(const pm_channel_t *c) { return pm_type_size(c->type) * c->components; }
+
+uint32_t pm_schema_record_size(const pm_schema_t *s, uint32_t mask)
+{
+    uint32_t n = 0;
+    for (unsigned i = 0; i < s->nchannels; i++)
+        if (mask & (1u << i))
+            n += (uint32_t)channel_size(&s->channels[i]);
+    return n;
+}
+
+uint32_t pm_schema_required(const pm_schema_t *s)
+{
+    uint32_t m = 0;
+    for (unsigned i = 0; i < s->nchannels; i++)
+        if (s->channels[i].flags & PM_CH_REQUIRED)
+            m |= 1u << i;
+    return m;
+}
+
+int pm_schema_channel(const pm_schema_t *s, const char *name)
+{
+    for (unsigned i = 0; i < s->nchannels; i++)
+        if (strcmp(s->channels[i].name, name) == 0)
+            return (int)i;
+    return -1;
+}
+
+const pm_schema_t *pm_schema_find(const char *name)
+{
+    for (const pm_schema_t *const *s = pm_schema_all(); *s; s++)
+        if (strcmp((*s)->name, name) == 0)
+            return *s;
+    return NULL;
+}
+
+/* ------------------------------------------------------------------ headers */
+
+void pm_header_init(pm_header_t *h, const pm_schema_t *s)
+{
+    memset(h, 0, sizeof *h);
+    h->schema = s;
+    if (s) {
+        h->major = s->major;
+        h->minor = s->minor;
+    }
+}
+
+void pm_header_free(pm_header_t *h)
+{
+    for (size_t i = 0; i < h->ncommands; i++)
+        free(h->commands[i]);
+    free(h->commands);
+    for (size_t i = 0; i < h->nkeys; i++) {
+        free(h->keys[i].key);
+        free(h->keys[i].value);
+    }
+    free(h->keys);
+    h->commands = NULL;
+    h->keys = NULL;
+    h->ncommands = h->nkeys = 0;
+}
+
+static int key_char_ok(int c)
+{
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
+           c == '.' || c == '-';
+}
+
+static int key_ok(const char *k)
+{
+    if (!*k)
+        return 0;
+    for (; *k; k++)
+        if (!key_char_ok((unsigned char)*k))
+            return 0;
+    return 1;
+}
+
+/* Values are one line of printable text; a writer replaces anything else. */
+static void value_clean(char *v)
+{
+    for (; *v; v++)
+        if ((unsigned char)*v < 0x20 || *v == 0x7f)
+            *v = ' ';
+}
+
+static pm_result_t kv_append(pm_header_t *h, const char *key, char *value_owned)
+{
+    if (!key_ok(key)) {
+        free(value_owned);
+        return pm_error_set(PM_ERR_INTERNAL, "header key '%s' has characters outside [A-Za-z0-9_.-]", key);
+    }
+    pm_kv_t *k = realloc(h->keys, (h->nkeys + 1) * sizeof *k);
+    char *kc = strdup(key);
+    if (!k || !kc) {
+        if (k)
+            h->keys = k;
+        free(kc);
+        free(value_owned);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory adding header key '%s'", key);
+    }
+    h->keys = k;
+    value_clean(value_owned);
+    k[h->nkeys].key = kc;
+    k[h->nkeys].value = value_owned;
+    h->nkeys++;
+    return PM_OK;
+}
+
+static char *vformat(const char *fmt, va_list ap)
+{
+    va_list ap2;
+    va_copy(ap2, ap);
+    int n = vsnprintf(NULL, 0, fmt, ap2);
+    va_end(ap2);
+    if (n < 0)
+        return NULL;
+    char *s = malloc((size_t)n + 1);
+    if (s)
+        vsnprintf(s, (size_t)n + 1, fmt, ap);
+    return s;
+}
+
+pm_result_t pm_header_add(pm_header_t *h, const char *key, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    char *v = vformat(fmt, ap);
+    va_end(ap);
+    if (!v)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory adding header key '%s'", key);
+    return kv_append(h, key, v);
+}
+
+pm_result_t pm_header_set(pm_header_t *h, const char *key, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    char *v = vformat(fmt, ap);
+    va_end(ap);
+    if (!v)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory setting header key '%s'", key);
+    for (size_t i = 0; i < h->nkeys; i++)
+        if (strcmp(h->keys[i].key, key) == 0) {
+            free(h->keys[i].value);
+            value_clean(v);
+            h->keys[i].value = v;
+            return PM_OK;
+        }
+    return kv_append(h, key, v);
+}
+
+const char *pm_header_get(const pm_header_t *h, const char *key)
+{
+    for (size_t i = 0; i < h->nkeys; i++)
+        if (strcmp(h->keys[i].key, key) == 0)
+            return h->keys[i].value;
+    return NULL;
+}
+
+static const char *title_of(const pm_header_t *h) { return h->schema ? h->schema->title : "pmtk file"; }
+
+pm_result_t pm_header_get_u64(const pm_header_t *h, const char *path, const char *key, uint64_t *out)
+{
+    const char *v = pm_header_get(h, key);
+    int64_t x;
+    if (!v)
+        return pm_error_set(PM_ERR_INPUT, "%s '%s' lacks header key '%s'", title_of(h), path, key);
+    if (pm_parse_i64(v, &x) != PM_OK || x < 0)
+        return pm_error_set(PM_ERR_INPUT, "%s '%s': header key %s='%s' is not a non-negative integer",
+                            title_of(h), path, key, v);
+    *out = (uint64_t)x;
+    return PM_OK;
+}
+
+pm_result_t pm_header_get_double(const pm_header_t *h, const char *path, const char *key, double *out)
+{
+    const char *v = pm_header_get(h, key);
+    if (!v)
+        return pm_error_set(PM_ERR_INPUT, "%s '%s' lacks header key '%s'", title_of(h), path, key);
+    if (pm_parse_double(v, out) != PM_OK)
+        return pm_error_set(PM_ERR_INPUT, "%s '%s': header key %s='%s' is not a finite number", title_of(h),
+                            path, key, v);
+    return PM_OK;
+}
+
+static pm_result_t command_append(pm_header_t *h, char *cmd_owned)
+{
+    char **c = realloc(h->commands, (h->ncommands + 1) * sizeof *c);
+    if (!c) {
+        free(cmd_owned);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory adding a command line");
+    }
+    value_clean(cmd_owned);
+    h->commands = c;
+    c[h->ncommands++] = cmd_owned;
+    return PM_OK;
+}
+
+static int needs_quotes(const char *s)
+{
+    if (!*s)
+        return 1;
+    for (; *s; s++)
+        if (!(key_char_ok((unsigned char)*s) || strchr("/:,=+@%^", *s)))
+            return 1;
+    return 0;
+}
+
+pm_result_t pm_header_add_command(pm_header_t *h, int argc, char *const *argv)
+{
+    size_t n = 1;
+    for (int i = 0; i < argc; i++)
+        n += 4 * strlen(argv[i]) + 3; /* worst case: every char a quoted quote */
+    char *s = malloc(n), *p = s;
+    if (!s)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory recording the command line");
+    for (int i = 0; i < argc; i++) {
+        if (i)
+            *p++ = ' ';
+        const char *a = argv[i];
+        if (i == 0) { /* the program's name, not the path it was run by */
+            const char *slash = strrchr(a, '/');
+            a = slash ? slash + 1 : a;
+        }
+        if (!needs_quotes(a)) {
+            p += sprintf(p, "%s", a);
+            continue;
+        }
+        *p++ = '\'';
+        for (; *a; a++) {
+            if (*a == '\'') {
+                memcpy(p, "'\\''", 4);
+                p += 4;
+            } else {
+                *p++ = *a;
+            }
+        }
+        *p++ = '\'';
+    }
+    *p = '\0';
+    return command_append(h, s);
+}
+
+pm_result_t pm_header_inherit(pm_header_t *h, const pm_header_t *src)
+{
+    for (size_t i = 0; i < src->ncommands; i++) {
+        int seen = 0;
+        for (size_t j = 0; j < h->ncommands && !seen; j++)
+            seen = strcmp(h->commands[j], src->commands[i]) == 0;
+        if (seen)
+            continue;
+        char *c = strdup(src->commands[i]);
+        if (!c)
+            return pm_error_set(PM_ERR_NOMEM, "out of memory copying provenance");
+        pm_result_t r = command_append(h, c);
+        if (r != PM_OK)
+            return r;
+    }
+    const char *scene = pm_header_get(src, "SCENE");
+    if (scene && !pm_header_get(h, "SCENE"))
+        return pm_header_set(h, "SCENE", "%s", scene);
+    return PM_OK;
+}
+
+pm_result_t pm_header_add_input(pm_header_t *h, const char *path, uint64_t hash)
+{
+    return pm_header_add(h, "INPUT", "%s xxh3:%016" PRIx64, path, hash);
+}
+
+pm_result_t pm_header_copy_keys(pm_header_t *h, const pm_header_t *src)
+{
+    for (size_t i = 0; i < src->nkeys; i++) {
+        if (strcmp(src->keys[i].key, "INPUT") == 0 || pm_header_get(h, src->keys[i].key))
+            continue;
+        pm_result_t r = pm_header_add(h, src->keys[i].key, "%s", src->keys[i].value);
+        if (r != PM_OK)
+            return r;
+    }
+    return PM_OK;
+}
+
+/* Growable text buffer for formatting headers. */
+typedef struct {
+    char *s;
+    size_t n, cap;
+    int oom;
+} text_t;
+
+static void text_printf(text_t *t, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void text_printf(text_t *t, const char *fmt, ...)
+{
+    if (t->oom)
+        return;
+    for (;;) {
+        va_list ap;
+        va_start(ap, fmt);
+        int n = vsnprintf(t->s ? t->s + t->n : NULL, t->s ? t->cap - t->n : 0, fmt, ap);
+        va_end(ap);
+        if (n < 0) {
+            t->oom = 1;
+            return;
+        }
+        if (t->s && t->n + (size_t)n < t->cap) {
+            t->n += (size_t)n;
+            return;
+        }
+        size_t cap = t->cap ? t->cap : 1024;
+        while (cap <= t->n + (size_t)n)
+            cap *= 2;
+        char *s = realloc(t->s, cap);
+        if (!s) {
+            t->oom = 1;
+            return;
+        }
+        t->s = s;
+        t->cap = cap;
+    }
+}
+
+static void channels_text(const pm_schema_t *s, uint32_t mask, text_t *t)
+{
+    int first = 1;
+    for (unsigned i = 0; i < s->nchannels; i++)
+        if (mask & (1u << i)) {
+            text_printf(t, "%s%s", first ? "" : " ", s->channels[i].name);
+            first = 0;
+        }
+}
+
+pm_result_t pm_header_format(const pm_header_t *h, char **text_out, size_t *len_out)
+{
+    const pm_schema_t *s = h->schema;
+    if (!s)
+        return pm_error_set(PM_ERR_INTERNAL, "header has no format");
+    text_t t = {0};
+    text_printf(&t, "%s\n", PM_MAGIC);
+    text_printf(&t, "FORMAT=%s\n", s->name);
+    text_printf(&t, "VERSION=%u.%u\n", s->major, s->minor);
+    text_printf(&t, "BYTE_ORDER=little-endian\n");
+    text_printf(&t, "COUNT=%" PRIu64 "\n", h->count);
+    text_printf(&t, "RECORD_SIZE=%" PRIu32 "\n", pm_schema_record_size(s, h->channels));
+    text_printf(&t, "CHANNELS=");
+    channels_text(s, h->channels, &t);
+    text_printf(&t, "\nCHANNEL_MASK=0x%08" PRIx32 "\n", h->channels);
+    /* %.9g round-trips every float exactly. */
+    text_printf(&t, "BOUNDS=%.9g %.9g %.9g %.9g %.9g %.9g\n", h->bounds[0], h->bounds[1], h->bounds[2],
+                h->bounds[3], h->bounds[4], h->bounds[5]);
+    text_printf(&t, "SOFTWARE=pmtk %s\n", PM_VERSION_STRING);
+    for (size_t i = 0; i < h->ncommands; i++)
+        text_printf(&t, "COMMAND=%s\n", h->commands[i]);
+    for (size_t i = 0; i < h->nkeys; i++)
+        text_printf(&t, "%s=%s\n", h->keys[i].key, h->keys[i].value);
+    text_printf(&t, "\n");
+    if (t.oom) {
+        free(t.s);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory formatting a header");
+    }
+    *text_out = t.s;
+    *len_out = t.n;
+    return PM_OK;
+}
+
+/* ------------------------------------------------------------------ reader */
+
+struct pm_reader {
+    FILE *f;
+    int own_file;
+    char *path;
+    pm_header_t hdr;
+    XXH3_state_t *hash;
+    uint64_t next;            /* index of the next record to read */
+    uint64_t file_size;       /* bytes, when the input is a regular file; else 0 */
+    uint64_t payload_offset;  /* bytes before the first record */
+    unsigned char *scratch;   /* one chunk of raw records for validation */
+    char *raw;                /* the header text as read */
+};
+
+static const char *reader_title(const pm_reader_t *r) { return title_of(&r->hdr); }
+
+/* Shows up to 8 bytes of what was found where a magic was expected. */
+static void show_bytes(const unsigned char *b, size_t n, char *out, size_t cap)
+{
+    size_t o = 0;
+    for (size_t i = 0; i < n && o + 5 < cap; i++) {
+        if (b[i] >= 0x20 && b[i] < 0x7f && b[i] != '\'' && b[i] != '\\')
+            out[o++] = (char)b[i];
+        else
+            o += (size_t)snprintf(out + o, cap - o, "\\x%02x", b[i]);
+    }
+    out[o] = '\0';
+}
+
+/* Reads header text up to and including the blank line that ends it. */
+static pm_result_t read_header_text(pm_reader_t *r, char **text_out, size_t *len_out)
+{
+    unsigned char magic[sizeof PM_MAGIC]; /* "#?PMTK\n" */
+    size_t got = fread(magic, 1, sizeof magic, r->f);
+    if (got < sizeof magic || memcmp(magic, PM_MAGIC "\n", sizeof magic) != 0) {
+        if (got == 0)
+            return pm_error_set(PM_ERR_INPUT, "empty input '%s': expected a pmtk file", r->path);
+        char shown[64];
+        show_bytes(magic, got, shown, sizeof shown);
+        return pm_error_set(PM_ERR_INPUT, "bad magic in '%s': expected '#?PMTK', found '%s'", r->path, shown);
+    }
+    size_t cap = 4096, n = sizeof magic;
+    char *t = malloc(cap);
+    if (!t)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory reading the header of '%s'", r->path);
+    memcpy(t, magic, n);
+    size_t line_start = n;
+    for (;;) {
+        int c = getc_unlocked(r->f);
+        if (c == EOF) {
+            free(t);
+            return pm_error_set(PM_ERR_INPUT, "truncated header in '%s': no blank line ends it", r->path);
+        }
+        if (n + 1 >= cap) {
+            if (cap >= PM_HEADER_MAX) {
+                free(t);
+                return pm_error_set(PM_ERR_INPUT, "header of '%s' exceeds %u bytes", r->path, PM_HEADER_MAX);
+            }
+            char *t2 = realloc(t, cap * 2);
+            if (!t2) {
+                free(t);
+                return pm_error_set(PM_ERR_NOMEM, "out of memory reading the header of '%s'", r->path);
+            }
+            t = t2;
+            cap *= 2;
+        }
+        t[n++] = (char)c;
+        if (c != '\n') {
+            if (n - line_start > PM_HEADER_LINE_MAX) {
+                free(t);
+                return pm_error_set(PM_ERR_INPUT, "header line of '%s' exceeds %u bytes", r->path,
+                                    PM_HEADER_LINE_MAX);
+            }
+            continue;
+        }
+        if (n - line_start == 1) /* an empty line: the end */
+            break;
+        line_start = n;
+    }
+    t[n] = '\0';
+    *text_out = t;
+    *len_out = n;
+    return PM_OK;
+}
+
+static pm_result_t parse_u32_hex(const char *v, uint32_t *out)
+{
+    char *end;
+    if (strncmp(v, "0x", 2) != 0 || !v[2])
+        return PM_ERR_INPUT;
+    errno = 0;
+    unsigned long x = strtoul(v + 2, &end, 16);
+    if (*end || errno || x > 0xffffffffUL)
+        return PM_ERR_INPUT;
+    *out = (uint32_t)x;
+    return PM_OK;
+}
+
+/* Parses the header lines into r->hdr; checks structure, version, channels. */
+static pm_result_t parse_header(pm_reader_t *r, char *text, const pm_schema_t *want, uint32_t need)
+{
+    pm_header_t *h = &r->hdr;
+    const char *path = r->path;
+    const char *format = NULL, *version = NULL, *count = NULL, *rsize = NULL, *chans = NULL, *mask = NULL,
+               *bounds = NULL, *order = NULL;
+    pm_result_t res = PM_OK;
+    char *line = text + strlen(PM_MAGIC) + 1;
+    for (unsigned lineno = 2; *line != '\n' && res == PM_OK; lineno++) {
+        char *nl = strchr(line, '\n');
+        *nl = '\0';
+        char *eq = strchr(line, '=');
+        if (!eq) {
+            char shown[80];
+            show_bytes((const unsigned char *)line, strnlen(line, 40), shown, sizeof shown);
+            return pm_error_set(PM_ERR_INPUT, "malformed header line %u in '%s': '%s' has no '='", lineno, path,
+                                shown);
+        }
+        *eq = '\0';
+        const char *key = line, *val = eq + 1;
+        if (!key_ok(key))
+            return pm_error_set(PM_ERR_INPUT, "malformed header line %u in '%s': bad key", lineno, path);
+        for (const char *c = val; *c; c++)
+            if ((unsigned char)*c < 0x20 || *c == 0x7f)
+                return pm_error_set(PM_ERR_INPUT, "malformed header line %u in '%s': control byte in %s",
+                                    lineno, path, key);
+        const char **slot = NULL;
+        if (!strcmp(key, "FORMAT"))
+            slot = &format;
+        else if (!strcmp(key, "VERSION"))
+            slot = &version;
+        else if (!strcmp(key, "COUNT"))
+            slot = &count;
+        else if (!strcmp(key, "RECORD_SIZE"))
+            slot = &rsize;
+        else if (!strcmp(key, "CHANNELS"))
+            slot = &chans;
+        else if (!strcmp(key, "CHANNEL_MASK"))
+            slot = &mask;
+        else if (!strcmp(key, "BOUNDS"))
+            slot = &bounds;
+        else if (!strcmp(key, "BYTE_ORDER"))
+            slot = &order;
+        if (slot) {
+            if (*slot)
+                return pm_error_set(PM_ERR_INPUT, "header of '%s' repeats %s (line %u)", path, key, lineno);
+            *slot = val;
+        } else if (!strcmp(key, "SOFTWARE")) {
+            /* the writer's version: rewritten by whoever writes next */
+        } else if (!strcmp(key, "COMMAND")) {
+            char *c = strdup(val);
+            res = c ? command_append(h, c) : pm_error_set(PM_ERR_NOMEM, "out of memory");
+        } else {
+            char *v = strdup(val);
+            res = v ? kv_append(h, key, v) : pm_error_set(PM_ERR_NOMEM, "out of memory");
+        }
+        line = nl + 1;
+    }
+    if (res != PM_OK)
+        return res;
+
+#define REQUIRE(var, name)                                                                                  \
+    if (!(var))                                                                                             \
+        return pm_error_set(PM_ERR_INPUT, "header of '%s' lacks %s", path, name);
+    REQUIRE(format, "FORMAT")
+    REQUIRE(version, "VERSION")
+    REQUIRE(order, "BYTE_ORDER")
+    REQUIRE(count, "COUNT")
+    REQUIRE(rsize, "RECORD_SIZE")
+    REQUIRE(chans, "CHANNELS")
+    REQUIRE(mask, "CHANNEL_MASK")
+    REQUIRE(bounds, "BOUNDS")
+#undef REQUIRE
+
+    const pm_schema_t *s = pm_schema_find(format);
+    if (!s)
+        return pm_error_set(PM_ERR_INPUT, "'%s' has unknown format '%s'", path, format);
+    if (want && s != want)
+        return pm_error_set(PM_ERR_INPUT, "'%s' is a %s, expected a %s", path, s->title, want->title);
+    h->schema = s;
+
+    unsigned major, minor;
+    int used = 0;
+    if (sscanf(version, "%u.%u%n", &major, &minor, &used) != 2 || version[used] != '\0')
+        return pm_error_set(PM_ERR_INPUT, "%s '%s': malformed VERSION '%s'", s->title, path, version);
+    if (major > s->major)
+        return pm_error_set(PM_ERR_INPUT, "%s '%s' is version %u.%u, newer than this reader (%u.x)", s->title,
+                            path, major, minor, s->major);
+    if (major < s->major)
+        return pm_error_set(PM_ERR_INPUT, "%s '%s' is version %u.%u, older than this reader (%u.x)", s->title,
+                            path, major, minor, s->major);
+    h->major = major;
+    h->minor = minor;
+
+    if (strcmp(order, "little-endian") != 0)
+        return pm_error_set(PM_ERR_INPUT, "%s '%s': BYTE_ORDER '%s' is not little-endian", s->title, path, order);
+
+    int64_t c;
+    if (pm_parse_i64(count, &c) != PM_OK || c < 0 || (uint64_t)c > PM_COUNT_MAX || strchr(count, 'e') ||
+        strchr(count, '.'))
+        return pm_error_set(PM_ERR_INPUT, "%s '%s': absurd COUNT '%s'", s->title, path, count);
+    h->count = (uint64_t)c;
+
+    if (parse_u32_hex(mask, &h->channels) != PM_OK)
+        return pm_error_set(PM_ERR_INPUT, "%s '%s': malformed CHANNEL_MASK '%s'", s->title, path, mask);
+    uint32_t known = s->nchannels >= 32 ? 0xffffffffu : (1u << s->nchannels) - 1;
+    if (h->channels & ~known)
+        return pm_error_set(PM_ERR_INPUT, "%s '%s': CHANNEL_MASK 0x%08" PRIx32 " names channels unknown to version %u.%u",
+                            s->title, path, h->channels, s->major, s->minor);
+    text_t ct = {0};
+    channels_text(s, h->channels, &ct);
+    int agree = !ct.oom && strcmp(ct.s ? ct.s : "", chans) == 0;
+    free(ct.s);
+    if (!agree)
+        return pm_error_set(PM_ERR_INPUT, "%s '%s': CHANNELS '%s' disagrees with CHANNEL_MASK %s", s->title, path,
+                            chans, mask);
+    uint32_t missing = pm_schema_required(s) & ~h->channels;
+    if (missing)
+        return pm_error_set(PM_ERR_INPUT, "%s '%s' lacks required channel '%s'", s->title, path,
+                            s->channels[__builtin_ctz(missing)].name);
+    missing = need & ~h->channels;
+    if (missing)
+        return pm_error_set(PM_ERR_INPUT, "%s '%s' lacks channel '%s' needed here", s->title, path,
+                            s->channels[__builtin_ctz(missing)].name);
+
+    int64_t rs;
+    uint32_t expect = pm_schema_record_size(s, h->channels);
+    if (pm_parse_i64(rsize, &rs) != PM_OK || rs != (int64_t)expect)
+        return pm_error_set(PM_ERR_INPUT, "%s '%s': RECORD_SIZE '%s' but its channels take %" PRIu32 " bytes",
+                            s->title, path, rsize, expect);
+    h->record_size = expect;
+
+    double b[6];
+    int nb = 0, pos = 0;
+    const char *p = bounds;
+    for (; nb < 6; nb++) {
+        if (sscanf(p, "%lf%n", &b[nb], &pos) != 1)
+            break;
+        p += pos;
+    }
+    while (*p == ' ')
+        p++;
+    if (nb != 6 || *p)
+        return pm_error_set(PM_ERR_INPUT, "%s '%s': BOUNDS '%s' is not six numbers", s->title, path, bounds);
+    for (int i = 0; i < 6; i++) {
+        if (!isfinite(b[i]) || fabs(b[i]) > 3.4e38)
+            return pm_error_set(PM_ERR_INPUT, "%s '%s': BOUNDS '%s' has a non-finite value", s->title, path,
+                                bounds);
+        h->bounds[i] = (float)b[i];
+    }
+    for (int i = 0; i < 3; i++)
+        if (h->bounds[i] > h->bounds[i + 3])
+            return pm_error_set(PM_ERR_INPUT, "%s '%s': BOUNDS '%s' has min above max on axis %c", s->title, path,
+                                bounds, "xyz"[i]);
+    if (s->validate_header)
+        return s->validate_header(h, path);
+    return PM_OK;
+}
+
+pm_result_t pm_reader_open(const char *path, const pm_schema_t *schema, uint32_t need, pm_reader_t **out)
+{
+    *out = NULL;
+    pm_reader_t *r = calloc(1, sizeof *r);
+    if (!r)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory opening '%s'", path);
+    r->path = strdup(strcmp(path, "-") == 0 ? "stdin" : path);
+    r->hash = XXH3_createState();
+    if (!r->path || !r->hash) {
+        pm_reader_close(r);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory opening '%s'", path);
+    }
+    pm_header_init(&r->hdr, schema);
+    XXH3_64bits_reset(r->hash);
+    if (strcmp(path, "-") == 0) {
+        r->f = stdin;
+    } else {
+        r->f = fopen(path, "rb");
+        if (!r->f) {
+            int e = errno;
+            pm_reader_close(r);
+            return pm_error_set(e == ENOENT ? PM_ERR_INPUT : PM_ERR_IO, "cannot open '%s': %s", path, strerror(e));
+        }
+        r->own_file = 1;
+    }
+    struct stat st;
+    if (fstat(fileno(r->f), &st) == 0 && S_ISREG(st.st_mode))
+        r->file_size = (uint64_t)st.st_size;
+    else if (fstat(fileno(r->f), &st) == 0 && S_ISDIR(st.st_mode)) {
+        pm_reader_close(r);
+        return pm_error_set(PM_ERR_INPUT, "'%s' is a directory, not a pmtk file", path);
+    }
+
+    char *text = NULL;
+    size_t len = 0;
+    pm_result_t res = read_header_text(r, &text, &len);
+    if (res == PM_OK) {
+        XXH3_64bits_update(r->hash, text, len);
+        char *work = strdup(text); /* parse_header cuts its text into lines */
+        res = work ? parse_header(r, work, schema, need)
+                   : pm_error_set(PM_ERR_NOMEM, "out of memory reading '%s'", r->path);
+        free(work);
+    }
+    r->raw = text;
+    if (res == PM_OK) {
+        unsigned char bom[4];
+        size_t got = fread(bom, 1, 4, r->f);
+        if (got < 4)
+            res = pm_error_set(PM_ERR_INPUT, "truncated %s '%s': no byte-order marker after the header",
+                               reader_title(r), r->path);
+        else if (bom[0] == 0x01 && bom[1] == 0x02 && bom[2] == 0x03 && bom[3] == 0x04)
+            res = pm_error_set(PM_ERR_INPUT, "%s '%s' is big-endian; pmtk reads little-endian files",
+                               reader_title(r), r->path);
+        else if (memcmp(bom, pm_bom, 4) != 0)
+            res = pm_error_set(PM_ERR_INPUT, "%s '%s': bad byte-order marker %02x %02x %02x %02x",
+                               reader_title(r), r->path, bom[0], bom[1], bom[2], bom[3]);
+        else
+            XXH3_64bits_update(r->hash, bom, 4);
+        r->payload_offset = len + 4;
+    }
+    if (res == PM_OK && r->file_size) {
+        /* A regular file's size tells truncation and extra bytes before any record is read. */
+        uint64_t want = r->payload_offset + r->hdr.count * r->hdr.record_size + 8;
+        if (r->file_size < want) {
+            uint64_t have = r->file_size > r->payload_offset ? r->file_size - r->payload_offset : 0;
+            if (have >= r->hdr.count * r->hdr.record_size)
+                res = pm_error_set(PM_ERR_INPUT, "truncated %s '%s': checksum missing after %" PRIu64 " records",
+                                   reader_title(r), r->path, r->hdr.count);
+            else
+                res = pm_error_set(PM_ERR_INPUT, "truncated %s '%s': ends in record %" PRIu64 " of %" PRIu64,
+                                   reader_title(r), r->path, have / r->hdr.record_size, r->hdr.count);
+        } else if (r->file_size > want) {
+            res = pm_error_set(PM_ERR_INPUT,
+                               "wrong count in %s '%s': COUNT=%" PRIu64 " but %" PRIu64 " bytes follow the checksum",
+                               reader_title(r), r->path, r->hdr.count, r->file_size - want);
+        }
+    }
+    if (res == PM_OK) {
+        r->scratch = malloc((size_t)PM_CHUNK_RECORDS * (r->hdr.record_size ? r->hdr.record_size : 1));
+        if (!r->scratch)
+            res = pm_error_set(PM_ERR_NOMEM, "out of memory reading '%s'", r->path);
+    }
+    if (res != PM_OK) {
+        pm_reader_close(r);
+        return res;
+    }
+    *out = r;
+    return PM_OK;
+}
+
+const pm_header_t *pm_reader_header(const pm_reader_t *r) { return &r->hdr; }
+
+/* Checks the values of n raw records starting at record index first. */
+static pm_result_t check_values(const pm_reader_t *r, const unsigned char *rec, uint64_t n, uint64_t first)
+{
+    const pm_schema_t *s = r->hdr.schema;
+    size_t off = 0;
+    for (unsigned ci = 0; ci < s->nchannels; ci++) {
+        if (!(r->hdr.channels & (1u << ci)))
+            continue;
+        const pm_channel_t *c = &s->channels[ci];
+        unsigned fl = c->flags;
+        size_t csize = channel_size(c);
+        if ((c->type == PM_TYPE_F32 || c->type == PM_TYPE_F64) &&
+            (fl & (PM_CH_FINITE | PM_CH_NONNEG | PM_CH_UNIT | PM_CH_POSITIVE))) {
+            for (uint64_t i = 0; i < n; i++) {
+                const unsigned char *p = rec + i * r->hdr.record_size + off;
+                double len2 = 0.0;
+                for (unsigned k = 0; k < c->components; k++) {
+                    double v;
+                    if (c->type == PM_TYPE_F32) {
+                        float f;
+                        memcpy(&f, p + 4 * k, 4);
+                        v = f;
+                    } else {
+                        memcpy(&v, p + 8 * k, 8);
+                    }
+                    const char *why = NULL;
+                    if (!isfinite(v))
+                        why = "not finite";
+                    else if ((fl & PM_CH_NONNEG) && v < 0.0)
+                        why = "negative";
+                    else if ((fl & PM_CH_POSITIVE) && !(v > 0.0))
+                        why = "not positive";
+                    if (why)
+                        return pm_error_set(PM_ERR_INPUT,
+                                            "bad value in %s '%s': record %" PRIu64 " channel '%s'[%u] is %g (%s)",
+                                            reader_title(r), r->path, first + i, c->name, k, v, why);
+                    len2 += v * v;
+                }
+                if ((fl & PM_CH_UNIT) && fabs(len2 - 1.0) > 2e-3)
+                    return pm_error_set(PM_ERR_INPUT,
+                                        "bad value in %s '%s': record %" PRIu64 " channel '%s' has length %g, not 1",
+                                        reader_title(r), r->path, first + i, c->name, sqrt(len2));
+            }
+        }
+        off += csize;
+    }
+    return PM_OK;
+}
+
+pm_result_t pm_reader_read(pm_reader_t *r, void *records, uint64_t max, uint64_t *got_out)
+{
+    *got_out = 0;
+    uint64_t left = r->hdr.count - r->next;
+    uint64_t want = max < left ? max : left;
+    size_t rs = r->hdr.record_size;
+    unsigned char *dst = records;
+    while (*got_out < want) {
+        uint64_t n = want - *got_out;
+        if (n > PM_CHUNK_RECORDS)
+            n = PM_CHUNK_RECORDS;
+        unsigned char *p = dst + *got_out * rs;
+        size_t got = rs ? fread(p, rs, (size_t)n, r->f) : (size_t)n;
+        if (got < n) {
+            if (ferror(r->f))
+                return pm_error_set(PM_ERR_IO, "cannot read %s '%s': %s", reader_title(r), r->path,
+                                    strerror(errno));
+            return pm_error_set(PM_ERR_INPUT, "truncated %s '%s': ends in record %" PRIu64 " of %" PRIu64,
+                                reader_title(r), r->path, r->next + got, r->hdr.count);
+        }
+        XXH3_64bits_update(r->hash, p, n * rs);
+        pm_result_t res = check_values(r, p, n, r->next);
+        if (res != PM_OK)
+            return res;
+        r->next += n;
+        *got_out += n;
+    }
+    return PM_OK;
+}
+
+pm_result_t pm_reader_finish(pm_reader_t *r, uint64_t *checksum_out)
+{
+    /* Records the caller skipped are still read and checked: a checksum covers all. */
+    while (r->next < r->hdr.count) {
+        uint64_t got;
+        pm_result_t res = pm_reader_read(r, r->scratch, PM_CHUNK_RECORDS, &got);
+        if (res != PM_OK)
+            return res;
+    }
+    unsigned char tail[8];
+    size_t got = fread(tail, 1, 8, r->f);
+    if (got < 8) {
+        if (ferror(r->f))
+            return pm_error_set(PM_ERR_IO, "cannot read %s '%s': %s", reader_title(r), r->path, strerror(errno));
+        return pm_error_set(PM_ERR_INPUT, "truncated %s '%s': checksum missing after %" PRIu64 " records",
+                            reader_title(r), r->path, r->hdr.count);
+    }
+    uint64_t stored, computed = XXH3_64bits_digest(r->hash);
+    memcpy(&stored, tail, 8);
+    if (stored != computed)
+        return pm_error_set(PM_ERR_INPUT, "checksum mismatch in %s '%s': stored %016" PRIx64 ", computed %016" PRIx64,
+                            reader_title(r), r->path, stored, computed);
+    int c = getc(r->f);
+    if (c != EOF) {
+        uint64_t extra = 1;
+        while (getc(r->f) != EOF && extra < (1u << 20))
+            extra++;
+        return pm_error_set(PM_ERR_INPUT, "wrong count in %s '%s': COUNT=%" PRIu64 " but %s%" PRIu64
+                            " bytes follow the checksum", reader_title(r), r->path, r->hdr.count,
+                            extra >= (1u << 20) ? "over " : "", extra);
+    }
+    if (checksum_out)
+        *checksum_out = computed;
+    return PM_OK;
+}
+
+void pm_reader_close(pm_reader_t *r)
+{
+    if (!r)
+        return;
+    if (r->own_file && r->f)
+        fclose(r->f);
+    XXH3_freeState(r->hash);
+    pm_header_free(&r->hdr);
+    free(r->scratch);
+    free(r->raw);
+    free(r->path);
+    free(r);
+}
+
+const char *pm_reader_header_text(const pm_reader_t *r) { return r->raw; }
+
+/* ------------------------------------------------------------------ writer */
+
+struct pm_writer {
+    pm_atomic_t out;
+    XXH3_state_t *hash;
+    uint64_t count, written;
+    uint32_t record_size;
+    int failed;
+};
+
+pm_result_t pm_writer_open(const char *path, const pm_header_t *h, pm_writer_t **out)
+{
+    *out = NULL;
+    char *text = NULL;
+    size_t len = 0;
+    pm_result_t res = pm_header_format(h, &text, &len);
+    if (res != PM_OK)
+        return res;
+    pm_writer_t *w = calloc(1, sizeof *w);
+    if (!w || !(w->hash = XXH3_createState())) {
+        free(w);
+        free(text);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory opening '%s'", path);
+    }
+    w->count = h->count;
+    w->record_size = pm_schema_record_size(h->schema, h->channels);
+    XXH3_64bits_reset(w->hash);
+    res = pm_atomic_open(path, &w->out);
+    if (res != PM_OK) {
+        XXH3_freeState(w->hash);
+        free(w);
+        free(text);
+        return res;
+    }
+    XXH3_64bits_update(w->hash, text, len);
+    XXH3_64bits_update(w->hash, pm_bom, 4);
+    if (fwrite(text, 1, len, w->out.f) != len || fwrite(pm_bom, 1, 4, w->out.f) != 4)
+        w->failed = 1;
+    free(text);
+    *out = w;
+    return PM_OK;
+}
+
+pm_result_t pm_writer_write(pm_writer_t *w, const void *records, uint64_t n)
+{
+    if (w->written + n > w->count)
+        return pm_error_set(PM_ERR_INTERNAL, "writer given %" PRIu64 " records, header says %" PRIu64,
+                            w->written + n, w->count);
+    size_t bytes = (size_t)(n * w->record_size);
+    XXH3_64bits_update(w->hash, records, bytes);
+    if (bytes && fwrite(records, 1, bytes, w->out.f) != bytes && !w->failed)
+        w->failed = 1;
+    w->written += n;
+    return PM_OK;
+}
+
+pm_result_t pm_writer_commit(pm_writer_t *w)
+{
+    if (w->written != w->count) {
+        pm_result_t r = pm_error_set(PM_ERR_INTERNAL, "writer got %" PRIu64 " records, header says %" PRIu64,
+                                     w->written, w->count);
+        pm_writer_abort(w);
+        return r;
+    }
+    uint64_t sum = XXH3_64bits_digest(w->hash);
+    unsigned char tail[8];
+    memcpy(tail, &sum, 8);
+    if (fwrite(tail, 1, 8, w->out.f) != 8)
+        w->failed = 1;
+    if (w->failed)
+        (void)ferror(w->out.f); /* commit reports the stream's error */
+    pm_result_t r = pm_atomic_commit(&w->out);
+    XXH3_freeState(w->hash);
+    free(w);
+    return r;
+}
+
+void pm_writer_abort(pm_writer_t *w)
+{
+    if (!w)
+        return;
+    pm_atomic_abort(&w->out);
+    XXH3_freeState(w->hash);
+    free(w);
+}
+
+/* ------------------------------------------------------------------ tables */
+
+/* Resizes every present column to cap rows, keeping the first `keep` rows. */
+static pm_result_t cols_resize(pm_table_t *t, uint64_t keep, uint64_t cap)
+{
+    const pm_schema_t *s = t->hdr.schema;
+    for (unsigned i = 0; i < s->nchannels; i++) {
+        if (!(t->hdr.channels & (1u << i)))
+            continue;
+        size_t cs = channel_size(&s->channels[i]), bytes = (size_t)cap * cs;
+        /* 64-byte aligned: SIMD loads and cache lines. */
+        void *p = aligned_alloc(64, ((bytes + 63) & ~(size_t)63) + 64);
+        if (!p)
+            return pm_error_set(PM_ERR_NOMEM, "out of memory for %" PRIu64 " records of %s", cap, s->title);
+        if (t->col[i] && keep)
+            memcpy(p, t->col[i], (size_t)keep * cs);
+        free(t->col[i]);
+        t->col[i] = p;
+    }
+    return PM_OK;
+}
+
+pm_result_t pm_table_alloc(pm_table_t *t, const pm_schema_t *s, uint32_t channels, uint64_t count)
+{
+    memset(t, 0, sizeof *t);
+    pm_header_init(&t->hdr, s);
+    t->hdr.channels = channels;
+    t->hdr.count = count;
+    t->hdr.record_size = pm_schema_record_size(s, channels);
+    t->count = count;
+    pm_result_t r = cols_resize(t, 0, count);
+    if (r != PM_OK) {
+        pm_table_free(t);
+        return r;
+    }
+    for (unsigned i = 0; i < s->nchannels; i++)
+        if (t->col[i])
+            memset(t->col[i], 0, (size_t)count * channel_size(&s->channels[i]));
+    return PM_OK;
+}
+
+void pm_table_free(pm_table_t *t)
+{
+    for (unsigned i = 0; i < PM_MAX_CHANNELS; i++)
+        free(t->col[i]);
+    pm_header_free(&t->hdr);
+    memset(t, 0, sizeof *t);
+}
+
+/* Moves n AoS records into the table's columns starting at row `at`. */
+static void scatter(pm_table_t *t, const unsigned char *rec, uint64_t n, uint64_t at)
+{
+    const pm_schema_t *s = t->hdr.schema;
+    size_t rs = t->hdr.record_size, off = 0;
+    for (unsigned ci = 0; ci < s->nchannels; ci++) {
+        if (!(t->hdr.channels & (1u << ci)))
+            continue;
+        size_t cs = channel_size(&s->channels[ci]);
+        unsigned char *dst = (unsigned char *)t->col[ci] + at * cs;
+        for (uint64_t i = 0; i < n; i++)
+            memcpy(dst + i * cs, rec + i * rs + off, cs);
+        off += cs;
+    }
+}
+
+/* Moves n rows starting at `at` out of the columns into AoS records. */
+static void gather(const pm_table_t *t, unsigned char *rec, uint64_t n, uint64_t at)
+{
+    const pm_schema_t *s = t->hdr.schema;
+    size_t rs = t->hdr.record_size, off = 0;
+    for (unsigned ci = 0; ci < s->nchannels; ci++) {
+        if (!(t->hdr.channels & (1u << ci)))
+            continue;
+        size_t cs = channel_size(&s->channels[ci]);
+        const unsigned char *src = (const unsigned char *)t->col[ci] + at * cs;
+        for (uint64_t i = 0; i < n; i++)
+            memcpy(rec + i * rs + off, src + i * cs, cs);
+        off += cs;
+    }
+}
+
+static pm_result_t header_copy(pm_header_t *dst, const pm_header_t *src)
+{
+    const pm_schema_t *s = dst->schema;
+    uint32_t ch = dst->channels;
+    uint64_t count = dst->count;
+    uint32_t rs = dst->record_size;
+    pm_header_free(dst);
+    pm_header_init(dst, s);
+    dst->channels = ch;
+    dst->count = count;
+    dst->record_size = rs;
+    dst->major = src->major;
+    dst->minor = src->minor;
+    memcpy(dst->bounds, src->bounds, sizeof dst->bounds);
+    pm_result_t r = pm_header_inherit(dst, src);
+    if (r == PM_OK) {
+        for (size_t i = 0; i < src->nkeys && r == PM_OK; i++)
+            r = pm_header_add(dst, src->keys[i].key, "%s", src->keys[i].value);
+    }
+    return r;
+}
+
+void pm_table_record(const pm_table_t *t, uint64_t i, void *record_out) { gather(t, record_out, 1, i); }
+
+pm_result_t pm_table_read_from(pm_reader_t *r, uint64_t begin, uint64_t end, pm_table_t *out)
+{
+    memset(out, 0, sizeof *out);
+    pm_result_t res = PM_OK;
+    const pm_header_t *h = pm_reader_header(r);
+    if (end > h->count)
+        end = h->count;
+    if (begin > end)
+        begin = end;
+    uint64_t keep = end - begin;
+    /* A regular file's size has vouched for COUNT; a pipe's COUNT has not, so its
+     * columns grow as records actually arrive instead of trusting it up front. */
+    uint64_t cap = r->file_size || keep < (1u << 16) ? keep : (1u << 16);
+    pm_header_init(&out->hdr, h->schema);
+    out->hdr.channels = h->channels;
+    out->hdr.record_size = h->record_size;
+    out->hdr.count = out->count = keep;
+    res = cols_resize(out, 0, cap);
+    if (res == PM_OK)
+        res = header_copy(&out->hdr, h);
+    uint64_t at = 0, pos = 0;
+    while (res == PM_OK && pos < end) {
+        uint64_t got;
+        res = pm_reader_read(r, r->scratch, PM_CHUNK_RECORDS, &got);
+        if (res != PM_OK || got == 0)
+            break;
+        /* The overlap of [pos, pos + got) with [begin, end). */
+        uint64_t lo = pos > begin ? pos : begin, hi = pos + got < end ? pos + got : end;
+        if (lo < hi && at + (hi - lo) > cap) {
+            uint64_t grow = 2 * cap > at + (hi - lo) ? 2 * cap : at + (hi - lo);
+            cap = grow < keep ? grow : keep;
+            res = cols_resize(out, at, cap);
+            if (res != PM_OK)
+                break;
+        }
+        if (lo < hi) {
+            scatter(out, r->scratch + (lo - pos) * h->record_size, hi - lo, at);
+            at += hi - lo;
+        }
+        pos += got;
+    }
+    if (res == PM_OK)
+        res = pm_reader_finish(r, &out->checksum);
+    if (res == PM_OK && keep == h->count && h->schema->validate_table)
+        res = h->schema->validate_table(out, r->path);
+    if (res != PM_OK)
+        pm_table_free(out);
+    return res;
+}
+
+pm_result_t pm_table_read_range(const char *path, const pm_schema_t *schema, uint32_t need, uint64_t begin,
+                                uint64_t end, pm_table_t *out)
+{
+    memset(out, 0, sizeof *out);
+    pm_reader_t *r;
+    pm_result_t res = pm_reader_open(path, schema, need, &r);
+    if (res != PM_OK)
+        return res;
+    res = pm_table_read_from(r, begin, end, out);
+    pm_reader_close(r);
+    return res;
+}
+
+pm_result_t pm_table_read(const char *path, const pm_schema_t *schema, uint32_t need, pm_table_t *out)
+{
+    return pm_table_read_range(path, schema, need, 0, UINT64_MAX, out);
+}
+
+pm_result_t pm_table_write(const pm_table_t *t, const char *path)
+{
+    if (t->hdr.count != t->count)
+        return pm_error_set(PM_ERR_INTERNAL, "table holds %" PRIu64 " records, header says %" PRIu64, t->count,
+                            t->hdr.count);
+    pm_writer_t *w;
+    pm_result_t res = pm_writer_open(path, &t->hdr, &w);
+    if (res != PM_OK)
+        return res;
+    size_t rs = t->hdr.record_size;
+    unsigned char *buf = malloc((size_t)PM_CHUNK_RECORDS * (rs ? rs : 1));
+    if (!buf) {
+        pm_writer_abort(w);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory writing '%s'", path);
+    }
+    for (uint64_t at = 0; at < t->count && res == PM_OK; at += PM_CHUNK_RECORDS) {
+        uint64_t n = t->count - at < PM_CHUNK_RECORDS ? t->count - at : PM_CHUNK_RECORDS;
+        gather(t, buf, n, at);
+        res = pm_writer_write(w, buf, n);
+    }
+    free(buf);
+    if (res != PM_OK) {
+        pm_writer_abort(w);
+        return res;
+    }
+    return pm_writer_commit(w);
+}

@@ -1,0 +1,162 @@
+/* pmfile.h: the container every pmtk file uses (docs/formats.md is the byte-level spec).
+ *
+ *   "#?PMTK\n", then KEY=VALUE lines (format, version, count, record size, channels,
+ *   scene bounds, provenance), then a blank line; a 4-byte byte-order marker; COUNT
+ *   records of RECORD_SIZE bytes, little-endian, each the present channels packed in
+ *   schema order; an 8-byte XXH3-64 of every byte before it.
+ *
+ * A format is a schema: its name, version and channel table. In memory a file is a
+ * pm_table_t holding one array per present channel (structure of arrays, so that
+ * hot and cold data live apart); absent optional channels are NULL and cost nothing. */
+#ifndef PM_PMFILE_H
+#define PM_PMFILE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "../common/error.h"
+
+#define PM_MAGIC "#?PMTK"
+#define PM_MAX_CHANNELS 16
+#define PM_HEADER_MAX (1u << 20)      /* bytes of header text a reader accepts */
+#define PM_HEADER_LINE_MAX (1u << 16) /* bytes of one header line */
+#define PM_COUNT_MAX (1ull << 40)     /* records; anything above is a corrupt count */
+
+typedef enum { PM_TYPE_U16, PM_TYPE_U32, PM_TYPE_F32, PM_TYPE_F64 } pm_type_t;
+
+/* What a reader checks of every value of a channel. */
+enum {
+    PM_CH_REQUIRED = 1u << 0, /* every file of the format has it */
+    PM_CH_FINITE = 1u << 1,   /* no NaN or Inf */
+    PM_CH_NONNEG = 1u << 2,   /* >= 0 (implies finite) */
+    PM_CH_UNIT = 1u << 3,     /* a unit vector, length within 1e-3 of 1 */
+    PM_CH_POSITIVE = 1u << 4  /* > 0 (implies finite) */
+};
+
+typedef struct {
+    const char *name;     /* "position" */
+    pm_type_t type;
+    unsigned components;  /* 3 for a vector or RGB */
+    unsigned flags;       /* PM_CH_* */
+    const char *unit;     /* "m", "W", "1" */
+    const char *doc;      /* one line for docs and pm-info */
+} pm_channel_t;
+
+typedef struct pm_table pm_table_t;
+typedef struct pm_header pm_header_t;
+
+typedef struct {
+    const char *name;        /* FORMAT value: "photons" */
+    unsigned major, minor;   /* the version this code writes and reads */
+    const char *title;       /* "photons file", used in messages */
+    const pm_channel_t *channels;
+    unsigned nchannels;
+    /* Checks the format's own header keys once the header is read (may be NULL). */
+    pm_result_t (*validate_header)(const pm_header_t *h, const char *path);
+    /* Checks relations across records once all are read (may be NULL). */
+    pm_result_t (*validate_table)(const pm_table_t *t, const char *path);
+} pm_schema_t;
+
+typedef struct {
+    char *key;
+    char *value;
+} pm_kv_t;
+
+struct pm_header {
+    const pm_schema_t *schema;
+    unsigned major, minor;   /* as read; a writer always writes the schema's */
+    uint64_t count;          /* records */
+    uint32_t channels;       /* bit i set: channel i of the schema is present */
+    uint32_t record_size;    /* bytes */
+    float bounds[6];         /* scene bounds: min x y z, max x y z, in scene units (m) */
+    char **commands;         /* COMMAND lines, oldest first: the pipeline that made the file */
+    size_t ncommands;
+    pm_kv_t *keys;           /* every other key, in file order (INPUT, SCENE, format keys) */
+    size_t nkeys;
+};
+
+struct pm_table {
+    pm_header_t hdr;
+    uint64_t count;                 /* records held (== hdr.count) */
+    void *col[PM_MAX_CHANNELS];     /* channel i: count * components values of its type */
+    uint64_t checksum;              /* XXH3-64 of the file as read (its content hash) */
+};
+
+/* ---- schemas ---- */
+size_t pm_type_size(pm_type_t t);
+/* Record size in bytes of the channels in mask. */
+uint32_t pm_schema_record_size(const pm_schema_t *s, uint32_t mask);
+/* Mask of the schema's required channels. */
+uint32_t pm_schema_required(const pm_schema_t *s);
+/* The channel index of name, or -1. */
+int pm_schema_channel(const pm_schema_t *s, const char *name);
+/* The schema whose FORMAT is name, from every format pmtk knows; NULL if none. */
+const pm_schema_t *pm_schema_find(const char *name);
+/* Every known schema, NULL-terminated. */
+const pm_schema_t *const *pm_schema_all(void);
+
+/* ---- headers ---- */
+void pm_header_init(pm_header_t *h, const pm_schema_t *s);
+void pm_header_free(pm_header_t *h);
+/* Sets key (replacing its first occurrence) or, with add, appends another. */
+pm_result_t pm_header_set(pm_header_t *h, const char *key, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+pm_result_t pm_header_add(pm_header_t *h, const char *key, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+/* The value of the first occurrence of key, or NULL. */
+const char *pm_header_get(const pm_header_t *h, const char *key);
+/* Typed getters: fail with a message naming path and key when missing or malformed. */
+pm_result_t pm_header_get_u64(const pm_header_t *h, const char *path, const char *key, uint64_t *out);
+pm_result_t pm_header_get_double(const pm_header_t *h, const char *path, const char *key, double *out);
+/* Appends a COMMAND line made of argv, shell-quoted where needed. */
+pm_result_t pm_header_add_command(pm_header_t *h, int argc, char *const *argv);
+/* Appends src's COMMAND lines not already present, and src's SCENE when h has none. */
+pm_result_t pm_header_inherit(pm_header_t *h, const pm_header_t *src);
+/* Appends INPUT=<path> xxh3:<hash>. */
+pm_result_t pm_header_add_input(pm_header_t *h, const char *path, uint64_t hash);
+/* Copies every key of src that h lacks (the pass-on rule for same-format stages). */
+pm_result_t pm_header_copy_keys(pm_header_t *h, const pm_header_t *src);
+/* The header text as a writer writes it (malloc'd, NUL-terminated). */
+pm_result_t pm_header_format(const pm_header_t *h, char **text_out, size_t *len_out);
+
+/* ---- streaming reader ---- */
+typedef struct pm_reader pm_reader_t;
+/* Opens path ("-" is stdin) and reads and checks the header and byte-order marker.
+ * schema NULL accepts any known format. need: channels the caller requires. */
+pm_result_t pm_reader_open(const char *path, const pm_schema_t *schema, uint32_t need, pm_reader_t **out);
+const pm_header_t *pm_reader_header(const pm_reader_t *r);
+/* The header text exactly as read, magic line to blank line. */
+const char *pm_reader_header_text(const pm_reader_t *r);
+/* Reads up to max raw records (RECORD_SIZE bytes each) and checks every value;
+ * *got_out < max only at the end of the payload. */
+pm_result_t pm_reader_read(pm_reader_t *r, void *records, uint64_t max, uint64_t *got_out);
+/* After the last record: reads the checksum, compares it, and checks that nothing follows. */
+pm_result_t pm_reader_finish(pm_reader_t *r, uint64_t *checksum_out);
+void pm_reader_close(pm_reader_t *r);
+
+/* ---- streaming writer ---- */
+typedef struct pm_writer pm_writer_t;
+/* Creates path ("-" is stdout) through a temporary file and writes the header. */
+pm_result_t pm_writer_open(const char *path, const pm_header_t *h, pm_writer_t **out);
+pm_result_t pm_writer_write(pm_writer_t *w, const void *records, uint64_t n);
+/* Checks that COUNT records were written, writes the checksum, renames into place. */
+pm_result_t pm_writer_commit(pm_writer_t *w);
+/* Removes the temporary file; safe after commit (then it only frees). */
+void pm_writer_abort(pm_writer_t *w);
+
+/* ---- whole tables ---- */
+/* Allocates a table of count records with the given channels, zeroed. */
+pm_result_t pm_table_alloc(pm_table_t *t, const pm_schema_t *s, uint32_t channels, uint64_t count);
+/* Reads a whole file. need: channels the caller requires (a clear error names the first missing). */
+pm_result_t pm_table_read(const char *path, const pm_schema_t *schema, uint32_t need, pm_table_t *out);
+/* Reads records [begin, end) (end clipped to COUNT) but checks the whole file. */
+pm_result_t pm_table_read_range(const char *path, const pm_schema_t *schema, uint32_t need, uint64_t begin,
+                                uint64_t end, pm_table_t *out);
+/* The same from an open reader whose records have not been read yet. */
+pm_result_t pm_table_read_from(pm_reader_t *r, uint64_t begin, uint64_t end, pm_table_t *out);
+/* Record i as RECORD_SIZE bytes in file layout. */
+void pm_table_record(const pm_table_t *t, uint64_t i, void *record_out);
+pm_result_t pm_table_write(const pm_table_t *t, const char *path);
+void pm_table_free(pm_table_t *t);
+
+#endif

@@ -1,0 +1,136 @@
+/* queries.c: the gather-points format, written by trace-gather-points, reordered by
+ * hilbert-sort and read by simd-gather. Header keys width and height give the image,
+ * materials and material.K the reflectance table the material channel indexes. */
+#include <inttypes.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+#include "formats.h"
+
+static const pm_channel_t query_channels[] = {
+    {"position", PM_TYPE_F32, 3, PM_CH_REQUIRED | PM_CH_FINITE, "m", "where the radiance estimate is made"},
+    {"normal", PM_TYPE_F32, 3, PM_CH_REQUIRED | PM_CH_UNIT, "1", "unit surface normal at the query"},
+    {"weight", PM_TYPE_F32, 3, PM_CH_REQUIRED | PM_CH_NONNEG, "1",
+     "RGB path weight from the query's radiance to its pixel"},
+    {"pixel", PM_TYPE_U32, 1, PM_CH_REQUIRED, "1", "pixel index y * width + x"},
+    {"material", PM_TYPE_U16, 1, 0, "1", "index into the material table (scenes with several materials)"},
+    {"direction", PM_TYPE_F32, 3, PM_CH_UNIT, "1", "unit outgoing direction at the query (glossy scenes)"},
+};
+
+#define PM_IMAGE_SIDE_MAX 65536u /* pixels per side */
+
+pm_result_t pm_header_get_image_size(const pm_header_t *h, const char *path, uint32_t *w_out, uint32_t *h_out)
+{
+    uint64_t w, ht;
+    pm_result_t r = pm_header_get_u64(h, path, "width", &w);
+    if (r == PM_OK)
+        r = pm_header_get_u64(h, path, "height", &ht);
+    if (r != PM_OK)
+        return r;
+    if (w < 1 || ht < 1 || w > PM_IMAGE_SIDE_MAX || ht > PM_IMAGE_SIDE_MAX)
+        return pm_error_set(PM_ERR_INPUT, "%s '%s': image size %" PRIu64 "x%" PRIu64 " outside 1..%u per side",
+                            h->schema->title, path, w, ht, PM_IMAGE_SIDE_MAX);
+    *w_out = (uint32_t)w;
+    *h_out = (uint32_t)ht;
+    return PM_OK;
+}
+
+pm_result_t pm_queries_set_materials(pm_header_t *h, const pm_material_t *m, size_t n)
+{
+    pm_result_t r = pm_header_set(h, "materials", "%zu", n);
+    for (size_t i = 0; i < n && r == PM_OK; i++) {
+        char key[32];
+        snprintf(key, sizeof key, "material.%zu", i);
+        r = pm_header_set(h, key, "%s kd %.9g %.9g %.9g ks %.9g %.9g %.9g ns %.9g", m[i].name[0] ? m[i].name : "-",
+                          m[i].kd[0], m[i].kd[1], m[i].kd[2], m[i].ks[0], m[i].ks[1], m[i].ks[2], m[i].ns);
+    }
+    return r;
+}
+
+pm_result_t pm_queries_get_materials(const pm_header_t *h, const char *path, pm_material_t **m_out, size_t *n_out)
+{
+    uint64_t n;
+    pm_result_t r = pm_header_get_u64(h, path, "materials", &n);
+    if (r != PM_OK)
+        return r;
+    if (n < 1 || n > 65536)
+        return pm_error_set(PM_ERR_INPUT, "queries '%s': materials=%" PRIu64 " outside 1..65536", path, n);
+    pm_material_t *m = calloc(n, sizeof *m);
+    if (!m)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for %" PRIu64 " materials", n);
+    for (uint64_t i = 0; i < n; i++) {
+        char key[32];
+        snprintf(key, sizeof key, "material.%" PRIu64, i);
+        const char *v = pm_header_get(h, key);
+        int used = 0;
+        if (!v || sscanf(v, "%63s kd %f %f %f ks %f %f %f ns %f%n", m[i].name, &m[i].kd[0], &m[i].kd[1], &m[i].kd[2],
+                         &m[i].ks[0], &m[i].ks[1], &m[i].ks[2], &m[i].ns, &used) != 8 || v[used] != '\0') {
+            free(m);
+            return pm_error_set(PM_ERR_INPUT, "queries '%s': header key %s is %s", path, key,
+                                v ? "not 'NAME kd R G B ks R G B ns E'" : "missing");
+        }
+        for (int k = 0; k < 3; k++)
+            if (!(m[i].kd[k] >= 0.0f && m[i].ks[k] >= 0.0f && m[i].kd[k] + m[i].ks[k] <= 1.0f + 1e-6f) ||
+                !(m[i].ns >= 0.0f && m[i].ns < 1e6f)) {
+                free(m);
+                return pm_error_set(PM_ERR_INPUT, "queries '%s': %s is not an energy-conserving material", path, key);
+            }
+    }
+    *m_out = m;
+    *n_out = (size_t)n;
+    return PM_OK;
+}
+
+static pm_result_t validate_header(const pm_header_t *h, const char *path)
+{
+    uint32_t w, ht;
+    pm_result_t r = pm_header_get_image_size(h, path, &w, &ht);
+    if (r != PM_OK)
+        return r;
+    pm_material_t *m;
+    size_t n;
+    if ((r = pm_queries_get_materials(h, path, &m, &n)) != PM_OK)
+        return r;
+    free(m);
+    if (n > 1 && !(h->channels & (1u << PM_QUERY_MATERIAL)))
+        return pm_error_set(PM_ERR_INPUT, "queries '%s': %zu materials but no material channel", path, n);
+    return PM_OK;
+}
+
+static pm_result_t validate_records(const pm_table_t *t, const char *path)
+{
+    uint32_t w, ht;
+    size_t nmat = 1;
+    pm_result_t r = pm_header_get_image_size(&t->hdr, path, &w, &ht);
+    if (r != PM_OK)
+        return r;
+    uint64_t npix = (uint64_t)w * ht;
+    const uint32_t *pix = t->col[PM_QUERY_PIXEL];
+    for (uint64_t i = 0; i < t->count; i++)
+        if (pix[i] >= npix)
+            return pm_error_set(PM_ERR_INPUT, "bad value in queries '%s': record %" PRIu64 " pixel %" PRIu32
+                                " outside the %" PRIu32 "x%" PRIu32 " image", path, i, pix[i], w, ht);
+    const uint16_t *mat = t->col[PM_QUERY_MATERIAL];
+    if (mat) {
+        uint64_t n;
+        if ((r = pm_header_get_u64(&t->hdr, path, "materials", &n)) != PM_OK)
+            return r;
+        nmat = (size_t)n;
+        for (uint64_t i = 0; i < t->count; i++)
+            if (mat[i] >= nmat)
+                return pm_error_set(PM_ERR_INPUT, "bad value in queries '%s': record %" PRIu64 " material %u of %zu",
+                                    path, i, mat[i], nmat);
+    }
+    return PM_OK;
+}
+
+const pm_schema_t pm_queries_schema = {
+    .name = "queries",
+    .major = 1,
+    .minor = 0,
+    .title = "queries",
+    .channels = query_channels,
+    .nchannels = sizeof query_channels / sizeof query_channels[0],
+    .validate_header = validate_header,
+    .validate_table = validate_records,
+};

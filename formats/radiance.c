@@ -1,0 +1,36 @@
+/* radiance.c: per-pixel radiance buffers, written by trace-gather-points (direct light)
+ * and simd-gather (indirect), added by composite. Records are pixels in row order from
+ * the top-left; header keys width, height and component (direct, indirect or total). */
+#include <inttypes.h>
+
+#include "formats.h"
+
+static const pm_channel_t radiance_channels[] = {
+    {"rgb", PM_TYPE_F64, 3, PM_CH_REQUIRED | PM_CH_FINITE, "W/(m^2 sr)", "RGB radiance toward the camera"},
+};
+
+static pm_result_t validate_header(const pm_header_t *h, const char *path)
+{
+    uint32_t w, ht;
+    pm_result_t r = pm_header_get_image_size(h, path, &w, &ht);
+    if (r != PM_OK)
+        return r;
+    if (h->count != (uint64_t)w * ht)
+        return pm_error_set(PM_ERR_INPUT, "wrong count in radiance buffer '%s': COUNT=%" PRIu64 " for a %" PRIu32
+                            "x%" PRIu32 " image", path, h->count, w, ht);
+    const char *c = pm_header_get(h, "component");
+    if (!c || (strcmp(c, "direct") && strcmp(c, "indirect") && strcmp(c, "total")))
+        return pm_error_set(PM_ERR_INPUT, "radiance buffer '%s': component '%s' is not direct, indirect or total",
+                            path, c ? c : "(missing)");
+    return PM_OK;
+}
+
+const pm_schema_t pm_radiance_schema = {
+    .name = "radiance",
+    .major = 1,
+    .minor = 0,
+    .title = "radiance buffer",
+    .channels = radiance_channels,
+    .nchannels = sizeof radiance_channels / sizeof radiance_channels[0],
+    .validate_header = validate_header,
+};

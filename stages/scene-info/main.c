@@ -1,0 +1,150 @@
+/* scene-info: loads a scene file, builds its Embree BVH and prints what it holds:
+ * triangles, materials, lights and their power, bounds, camera, and which optional
+ * channels and stages the scene needs. With --probe it casts one primary ray per pixel
+ * as a check that the camera sees the geometry. The first stage of every pipeline in
+ * spirit: if scene-info is happy, the stages can load the scene. */
+#include <inttypes.h>
+#include <math.h>
+#include <stdio.h>
+
+#include "../../common/rt.h"
+#include "../../common/stage.h"
+
+typedef struct {
+    int probe;
+} scene_info_options_t;
+
+/* Primary ray direction through pixel (x, y)'s centre of a pinhole camera. */
+static void camera_ray(const pm_camera_t *c, uint32_t x, uint32_t y, float dir_out[3])
+{
+    float f[3], r[3], u[3], len;
+    for (int k = 0; k < 3; k++)
+        f[k] = c->look_at[k] - c->eye[k];
+    len = sqrtf(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
+    for (int k = 0; k < 3; k++)
+        f[k] /= len;
+    r[0] = f[1] * c->up[2] - f[2] * c->up[1];
+    r[1] = f[2] * c->up[0] - f[0] * c->up[2];
+    r[2] = f[0] * c->up[1] - f[1] * c->up[0];
+    len = sqrtf(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+    for (int k = 0; k < 3; k++)
+        r[k] /= len;
+    u[0] = r[1] * f[2] - r[2] * f[1];
+    u[1] = r[2] * f[0] - r[0] * f[2];
+    u[2] = r[0] * f[1] - r[1] * f[0];
+    float t = tanf(0.5f * c->fov_y * (float)M_PI / 180.0f), aspect = (float)c->width / (float)c->height;
+    float sx = (2.0f * ((float)x + 0.5f) / (float)c->width - 1.0f) * t * aspect;
+    float sy = (1.0f - 2.0f * ((float)y + 0.5f) / (float)c->height) * t;
+    for (int k = 0; k < 3; k++)
+        dir_out[k] = f[k] + sx * r[k] + sy * u[k];
+}
+
+static pm_result_t probe(const pm_scene_t *s, const pm_rt_t *rt, pm_stage_t *st)
+{
+    const pm_camera_t *c = &s->camera;
+    uint64_t n = (uint64_t)c->width * c->height, hits = 0;
+    pm_progress_t prog;
+    pm_progress_begin(&prog, "probe", n, pm_stage_progress(st));
+    double t0 = pm_time_wall();
+#pragma omp parallel for schedule(dynamic, 1) reduction(+ : hits)
+    for (uint32_t y = 0; y < c->height; y++) {
+        struct RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        for (uint32_t x = 0; x < c->width; x++) {
+            struct RTCRayHit rh;
+            float d[3];
+            camera_ray(c, x, y, d);
+            rh.ray.org_x = c->eye[0], rh.ray.org_y = c->eye[1], rh.ray.org_z = c->eye[2];
+            rh.ray.dir_x = d[0], rh.ray.dir_y = d[1], rh.ray.dir_z = d[2];
+            rh.ray.tnear = 0.0f, rh.ray.tfar = INFINITY, rh.ray.time = 0.0f;
+            rh.ray.mask = 0xffffffffu, rh.ray.id = 0, rh.ray.flags = 0;
+            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            rtcIntersect1(rt->scene, &ctx, &rh);
+            hits += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+        }
+        pm_progress_add(&prog, c->width);
+    }
+    double dt = pm_time_wall() - t0;
+    pm_progress_end(&prog);
+    printf("probe: %" PRIu64 " primary rays, %.1f%% hit geometry, %.2f Mrays/s\n", n, 100.0 * (double)hits / (double)n,
+           dt > 0 ? 1e-6 * (double)n / dt : 0.0);
+    pm_stage_stat_int(st, "probe_rays", (int64_t)n);
+    pm_stage_stat_int(st, "probe_hits", (int64_t)hits);
+    pm_stage_stat_double(st, "probe_rays_per_s", dt > 0 ? (double)n / dt : 0.0);
+    st->items = n;
+    return PM_OK;
+}
+
+int main(int argc, char **argv)
+{
+    pm_stage_t st;
+    pm_stage_defaults(&st);
+    scene_info_options_t o = {0};
+    const pm_option_t options[] = {
+        PM_STAGE_COMMON_OPTIONS(st),
+        {"probe", 0, PM_OPT_FLAG, &o.probe, NULL, "cast one primary ray per pixel and report the hit rate", 1, 0,
+         NULL},
+        {0},
+    };
+    const pm_cli_t cli = {"scene-info", "[options] SCENE",
+                          "Load a scene file, build its ray-tracing structure and summarize it.", options, 1, 1};
+    int rc = pm_stage_begin(&st, &cli, argc, argv);
+    if (rc >= 0)
+        return rc;
+    pm_scene_t s;
+    pm_rt_t rt;
+    double t0 = pm_time_wall();
+    pm_result_t r = pm_scene_load(st.args.args[0], &s);
+    if (r != PM_OK)
+        return pm_stage_end(&st, r);
+    double t_load = pm_time_wall() - t0;
+    t0 = pm_time_wall();
+    r = pm_rt_create(&s, 0, &rt);
+    double t_bvh = pm_time_wall() - t0;
+    if (r == PM_OK) {
+        double p[3];
+        pm_scene_power(&s, p);
+        char id[200];
+        pm_scene_id(&s, id, sizeof id);
+        printf("scene: %s\n", id);
+        printf("file: %s\n", s.path);
+        printf("triangles: %zu (%zu degenerate left out)\n", s.ntris, s.ndropped);
+        printf("vertices: %zu\n", s.nverts);
+        printf("materials: %zu%s\n", s.nmaterials, s.any_glossy ? " (some glossy)" : " (all Lambertian)");
+        for (size_t i = 0; i < s.nmaterials; i++) {
+            const pm_material_t *m = &s.materials[i];
+            printf("  %zu %s kd %.4g %.4g %.4g ks %.4g %.4g %.4g ns %.4g ke %.4g %.4g %.4g\n", i, m->name, m->kd[0],
+                   m->kd[1], m->kd[2], m->ks[0], m->ks[1], m->ks[2], m->ns, m->ke[0], m->ke[1], m->ke[2]);
+        }
+        printf("point lights: %zu\n", s.nlights);
+        printf("emissive triangles: %zu\n", s.nemissive);
+        printf("emitted power: %.6g %.6g %.6g W\n", p[0], p[1], p[2]);
+        printf("bounds: %.9g %.9g %.9g  %.9g %.9g %.9g m\n", s.bounds[0], s.bounds[1], s.bounds[2], s.bounds[3],
+               s.bounds[4], s.bounds[5]);
+        printf("camera: eye %.6g %.6g %.6g look_at %.6g %.6g %.6g fov_y %.6g deg %ux%u\n", s.camera.eye[0],
+               s.camera.eye[1], s.camera.eye[2], s.camera.look_at[0], s.camera.look_at[1], s.camera.look_at[2],
+               s.camera.fov_y, s.camera.width, s.camera.height);
+        printf("needs: direction channels %s, material ids %s, area-light sampling %s\n",
+               s.any_glossy ? "yes" : "no", s.nmaterials > 1 ? "yes" : "no", s.nemissive ? "yes" : "no");
+        printf("ray epsilon: %.3g m\n", rt.epsilon);
+        printf("time: load %.3f s, bvh %.3f s\n", t_load, t_bvh);
+        if (s.nlights == 0 && s.nemissive == 0)
+            pm_stage_note(&st, "warning: scene '%s' has no lights; every image of it is black", s.path);
+        pm_stage_stat_int(&st, "triangles", (int64_t)s.ntris);
+        pm_stage_stat_int(&st, "degenerate_triangles", (int64_t)s.ndropped);
+        pm_stage_stat_int(&st, "materials", (int64_t)s.nmaterials);
+        pm_stage_stat_int(&st, "point_lights", (int64_t)s.nlights);
+        pm_stage_stat_int(&st, "emissive_triangles", (int64_t)s.nemissive);
+        pm_stage_stat_double(&st, "power_w", p[0] + p[1] + p[2]);
+        pm_stage_stat_double(&st, "load_s", t_load);
+        pm_stage_stat_double(&st, "bvh_s", t_bvh);
+        st.items = s.ntris;
+        if (o.probe)
+            r = probe(&s, &rt, &st);
+        pm_rt_destroy(&rt);
+    }
+    pm_scene_free(&s);
+    if (r == PM_OK && (fflush(stdout) != 0 || ferror(stdout)))
+        r = pm_error_set(PM_ERR_IO, "cannot write to stdout");
+    return pm_stage_end(&st, r);
+}

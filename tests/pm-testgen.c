@@ -1,0 +1,182 @@
+/* pm-testgen: writes small, deterministic, valid files of every pmtk format for the
+ * format tests, and, with --poison, files whose checksum is right but whose content
+ * is not (a NaN, an Inf, a broken tree, a pixel outside the image), which only the
+ * readers' value checks can catch.
+ *
+ *   pm-testgen FORMAT N OUT [--all] [--poison nan|inf|negative|tree|pixel|unit]
+ *
+ * The photon map it writes has a valid tree shape but is not a KD-tree of its
+ * photons' positions: the format checks shape, build-photonmap's tests check order. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <xxhash.h>
+
+#include "../common/rng.h"
+#include "../formats/formats.h"
+
+static void unit_vector(pm_rng_t *r, float *v)
+{
+    float x = 2.0f * pm_rng_float(r) - 1.0f, y = 2.0f * pm_rng_float(r) - 1.0f, z = 2.0f * pm_rng_float(r) - 1.0f;
+    float len = sqrtf(x * x + y * y + z * z);
+    if (len < 1e-3f)
+        x = 1.0f, y = z = 0.0f, len = 1.0f;
+    v[0] = x / len, v[1] = y / len, v[2] = z / len;
+}
+
+/* Node `lo` heads the subtree of indices [lo, hi): left [lo+1, mid), right [mid, hi). */
+static void index_tree(pm_kdnode_t *node, const float *pos, uint32_t lo, uint32_t hi, unsigned depth)
+{
+    uint32_t n = hi - lo;
+    if (n == 1) {
+        node[lo] = pm_kdnode_make(pos[3 * (size_t)lo], PM_KD_LEAF, PM_KD_NONE);
+        return;
+    }
+    uint32_t mid = lo + 1 + (n - 1) / 2; /* left gets (n-1)/2 nodes, may be 0 */
+    unsigned axis = depth % 3;
+    uint32_t child = mid < hi ? mid : PM_KD_NONE;
+    node[lo] = pm_kdnode_make(pos[3 * (size_t)lo + axis], axis, child);
+    if (mid > lo + 1)
+        index_tree(node, pos, lo + 1, mid, depth + 1);
+    if (mid < hi)
+        index_tree(node, pos, mid, hi, depth + 1);
+}
+
+static void fill_f32(pm_rng_t *r, float *p, uint64_t n, float lo, float hi)
+{
+    for (uint64_t i = 0; i < n; i++)
+        p[i] = lo + (hi - lo) * pm_rng_float(r);
+}
+
+static int make(const char *format, uint64_t n, int all, pm_table_t *t)
+{
+    pm_rng_t r;
+    pm_rng_init(&r, 7, 0);
+    const pm_schema_t *s = pm_schema_find(format);
+    if (!s)
+        return fprintf(stderr, "pm-testgen: unknown format '%s'\n", format), 1;
+    uint32_t mask = all ? (1u << s->nchannels) - 1 : pm_schema_required(s);
+    if (s == &pm_radiance_schema)
+        n = 4 * 3; /* a 4x3 image */
+    if (pm_table_alloc(t, s, mask, n) != PM_OK)
+        return fprintf(stderr, "pm-testgen: %s\n", pm_error_message()), 1;
+    float b[6] = {-1, -2, -3, 4, 5, 6};
+    memcpy(t->hdr.bounds, b, sizeof b);
+    char *argv[] = {"pm-testgen", (char *)format, all ? "--all" : "--required"};
+    pm_header_add_command(&t->hdr, 3, argv);
+    pm_header_set(&t->hdr, "SCENE", "test xxh3:0123456789abcdef");
+    for (unsigned ci = 0; ci < s->nchannels; ci++) {
+        void *col = t->col[ci];
+        const pm_channel_t *c = &s->channels[ci];
+        if (!col)
+            continue;
+        if (c->flags & PM_CH_UNIT) {
+            for (uint64_t i = 0; i < n; i++)
+                unit_vector(&r, (float *)col + 3 * i);
+        } else if (c->type == PM_TYPE_F32) {
+            fill_f32(&r, col, n * c->components, (c->flags & PM_CH_FINITE) ? -1.0f : 0.01f, 1.0f);
+        } else if (c->type == PM_TYPE_F64) {
+            for (uint64_t i = 0; i < n * c->components; i++)
+                ((double *)col)[i] = pm_rng_double(&r);
+        }
+    }
+    if (s == &pm_photons_schema) {
+        for (uint64_t i = 0; i < n; i++)
+            ((uint32_t *)t->col[PM_PHOTON_DEPTH])[i] = (uint32_t)(i % 4);
+        pm_header_set(&t->hdr, "emitted", "%llu", (unsigned long long)(2 * n));
+    } else if (s == &pm_photonmap_schema) {
+        if (n)
+            index_tree(t->col[PM_MAP_NODE], t->col[PM_MAP_POSITION], 0, (uint32_t)n, 0);
+    } else if (s == &pm_queries_schema) {
+        pm_header_set(&t->hdr, "width", "8");
+        pm_header_set(&t->hdr, "height", "4");
+        pm_material_t m[2] = {{.name = "white", .kd = {0.7f, 0.7f, 0.7f}},
+                              {.name = "gloss", .kd = {0.2f, 0.3f, 0.4f}, .ks = {0.5f, 0.5f, 0.5f}, .ns = 20}};
+        pm_queries_set_materials(&t->hdr, m, all ? 2 : 1);
+        for (uint64_t i = 0; i < n; i++) {
+            ((uint32_t *)t->col[PM_QUERY_PIXEL])[i] = (uint32_t)(i % 32);
+            if (all)
+                ((uint16_t *)t->col[PM_QUERY_MATERIAL])[i] = (uint16_t)(i % 2);
+        }
+    } else if (s == &pm_radiance_schema) {
+        pm_header_set(&t->hdr, "width", "4");
+        pm_header_set(&t->hdr, "height", "3");
+        pm_header_set(&t->hdr, "component", "indirect");
+    }
+    return 0;
+}
+
+/* Patches `len` bytes at record 0, byte `off` of the payload, and re-seals the checksum. */
+static int poison(const char *path, size_t off, const void *bytes, size_t len)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return 1;
+    fseek(f, 0, SEEK_END);
+    long size = ftell(f);
+    rewind(f);
+    unsigned char *d = malloc((size_t)size);
+    if (!d || fread(d, 1, (size_t)size, f) != (size_t)size)
+        return fclose(f), free(d), 1;
+    fclose(f);
+    unsigned char *end = (unsigned char *)strstr((char *)d, "\n\n");
+    size_t payload = (size_t)(end - d) + 2 + 4;
+    memcpy(d + payload + off, bytes, len);
+    uint64_t h = XXH3_64bits(d, (size_t)size - 8);
+    memcpy(d + size - 8, &h, 8);
+    f = fopen(path, "wb");
+    int bad = !f || fwrite(d, 1, (size_t)size, f) != (size_t)size;
+    if (f)
+        bad |= fclose(f) != 0;
+    free(d);
+    return bad;
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 4) {
+        fprintf(stderr, "usage: pm-testgen FORMAT N OUT [--all] [--poison nan|inf|negative|unit|tree|pixel]\n");
+        return 2;
+    }
+    int all = 0;
+    const char *what = NULL;
+    for (int i = 4; i < argc; i++) {
+        if (!strcmp(argv[i], "--all"))
+            all = 1;
+        else if (!strcmp(argv[i], "--poison") && i + 1 < argc)
+            what = argv[++i];
+        else
+            return fprintf(stderr, "pm-testgen: bad argument '%s'\n", argv[i]), 2;
+    }
+    pm_table_t t;
+    if (make(argv[1], strtoull(argv[2], NULL, 10), all, &t))
+        return 1;
+    if (pm_table_write(&t, argv[3]) != PM_OK)
+        return fprintf(stderr, "pm-testgen: %s\n", pm_error_message()), 1;
+    const pm_schema_t *s = t.hdr.schema;
+    pm_table_free(&t);
+    if (!what)
+        return 0;
+    float nan = NAN, inf = INFINITY, neg = -1.0f, two = 2.0f;
+    uint32_t big = 1000000;
+    /* Offsets within record 0: position (or the first channel) starts at 0 except in a
+     * photon map, where the 8-byte node comes first. */
+    size_t first_float = s == &pm_photonmap_schema ? 8 : 0;
+    int bad;
+    if (!strcmp(what, "nan"))
+        bad = poison(argv[3], first_float, &nan, 4);
+    else if (!strcmp(what, "inf"))
+        bad = poison(argv[3], first_float + 4, &inf, 4);
+    else if (!strcmp(what, "negative") && s == &pm_photons_schema)
+        bad = poison(argv[3], 12, &neg, 4); /* power.r */
+    else if (!strcmp(what, "unit") && s == &pm_photons_schema)
+        bad = poison(argv[3], 24, &two, 4); /* normal.x */
+    else if (!strcmp(what, "tree") && s == &pm_photonmap_schema)
+        bad = poison(argv[3], 4, &big, 4); /* root's right child */
+    else if (!strcmp(what, "pixel") && s == &pm_queries_schema)
+        bad = poison(argv[3], 36, &big, 4);
+    else
+        return fprintf(stderr, "pm-testgen: cannot poison %s with '%s'\n", s->name, what), 2;
+    return bad ? (fprintf(stderr, "pm-testgen: cannot patch '%s'\n", argv[3]), 1) : 0;
+}

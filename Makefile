@@ -56,7 +56,7 @@ PROGS := $(STAGES:%=$(BIN)/%)
 
 UNIT_SRC := $(wildcard tests/unit/*.c)
 UNIT_OBJ := $(UNIT_SRC:%.c=$(BUILD)/%.o)
-UNIT := $(BUILD)/tests/unit
+UNIT := $(BUILD)/tests/unit-tests
 TESTGEN := $(BUILD)/tests/pm-testgen
 ATRIUM_GEN := $(BUILD)/scenes/make-atrium
 ATRIUM_OBJ := scenes/atrium/atrium.obj

@@ -22,7 +22,9 @@
  *     turned balusters, rail) between the columns, and a roof slab over the
  *     galleries at 14.5-15.0 m.  The outer walls also end at 15 m.
  *   - The court has no roof.  An emissive "sky" quad facing down covers the
- *     opening 0.1 m above the roof.
+ *     opening 0.1 m above the roof; a coping 0.3 m wide and 0.1 m high
+ *     round the opening closes the gap between roof and sky, so the model
+ *     is a closed enclosure and every ray ends on some surface.
  *   - Red drapes hang behind every other arch of the ground storey on the
  *     two long sides.
  *
@@ -66,13 +68,14 @@ static const double COURT_HZ = 6.5;    /* half width of the court (z)       */
 static const double GALLERY = 3.0;     /* column line to outer wall inside  */
 static const double OUTER_T = 0.5;     /* outer wall thickness              */
 static const double SKY_GAP = 0.1;     /* sky quad height above the roof    */
+static const double COPING_W = 0.3;    /* width of the coping round the sky */
 
 /* Tessellation. */
 enum {
     ARCH_SEGS = 64,            /* segments of one semicircular arch        */
     SHAFT_SEGS = 32,           /* segments around a column shaft           */
     BALUSTER_SEGS = 10,        /* segments around a baluster               */
-    DRAPE_COLS = 40,           /* drape grid, across                       */
+    DRAPE_COLS = 30,           /* drape grid, across                       */
     DRAPE_ROWS = 4             /* drape grid, down                         */
 };
 
@@ -480,11 +483,10 @@ static void emit_balustrade_bay(const frame *f, double c0, double c1, const stor
     double hb = y_rail - (y0 + PLINTH_H);
     const double profile[][2] = {
         {0.0, 0.045},
-        {0.10 * hb, 0.060},
-        {0.32 * hb, 0.075},
-        {0.57 * hb, 0.045},
-        {0.75 * hb, 0.030},
-        {0.88 * hb, 0.042},
+        {0.10 * hb, 0.062},
+        {0.33 * hb, 0.075},
+        {0.65 * hb, 0.032},
+        {0.86 * hb, 0.042},
         {hb, 0.042},
     };
 
@@ -685,11 +687,22 @@ static void build_atrium(void)
                        GROUND.y_top);
     }
 
-    /* Sky: covers the court opening just above the roof, facing down. */
+    /*
+     * Sky: covers the court opening SKY_GAP above the roof, facing down.  A
+     * low coping around the opening rises from the roof to the sky quad and
+     * closes the slit between them, so no ray can leave the model.
+     */
     {
         double hx = COURT_HX - UPPER.wall_half - UPPER.cornice;
         double hz = COURT_HZ - UPPER.wall_half - UPPER.cornice;
         double y = top + SKY_GAP;
+        double c = COPING_W;
+
+        set_group(G_ROOF);
+        emit_box(v3(-hx - c, top, -hz - c), v3(hx + c, y, -hz), F_NO_BOTTOM);
+        emit_box(v3(-hx - c, top, hz), v3(hx + c, y, hz + c), F_NO_BOTTOM);
+        emit_box(v3(-hx - c, top, -hz), v3(-hx, y, hz), F_NX | F_PX | F_PY);
+        emit_box(v3(hx, top, -hz), v3(hx + c, y, hz), F_NX | F_PX | F_PY);
         set_group(G_SKY);
         emit_box(v3(-hx, y, -hz), v3(hx, y, hz), F_NY);
     }

@@ -1,0 +1,40 @@
+# lib.sh: helpers for the stage tests (sourced by tests/stage/*.sh).
+# Each check prints "ok NAME" or "FAIL NAME: why" and counts into PASS/FAIL.
+PASS=${PASS:-0}
+FAIL=${FAIL:-0}
+TMP=${TMP:-$(mktemp -d /tmp/pmtk-stage-XXXXXX)}
+
+pass() { PASS=$((PASS + 1)); echo "ok $1"; }
+fail() { FAIL=$((FAIL + 1)); echo "FAIL $1: $2"; }
+
+# expect_exit NAME CODE CMD...: CMD exits with CODE.
+expect_exit() {
+    local name=$1 code=$2
+    shift 2
+    "$@" >"$TMP/out" 2>"$TMP/err"
+    local got=$?
+    if [ "$got" = "$code" ]; then pass "$name"; else fail "$name" "exit $got, expected $code: $(head -c 300 "$TMP/err")"; fi
+}
+
+# expect_error NAME PATTERN CMD...: CMD exits 1 with exactly one stderr line matching PATTERN.
+expect_error() {
+    local name=$1 pattern=$2
+    shift 2
+    "$@" >"$TMP/out" 2>"$TMP/err"
+    local got=$? lines
+    lines=$(wc -l <"$TMP/err")
+    if [ "$got" != 1 ]; then
+        fail "$name" "exit $got, expected 1: $(head -c 300 "$TMP/err")"
+    elif [ "$lines" != 1 ]; then
+        fail "$name" "$lines lines on stderr, expected one: $(head -c 300 "$TMP/err")"
+    elif ! grep -qE -- "$pattern" "$TMP/err"; then
+        fail "$name" "stderr '$(cat "$TMP/err")' does not match '$pattern'"
+    else
+        pass "$name"
+    fi
+}
+
+# expect_same NAME FILE1 FILE2: the files are byte-identical.
+expect_same() {
+    if cmp -s "$2" "$3"; then pass "$1"; else fail "$1" "$2 and $3 differ"; fi
+}

@@ -1,0 +1,115 @@
+/* test_args.c: the option parser: types, ranges, @files, errors. */
+#include <stdio.h>
+#include <string.h>
+
+#include "../../common/args.h"
+#include "unit.h"
+
+typedef struct {
+    int flag, choice;
+    int64_t n;
+    double x;
+    const char *s;
+} opts_t;
+
+static const char *const choices[] = {"none", "morton", "hilbert", NULL};
+
+static pm_result_t parse(opts_t *o, pm_args_t *a, int argc, char **argv)
+{
+    const pm_option_t t[] = {
+        {"flag", 'f', PM_OPT_FLAG, &o->flag, NULL, "a flag", 1, 0, NULL},
+        {"count", 'n', PM_OPT_INT, &o->n, "N", "a count", 0, 1000, NULL},
+        {"radius", 0, PM_OPT_DOUBLE, &o->x, "R", "a radius", 0, 1e30, NULL},
+        {"name", 0, PM_OPT_STRING, &o->s, "S", "a name", 1, 0, NULL},
+        {"order", 0, PM_OPT_CHOICE, &o->choice, "O", "an order", 1, 0, choices},
+        {0},
+    };
+    const pm_cli_t cli = {"t", "[options]", "test", t, 0, -1};
+    return pm_args_parse(&cli, argc, argv, a);
+}
+
+static void test_args_types(void **state)
+{
+    opts_t o = {0};
+    pm_args_t a;
+    char *argv[] = {"t", "-f", "--count=5e2", "--radius", "0.25", "pos1", "--name", "x", "--order", "hilbert", "-", "--",
+                    "--count"};
+    assert_int_equal(parse(&o, &a, 13, argv), PM_OK);
+    assert_int_equal(o.flag, 1);
+    assert_int_equal(o.n, 500);
+    assert_true(o.x == 0.25);
+    assert_string_equal(o.s, "x");
+    assert_int_equal(o.choice, 2);
+    assert_int_equal(a.nargs, 3);
+    assert_string_equal(a.args[0], "pos1");
+    assert_string_equal(a.args[1], "-");
+    assert_string_equal(a.args[2], "--count");
+    pm_args_free(&a);
+}
+
+static void expect_usage_error(char *arg1, char *arg2, const char *needle)
+{
+    opts_t o = {0};
+    pm_args_t a;
+    char *argv[] = {"t", arg1, arg2};
+    assert_int_equal(parse(&o, &a, arg2 ? 3 : 2, argv), PM_ERR_USAGE);
+    assert_non_null(strstr(pm_error_message(), needle));
+    pm_args_free(&a);
+}
+
+static void test_args_errors(void **state)
+{
+    expect_usage_error("--bogus", NULL, "unknown option '--bogus'");
+    expect_usage_error("--count", "12x", "'12x' is not an integer");
+    expect_usage_error("--count", "1001", "outside");
+    expect_usage_error("--count", NULL, "needs a value");
+    expect_usage_error("--radius", "nan", "not a finite number");
+    expect_usage_error("--radius", "-1", "outside");
+    expect_usage_error("--order", "zorder", "'zorder' is not one of none|morton|hilbert");
+    expect_usage_error("--flag=1", NULL, "takes no value");
+}
+
+static void test_args_atfile(void **state)
+{
+    char path[256];
+    snprintf(path, sizeof path, "%s/opts", unit_tmpdir());
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs("# settings\n--count 7   # trailing comment\n--order morton\n", f);
+    fclose(f);
+    char at[260];
+    snprintf(at, sizeof at, "@%s", path);
+    opts_t o = {0};
+    pm_args_t a;
+    char *argv[] = {"t", at, "--radius", "2"};
+    assert_int_equal(parse(&o, &a, 4, argv), PM_OK);
+    assert_int_equal(o.n, 7);
+    assert_int_equal(o.choice, 1);
+    assert_true(o.x == 2.0);
+    pm_args_free(&a);
+    char *argv2[] = {"t", "@/nonexistent/opts"};
+    assert_int_equal(parse(&o, &a, 2, argv2), PM_ERR_IO);
+    pm_args_free(&a);
+}
+
+static void test_args_range(void **state)
+{
+    uint64_t b, e;
+    assert_int_equal(pm_args_parse_range("10:20", &b, &e), PM_OK);
+    assert_true(b == 10 && e == 20);
+    assert_int_equal(pm_args_parse_range(":5", &b, &e), PM_OK);
+    assert_true(b == 0 && e == 5);
+    assert_int_equal(pm_args_parse_range("5:", &b, &e), PM_OK);
+    assert_true(b == 5 && e == INT64_MAX);
+    assert_int_equal(pm_args_parse_range("20:10", &b, &e), PM_ERR_USAGE);
+    assert_int_equal(pm_args_parse_range("20", &b, &e), PM_ERR_USAGE);
+    assert_int_equal(pm_args_parse_range("a:b", &b, &e), PM_ERR_USAGE);
+}
+
+static const struct CMUnitTest tests[] = {
+    cmocka_unit_test(test_args_types),
+    cmocka_unit_test(test_args_errors),
+    cmocka_unit_test(test_args_atfile),
+    cmocka_unit_test(test_args_range),
+};
+UNIT_GROUP(unit_args, "args", tests);

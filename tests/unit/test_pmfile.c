@@ -1,0 +1,223 @@
+/* test_pmfile.c: the container and the four formats: round trips of every format with
+ * every and only the required channels, empty and chunk-crossing counts, ranges,
+ * provenance, and the writer's all-or-nothing promise. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "../../common/rng.h"
+#include "../../formats/formats.h"
+#include "unit.h"
+
+static void tmp_path(char *out, size_t cap, const char *name) { snprintf(out, cap, "%s/%s", unit_tmpdir(), name); }
+
+/* Fills a table with valid random content for its schema. */
+static void fill(pm_table_t *t, uint32_t seed)
+{
+    pm_rng_t r;
+    pm_rng_init(&r, seed, 0);
+    const pm_schema_t *s = t->hdr.schema;
+    for (unsigned ci = 0; ci < s->nchannels; ci++) {
+        const pm_channel_t *c = &s->channels[ci];
+        if (!t->col[ci])
+            continue;
+        for (uint64_t i = 0; i < t->count; i++) {
+            if (c->flags & PM_CH_UNIT) {
+                float *v = (float *)t->col[ci] + 3 * i;
+                v[0] = 0.6f, v[1] = 0.0f, v[2] = 0.8f;
+            } else if (c->type == PM_TYPE_F32) {
+                for (unsigned k = 0; k < c->components; k++)
+                    ((float *)t->col[ci])[c->components * i + k] = 0.001f + pm_rng_float(&r);
+            } else if (c->type == PM_TYPE_F64) {
+                for (unsigned k = 0; k < c->components; k++)
+                    ((double *)t->col[ci])[c->components * i + k] = pm_rng_double(&r);
+            } else if (c->type == PM_TYPE_U16) {
+                ((uint16_t *)t->col[ci])[i] = (uint16_t)(i % 2);
+            } else if (s != &pm_photonmap_schema) {
+                ((uint32_t *)t->col[ci])[c->components * i] = (uint32_t)(i % 6);
+            }
+        }
+    }
+    if (s == &pm_photonmap_schema) { /* a chain: every node's right child is the next */
+        pm_kdnode_t *n = t->col[PM_MAP_NODE];
+        const float *p = t->col[PM_MAP_POSITION];
+        for (uint64_t i = 0; i < t->count; i++)
+            n[i] = i + 1 < t->count ? pm_kdnode_make(p[3 * i + i % 3], (uint32_t)(i % 3), (uint32_t)(i + 1))
+                                    : pm_kdnode_make(p[3 * i], PM_KD_LEAF, PM_KD_NONE);
+    }
+    if (s == &pm_queries_schema || s == &pm_radiance_schema) {
+        pm_header_set(&t->hdr, "width", "3");
+        pm_header_set(&t->hdr, "height", "2");
+    }
+    if (s == &pm_queries_schema) {
+        pm_material_t m[2] = {{.name = "a", .kd = {0.5f, 0.5f, 0.5f}}, {.name = "b", .kd = {0.1f, 0.2f, 0.3f}}};
+        pm_queries_set_materials(&t->hdr, m, t->col[PM_QUERY_MATERIAL] ? 2 : 1);
+    }
+    if (s == &pm_radiance_schema)
+        pm_header_set(&t->hdr, "component", "direct");
+}
+
+static void roundtrip(const pm_schema_t *s, uint32_t mask, uint64_t n)
+{
+    char path[256];
+    tmp_path(path, sizeof path, "rt.pm");
+    pm_table_t t, u;
+    assert_int_equal(pm_table_alloc(&t, s, mask, n), PM_OK);
+    fill(&t, 9);
+    float b[6] = {-1e30f, -1e-30f, 0, 1e30f, 1e-30f, 1};
+    memcpy(t.hdr.bounds, b, sizeof b);
+    char *argv[] = {"/usr/bin/stage", "a b", "it's"};
+    assert_int_equal(pm_header_add_command(&t.hdr, 3, argv), PM_OK);
+    assert_int_equal(pm_table_write(&t, path), PM_OK);
+    pm_result_t r = pm_table_read(path, s, mask, &u);
+    if (r != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_int_equal(u.count, n);
+    assert_int_equal(u.hdr.channels, mask);
+    assert_memory_equal(u.hdr.bounds, b, sizeof b);
+    assert_int_equal(u.hdr.ncommands, 1);
+    assert_string_equal(u.hdr.commands[0], "stage 'a b' 'it'\\''s'");
+    for (unsigned ci = 0; ci < s->nchannels; ci++) {
+        if (!(mask & (1u << ci))) {
+            assert_null(u.col[ci]);
+            continue;
+        }
+        size_t bytes = n * pm_type_size(s->channels[ci].type) * s->channels[ci].components;
+        if (bytes)
+            assert_memory_equal(u.col[ci], t.col[ci], bytes);
+    }
+    pm_table_free(&t);
+    pm_table_free(&u);
+}
+
+static void test_pmfile_roundtrip_every_format(void **state)
+{
+    static const uint64_t counts[] = {0, 1, 2, 4095, 4096, 4097, 10000};
+    for (const pm_schema_t *const *s = pm_schema_all(); *s; s++) {
+        uint32_t all = (1u << (*s)->nchannels) - 1, req = pm_schema_required(*s);
+        for (size_t i = 0; i < sizeof counts / sizeof counts[0]; i++) {
+            uint64_t n = *s == &pm_radiance_schema ? 6 : counts[i]; /* radiance: width * height */
+            roundtrip(*s, all, n);
+            roundtrip(*s, req, n);
+        }
+    }
+}
+
+static void test_pmfile_record_sizes(void **state)
+{
+    /* The byte counts docs/formats.md promises. */
+    assert_int_equal(pm_schema_record_size(&pm_photons_schema, pm_schema_required(&pm_photons_schema)), 40);
+    assert_int_equal(pm_schema_record_size(&pm_photons_schema, 0x1f), 52);
+    assert_int_equal(pm_schema_record_size(&pm_photonmap_schema, pm_schema_required(&pm_photonmap_schema)), 44);
+    assert_int_equal(pm_schema_record_size(&pm_queries_schema, pm_schema_required(&pm_queries_schema)), 40);
+    assert_int_equal(pm_schema_record_size(&pm_queries_schema, 0x3f), 54);
+    assert_int_equal(pm_schema_record_size(&pm_radiance_schema, 1), 24);
+}
+
+static void test_pmfile_range_and_need(void **state)
+{
+    char path[256];
+    tmp_path(path, sizeof path, "range.pm");
+    pm_table_t t, u;
+    uint32_t req = pm_schema_required(&pm_queries_schema);
+    assert_int_equal(pm_table_alloc(&t, &pm_queries_schema, req, 9000), PM_OK);
+    fill(&t, 3);
+    assert_int_equal(pm_table_write(&t, path), PM_OK);
+    assert_int_equal(pm_table_read_range(path, &pm_queries_schema, 0, 4000, 8500, &u), PM_OK);
+    assert_int_equal(u.count, 4500);
+    assert_memory_equal(u.col[PM_QUERY_POSITION], (float *)t.col[PM_QUERY_POSITION] + 3 * 4000, 4500 * 12);
+    assert_int_equal(u.hdr.count, 4500);
+    pm_table_free(&u);
+    assert_int_equal(pm_table_read_range(path, &pm_queries_schema, 0, 8000, 99999, &u), PM_OK);
+    assert_int_equal(u.count, 1000);
+    pm_table_free(&u);
+    /* a channel the caller needs but the file lacks */
+    assert_int_equal(pm_table_read(path, &pm_queries_schema, 1u << PM_QUERY_DIRECTION, &u), PM_ERR_INPUT);
+    assert_non_null(strstr(pm_error_message(), "lacks channel 'direction'"));
+    /* the wrong format */
+    assert_int_equal(pm_table_read(path, &pm_photons_schema, 0, &u), PM_ERR_INPUT);
+    assert_non_null(strstr(pm_error_message(), "is a queries, expected a photons file"));
+    pm_table_free(&t);
+}
+
+static void test_pmfile_writer_all_or_nothing(void **state)
+{
+    char path[256];
+    tmp_path(path, sizeof path, "partial.pm");
+    unlink(path);
+    pm_header_t h;
+    pm_header_init(&h, &pm_photons_schema);
+    h.channels = pm_schema_required(&pm_photons_schema);
+    h.count = 10;
+    pm_writer_t *w;
+    assert_int_equal(pm_writer_open(path, &h, &w), PM_OK);
+    unsigned char rec[40] = {0};
+    assert_int_equal(pm_writer_write(w, rec, 1), PM_OK);
+    assert_int_not_equal(access(path, F_OK), 0); /* nothing at the final path while writing */
+    assert_int_equal(pm_writer_commit(w), PM_ERR_INTERNAL); /* 1 of 10 records */
+    assert_int_not_equal(access(path, F_OK), 0);
+    assert_int_equal(pm_writer_open(path, &h, &w), PM_OK);
+    pm_writer_abort(w);
+    assert_int_not_equal(access(path, F_OK), 0);
+    /* no temporary files left behind either */
+    char cmd[300];
+    snprintf(cmd, sizeof cmd, "ls -A %s | grep -q '\\.tmp\\.'", unit_tmpdir());
+    assert_int_not_equal(system(cmd), 0);
+    assert_int_equal(pm_writer_open("/nonexistent-dir/x.pm", &h, &w), PM_ERR_IO);
+    assert_non_null(strstr(pm_error_message(), "/nonexistent-dir/x.pm"));
+    pm_header_free(&h);
+}
+
+static void test_pmfile_provenance(void **state)
+{
+    pm_header_t a, b;
+    pm_header_init(&a, &pm_photons_schema);
+    pm_header_init(&b, &pm_photonmap_schema);
+    char *c1[] = {"trace-photons", "s.json"}, *c2[] = {"build-photonmap"};
+    pm_header_add_command(&a, 2, c1);
+    pm_header_set(&a, "SCENE", "s xxh3:00");
+    pm_header_set(&a, "emitted", "5");
+    pm_header_inherit(&b, &a);
+    pm_header_inherit(&b, &a); /* a second input with the same history adds nothing */
+    pm_header_add_command(&b, 1, c2);
+    pm_header_add_input(&b, "p.pm", 0xabcdefULL);
+    assert_int_equal(b.ncommands, 2);
+    assert_string_equal(b.commands[0], "trace-photons s.json");
+    assert_string_equal(pm_header_get(&b, "SCENE"), "s xxh3:00");
+    assert_null(pm_header_get(&b, "emitted")); /* format keys stay with their format */
+    assert_string_equal(pm_header_get(&b, "INPUT"), "p.pm xxh3:0000000000abcdef");
+    pm_header_copy_keys(&b, &a);
+    assert_string_equal(pm_header_get(&b, "emitted"), "5");
+    /* a newline in a value cannot break the header into two lines */
+    pm_header_set(&b, "note", "two\nlines");
+    assert_string_equal(pm_header_get(&b, "note"), "two lines");
+    assert_int_equal(pm_header_set(&b, "bad key", "x"), PM_ERR_INTERNAL);
+    pm_header_free(&a);
+    pm_header_free(&b);
+}
+
+static void test_pmfile_kdnode(void **state)
+{
+    float coords[] = {0.0f, -0.0f, 1.0f, -3.5e-30f, 7.25e30f, 0.1f};
+    for (size_t i = 0; i < sizeof coords / sizeof coords[0]; i++)
+        for (uint32_t axis = 0; axis < 4; axis++) {
+            pm_kdnode_t n = pm_kdnode_make(coords[i], axis, 17);
+            assert_int_equal(pm_kdnode_axis(n), axis);
+            assert_int_equal(n.child, 17);
+            /* the plane is within 3 ulp of the coordinate */
+            assert_true(fabsf(n.split - coords[i]) <= 3.0f * fabsf(nextafterf(coords[i], INFINITY) - coords[i]) ||
+                        fabsf(n.split) < 1e-38f);
+        }
+}
+
+static const struct CMUnitTest tests[] = {
+    cmocka_unit_test(test_pmfile_roundtrip_every_format),
+    cmocka_unit_test(test_pmfile_record_sizes),
+    cmocka_unit_test(test_pmfile_range_and_need),
+    cmocka_unit_test(test_pmfile_writer_all_or_nothing),
+    cmocka_unit_test(test_pmfile_provenance),
+    cmocka_unit_test(test_pmfile_kdnode),
+};
+UNIT_GROUP(unit_pmfile, "pmfile", tests);

@@ -1,0 +1,123 @@
+/* test_scene.c: scene loading (the Cornell box's published numbers), bad scene input
+ * with clear messages, degenerate triangles, and Embree rays against known distances. */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "../../common/rt.h"
+#include "../../common/scene.h"
+#include "unit.h"
+
+static void write_file(const char *name, const char *text, char *path_out, size_t cap)
+{
+    snprintf(path_out, cap, "%s/%s", unit_tmpdir(), name);
+    FILE *f = fopen(path_out, "w");
+    assert_non_null(f);
+    fputs(text, f);
+    fclose(f);
+}
+
+static void test_scene_cornell_box(void **state)
+{
+    pm_scene_t s;
+    pm_result_t r = pm_scene_load("scenes/cornell-box/scene.json", &s);
+    if (r != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_string_equal(s.name, "cornell-box");
+    assert_int_equal(s.ntris, 32);
+    assert_int_equal(s.nmaterials, 4); /* white, red, green, light: assimp's default is dropped */
+    assert_int_equal(s.nemissive, 2);
+    assert_int_equal(s.any_glossy, 0);
+    /* light: 130 mm x 105 mm, Ke (17, 12, 4) W/(m^2 sr): power = pi Ke A */
+    double p[3];
+    pm_scene_power(&s, p);
+    assert_true(fabs(p[0] - M_PI * 17 * 0.130 * 0.105) < 1e-5);
+    assert_true(fabs(p[2] - M_PI * 4 * 0.130 * 0.105) < 1e-5);
+    assert_true(fabsf(s.bounds[4] - 0.5488f) < 1e-6f);
+    assert_int_equal(s.camera.width, 256);
+
+    pm_rt_t rt;
+    assert_int_equal(pm_rt_create(&s, 0, &rt), PM_OK);
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    /* straight down from 0.5 m above the floor, away from the blocks */
+    struct RTCRayHit rh = {.ray = {.org_x = 0.1f, .org_y = 0.5f, .org_z = 0.1f, .dir_y = -1.0f, .tfar = INFINITY,
+                                   .mask = 0xffffffffu},
+                           .hit = {.geomID = RTC_INVALID_GEOMETRY_ID}};
+    rtcIntersect1(rt.scene, &ctx, &rh);
+    assert_int_equal(rh.hit.geomID, 0);
+    assert_true(fabsf(rh.ray.tfar - 0.5f) < 1e-5f);
+    assert_true(rh.hit.Ng_y > 0.0f); /* the floor faces into the box */
+    /* up from the same point: the ceiling at 548.8 mm */
+    rh.ray.dir_y = 1.0f;
+    rh.ray.tfar = INFINITY;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(rt.scene, &ctx, &rh);
+    assert_true(fabsf(rh.ray.tfar - 0.0488f) < 1e-5f);
+    pm_rt_destroy(&rt);
+    pm_scene_free(&s);
+}
+
+static void expect_scene_error(const char *json, const char *needle)
+{
+    char path[256];
+    write_file("bad.json", json, path, sizeof path);
+    pm_scene_t s;
+    assert_int_equal(pm_scene_load(path, &s), PM_ERR_INPUT);
+    if (!strstr(pm_error_message(), needle))
+        fail_msg("message '%s' lacks '%s'", pm_error_message(), needle);
+}
+
+#define CAM "\"camera\": {\"eye\": [0,0,-1], \"look_at\": [0,0,0], \"fov_y\": 40, \"width\": 4, \"height\": 4}"
+
+static void test_scene_bad_input(void **state)
+{
+    char mesh[256], mtl[256];
+    write_file("m.mtl", "newmtl hot\nKd 0.9 0.5 0.5\nKs 0.2 0 0\n", mtl, sizeof mtl);
+    write_file("m.obj", "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl hot\nf 1 2 3\n", mesh, sizeof mesh);
+    expect_scene_error("{\n  \"pmtk_scene\": 1,\n  \"name\": \"x\",,\n}", "line 3");
+    expect_scene_error("{\"pmtk_scene\": 1, \"name\": \"x\", \"camra\": {}}", "unknown key 'camra'");
+    expect_scene_error("{\"pmtk_scene\": 2, \"name\": \"x\", " CAM "}", "pmtk_scene: 2 is outside [1, 1]");
+    expect_scene_error("{\"pmtk_scene\": 1, \"name\": \"x\", \"camera\": {\"eye\": [0,0,-1], \"look_at\": [0,0,0], "
+                       "\"fov_y\": 200, \"width\": 4, \"height\": 4}}",
+                       "camera.fov_y: 200 is outside");
+    expect_scene_error("{\"pmtk_scene\": 1, \"name\": \"x\", \"camera\": {\"eye\": [0,0,0], \"look_at\": [0,0,0], "
+                       "\"fov_y\": 40, \"width\": 4, \"height\": 4}}",
+                       "camera.look_at: equals camera.eye");
+    expect_scene_error("{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"nope.obj\"}], " CAM "}",
+                       "cannot open mesh");
+    expect_scene_error("{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"m.obj\"}], " CAM "}",
+                       "Kd + Ks = 1.1 in channel r exceeds 1");
+    expect_scene_error("{\"pmtk_scene\": 1, \"name\": \"x\", " CAM ", \"point_lights\": [{\"position\": [0,0,0], "
+                       "\"intensity\": [1,-1,1]}]}",
+                       "point_lights[0].intensity: element 1 = -1 is outside");
+    expect_scene_error("{\"pmtk_scene\": 1, \"name\": \"x\", \"name\": \"y\", " CAM "}", "duplicate");
+}
+
+static void test_scene_degenerate_triangles(void **state)
+{
+    char mesh[256], path[256];
+    /* one good triangle, one with a repeated vertex, one with collinear vertices */
+    write_file("d.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 1 2\nf 1 2 4\n", mesh, sizeof mesh);
+    write_file("d.json", "{\"pmtk_scene\": 1, \"name\": \"d\", \"meshes\": [{\"file\": \"d.obj\", \"scale\": 1e-4}], " CAM
+               "}", path, sizeof path);
+    pm_scene_t s;
+    pm_result_t r = pm_scene_load(path, &s);
+    if (r != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_int_equal(s.ntris, 1);
+    assert_int_equal(s.ndropped, 2);
+    assert_true(fabs(pm_scene_triangle_area(&s, 0) - 0.5e-8) < 1e-14);
+    pm_rt_t rt;
+    assert_int_equal(pm_rt_create(&s, 0, &rt), PM_OK);
+    assert_true(rt.epsilon > 0.0f && rt.epsilon < 1e-8f); /* scales with the 0.1 mm scene */
+    pm_rt_destroy(&rt);
+    pm_scene_free(&s);
+}
+
+static const struct CMUnitTest tests[] = {
+    cmocka_unit_test(test_scene_cornell_box),
+    cmocka_unit_test(test_scene_bad_input),
+    cmocka_unit_test(test_scene_degenerate_triangles),
+};
+UNIT_GROUP(unit_scene, "scene", tests);

@@ -854,7 +854,9 @@ int main(int argc, char **argv)
             }
             dir = argv[++i];
         } else {
-            fprintf(stderr, PROG ": unknown option '%s'\n", argv[i]);
+            fprintf(stderr, PROG ": %s '%s'\n",
+                    argv[i][0] == '-' ? "unknown option" : "unexpected argument",
+                    argv[i]);
             usage(stderr);
             return 2;
         }

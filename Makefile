@@ -140,7 +140,8 @@ fuzz:
 	        tests/fuzz/$$t.c build/fuzz/libpmtk.a $(LIBS) -o build/fuzz/$$t || exit 1; \
 	    echo "  FUZZ    $$t ($${FUZZ_SECONDS:-60} s)"; \
 	    mkdir -p build/fuzz/corpus-$$t; \
-	    build/fuzz/$$t -max_total_time=$${FUZZ_SECONDS:-60} build/fuzz/corpus-$$t tests/golden || exit 1; \
+	    seeds=tests/golden; [ $$t = fuzz_scene ] && seeds=scenes/cornell-box; \
+	    build/fuzz/$$t -max_total_time=$${FUZZ_SECONDS:-60} build/fuzz/corpus-$$t $$seeds || exit 1; \
 	done
 
 deps:

@@ -469,6 +469,10 @@ static pm_result_t read_header_text(pm_reader_t *r, char **text_out, size_t *len
             t = t2;
             cap *= 2;
         }
+        if (c == '\0') { /* the header is text: a NUL would cut it short when parsed */
+            free(t);
+            return pm_error_set(PM_ERR_INPUT, "malformed header in '%s': NUL byte at offset %zu", r->path, n);
+        }
         t[n++] = (char)c;
         if (c != '\n') {
             if (n - line_start > PM_HEADER_LINE_MAX) {
@@ -512,6 +516,8 @@ static pm_result_t parse_header(pm_reader_t *r, char *text, const pm_schema_t *w
     char *line = text + strlen(PM_MAGIC) + 1;
     for (unsigned lineno = 2; *line != '\n' && res == PM_OK; lineno++) {
         char *nl = strchr(line, '\n');
+        if (!nl) /* read_header_text guarantees a newline; never trust it blindly */
+            return pm_error_set(PM_ERR_INTERNAL, "header of '%s' ends without a newline", path);
         *nl = '\0';
         char *eq = strchr(line, '=');
         if (!eq) {

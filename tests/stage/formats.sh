@@ -83,3 +83,8 @@ for p in "photons nan position.*nan" "photons inf position.*inf" "photons negati
     "$TG" $1 7 "$TMP/poison.pm" --all --poison $2
     expect_error "$1 with $2 content" "$3" "$BIN/pm-info" "$TMP/poison.pm"
 done
+
+# inputs the fuzzer found (tests/fuzz/regressions): each must fail cleanly, never crash
+for f in tests/fuzz/regressions/*.pm; do
+    expect_error "fuzz regression $(basename "$f")" "^pm-info: " "$BIN/pm-info" "$f"
+done

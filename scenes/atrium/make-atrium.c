@@ -1,11 +1,11 @@
 /*
  * make-atrium.c -- generate a Sponza-like atrium as a Wavefront OBJ/MTL pair.
  *
- * Why: the photon-mapping experiments were published with the Sponza atrium,
- * but that model cannot be shipped with this project.  This program builds a
- * stand-in with the same kind of light transport: an open court lit from a
- * sky opening above, surrounded by two storeys of arcaded galleries that are
- * reached only by light bouncing off the court floor and the arcades.
+ * Why: the paper this toolkit follows renders the Sponza atrium, but that
+ * model cannot be shipped with this project.  This program builds a stand-in
+ * with the same kind of light transport: an open court lit from a sky
+ * opening above, surrounded by two storeys of arcaded galleries that receive
+ * mostly indirect light, bounced off the court floor and the arcades.
  *
  * Layout (units are metres, y is up, the floor is at y = 0, the model is
  * centred on the origin in x and z):
@@ -37,8 +37,9 @@
  *     with the solid they rest on.  The only interpenetration is the upper
  *     balustrade rail, whose ends are sunk a little into the columns.
  *   - No triangle has an area below 1e-8 m^2 (the program checks this).
- *   - The output is a pure function of this source: fixed "%.6f" formatting,
- *     no time stamps, so every run produces the same bytes.
+ *   - The output depends on nothing but this source (and the C library's
+ *     sin/cos): fixed "%.6f" formatting, no time stamps, no randomness, so
+ *     every run produces the same bytes.
  *
  * Usage: make-atrium [-o DIR]    writes DIR/atrium.obj and DIR/atrium.mtl
  *
@@ -717,6 +718,11 @@ typedef struct {
     FILE *fp;
     int err;            /* errno of the first failed write, or 0 */
 } writer;
+
+#if defined(__GNUC__)
+__attribute__((format(printf, 2, 3)))
+#endif
+static void out(writer *w, const char *fmt, ...);
 
 static void out(writer *w, const char *fmt, ...)
 {

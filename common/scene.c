@@ -235,7 +235,7 @@ static pm_result_t load_material(const ctx_t *c, const char *mesh, const struct 
         snprintf(m->name, sizeof m->name, "%s", name.data);
     /* Names travel as one word in file headers. */
     for (char *p = m->name; *p; p++)
-        if (*p == ' ' || *p == '\t' || (unsigned char)*p < 0x20)
+        if (*p == ' ' || (unsigned char)*p < 0x20 || *p == 0x7f)
             *p = '_';
     aiGetMaterialColor(am, AI_MATKEY_COLOR_DIFFUSE, &kd);
     aiGetMaterialColor(am, AI_MATKEY_COLOR_SPECULAR, &ks);

@@ -40,10 +40,11 @@ extern const pm_schema_t pm_photonmap_schema;
 /* The paper's 8-byte KD-tree node. The photon stored with node i lies on the node's
  * split plane. The low 2 mantissa bits of `split` hold the axis (0 x, 1 y, 2 z) or
  * PM_KD_LEAF; the other 30 bits are those of the photon's coordinate on that axis, so
- * the plane is within 3 ulp of the photon. Children: the left subtree starts at i + 1
- * unless child == i + 1 (then the left is empty and the right starts there); the right
- * subtree starts at `child`, or there is none when child == PM_KD_NONE. An inner node
- * has at least one child. */
+ * the plane is within 3 ulp of the photon. Nodes are in depth-first order: the left
+ * subtree is exactly [i + 1, child) (empty when child == i + 1) and the right subtree
+ * starts at `child`, or there is none when child == PM_KD_NONE (then the left runs to
+ * the end of i's subtree). An inner node has at least one child. Photons of the left
+ * subtree have coordinate <= node i's photon's on the axis, those of the right >=. */
 typedef struct {
     float split;
     uint32_t child;

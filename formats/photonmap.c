@@ -1,8 +1,12 @@
 /* photonmap.c: the photon map format, written by build-photonmap and read by
  * simd-gather. Record i is KD-tree node i and the photon on its split plane. The
- * reader checks the tree's shape: every node reached exactly once from the root,
- * child indices in range, each split within the low mantissa bits of its photon. */
+ * reader checks the whole tree in O(n): nodes in depth-first order (each left subtree
+ * exactly [i+1, child)), child indices in range, each split within the low mantissa
+ * bits of its photon, and every photon inside the planes of its ancestors (left of a
+ * plane: coordinate <= the node photon's; right: >=), so a map it accepts is searched
+ * correctly. */
 #include <inttypes.h>
+#include <math.h>
 #include <stdlib.h>
 
 #include "formats.h"
@@ -17,6 +21,13 @@ static const pm_channel_t map_channels[] = {
     {"width", PM_TYPE_F32, 1, PM_CH_POSITIVE, "m", "kernel width h(x_i) (variable-width estimator)"},
 };
 
+/* One pending subtree of the check: its root and the box its photons must lie in, the
+ * planes of its ancestors (their photons' coordinates, inclusive on both sides). */
+typedef struct {
+    uint32_t node;
+    float lo[3], hi[3];
+} pending_t;
+
 static pm_result_t validate_tree(const pm_table_t *t, const char *path)
 {
     uint64_t n = t->count;
@@ -27,37 +38,50 @@ static pm_result_t validate_tree(const pm_table_t *t, const char *path)
                             path, n);
     const pm_kdnode_t *node = t->col[PM_MAP_NODE];
     const float *pos = t->col[PM_MAP_POSITION];
-    unsigned char *seen = calloc(n, 1);
-    uint32_t *stack = malloc((n + 2) * sizeof *stack); /* +2: the cycle check runs after a push */
+    /* Depth-first order makes the stack at most depth + 1 <= n entries deep. */
+    pending_t *stack = malloc((n + 1) * sizeof *stack);
+    if (!stack)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory checking photon map '%s'", path);
     pm_result_t res = PM_OK;
-    if (!seen || !stack) {
-        res = pm_error_set(PM_ERR_NOMEM, "out of memory checking photon map '%s'", path);
-        goto done;
-    }
-    uint64_t top = 0, reached = 0;
-    stack[top++] = 0;
-    while (top && res == PM_OK) {
-        uint32_t i = stack[--top];
-        if (seen[i]) {
-            res = pm_error_set(PM_ERR_INPUT, "corrupt photon map '%s': node %" PRIu32 " is reached twice", path, i);
+    uint64_t top = 0, expected = 0;
+    stack[top++] = (pending_t){0, {-INFINITY, -INFINITY, -INFINITY}, {INFINITY, INFINITY, INFINITY}};
+    while (top) {
+        pending_t e = stack[--top];
+        uint32_t i = e.node;
+        /* Pre-order: the left subtree is exactly [i + 1, child) and the right starts at child. */
+        if (i != expected) {
+            res = pm_error_set(PM_ERR_INPUT, "corrupt photon map '%s': node %" PRIu32
+                               " is out of depth-first order (expected node %" PRIu64 " next)", path, i, expected);
             break;
         }
-        seen[i] = 1;
-        reached++;
+        expected++;
+        const float *p = &pos[3 * (size_t)i];
+        int axis_out = -1;
+        for (int k = 0; k < 3; k++)
+            if (p[k] < e.lo[k] || p[k] > e.hi[k])
+                axis_out = k;
+        if (axis_out >= 0) {
+            res = pm_error_set(PM_ERR_INPUT, "corrupt photon map '%s': photon %" PRIu32 " at %c = %.9g lies outside "
+                               "[%.9g, %.9g], the planes of its ancestors", path, i, "xyz"[axis_out], p[axis_out],
+                               e.lo[axis_out], e.hi[axis_out]);
+            break;
+        }
         uint32_t axis = pm_kdnode_axis(node[i]), child = node[i].child;
         if (axis == PM_KD_LEAF) {
-            if (child != PM_KD_NONE)
+            if (child != PM_KD_NONE) {
                 res = pm_error_set(PM_ERR_INPUT, "corrupt photon map '%s': leaf %" PRIu32 " has child %" PRIu32,
                                    path, i, child);
+                break;
+            }
             continue;
         }
         uint32_t sb, pb;
         memcpy(&sb, &node[i].split, 4);
-        memcpy(&pb, &pos[3 * (size_t)i + axis], 4);
+        memcpy(&pb, &p[axis], 4);
         if ((sb & ~3u) != (pb & ~3u)) {
             res = pm_error_set(PM_ERR_INPUT,
                                "corrupt photon map '%s': node %" PRIu32 " splits %c at %.9g but its photon is at %.9g",
-                               path, i, "xyz"[axis], node[i].split, pos[3 * (size_t)i + axis]);
+                               path, i, "xyz"[axis], node[i].split, p[axis]);
             break;
         }
         int has_left = child != (uint64_t)i + 1, has_right = child != PM_KD_NONE;
@@ -73,20 +97,26 @@ static pm_result_t validate_tree(const pm_table_t *t, const char *path)
                                path, i, child, i, n);
             break;
         }
-        if (has_right)
-            stack[top++] = child;
-        if (has_left)
-            stack[top++] = i + 1;
-        if (top > n) { /* more pushes than nodes: some node is reached twice */
-            res = pm_error_set(PM_ERR_INPUT, "corrupt photon map '%s': the tree has a cycle", path);
+        if (top + 2 > n + 1) { /* cannot happen in pre-order; guards the stack regardless */
+            res = pm_error_set(PM_ERR_INPUT, "corrupt photon map '%s': node %" PRIu32 " nests too deep", path, i);
             break;
         }
+        if (has_right) { /* pushed first, popped after the whole left subtree */
+            pending_t r = e;
+            r.node = child;
+            r.lo[axis] = p[axis];
+            stack[top++] = r;
+        }
+        if (has_left) {
+            pending_t l = e;
+            l.node = i + 1;
+            l.hi[axis] = p[axis];
+            stack[top++] = l;
+        }
     }
-    if (res == PM_OK && reached != n)
-        res = pm_error_set(PM_ERR_INPUT, "corrupt photon map '%s': %" PRIu64 " of %" PRIu64 " nodes unreachable from the root",
-                           path, n - reached, n);
-done:
-    free(seen);
+    if (res == PM_OK && expected != n)
+        res = pm_error_set(PM_ERR_INPUT, "corrupt photon map '%s': %" PRIu64 " of %" PRIu64
+                           " nodes unreachable from the root", path, n - expected, n);
     free(stack);
     return res;
 }

@@ -201,16 +201,30 @@ const char *pm_header_get(const pm_header_t *h, const char *key)
 
 static const char *title_of(const pm_header_t *h) { return h->schema ? h->schema->title : "pmtk file"; }
 
+/* Header numbers have one spelling: decimal digits only (no sign, exponent or space), so
+ * that two files with equal content have equal bytes and a reader cannot be fooled. */
+static int parse_decimal(const char *v, uint64_t *out)
+{
+    uint64_t x = 0;
+    if (!*v || strlen(v) > 19)
+        return 0;
+    for (; *v; v++) {
+        if (*v < '0' || *v > '9')
+            return 0;
+        x = 10 * x + (uint64_t)(*v - '0');
+    }
+    *out = x;
+    return 1;
+}
+
 pm_result_t pm_header_get_u64(const pm_header_t *h, const char *path, const char *key, uint64_t *out)
 {
     const char *v = pm_header_get(h, key);
-    int64_t x;
     if (!v)
         return pm_error_set(PM_ERR_INPUT, "%s '%s' lacks header key '%s'", title_of(h), path, key);
-    if (pm_parse_i64(v, &x) != PM_OK || x < 0)
-        return pm_error_set(PM_ERR_INPUT, "%s '%s': header key %s='%s' is not a non-negative integer",
-                            title_of(h), path, key, v);
-    *out = (uint64_t)x;
+    if (!parse_decimal(v, out))
+        return pm_error_set(PM_ERR_INPUT, "%s '%s': header key %s='%s' is not a decimal integer", title_of(h),
+                            path, key, v);
     return PM_OK;
 }
 
@@ -280,6 +294,9 @@ pm_result_t pm_header_add_command(pm_header_t *h, int argc, char *const *argv)
         *p++ = '\'';
     }
     *p = '\0';
+    /* Provenance, not data: a command longer than a header line may be is cut, visibly. */
+    if (strlen(s) > PM_COMMAND_MAX)
+        strcpy(s + PM_COMMAND_MAX - 4, " ...");
     return command_append(h, s);
 }
 
@@ -397,6 +414,21 @@ pm_result_t pm_header_format(const pm_header_t *h, char **text_out, size_t *len_
         free(t.s);
         return pm_error_set(PM_ERR_NOMEM, "out of memory formatting a header");
     }
+    /* Never write a header that a reader would refuse. */
+    if (t.n > PM_HEADER_MAX) {
+        free(t.s);
+        return pm_error_set(PM_ERR_INTERNAL, "%s header of %zu bytes exceeds %u", s->title, t.n, PM_HEADER_MAX);
+    }
+    for (const char *line = t.s; *line;) {
+        const char *nl = strchr(line, '\n');
+        if ((size_t)(nl - line) + 1 > PM_HEADER_LINE_MAX) {
+            size_t len = (size_t)(nl - line);
+            free(t.s);
+            return pm_error_set(PM_ERR_INTERNAL, "%s header line of %zu bytes exceeds %u", s->title, len,
+                                PM_HEADER_LINE_MAX);
+        }
+        line = nl + 1;
+    }
     *text_out = t.s;
     *len_out = t.n;
     return PM_OK;
@@ -456,11 +488,11 @@ static pm_result_t read_header_text(pm_reader_t *r, char **text_out, size_t *len
             free(t);
             return pm_error_set(PM_ERR_INPUT, "truncated header in '%s': no blank line ends it", r->path);
         }
+        if (n >= PM_HEADER_MAX) {
+            free(t);
+            return pm_error_set(PM_ERR_INPUT, "header of '%s' exceeds %u bytes", r->path, PM_HEADER_MAX);
+        }
         if (n + 1 >= cap) {
-            if (cap >= PM_HEADER_MAX) {
-                free(t);
-                return pm_error_set(PM_ERR_INPUT, "header of '%s' exceeds %u bytes", r->path, PM_HEADER_MAX);
-            }
             char *t2 = realloc(t, cap * 2);
             if (!t2) {
                 free(t);
@@ -492,16 +524,19 @@ static pm_result_t read_header_text(pm_reader_t *r, char **text_out, size_t *len
     return PM_OK;
 }
 
+/* "0x" and exactly eight lower-case hex digits, as the writer writes it. */
 static pm_result_t parse_u32_hex(const char *v, uint32_t *out)
 {
-    char *end;
-    if (strncmp(v, "0x", 2) != 0 || !v[2])
+    uint32_t x = 0;
+    if (strncmp(v, "0x", 2) != 0 || strlen(v) != 10)
         return PM_ERR_INPUT;
-    errno = 0;
-    unsigned long x = strtoul(v + 2, &end, 16);
-    if (*end || errno || x > 0xffffffffUL)
-        return PM_ERR_INPUT;
-    *out = (uint32_t)x;
+    for (v += 2; *v; v++) {
+        int d = *v >= '0' && *v <= '9' ? *v - '0' : *v >= 'a' && *v <= 'f' ? *v - 'a' + 10 : -1;
+        if (d < 0)
+            return PM_ERR_INPUT;
+        x = 16 * x + (uint32_t)d;
+    }
+    *out = x;
     return PM_OK;
 }
 
@@ -590,9 +625,19 @@ static pm_result_t parse_header(pm_reader_t *r, char *text, const pm_schema_t *w
     h->schema = s;
 
     unsigned major, minor;
-    int used = 0;
-    if (sscanf(version, "%u.%u%n", &major, &minor, &used) != 2 || version[used] != '\0')
+    uint64_t vmaj, vmin;
+    char vbuf[32];
+    const char *dot = strchr(version, '.');
+    int vok = dot && (size_t)(dot - version) < sizeof vbuf && strlen(dot + 1) < 8;
+    if (vok) {
+        memcpy(vbuf, version, (size_t)(dot - version));
+        vbuf[dot - version] = '\0';
+        vok = parse_decimal(vbuf, &vmaj) && parse_decimal(dot + 1, &vmin) && vmaj < 1000000 && vmin < 1000000;
+    }
+    if (!vok)
         return pm_error_set(PM_ERR_INPUT, "%s '%s': malformed VERSION '%s'", s->title, path, version);
+    major = (unsigned)vmaj;
+    minor = (unsigned)vmin;
     if (major > s->major)
         return pm_error_set(PM_ERR_INPUT, "%s '%s' is version %u.%u, newer than this reader (%u.x)", s->title,
                             path, major, minor, s->major);
@@ -605,11 +650,8 @@ static pm_result_t parse_header(pm_reader_t *r, char *text, const pm_schema_t *w
     if (strcmp(order, "little-endian") != 0)
         return pm_error_set(PM_ERR_INPUT, "%s '%s': BYTE_ORDER '%s' is not little-endian", s->title, path, order);
 
-    int64_t c;
-    if (pm_parse_i64(count, &c) != PM_OK || c < 0 || (uint64_t)c > PM_COUNT_MAX || strchr(count, 'e') ||
-        strchr(count, '.'))
+    if (!parse_decimal(count, &h->count) || h->count > PM_COUNT_MAX)
         return pm_error_set(PM_ERR_INPUT, "%s '%s': absurd COUNT '%s'", s->title, path, count);
-    h->count = (uint64_t)c;
 
     if (parse_u32_hex(mask, &h->channels) != PM_OK)
         return pm_error_set(PM_ERR_INPUT, "%s '%s': malformed CHANNEL_MASK '%s'", s->title, path, mask);
@@ -633,9 +675,9 @@ static pm_result_t parse_header(pm_reader_t *r, char *text, const pm_schema_t *w
         return pm_error_set(PM_ERR_INPUT, "%s '%s' lacks channel '%s' needed here", s->title, path,
                             s->channels[__builtin_ctz(missing)].name);
 
-    int64_t rs;
+    uint64_t rs;
     uint32_t expect = pm_schema_record_size(s, h->channels);
-    if (pm_parse_i64(rsize, &rs) != PM_OK || rs != (int64_t)expect)
+    if (!parse_decimal(rsize, &rs) || rs != expect)
         return pm_error_set(PM_ERR_INPUT, "%s '%s': RECORD_SIZE '%s' but its channels take %" PRIu32 " bytes",
                             s->title, path, rsize, expect);
     h->record_size = expect;
@@ -759,13 +801,15 @@ pm_result_t pm_reader_open(const char *path, const pm_schema_t *schema, uint32_t
 
 const pm_header_t *pm_reader_header(const pm_reader_t *r) { return &r->hdr; }
 
-/* Checks the values of n raw records starting at record index first. */
-static pm_result_t check_values(const pm_reader_t *r, const unsigned char *rec, uint64_t n, uint64_t first)
+/* Checks the values of n raw records starting at record index first, against the
+ * channel flags of h's schema; path names the file in messages. */
+static pm_result_t check_values(const pm_header_t *h, const char *path, const unsigned char *rec, uint64_t n,
+                                uint64_t first)
 {
-    const pm_schema_t *s = r->hdr.schema;
+    const pm_schema_t *s = h->schema;
     size_t off = 0;
     for (unsigned ci = 0; ci < s->nchannels; ci++) {
-        if (!(r->hdr.channels & (1u << ci)))
+        if (!(h->channels & (1u << ci)))
             continue;
         const pm_channel_t *c = &s->channels[ci];
         unsigned fl = c->flags;
@@ -773,7 +817,7 @@ static pm_result_t check_values(const pm_reader_t *r, const unsigned char *rec, 
         if ((c->type == PM_TYPE_F32 || c->type == PM_TYPE_F64) &&
             (fl & (PM_CH_FINITE | PM_CH_NONNEG | PM_CH_UNIT | PM_CH_POSITIVE))) {
             for (uint64_t i = 0; i < n; i++) {
-                const unsigned char *p = rec + i * r->hdr.record_size + off;
+                const unsigned char *p = rec + i * h->record_size + off;
                 double len2 = 0.0;
                 for (unsigned k = 0; k < c->components; k++) {
                     double v;
@@ -794,13 +838,13 @@ static pm_result_t check_values(const pm_reader_t *r, const unsigned char *rec, 
                     if (why)
                         return pm_error_set(PM_ERR_INPUT,
                                             "bad value in %s '%s': record %" PRIu64 " channel '%s'[%u] is %g (%s)",
-                                            reader_title(r), r->path, first + i, c->name, k, v, why);
+                                            s->title, path, first + i, c->name, k, v, why);
                     len2 += v * v;
                 }
                 if ((fl & PM_CH_UNIT) && fabs(len2 - 1.0) > 2e-3)
                     return pm_error_set(PM_ERR_INPUT,
                                         "bad value in %s '%s': record %" PRIu64 " channel '%s' has length %g, not 1",
-                                        reader_title(r), r->path, first + i, c->name, sqrt(len2));
+                                        s->title, path, first + i, c->name, sqrt(len2));
             }
         }
         off += csize;
@@ -829,7 +873,7 @@ pm_result_t pm_reader_read(pm_reader_t *r, void *records, uint64_t max, uint64_t
                                 reader_title(r), r->path, r->next + got, r->hdr.count);
         }
         XXH3_64bits_update(r->hash, p, n * rs);
-        pm_result_t res = check_values(r, p, n, r->next);
+        pm_result_t res = check_values(&r->hdr, r->path, p, n, r->next);
         if (res != PM_OK)
             return res;
         r->next += n;
@@ -893,6 +937,8 @@ const char *pm_reader_header_text(const pm_reader_t *r) { return r->raw; }
 /* ------------------------------------------------------------------ writer */
 
 struct pm_writer {
+    pm_header_t layout;  /* schema, channels and record size, for checking values */
+    char *name;          /* the path, for messages */
     pm_atomic_t out;
     XXH3_state_t *hash;
     uint64_t count, written;
@@ -916,10 +962,21 @@ pm_result_t pm_writer_open(const char *path, const pm_header_t *h, pm_writer_t *
     }
     w->count = h->count;
     w->record_size = pm_schema_record_size(h->schema, h->channels);
+    pm_header_init(&w->layout, h->schema);
+    w->layout.channels = h->channels;
+    w->layout.record_size = w->record_size;
+    w->name = strdup(path);
+    if (!w->name) {
+        XXH3_freeState(w->hash);
+        free(w);
+        free(text);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory opening '%s'", path);
+    }
     XXH3_64bits_reset(w->hash);
     res = pm_atomic_open(path, &w->out);
     if (res != PM_OK) {
         XXH3_freeState(w->hash);
+        free(w->name);
         free(w);
         free(text);
         return res;
@@ -938,6 +995,13 @@ pm_result_t pm_writer_write(pm_writer_t *w, const void *records, uint64_t n)
     if (w->written + n > w->count)
         return pm_error_set(PM_ERR_INTERNAL, "writer given %" PRIu64 " records, header says %" PRIu64,
                             w->written + n, w->count);
+    /* The same checks a reader makes: a stage with a bug (a NaN, a negative power) fails
+     * here with its own name in the message, instead of leaving a file no reader takes. */
+    pm_result_t r = check_values(&w->layout, w->name, records, n, w->written);
+    if (r != PM_OK) {
+        pm_error_prefix("refusing to write");
+        return PM_ERR_INTERNAL;
+    }
     size_t bytes = (size_t)(n * w->record_size);
     XXH3_64bits_update(w->hash, records, bytes);
     if (bytes && fwrite(records, 1, bytes, w->out.f) != bytes && !w->failed)
@@ -963,6 +1027,7 @@ pm_result_t pm_writer_commit(pm_writer_t *w)
         (void)ferror(w->out.f); /* commit reports the stream's error */
     pm_result_t r = pm_atomic_commit(&w->out);
     XXH3_freeState(w->hash);
+    free(w->name);
     free(w);
     return r;
 }
@@ -973,6 +1038,7 @@ void pm_writer_abort(pm_writer_t *w)
         return;
     pm_atomic_abort(&w->out);
     XXH3_freeState(w->hash);
+    free(w->name);
     free(w);
 }
 
@@ -1071,11 +1137,14 @@ static pm_result_t header_copy(pm_header_t *dst, const pm_header_t *src)
     dst->major = src->major;
     dst->minor = src->minor;
     memcpy(dst->bounds, src->bounds, sizeof dst->bounds);
-    pm_result_t r = pm_header_inherit(dst, src);
-    if (r == PM_OK) {
-        for (size_t i = 0; i < src->nkeys && r == PM_OK; i++)
-            r = pm_header_add(dst, src->keys[i].key, "%s", src->keys[i].value);
+    /* A faithful copy of the file's header: every COMMAND and every key, INPUT included. */
+    pm_result_t r = PM_OK;
+    for (size_t i = 0; i < src->ncommands && r == PM_OK; i++) {
+        char *c = strdup(src->commands[i]);
+        r = c ? command_append(dst, c) : pm_error_set(PM_ERR_NOMEM, "out of memory copying a header");
     }
+    for (size_t i = 0; i < src->nkeys && r == PM_OK; i++)
+        r = pm_header_add(dst, src->keys[i].key, "%s", src->keys[i].value);
     return r;
 }
 

@@ -21,6 +21,7 @@
 #define PM_HEADER_MAX (1u << 20)      /* bytes of header text a reader accepts */
 #define PM_HEADER_LINE_MAX (1u << 16) /* bytes of one header line */
 #define PM_COUNT_MAX (1ull << 40)     /* records; anything above is a corrupt count */
+#define PM_COMMAND_MAX 4096           /* bytes of a COMMAND line; longer ones end in " ..." */
 
 typedef enum { PM_TYPE_U16, PM_TYPE_U32, PM_TYPE_F32, PM_TYPE_F64 } pm_type_t;
 
@@ -75,6 +76,9 @@ struct pm_header {
     size_t nkeys;
 };
 
+/* A table read from a file holds that file's header as read (INPUT lines included); a
+ * stage writing a derived file starts a new header and takes provenance over with
+ * pm_header_inherit (and pm_header_copy_keys for a same-format pass-through). */
 struct pm_table {
     pm_header_t hdr;
     uint64_t count;                 /* records held (== hdr.count) */

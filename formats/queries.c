@@ -71,7 +71,7 @@ pm_result_t pm_queries_get_materials(const pm_header_t *h, const char *path, pm_
         }
         for (int k = 0; k < 3; k++)
             if (!(m[i].kd[k] >= 0.0f && m[i].ks[k] >= 0.0f && m[i].kd[k] + m[i].ks[k] <= 1.0f + 1e-6f) ||
-                !(m[i].ns >= 0.0f && m[i].ns < 1e6f)) {
+                !(m[i].ns >= 0.0f && m[i].ns <= 1e6f)) {
                 free(m);
                 return pm_error_set(PM_ERR_INPUT, "queries '%s': %s is not an energy-conserving material", path, key);
             }

@@ -6,7 +6,7 @@
 #include "formats.h"
 
 static const pm_channel_t radiance_channels[] = {
-    {"rgb", PM_TYPE_F64, 3, PM_CH_REQUIRED | PM_CH_FINITE, "W/(m^2 sr)", "RGB radiance toward the camera"},
+    {"rgb", PM_TYPE_F64, 3, PM_CH_REQUIRED | PM_CH_NONNEG, "W/(m^2 sr)", "RGB radiance toward the camera"},
 };
 
 static pm_result_t validate_header(const pm_header_t *h, const char *path)

@@ -5,8 +5,8 @@
  *
  *   pm-testgen FORMAT N OUT [--all] [--poison nan|inf|negative|tree|pixel|unit]
  *
- * The photon map it writes has a valid tree shape but is not a KD-tree of its
- * photons' positions: the format checks shape, build-photonmap's tests check order. */
+ * The photon map it writes is a median-split KD-tree of its photons, which the reader
+ * checks in full (shape, order, planes). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -25,22 +25,53 @@ static void unit_vector(pm_rng_t *r, float *v)
     v[0] = x / len, v[1] = y / len, v[2] = z / len;
 }
 
-/* Node `lo` heads the subtree of indices [lo, hi): left [lo+1, mid), right [mid, hi). */
-static void index_tree(pm_kdnode_t *node, const float *pos, uint32_t lo, uint32_t hi, unsigned depth)
+/* A plain median-split KD-tree over the records' positions, in the format's layout
+ * (depth-first; left subtree [i+1, child)), built by sorting: a test fixture, not the
+ * fast builder of build-photonmap. The records are permuted into tree order. */
+static const float *sort_pos;
+static unsigned sort_axis;
+
+static int by_axis(const void *a, const void *b)
 {
-    uint32_t n = hi - lo;
-    if (n == 1) {
-        node[lo] = pm_kdnode_make(pos[3 * (size_t)lo], PM_KD_LEAF, PM_KD_NONE);
+    float x = sort_pos[3 * (size_t)*(const uint32_t *)a + sort_axis];
+    float y = sort_pos[3 * (size_t)*(const uint32_t *)b + sort_axis];
+    return (x > y) - (x < y);
+}
+
+/* Places the photons idx[0..n) into tree slots [at, at+n); order[slot] = source record. */
+static void kd_build(uint32_t *idx, uint32_t n, uint32_t at, unsigned depth, const float *pos, uint32_t *order,
+                     pm_kdnode_t *node)
+{
+    if (n == 0)
         return;
-    }
-    uint32_t mid = lo + 1 + (n - 1) / 2; /* left gets (n-1)/2 nodes, may be 0 */
     unsigned axis = depth % 3;
-    uint32_t child = mid < hi ? mid : PM_KD_NONE;
-    node[lo] = pm_kdnode_make(pos[3 * (size_t)lo + axis], axis, child);
-    if (mid > lo + 1)
-        index_tree(node, pos, lo + 1, mid, depth + 1);
-    if (mid < hi)
-        index_tree(node, pos, mid, hi, depth + 1);
+    sort_pos = pos;
+    sort_axis = axis;
+    qsort(idx, n, sizeof *idx, by_axis);
+    uint32_t m = n / 2, nl = m, nr = n - m - 1;
+    order[at] = idx[m];
+    if (n == 1)
+        node[at] = pm_kdnode_make(pos[3 * (size_t)idx[m]], PM_KD_LEAF, PM_KD_NONE);
+    else
+        node[at] = pm_kdnode_make(pos[3 * (size_t)idx[m] + axis], axis, nr ? at + 1 + nl : PM_KD_NONE);
+    kd_build(idx, nl, at + 1, depth + 1, pos, order, node);
+    kd_build(idx + m + 1, nr, at + 1 + nl, depth + 1, pos, order, node);
+}
+
+/* Reorders every column of t so that record i becomes record order[i]'s content. */
+static void permute(pm_table_t *t, const uint32_t *order)
+{
+    const pm_schema_t *s = t->hdr.schema;
+    for (unsigned ci = 0; ci < s->nchannels; ci++) {
+        if (!t->col[ci] || ci == PM_MAP_NODE)
+            continue;
+        size_t cs = pm_type_size(s->channels[ci].type) * s->channels[ci].components;
+        unsigned char *copy = malloc(t->count * cs + 1);
+        memcpy(copy, t->col[ci], t->count * cs);
+        for (uint64_t i = 0; i < t->count; i++)
+            memcpy((unsigned char *)t->col[ci] + i * cs, copy + order[i] * cs, cs);
+        free(copy);
+    }
 }
 
 static void fill_f32(pm_rng_t *r, float *p, uint64_t n, float lo, float hi)
@@ -85,9 +116,14 @@ static int make(const char *format, uint64_t n, int all, pm_table_t *t)
         for (uint64_t i = 0; i < n; i++)
             ((uint32_t *)t->col[PM_PHOTON_DEPTH])[i] = (uint32_t)(i % 4);
         pm_header_set(&t->hdr, "emitted", "%llu", (unsigned long long)(2 * n));
-    } else if (s == &pm_photonmap_schema) {
-        if (n)
-            index_tree(t->col[PM_MAP_NODE], t->col[PM_MAP_POSITION], 0, (uint32_t)n, 0);
+    } else if (s == &pm_photonmap_schema && n) {
+        uint32_t *idx = malloc(n * sizeof *idx), *order = malloc(n * sizeof *order);
+        for (uint32_t i = 0; i < n; i++)
+            idx[i] = i;
+        kd_build(idx, (uint32_t)n, 0, 0, t->col[PM_MAP_POSITION], order, t->col[PM_MAP_NODE]);
+        permute(t, order);
+        free(idx);
+        free(order);
     } else if (s == &pm_queries_schema) {
         pm_header_set(&t->hdr, "width", "8");
         pm_header_set(&t->hdr, "height", "4");
@@ -136,7 +172,7 @@ static int poison(const char *path, size_t off, const void *bytes, size_t len)
 int main(int argc, char **argv)
 {
     if (argc < 4) {
-        fprintf(stderr, "usage: pm-testgen FORMAT N OUT [--all] [--poison nan|inf|negative|unit|tree|pixel]\n");
+        fprintf(stderr, "usage: pm-testgen FORMAT N OUT [--all] [--poison nan|inf|negative|unit|tree|order|pixel]\n");
         return 2;
     }
     int all = 0;
@@ -160,14 +196,22 @@ int main(int argc, char **argv)
         return 0;
     float nan = NAN, inf = INFINITY, neg = -1.0f, two = 2.0f;
     uint32_t big = 1000000;
+    float big_coord = 1000.0f; /* far right of any plane: outside the left subtree */
     /* Offsets within record 0: position (or the first channel) starts at 0 except in a
      * photon map, where the 8-byte node comes first. */
     size_t first_float = s == &pm_photonmap_schema ? 8 : 0;
     int bad;
-    if (!strcmp(what, "nan"))
+    double dnan = NAN, dinf = INFINITY;
+    if (!strcmp(what, "nan") && s == &pm_radiance_schema)
+        bad = poison(argv[3], 0, &dnan, 8);
+    else if (!strcmp(what, "inf") && s == &pm_radiance_schema)
+        bad = poison(argv[3], 8, &dinf, 8);
+    else if (!strcmp(what, "nan"))
         bad = poison(argv[3], first_float, &nan, 4);
     else if (!strcmp(what, "inf"))
         bad = poison(argv[3], first_float + 4, &inf, 4);
+    else if (!strcmp(what, "order") && s == &pm_photonmap_schema)
+        bad = poison(argv[3], 60 + 8, &big_coord, 4); /* record 1 (root's left child, split on y): x beyond the root's plane */
     else if (!strcmp(what, "negative") && s == &pm_photons_schema)
         bad = poison(argv[3], 12, &neg, 4); /* power.r */
     else if (!strcmp(what, "unit") && s == &pm_photons_schema)

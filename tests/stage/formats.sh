@@ -41,8 +41,24 @@ sed '0,/COUNT=7/s//COUNT=5/' "$src" >"$TMP/count5.pm"
 expect_error "count smaller than the payload" "wrong count in photons file .*bytes follow the checksum" "$BIN/pm-info" "$TMP/count5.pm"
 sed '0,/COUNT=7/s//COUNT=99999999999999999/' "$src" >"$TMP/absurd.pm"
 expect_error "absurd count" "absurd COUNT" "$BIN/pm-info" "$TMP/absurd.pm"
-sed '0,/COUNT=7/s//COUNT=-7/' "$src" >"$TMP/negative.pm"
-expect_error "negative count" "absurd COUNT" "$BIN/pm-info" "$TMP/negative.pm"
+for spelling in -7 +7 7.0 7e0 7E0 0x7 " 7" 07x; do
+    sed "0,/COUNT=7/s//COUNT=$spelling/" "$src" >"$TMP/spelled.pm"
+    expect_error "COUNT spelled '$spelling'" "absurd COUNT" "$BIN/pm-info" "$TMP/spelled.pm"
+done
+for spelling in 0x1f 0x0000001F "0x 000001f" 31; do
+    sed "0,/CHANNEL_MASK=0x0000001f/s//CHANNEL_MASK=$spelling/" "$src" >"$TMP/spelled.pm"
+    expect_error "CHANNEL_MASK spelled '$spelling'" "malformed CHANNEL_MASK" "$BIN/pm-info" "$TMP/spelled.pm"
+done
+for spelling in +1.0 1 1.0.0 1.x; do
+    sed "0,/VERSION=1.0/s//VERSION=$spelling/" "$src" >"$TMP/spelled.pm"
+    expect_error "VERSION spelled '$spelling'" "malformed VERSION" "$BIN/pm-info" "$TMP/spelled.pm"
+done
+sed '0,/RECORD_SIZE=52/s//RECORD_SIZE=52.0/' "$src" >"$TMP/spelled.pm"
+expect_error "RECORD_SIZE spelled '52.0'" "RECORD_SIZE '52.0'" "$BIN/pm-info" "$TMP/spelled.pm"
+sed '0,/^width=8$/s//width=8.0/' "$G/queries-all.pm" >"$TMP/spelled.pm"
+expect_error "width spelled '8.0'" "header key width='8.0' is not a decimal integer" "$BIN/pm-info" "$TMP/spelled.pm"
+sed '0,/^component=indirect$/s//component=glow/' "$G/radiance-all.pm" >"$TMP/comp.pm"
+expect_error "radiance component unknown" "component 'glow' is not direct, indirect or total" "$BIN/pm-info" "$TMP/comp.pm"
 sed '0,/RECORD_SIZE=52/s//RECORD_SIZE=48/' "$src" >"$TMP/rsize.pm"
 expect_error "record size disagrees with channels" "RECORD_SIZE '48' but its channels take 52 bytes" "$BIN/pm-info" "$TMP/rsize.pm"
 sed '0,/CHANNEL_MASK=0x0000001f/s//CHANNEL_MASK=0x0000003f/' "$src" >"$TMP/mask.pm"
@@ -78,7 +94,9 @@ expect_error "missing file" "cannot open '/nonexistent.pm'" "$BIN/pm-info" /none
 # values: right checksum, wrong content
 for p in "photons nan position.*nan" "photons inf position.*inf" "photons negative power.*negative" \
     "photons unit normal.*length" "photonmap nan position.*nan" "photonmap tree right child 1000000 outside" \
-    "queries pixel pixel 1000000 outside" "queries nan position.*nan"; do
+    "queries pixel pixel 1000000 outside" "queries nan position.*nan" \
+    "photonmap order photon 1 at x = 1000 lies outside .* the planes of its ancestors" \
+    "radiance nan rgb.*nan" "radiance inf rgb.*inf"; do
     set -- $p
     "$TG" $1 7 "$TMP/poison.pm" --all --poison $2
     expect_error "$1 with $2 content" "$3" "$BIN/pm-info" "$TMP/poison.pm"

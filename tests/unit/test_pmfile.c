@@ -40,12 +40,14 @@ static void fill(pm_table_t *t, uint32_t seed)
             }
         }
     }
-    if (s == &pm_photonmap_schema) { /* a chain: every node's right child is the next */
+    if (s == &pm_photonmap_schema) { /* a chain along x: every node's right child is the next */
         pm_kdnode_t *n = t->col[PM_MAP_NODE];
-        const float *p = t->col[PM_MAP_POSITION];
-        for (uint64_t i = 0; i < t->count; i++)
-            n[i] = i + 1 < t->count ? pm_kdnode_make(p[3 * i + i % 3], (uint32_t)(i % 3), (uint32_t)(i + 1))
+        float *p = t->col[PM_MAP_POSITION];
+        for (uint64_t i = 0; i < t->count; i++) {
+            p[3 * i] = (float)i;
+            n[i] = i + 1 < t->count ? pm_kdnode_make(p[3 * i], 0, (uint32_t)(i + 1))
                                     : pm_kdnode_make(p[3 * i], PM_KD_LEAF, PM_KD_NONE);
+        }
     }
     if (s == &pm_queries_schema || s == &pm_radiance_schema) {
         pm_header_set(&t->hdr, "width", "3");
@@ -154,6 +156,8 @@ static void test_pmfile_writer_all_or_nothing(void **state)
     pm_writer_t *w;
     assert_int_equal(pm_writer_open(path, &h, &w), PM_OK);
     unsigned char rec[40] = {0};
+    float up = 1.0f;
+    memcpy(rec + 32, &up, 4); /* normal (0, 0, 1): the writer checks values too */
     assert_int_equal(pm_writer_write(w, rec, 1), PM_OK);
     assert_int_not_equal(access(path, F_OK), 0); /* nothing at the final path while writing */
     assert_int_equal(pm_writer_commit(w), PM_ERR_INTERNAL); /* 1 of 10 records */
@@ -212,7 +216,28 @@ static void test_pmfile_kdnode(void **state)
         }
 }
 
+static void test_pmfile_writer_refuses_bad_values(void **state)
+{
+    char path[256];
+    tmp_path(path, sizeof path, "nan.pm");
+    unlink(path);
+    pm_table_t t;
+    assert_int_equal(pm_table_alloc(&t, &pm_photons_schema, pm_schema_required(&pm_photons_schema), 5000), PM_OK);
+    fill(&t, 1);
+    ((float *)t.col[PM_PHOTON_POWER])[3 * 4321 + 1] = -1.0f;
+    assert_int_equal(pm_table_write(&t, path), PM_ERR_INTERNAL);
+    assert_non_null(strstr(pm_error_message(), "refusing to write: bad value in photons file"));
+    assert_non_null(strstr(pm_error_message(), "record 4321 channel 'power'[1] is -1"));
+    assert_int_not_equal(access(path, F_OK), 0); /* and nothing was left behind */
+    ((float *)t.col[PM_PHOTON_POWER])[3 * 4321 + 1] = 1.0f;
+    ((float *)t.col[PM_PHOTON_POSITION])[0] = NAN;
+    assert_int_equal(pm_table_write(&t, path), PM_ERR_INTERNAL);
+    assert_non_null(strstr(pm_error_message(), "record 0 channel 'position'[0] is nan"));
+    pm_table_free(&t);
+}
+
 static const struct CMUnitTest tests[] = {
+    cmocka_unit_test(test_pmfile_writer_refuses_bad_values),
     cmocka_unit_test(test_pmfile_roundtrip_every_format),
     cmocka_unit_test(test_pmfile_record_sizes),
     cmocka_unit_test(test_pmfile_range_and_need),

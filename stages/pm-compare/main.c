@@ -1,0 +1,165 @@
+/* pm-compare: compares two pmtk files of one format within tolerances, the way golden
+ * tests and regression checks need: structure (format, count, channels, bounds) and the
+ * header keys must agree, except the volatile ones that record who made the file and
+ * when (SOFTWARE, COMMAND, INPUT); integer channels must agree exactly; float channels
+ * within --max-abs / --max-rel per value and --rms per channel. Prints one line per
+ * channel with the largest differences and where they are. */
+#include <inttypes.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../../common/stage.h"
+#include "../../formats/formats.h"
+
+typedef struct {
+    double max_abs, max_rel, rms;
+    const char *ignore; /* comma-separated header keys not compared */
+} compare_options_t;
+
+static int ignored(const char *key, const char *list)
+{
+    if (!strcmp(key, "INPUT") || !strcmp(key, "SOFTWARE"))
+        return 1;
+    size_t n = strlen(key);
+    for (const char *p = list; p && *p;) {
+        const char *comma = strchr(p, ',');
+        size_t len = comma ? (size_t)(comma - p) : strlen(p);
+        if (len == n && !strncmp(p, key, n))
+            return 1;
+        p = comma ? comma + 1 : p + len;
+    }
+    return 0;
+}
+
+/* Every key of a (not ignored) must be in b with the same value. */
+static pm_result_t keys_subset(const pm_header_t *a, const pm_header_t *b, const char *an, const char *bn,
+                               const compare_options_t *o)
+{
+    for (size_t i = 0; i < a->nkeys; i++) {
+        const char *k = a->keys[i].key;
+        if (ignored(k, o->ignore))
+            continue;
+        const char *v = pm_header_get(b, k);
+        if (!v)
+            return pm_error_set(PM_ERR_INPUT, "header key %s of '%s' is missing from '%s'", k, an, bn);
+        if (strcmp(v, pm_header_get(a, k)) != 0)
+            return pm_error_set(PM_ERR_INPUT, "header key %s differs: '%s' in '%s', '%s' in '%s'", k,
+                                pm_header_get(a, k), an, v, bn);
+    }
+    return PM_OK;
+}
+
+static double value_at(const pm_channel_t *c, const void *col, uint64_t j)
+{
+    switch (c->type) {
+    case PM_TYPE_U16: return ((const uint16_t *)col)[j];
+    case PM_TYPE_U32: return ((const uint32_t *)col)[j];
+    case PM_TYPE_F32: return ((const float *)col)[j];
+    case PM_TYPE_F64: return ((const double *)col)[j];
+    }
+    return 0.0;
+}
+
+static pm_result_t compare(const pm_table_t *a, const pm_table_t *b, const char *an, const char *bn,
+                           const compare_options_t *o, pm_stage_t *st)
+{
+    const pm_schema_t *s = a->hdr.schema;
+    if (s != b->hdr.schema)
+        return pm_error_set(PM_ERR_INPUT, "'%s' is a %s but '%s' is a %s", an, s->title, bn, b->hdr.schema->title);
+    if (a->count != b->count)
+        return pm_error_set(PM_ERR_INPUT, "'%s' has %" PRIu64 " records, '%s' has %" PRIu64, an, a->count, bn,
+                            b->count);
+    if (a->hdr.channels != b->hdr.channels)
+        return pm_error_set(PM_ERR_INPUT, "'%s' has channel mask 0x%08" PRIx32 ", '%s' has 0x%08" PRIx32, an,
+                            a->hdr.channels, bn, b->hdr.channels);
+    if (!ignored("BOUNDS", o->ignore) && memcmp(a->hdr.bounds, b->hdr.bounds, sizeof a->hdr.bounds) != 0)
+        return pm_error_set(PM_ERR_INPUT, "'%s' and '%s' have different BOUNDS", an, bn);
+    pm_result_t r = keys_subset(&a->hdr, &b->hdr, an, bn, o);
+    if (r == PM_OK)
+        r = keys_subset(&b->hdr, &a->hdr, bn, an, o);
+    if (r != PM_OK)
+        return r;
+    pm_result_t verdict = PM_OK;
+    char first_fault[512] = "";
+    for (unsigned ci = 0; ci < s->nchannels; ci++) {
+        if (!a->col[ci])
+            continue;
+        const pm_channel_t *c = &s->channels[ci];
+        uint64_t n = a->count * c->components, worst = 0, mismatches = 0;
+        double max_abs = 0, max_rel = 0, sum2 = 0;
+        int is_float = c->type == PM_TYPE_F32 || c->type == PM_TYPE_F64;
+        for (uint64_t j = 0; j < n; j++) {
+            double x = value_at(c, a->col[ci], j), y = value_at(c, b->col[ci], j), d = fabs(x - y);
+            double scale = fmax(fabs(x), fabs(y)), rel = scale > 0 ? d / scale : 0.0;
+            sum2 += d * d;
+            if (d > max_abs)
+                max_abs = d, worst = j;
+            max_rel = fmax(max_rel, rel);
+            int ok = is_float ? (d <= o->max_abs || rel <= o->max_rel) : d == 0.0;
+            mismatches += !ok;
+        }
+        double rms = n ? sqrt(sum2 / (double)n) : 0.0;
+        int rms_ok = o->rms < 0 || rms <= o->rms;
+        printf("%-10s max_abs %.6g max_rel %.6g rms %.6g worst record %" PRIu64 "%s%s\n", c->name, max_abs, max_rel,
+               rms, n ? worst / c->components : 0, mismatches ? " OUT OF TOLERANCE" : "",
+               rms_ok ? "" : " RMS OUT OF TOLERANCE");
+        char key[64];
+        snprintf(key, sizeof key, "%s_max_abs", c->name);
+        pm_stage_stat_double(st, key, max_abs);
+        snprintf(key, sizeof key, "%s_rms", c->name);
+        pm_stage_stat_double(st, key, rms);
+        if ((mismatches || !rms_ok) && verdict == PM_OK) {
+            verdict = PM_ERR_INPUT;
+            snprintf(first_fault, sizeof first_fault,
+                     "'%s' and '%s' differ in channel '%s': %" PRIu64 " values out of tolerance, max_abs %.6g at record "
+                     "%" PRIu64 ", rms %.6g",
+                     an, bn, c->name, mismatches, max_abs, worst / c->components, rms);
+        }
+    }
+    st->items = a->count;
+    if (verdict != PM_OK)
+        return pm_error_set(verdict, "%s", first_fault);
+    return PM_OK;
+}
+
+int main(int argc, char **argv)
+{
+    pm_stage_t st;
+    pm_stage_defaults(&st);
+    compare_options_t o = {.max_abs = 0.0, .max_rel = 0.0, .rms = -1.0};
+    const pm_option_t options[] = {
+        PM_STAGE_COMMON_OPTIONS(st),
+        {"max-abs", 0, PM_OPT_DOUBLE, &o.max_abs, "X", "a float pair agrees when |a-b| <= X", 0, 1e300, NULL},
+        {"max-rel", 0, PM_OPT_DOUBLE, &o.max_rel, "X", "... or when |a-b| <= X max(|a|,|b|)", 0, 1e300, NULL},
+        {"rms", 0, PM_OPT_DOUBLE, &o.rms, "X", "each channel's root-mean-square difference must be <= X; -1: unchecked",
+         -1, 1e300, NULL},
+        {"ignore-keys", 0, PM_OPT_STRING, &o.ignore, "K1,K2", "header keys not compared (besides SOFTWARE, COMMAND, INPUT)",
+         1, 0, NULL},
+        {0},
+    };
+    const pm_cli_t cli = {"pm-compare", "[options] A B",
+                          "Compare two pmtk files of one format: structure and header keys exactly, values within "
+                          "tolerances. Exit 0 when they agree, 1 when they differ.",
+                          options, 2, 2};
+    int rc = pm_stage_begin(&st, &cli, argc, argv);
+    if (rc >= 0)
+        return rc;
+    const char *an = st.args.args[0], *bn = st.args.args[1];
+    if (!strcmp(an, "-") && !strcmp(bn, "-"))
+        return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "only one of A and B can be stdin"));
+    pm_table_t a, b;
+    pm_result_t r = pm_table_read(an, NULL, 0, &a);
+    if (r == PM_OK) {
+        r = pm_table_read(bn, NULL, 0, &b);
+        if (r == PM_OK) {
+            r = compare(&a, &b, an, bn, &o, &st);
+            pm_table_free(&b);
+        }
+        pm_table_free(&a);
+    }
+    if (fflush(stdout) != 0 && r == PM_OK)
+        r = pm_error_set(PM_ERR_IO, "cannot write to stdout");
+    return pm_stage_end(&st, r);
+}

@@ -172,22 +172,29 @@ static int poison(const char *path, size_t off, const void *bytes, size_t len)
 int main(int argc, char **argv)
 {
     if (argc < 4) {
-        fprintf(stderr, "usage: pm-testgen FORMAT N OUT [--all] [--poison nan|inf|negative|unit|tree|order|pixel]\n");
+        fprintf(stderr, "usage: pm-testgen FORMAT N OUT [--all] [--set KEY=VALUE] [--poison nan|inf|negative|unit|tree|order|pixel|nudge]\n");
         return 2;
     }
     int all = 0;
-    const char *what = NULL;
+    const char *what = NULL, *set = NULL;
     for (int i = 4; i < argc; i++) {
         if (!strcmp(argv[i], "--all"))
             all = 1;
         else if (!strcmp(argv[i], "--poison") && i + 1 < argc)
             what = argv[++i];
+        else if (!strcmp(argv[i], "--set") && i + 1 < argc && strchr(argv[i + 1], '='))
+            set = argv[++i];
         else
             return fprintf(stderr, "pm-testgen: bad argument '%s'\n", argv[i]), 2;
     }
     pm_table_t t;
     if (make(argv[1], strtoull(argv[2], NULL, 10), all, &t))
         return 1;
+    if (set) { /* --set KEY=VALUE: a header key, for tests of header comparisons */
+        char key[64];
+        snprintf(key, sizeof key, "%.*s", (int)(strchr(set, '=') - set), set);
+        pm_header_set(&t.hdr, key, "%s", strchr(set, '=') + 1);
+    }
     if (pm_table_write(&t, argv[3]) != PM_OK)
         return fprintf(stderr, "pm-testgen: %s\n", pm_error_message()), 1;
     const pm_schema_t *s = t.hdr.schema;
@@ -202,7 +209,15 @@ int main(int argc, char **argv)
     size_t first_float = s == &pm_photonmap_schema ? 8 : 0;
     int bad;
     double dnan = NAN, dinf = INFINITY;
-    if (!strcmp(what, "nan") && s == &pm_radiance_schema)
+    double nudged = 0.0;
+    if (!strcmp(what, "nudge") && s == &pm_radiance_schema) { /* a valid but different value */
+        pm_table_t u;
+        if (pm_table_read(argv[3], s, 0, &u) != PM_OK)
+            return fprintf(stderr, "pm-testgen: %s\n", pm_error_message()), 1;
+        nudged = ((double *)u.col[PM_RADIANCE_RGB])[4] + 1e-7;
+        pm_table_free(&u);
+        bad = poison(argv[3], 4 * 8, &nudged, 8);
+    } else if (!strcmp(what, "nan") && s == &pm_radiance_schema)
         bad = poison(argv[3], 0, &dnan, 8);
     else if (!strcmp(what, "inf") && s == &pm_radiance_schema)
         bad = poison(argv[3], 8, &dinf, 8);

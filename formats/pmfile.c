@@ -14,6 +14,7 @@
 
 #include "../common/args.h"
 #include "../common/atomic.h"
+#include "../common/memory.h"
 #include "../common/version.h"
 
 _Static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "pmtk files are little-endian; port the codecs");
@@ -1052,8 +1053,7 @@ static pm_result_t cols_resize(pm_table_t *t, uint64_t keep, uint64_t cap)
         if (!(t->hdr.channels & (1u << i)))
             continue;
         size_t cs = channel_size(&s->channels[i]), bytes = (size_t)cap * cs;
-        /* 64-byte aligned: SIMD loads and cache lines. */
-        void *p = aligned_alloc(64, ((bytes + 63) & ~(size_t)63) + 64);
+        void *p = pm_alloc_aligned(bytes + 64); /* + 64: SIMD loads may run past the last row */
         if (!p)
             return pm_error_set(PM_ERR_NOMEM, "out of memory for %" PRIu64 " records of %s", cap, s->title);
         if (t->col[i] && keep)
@@ -1091,6 +1091,27 @@ void pm_table_free(pm_table_t *t)
     memset(t, 0, sizeof *t);
 }
 
+/* Copies n elements of cs bytes between strided layouts. The sizes channels have are
+ * spelled out so that each memcpy is a fixed-size move, not a call into libc (which
+ * dominated read time when every 12-byte element went through memmove). */
+static void copy_strided(unsigned char *dst, size_t dstride, const unsigned char *src, size_t sstride, uint64_t n,
+                         size_t cs)
+{
+#define PM_COPY(SIZE)                                                                                        \
+    for (uint64_t i = 0; i < n; i++)                                                                         \
+        memcpy(dst + i * dstride, src + i * sstride, SIZE);                                                  \
+    return;
+    switch (cs) {
+    case 2: PM_COPY(2)
+    case 4: PM_COPY(4)
+    case 8: PM_COPY(8)
+    case 12: PM_COPY(12)
+    case 24: PM_COPY(24)
+    default: PM_COPY(cs)
+    }
+#undef PM_COPY
+}
+
 /* Moves n AoS records into the table's columns starting at row `at`. */
 static void scatter(pm_table_t *t, const unsigned char *rec, uint64_t n, uint64_t at)
 {
@@ -1100,9 +1121,7 @@ static void scatter(pm_table_t *t, const unsigned char *rec, uint64_t n, uint64_
         if (!(t->hdr.channels & (1u << ci)))
             continue;
         size_t cs = channel_size(&s->channels[ci]);
-        unsigned char *dst = (unsigned char *)t->col[ci] + at * cs;
-        for (uint64_t i = 0; i < n; i++)
-            memcpy(dst + i * cs, rec + i * rs + off, cs);
+        copy_strided((unsigned char *)t->col[ci] + at * cs, cs, rec + off, rs, n, cs);
         off += cs;
     }
 }
@@ -1116,9 +1135,7 @@ static void gather(const pm_table_t *t, unsigned char *rec, uint64_t n, uint64_t
         if (!(t->hdr.channels & (1u << ci)))
             continue;
         size_t cs = channel_size(&s->channels[ci]);
-        const unsigned char *src = (const unsigned char *)t->col[ci] + at * cs;
-        for (uint64_t i = 0; i < n; i++)
-            memcpy(rec + i * rs + off, src + i * cs, cs);
+        copy_strided(rec + off, rs, (const unsigned char *)t->col[ci] + at * cs, cs, n, cs);
         off += cs;
     }
 }

@@ -6,12 +6,15 @@
 #include <inttypes.h>
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 
+#include "../../common/image.h"
 #include "../../common/rt.h"
 #include "../../common/stage.h"
 
 typedef struct {
     int probe;
+    const char *preview; /* PNG path, NULL for none */
 } scene_info_options_t;
 
 /* Primary ray direction through pixel (x, y)'s centre of a pinhole camera. */
@@ -39,7 +42,25 @@ static void camera_ray(const pm_camera_t *c, uint32_t x, uint32_t y, float dir_o
         dir_out[k] = f[k] + sx * r[k] + sy * u[k];
 }
 
-static pm_result_t probe(const pm_scene_t *s, const pm_rt_t *rt, pm_stage_t *st)
+/* An eye-light preview: each pixel shows its surface's albedo times |cos| to the eye
+ * (emitters in their normalized emission colour, misses black), so the camera, the
+ * geometry and the materials can be checked by eye before anything is rendered. */
+static float preview_shade(const pm_scene_t *s, const struct RTCRayHit *rh, const float d[3], int k)
+{
+    if (rh->hit.geomID == RTC_INVALID_GEOMETRY_ID)
+        return 0.0f;
+    const pm_material_t *m = &s->materials[s->tri_material[rh->hit.primID]];
+    if (pm_material_is_emissive(m)) {
+        float mx = fmaxf(m->ke[0], fmaxf(m->ke[1], m->ke[2]));
+        return m->ke[k] / mx;
+    }
+    float n[3] = {rh->hit.Ng_x, rh->hit.Ng_y, rh->hit.Ng_z};
+    float nn = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]), dd = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    float c = fabsf(n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) / (nn * dd);
+    return (m->kd[k] + m->ks[k]) * (0.2f + 0.8f * c);
+}
+
+static pm_result_t probe(const pm_scene_t *s, const pm_rt_t *rt, pm_stage_t *st, uint8_t *preview)
 {
     const pm_camera_t *c = &s->camera;
     uint64_t n = (uint64_t)c->width * c->height, hits = 0;
@@ -61,6 +82,9 @@ static pm_result_t probe(const pm_scene_t *s, const pm_rt_t *rt, pm_stage_t *st)
             rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
             rtcIntersect1(rt->scene, &ctx, &rh);
             hits += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+            if (preview)
+                for (int k = 0; k < 3; k++)
+                    preview[3 * ((size_t)y * c->width + x) + (size_t)k] = pm_srgb8(preview_shade(s, &rh, d, k));
         }
         pm_progress_add(&prog, c->width);
     }
@@ -84,6 +108,8 @@ int main(int argc, char **argv)
         PM_STAGE_COMMON_OPTIONS(st),
         {"probe", 0, PM_OPT_FLAG, &o.probe, NULL, "cast one primary ray per pixel and report the hit rate", 1, 0,
          NULL},
+        {"preview", 0, PM_OPT_STRING, &o.preview, "PNG",
+         "also write an eye-light preview (albedo times cosine) of the camera's view", 1, 0, NULL},
         {0},
     };
     const pm_cli_t cli = {"scene-info", "[options] SCENE",
@@ -139,8 +165,16 @@ int main(int argc, char **argv)
         pm_stage_stat_double(&st, "load_s", t_load);
         pm_stage_stat_double(&st, "bvh_s", t_bvh);
         st.items = s.ntris;
-        if (o.probe)
-            r = probe(&s, &rt, &st);
+        if (o.probe || o.preview) {
+            uint8_t *img = o.preview ? calloc((size_t)3 * s.camera.width * s.camera.height, 1) : NULL;
+            if (o.preview && !img)
+                r = pm_error_set(PM_ERR_NOMEM, "out of memory for a %ux%u preview", s.camera.width, s.camera.height);
+            if (r == PM_OK)
+                r = probe(&s, &rt, &st, img);
+            if (r == PM_OK && img)
+                r = pm_png_write_rgb8(o.preview, s.camera.width, s.camera.height, img);
+            free(img);
+        }
         pm_rt_destroy(&rt);
     }
     pm_scene_free(&s);

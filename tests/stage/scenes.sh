@@ -20,3 +20,11 @@ printf '{\n  "pmtk_scene": 1,\n  "name": "x"\n  "camera": {}\n}\n' >"$TMP/bad.js
 expect_error "scene syntax error names the line" "scene '.*bad.json' line 4" "$BIN/scene-info" "$TMP/bad.json"
 expect_error "missing scene" "cannot open scene" "$BIN/scene-info" /nonexistent/scene.json
 expect_exit "scene-info needs one argument" 2 "$BIN/scene-info"
+"$BIN/scene-info" -q --preview "$TMP/p.png" scenes/cornell-box/scene.json >/dev/null 2>"$TMP/err"
+if [ "$(head -c 8 "$TMP/p.png" | od -An -tx1 | tr -d ' \n')" = 89504e470d0a1a0a ] && [ "$(stat -c %s "$TMP/p.png")" -gt 1000 ]; then
+    pass "scene-info --preview writes a PNG"
+else
+    fail "scene-info --preview" "$(cat "$TMP/err")"
+fi
+expect_error "preview into a missing folder fails cleanly" "cannot create output '/nonexistent/p.png'" \
+    "$BIN/scene-info" -q --preview /nonexistent/p.png scenes/cornell-box/scene.json

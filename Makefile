@@ -62,6 +62,9 @@ ATRIUM_GEN := $(BUILD)/scenes/make-atrium
 ATRIUM_OBJ := scenes/atrium/atrium.obj
 
 .PHONY: all test test-run asan test-asan demo bench fuzz deps clean check-deps
+# Keep the stages' objects: they are intermediate to the pattern rule, and make would
+# otherwise delete them and rebuild them next time.
+.SECONDARY:
 all: $(PROGS) $(ATRIUM_OBJ)
 
 # Rebuild everything when the flags change.

@@ -38,7 +38,7 @@ static pm_result_t validate_tree(const pm_table_t *t, const char *path)
                             path, n);
     const pm_kdnode_t *node = t->col[PM_MAP_NODE];
     const float *pos = t->col[PM_MAP_POSITION];
-    /* Depth-first order makes the stack at most depth + 1 <= n entries deep. */
+    /* Pre-order: at node i the stack holds at most i entries, so n + 1 always suffice. */
     pending_t *stack = malloc((n + 1) * sizeof *stack);
     if (!stack)
         return pm_error_set(PM_ERR_NOMEM, "out of memory checking photon map '%s'", path);
@@ -95,10 +95,6 @@ static pm_result_t validate_tree(const pm_table_t *t, const char *path)
                                "corrupt photon map '%s': node %" PRIu32 " has right child %" PRIu32 " outside (%" PRIu32
                                ", %" PRIu64 ")",
                                path, i, child, i, n);
-            break;
-        }
-        if (top + 2 > n + 1) { /* cannot happen in pre-order; guards the stack regardless */
-            res = pm_error_set(PM_ERR_INPUT, "corrupt photon map '%s': node %" PRIu32 " nests too deep", path, i);
             break;
         }
         if (has_right) { /* pushed first, popped after the whole left subtree */

@@ -207,7 +207,7 @@ static const char *title_of(const pm_header_t *h) { return h->schema ? h->schema
 static int parse_decimal(const char *v, uint64_t *out)
 {
     uint64_t x = 0;
-    if (!*v || strlen(v) > 19)
+    if (!*v || strlen(v) > 19 || (v[0] == '0' && v[1])) /* no leading zeros: 07 is not 7's spelling */
         return 0;
     for (; *v; v++) {
         if (*v < '0' || *v > '9')
@@ -422,7 +422,7 @@ pm_result_t pm_header_format(const pm_header_t *h, char **text_out, size_t *len_
     }
     for (const char *line = t.s; *line;) {
         const char *nl = strchr(line, '\n');
-        if ((size_t)(nl - line) + 1 > PM_HEADER_LINE_MAX) {
+        if ((size_t)(nl - line) > PM_HEADER_LINE_MAX) { /* the reader's rule: the newline not counted */
             size_t len = (size_t)(nl - line);
             free(t.s);
             return pm_error_set(PM_ERR_INTERNAL, "%s header line of %zu bytes exceeds %u", s->title, len,
@@ -955,6 +955,12 @@ pm_result_t pm_writer_open(const char *path, const pm_header_t *h, pm_writer_t *
     pm_result_t res = pm_header_format(h, &text, &len);
     if (res != PM_OK)
         return res;
+    /* The format's own header rules (image size, material table, ...), as a reader applies them. */
+    if (h->schema->validate_header && (res = h->schema->validate_header(h, path)) != PM_OK) {
+        free(text);
+        pm_error_prefix("refusing to write");
+        return PM_ERR_INTERNAL;
+    }
     pm_writer_t *w = calloc(1, sizeof *w);
     if (!w || !(w->hash = XXH3_createState())) {
         free(w);
@@ -966,7 +972,7 @@ pm_result_t pm_writer_open(const char *path, const pm_header_t *h, pm_writer_t *
     pm_header_init(&w->layout, h->schema);
     w->layout.channels = h->channels;
     w->layout.record_size = w->record_size;
-    w->name = strdup(path);
+    w->name = strdup(strcmp(path, "-") == 0 ? "stdout" : path);
     if (!w->name) {
         XXH3_freeState(w->hash);
         free(w);
@@ -1240,6 +1246,13 @@ pm_result_t pm_table_write(const pm_table_t *t, const char *path)
     if (t->hdr.count != t->count)
         return pm_error_set(PM_ERR_INTERNAL, "table holds %" PRIu64 " records, header says %" PRIu64, t->count,
                             t->hdr.count);
+    /* Relations across records (tree shape, pixel indices), as a reader checks them. */
+    const pm_schema_t *s = t->hdr.schema;
+    pm_result_t vr = s->validate_table ? s->validate_table(t, strcmp(path, "-") == 0 ? "stdout" : path) : PM_OK;
+    if (vr != PM_OK) {
+        pm_error_prefix("refusing to write");
+        return PM_ERR_INTERNAL;
+    }
     pm_writer_t *w;
     pm_result_t res = pm_writer_open(path, &t->hdr, &w);
     if (res != PM_OK)

@@ -41,7 +41,7 @@ sed '0,/COUNT=7/s//COUNT=5/' "$src" >"$TMP/count5.pm"
 expect_error "count smaller than the payload" "wrong count in photons file .*bytes follow the checksum" "$BIN/pm-info" "$TMP/count5.pm"
 sed '0,/COUNT=7/s//COUNT=99999999999999999/' "$src" >"$TMP/absurd.pm"
 expect_error "absurd count" "absurd COUNT" "$BIN/pm-info" "$TMP/absurd.pm"
-for spelling in -7 +7 7.0 7e0 7E0 0x7 " 7" 07x; do
+for spelling in -7 +7 7.0 7e0 7E0 0x7 " 7" 07x 07; do
     sed "0,/COUNT=7/s//COUNT=$spelling/" "$src" >"$TMP/spelled.pm"
     expect_error "COUNT spelled '$spelling'" "absurd COUNT" "$BIN/pm-info" "$TMP/spelled.pm"
 done

@@ -236,7 +236,48 @@ static void test_pmfile_writer_refuses_bad_values(void **state)
     pm_table_free(&t);
 }
 
+static void test_pmfile_writer_refuses_bad_headers_and_tables(void **state)
+{
+    char path[256];
+    tmp_path(path, sizeof path, "badhdr.pm");
+    unlink(path);
+    pm_table_t t;
+    assert_int_equal(pm_table_alloc(&t, &pm_queries_schema, pm_schema_required(&pm_queries_schema), 3), PM_OK);
+    fill(&t, 2);
+    ((uint32_t *)t.col[PM_QUERY_PIXEL])[2] = 6; /* the image is 3x2: pixel 6 is outside */
+    assert_int_equal(pm_table_write(&t, path), PM_ERR_INTERNAL);
+    assert_non_null(strstr(pm_error_message(), "refusing to write: bad value in queries"));
+    ((uint32_t *)t.col[PM_QUERY_PIXEL])[2] = 5;
+    pm_header_set(&t.hdr, "width", "0");
+    assert_int_equal(pm_table_write(&t, path), PM_ERR_INTERNAL);
+    assert_non_null(strstr(pm_error_message(), "refusing to write"));
+    assert_non_null(strstr(pm_error_message(), "image size 0x2"));
+    assert_int_not_equal(access(path, F_OK), 0);
+    pm_table_free(&t);
+    /* a header line at the reader's limit is written; one byte more is refused */
+    pm_header_t h;
+    pm_header_init(&h, &pm_photons_schema);
+    h.channels = pm_schema_required(&pm_photons_schema);
+    char *big = malloc(PM_HEADER_LINE_MAX + 2);
+    memset(big, 'x', PM_HEADER_LINE_MAX + 1);
+    big[PM_HEADER_LINE_MAX - 5] = '\0'; /* "note=" + value = PM_HEADER_LINE_MAX bytes */
+    pm_header_set(&h, "note", "%s", big);
+    pm_writer_t *w;
+    assert_int_equal(pm_writer_open(path, &h, &w), PM_OK);
+    assert_int_equal(pm_writer_commit(w), PM_OK);
+    pm_table_t u;
+    assert_int_equal(pm_table_read(path, &pm_photons_schema, 0, &u), PM_OK);
+    pm_table_free(&u);
+    big[PM_HEADER_LINE_MAX - 5] = 'x';
+    big[PM_HEADER_LINE_MAX - 4] = '\0';
+    pm_header_set(&h, "note", "%s", big);
+    assert_int_equal(pm_writer_open(path, &h, &w), PM_ERR_INTERNAL);
+    free(big);
+    pm_header_free(&h);
+}
+
 static const struct CMUnitTest tests[] = {
+    cmocka_unit_test(test_pmfile_writer_refuses_bad_headers_and_tables),
     cmocka_unit_test(test_pmfile_writer_refuses_bad_values),
     cmocka_unit_test(test_pmfile_roundtrip_every_format),
     cmocka_unit_test(test_pmfile_record_sizes),

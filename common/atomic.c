@@ -6,6 +6,7 @@
 #include <signal.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #define PM_ATOMIC_SLOTS 16 /* temporary files open at once in one process */
@@ -29,13 +30,18 @@ void pm_atomic_install_cleanup(void)
     if (installed)
         return;
     installed = 1;
-    struct sigaction sa;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_signal;
-    sigemptyset(&sa.sa_mask);
-    sigaction(SIGINT, &sa, NULL);
-    sigaction(SIGTERM, &sa, NULL);
-    sigaction(SIGHUP, &sa, NULL);
+    /* SIGPIPE too: a stage writing stdout and a file must not leave the file's temporary
+     * behind when its reader goes away. A signal the caller ignores (nohup) stays ignored. */
+    static const int sigs[] = {SIGINT, SIGTERM, SIGHUP, SIGPIPE};
+    for (size_t i = 0; i < sizeof sigs / sizeof sigs[0]; i++) {
+        struct sigaction old, sa;
+        if (sigaction(sigs[i], NULL, &old) == 0 && old.sa_handler == SIG_IGN)
+            continue;
+        memset(&sa, 0, sizeof sa);
+        sa.sa_handler = on_signal;
+        sigemptyset(&sa.sa_mask);
+        sigaction(sigs[i], &sa, NULL);
+    }
 }
 
 static int register_path(char *p)
@@ -55,7 +61,9 @@ static void unregister(pm_atomic_t *a)
     a->slot = -1;
 }
 
-pm_result_t pm_atomic_reserve(const char *path, pm_atomic_t *out)
+/* Creates the temporary file beside path with a unique name (mkstemp: O_EXCL, never
+ * following a planted link), registered for cleanup; *fd_out is open for writing. */
+static pm_result_t make_temp(const char *path, pm_atomic_t *out, int *fd_out)
 {
     memset(out, 0, sizeof *out);
     out->slot = -1;
@@ -64,7 +72,7 @@ pm_result_t pm_atomic_reserve(const char *path, pm_atomic_t *out)
     const char *base = slash ? slash + 1 : path;
     if (!*base)
         return pm_error_set(PM_ERR_USAGE, "output '%s' names a directory, not a file", path);
-    size_t n = strlen(path) + 48;
+    size_t n = strlen(path) + 16;
     out->path = strdup(path);
     out->tmp_path = malloc(n);
     if (!out->path || !out->tmp_path) {
@@ -73,9 +81,32 @@ pm_result_t pm_atomic_reserve(const char *path, pm_atomic_t *out)
         out->path = out->tmp_path = NULL;
         return pm_error_set(PM_ERR_NOMEM, "out of memory opening '%s'", path);
     }
-    snprintf(out->tmp_path, n, "%.*s.%s.tmp.%ld", (int)dirlen, path, base, (long)getpid());
+    snprintf(out->tmp_path, n, "%.*s.%s.XXXXXX", (int)dirlen, path, base);
+    int fd = mkstemp(out->tmp_path);
+    if (fd < 0) {
+        int e = errno;
+        free(out->path);
+        free(out->tmp_path);
+        out->path = out->tmp_path = NULL;
+        return pm_error_set(e == ENOENT || e == ENOTDIR ? PM_ERR_INPUT : PM_ERR_IO, "cannot create output '%s': %s",
+                            path, strerror(e));
+    }
     out->slot = register_path(out->tmp_path);
+    /* mkstemp makes 0600; an output should get the permissions any new file would. */
+    mode_t mask = umask(0);
+    umask(mask);
+    fchmod(fd, 0666 & ~mask);
+    *fd_out = fd;
     return PM_OK;
+}
+
+pm_result_t pm_atomic_reserve(const char *path, pm_atomic_t *out)
+{
+    int fd;
+    pm_result_t r = make_temp(path, out, &fd);
+    if (r == PM_OK)
+        close(fd); /* the library that writes by name reopens (and truncates) it */
+    return r;
 }
 
 pm_result_t pm_atomic_open(const char *path, pm_atomic_t *out)
@@ -86,12 +117,14 @@ pm_result_t pm_atomic_open(const char *path, pm_atomic_t *out)
         out->f = stdout;
         return PM_OK;
     }
-    pm_result_t r = pm_atomic_reserve(path, out);
+    int fd;
+    pm_result_t r = make_temp(path, out, &fd);
     if (r != PM_OK)
         return r;
-    out->f = fopen(out->tmp_path, "wb");
+    out->f = fdopen(fd, "wb");
     if (!out->f) {
         int e = errno;
+        close(fd);
         pm_atomic_abort(out);
         return pm_error_set(PM_ERR_IO, "cannot create output '%s': %s", path, strerror(e));
     }
@@ -100,25 +133,22 @@ pm_result_t pm_atomic_open(const char *path, pm_atomic_t *out)
 
 pm_result_t pm_atomic_commit(pm_atomic_t *a)
 {
-    const char *name = a->path ? a->path : "stdout";
     int bad = 0, e = 0;
     if (a->f) {
         if (fflush(a->f) != 0 || ferror(a->f))
             bad = 1, e = errno;
-        if (a->f != stdout) {
-            if (fclose(a->f) != 0 && !bad)
-                bad = 1, e = errno;
-        }
+        if (a->f != stdout && fclose(a->f) != 0 && !bad)
+            bad = 1, e = errno;
         a->f = NULL;
     }
+    if (!bad && a->tmp_path && rename(a->tmp_path, a->path) != 0)
+        bad = 2, e = errno;
     if (bad) {
+        /* The message first: abort frees the path it names. */
+        pm_error_set(PM_ERR_IO, "cannot %s '%s': %s", bad == 1 ? "write" : "rename output into",
+                     a->path ? a->path : "stdout", strerror(e ? e : EIO));
         pm_atomic_abort(a);
-        return pm_error_set(PM_ERR_IO, "cannot write '%s': %s", name, strerror(e ? e : EIO));
-    }
-    if (a->tmp_path && rename(a->tmp_path, a->path) != 0) {
-        e = errno;
-        pm_atomic_abort(a);
-        return pm_error_set(PM_ERR_IO, "cannot rename output into '%s': %s", name, strerror(e));
+        return PM_ERR_IO;
     }
     unregister(a);
     free(a->tmp_path);

@@ -1,9 +1,11 @@
 /* atomic.h: outputs that appear whole or not at all.
  *
- * A stage writes into DIR/.NAME.tmp.PID and renames it onto DIR/NAME only after the
- * last byte is flushed and checked, so an interrupted or failing stage never leaves a
- * file that looks complete. Temporary files are registered so that SIGINT, SIGTERM and
- * SIGHUP remove them before the process dies. "-" means stdout, written directly. */
+ * A stage writes into DIR/.NAME.XXXXXX (mkstemp) and renames it onto DIR/NAME only after
+ * the last byte is flushed and checked, so an interrupted or failing stage never leaves a
+ * file that looks complete. Temporary files are registered so that SIGINT, SIGTERM, SIGHUP
+ * and SIGPIPE remove them before the process dies. "-" means stdout, written directly.
+ * No fsync: after a power loss a renamed file may be short, and then its reader rejects
+ * it (truncated, checksum), which is the promise; durability is not worth a sync per file. */
 #ifndef PM_ATOMIC_H
 #define PM_ATOMIC_H
 

@@ -50,6 +50,11 @@ uint32_t pm_schema_record_size(const pm_schema_t *s, uint32_t mask)
     return n;
 }
 
+uint32_t pm_schema_offset(const pm_schema_t *s, uint32_t mask, unsigned channel)
+{
+    return pm_schema_record_size(s, mask & ((1u << channel) - 1));
+}
+
 uint32_t pm_schema_required(const pm_schema_t *s)
 {
     uint32_t m = 0;
@@ -126,8 +131,23 @@ static void value_clean(char *v)
             *v = ' ';
 }
 
+/* Keys the container writes itself; a stage setting one would write it twice. */
+static int key_reserved(const char *k)
+{
+    static const char *const reserved[] = {"FORMAT",   "VERSION", "BYTE_ORDER", "COUNT",   "RECORD_SIZE",
+                                           "CHANNELS", "CHANNEL_MASK", "BOUNDS", "SOFTWARE", "COMMAND", NULL};
+    for (const char *const *r = reserved; *r; r++)
+        if (strcmp(*r, k) == 0)
+            return 1;
+    return 0;
+}
+
 static pm_result_t kv_append(pm_header_t *h, const char *key, char *value_owned)
 {
+    if (key_reserved(key)) {
+        free(value_owned);
+        return pm_error_set(PM_ERR_INTERNAL, "header key '%s' is the container's own, not a stage's", key);
+    }
     if (!key_ok(key)) {
         free(value_owned);
         return pm_error_set(PM_ERR_INTERNAL, "header key '%s' has characters outside [A-Za-z0-9_.-]", key);
@@ -182,7 +202,7 @@ pm_result_t pm_header_set(pm_header_t *h, const char *key, const char *fmt, ...)
     va_end(ap);
     if (!v)
         return pm_error_set(PM_ERR_NOMEM, "out of memory setting header key '%s'", key);
-    for (size_t i = 0; i < h->nkeys; i++)
+    for (size_t i = 0; i < h->nkeys && !key_reserved(key); i++)
         if (strcmp(h->keys[i].key, key) == 0) {
             free(h->keys[i].value);
             value_clean(v);
@@ -850,7 +870,7 @@ static pm_result_t check_values(const pm_header_t *h, const char *path, const un
         }
         off += csize;
     }
-    return PM_OK;
+    return s->validate_records ? s->validate_records(h, path, rec, n, first) : PM_OK;
 }
 
 pm_result_t pm_reader_read(pm_reader_t *r, void *records, uint64_t max, uint64_t *got_out)
@@ -938,13 +958,13 @@ const char *pm_reader_header_text(const pm_reader_t *r) { return r->raw; }
 /* ------------------------------------------------------------------ writer */
 
 struct pm_writer {
-    pm_header_t layout;  /* schema, channels and record size, for checking values */
+    pm_header_t layout;  /* the header as a reader parses it, for checking records */
     char *name;          /* the path, for messages */
     pm_atomic_t out;
     XXH3_state_t *hash;
     uint64_t count, written;
     uint32_t record_size;
-    int failed;
+    int err;             /* errno of the first failed write, 0 while all is well */
 };
 
 pm_result_t pm_writer_open(const char *path, const pm_header_t *h, pm_writer_t **out)
@@ -955,9 +975,21 @@ pm_result_t pm_writer_open(const char *path, const pm_header_t *h, pm_writer_t *
     pm_result_t res = pm_header_format(h, &text, &len);
     if (res != PM_OK)
         return res;
-    /* The format's own header rules (image size, material table, ...), as a reader applies them. */
-    if (h->schema->validate_header && (res = h->schema->validate_header(h, path)) != PM_OK) {
+    /* Never write a header a reader would refuse: run the reader's own parser on it (which
+     * also applies the format's rules: image size, material table, finite bounds, ...). */
+    const char *shown = strcmp(path, "-") == 0 ? "stdout" : path;
+    pm_reader_t probe;
+    memset(&probe, 0, sizeof probe);
+    probe.path = (char *)shown;
+    pm_header_init(&probe.hdr, NULL);
+    char *work = strdup(text);
+    res = work ? parse_header(&probe, work, h->schema, 0) : pm_error_set(PM_ERR_NOMEM, "out of memory");
+    free(work);
+    if (res != PM_OK) {
+        pm_header_free(&probe.hdr);
         free(text);
+        if (res == PM_ERR_NOMEM)
+            return res;
         pm_error_prefix("refusing to write");
         return PM_ERR_INTERNAL;
     }
@@ -965,15 +997,15 @@ pm_result_t pm_writer_open(const char *path, const pm_header_t *h, pm_writer_t *
     if (!w || !(w->hash = XXH3_createState())) {
         free(w);
         free(text);
+        pm_header_free(&probe.hdr);
         return pm_error_set(PM_ERR_NOMEM, "out of memory opening '%s'", path);
     }
     w->count = h->count;
     w->record_size = pm_schema_record_size(h->schema, h->channels);
-    pm_header_init(&w->layout, h->schema);
-    w->layout.channels = h->channels;
-    w->layout.record_size = w->record_size;
-    w->name = strdup(strcmp(path, "-") == 0 ? "stdout" : path);
+    w->layout = probe.hdr; /* the header as a reader will see it, for the record checks */
+    w->name = strdup(shown);
     if (!w->name) {
+        pm_header_free(&w->layout);
         XXH3_freeState(w->hash);
         free(w);
         free(text);
@@ -982,6 +1014,7 @@ pm_result_t pm_writer_open(const char *path, const pm_header_t *h, pm_writer_t *
     XXH3_64bits_reset(w->hash);
     res = pm_atomic_open(path, &w->out);
     if (res != PM_OK) {
+        pm_header_free(&w->layout);
         XXH3_freeState(w->hash);
         free(w->name);
         free(w);
@@ -991,7 +1024,7 @@ pm_result_t pm_writer_open(const char *path, const pm_header_t *h, pm_writer_t *
     XXH3_64bits_update(w->hash, text, len);
     XXH3_64bits_update(w->hash, pm_bom, 4);
     if (fwrite(text, 1, len, w->out.f) != len || fwrite(pm_bom, 1, 4, w->out.f) != 4)
-        w->failed = 1;
+        w->err = errno ? errno : EIO;
     free(text);
     *out = w;
     return PM_OK;
@@ -1011,8 +1044,10 @@ pm_result_t pm_writer_write(pm_writer_t *w, const void *records, uint64_t n)
     }
     size_t bytes = (size_t)(n * w->record_size);
     XXH3_64bits_update(w->hash, records, bytes);
-    if (bytes && fwrite(records, 1, bytes, w->out.f) != bytes && !w->failed)
-        w->failed = 1;
+    if (!w->err && bytes && fwrite(records, 1, bytes, w->out.f) != bytes)
+        w->err = errno ? errno : EIO;
+    if (w->err) /* a full disk: stop now rather than after writing the rest into nothing */
+        return pm_error_set(PM_ERR_IO, "cannot write '%s': %s", w->name, strerror(w->err));
     w->written += n;
     return PM_OK;
 }
@@ -1028,11 +1063,15 @@ pm_result_t pm_writer_commit(pm_writer_t *w)
     uint64_t sum = XXH3_64bits_digest(w->hash);
     unsigned char tail[8];
     memcpy(tail, &sum, 8);
-    if (fwrite(tail, 1, 8, w->out.f) != 8)
-        w->failed = 1;
-    if (w->failed)
-        (void)ferror(w->out.f); /* commit reports the stream's error */
+    if (!w->err && fwrite(tail, 1, 8, w->out.f) != 8)
+        w->err = errno ? errno : EIO;
+    if (w->err) {
+        pm_result_t r = pm_error_set(PM_ERR_IO, "cannot write '%s': %s", w->name, strerror(w->err));
+        pm_writer_abort(w);
+        return r;
+    }
     pm_result_t r = pm_atomic_commit(&w->out);
+    pm_header_free(&w->layout);
     XXH3_freeState(w->hash);
     free(w->name);
     free(w);
@@ -1044,6 +1083,7 @@ void pm_writer_abort(pm_writer_t *w)
     if (!w)
         return;
     pm_atomic_abort(&w->out);
+    pm_header_free(&w->layout);
     XXH3_freeState(w->hash);
     free(w->name);
     free(w);

@@ -54,6 +54,10 @@ typedef struct {
     unsigned nchannels;
     /* Checks the format's own header keys once the header is read (may be NULL). */
     pm_result_t (*validate_header)(const pm_header_t *h, const char *path);
+    /* Checks raw records against the header (indices in range, ...), on every chunk a
+     * reader reads or a writer writes, so ranges and streams are checked too (may be NULL). */
+    pm_result_t (*validate_records)(const pm_header_t *h, const char *path, const unsigned char *rec, uint64_t n,
+                                    uint64_t first);
     /* Checks relations across records once all are read (may be NULL). */
     pm_result_t (*validate_table)(const pm_table_t *t, const char *path);
 } pm_schema_t;
@@ -90,6 +94,8 @@ struct pm_table {
 size_t pm_type_size(pm_type_t t);
 /* Record size in bytes of the channels in mask. */
 uint32_t pm_schema_record_size(const pm_schema_t *s, uint32_t mask);
+/* Byte offset of channel `channel` within a record of the channels in mask. */
+uint32_t pm_schema_offset(const pm_schema_t *s, uint32_t mask, unsigned channel);
 /* Mask of the schema's required channels. */
 uint32_t pm_schema_required(const pm_schema_t *s);
 /* The channel index of name, or -1. */

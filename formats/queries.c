@@ -97,29 +97,33 @@ static pm_result_t validate_header(const pm_header_t *h, const char *path)
     return PM_OK;
 }
 
-static pm_result_t validate_records(const pm_table_t *t, const char *path)
+static pm_result_t validate_records(const pm_header_t *h, const char *path, const unsigned char *rec, uint64_t n,
+                                    uint64_t first)
 {
     uint32_t w, ht;
-    size_t nmat = 1;
-    pm_result_t r = pm_header_get_image_size(&t->hdr, path, &w, &ht);
+    pm_result_t r = pm_header_get_image_size(h, path, &w, &ht);
     if (r != PM_OK)
         return r;
-    uint64_t npix = (uint64_t)w * ht;
-    const uint32_t *pix = t->col[PM_QUERY_PIXEL];
-    for (uint64_t i = 0; i < t->count; i++)
-        if (pix[i] >= npix)
+    uint64_t npix = (uint64_t)w * ht, nmat = 1;
+    if ((r = pm_header_get_u64(h, path, "materials", &nmat)) != PM_OK)
+        return r;
+    const pm_schema_t *s = h->schema;
+    size_t rs = h->record_size, pix_off = pm_schema_offset(s, h->channels, PM_QUERY_PIXEL);
+    int has_mat = (h->channels >> PM_QUERY_MATERIAL) & 1;
+    size_t mat_off = pm_schema_offset(s, h->channels, PM_QUERY_MATERIAL);
+    for (uint64_t i = 0; i < n; i++) {
+        uint32_t pix;
+        memcpy(&pix, rec + i * rs + pix_off, 4);
+        if (pix >= npix)
             return pm_error_set(PM_ERR_INPUT, "bad value in queries '%s': record %" PRIu64 " pixel %" PRIu32
-                                " outside the %" PRIu32 "x%" PRIu32 " image", path, i, pix[i], w, ht);
-    const uint16_t *mat = t->col[PM_QUERY_MATERIAL];
-    if (mat) {
-        uint64_t n;
-        if ((r = pm_header_get_u64(&t->hdr, path, "materials", &n)) != PM_OK)
-            return r;
-        nmat = (size_t)n;
-        for (uint64_t i = 0; i < t->count; i++)
-            if (mat[i] >= nmat)
-                return pm_error_set(PM_ERR_INPUT, "bad value in queries '%s': record %" PRIu64 " material %u of %zu",
-                                    path, i, mat[i], nmat);
+                                " outside the %" PRIu32 "x%" PRIu32 " image", path, first + i, pix, w, ht);
+        if (has_mat) {
+            uint16_t m;
+            memcpy(&m, rec + i * rs + mat_off, 2);
+            if (m >= nmat)
+                return pm_error_set(PM_ERR_INPUT, "bad value in queries '%s': record %" PRIu64 " material %u of %" PRIu64,
+                                    path, first + i, m, nmat);
+        }
     }
     return PM_OK;
 }
@@ -132,5 +136,5 @@ const pm_schema_t pm_queries_schema = {
     .channels = query_channels,
     .nchannels = sizeof query_channels / sizeof query_channels[0],
     .validate_header = validate_header,
-    .validate_table = validate_records,
+    .validate_records = validate_records,
 };

@@ -106,3 +106,9 @@ done
 for f in tests/fuzz/regressions/*.pm; do
     expect_error "fuzz regression $(basename "$f")" "^pm-info: " "$BIN/pm-info" "$f"
 done
+
+# a disk that fills up: one clear line, exit 1, and neither the output nor a temporary left
+mkdir -p "$TMP/full"
+expect_error "a write that fails (file size limit)" "cannot write '.*full/big.pm': File too large" \
+    bash -c "trap '' XFSZ; ulimit -f 64; '$TG' photons 100000 '$TMP/full/big.pm'"
+if [ -z "$(ls -A "$TMP/full")" ]; then pass "a failed write leaves nothing behind"; else fail "a failed write leaves nothing behind" "$(ls -A "$TMP/full")"; fi

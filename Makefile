@@ -15,12 +15,17 @@
 
 BUILD ?= build
 BIN ?= bin
-CC ?= gcc
+# gcc unless CC is given on the command line or in the environment (make's own default is cc).
+ifeq ($(origin CC),default)
+CC := gcc
+endif
 SAN ?=
-WERROR ?= $(if $(CI),1,)
+# Warnings are errors everywhere, so that `make` and `make test` share one build; WERROR=
+# (empty) turns that off for experiments.
+WERROR ?= 1
 
 # Debian packages this project builds, tests and runs with (README says why each).
-DEBS := gcc make pkg-config libembree-dev libopenexr-dev openexr libassimp-dev libjansson-dev \
+DEBS := gcc make pkg-config libembree-dev libopenexr-dev libassimp-dev libjansson-dev \
         libpng-dev libxxhash-dev libcmocka-dev
 
 ifeq ($(V),1)
@@ -98,12 +103,13 @@ $(TESTGEN): $(BUILD)/tests/pm-testgen.o $(LIB)
 	@mkdir -p $(@D)
 	$(Q)$(CC) $(ALL_LDFLAGS) $< $(LIB) $(LIBS) -o $@
 
-$(ATRIUM_GEN): scenes/atrium/make-atrium.c $(FLAGS_FILE)
+# The generator builds with fixed flags: its output must not change with CFLAGS or SAN.
+$(ATRIUM_GEN): scenes/atrium/make-atrium.c
 	@mkdir -p $(@D)
 	@$(if $(Q),echo "  CC      $<",true)
 	$(Q)$(CC) -std=c17 -O2 $(WARN) $(if $(WERROR),-Werror,) $< -lm -o $@
 
-$(ATRIUM_OBJ): $(ATRIUM_GEN)
+$(ATRIUM_OBJ) scenes/atrium/atrium.mtl &: $(ATRIUM_GEN)
 	@$(if $(Q),echo "  GEN     $@",true)
 	$(Q)$(ATRIUM_GEN) -o scenes/atrium
 
@@ -111,9 +117,11 @@ $(ATRIUM_OBJ): $(ATRIUM_GEN)
 check-deps:
 	@sh tests/install-deps.sh $(DEBS)
 
+# Targets that install packages first re-run make, so that the pkg-config look-ups above
+# happen after the packages are there (they are evaluated when the Makefile is read).
 test: check-deps
-	$(Q)$(MAKE) --no-print-directory WERROR=1 test-run
-	$(Q)$(MAKE) --no-print-directory WERROR=1 test-asan
+	$(Q)$(MAKE) --no-print-directory test-run
+	$(Q)$(MAKE) --no-print-directory test-asan
 
 test-run: all $(UNIT) $(TESTGEN)
 	$(Q)BIN=$(abspath $(BIN)) BUILD=$(abspath $(BUILD)) bash tests/run
@@ -128,14 +136,17 @@ test-asan:
 	    SAN="-fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer" test-run
 
 # ---- demo, bench, fuzz ----
-demo: check-deps all
-	$(Q)bash pipelines/demo
+demo: check-deps
+	$(Q)$(MAKE) --no-print-directory all
+	$(Q)BIN=$(abspath $(BIN)) bash pipelines/demo
 
-bench: check-deps all $(TESTGEN)
+bench: check-deps
+	$(Q)$(MAKE) --no-print-directory all $(TESTGEN)
 	$(Q)BIN=$(abspath $(BIN)) BUILD=$(abspath $(BUILD)) bash tests/bench/run
 
 FUZZ_TARGETS := $(basename $(notdir $(wildcard tests/fuzz/*.c)))
 fuzz:
+	@command -v clang >/dev/null || { echo "fuzz: needs clang (apt-get install clang)" >&2; exit 1; }
 	$(Q)$(MAKE) --no-print-directory BUILD=build/fuzz BIN=build/fuzz/bin CC=clang CFLAGS="-O1 -g" \
 	    SAN="-fsanitize=fuzzer-no-link,address,undefined" build/fuzz/libpmtk.a
 	$(Q)for t in $(FUZZ_TARGETS); do \

@@ -16,5 +16,5 @@ if [ "$(id -u)" = 0 ]; then
     exit 1
 fi
 echo "install-deps: missing Debian packages; run as root:" >&2
-echo "  apt-get install -y$missing" >&2
+echo "  apt-get update && apt-get install -y$missing" >&2
 exit 1

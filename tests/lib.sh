@@ -2,7 +2,7 @@
 # Each check prints "ok NAME" or "FAIL NAME: why" and counts into PASS/FAIL.
 PASS=${PASS:-0}
 FAIL=${FAIL:-0}
-TMP=${TMP:-$(mktemp -d /tmp/pmtk-stage-XXXXXX)}
+TMP=${TMP:-$(mktemp -d "${TMPDIR:-/tmp}"/pmtk-stage-XXXXXX)}
 
 pass() { PASS=$((PASS + 1)); echo "ok $1"; }
 fail() { FAIL=$((FAIL + 1)); echo "FAIL $1: $2"; }

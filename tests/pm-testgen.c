@@ -195,8 +195,11 @@ int main(int argc, char **argv)
         snprintf(key, sizeof key, "%.*s", (int)(strchr(set, '=') - set), set);
         pm_header_set(&t.hdr, key, "%s", strchr(set, '=') + 1);
     }
-    if (pm_table_write(&t, argv[3]) != PM_OK)
-        return fprintf(stderr, "pm-testgen: %s\n", pm_error_message()), 1;
+    if (pm_table_write(&t, argv[3]) != PM_OK) {
+        fprintf(stderr, "pm-testgen: %s\n", pm_error_message());
+        pm_table_free(&t);
+        return 1;
+    }
     const pm_schema_t *s = t.hdr.schema;
     pm_table_free(&t);
     if (!what)

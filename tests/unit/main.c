@@ -10,9 +10,10 @@
 
 const char *unit_tmpdir(void)
 {
-    static char dir[64];
+    static char dir[512];
     if (!dir[0]) {
-        snprintf(dir, sizeof dir, "/tmp/pmtk-unit-XXXXXX");
+        const char *tmp = getenv("TMPDIR");
+        snprintf(dir, sizeof dir, "%s/pmtk-unit-XXXXXX", tmp && *tmp ? tmp : "/tmp");
         if (!mkdtemp(dir)) {
             perror("mkdtemp");
             exit(3);

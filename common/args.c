@@ -8,13 +8,26 @@
 #include <string.h>
 
 #define PM_ARGS_FILE_MAX (1u << 20) /* bytes: an @file is a settings list, not data */
-#define PM_ARGS_DEPTH_MAX 4         /* @files may name @files, this deep */
+#define PM_ARGS_EXPANSIONS_MAX 64   /* @files expanded in one command line */
+
+/* Numbers are written in decimal: no leading space, no hex (strtod would take both). */
+static int plain_number(const char *s)
+{
+    if (!((*s >= '0' && *s <= '9') || *s == '-' || *s == '+' || *s == '.'))
+        return 0;
+    for (; *s; s++)
+        if (!strchr("0123456789+-.eE", *s))
+            return 0;
+    return 1;
+}
 
 pm_result_t pm_parse_i64(const char *s, int64_t *out)
 {
     char *end;
     if (!s || !*s)
         return pm_error_set(PM_ERR_USAGE, "empty number");
+    if (!plain_number(s))
+        return pm_error_set(PM_ERR_USAGE, "'%s' is not an integer", s);
     errno = 0;
     long long v = strtoll(s, &end, 10);
     if (*end == '\0' && errno == 0) {
@@ -35,6 +48,8 @@ pm_result_t pm_parse_double(const char *s, double *out)
     char *end;
     if (!s || !*s)
         return pm_error_set(PM_ERR_USAGE, "empty number");
+    if (!plain_number(s))
+        return pm_error_set(PM_ERR_USAGE, "'%s' is not a number", s);
     errno = 0;
     double v = strtod(s, &end);
     if (*end != '\0' || end == s)
@@ -153,15 +168,56 @@ static pm_result_t words_push(words_t *w, char *s)
     return PM_OK;
 }
 
-static pm_result_t expand(const char *arg, int depth, words_t *out, words_t *owned);
-
-static pm_result_t expand_file(const char *path, int depth, words_t *out, words_t *owned)
+/* Splits an options file into words: blanks separate words, # starts a comment, '...'
+ * quotes literally, a backslash escapes the next character (so '\'' is a quote). */
+static pm_result_t split_words(const char *path, char *text, words_t *out, words_t *owned)
 {
-    if (depth >= PM_ARGS_DEPTH_MAX)
-        return pm_error_set(PM_ERR_USAGE, "@file '%s' nests deeper than %d", path, PM_ARGS_DEPTH_MAX);
+    char *p = text;
+    for (;;) {
+        while (*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r')
+            p++;
+        if (*p == '#') {
+            while (*p && *p != '\n')
+                p++;
+            continue;
+        }
+        if (!*p)
+            return PM_OK;
+        char *word = malloc(strlen(p) + 1), *o = word;
+        if (!word)
+            return pm_error_set(PM_ERR_NOMEM, "out of memory reading '%s'", path);
+        while (*p && *p != ' ' && *p != '\t' && *p != '\n' && *p != '\r') {
+            if (*p == '\'') {
+                char *close = strchr(p + 1, '\'');
+                if (!close) {
+                    free(word);
+                    return pm_error_set(PM_ERR_USAGE, "options file '%s': unterminated quote", path);
+                }
+                memcpy(o, p + 1, (size_t)(close - p - 1));
+                o += close - p - 1;
+                p = close + 1;
+            } else if (*p == '\\' && p[1]) {
+                *o++ = p[1];
+                p += 2;
+            } else {
+                *o++ = *p++;
+            }
+        }
+        *o = '\0';
+        if (words_push(owned, word) != PM_OK) {
+            free(word);
+            return pm_error_set(PM_ERR_NOMEM, "out of memory reading '%s'", path);
+        }
+        if (words_push(out, word) != PM_OK)
+            return pm_error_set(PM_ERR_NOMEM, "out of memory reading '%s'", path);
+    }
+}
+
+static pm_result_t read_words(const char *path, words_t *out, words_t *owned)
+{
     FILE *f = fopen(path, "rb");
     if (!f)
-        return pm_error_set(PM_ERR_IO, "cannot open options file '%s': %s", path, strerror(errno));
+        return pm_error_set(PM_ERR_USAGE, "cannot open options file '%s': %s", path, strerror(errno));
     char *text = malloc(PM_ARGS_FILE_MAX + 1);
     if (!text) {
         fclose(f);
@@ -172,42 +228,37 @@ static pm_result_t expand_file(const char *path, int depth, words_t *out, words_
     fclose(f);
     if (err || n > PM_ARGS_FILE_MAX) {
         free(text);
-        return pm_error_set(PM_ERR_USAGE, "options file '%s' is unreadable or over %u bytes", path,
-                            PM_ARGS_FILE_MAX);
+        return pm_error_set(PM_ERR_USAGE, "options file '%s' is unreadable or over %u bytes", path, PM_ARGS_FILE_MAX);
     }
     text[n] = '\0';
-    pm_result_t r = PM_OK;
-    char *p = text;
-    while (r == PM_OK && *p) {
-        while (*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r')
-            p++;
-        if (*p == '#') { /* comment to end of line */
-            while (*p && *p != '\n')
-                p++;
-            continue;
-        }
-        if (!*p)
-            break;
-        char *start = p;
-        while (*p && *p != ' ' && *p != '\t' && *p != '\n' && *p != '\r')
-            p++;
-        char *word = strndup(start, (size_t)(p - start));
-        if (!word || words_push(owned, word) != PM_OK) {
-            free(word);
-            r = pm_error_set(PM_ERR_NOMEM, "out of memory reading '%s'", path);
-            break;
-        }
-        r = expand(word, depth + 1, out, owned);
-    }
+    pm_result_t r = split_words(path, text, out, owned);
     free(text);
     return r;
 }
 
-static pm_result_t expand(const char *arg, int depth, words_t *out, words_t *owned)
+/* Replaces word i of w by the words of the options file it names. */
+static pm_result_t splice_file(words_t *w, size_t i, words_t *owned)
 {
-    if (arg[0] == '@' && arg[1])
-        return expand_file(arg + 1, depth, out, owned);
-    return words_push(out, (char *)arg);
+    words_t file = {0};
+    pm_result_t r = read_words(w->v[i] + 1, &file, owned);
+    if (r == PM_OK && file.n != 1) {
+        size_t n = w->n - 1 + file.n;
+        char **v = malloc((n ? n : 1) * sizeof *v);
+        if (!v) {
+            free(file.v);
+            return pm_error_set(PM_ERR_NOMEM, "out of memory expanding arguments");
+        }
+        memcpy(v, w->v, i * sizeof *v);
+        memcpy(v + i, file.v, file.n * sizeof *v);
+        memcpy(v + i + file.n, w->v + i + 1, (w->n - i - 1) * sizeof *v);
+        free(w->v);
+        w->v = v;
+        w->n = w->cap = n;
+    } else if (r == PM_OK) {
+        w->v[i] = file.v[0];
+    }
+    free(file.v);
+    return r;
 }
 
 void pm_args_free(pm_args_t *a)
@@ -223,24 +274,26 @@ void pm_args_free(pm_args_t *a)
 pm_result_t pm_args_parse(const pm_cli_t *cli, int argc, char **argv, pm_args_t *out)
 {
     memset(out, 0, sizeof *out);
-    words_t w = {0}, owned = {0};
+    words_t w = {0}, owned = {0}, pos = {0};
     pm_result_t r = PM_OK;
     for (int i = 1; i < argc && r == PM_OK; i++)
-        r = expand(argv[i], 0, &w, &owned);
-    out->argv = w.v;
-    out->owned = owned.v;
-    out->nowned = owned.n;
-    if (r != PM_OK)
-        return r;
-    out->args = calloc(w.n + 1, sizeof *out->args);
-    if (!out->args)
-        return pm_error_set(PM_ERR_NOMEM, "out of memory parsing arguments");
-
-    int only_positional = 0;
-    for (size_t i = 0; i < w.n; i++) {
+        r = words_push(&w, argv[i]);
+    int only_positional = 0, expansions = 0;
+    for (size_t i = 0; r == PM_OK && i < w.n; i++) {
+        /* @FILE expands where an option or argument may stand: not after "--", not as an
+         * option's value. A bounded number of expansions stops files that name themselves. */
+        while (r == PM_OK && !only_positional && i < w.n && w.v[i][0] == '@' && w.v[i][1]) {
+            if (++expansions > PM_ARGS_EXPANSIONS_MAX)
+                r = pm_error_set(PM_ERR_USAGE, "more than %d @files expanded: does one name itself?",
+                                 PM_ARGS_EXPANSIONS_MAX);
+            else
+                r = splice_file(&w, i, &owned);
+        }
+        if (r != PM_OK || i >= w.n)
+            break;
         char *a = w.v[i];
         if (only_positional || a[0] != '-' || a[1] == '\0') {
-            out->args[out->nargs++] = a;
+            r = words_push(&pos, a);
             continue;
         }
         if (strcmp(a, "--") == 0) {
@@ -253,33 +306,63 @@ pm_result_t pm_args_parse(const pm_cli_t *cli, int argc, char **argv, pm_args_t 
             const char *name = a + 2, *eq = strchr(name, '=');
             size_t len = eq ? (size_t)(eq - name) : strlen(name);
             o = find_long(cli, name, len);
-            if (!o)
-                return pm_error_set(PM_ERR_USAGE, "unknown option '%s'", a);
-            if (eq) {
-                if (o->kind == PM_OPT_FLAG)
-                    return pm_error_set(PM_ERR_USAGE, "option --%s takes no value", o->name);
-                value = eq + 1;
+            if (!o) {
+                r = pm_error_set(PM_ERR_USAGE, "unknown option '%s'", a);
+                break;
             }
+            if (eq && o->kind == PM_OPT_FLAG) {
+                r = pm_error_set(PM_ERR_USAGE, "option --%s takes no value", o->name);
+                break;
+            }
+            if (eq)
+                value = eq + 1;
         } else {
             o = find_short(cli, a[1]);
-            if (!o)
-                return pm_error_set(PM_ERR_USAGE, "unknown option '%s'", a);
-            if (a[2]) {
-                if (o->kind == PM_OPT_FLAG)
-                    return pm_error_set(PM_ERR_USAGE, "option -%c takes no value", a[1]);
-                value = a + 2;
+            if (!o) {
+                r = pm_error_set(PM_ERR_USAGE, "unknown option '%s'", a);
+                break;
             }
+            if (a[2] && o->kind == PM_OPT_FLAG) {
+                r = pm_error_set(PM_ERR_USAGE, "option -%c takes no value", a[1]);
+                break;
+            }
+            if (a[2])
+                value = a + 2;
         }
         if (o->kind != PM_OPT_FLAG && !value) {
-            if (i + 1 >= w.n)
-                return pm_error_set(PM_ERR_USAGE, "option --%s needs a value (%s)", o->name,
-                                    o->metavar ? o->metavar : "VALUE");
+            if (i + 1 >= w.n) {
+                r = pm_error_set(PM_ERR_USAGE, "option --%s needs a value (%s)", o->name,
+                                 o->metavar ? o->metavar : "VALUE");
+                break;
+            }
             value = w.v[++i];
         }
-        if ((r = set_value(o, value)) != PM_OK)
-            return r;
+        r = set_value(o, value);
     }
-    return PM_OK;
+    out->argv = w.v;
+    out->owned = owned.v;
+    out->nowned = owned.n;
+    out->args = pos.v;
+    out->nargs = (int)pos.n;
+    return r;
+}
+
+/* A word as an options file reads it back: quoted when it holds a blank, a quote, a
+ * backslash, or starts a comment or an @file. */
+static void print_word(const char *s, FILE *f)
+{
+    if (*s && !strpbrk(s, " \t\n\r'\\") && *s != '#' && *s != '@') {
+        fputs(s, f);
+        return;
+    }
+    fputc('\'', f);
+    for (; *s; s++) {
+        if (*s == '\'')
+            fputs("'\\''", f);
+        else
+            fputc(*s, f);
+    }
+    fputc('\'', f);
 }
 
 static void print_value(const pm_option_t *o, FILE *f)
@@ -336,7 +419,10 @@ void pm_args_print_settings(const pm_cli_t *cli, FILE *f)
         if (o->kind == PM_OPT_STRING && !*(const char **)o->dest)
             continue;
         fprintf(f, "--%s ", o->name);
-        print_value(o, f);
+        if (o->kind == PM_OPT_STRING)
+            print_word(*(const char **)o->dest, f);
+        else
+            print_value(o, f);
         fputc('\n', f);
     }
 }

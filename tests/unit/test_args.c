@@ -67,6 +67,8 @@ static void test_args_errors(void **state)
     expect_usage_error("--radius", "-1", "outside");
     expect_usage_error("--order", "zorder", "'zorder' is not one of none|morton|hilbert");
     expect_usage_error("--flag=1", NULL, "takes no value");
+    expect_usage_error("--count", "0x10", "'0x10' is not an integer");
+    expect_usage_error("--count", " 5", "' 5' is not an integer");
 }
 
 static void test_args_atfile(void **state)
@@ -88,7 +90,54 @@ static void test_args_atfile(void **state)
     assert_true(o.x == 2.0);
     pm_args_free(&a);
     char *argv2[] = {"t", "@/nonexistent/opts"};
-    assert_int_equal(parse(&o, &a, 2, argv2), PM_ERR_IO);
+    assert_int_equal(parse(&o, &a, 2, argv2), PM_ERR_USAGE);
+    pm_args_free(&a);
+    /* after "--" and as an option's value, @ is literal */
+    char *argv3[] = {"t", "--name", "@x", "--", at};
+    assert_int_equal(parse(&o, &a, 5, argv3), PM_OK);
+    assert_string_equal(o.s, "@x");
+    assert_int_equal(a.nargs, 1);
+    assert_string_equal(a.args[0], at);
+    pm_args_free(&a);
+    /* a file naming itself stops */
+    f = fopen(path, "w");
+    fprintf(f, "--count 1 %s\n", at);
+    fclose(f);
+    char *argv4[] = {"t", at};
+    assert_int_equal(parse(&o, &a, 2, argv4), PM_ERR_USAGE);
+    assert_non_null(strstr(pm_error_message(), "does one name itself"));
+    pm_args_free(&a);
+}
+
+static void test_args_settings_round_trip(void **state)
+{
+    opts_t o = {0};
+    pm_args_t a;
+    const pm_option_t t[] = {
+        {"name", 0, PM_OPT_STRING, &o.s, "S", "a name", 1, 0, NULL},
+        {"count", 'n', PM_OPT_INT, &o.n, "N", "a count", 0, 1000, NULL},
+        {0},
+    };
+    const pm_cli_t cli = {"t", "[options]", "test", t, 0, -1};
+    o.s = "it's a #name @with\\ blanks";
+    o.n = 12;
+    char path[256], at[260];
+    snprintf(path, sizeof path, "%s/settings", unit_tmpdir());
+    snprintf(at, sizeof at, "@%s", path);
+    FILE *f = fopen(path, "w");
+    pm_args_print_settings(&cli, f);
+    fclose(f);
+    opts_t back = {0};
+    const pm_option_t t2[] = {
+        {"name", 0, PM_OPT_STRING, &back.s, "S", "a name", 1, 0, NULL},
+        {"count", 'n', PM_OPT_INT, &back.n, "N", "a count", 0, 1000, NULL},
+        {0},
+    };
+    const pm_cli_t cli2 = {"t", "[options]", "test", t2, 0, -1};
+    char *argv[] = {"t", at};
+    assert_int_equal(pm_args_parse(&cli2, 2, argv, &a), PM_OK);
+    assert_string_equal(back.s, o.s);
+    assert_int_equal(back.n, 12);
     pm_args_free(&a);
 }
 
@@ -111,5 +160,6 @@ static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_args_errors),
     cmocka_unit_test(test_args_atfile),
     cmocka_unit_test(test_args_range),
+    cmocka_unit_test(test_args_settings_round_trip),
 };
 UNIT_GROUP(unit_args, "args", tests);

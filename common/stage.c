@@ -20,6 +20,7 @@ struct pm_stats {
 void pm_stage_defaults(pm_stage_t *st)
 {
     memset(st, 0, sizeof *st);
+    st->out.slot = -1;
     st->output = "-";
     st->seed = 1;
 }
@@ -75,6 +76,9 @@ int pm_stage_begin(pm_stage_t *st, const pm_cli_t *cli, int argc, char **argv)
             st->stats->obj = json_object();
         if (!st->stats || !st->stats->obj) {
             fprintf(stderr, "%s: out of memory for stats\n", st->name);
+            free(st->stats);
+            st->stats = NULL;
+            pm_args_free(&st->args);
             return 1;
         }
     }
@@ -149,8 +153,17 @@ static pm_result_t write_stats(pm_stage_t *st)
     return r;
 }
 
+pm_result_t pm_stage_open_output(pm_stage_t *st, FILE **f_out)
+{
+    pm_result_t r = pm_atomic_open(st->output, &st->out);
+    *f_out = r == PM_OK ? st->out.f : NULL;
+    return r;
+}
+
 int pm_stage_end(pm_stage_t *st, pm_result_t result)
 {
+    if (st->out.f)
+        result = result == PM_OK ? pm_atomic_commit(&st->out) : (pm_atomic_abort(&st->out), result);
     if (result == PM_OK && st->stats)
         result = write_stats(st);
     if (result != PM_OK)

@@ -18,6 +18,7 @@
 #include <stdint.h>
 
 #include "args.h"
+#include "atomic.h"
 #include "error.h"
 #include "progress.h"
 #include "timer.h"
@@ -40,6 +41,7 @@ typedef struct {
     pm_timer_t timer;
     pm_stats_t *stats;       /* the stage's counters, written by pm_stage_end */
     uint64_t items;          /* what items_per_s counts (photons, queries, ...) */
+    pm_atomic_t out;         /* the -o output of a text-writing program, once opened */
 } pm_stage_t;
 
 #define PM_STAGE_COMMON_OPTIONS(st)                                                                           \
@@ -60,6 +62,10 @@ void pm_stage_defaults(pm_stage_t *st);
 /* Parses options and handles --help, --version, --print-settings, positional counts.
  * Returns -1 to go on, or the exit status to return now. */
 int pm_stage_begin(pm_stage_t *st, const pm_cli_t *cli, int argc, char **argv);
+
+/* Opens -o (stdout for "-") for a program whose output is text; pm_stage_end commits it
+ * on success and removes it on failure. Stages writing pmtk files use pm_writer instead. */
+pm_result_t pm_stage_open_output(pm_stage_t *st, FILE **f_out);
 
 /* Progress bar wish: not quiet. */
 static inline int pm_stage_progress(const pm_stage_t *st) { return !st->quiet; }

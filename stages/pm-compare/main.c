@@ -62,7 +62,7 @@ static double value_at(const pm_channel_t *c, const void *col, uint64_t j)
     return 0.0;
 }
 
-static pm_result_t compare(const pm_table_t *a, const pm_table_t *b, const char *an, const char *bn,
+static pm_result_t compare(FILE *out, const pm_table_t *a, const pm_table_t *b, const char *an, const char *bn,
                            const compare_options_t *o, pm_stage_t *st)
 {
     const pm_schema_t *s = a->hdr.schema;
@@ -102,7 +102,7 @@ static pm_result_t compare(const pm_table_t *a, const pm_table_t *b, const char 
         }
         double rms = n ? sqrt(sum2 / (double)n) : 0.0;
         int rms_ok = o->rms < 0 || rms <= o->rms;
-        printf("%-10s max_abs %.6g max_rel %.6g rms %.6g worst record %" PRIu64 "%s%s\n", c->name, max_abs, max_rel,
+        fprintf(out, "%-10s max_abs %.6g max_rel %.6g rms %.6g worst record %" PRIu64 "%s%s\n", c->name, max_abs, max_rel,
                rms, n ? worst / c->components : 0, mismatches ? " OUT OF TOLERANCE" : "",
                rms_ok ? "" : " RMS OUT OF TOLERANCE");
         char key[64];
@@ -150,16 +150,26 @@ int main(int argc, char **argv)
     if (!strcmp(an, "-") && !strcmp(bn, "-"))
         return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "only one of A and B can be stdin"));
     pm_table_t a, b;
+    FILE *out;
     pm_result_t r = pm_table_read(an, NULL, 0, &a);
     if (r == PM_OK) {
         r = pm_table_read(bn, NULL, 0, &b);
         if (r == PM_OK) {
-            r = compare(&a, &b, an, bn, &o, &st);
+            r = pm_stage_open_output(&st, &out);
+            if (r == PM_OK) {
+                r = compare(out, &a, &b, an, bn, &o, &st);
+                /* "they differ" is an answer, not a failure to answer: keep the report. */
+                if (r == PM_ERR_INPUT && st.out.f) {
+                    char msg[1024];
+                    snprintf(msg, sizeof msg, "%s", pm_error_message());
+                    r = pm_atomic_commit(&st.out);
+                    if (r == PM_OK)
+                        r = pm_error_set(PM_ERR_INPUT, "%s", msg);
+                }
+            }
             pm_table_free(&b);
         }
         pm_table_free(&a);
     }
-    if (fflush(stdout) != 0 && r == PM_OK)
-        r = pm_error_set(PM_ERR_IO, "cannot write to stdout");
     return pm_stage_end(&st, r);
 }

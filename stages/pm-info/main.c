@@ -16,34 +16,34 @@ typedef struct {
     int header_only;    /* do not read the payload */
 } info_options_t;
 
-static void print_columns(const pm_header_t *h)
+static void print_columns(FILE *out, const pm_header_t *h)
 {
     const pm_schema_t *s = h->schema;
     static const char *const xyz[] = {"x", "y", "z"}, *const rgb[] = {"r", "g", "b"};
-    printf("# record");
+    fprintf(out, "# record");
     for (unsigned ci = 0; ci < s->nchannels; ci++) {
         if (!(h->channels & (1u << ci)))
             continue;
         const pm_channel_t *c = &s->channels[ci];
         if (c->components == 1) {
-            printf(" %s", c->name);
+            fprintf(out, " %s", c->name);
             continue;
         }
         int color = !strcmp(c->unit, "W") || !strcmp(c->name, "weight") || !strcmp(c->name, "rgb");
         for (unsigned k = 0; k < c->components; k++) {
             if (c->components == 3)
-                printf(" %s.%s", c->name, color ? rgb[k] : xyz[k]);
+                fprintf(out, " %s.%s", c->name, color ? rgb[k] : xyz[k]);
             else
-                printf(" %s.%u", c->name, k);
+                fprintf(out, " %s.%u", c->name, k);
         }
     }
-    putchar('\n');
+    fputc('\n', out);
 }
 
-static void print_record(const pm_header_t *h, const unsigned char *p, uint64_t index)
+static void print_record(FILE *out, const pm_header_t *h, const unsigned char *p, uint64_t index)
 {
     const pm_schema_t *s = h->schema;
-    printf("%" PRIu64, index);
+    fprintf(out, "%" PRIu64, index);
     for (unsigned ci = 0; ci < s->nchannels; ci++) {
         if (!(h->channels & (1u << ci)))
             continue;
@@ -53,7 +53,7 @@ static void print_record(const pm_header_t *h, const unsigned char *p, uint64_t 
             case PM_TYPE_U16: {
                 uint16_t v;
                 memcpy(&v, p, 2);
-                printf(" %u", v);
+                fprintf(out, " %u", v);
                 p += 2;
                 break;
             }
@@ -65,13 +65,13 @@ static void print_record(const pm_header_t *h, const unsigned char *p, uint64_t 
                     memcpy(&n, p, 8);
                     uint32_t axis = pm_kdnode_axis(n);
                     if (axis == PM_KD_LEAF)
-                        printf(" leaf");
+                        fprintf(out, " leaf");
                     else
-                        printf(" %c=%.9g", "xyz"[axis], n.split);
+                        fprintf(out, " %c=%.9g", "xyz"[axis], n.split);
                 } else if (v == PM_KD_NONE && s == &pm_photonmap_schema && ci == PM_MAP_NODE) {
-                    printf(" -");
+                    fprintf(out, " -");
                 } else {
-                    printf(" %" PRIu32, v);
+                    fprintf(out, " %" PRIu32, v);
                 }
                 p += 4;
                 break;
@@ -79,34 +79,30 @@ static void print_record(const pm_header_t *h, const unsigned char *p, uint64_t 
             case PM_TYPE_F32: {
                 float v;
                 memcpy(&v, p, 4);
-                printf(" %.9g", v);
+                fprintf(out, " %.9g", v);
                 p += 4;
                 break;
             }
             case PM_TYPE_F64: {
                 double v;
                 memcpy(&v, p, 8);
-                printf(" %.17g", v);
+                fprintf(out, " %.17g", v);
                 p += 8;
                 break;
             }
             }
         }
     }
-    putchar('\n');
+    fputc('\n', out);
 }
 
-static pm_result_t info_file(const char *path, const info_options_t *o, pm_stage_t *st)
+static pm_result_t info_file(FILE *out, const char *path, const info_options_t *o, pm_stage_t *st)
 {
     pm_reader_t *r;
     pm_result_t res = pm_reader_open(path, NULL, 0, &r);
     if (res != PM_OK)
         return res;
-    if (pm_reader_header(r)->record_size > 256) {
-        pm_reader_close(r);
-        return pm_error_set(PM_ERR_INTERNAL, "records of '%s' exceed pm-info's 256-byte buffer", path);
-    }
-    fputs(pm_reader_header_text(r), stdout);
+    fputs(pm_reader_header_text(r), out);
     if (o->header_only) {
         pm_reader_close(r);
         return PM_OK;
@@ -117,22 +113,24 @@ static pm_result_t info_file(const char *path, const info_options_t *o, pm_stage
     pm_reader_close(r);
     if (res != PM_OK)
         return res;
-    uint64_t n = t.count, checksum = t.checksum;
-    if (o->records) {
-        print_columns(&t.hdr);
-        unsigned char rec[256];
+    uint64_t n = t.count;
+    unsigned char *rec = o->records ? malloc(t.hdr.record_size + 1) : NULL;
+    if (o->records && !rec)
+        res = pm_error_set(PM_ERR_NOMEM, "out of memory");
+    if (rec) {
+        print_columns(out, &t.hdr);
         uint64_t shown = o->limit < 0 || (uint64_t)o->limit > n ? n : (uint64_t)o->limit;
         for (uint64_t i = 0; i < shown; i++) {
             pm_table_record(&t, i, rec);
-            print_record(&t.hdr, rec, i);
+            print_record(out, &t.hdr, rec, i);
         }
     }
-    pm_table_free(&t);
-    uint64_t at = n;
+    free(rec);
     if (res == PM_OK) {
-        printf("# ok: %" PRIu64 " records, checksum xxh3:%016" PRIx64 "\n", at, checksum);
-        st->items += at;
+        fprintf(out, "# ok: %" PRIu64 " records, checksum xxh3:%016" PRIx64 "\n", n, t.checksum);
+        st->items += n;
     }
+    pm_table_free(&t);
     return res;
 }
 
@@ -157,12 +155,11 @@ int main(int argc, char **argv)
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;
-    pm_result_t res = PM_OK;
-    if (st.args.nargs == 0)
-        res = info_file("-", &o, &st);
+    FILE *out;
+    pm_result_t res = pm_stage_open_output(&st, &out);
+    if (res == PM_OK && st.args.nargs == 0)
+        res = info_file(out, "-", &o, &st);
     for (int i = 0; i < st.args.nargs && res == PM_OK; i++)
-        res = info_file(st.args.args[i], &o, &st);
-    if (res == PM_OK && (fflush(stdout) != 0 || ferror(stdout)))
-        res = pm_error_set(PM_ERR_IO, "cannot write to stdout");
+        res = info_file(out, st.args.args[i], &o, &st);
     return pm_stage_end(&st, res);
 }

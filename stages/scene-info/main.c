@@ -7,6 +7,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "../../common/image.h"
 #include "../../common/rt.h"
@@ -60,7 +61,7 @@ static float preview_shade(const pm_scene_t *s, const struct RTCRayHit *rh, cons
     return (m->kd[k] + m->ks[k]) * (0.2f + 0.8f * c);
 }
 
-static pm_result_t probe(const pm_scene_t *s, const pm_rt_t *rt, pm_stage_t *st, uint8_t *preview)
+static pm_result_t probe(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, pm_stage_t *st, uint8_t *preview)
 {
     const pm_camera_t *c = &s->camera;
     uint64_t n = (uint64_t)c->width * c->height, hits = 0;
@@ -90,7 +91,7 @@ static pm_result_t probe(const pm_scene_t *s, const pm_rt_t *rt, pm_stage_t *st,
     }
     double dt = pm_time_wall() - t0;
     pm_progress_end(&prog);
-    printf("probe: %" PRIu64 " primary rays, %.1f%% hit geometry, %.2f Mrays/s\n", n, 100.0 * (double)hits / (double)n,
+    fprintf(out, "probe: %" PRIu64 " primary rays, %.1f%% hit geometry, %.2f Mrays/s\n", n, 100.0 * (double)hits / (double)n,
            dt > 0 ? 1e-6 * (double)n / dt : 0.0);
     pm_stage_stat_int(st, "probe_rays", (int64_t)n);
     pm_stage_stat_int(st, "probe_hits", (int64_t)hits);
@@ -117,8 +118,11 @@ int main(int argc, char **argv)
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;
+    if (o.preview && strcmp(o.preview, "-") == 0)
+        return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "--preview needs a file: stdout carries the summary"));
     pm_scene_t s;
     pm_rt_t rt;
+    FILE *out;
     double t0 = pm_time_wall();
     pm_result_t r = pm_scene_load(st.args.args[0], &s);
     if (r != PM_OK)
@@ -127,33 +131,35 @@ int main(int argc, char **argv)
     t0 = pm_time_wall();
     r = pm_rt_create(&s, 0, &rt);
     double t_bvh = pm_time_wall() - t0;
+    if (r == PM_OK)
+        r = pm_stage_open_output(&st, &out);
     if (r == PM_OK) {
         double p[3];
         pm_scene_power(&s, p);
         char id[200];
         pm_scene_id(&s, id, sizeof id);
-        printf("scene: %s\n", id);
-        printf("file: %s\n", s.path);
-        printf("triangles: %zu (%zu degenerate left out)\n", s.ntris, s.ndropped);
-        printf("vertices: %zu\n", s.nverts);
-        printf("materials: %zu%s\n", s.nmaterials, s.any_glossy ? " (some glossy)" : " (all Lambertian)");
+        fprintf(out, "scene: %s\n", id);
+        fprintf(out, "file: %s\n", s.path);
+        fprintf(out, "triangles: %zu (%zu degenerate left out)\n", s.ntris, s.ndropped);
+        fprintf(out, "vertices: %zu\n", s.nverts);
+        fprintf(out, "materials: %zu%s\n", s.nmaterials, s.any_glossy ? " (some glossy)" : " (all Lambertian)");
         for (size_t i = 0; i < s.nmaterials; i++) {
             const pm_material_t *m = &s.materials[i];
-            printf("  %zu %s kd %.4g %.4g %.4g ks %.4g %.4g %.4g ns %.4g ke %.4g %.4g %.4g\n", i, m->name, m->kd[0],
+            fprintf(out, "  %zu %s kd %.4g %.4g %.4g ks %.4g %.4g %.4g ns %.4g ke %.4g %.4g %.4g\n", i, m->name, m->kd[0],
                    m->kd[1], m->kd[2], m->ks[0], m->ks[1], m->ks[2], m->ns, m->ke[0], m->ke[1], m->ke[2]);
         }
-        printf("point lights: %zu\n", s.nlights);
-        printf("emissive triangles: %zu\n", s.nemissive);
-        printf("emitted power: %.6g %.6g %.6g W\n", p[0], p[1], p[2]);
-        printf("bounds: %.9g %.9g %.9g  %.9g %.9g %.9g m\n", s.bounds[0], s.bounds[1], s.bounds[2], s.bounds[3],
+        fprintf(out, "point lights: %zu\n", s.nlights);
+        fprintf(out, "emissive triangles: %zu\n", s.nemissive);
+        fprintf(out, "emitted power: %.6g %.6g %.6g W\n", p[0], p[1], p[2]);
+        fprintf(out, "bounds: %.9g %.9g %.9g  %.9g %.9g %.9g m\n", s.bounds[0], s.bounds[1], s.bounds[2], s.bounds[3],
                s.bounds[4], s.bounds[5]);
-        printf("camera: eye %.6g %.6g %.6g look_at %.6g %.6g %.6g fov_y %.6g deg %ux%u\n", s.camera.eye[0],
+        fprintf(out, "camera: eye %.6g %.6g %.6g look_at %.6g %.6g %.6g fov_y %.6g deg %ux%u\n", s.camera.eye[0],
                s.camera.eye[1], s.camera.eye[2], s.camera.look_at[0], s.camera.look_at[1], s.camera.look_at[2],
                s.camera.fov_y, s.camera.width, s.camera.height);
-        printf("needs: direction channels %s, material ids %s, area-light sampling %s\n",
+        fprintf(out, "needs: direction channels %s, material ids %s, area-light sampling %s\n",
                s.any_glossy ? "yes" : "no", s.nmaterials > 1 ? "yes" : "no", s.nemissive ? "yes" : "no");
-        printf("ray epsilon: %.3g m\n", rt.epsilon);
-        printf("time: load %.3f s, bvh %.3f s\n", t_load, t_bvh);
+        fprintf(out, "ray epsilon: %.3g m\n", rt.epsilon);
+        fprintf(out, "time: load %.3f s, bvh %.3f s\n", t_load, t_bvh);
         if (s.nlights == 0 && s.nemissive == 0)
             pm_stage_note(&st, "warning: scene '%s' has no lights; every image of it is black", s.path);
         pm_stage_stat_int(&st, "triangles", (int64_t)s.ntris);
@@ -170,15 +176,13 @@ int main(int argc, char **argv)
             if (o.preview && !img)
                 r = pm_error_set(PM_ERR_NOMEM, "out of memory for a %ux%u preview", s.camera.width, s.camera.height);
             if (r == PM_OK)
-                r = probe(&s, &rt, &st, img);
+                r = probe(out, &s, &rt, &st, img);
             if (r == PM_OK && img)
                 r = pm_png_write_rgb8(o.preview, s.camera.width, s.camera.height, img);
             free(img);
         }
-        pm_rt_destroy(&rt);
     }
+    pm_rt_destroy(&rt); /* safe after a failed create: it zeroes rt */
     pm_scene_free(&s);
-    if (r == PM_OK && (fflush(stdout) != 0 || ferror(stdout)))
-        r = pm_error_set(PM_ERR_IO, "cannot write to stdout");
     return pm_stage_end(&st, r);
 }

@@ -15,3 +15,22 @@ for p in "$BIN"/*; do
     "$p" @"$TMP/settings" --print-settings >"$TMP/settings2" 2>&1
     expect_same "$n --print-settings reads back through @FILE" "$TMP/settings" "$TMP/settings2"
 done
+
+# -o: text-writing programs write there, atomically, and nothing on failure
+"$BIN/pm-info" -o "$TMP/info.txt" tests/golden/photons-all.pm >"$TMP/stdout"
+if [ -s "$TMP/info.txt" ] && [ ! -s "$TMP/stdout" ] && cmp -s "$TMP/info.txt" <("$BIN/pm-info" tests/golden/photons-all.pm); then
+    pass "pm-info -o writes its output there, not to stdout"
+else
+    fail "pm-info -o" "output missing or also on stdout"
+fi
+expect_error "pm-info -o leaves nothing when the input is bad" "bad magic" "$BIN/pm-info" -o "$TMP/bad.txt" /etc/hostname
+if [ ! -e "$TMP/bad.txt" ]; then pass "... no partial output file"; else fail "... no partial output file" "bad.txt exists"; fi
+"$BUILD/tests/pm-testgen" radiance 1 "$TMP/r1.pm" && "$BUILD/tests/pm-testgen" radiance 1 "$TMP/r2.pm" --poison nudge
+"$BIN/pm-compare" -o "$TMP/cmp.txt" "$TMP/r1.pm" "$TMP/r2.pm" 2>/dev/null
+status=$?
+if [ $status = 1 ] && grep -q "OUT OF TOLERANCE" "$TMP/cmp.txt"; then
+    pass "pm-compare keeps its report when the files differ"
+else
+    fail "pm-compare -o report" "exit $status, report: $(cat "$TMP/cmp.txt" 2>&1)"
+fi
+expect_exit "scene-info --preview - is a usage error" 2 "$BIN/scene-info" --preview - scenes/cornell-box/scene.json

@@ -12,6 +12,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 #include "hash.h"
 
@@ -241,6 +242,13 @@ static pm_result_t load_material(const ctx_t *c, const char *mesh, const struct 
     aiGetMaterialColor(am, AI_MATKEY_COLOR_SPECULAR, &ks);
     aiGetMaterialColor(am, AI_MATKEY_COLOR_EMISSIVE, &ke);
     aiGetMaterialFloatArray(am, AI_MATKEY_SHININESS, &ns, NULL);
+    if (!m->name[0] || strcmp(m->name, AI_DEFAULT_MATERIAL_NAME) == 0) {
+        /* assimp's stand-in for a mesh that names no material (PLY, STL): a plain grey
+         * Lambertian surface, whatever the importer filled in (some set Ks to 1). */
+        kd = (struct aiColor4D){0.8f, 0.8f, 0.8f, 1};
+        ks = ke = (struct aiColor4D){0, 0, 0, 1};
+        snprintf(m->name, sizeof m->name, "default");
+    }
     float kdv[3] = {kd.r, kd.g, kd.b}, ksv[3] = {ks.r, ks.g, ks.b}, kev[3] = {ke.r, ke.g, ke.b};
     for (int i = 0; i < 3; i++) {
         if (!(kdv[i] >= 0.0f && kdv[i] <= 1.0f) || !(ksv[i] >= 0.0f && ksv[i] <= 1.0f))
@@ -283,6 +291,25 @@ static pm_result_t grow(void **p, size_t n, size_t size)
     return PM_OK;
 }
 
+/* assimp reports some faults only to its log and carries on: a usemtl the .mtl does not
+ * define, a missing .mtl (it then makes up a grey material). The first "Error" it logs
+ * during an import fails the load. Scenes load on one thread, so one buffer serves. */
+static char ai_first_error[512];
+
+static void on_assimp_log(const char *msg, char *user)
+{
+    (void)user;
+    if (ai_first_error[0] || strncmp(msg, "Error,", 6) != 0)
+        return;
+    const char *colon = strchr(msg, ':'); /* "Error, T0: OBJ: ..." -> "OBJ: ..." */
+    snprintf(ai_first_error, sizeof ai_first_error, "%s", colon ? colon + 2 : msg);
+    for (char *p = ai_first_error; *p; p++)
+        if (*p == '\n' || *p == '\r')
+            *p = ' ';
+    for (size_t n = strlen(ai_first_error); n && ai_first_error[n - 1] == ' '; n--)
+        ai_first_error[n - 1] = '\0';
+}
+
 static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
 {
     static const char *const keys[] = {"file", "scale", "translate", NULL};
@@ -308,16 +335,40 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
     resolve(c->file, file, path, sizeof path);
     FILE *probe = fopen(path, "rb");
     if (!probe)
-        return pm_error_set(PM_ERR_INPUT, "scene '%s': %s: cannot open mesh '%s': %s", c->file, where, path,
-                            strerror(errno));
+        return pm_error_set(PM_ERR_INPUT, "cannot open mesh '%s': %s", path, strerror(errno));
     fclose(probe);
     /* Triangulate polygons, merge shared vertices, flatten node transforms, drop points
      * and lines; normals are not needed: pmtk shades with geometric normals. */
+    struct aiLogStream log = {on_assimp_log, NULL};
+    ai_first_error[0] = '\0';
+    aiAttachLogStream(&log);
     const struct aiScene *as =
         aiImportFile(path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_PreTransformVertices |
-                               aiProcess_SortByPType);
+                               aiProcess_SortByPType | aiProcess_ValidateDataStructure);
+    aiDetachAllLogStreams();
     if (!as)
         return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, aiGetErrorString());
+    if (ai_first_error[0]) {
+        aiReleaseImport(as);
+        return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, ai_first_error);
+    }
+    /* An OBJ whose faces name no material (no mtllib, or a usemtl the .mtl lacks) gets
+     * assimp's default material; rendering it grey would be silently wrong. */
+    size_t ext = strlen(path);
+    int is_obj = ext > 4 && strcasecmp(path + ext - 4, ".obj") == 0;
+    for (unsigned mi = 0; is_obj && mi < as->mNumMeshes; mi++) {
+        const struct aiMesh *m = as->mMeshes[mi];
+        struct aiString mname;
+        if (m->mMaterialIndex < as->mNumMaterials &&
+            aiGetMaterialString(as->mMaterials[m->mMaterialIndex], AI_MATKEY_NAME, &mname) == aiReturn_SUCCESS &&
+            strcmp(mname.data, AI_DEFAULT_MATERIAL_NAME) == 0) {
+            r = pm_error_set(PM_ERR_INPUT,
+                             "mesh '%s': %u faces of '%s' have no material (no mtllib, or no usemtl before them)", path,
+                             m->mNumFaces, m->mName.length ? m->mName.data : "(unnamed)");
+            aiReleaseImport(as);
+            return r;
+        }
+    }
     size_t mat0 = s->nmaterials;
     if ((r = grow((void **)&s->materials, mat0 + as->mNumMaterials, sizeof *s->materials)) != PM_OK) {
         aiReleaseImport(as);
@@ -334,6 +385,11 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
         const struct aiMesh *m = as->mMeshes[mi];
         if (!(m->mPrimitiveTypes & aiPrimitiveType_TRIANGLE))
             continue;
+        if (m->mMaterialIndex >= as->mNumMaterials) {
+            r = pm_error_set(PM_ERR_INPUT, "mesh '%s': material index %u of %u", path, m->mMaterialIndex,
+                             as->mNumMaterials);
+            break;
+        }
         size_t v0 = s->nverts;
         if (s->ntris + m->mNumFaces > PM_SCENE_MAX_TRIS) {
             r = pm_error_set(PM_ERR_INPUT, "mesh '%s': more than %u triangles in the scene", path, PM_SCENE_MAX_TRIS);
@@ -363,8 +419,16 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
             if (face->mNumIndices != 3)
                 continue;
             uint32_t *t = &s->tris[3 * s->ntris];
-            for (int k = 0; k < 3; k++)
+            for (int k = 0; k < 3; k++) {
+                if (face->mIndices[k] >= m->mNumVertices) {
+                    r = pm_error_set(PM_ERR_INPUT, "mesh '%s': face %u names vertex %u of %u", path, f,
+                                     face->mIndices[k], m->mNumVertices);
+                    break;
+                }
                 t[k] = (uint32_t)(v0 + face->mIndices[k]);
+            }
+            if (r != PM_OK)
+                break;
             s->tri_material[s->ntris] = (uint32_t)(mat0 + m->mMaterialIndex);
             s->ntris++;
             /* Zero-area triangles scatter nothing and have no normal: leave them out. */
@@ -487,8 +551,12 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     json_t *meshes = json_object_get(root, "meshes");
     if (r == PM_OK && meshes && !json_is_array(meshes))
         r = bad(&c, "meshes", "must be an array");
-    for (size_t i = 0; r == PM_OK && meshes && i < json_array_size(meshes); i++)
+    for (size_t i = 0; r == PM_OK && meshes && i < json_array_size(meshes); i++) {
         r = load_mesh(&c, json_array_get(meshes, i), i);
+        /* Mesh and material faults name the mesh; say which scene entry brought it in. */
+        if (r == PM_ERR_INPUT && strncmp(pm_error_message(), "scene '", 7) != 0)
+            pm_error_prefix("scene '%s': meshes[%zu]", path, i);
+    }
     if (r == PM_OK)
         r = load_camera(&c, json_object_get(root, "camera"));
     if (r == PM_OK)

@@ -94,11 +94,58 @@ static void test_scene_bad_input(void **state)
     expect_scene_error("{\"pmtk_scene\": 1, \"name\": \"x\", \"name\": \"y\", " CAM "}", "duplicate");
 }
 
+static void test_scene_mesh_faults(void **state)
+{
+    char p[256];
+    write_file("a.mtl", "newmtl a\nKd 0.5 0.5 0.5\n", p, sizeof p);
+    write_file("nomtl.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", p, sizeof p);
+    write_file("badmtl.obj", "mtllib a.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl nosuch\nf 1 2 3\n", p, sizeof p);
+    write_file("gonemtl.obj", "mtllib gone.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n", p, sizeof p);
+    write_file("badidx.obj", "v 0 0 0\nv 1 0 0\nf 1 2 9\n", p, sizeof p);
+    write_file("tri.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+               "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+               "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", p, sizeof p);
+    static const char *const cases[][2] = {
+        {"nomtl.obj", "1 faces of 'defaultobject' have no material"},
+        {"badmtl.obj", "failed to locate material nosuch"},
+        {"gonemtl.obj", "Unable to locate material file gone.mtl"},
+        {"badidx.obj", "vertex index out of range"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        char json[512];
+        snprintf(json, sizeof json, "{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"%s\"}], " CAM "}",
+                 cases[i][0]);
+        char path[256];
+        write_file("m.json", json, path, sizeof path);
+        pm_scene_t s;
+        assert_int_equal(pm_scene_load(path, &s), PM_ERR_INPUT);
+        const char *msg = pm_error_message();
+        if (!strstr(msg, "scene '") || !strstr(msg, cases[i][0]))
+            fail_msg("'%s' does not name the scene and the mesh", msg);
+        if (!strstr(msg, cases[i][1]))
+            fail_msg("message '%s' lacks '%s'", msg, cases[i][1]);
+    }
+    /* a PLY names no material: a grey Lambertian default, not assimp's Ks = 1 */
+    char path[256];
+    write_file("ply.json", "{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"tri.ply\"}], " CAM "}",
+               path, sizeof path);
+    pm_scene_t s;
+    pm_result_t r = pm_scene_load(path, &s);
+    if (r != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_int_equal(s.ntris, 1);
+    assert_int_equal(s.nmaterials, 1);
+    assert_true(s.materials[0].kd[0] == 0.8f && s.materials[0].ks[0] == 0.0f);
+    pm_scene_free(&s);
+}
+
 static void test_scene_degenerate_triangles(void **state)
 {
     char mesh[256], path[256];
     /* one good triangle, one with a repeated vertex, one with collinear vertices */
-    write_file("d.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 1 2\nf 1 2 4\n", mesh, sizeof mesh);
+    write_file("d.mtl", "newmtl grey\nKd 0.5 0.5 0.5\n", mesh, sizeof mesh);
+    write_file("d.obj", "mtllib d.mtl\nusemtl grey\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 1 2\nf 1 2 4\n",
+               mesh, sizeof mesh);
     write_file("d.json", "{\"pmtk_scene\": 1, \"name\": \"d\", \"meshes\": [{\"file\": \"d.obj\", \"scale\": 1e-4}], " CAM
                "}", path, sizeof path);
     pm_scene_t s;
@@ -118,6 +165,7 @@ static void test_scene_degenerate_triangles(void **state)
 static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_scene_cornell_box),
     cmocka_unit_test(test_scene_bad_input),
+    cmocka_unit_test(test_scene_mesh_faults),
     cmocka_unit_test(test_scene_degenerate_triangles),
 };
 UNIT_GROUP(unit_scene, "scene", tests);

@@ -5,27 +5,36 @@
 #include <stdio.h>
 #include <string.h>
 
-/* Embree reports errors through this callback; the last one is kept for the message. */
-static _Thread_local char rt_error[512];
+/* Embree reports errors through this callback, possibly from its own worker threads, so
+ * the first one goes to a process-wide buffer (one device is built at a time). */
+static char rt_error[512];
+static enum RTCError rt_code;
 
 static void on_embree_error(void *user, enum RTCError code, const char *str)
 {
     (void)user;
+    if (rt_code != RTC_ERROR_NONE)
+        return;
+    rt_code = code;
     snprintf(rt_error, sizeof rt_error, "embree error %d: %s", (int)code, str ? str : "(no message)");
 }
 
 static pm_result_t fail(pm_rt_t *rt, const char *what)
 {
-    pm_result_t r = pm_error_set(PM_ERR_INTERNAL, "cannot %s: %s", what, rt_error[0] ? rt_error : "unknown embree error");
+    pm_result_t r = pm_error_set(rt_code == RTC_ERROR_OUT_OF_MEMORY ? PM_ERR_NOMEM : PM_ERR_INTERNAL, "cannot %s: %s",
+                                 what, rt_error[0] ? rt_error : "unknown embree error");
     pm_rt_destroy(rt);
     return r;
 }
 
-pm_result_t pm_rt_create(const pm_scene_t *s, int high_quality, pm_rt_t *out)
+pm_result_t pm_rt_create(const pm_scene_t *s, int high_quality, int threads, pm_rt_t *out)
 {
     memset(out, 0, sizeof *out);
     rt_error[0] = '\0';
-    out->device = rtcNewDevice(NULL);
+    rt_code = RTC_ERROR_NONE;
+    char config[64];
+    snprintf(config, sizeof config, "threads=%d", threads > 0 ? threads : 0); /* 0: Embree's own choice */
+    out->device = rtcNewDevice(config);
     if (!out->device)
         return pm_error_set(PM_ERR_INTERNAL, "cannot create the embree device: error %d",
                             (int)rtcGetDeviceError(NULL));

@@ -18,9 +18,10 @@ typedef struct {
     float epsilon; /* m: ray-origin offset that scales with the scene (no acne at 1e-4 or 1e5 scale) */
 } pm_rt_t;
 
-/* Builds the acceleration structure; quality "high" spends more build time for faster
- * rays (for many-ray stages), "medium" is Embree's default. */
-pm_result_t pm_rt_create(const pm_scene_t *s, int high_quality, pm_rt_t *out);
+/* Builds the acceleration structure with `threads` build threads (--threads; 0 lets
+ * Embree choose); quality "high" spends more build time for faster rays (many-ray
+ * stages), "medium" is Embree's default. */
+pm_result_t pm_rt_create(const pm_scene_t *s, int high_quality, int threads, pm_rt_t *out);
 void pm_rt_destroy(pm_rt_t *rt);
 
 #endif

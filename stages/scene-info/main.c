@@ -129,7 +129,7 @@ int main(int argc, char **argv)
         return pm_stage_end(&st, r);
     double t_load = pm_time_wall() - t0;
     t0 = pm_time_wall();
-    r = pm_rt_create(&s, 0, &rt);
+    r = pm_rt_create(&s, 0, st.threads_used, &rt);
     double t_bvh = pm_time_wall() - t0;
     if (r == PM_OK)
         r = pm_stage_open_output(&st, &out);

@@ -37,7 +37,7 @@ static void test_scene_cornell_box(void **state)
     assert_int_equal(s.camera.width, 256);
 
     pm_rt_t rt;
-    assert_int_equal(pm_rt_create(&s, 0, &rt), PM_OK);
+    assert_int_equal(pm_rt_create(&s, 0, 2, &rt), PM_OK);
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     /* straight down from 0.5 m above the floor, away from the blocks */
@@ -156,7 +156,7 @@ static void test_scene_degenerate_triangles(void **state)
     assert_int_equal(s.ndropped, 2);
     assert_true(fabs(pm_scene_triangle_area(&s, 0) - 0.5e-8) < 1e-14);
     pm_rt_t rt;
-    assert_int_equal(pm_rt_create(&s, 0, &rt), PM_OK);
+    assert_int_equal(pm_rt_create(&s, 0, 2, &rt), PM_OK);
     assert_true(rt.epsilon > 0.0f && rt.epsilon < 1e-8f); /* scales with the 0.1 mm scene */
     pm_rt_destroy(&rt);
     pm_scene_free(&s);

@@ -150,7 +150,7 @@ fuzz:
 	$(Q)$(MAKE) --no-print-directory BUILD=build/fuzz BIN=build/fuzz/bin CC=clang CFLAGS="-O1 -g" \
 	    SAN="-fsanitize=fuzzer-no-link,address,undefined" build/fuzz/libpmtk.a
 	$(Q)for t in $(FUZZ_TARGETS); do \
-	    clang -std=c17 -D_GNU_SOURCE -O1 -g -fsanitize=fuzzer,address,undefined -fopenmp $(PKG_CFLAGS) \
+	    clang -std=c17 -D_GNU_SOURCE -O1 -g -fsanitize=fuzzer,address,undefined -fopenmp -pthread $(PKG_CFLAGS) \
 	        tests/fuzz/$$t.c build/fuzz/libpmtk.a $(LIBS) -o build/fuzz/$$t || exit 1; \
 	    echo "  FUZZ    $$t ($${FUZZ_SECONDS:-60} s)"; \
 	    mkdir -p build/fuzz/corpus-$$t; \

@@ -730,37 +730,57 @@ static pm_result_t parse_header(pm_reader_t *r, char *text, const pm_schema_t *w
     return PM_OK;
 }
 
+static pm_result_t reader_start(pm_reader_t *r, const pm_schema_t *schema, uint32_t need, pm_reader_t **out);
+
 pm_result_t pm_reader_open(const char *path, const pm_schema_t *schema, uint32_t need, pm_reader_t **out)
+{
+    *out = NULL;
+    if (strcmp(path, "-") == 0)
+        return pm_reader_open_stream(stdin, "stdin", schema, need, out);
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        int e = errno;
+        return pm_error_set(e == ENOENT ? PM_ERR_INPUT : PM_ERR_IO, "cannot open '%s': %s", path, strerror(e));
+    }
+    pm_result_t res = pm_reader_open_stream(f, path, schema, need, out);
+    if (res != PM_OK)
+        fclose(f);
+    else
+        (*out)->own_file = 1;
+    return res;
+}
+
+pm_result_t pm_reader_open_stream(FILE *f, const char *name, const pm_schema_t *schema, uint32_t need,
+                                  pm_reader_t **out)
 {
     *out = NULL;
     pm_reader_t *r = calloc(1, sizeof *r);
     if (!r)
-        return pm_error_set(PM_ERR_NOMEM, "out of memory opening '%s'", path);
-    r->path = strdup(strcmp(path, "-") == 0 ? "stdin" : path);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory opening '%s'", name);
+    r->f = f;
+    r->path = strdup(name);
     r->hash = XXH3_createState();
     if (!r->path || !r->hash) {
+        r->f = NULL; /* the caller's stream */
         pm_reader_close(r);
-        return pm_error_set(PM_ERR_NOMEM, "out of memory opening '%s'", path);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory opening '%s'", name);
     }
     pm_header_init(&r->hdr, schema);
     XXH3_64bits_reset(r->hash);
-    if (strcmp(path, "-") == 0) {
-        r->f = stdin;
-    } else {
-        r->f = fopen(path, "rb");
-        if (!r->f) {
-            int e = errno;
-            pm_reader_close(r);
-            return pm_error_set(e == ENOENT ? PM_ERR_INPUT : PM_ERR_IO, "cannot open '%s': %s", path, strerror(e));
-        }
-        r->own_file = 1;
-    }
+    return reader_start(r, schema, need, out);
+}
+
+/* Reads and checks the header of r's stream; on failure closes r (not the stream). */
+static pm_result_t reader_start(pm_reader_t *r, const pm_schema_t *schema, uint32_t need, pm_reader_t **out)
+{
+    const char *path = r->path;
     struct stat st;
     if (fstat(fileno(r->f), &st) == 0 && S_ISREG(st.st_mode))
         r->file_size = (uint64_t)st.st_size;
     else if (fstat(fileno(r->f), &st) == 0 && S_ISDIR(st.st_mode)) {
+        pm_result_t res = pm_error_set(PM_ERR_INPUT, "'%s' is a directory, not a pmtk file", path);
         pm_reader_close(r);
-        return pm_error_set(PM_ERR_INPUT, "'%s' is a directory, not a pmtk file", path);
+        return res;
     }
 
     char *text = NULL;

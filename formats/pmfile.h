@@ -13,6 +13,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 
 #include "../common/error.h"
 
@@ -134,6 +135,10 @@ typedef struct pm_reader pm_reader_t;
 /* Opens path ("-" is stdin) and reads and checks the header and byte-order marker.
  * schema NULL accepts any known format. need: channels the caller requires. */
 pm_result_t pm_reader_open(const char *path, const pm_schema_t *schema, uint32_t need, pm_reader_t **out);
+/* The same on a stream the caller opened and closes (after pm_reader_close); name is
+ * what messages call it. */
+pm_result_t pm_reader_open_stream(FILE *f, const char *name, const pm_schema_t *schema, uint32_t need,
+                                  pm_reader_t **out);
 const pm_header_t *pm_reader_header(const pm_reader_t *r);
 /* The header text exactly as read, magic line to blank line. */
 const char *pm_reader_header_text(const pm_reader_t *r);

@@ -34,3 +34,21 @@ else
     fail "pm-compare -o report" "exit $status, report: $(cat "$TMP/cmp.txt" 2>&1)"
 fi
 expect_exit "scene-info --preview - is a usage error" 2 "$BIN/scene-info" --preview - scenes/cornell-box/scene.json
+
+# a stage killed while its output is open leaves no temporary file behind
+mkdir -p "$TMP/sig"
+mkfifo "$TMP/sig/fifo"
+exec 7<>"$TMP/sig/fifo" # opened read-write: neither end blocks, and pm-info waits for data
+"$BIN/pm-info" -o "$TMP/sig/out.txt" - <&7 &
+pid=$!
+for i in $(seq 50); do ls -A "$TMP/sig" | grep -q '^\.out\.txt\.' && break; sleep 0.05; done
+seen=$(ls -A "$TMP/sig" | grep -c '^\.out\.txt\.')
+kill -TERM $pid
+wait $pid 2>/dev/null
+exec 7>&-
+left=$(ls -A "$TMP/sig" | grep -c '^\.out\.txt\.')
+if [ "$seen" = 1 ] && [ "$left" = 0 ] && [ ! -e "$TMP/sig/out.txt" ]; then
+    pass "SIGTERM removes the temporary output"
+else
+    fail "SIGTERM removes the temporary output" "temporary seen $seen, left $left"
+fi

@@ -35,5 +35,3 @@ pm_result_t pm_hash_file(const char *path, uint64_t *hash_out)
         return pm_error_set(PM_ERR_IO, "cannot read '%s'", path);
     return PM_OK;
 }
-
-void pm_hash_hex(uint64_t h, char out[17]) { snprintf(out, 17, "%016llx", (unsigned long long)h); }

@@ -14,7 +14,4 @@ uint64_t pm_hash_bytes(const void *data, size_t n);
 /* XXH3-64 of a whole file's bytes. */
 pm_result_t pm_hash_file(const char *path, uint64_t *hash_out);
 
-/* 16 lower-case hex digits and a NUL. */
-void pm_hash_hex(uint64_t h, char out[17]);
-
 #endif

@@ -64,14 +64,6 @@ uint32_t pm_schema_required(const pm_schema_t *s)
     return m;
 }
 
-int pm_schema_channel(const pm_schema_t *s, const char *name)
-{
-    for (unsigned i = 0; i < s->nchannels; i++)
-        if (strcmp(s->channels[i].name, name) == 0)
-            return (int)i;
-    return -1;
-}
-
 const pm_schema_t *pm_schema_find(const char *name)
 {
     for (const pm_schema_t *const *s = pm_schema_all(); *s; s++)
@@ -245,17 +237,6 @@ pm_result_t pm_header_get_u64(const pm_header_t *h, const char *path, const char
         return pm_error_set(PM_ERR_INPUT, "%s '%s' lacks header key '%s'", title_of(h), path, key);
     if (!parse_decimal(v, out))
         return pm_error_set(PM_ERR_INPUT, "%s '%s': header key %s='%s' is not a decimal integer", title_of(h),
-                            path, key, v);
-    return PM_OK;
-}
-
-pm_result_t pm_header_get_double(const pm_header_t *h, const char *path, const char *key, double *out)
-{
-    const char *v = pm_header_get(h, key);
-    if (!v)
-        return pm_error_set(PM_ERR_INPUT, "%s '%s' lacks header key '%s'", title_of(h), path, key);
-    if (pm_parse_double(v, out) != PM_OK)
-        return pm_error_set(PM_ERR_INPUT, "%s '%s': header key %s='%s' is not a finite number", title_of(h),
                             path, key, v);
     return PM_OK;
 }

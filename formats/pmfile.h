@@ -99,8 +99,6 @@ uint32_t pm_schema_record_size(const pm_schema_t *s, uint32_t mask);
 uint32_t pm_schema_offset(const pm_schema_t *s, uint32_t mask, unsigned channel);
 /* Mask of the schema's required channels. */
 uint32_t pm_schema_required(const pm_schema_t *s);
-/* The channel index of name, or -1. */
-int pm_schema_channel(const pm_schema_t *s, const char *name);
 /* The schema whose FORMAT is name, from every format pmtk knows; NULL if none. */
 const pm_schema_t *pm_schema_find(const char *name);
 /* Every known schema, NULL-terminated. */
@@ -116,9 +114,8 @@ pm_result_t pm_header_add(pm_header_t *h, const char *key, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
 /* The value of the first occurrence of key, or NULL. */
 const char *pm_header_get(const pm_header_t *h, const char *key);
-/* Typed getters: fail with a message naming path and key when missing or malformed. */
+/* A decimal integer key: fails with a message naming path and key when missing or malformed. */
 pm_result_t pm_header_get_u64(const pm_header_t *h, const char *path, const char *key, uint64_t *out);
-pm_result_t pm_header_get_double(const pm_header_t *h, const char *path, const char *key, double *out);
 /* Appends a COMMAND line made of argv, shell-quoted where needed. */
 pm_result_t pm_header_add_command(pm_header_t *h, int argc, char *const *argv);
 /* Appends src's COMMAND lines not already present, and src's SCENE when h has none. */

@@ -24,7 +24,7 @@ const char *unit_tmpdir(void)
 
 int main(int argc, char **argv)
 {
-    const unit_group_t *groups[] = {&unit_args, &unit_rng, &unit_sampling, &unit_pmfile, &unit_scene};
+    const unit_group_t *groups[] = {&unit_args, &unit_common, &unit_rng, &unit_sampling, &unit_pmfile, &unit_scene};
     if (argc > 1)
         cmocka_set_test_filter(argv[1]);
     size_t total = 0, failed = 0;

@@ -14,7 +14,7 @@ typedef struct {
     size_t count;
 } unit_group_t;
 
-extern const unit_group_t unit_args, unit_rng, unit_pmfile, unit_scene, unit_sampling;
+extern const unit_group_t unit_args, unit_common, unit_rng, unit_pmfile, unit_scene, unit_sampling;
 
 /* A fresh temporary directory for the test run (created once). */
 const char *unit_tmpdir(void);

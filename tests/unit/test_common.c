@@ -1,0 +1,62 @@
+/* test_common.c: ISA detection and parsing, error messages, thread counts, hashing. */
+#include <stdio.h>
+#include <string.h>
+
+#include "../../common/cpu.h"
+#include "../../common/error.h"
+#include "../../common/hash.h"
+#include "../../common/threads.h"
+#include "unit.h"
+
+static void test_common_isa(void **state)
+{
+    pm_isa_t best = pm_cpu_best_isa(), isa;
+    assert_true(pm_cpu_supports(best) && pm_cpu_supports(PM_ISA_SCALAR));
+    assert_int_equal(pm_isa_parse("auto", &isa), PM_OK);
+    assert_int_equal(isa, best);
+    assert_int_equal(pm_isa_parse("scalar", &isa), PM_OK);
+    assert_int_equal(isa, PM_ISA_SCALAR);
+    assert_int_equal(pm_isa_parse("neon", &isa), PM_ERR_USAGE);
+    assert_non_null(strstr(pm_error_message(), "unknown isa 'neon'"));
+    for (int i = 0; i < PM_ISA_COUNT; i++) {
+        assert_int_equal(pm_isa_width((pm_isa_t)i), i == 0 ? 1 : 2 << i); /* 1, 4, 8, 16 */
+        if (!pm_cpu_supports((pm_isa_t)i))
+            assert_int_equal(pm_isa_parse(pm_isa_name((pm_isa_t)i), &isa), PM_ERR_USAGE);
+    }
+    assert_true(strlen(pm_cpu_model()) > 0);
+}
+
+static void test_common_errors(void **state)
+{
+    assert_int_equal(pm_error_set(PM_ERR_INPUT, "bad '%s'\nsecond line", "x"), PM_ERR_INPUT);
+    assert_string_equal(pm_error_message(), "bad 'x' second line"); /* always one line */
+    pm_error_prefix("stage %d", 3);
+    assert_string_equal(pm_error_message(), "stage 3: bad 'x' second line");
+    assert_string_equal(pm_result_string(PM_ERR_NOMEM), "nomem");
+    assert_int_equal(pm_result_exit_code(PM_OK), 0);
+    assert_int_equal(pm_result_exit_code(PM_ERR_USAGE), 2);
+    assert_int_equal(pm_result_exit_code(PM_ERR_IO), 1);
+    char longer[3000];
+    memset(longer, 'a', sizeof longer - 1);
+    longer[sizeof longer - 1] = '\0';
+    pm_error_set(PM_ERR_INPUT, "%s", longer);
+    pm_error_prefix("%s", longer); /* both cut, never overflowing */
+    assert_true(strlen(pm_error_message()) < 1024);
+}
+
+static void test_common_threads_and_hash(void **state)
+{
+    assert_int_equal(pm_threads_use(3), 3);
+    assert_int_equal(pm_threads_use(0), pm_threads_available());
+    /* XXH3-64 of the empty input, as the xxHash specification gives it */
+    assert_true(pm_hash_bytes("", 0) == 0x2D06800538D394C2ULL);
+    uint64_t h;
+    assert_int_equal(pm_hash_file("/nonexistent", &h), PM_ERR_IO);
+}
+
+static const struct CMUnitTest tests[] = {
+    cmocka_unit_test(test_common_isa),
+    cmocka_unit_test(test_common_errors),
+    cmocka_unit_test(test_common_threads_and_hash),
+};
+UNIT_GROUP(unit_common, "common", tests);

@@ -147,7 +147,7 @@ bench: check-deps
 FUZZ_TARGETS := $(basename $(notdir $(wildcard tests/fuzz/*.c)))
 fuzz:
 	@command -v clang >/dev/null || { echo "fuzz: needs clang (apt-get install clang)" >&2; exit 1; }
-	$(Q)$(MAKE) --no-print-directory BUILD=build/fuzz BIN=build/fuzz/bin CC=clang CFLAGS="-O1 -g" \
+	$(Q)$(MAKE) --no-print-directory BUILD=build/fuzz BIN=build/fuzz/bin CC=clang CFLAGS="-O1 -g" WERROR= \
 	    SAN="-fsanitize=fuzzer-no-link,address,undefined" build/fuzz/libpmtk.a
 	$(Q)for t in $(FUZZ_TARGETS); do \
 	    clang -std=c17 -D_GNU_SOURCE -O1 -g -fsanitize=fuzzer,address,undefined -fopenmp -pthread $(PKG_CFLAGS) \

@@ -28,3 +28,11 @@ else
 fi
 expect_error "preview into a missing folder fails cleanly" "cannot create output '/nonexistent/p.png'" \
     "$BIN/scene-info" -q --preview /nonexistent/p.png scenes/cornell-box/scene.json
+
+# the determinism promise: the same inputs give the same bytes for any thread count
+"$BIN/scene-info" -q --threads 1 --preview "$TMP/p1.png" scenes/atrium/scene.json >"$TMP/s1.txt"
+"$BIN/scene-info" -q --threads 2 --preview "$TMP/p2.png" scenes/atrium/scene.json >"$TMP/s2.txt"
+expect_same "scene-info --preview is identical on 1 and 2 threads" "$TMP/p1.png" "$TMP/p2.png"
+grep -v -E '^(time|probe):' "$TMP/s1.txt" >"$TMP/s1.cut"
+grep -v -E '^(time|probe):' "$TMP/s2.txt" >"$TMP/s2.cut"
+expect_same "scene-info's summary is identical on 1 and 2 threads" "$TMP/s1.cut" "$TMP/s2.cut"

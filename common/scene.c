@@ -58,15 +58,22 @@ static pm_result_t only_keys(const ctx_t *c, json_t *obj, const char *where, con
     return PM_OK;
 }
 
+/* obj's member name into *v_out: NULL when it is absent and optional (leave the
+ * default), an error naming path when it is absent and required. */
+static pm_result_t member(const ctx_t *c, json_t *obj, const char *name, const char *path, int required,
+                          json_t **v_out)
+{
+    *v_out = json_object_get(obj, name);
+    return !*v_out && required ? bad(c, path, "missing") : PM_OK;
+}
+
 static pm_result_t get_number(const ctx_t *c, json_t *obj, const char *name, const char *path, int required,
                               double lo, double hi, double *out)
 {
-    json_t *v = json_object_get(obj, name);
-    if (!v) {
-        if (required)
-            return bad(c, path, "missing");
-        return PM_OK;
-    }
+    json_t *v;
+    pm_result_t r = member(c, obj, name, path, required, &v);
+    if (r != PM_OK || !v)
+        return r;
     if (!json_is_number(v))
         return bad(c, path, "must be a number");
     double x = json_number_value(v);
@@ -79,12 +86,10 @@ static pm_result_t get_number(const ctx_t *c, json_t *obj, const char *name, con
 static pm_result_t get_int(const ctx_t *c, json_t *obj, const char *name, const char *path, int required,
                            int64_t lo, int64_t hi, int64_t *out)
 {
-    json_t *v = json_object_get(obj, name);
-    if (!v) {
-        if (required)
-            return bad(c, path, "missing");
-        return PM_OK;
-    }
+    json_t *v;
+    pm_result_t r = member(c, obj, name, path, required, &v);
+    if (r != PM_OK || !v)
+        return r;
     if (!json_is_integer(v))
         return bad(c, path, "must be an integer");
     int64_t x = json_integer_value(v);
@@ -97,12 +102,10 @@ static pm_result_t get_int(const ctx_t *c, json_t *obj, const char *name, const 
 static pm_result_t get_vec3(const ctx_t *c, json_t *obj, const char *name, const char *path, int required,
                             double lo, double hi, float out[3])
 {
-    json_t *v = json_object_get(obj, name);
-    if (!v) {
-        if (required)
-            return bad(c, path, "missing");
-        return PM_OK;
-    }
+    json_t *v;
+    pm_result_t r = member(c, obj, name, path, required, &v);
+    if (r != PM_OK || !v)
+        return r;
     if (!json_is_array(v) || json_array_size(v) != 3)
         return bad(c, path, "must be an array of 3 numbers");
     for (size_t i = 0; i < 3; i++) {

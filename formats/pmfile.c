@@ -571,23 +571,16 @@ static pm_result_t parse_header(pm_reader_t *r, char *text, const pm_schema_t *w
             if ((unsigned char)*c < 0x20 || *c == 0x7f)
                 return pm_error_set(PM_ERR_INPUT, "malformed header line %u in '%s': control byte in %s",
                                     lineno, path, key);
+        const struct {
+            const char *key;
+            const char **value;
+        } structural[] = {{"FORMAT", &format}, {"VERSION", &version},     {"COUNT", &count},
+                          {"RECORD_SIZE", &rsize}, {"CHANNELS", &chans}, {"CHANNEL_MASK", &mask},
+                          {"BOUNDS", &bounds}, {"BYTE_ORDER", &order}};
         const char **slot = NULL;
-        if (!strcmp(key, "FORMAT"))
-            slot = &format;
-        else if (!strcmp(key, "VERSION"))
-            slot = &version;
-        else if (!strcmp(key, "COUNT"))
-            slot = &count;
-        else if (!strcmp(key, "RECORD_SIZE"))
-            slot = &rsize;
-        else if (!strcmp(key, "CHANNELS"))
-            slot = &chans;
-        else if (!strcmp(key, "CHANNEL_MASK"))
-            slot = &mask;
-        else if (!strcmp(key, "BOUNDS"))
-            slot = &bounds;
-        else if (!strcmp(key, "BYTE_ORDER"))
-            slot = &order;
+        for (size_t k = 0; k < sizeof structural / sizeof structural[0] && !slot; k++)
+            if (!strcmp(key, structural[k].key))
+                slot = structural[k].value;
         if (slot) {
             if (*slot)
                 return pm_error_set(PM_ERR_INPUT, "header of '%s' repeats %s (line %u)", path, key, lineno);

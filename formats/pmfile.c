@@ -957,9 +957,17 @@ struct pm_writer {
     pm_atomic_t out;
     XXH3_state_t *hash;
     uint64_t count, written;
-    uint32_t record_size;
     int err;             /* errno of the first failed write, 0 while all is well */
 };
+
+/* Frees a writer whose output is already committed, aborted or never opened. */
+static void writer_free(pm_writer_t *w)
+{
+    pm_header_free(&w->layout);
+    XXH3_freeState(w->hash);
+    free(w->name);
+    free(w);
+}
 
 pm_result_t pm_writer_open(const char *path, const pm_header_t *h, pm_writer_t **out)
 {
@@ -988,30 +996,25 @@ pm_result_t pm_writer_open(const char *path, const pm_header_t *h, pm_writer_t *
         return PM_ERR_INTERNAL;
     }
     pm_writer_t *w = calloc(1, sizeof *w);
-    if (!w || !(w->hash = XXH3_createState())) {
-        free(w);
-        free(text);
+    if (!w) {
         pm_header_free(&probe.hdr);
+        free(text);
         return pm_error_set(PM_ERR_NOMEM, "out of memory opening '%s'", path);
     }
+    w->out.slot = -1;
     w->count = h->count;
-    w->record_size = pm_schema_record_size(h->schema, h->channels);
     w->layout = probe.hdr; /* the header as a reader will see it, for the record checks */
+    w->hash = XXH3_createState();
     w->name = strdup(shown);
-    if (!w->name) {
-        pm_header_free(&w->layout);
-        XXH3_freeState(w->hash);
-        free(w);
+    if (!w->hash || !w->name) {
+        writer_free(w);
         free(text);
         return pm_error_set(PM_ERR_NOMEM, "out of memory opening '%s'", path);
     }
     XXH3_64bits_reset(w->hash);
     res = pm_atomic_open(path, &w->out);
     if (res != PM_OK) {
-        pm_header_free(&w->layout);
-        XXH3_freeState(w->hash);
-        free(w->name);
-        free(w);
+        writer_free(w);
         free(text);
         return res;
     }
@@ -1036,7 +1039,7 @@ pm_result_t pm_writer_write(pm_writer_t *w, const void *records, uint64_t n)
         pm_error_prefix("refusing to write");
         return PM_ERR_INTERNAL;
     }
-    size_t bytes = (size_t)(n * w->record_size);
+    size_t bytes = (size_t)(n * w->layout.record_size);
     XXH3_64bits_update(w->hash, records, bytes);
     if (!w->err && bytes && fwrite(records, 1, bytes, w->out.f) != bytes)
         w->err = errno ? errno : EIO;
@@ -1065,10 +1068,7 @@ pm_result_t pm_writer_commit(pm_writer_t *w)
         return r;
     }
     pm_result_t r = pm_atomic_commit(&w->out);
-    pm_header_free(&w->layout);
-    XXH3_freeState(w->hash);
-    free(w->name);
-    free(w);
+    writer_free(w);
     return r;
 }
 
@@ -1077,10 +1077,7 @@ void pm_writer_abort(pm_writer_t *w)
     if (!w)
         return;
     pm_atomic_abort(&w->out);
-    pm_header_free(&w->layout);
-    XXH3_freeState(w->hash);
-    free(w->name);
-    free(w);
+    writer_free(w);
 }
 
 /* ------------------------------------------------------------------ tables */

@@ -63,6 +63,9 @@ int pm_stage_begin(pm_stage_t *st, const pm_cli_t *cli, int argc, char **argv)
         if (cli->min_args == cli->max_args)
             fprintf(stderr, "%s: expected %d argument%s, got %d\n", st->name, cli->min_args,
                     cli->min_args == 1 ? "" : "s", n);
+        else if (cli->max_args < 0)
+            fprintf(stderr, "%s: expected at least %d argument%s, got %d\n", st->name, cli->min_args,
+                    cli->min_args == 1 ? "" : "s", n);
         else
             fprintf(stderr, "%s: expected %d to %d arguments, got %d\n", st->name, cli->min_args, cli->max_args, n);
         fprintf(stderr, "usage: %s %s (try --help)\n", cli->program, cli->synopsis);

@@ -5,7 +5,8 @@
 #                   then the same tests under AddressSanitizer + UBSan
 #   make asan       sanitizer build into build/asan/bin
 #   make demo       render the Cornell box with what exists (see README)
-#   make bench      benchmarks into docs/benchmarks.md
+#   make bench      benchmarks into docs/benchmarks.md (BENCH=PATTERN: only those sections)
+#   make bench-quick the same on smaller inputs, in under two minutes
 #   make fuzz       libFuzzer targets for every reader (clang), not part of test
 #   make deps       install the Debian packages (apt-get, when root)
 #   make clean
@@ -66,7 +67,7 @@ TESTGEN := $(BUILD)/tests/pm-testgen
 ATRIUM_GEN := $(BUILD)/scenes/make-atrium
 ATRIUM_OBJ := scenes/atrium/atrium.obj
 
-.PHONY: all test test-run asan test-asan demo bench fuzz deps clean check-deps
+.PHONY: all test test-run asan test-asan demo bench bench-quick fuzz deps clean check-deps
 # Keep the stages' objects: they are intermediate to the pattern rule, and make would
 # otherwise delete them and rebuild them next time.
 .SECONDARY:
@@ -142,7 +143,12 @@ demo: check-deps
 
 bench: check-deps
 	$(Q)$(MAKE) --no-print-directory all $(TESTGEN)
-	$(Q)BIN=$(abspath $(BIN)) BUILD=$(abspath $(BUILD)) bash tests/bench/run
+	$(Q)BIN=$(abspath $(BIN)) BUILD=$(abspath $(BUILD)) bash tests/bench/run $(BENCH)
+
+# The same sections on smaller inputs and 3 runs each, in under two minutes.
+bench-quick: check-deps
+	$(Q)$(MAKE) --no-print-directory all $(TESTGEN)
+	$(Q)QUICK=1 RUNS=3 N=200000 BIN=$(abspath $(BIN)) BUILD=$(abspath $(BUILD)) bash tests/bench/run $(BENCH)
 
 FUZZ_TARGETS := $(basename $(notdir $(wildcard tests/fuzz/*.c)))
 fuzz:

@@ -22,13 +22,31 @@ const char *unit_tmpdir(void)
     return dir;
 }
 
+enum { UNIT_MAX_GROUPS = 64 };
+static const unit_group_t *groups[UNIT_MAX_GROUPS];
+static size_t ngroups;
+
+void unit_register(const unit_group_t *group)
+{
+    if (ngroups == UNIT_MAX_GROUPS) {
+        fprintf(stderr, "unit: more than %d groups; raise UNIT_MAX_GROUPS\n", UNIT_MAX_GROUPS);
+        exit(3);
+    }
+    groups[ngroups++] = group;
+}
+
+static int by_name(const void *a, const void *b)
+{
+    return strcmp((*(const unit_group_t *const *)a)->name, (*(const unit_group_t *const *)b)->name);
+}
+
 int main(int argc, char **argv)
 {
-    const unit_group_t *groups[] = {&unit_args, &unit_common, &unit_rng, &unit_sampling, &unit_pmfile, &unit_scene};
+    qsort(groups, ngroups, sizeof groups[0], by_name);
     if (argc > 1)
         cmocka_set_test_filter(argv[1]);
     size_t total = 0, failed = 0;
-    for (size_t g = 0; g < sizeof groups / sizeof groups[0]; g++) {
+    for (size_t g = 0; g < ngroups; g++) {
         int f = _cmocka_run_group_tests(groups[g]->name, groups[g]->tests, groups[g]->count, NULL, NULL);
         failed += (size_t)f;
         total += groups[g]->count;

@@ -14,11 +14,16 @@ typedef struct {
     size_t count;
 } unit_group_t;
 
-extern const unit_group_t unit_args, unit_common, unit_rng, unit_pmfile, unit_scene, unit_sampling;
+/* Groups register themselves before main runs (UNIT_GROUP), so that a new test file needs
+ * no edit anywhere else; main sorts them by name so that the order does not depend on the
+ * link order. */
+void unit_register(const unit_group_t *group);
 
 /* A fresh temporary directory for the test run (created once). */
 const char *unit_tmpdir(void);
 /* Path of a file in the source tree (tests run from the repository root). */
-#define UNIT_GROUP(var, label, arr) const unit_group_t var = {label, arr, sizeof arr / sizeof arr[0]}
+#define UNIT_GROUP(var, label, arr)                                              \
+    static const unit_group_t var = {label, arr, sizeof arr / sizeof arr[0]};   \
+    __attribute__((constructor)) static void var##_register(void) { unit_register(&var); }
 
 #endif

@@ -54,6 +54,9 @@ _Static_assert(offsetof(pm_kdnode_t, child) == 4, "split first, child second");
 
 #define PM_KD_LEAF 3u
 #define PM_KD_NONE 0xffffffffu
+/* Deepest tree a photon map may hold (the root is level 1): searches keep a fixed-size
+ * stack, as ray tracers do. A balanced tree of 2^32 - 2 photons is 32 levels deep. */
+#define PM_KD_MAX_DEPTH 128u
 
 static inline uint32_t pm_kdnode_axis(pm_kdnode_t n)
 {

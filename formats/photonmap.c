@@ -24,7 +24,7 @@ static const pm_channel_t map_channels[] = {
 /* One pending subtree of the check: its root and the box its photons must lie in, the
  * planes of its ancestors (their photons' coordinates, inclusive on both sides). */
 typedef struct {
-    uint32_t node;
+    uint32_t node, depth;
     float lo[3], hi[3];
 } pending_t;
 
@@ -44,7 +44,7 @@ static pm_result_t validate_tree(const pm_table_t *t, const char *path)
         return pm_error_set(PM_ERR_NOMEM, "out of memory checking photon map '%s'", path);
     pm_result_t res = PM_OK;
     uint64_t top = 0, expected = 0;
-    stack[top++] = (pending_t){0, {-INFINITY, -INFINITY, -INFINITY}, {INFINITY, INFINITY, INFINITY}};
+    stack[top++] = (pending_t){0, 1, {-INFINITY, -INFINITY, -INFINITY}, {INFINITY, INFINITY, INFINITY}};
     while (top) {
         pending_t e = stack[--top];
         uint32_t i = e.node;
@@ -55,6 +55,11 @@ static pm_result_t validate_tree(const pm_table_t *t, const char *path)
             break;
         }
         expected++;
+        if (e.depth > PM_KD_MAX_DEPTH) {
+            res = pm_error_set(PM_ERR_INPUT, "photon map '%s' is deeper than %u levels at node %" PRIu32
+                               " (searches keep a stack of that depth)", path, PM_KD_MAX_DEPTH, i);
+            break;
+        }
         const float *p = &pos[3 * (size_t)i];
         int axis_out = -1;
         for (int k = 0; k < 3; k++)
@@ -100,12 +105,14 @@ static pm_result_t validate_tree(const pm_table_t *t, const char *path)
         if (has_right) { /* pushed first, popped after the whole left subtree */
             pending_t r = e;
             r.node = child;
+            r.depth = e.depth + 1;
             r.lo[axis] = p[axis];
             stack[top++] = r;
         }
         if (has_left) {
             pending_t l = e;
             l.node = i + 1;
+            l.depth = e.depth + 1;
             l.hi[axis] = p[axis];
             stack[top++] = l;
         }

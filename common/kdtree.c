@@ -1,0 +1,396 @@
+/* kdtree.c: median-split build of the paper's photon KD-tree, and the scalar searches.
+ *
+ * The build works on a copy of the photons as 16-byte {x, y, z, index} elements, so that a
+ * bounding box is one SSE min/max per element and a swap moves one aligned 16-byte value;
+ * each level partitions its subtree's elements in place around the median (Hoare's FIND,
+ * Wirth's formulation), and the two halves become independent subarrays, built as OpenMP
+ * tasks while they are large. Depth-first output order falls out of the recursion: node
+ * `at` is the median, its left subtree [at + 1, at + 1 + m), its right after that. */
+#include "kdtree.h"
+
+#include <immintrin.h>
+#include <math.h>
+#include <stdlib.h>
+
+#include "memory.h"
+
+typedef struct {
+    float p[3];
+    uint32_t id;
+} elem_t;
+_Static_assert(sizeof(elem_t) == 16, "one element is one SSE register");
+
+typedef struct {
+    pm_kdnode_t *node;
+    uint32_t *perm;
+} build_t;
+
+/* Subtrees of at least this many photons are handed to another thread: below it a task
+ * costs more than it saves (measured: 16K to 64K photons are the flat part of the curve). */
+enum { TASK_MIN = 32768 };
+
+/* Longest axis of the bounding box of a[0, n). Ties go to the lowest axis, so all-equal
+ * photons split on x, which is as good as any. */
+static uint32_t longest_axis(const elem_t *a, uint32_t n)
+{
+    /* Two independent min/max chains: one chain waits on the previous min's latency. */
+    __m128 lo = _mm_load_ps(a[0].p), hi = lo, lo2 = lo, hi2 = lo;
+    uint32_t i = 1;
+    for (; i + 1 < n; i += 2) {
+        __m128 v = _mm_load_ps(a[i].p), w = _mm_load_ps(a[i + 1].p);
+        lo = _mm_min_ps(lo, v);
+        hi = _mm_max_ps(hi, v);
+        lo2 = _mm_min_ps(lo2, w);
+        hi2 = _mm_max_ps(hi2, w);
+    }
+    if (i < n) {
+        __m128 v = _mm_load_ps(a[i].p);
+        lo = _mm_min_ps(lo, v);
+        hi = _mm_max_ps(hi, v);
+    }
+    lo = _mm_min_ps(lo, lo2);
+    hi = _mm_max_ps(hi, hi2);
+    float l[4], h[4];
+    _mm_storeu_ps(l, lo);
+    _mm_storeu_ps(h, hi);
+    /* In double: the extent of coordinates near +-1e30 or 3e38 would overflow a float. */
+    double e0 = (double)h[0] - l[0], e1 = (double)h[1] - l[1], e2 = (double)h[2] - l[2];
+    return e0 >= e1 ? (e0 >= e2 ? 0u : 2u) : (e1 >= e2 ? 1u : 2u);
+}
+
+/* Branch-free Lomuto partition of a[0, n): moves the elements whose key satisfies
+ * `key < p` (le = 0) or `key <= p` (le = 1) to the front, returns how many. Every element
+ * is swapped unconditionally and the cursor advances by the comparison, so a random
+ * order costs no mispredicted branches (the scanning loops of Hoare's partition miss
+ * about once per element, which made them three quarters of the build). */
+static uint32_t partition_front(elem_t *a, uint32_t n, uint32_t axis, float p, int le)
+{
+    uint32_t j = 0;
+    if (le) {
+        for (uint32_t i = 0; i < n; i++) {
+            __m128 v = _mm_load_ps(a[i].p);
+            float k = a[i].p[axis];
+            _mm_store_ps(a[i].p, _mm_load_ps(a[j].p));
+            _mm_store_ps(a[j].p, v);
+            j += k <= p;
+        }
+    } else {
+        for (uint32_t i = 0; i < n; i++) {
+            __m128 v = _mm_load_ps(a[i].p);
+            float k = a[i].p[axis];
+            _mm_store_ps(a[i].p, _mm_load_ps(a[j].p));
+            _mm_store_ps(a[j].p, v);
+            j += k < p;
+        }
+    }
+    return j;
+}
+
+static int cmp_x(const void *a, const void *b)
+{
+    float x = ((const elem_t *)a)->p[0], y = ((const elem_t *)b)->p[0];
+    return (x > y) - (x < y);
+}
+static int cmp_y(const void *a, const void *b)
+{
+    float x = ((const elem_t *)a)->p[1], y = ((const elem_t *)b)->p[1];
+    return (x > y) - (x < y);
+}
+static int cmp_z(const void *a, const void *b)
+{
+    float x = ((const elem_t *)a)->p[2], y = ((const elem_t *)b)->p[2];
+    return (x > y) - (x < y);
+}
+
+/* Reorders a[0, n) so that a[m] holds the element of rank m on `axis`, those before it
+ * are <= it and those after >= (quickselect). Each round splits into keys < pivot, == and
+ * >, so runs of equal keys end the search at once instead of splitting forever. The pivot
+ * is the median of three; should an input defeat it (more rounds than a good pivot
+ * needs), the rest is sorted, which bounds the worst case by O(n log n). */
+static void select_rank(elem_t *a, uint32_t n, uint32_t m, uint32_t axis)
+{
+    unsigned rounds = 0, limit = 16;
+    for (uint32_t t = n; t; t >>= 1)
+        limit += 2;
+    while (n > 1) {
+        if (++rounds > limit) {
+            static int (*const cmp[3])(const void *, const void *) = {cmp_x, cmp_y, cmp_z};
+            qsort(a, n, sizeof *a, cmp[axis]);
+            return;
+        }
+        float x = a[0].p[axis], y = a[n / 2].p[axis], z = a[n - 1].p[axis];
+        float p = fmaxf(fminf(x, y), fminf(fmaxf(x, y), z));
+        uint32_t nlt = partition_front(a, n, axis, p, 0);
+        if (m < nlt) {
+            n = nlt;
+            continue;
+        }
+        uint32_t neq = partition_front(a + nlt, n - nlt, axis, p, 1); /* >= 1: the pivot is there */
+        if (m < nlt + neq)
+            return;
+        a += nlt + neq;
+        m -= nlt + neq;
+        n -= nlt + neq;
+    }
+}
+
+/* Below this many photons a subtree's median is found in place by select_rank; above
+ * it, by one sampled three-way partition into the other buffer (see split_sampled). */
+enum { SAMPLED_MIN = 256, SAMPLE_MIN = 32 };
+
+static int cmp_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+/* Moves src[0, n) into dst[0, n) as three groups on `axis`: keys < p1, keys in [p1, p2],
+ * keys > p2, each in its original order; returns the sizes of the first two. Branch-free:
+ * a count pass, then one store per element to the cursor of its group, so the cost is two
+ * streaming passes whatever the data. */
+static void partition3(const elem_t *restrict src, elem_t *restrict dst, uint32_t n, uint32_t axis, float p1,
+                       float p2, uint32_t *nlt_out, uint32_t *nmid_out)
+{
+    uint32_t nlt = 0, ngt = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        float k = src[i].p[axis];
+        nlt += k < p1;
+        ngt += k > p2;
+    }
+    /* Cursors in registers, the target picked by conditional moves: a cursor array in
+     * memory made every store wait for the previous element's increment. */
+    uint32_t clt = 0, cmid = nlt, cgt = n - ngt;
+    for (uint32_t i = 0; i < n; i++) {
+        __m128 v = _mm_load_ps(src[i].p);
+        float k = src[i].p[axis];
+        uint32_t lt = k < p1, gt = k > p2;
+        uint32_t at = lt ? clt : cmid;
+        at = gt ? cgt : at;
+        _mm_store_ps(dst[at].p, v);
+        clt += lt;
+        cgt += gt;
+        cmid += 1u - lt - gt;
+    }
+    *nlt_out = nlt;
+    *nmid_out = n - nlt - ngt;
+}
+
+/* Puts the element of rank m on `axis` of src[0, n) at dst[m], with smaller-or-equal keys
+ * before it and greater-or-equal after (Floyd and Rivest's idea): two pivots from a
+ * sorted sample bracket rank m with high probability, one three-way partition moves
+ * everything into dst, and only the small middle group needs an exact selection. */
+static void split_sampled(const elem_t *src, elem_t *dst, uint32_t n, uint32_t m, uint32_t axis)
+{
+    /* Sample size about sqrt(n), at most 1024: sorting it stays far below a pass over n. */
+    float sample[1024];
+    uint32_t s = SAMPLE_MIN;
+    while (s < 1024 && (uint64_t)s * s < n)
+        s *= 2;
+    for (uint32_t i = 0; i < s; i++)
+        sample[i] = src[(uint64_t)(2 * i + 1) * n / (2 * s)].p[axis];
+    if (s <= 64) { /* insertion sort: small samples are most of the calls */
+        for (uint32_t i = 1; i < s; i++) {
+            float v = sample[i];
+            uint32_t j = i;
+            for (; j > 0 && sample[j - 1] > v; j--)
+                sample[j] = sample[j - 1];
+            sample[j] = v;
+        }
+    } else {
+        qsort(sample, s, sizeof sample[0], cmp_float);
+    }
+    /* Rank m's place in the sample, +- 3 standard deviations of a sample rank (sqrt(s)/2). */
+    int64_t c = (int64_t)((uint64_t)m * s / n), g = 1;
+    while (4 * g * g < 9 * (int64_t)s)
+        g++;
+    int64_t lo = c - g < 0 ? 0 : c - g, hi = c + g >= s ? s - 1 : c + g;
+    float p1 = sample[lo], p2 = sample[hi];
+    uint32_t nlt, nmid;
+    partition3(src, dst, n, axis, p1, p2, &nlt, &nmid);
+    if (m < nlt)
+        select_rank(dst, nlt, m, axis); /* the pivots missed (rare): the group still holds rank m */
+    else if (m >= nlt + nmid)
+        select_rank(dst + nlt + nmid, n - nlt - nmid, m - nlt - nmid, axis);
+    else if (p1 != p2) /* all keys of the middle group equal p1 when p1 == p2: any is rank m */
+        select_rank(dst + nlt, nmid, m - nlt, axis);
+}
+
+/* Builds the subtree of the photons in a[0, n) at node index `at`; `spare` is a scratch
+ * buffer of the same n elements. Returns the subtree's depth. */
+static unsigned build(const build_t *b, elem_t *a, elem_t *spare, uint32_t n, uint32_t at)
+{
+    if (n == 1) {
+        b->node[at] = pm_kdnode_make(a[0].p[0], PM_KD_LEAF, PM_KD_NONE);
+        b->perm[at] = a[0].id;
+        return 1;
+    }
+    uint32_t axis = longest_axis(a, n);
+    uint32_t m = n / 2, nr = n - m - 1; /* m >= 1 photons go left, nr >= 0 right */
+    if (n >= SAMPLED_MIN) {
+        split_sampled(a, spare, n, m, axis);
+        elem_t *t = a; /* the photons are now in spare: swap roles for the children */
+        a = spare;
+        spare = t;
+    } else {
+        select_rank(a, n, m, axis);
+    }
+    b->node[at] = pm_kdnode_make(a[m].p[axis], axis, nr ? at + 1 + m : PM_KD_NONE);
+    b->perm[at] = a[m].id;
+    unsigned dl = 0, dr = 0;
+    if (n >= TASK_MIN) {
+#pragma omp task default(none) shared(dl) firstprivate(b, a, spare, m, at)
+        dl = build(b, a, spare, m, at + 1);
+        if (nr)
+            dr = build(b, a + m + 1, spare + m + 1, nr, at + 1 + m);
+#pragma omp taskwait
+    } else {
+        dl = build(b, a, spare, m, at + 1);
+        if (nr)
+            dr = build(b, a + m + 1, spare + m + 1, nr, at + 1 + m);
+    }
+    return 1 + (dl > dr ? dl : dr);
+}
+
+pm_result_t pm_kd_build(const float *pos, uint64_t n, pm_kdnode_t *node_out, uint32_t *perm_out,
+                        pm_kd_build_stats_t *stats_out)
+{
+    pm_kd_build_stats_t st = {0};
+    if (n > (uint64_t)UINT32_MAX - 1)
+        return pm_error_set(PM_ERR_INPUT, "%llu photons are more than a photon map holds (4294967294)",
+                            (unsigned long long)n);
+    if (n == 0) {
+        if (stats_out)
+            *stats_out = st;
+        return PM_OK;
+    }
+    elem_t *a = pm_alloc_aligned(n * sizeof *a), *spare = pm_alloc_aligned(n * sizeof *spare);
+    if (!a || !spare) {
+        free(a);
+        free(spare);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for the KD-tree build of %llu photons (%.1f MB)",
+                            (unsigned long long)n, 2.0 * (double)n * sizeof *a / 1e6);
+    }
+#pragma omp parallel for schedule(static)
+    for (uint64_t i = 0; i < n; i++) {
+        a[i].p[0] = pos[3 * i], a[i].p[1] = pos[3 * i + 1], a[i].p[2] = pos[3 * i + 2];
+        a[i].id = (uint32_t)i;
+    }
+    build_t b = {node_out, perm_out};
+    unsigned depth = 0;
+#pragma omp parallel default(none) shared(b, a, spare, n, depth)
+#pragma omp single
+    depth = build(&b, a, spare, (uint32_t)n, 0);
+    free(a);
+    free(spare);
+    st.depth = depth;
+    for (uint64_t i = 0; i < n; i++)
+        st.leaves += pm_kdnode_axis(node_out[i]) == PM_KD_LEAF;
+    if (stats_out)
+        *stats_out = st;
+    return PM_OK;
+}
+
+/* ---- searches ---- */
+
+/* A pending subtree [i, e) and a lower bound of its squared distance to the query. */
+typedef struct {
+    uint32_t i, e;
+    float d2;
+} pending_t;
+
+/* Pushes the children of inner node i (subtree [i, e)) in the order near side last, so
+ * that it is popped first. `far_d2` is the squared distance from the query to the plane. */
+static inline int push_children(pending_t *stack, int top, const pm_kdnode_t *node, const float *pos, uint32_t i,
+                                uint32_t e, const float q[3], float bound2)
+{
+    uint32_t axis = pm_kdnode_axis(node[i]), c = node[i].child;
+    uint32_t lb = i + 1, le = c == PM_KD_NONE ? e : c; /* left [lb, le), maybe empty */
+    uint32_t rb = c == PM_KD_NONE ? e : c;             /* right [rb, e), maybe empty */
+    float diff = q[axis] - pos[3 * (size_t)i + axis], d2 = diff * diff;
+    int left_near = diff <= 0.0f;
+    pending_t l = {lb, le, left_near ? 0.0f : d2}, r = {rb, e, left_near ? d2 : 0.0f};
+    pending_t first = left_near ? r : l, second = left_near ? l : r; /* far, then near */
+    if (first.i < first.e && first.d2 <= bound2)
+        stack[top++] = first;
+    if (second.i < second.e)
+        stack[top++] = second;
+    return top;
+}
+
+/* Max-heap of squared distances, heap[0] the largest. */
+static void heap_push(float *heap, uint32_t *cnt, uint32_t k, float d2)
+{
+    if (*cnt < k) {
+        uint32_t c = (*cnt)++;
+        while (c > 0) {
+            uint32_t p = (c - 1) / 2;
+            if (heap[p] >= d2)
+                break;
+            heap[c] = heap[p];
+            c = p;
+        }
+        heap[c] = d2;
+        return;
+    }
+    if (d2 >= heap[0])
+        return;
+    uint32_t c = 0;
+    for (;;) {
+        uint32_t l = 2 * c + 1, r = l + 1, big = c;
+        float vb = d2;
+        if (l < k && heap[l] > vb)
+            big = l, vb = heap[l];
+        if (r < k && heap[r] > vb)
+            big = r;
+        if (big == c)
+            break;
+        heap[c] = heap[big];
+        c = big;
+    }
+    heap[c] = d2;
+}
+
+float pm_kd_knn_radius(const pm_kdnode_t *node, const float *pos, uint32_t n, const float q[3], uint32_t k,
+                       float *heap)
+{
+    if (n == 0 || k == 0)
+        return 0.0f;
+    pending_t stack[2 * PM_KD_MAX_DEPTH + 2];
+    int top = 0;
+    uint32_t cnt = 0;
+    stack[top++] = (pending_t){0, n, 0.0f};
+    while (top) {
+        pending_t s = stack[--top];
+        float bound2 = cnt < k ? INFINITY : heap[0];
+        if (s.d2 > bound2)
+            continue;
+        uint32_t i = s.i;
+        const float *p = &pos[3 * (size_t)i];
+        float dx = p[0] - q[0], dy = p[1] - q[1], dz = p[2] - q[2];
+        heap_push(heap, &cnt, k, dx * dx + dy * dy + dz * dz);
+        if (pm_kdnode_axis(node[i]) != PM_KD_LEAF)
+            top = push_children(stack, top, node, pos, i, s.e, q, cnt < k ? INFINITY : heap[0]);
+    }
+    return sqrtf(heap[0]);
+}
+
+void pm_kd_range(const pm_kdnode_t *node, const float *pos, uint32_t n, const float q[3], float r,
+                 void (*fn)(void *ctx, uint32_t i, float d2), void *ctx)
+{
+    if (n == 0)
+        return;
+    pending_t stack[2 * PM_KD_MAX_DEPTH + 2];
+    int top = 0;
+    float r2 = r * r;
+    stack[top++] = (pending_t){0, n, 0.0f};
+    while (top) {
+        pending_t s = stack[--top];
+        uint32_t i = s.i;
+        const float *p = &pos[3 * (size_t)i];
+        float dx = p[0] - q[0], dy = p[1] - q[1], dz = p[2] - q[2], d2 = dx * dx + dy * dy + dz * dz;
+        if (d2 <= r2)
+            fn(ctx, i, d2);
+        if (pm_kdnode_axis(node[i]) != PM_KD_LEAF)
+            top = push_children(stack, top, node, pos, i, s.e, q, r2);
+    }
+}

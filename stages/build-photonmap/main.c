@@ -1,0 +1,214 @@
+/* build-photonmap: photons file -> photon map (the paper, section 5.2).
+ *
+ * Builds the KD-tree with one photon per node on the node's split plane (common/kdtree.c)
+ * and writes it in depth-first node order: the 8-byte nodes and positions are the hot
+ * channels a gather reads on every visit, power and normal the cold ones read only when a
+ * photon is shaded, and direction only when the photons file has it (scenes with glossy
+ * materials). `--map indirect` leaves out first-hit photons, for renders whose direct
+ * light comes from shadow rays. `--width-k K` adds each photon's kernel width for the
+ * variable-width estimator: the distance to its K-th nearest photon. */
+#include <inttypes.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../../common/kdtree.h"
+#include "../../common/memory.h"
+#include "../../common/stage.h"
+#include "../../formats/formats.h"
+
+static const char *const map_kinds[] = {"global", "indirect", NULL};
+static const char *const split_kinds[] = {"median", NULL};
+
+typedef struct {
+    int map;         /* index into map_kinds */
+    int split;       /* index into split_kinds */
+    int64_t width_k; /* 0: no width channel */
+    double width_max;
+} build_options_t;
+
+/* Kernel width of every photon: the distance to its K-th nearest photon (itself the
+ * first), so that K / (pi h^2) estimates the local photon density (Silverman's pilot
+ * estimate; h ~ density^-1/2 on a surface, Terrell and Scott's rule in 2-D). Clamped to
+ * [tiny, width_max] so that an isolated photon or a pile of duplicates still gets a
+ * positive, finite width. */
+static pm_result_t compute_widths(pm_table_t *map, uint32_t k, double width_max, double *mean_out)
+{
+    uint32_t n = (uint32_t)map->count;
+    const pm_kdnode_t *node = map->col[PM_MAP_NODE];
+    const float *pos = map->col[PM_MAP_POSITION];
+    float *width = map->col[PM_MAP_WIDTH];
+    float *bounds = map->hdr.bounds;
+    /* The smallest width: a millionth of the scene, so that photons piled on one point do
+     * not get h = 0 (an infinite kernel), yet far below any useful radius. */
+    double ext = fmax(fmax(bounds[3] - bounds[0], bounds[4] - bounds[1]), bounds[5] - bounds[2]);
+    float floor_w = (float)fmax(ext * 1e-6, 1e-30);
+    float cap = width_max > 0 ? (float)width_max : INFINITY;
+    int failed = 0;
+    double sum = 0.0;
+#pragma omp parallel reduction(+ : sum) reduction(| : failed)
+    {
+        float *heap = malloc((size_t)k * sizeof *heap);
+        if (!heap)
+            failed = 1;
+#pragma omp for schedule(dynamic, 4096)
+        for (uint32_t i = 0; i < n; i++) {
+            if (!heap)
+                continue;
+            float h = pm_kd_knn_radius(node, pos, n, &pos[3 * (size_t)i], k, heap);
+            h = fminf(fmaxf(h, floor_w), cap);
+            width[i] = h;
+            sum += h;
+        }
+        free(heap);
+    }
+    if (failed)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for the kernel-width search");
+    *mean_out = n ? sum / n : 0.0;
+    return PM_OK;
+}
+
+static pm_result_t run(pm_stage_t *st, const build_options_t *o)
+{
+    const char *in = st->args.args[0];
+    pm_table_t ph = {0}, map = {0};
+    uint32_t *keep = NULL, *perm = NULL;
+    float *pos = NULL;
+    double t0 = pm_time_wall();
+    pm_result_t r = pm_table_read(in, &pm_photons_schema, pm_schema_required(&pm_photons_schema), &ph);
+    if (r != PM_OK)
+        return r;
+    double t_read = pm_time_wall() - t0;
+    uint64_t n_in = ph.count;
+
+    /* The photons this map holds: all, or those that bounced at least once. */
+    const uint32_t *depth = ph.col[PM_PHOTON_DEPTH];
+    const float *ppos = ph.col[PM_PHOTON_POSITION];
+    uint64_t n = 0;
+    int indirect = o->map == 1;
+    keep = malloc((n_in ? n_in : 1) * sizeof *keep);
+    pos = pm_alloc_aligned((n_in ? n_in : 1) * 3 * sizeof *pos);
+    perm = malloc((n_in ? n_in : 1) * sizeof *perm);
+    if (!keep || !pos || !perm) {
+        r = pm_error_set(PM_ERR_NOMEM, "out of memory for %" PRIu64 " photons of '%s'", n_in, in);
+        goto done;
+    }
+    for (uint64_t i = 0; i < n_in; i++)
+        if (!indirect || depth[i] > 0) {
+            keep[n] = (uint32_t)i;
+            memcpy(&pos[3 * n], &ppos[3 * i], 3 * sizeof *pos);
+            n++;
+        }
+
+    int glossy = (ph.hdr.channels >> PM_PHOTON_DIRECTION) & 1u;
+    uint32_t channels = pm_schema_required(&pm_photonmap_schema) | (glossy ? 1u << PM_MAP_DIRECTION : 0u) |
+                        (o->width_k > 0 ? 1u << PM_MAP_WIDTH : 0u);
+    r = pm_table_alloc(&map, &pm_photonmap_schema, channels, n);
+    if (r != PM_OK)
+        goto done;
+
+    t0 = pm_time_wall();
+    pm_kd_build_stats_t bs;
+    r = pm_kd_build(pos, n, map.col[PM_MAP_NODE], perm, &bs);
+    double t_build = pm_time_wall() - t0;
+    if (r != PM_OK)
+        goto done;
+
+    /* Photon data in node order: hot positions, then the cold channels. */
+    t0 = pm_time_wall();
+    float *mpos = map.col[PM_MAP_POSITION], *mpow = map.col[PM_MAP_POWER], *mnor = map.col[PM_MAP_NORMAL];
+    float *mdir = glossy ? map.col[PM_MAP_DIRECTION] : NULL;
+    const float *ppow = ph.col[PM_PHOTON_POWER], *pnor = ph.col[PM_PHOTON_NORMAL];
+    const float *pdir = glossy ? ph.col[PM_PHOTON_DIRECTION] : NULL;
+#pragma omp parallel for schedule(static)
+    for (uint64_t i = 0; i < n; i++) {
+        uint64_t s = keep[perm[i]];
+        memcpy(&mpos[3 * i], &ppos[3 * s], 12);
+        memcpy(&mpow[3 * i], &ppow[3 * s], 12);
+        memcpy(&mnor[3 * i], &pnor[3 * s], 12);
+        if (mdir)
+            memcpy(&mdir[3 * i], &pdir[3 * s], 12);
+    }
+    double t_gather = pm_time_wall() - t0;
+
+    /* Header: provenance from the photons file, then what this map is. */
+    memcpy(map.hdr.bounds, ph.hdr.bounds, sizeof map.hdr.bounds);
+    pm_header_t *h = &map.hdr;
+    const char *emitted = pm_header_get(&ph.hdr, "emitted");
+    if ((r = pm_header_inherit(h, &ph.hdr)) != PM_OK || (r = pm_header_add_input(h, in, ph.checksum)) != PM_OK ||
+        (r = pm_header_add_command(h, st->argc, st->argv)) != PM_OK ||
+        (r = pm_header_set(h, "map", "%s", map_kinds[o->map])) != PM_OK ||
+        (r = pm_header_set(h, "split", "%s", split_kinds[o->split])) != PM_OK ||
+        (emitted && (r = pm_header_set(h, "emitted", "%s", emitted)) != PM_OK))
+        goto done;
+
+    double t_width = 0.0, mean_width = 0.0;
+    if (o->width_k > 0) {
+        t0 = pm_time_wall();
+        r = compute_widths(&map, (uint32_t)o->width_k, o->width_max, &mean_width);
+        t_width = pm_time_wall() - t0;
+        if (r != PM_OK)
+            goto done;
+        if ((r = pm_header_set(h, "width_k", "%" PRId64, o->width_k)) != PM_OK)
+            goto done;
+    }
+
+    t0 = pm_time_wall();
+    r = pm_table_write(&map, st->output);
+    double t_write = pm_time_wall() - t0;
+    if (r != PM_OK)
+        goto done;
+
+    st->items = n;
+    pm_stage_stat_int(st, "photons_in", (int64_t)n_in);
+    pm_stage_stat_int(st, "photons", (int64_t)n);
+    pm_stage_stat_string(st, "map", map_kinds[o->map]);
+    pm_stage_stat_int(st, "depth", bs.depth);
+    pm_stage_stat_int(st, "leaves", (int64_t)bs.leaves);
+    pm_stage_stat_double(st, "read_s", t_read);
+    pm_stage_stat_double(st, "build_s", t_build);
+    pm_stage_stat_double(st, "build_photons_per_s", t_build > 0 ? (double)n / t_build : 0.0);
+    pm_stage_stat_double(st, "gather_s", t_gather);
+    if (o->width_k > 0) {
+        pm_stage_stat_double(st, "width_s", t_width);
+        pm_stage_stat_double(st, "mean_width_m", mean_width);
+    }
+    pm_stage_stat_double(st, "write_s", t_write);
+    pm_stage_note(st, "%" PRIu64 " photons (%s map of %" PRIu64 "), depth %u, built in %.3f s", n,
+                  map_kinds[o->map], n_in, bs.depth, t_build);
+done:
+    free(keep);
+    free(pos);
+    free(perm);
+    pm_table_free(&map);
+    pm_table_free(&ph);
+    return r;
+}
+
+int main(int argc, char **argv)
+{
+    pm_stage_t st;
+    pm_stage_defaults(&st);
+    build_options_t o = {.map = 0, .split = 0, .width_k = 0, .width_max = 0.0};
+    const pm_option_t options[] = {
+        PM_STAGE_COMMON_OPTIONS(st),
+        {"map", 0, PM_OPT_CHOICE, &o.map, "KIND",
+         "global: every stored photon; indirect: only photons that bounced (direct light from shadow rays)", 0, 0,
+         map_kinds},
+        {"split", 0, PM_OPT_CHOICE, &o.split, "RULE", "split rule: median (balanced tree, the paper's)", 0, 0,
+         split_kinds},
+        {"width-k", 0, PM_OPT_INT, &o.width_k, "K",
+         "store each photon's kernel width: the distance to its K-th nearest photon (0: none)", 0, 65536, NULL},
+        {"width-max", 0, PM_OPT_DOUBLE, &o.width_max, "M",
+         "largest kernel width, m, for --width-k (0: no limit)", 0, 1e30, NULL},
+        {0},
+    };
+    const pm_cli_t cli = {"build-photonmap", "[options] PHOTONS -o MAP",
+                          "Build the photon map KD-tree (one photon per node, 8-byte nodes) from a photons file; "
+                          "PHOTONS may be - for stdin.",
+                          options, 1, 1};
+    int rc = pm_stage_begin(&st, &cli, argc, argv);
+    if (rc >= 0)
+        return rc;
+    return pm_stage_end(&st, run(&st, &o));
+}

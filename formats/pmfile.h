@@ -151,9 +151,10 @@ typedef struct pm_writer pm_writer_t;
 /* Creates path ("-" is stdout) through a temporary file and writes the header. */
 pm_result_t pm_writer_open(const char *path, const pm_header_t *h, pm_writer_t **out);
 pm_result_t pm_writer_write(pm_writer_t *w, const void *records, uint64_t n);
-/* Checks that COUNT records were written, writes the checksum, renames into place. */
+/* Checks that COUNT records were written, writes the checksum, renames into place. Frees
+ * the writer whether it succeeds or not (on failure the temporary file is removed). */
 pm_result_t pm_writer_commit(pm_writer_t *w);
-/* Removes the temporary file; safe after commit (then it only frees). */
+/* Removes the temporary file and frees the writer; instead of commit, never after it. */
 void pm_writer_abort(pm_writer_t *w);
 
 /* ---- whole tables ---- */

@@ -9,6 +9,7 @@
 
 #include "../../common/rng.h"
 #include "../../formats/formats.h"
+#include "../../common/kdtree.h"
 #include "unit.h"
 
 static void tmp_path(char *out, size_t cap, const char *name) { snprintf(out, cap, "%s/%s", unit_tmpdir(), name); }
@@ -40,14 +41,16 @@ static void fill(pm_table_t *t, uint32_t seed)
             }
         }
     }
-    if (s == &pm_photonmap_schema) { /* a chain along x: every node's right child is the next */
+    if (s == &pm_photonmap_schema && t->count) { /* the random positions as a real KD-tree */
         pm_kdnode_t *n = t->col[PM_MAP_NODE];
-        float *p = t->col[PM_MAP_POSITION];
-        for (uint64_t i = 0; i < t->count; i++) {
-            p[3 * i] = (float)i;
-            n[i] = i + 1 < t->count ? pm_kdnode_make(p[3 * i], 0, (uint32_t)(i + 1))
-                                    : pm_kdnode_make(p[3 * i], PM_KD_LEAF, PM_KD_NONE);
-        }
+        float *p = t->col[PM_MAP_POSITION], *q = malloc(t->count * 12);
+        uint32_t *perm = malloc(t->count * 4);
+        assert_int_equal(pm_kd_build(p, t->count, n, perm, NULL), PM_OK);
+        for (uint64_t i = 0; i < t->count; i++)
+            memcpy(&q[3 * i], &p[3 * (size_t)perm[i]], 12);
+        memcpy(p, q, t->count * 12);
+        free(q);
+        free(perm);
     }
     if (s == &pm_queries_schema || s == &pm_radiance_schema) {
         pm_header_set(&t->hdr, "width", "3");

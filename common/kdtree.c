@@ -11,6 +11,7 @@
 #include <immintrin.h>
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "memory.h"
 
@@ -119,7 +120,9 @@ static void select_rank(elem_t *a, uint32_t n, uint32_t m, uint32_t axis)
             return;
         }
         float x = a[0].p[axis], y = a[n / 2].p[axis], z = a[n - 1].p[axis];
-        float p = fmaxf(fminf(x, y), fminf(fmaxf(x, y), z));
+        /* median of three, by comparisons (fminf and fmaxf are library calls here) */
+        float lo = x < y ? x : y, hi = x < y ? y : x;
+        float p = z < lo ? lo : (z > hi ? hi : z);
         uint32_t nlt = partition_front(a, n, axis, p, 0);
         if (m < nlt) {
             n = nlt;
@@ -144,42 +147,38 @@ static int cmp_float(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-/* Moves src[0, n) into dst[0, n) as three groups on `axis`: keys < p1, keys in [p1, p2],
- * keys > p2, each in its original order; returns the sizes of the first two. Branch-free:
- * a count pass, then one store per element to the cursor of its group, so the cost is two
- * streaming passes whatever the data. */
-static void partition3(const elem_t *restrict src, elem_t *restrict dst, uint32_t n, uint32_t axis, float p1,
-                       float p2, uint32_t *nlt_out, uint32_t *nmid_out)
+/* Moves src[0, n) into dst[0, n) as three groups on `axis`: keys < p1 first, then keys in
+ * [p1, p2], then keys > p2; returns the sizes of the first two. One branch-free pass: each
+ * element is stored once, through a pointer picked by conditional moves, the first group
+ * forward from the front of dst and the last backward from its end; the middle group
+ * (small, by the choice of p1 and p2) goes to the front of src, whose elements are
+ * already read, and is copied into the gap at the end. src is clobbered. */
+static void partition3(elem_t *restrict src, elem_t *restrict dst, uint32_t n, uint32_t axis, float p1, float p2,
+                       uint32_t *nlt_out, uint32_t *nmid_out)
 {
-    uint32_t nlt = 0, ngt = 0;
-    for (uint32_t i = 0; i < n; i++) {
-        float k = src[i].p[axis];
-        nlt += k < p1;
-        ngt += k > p2;
-    }
-    /* Cursors in registers, the target picked by conditional moves: a cursor array in
-     * memory made every store wait for the previous element's increment. */
-    uint32_t clt = 0, cmid = nlt, cgt = n - ngt;
+    elem_t *lt = dst, *gt = dst + n - 1, *mid = src;
     for (uint32_t i = 0; i < n; i++) {
         __m128 v = _mm_load_ps(src[i].p);
         float k = src[i].p[axis];
-        uint32_t lt = k < p1, gt = k > p2;
-        uint32_t at = lt ? clt : cmid;
-        at = gt ? cgt : at;
-        _mm_store_ps(dst[at].p, v);
-        clt += lt;
-        cgt += gt;
-        cmid += 1u - lt - gt;
+        int is_lt = k < p1, is_gt = k > p2;
+        elem_t *d = is_lt ? lt : mid;
+        d = is_gt ? gt : d;
+        _mm_store_ps(d->p, v);
+        lt += is_lt;
+        gt -= is_gt;
+        mid += !is_lt & !is_gt;
     }
+    uint32_t nlt = (uint32_t)(lt - dst), nmid = (uint32_t)(mid - src);
+    memcpy(lt, src, (size_t)nmid * sizeof *src);
     *nlt_out = nlt;
-    *nmid_out = n - nlt - ngt;
+    *nmid_out = nmid;
 }
 
 /* Puts the element of rank m on `axis` of src[0, n) at dst[m], with smaller-or-equal keys
  * before it and greater-or-equal after (Floyd and Rivest's idea): two pivots from a
  * sorted sample bracket rank m with high probability, one three-way partition moves
  * everything into dst, and only the small middle group needs an exact selection. */
-static void split_sampled(const elem_t *src, elem_t *dst, uint32_t n, uint32_t m, uint32_t axis)
+static void split_sampled(elem_t *src, elem_t *dst, uint32_t n, uint32_t m, uint32_t axis)
 {
     /* Sample size about sqrt(n), at most 1024: sorting it stays far below a pass over n. */
     float sample[1024];
@@ -265,8 +264,8 @@ pm_result_t pm_kd_build(const float *pos, uint64_t n, pm_kdnode_t *node_out, uin
     }
     elem_t *a = pm_alloc_aligned(n * sizeof *a), *spare = pm_alloc_aligned(n * sizeof *spare);
     if (!a || !spare) {
-        free(a);
-        free(spare);
+        pm_free_aligned(a);
+        pm_free_aligned(spare);
         return pm_error_set(PM_ERR_NOMEM, "out of memory for the KD-tree build of %llu photons (%.1f MB)",
                             (unsigned long long)n, 2.0 * (double)n * sizeof *a / 1e6);
     }
@@ -280,8 +279,8 @@ pm_result_t pm_kd_build(const float *pos, uint64_t n, pm_kdnode_t *node_out, uin
 #pragma omp parallel default(none) shared(b, a, spare, n, depth)
 #pragma omp single
     depth = build(&b, a, spare, (uint32_t)n, 0);
-    free(a);
-    free(spare);
+    pm_free_aligned(a);
+    pm_free_aligned(spare);
     st.depth = depth;
     for (uint64_t i = 0; i < n; i++)
         st.leaves += pm_kdnode_axis(node_out[i]) == PM_KD_LEAF;

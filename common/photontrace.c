@@ -468,7 +468,7 @@ void pm_trace_free(pm_trace_result_t *r)
 {
     for (int i = 0; i < r->narenas; i++) {
         for (size_t b = 0; b < r->arenas[i].nblocks; b++)
-            free(r->arenas[i].blocks[b]);
+            pm_free_aligned(r->arenas[i].blocks[b]);
         free(r->arenas[i].blocks);
     }
     free(r->arenas);

@@ -1095,7 +1095,7 @@ static pm_result_t cols_resize(pm_table_t *t, uint64_t keep, uint64_t cap)
             return pm_error_set(PM_ERR_NOMEM, "out of memory for %" PRIu64 " records of %s", cap, s->title);
         if (t->col[i] && keep)
             memcpy(p, t->col[i], (size_t)keep * cs);
-        free(t->col[i]);
+        pm_free_aligned(t->col[i]);
         t->col[i] = p;
     }
     return PM_OK;
@@ -1123,7 +1123,7 @@ pm_result_t pm_table_alloc(pm_table_t *t, const pm_schema_t *s, uint32_t channel
 void pm_table_free(pm_table_t *t)
 {
     for (unsigned i = 0; i < PM_MAX_CHANNELS; i++)
-        free(t->col[i]);
+        pm_free_aligned(t->col[i]);
     pm_header_free(&t->hdr);
     memset(t, 0, sizeof *t);
 }

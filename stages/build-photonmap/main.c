@@ -178,7 +178,7 @@ static pm_result_t run(pm_stage_t *st, const build_options_t *o)
                   map_kinds[o->map], n_in, bs.depth, t_build);
 done:
     free(keep);
-    free(pos);
+    pm_free_aligned(pos);
     free(perm);
     pm_table_free(&map);
     pm_table_free(&ph);

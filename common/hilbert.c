@@ -1,7 +1,10 @@
 /* hilbert.c: the order of hilbert-sort (see hilbert.h): points to cells of a 2^21 grid over
- * their bounding cube, cells to 63-bit curve keys through the L-system table three levels at
- * a time, then an MSD radix sort of (key, index) pairs that descends the octree one to four
- * levels per pass and stops in cells of `leaf` points or fewer.
+ * their bounding cube, cells to 63-bit Morton codes (the octant at every level, no state),
+ * then an MSD radix sort of (code, index) pairs that descends the octree one to four levels
+ * per pass and stops in cells of `leaf` points or fewer. The curve enters per pass: a cell in
+ * orientation s maps the Morton digits of its next k levels to curve digits (and the child's
+ * orientation) with one look-up in a table made from the L-system, so that no per-point chain
+ * of look-ups through 21 levels is needed.
  *
  * Why this shape: sorting 4-byte indices with their 8-byte keys moves 12 bytes per point
  * per pass instead of a 40 to 56-byte record, and the records are gathered once by the
@@ -43,30 +46,46 @@ const char *const pm_order_names[] = {"none", "morton", "hilbert", NULL};
 #define MAX_BUCKETS (1u << (3 * MAX_PASS_LEVELS))
 #define PAR_MIN_POINTS 65536  /* cells at least this large (and a large share) get a parallel pass */
 
-/* Three levels per look-up: for a state and the three bits of x, y and z at those levels
- * (index x3 << 6 | y3 << 3 | z3), the three curve digits (low 9 bits) and the state after
- * them (bits 9 and up). 12 KiB per order; 7 look-ups make a 63-bit key. */
+/* Per-pass tables: for a pass of k levels (1..4) over a cell in state s, entry
+ * [s * 8^k + m] of t[k] maps the cell's next k Morton digits m (3 bits per level, the top
+ * level first) to its k curve digits (low 12 bits) and the state of the cell they lead to
+ * (bits 12 to 15). 12 states x 4096 x 2 bytes = 96 KiB for k = 4. */
 typedef struct {
-    uint16_t t[PM_HILBERT_STATES][512];
-} key_table_t;
+    uint16_t *t[MAX_PASS_LEVELS + 1];
+} digit_tables_t;
 
-static void key_table_build(pm_order_t order, key_table_t *kt)
+static void digit_tables_free(digit_tables_t *d)
+{
+    for (unsigned k = 1; k <= MAX_PASS_LEVELS; k++)
+        free(d->t[k]);
+}
+
+static pm_result_t digit_tables_build(pm_order_t order, digit_tables_t *d)
 {
     uint8_t rank[PM_HILBERT_STATES][8];
     for (unsigned s = 0; s < PM_HILBERT_STATES; s++)
         for (unsigned r = 0; r < 8; r++)
             rank[s][pm_hilbert_order[s][r]] = (uint8_t)r;
-    for (unsigned s0 = 0; s0 < PM_HILBERT_STATES; s0++)
-        for (unsigned idx = 0; idx < 512; idx++) {
-            unsigned s = s0, digits = 0;
-            for (int bit = 2; bit >= 0; bit--) {
-                unsigned o = ((idx >> (6 + bit)) & 1) | ((idx >> (3 + bit)) & 1) << 1 | ((idx >> bit) & 1) << 2;
-                unsigned r = order == PM_ORDER_HILBERT ? rank[s][o] : o;
-                digits = digits << 3 | r;
-                s = order == PM_ORDER_HILBERT ? pm_hilbert_child[s][r] : 0;
-            }
-            kt->t[s0][idx] = (uint16_t)(digits | s << 9);
+    memset(d, 0, sizeof *d);
+    for (unsigned k = 1; k <= MAX_PASS_LEVELS; k++) {
+        unsigned nb = 1u << (3 * k);
+        d->t[k] = malloc((size_t)PM_HILBERT_STATES * nb * sizeof *d->t[k]);
+        if (!d->t[k]) {
+            digit_tables_free(d);
+            return pm_error_set(PM_ERR_NOMEM, "out of memory for the curve tables");
         }
+        for (unsigned s0 = 0; s0 < PM_HILBERT_STATES; s0++)
+            for (unsigned m = 0; m < nb; m++) {
+                unsigned s = s0, digits = 0;
+                for (int j = (int)k - 1; j >= 0; j--) {
+                    unsigned o = (m >> (3 * j)) & 7, r = order == PM_ORDER_HILBERT ? rank[s][o] : o;
+                    digits = digits << 3 | r;
+                    s = order == PM_ORDER_HILBERT ? pm_hilbert_child[s][r] : 0;
+                }
+                d->t[k][(size_t)s0 * nb + m] = (uint16_t)(digits | s << 12);
+            }
+    }
+    return PM_OK;
 }
 
 static inline uint32_t cell_of(float x, double lo, double scale)
@@ -75,17 +94,22 @@ static inline uint32_t cell_of(float x, double lo, double scale)
     return c > 0.0 ? (c < (double)(CELLS - 1) ? (uint32_t)c : CELLS - 1) : 0;
 }
 
-static inline uint64_t key_of(const key_table_t *kt, uint32_t x, uint32_t y, uint32_t z)
+/* The 21 bits of v spread to every third bit (bit i to bit 3i). */
+static inline uint64_t spread3(uint32_t v)
 {
-    uint64_t key = 0;
-    unsigned s = 0;
-    for (int g = LEVELS / 3 - 1; g >= 0; g--) { /* the top three levels first */
-        unsigned sh = 3u * (unsigned)g;
-        unsigned e = kt->t[s][((x >> sh) & 7) << 6 | ((y >> sh) & 7) << 3 | ((z >> sh) & 7)];
-        key = key << 9 | (e & 511u);
-        s = e >> 9;
-    }
-    return key;
+    uint64_t x = v & (CELLS - 1);
+    x = (x | x << 32) & 0x001f00000000ffffull;
+    x = (x | x << 16) & 0x001f0000ff0000ffull;
+    x = (x | x << 8) & 0x100f00f00f00f00full;
+    x = (x | x << 4) & 0x10c30c30c30c30c3ull;
+    x = (x | x << 2) & 0x1249249249249249ull;
+    return x;
+}
+
+/* The Morton code: at every level, from the top, the octant x | y << 1 | z << 2. */
+static inline uint64_t morton_of(uint32_t x, uint32_t y, uint32_t z)
+{
+    return spread3(x) | spread3(y) << 1 | spread3(z) << 2;
 }
 
 static inline const float *point(const void *pos, size_t stride, uint64_t i)
@@ -95,9 +119,21 @@ static inline const float *point(const void *pos, size_t stride, uint64_t i)
 
 uint64_t pm_reorder_key(pm_order_t order, const float xyz[3], const double lo[3], double scale)
 {
-    key_table_t kt;
-    key_table_build(order, &kt);
-    return key_of(&kt, cell_of(xyz[0], lo[0], scale), cell_of(xyz[1], lo[1], scale), cell_of(xyz[2], lo[2], scale));
+    uint64_t m = morton_of(cell_of(xyz[0], lo[0], scale), cell_of(xyz[1], lo[1], scale), cell_of(xyz[2], lo[2], scale));
+    if (order != PM_ORDER_HILBERT)
+        return m;
+    uint8_t rank[PM_HILBERT_STATES][8];
+    for (unsigned s = 0; s < PM_HILBERT_STATES; s++)
+        for (unsigned r = 0; r < 8; r++)
+            rank[s][pm_hilbert_order[s][r]] = (uint8_t)r;
+    uint64_t key = 0;
+    unsigned s = 0;
+    for (int l = LEVELS - 1; l >= 0; l--) {
+        unsigned r = rank[s][(m >> (3 * l)) & 7];
+        key = key << 3 | r;
+        s = pm_hilbert_child[s][r];
+    }
+    return key;
 }
 
 void pm_reorder_cube(const void *pos, size_t stride, uint64_t n, double lo_out[3], double *scale_out)
@@ -154,9 +190,10 @@ uint64_t pm_reorder_auto_leaf(uint64_t n, uint64_t cache_bytes)
 /* ---- the radix sort ---- */
 
 typedef struct {
-    uint64_t *key[2];  /* the pairs, in one of two buffers; a pass moves them to the other */
+    uint64_t *key[2];  /* Morton codes, in one of two buffers; a pass moves them to the other */
     uint32_t *idx[2];  /* idx[0] is the caller's permutation, where every leaf ends up */
     uint64_t leaf;
+    digit_tables_t tab;
 } sorter_t;
 
 typedef struct {
@@ -167,7 +204,8 @@ typedef struct {
 /* Work left after the parallel passes: a cell to sort, or a leaf to put in place. */
 typedef struct {
     uint64_t b, m;     /* the range [b, b + m) */
-    unsigned level;    /* its depth in the octree */
+    uint8_t level;     /* its depth in the octree */
+    uint8_t state;     /* its orientation */
     uint8_t buf;       /* which buffer holds it */
     uint8_t is_leaf;   /* 1: a leaf, 2: a leaf whose indices must be put back in input order */
 } work_t;
@@ -219,25 +257,32 @@ static unsigned pass_levels(uint64_t m, uint64_t leaf, unsigned level)
     return k;
 }
 
-static void sort_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsigned level, uint32_t *scratch,
-                      tally_t *t);
+/* One pass: the bucket (curve digits of k levels) of a Morton code, in a cell of state s. */
+#define BUCKET(tab, code) ((tab)[((code) >> shift) & (nb - 1)] & (nb - 1))
+
+static void sort_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsigned level, unsigned state,
+                      uint32_t *scratch, tally_t *t);
 
 /* Walks the cells of one pass, from the pass's first level (j = 1) to its last (j = k), over
  * the bucket ends `end` (relative to b): empty cells are skipped, small ones are leaves, the
- * rest are sorted (now) or queued (list != NULL: the parallel top). */
+ * rest are sorted (now) or queued (list != NULL: the parallel top). tab is the pass's table
+ * row, which gives each bucket's state. */
 static void visit(const sorter_t *s, int buf, uint64_t b, const uint32_t *end, unsigned k, unsigned level,
-                  unsigned j, unsigned first, uint32_t *scratch, tally_t *t, worklist_t *list, int *oom)
+                  const uint16_t *tab, unsigned j, unsigned first, uint32_t *scratch, tally_t *t, worklist_t *list,
+                  int *oom)
 {
-    unsigned span = 1u << (3 * (k - j));
+    unsigned span = 1u << (3 * (k - j)), nb = 1u << (3 * k), shift = 63 - 3 * (level + k);
     uint64_t lo = first ? end[first - 1] : 0, hi = end[first + span - 1], m = hi - lo;
     if (m == 0)
         return;
     if (m <= s->leaf || j == k) {
+        int leaf = m <= s->leaf;
+        unsigned child = leaf ? 0 : tab[(s->key[buf][b + lo] >> shift) & (nb - 1)] >> 12;
         if (!list) {
-            if (m <= s->leaf)
+            if (leaf)
                 leaf_done(s, buf, b + lo, m, level + j, j < k, t);
             else
-                sort_cell(s, buf, b + lo, m, level + k, scratch, t);
+                sort_cell(s, buf, b + lo, m, level + k, child, scratch, t);
             return;
         }
         if (list->n == list->cap) {
@@ -249,19 +294,19 @@ static void visit(const sorter_t *s, int buf, uint64_t b, const uint32_t *end, u
             }
             list->w = w, list->cap = cap;
         }
-        list->w[list->n++] = (work_t){b + lo, m, m <= s->leaf ? level + j : level + k, (uint8_t)buf,
-                                      (uint8_t)(m <= s->leaf ? (j < k ? 2 : 1) : 0)};
+        list->w[list->n++] = (work_t){b + lo, m, (uint8_t)(leaf ? level + j : level + k), (uint8_t)child,
+                                      (uint8_t)buf, (uint8_t)(leaf ? (j < k ? 2 : 1) : 0)};
         return;
     }
     for (unsigned c = 0; c < 8; c++)
-        visit(s, buf, b, end, k, level, j + 1, first + c * (span / 8), scratch, t, list, oom);
+        visit(s, buf, b, end, k, level, tab, j + 1, first + c * (span / 8), scratch, t, list, oom);
 }
 
-/* Sorts the cell [b, b + m) at `level`, held in buffer buf, on this thread. scratch holds
- * LEVELS x (MAX_BUCKETS + 1) counts: one row per level, so that the recursion (which only
- * goes deeper) never reuses a row still in use. */
-static void sort_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsigned level, uint32_t *scratch,
-                      tally_t *t)
+/* Sorts the cell [b, b + m) at `level` in orientation `state`, held in buffer buf, on this
+ * thread. scratch holds LEVELS x (MAX_BUCKETS + 1) counts: one row per level, so that the
+ * recursion (which only goes deeper) never reuses a row still in use. */
+static void sort_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsigned level, unsigned state,
+                      uint32_t *scratch, tally_t *t)
 {
     for (;;) {
         if (m <= s->leaf || level >= LEVELS) {
@@ -269,13 +314,15 @@ static void sort_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsign
             return;
         }
         unsigned k = pass_levels(m, s->leaf, level), nb = 1u << (3 * k), shift = 63 - 3 * (level + k);
+        const uint16_t *tab = s->tab.t[k] + (size_t)state * nb;
         uint32_t *cnt = scratch + (size_t)level * (MAX_BUCKETS + 1);
         const uint64_t *ks = s->key[buf] + b;
         const uint32_t *is = s->idx[buf] + b;
         memset(cnt, 0, nb * sizeof *cnt);
         for (uint64_t i = 0; i < m; i++)
-            cnt[(ks[i] >> shift) & (nb - 1)]++;
-        if (cnt[(ks[0] >> shift) & (nb - 1)] == m) { /* one child holds them all: no move */
+            cnt[BUCKET(tab, ks[i])]++;
+        if (cnt[BUCKET(tab, ks[0])] == m) { /* one child holds them all: no move */
+            state = tab[(ks[0] >> shift) & (nb - 1)] >> 12;
             level += k;
             continue;
         }
@@ -288,22 +335,22 @@ static void sort_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsign
         uint64_t *kd = s->key[!buf] + b;
         uint32_t *id = s->idx[!buf] + b;
         for (uint64_t i = 0; i < m; i++) {
-            uint32_t p = cnt[(ks[i] >> shift) & (nb - 1)]++;
+            uint32_t p = cnt[BUCKET(tab, ks[i])]++;
             kd[p] = ks[i];
             id[p] = is[i];
         }
         /* cnt[x] is now the end of bucket x */
         for (unsigned c = 0; c < 8; c++)
-            visit(s, !buf, b, cnt, k, level, 1, c * (nb / 8), scratch, t, NULL, NULL);
+            visit(s, !buf, b, cnt, k, level, tab, 1, c * (nb / 8), scratch, t, NULL, NULL);
         return;
     }
 }
 
-/* A pass over a large cell on every thread: per-thread counts over contiguous slices, then a
- * stable scatter (thread t's slice before thread t+1's within every bucket, the same result
- * as one thread). Children still large get another parallel pass; the rest are queued. */
-static pm_result_t par_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsigned level, uint64_t big,
-                            uint32_t *hist, int nthreads, unsigned csr, worklist_t *list, tally_t *t)
+/* A pass over a large cell on every thread: counts over nthreads contiguous slices, then a
+ * stable scatter (slice i before slice i+1 within every bucket: the same result as one
+ * thread). Children still large get another parallel pass; the rest are queued. */
+static pm_result_t par_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsigned level, unsigned state,
+                            uint64_t big, uint32_t *hist, int nthreads, worklist_t *list, tally_t *t)
 {
     for (;;) {
         if (m <= s->leaf || level >= LEVELS) {
@@ -311,8 +358,8 @@ static pm_result_t par_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, 
             return PM_OK;
         }
         unsigned k = pass_levels(m, s->leaf, level), nb = 1u << (3 * k), shift = 63 - 3 * (level + k);
-        /* nthreads slices whatever the team size, so that the counts do not depend on it. */
-        const int used = nthreads;
+        const uint16_t *tab = s->tab.t[k] + (size_t)state * nb;
+        const int used = nthreads; /* slices, whatever the team size */
 #pragma omp parallel for num_threads(nthreads) schedule(static, 1)
         for (int th = 0; th < used; th++) {
             uint64_t i0 = b + m * (uint64_t)th / (uint64_t)used, i1 = b + m * (uint64_t)(th + 1) / (uint64_t)used;
@@ -320,9 +367,9 @@ static pm_result_t par_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, 
             const uint64_t *ks = s->key[buf];
             memset(h, 0, nb * sizeof *h);
             for (uint64_t i = i0; i < i1; i++)
-                h[(ks[i] >> shift) & (nb - 1)]++;
+                h[BUCKET(tab, ks[i])]++;
         }
-        /* Bucket starts per thread: bucket by bucket, thread by thread. */
+        /* Bucket starts per slice: bucket by bucket, slice by slice. */
         uint32_t sum = 0;
         for (unsigned x = 0; x < nb; x++)
             for (int th = 0; th < used; th++) {
@@ -330,17 +377,18 @@ static pm_result_t par_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, 
                 hist[(size_t)th * MAX_BUCKETS + x] = sum;
                 sum += c;
             }
-        /* One child holds every point: go a pass deeper without moving anything. Thread 0's
+        /* One child holds every point: go a pass deeper without moving anything. Slice 0's
          * starts are the buckets' starts. */
-        unsigned first = (unsigned)((s->key[buf][b] >> shift) & (nb - 1));
+        uint64_t code0 = s->key[buf][b];
+        unsigned first = BUCKET(tab, code0);
         uint64_t stop = first + 1 < nb ? hist[first + 1] : m;
         if (stop - hist[first] == m) {
+            state = tab[(code0 >> shift) & (nb - 1)] >> 12;
             level += k;
             continue;
         }
 #pragma omp parallel for num_threads(nthreads) schedule(static, 1)
         for (int th = 0; th < used; th++) {
-            _mm_setcsr(csr);
             uint64_t i0 = b + m * (uint64_t)th / (uint64_t)used, i1 = b + m * (uint64_t)(th + 1) / (uint64_t)used;
             uint32_t *h = hist + (size_t)th * MAX_BUCKETS;
             const uint64_t *ks = s->key[buf];
@@ -348,7 +396,7 @@ static pm_result_t par_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, 
             uint64_t *kd = s->key[!buf] + b;
             uint32_t *id = s->idx[!buf] + b;
             for (uint64_t i = i0; i < i1; i++) {
-                uint32_t p = h[(ks[i] >> shift) & (nb - 1)]++;
+                uint32_t p = h[BUCKET(tab, ks[i])]++;
                 kd[p] = ks[i];
                 id[p] = is[i];
             }
@@ -361,7 +409,7 @@ static pm_result_t par_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, 
         size_t first_new = list->n;
         int oom = 0;
         for (unsigned c = 0; c < 8 && !oom; c++)
-            visit(s, !buf, b, end, k, level, 1, c * (nb / 8), NULL, t, list, &oom);
+            visit(s, !buf, b, end, k, level, tab, 1, c * (nb / 8), NULL, t, list, &oom);
         free(end);
         if (oom)
             return pm_error_set(PM_ERR_NOMEM, "out of memory sorting %" PRIu64 " points", m);
@@ -371,7 +419,7 @@ static pm_result_t par_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, 
             if (w.is_leaf || w.m < big)
                 continue;
             list->w[i].m = 0; /* done here */
-            pm_result_t r = par_cell(s, w.buf, w.b, w.m, w.level, big, hist, nthreads, csr, list, t);
+            pm_result_t r = par_cell(s, w.buf, w.b, w.m, w.level, w.state, big, hist, nthreads, list, t);
             if (r != PM_OK)
                 return r;
         }
@@ -398,7 +446,6 @@ pm_result_t pm_reorder_points(const void *pos, size_t stride, uint64_t n, pm_ord
     unsigned csr = _mm_getcsr();
     int nthreads = omp_get_max_threads();
     sorter_t s = {.leaf = leaf};
-    key_table_t *kt = malloc(sizeof *kt);
     s.key[0] = pm_alloc_aligned(n * sizeof(uint64_t));
     s.key[1] = pm_alloc_aligned(n * sizeof(uint64_t));
     s.idx[0] = perm_out;
@@ -406,13 +453,14 @@ pm_result_t pm_reorder_points(const void *pos, size_t stride, uint64_t n, pm_ord
     uint32_t *hist = malloc((size_t)nthreads * MAX_BUCKETS * sizeof *hist);
     uint32_t *scratch = malloc((size_t)nthreads * LEVELS * (MAX_BUCKETS + 1) * sizeof *scratch);
     worklist_t list = {0};
-    pm_result_t res = PM_OK;
-    if (!kt || !s.key[0] || !s.key[1] || !s.idx[1] || !hist || !scratch) {
+    pm_result_t res = digit_tables_build(order, &s.tab);
+    if (res != PM_OK)
+        goto done;
+    if (!s.key[0] || !s.key[1] || !s.idx[1] || !hist || !scratch) {
         res = pm_error_set(PM_ERR_NOMEM, "out of memory for the keys of %" PRIu64 " points (%.0f MB)", n,
                            n * 20.0 / 1e6);
         goto done;
     }
-    key_table_build(order, kt);
     double lo[3], scale;
     pm_reorder_cube(pos, stride, n, lo, &scale);
 #pragma omp parallel num_threads(nthreads)
@@ -421,8 +469,8 @@ pm_result_t pm_reorder_points(const void *pos, size_t stride, uint64_t n, pm_ord
 #pragma omp for schedule(static)
         for (uint64_t i = 0; i < n; i++) {
             const float *p = point(pos, stride, i);
-            s.key[0][i] = key_of(kt, cell_of(p[0], lo[0], scale), cell_of(p[1], lo[1], scale),
-                                 cell_of(p[2], lo[2], scale));
+            s.key[0][i] = morton_of(cell_of(p[0], lo[0], scale), cell_of(p[1], lo[1], scale),
+                                    cell_of(p[2], lo[2], scale));
             s.idx[0][i] = (uint32_t)i;
         }
     }
@@ -433,14 +481,13 @@ pm_result_t pm_reorder_points(const void *pos, size_t stride, uint64_t n, pm_ord
     uint64_t big = n / (uint64_t)(2 * nthreads);
     if (big < PAR_MIN_POINTS)
         big = PAR_MIN_POINTS;
-    res = par_cell(&s, 0, 0, n, 0, big, hist, nthreads, csr, &list, &top);
+    res = par_cell(&s, 0, 0, n, 0, 0, big, hist, nthreads, &list, &top);
     if (res != PM_OK)
         goto done;
     uint64_t leaves = top.leaves;
     unsigned depth = top.depth;
 #pragma omp parallel num_threads(nthreads) reduction(+ : leaves) reduction(max : depth)
     {
-        _mm_setcsr(csr);
         tally_t t = {0};
         uint32_t *mine = scratch + (size_t)omp_get_thread_num() * LEVELS * (MAX_BUCKETS + 1);
 #pragma omp for schedule(dynamic, 1)
@@ -451,7 +498,7 @@ pm_result_t pm_reorder_points(const void *pos, size_t stride, uint64_t n, pm_ord
             if (w.is_leaf)
                 leaf_done(&s, w.buf, w.b, w.m, w.level, w.is_leaf == 2, &t);
             else
-                sort_cell(&s, w.buf, w.b, w.m, w.level, mine, &t);
+                sort_cell(&s, w.buf, w.b, w.m, w.level, w.state, mine, &t);
         }
         leaves += t.leaves;
         depth = t.depth > depth ? t.depth : depth;
@@ -460,13 +507,13 @@ pm_result_t pm_reorder_points(const void *pos, size_t stride, uint64_t n, pm_ord
     info.depth = depth;
     info.sort_s = pm_time_wall() - t1;
 done:
+    digit_tables_free(&s.tab);
     free(list.w);
     free(scratch);
     free(hist);
     free(s.idx[1]);
     free(s.key[1]);
     free(s.key[0]);
-    free(kt);
     if (res == PM_OK && info_out)
         *info_out = info;
     return res;

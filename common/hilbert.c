@@ -112,9 +112,10 @@ static inline uint64_t morton_of(uint32_t x, uint32_t y, uint32_t z)
     return spread3(x) | spread3(y) << 1 | spread3(z) << 2;
 }
 
-static inline const float *point(const void *pos, size_t stride, uint64_t i)
+/* Position i: copied out, since records of 42 or 54 bytes leave it unaligned for a float. */
+static inline void point(const void *pos, size_t stride, uint64_t i, float p[3])
 {
-    return (const float *)(const void *)((const unsigned char *)pos + i * stride);
+    memcpy(p, (const unsigned char *)pos + i * stride, 3 * sizeof(float));
 }
 
 uint64_t pm_reorder_key(pm_order_t order, const float xyz[3], const double lo[3], double scale)
@@ -143,7 +144,8 @@ void pm_reorder_cube(const void *pos, size_t stride, uint64_t n, double lo_out[3
     unsigned csr = _mm_getcsr();
     float mn0 = 0, mn1 = 0, mn2 = 0, mx0 = 0, mx1 = 0, mx2 = 0;
     if (n) {
-        const float *p = point(pos, stride, 0);
+        float p[3];
+        point(pos, stride, 0, p);
         mn0 = mx0 = p[0], mn1 = mx1 = p[1], mn2 = mx2 = p[2];
     }
 #pragma omp parallel reduction(min : mn0, mn1, mn2) reduction(max : mx0, mx1, mx2) if (n > 100000)
@@ -151,7 +153,8 @@ void pm_reorder_cube(const void *pos, size_t stride, uint64_t n, double lo_out[3
         _mm_setcsr(csr);
 #pragma omp for schedule(static)
         for (uint64_t i = 0; i < n; i++) {
-            const float *p = point(pos, stride, i);
+            float p[3];
+            point(pos, stride, i, p);
             mn0 = p[0] < mn0 ? p[0] : mn0, mx0 = p[0] > mx0 ? p[0] : mx0;
             mn1 = p[1] < mn1 ? p[1] : mn1, mx1 = p[1] > mx1 ? p[1] : mx1;
             mn2 = p[2] < mn2 ? p[2] : mn2, mx2 = p[2] > mx2 ? p[2] : mx2;
@@ -468,7 +471,8 @@ pm_result_t pm_reorder_points(const void *pos, size_t stride, uint64_t n, pm_ord
         _mm_setcsr(csr);
 #pragma omp for schedule(static)
         for (uint64_t i = 0; i < n; i++) {
-            const float *p = point(pos, stride, i);
+            float p[3];
+            point(pos, stride, i, p);
             s.key[0][i] = morton_of(cell_of(p[0], lo[0], scale), cell_of(p[1], lo[1], scale),
                                     cell_of(p[2], lo[2], scale));
             s.idx[0][i] = (uint32_t)i;

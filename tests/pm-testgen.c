@@ -4,6 +4,7 @@
  * readers' value checks can catch.
  *
  *   pm-testgen FORMAT N OUT [--all] [--poison nan|inf|negative|tree|pixel|unit]
+ *              [--shape equal|line|plane|huge]
  *
  * The photon map it writes is a median-split KD-tree of its photons, which the reader
  * checks in full (shape, order, planes). */
@@ -143,6 +144,26 @@ static int make(const char *format, uint64_t n, int all, pm_table_t *t)
     return 0;
 }
 
+/* Degenerate query positions for hilbert-sort's tests. */
+static int shape_queries(pm_table_t *t, const char *shape)
+{
+    float *p = t->col[PM_QUERY_POSITION];
+    for (uint64_t i = 0; i < t->count; i++) {
+        float u = p[3 * i], *q = p + 3 * i;
+        if (!strcmp(shape, "equal"))
+            q[0] = 0.25f, q[1] = -0.5f, q[2] = 0.75f;
+        else if (!strcmp(shape, "line"))
+            q[1] = q[2] = q[0] = u;
+        else if (!strcmp(shape, "plane"))
+            q[1] = 0.5f;
+        else if (!strcmp(shape, "huge"))
+            q[0] = u * 1e30f, q[1] = u < 0 ? -3e38f : 3e38f;
+        else
+            return 1;
+    }
+    return 0;
+}
+
 /* Patches `len` bytes at record 0, byte `off` of the payload, and re-seals the checksum. */
 static int poison(const char *path, size_t off, const void *bytes, size_t len)
 {
@@ -172,16 +193,18 @@ static int poison(const char *path, size_t off, const void *bytes, size_t len)
 int main(int argc, char **argv)
 {
     if (argc < 4) {
-        fprintf(stderr, "usage: pm-testgen FORMAT N OUT [--all] [--set KEY=VALUE] [--poison nan|inf|negative|unit|tree|order|pixel|nudge]\n");
+        fprintf(stderr, "usage: pm-testgen FORMAT N OUT [--all] [--set KEY=VALUE] [--shape equal|line|plane|huge] [--poison nan|inf|negative|unit|tree|order|pixel|nudge]\n");
         return 2;
     }
     int all = 0;
-    const char *what = NULL, *set = NULL;
+    const char *what = NULL, *set = NULL, *shape = NULL;
     for (int i = 4; i < argc; i++) {
         if (!strcmp(argv[i], "--all"))
             all = 1;
         else if (!strcmp(argv[i], "--poison") && i + 1 < argc)
             what = argv[++i];
+        else if (!strcmp(argv[i], "--shape") && i + 1 < argc)
+            shape = argv[++i];
         else if (!strcmp(argv[i], "--set") && i + 1 < argc && strchr(argv[i + 1], '='))
             set = argv[++i];
         else
@@ -190,6 +213,11 @@ int main(int argc, char **argv)
     pm_table_t t;
     if (make(argv[1], strtoull(argv[2], NULL, 10), all, &t))
         return 1;
+    if (shape && (t.hdr.schema != &pm_queries_schema || shape_queries(&t, shape))) {
+        fprintf(stderr, "pm-testgen: cannot shape %s as '%s'\n", t.hdr.schema->name, shape);
+        pm_table_free(&t);
+        return 2;
+    }
     if (set) { /* --set KEY=VALUE: a header key, for tests of header comparisons */
         char key[64];
         snprintf(key, sizeof key, "%.*s", (int)(strchr(set, '=') - set), set);

@@ -1,0 +1,251 @@
+/* hilbert-sort: reorders gather points along a 3-D Hilbert curve, so that the queries that
+ * simd-gather packs into one SIMD packet, and the packets that follow one another, lie close
+ * together and walk the same part of the photon map (the paper, sections 4.3 and 6.2).
+ *
+ *   trace-gather-points -> hilbert-sort -> simd-gather
+ *
+ * Reads a queries file (or stdin) whole, computes the order with common/hilbert.c (an octree
+ * visited in curve order, stopping at cells of --leaf points), and writes the same records,
+ * byte for byte, in that order (to a file or stdout). Memory: one copy of the records plus
+ * 24 bytes per point of keys and indices. */
+#include <inttypes.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "../../common/hilbert.h"
+#include "../../common/memory.h"
+#include "../../common/stage.h"
+#include "../../formats/formats.h"
+
+/* Records per output chunk: 3.5 MB at 54 bytes. One thread writes a chunk (value checks,
+ * checksum, write) while the others gather the next, so the gather's cache misses (the input
+ * is in any order) hide behind the writer. */
+#define GATHER_RECORDS 65536
+#define PREFETCH_AHEAD 16 /* records: enough misses in flight to cover DRAM latency */
+
+typedef struct {
+    int order;           /* pm_order_t */
+    const char *leaf;    /* "auto" or a count */
+    int64_t cache;       /* bytes of cache --leaf auto assumes; 0 asks the system for L2 */
+} sort_options_t;
+
+/* --leaf: a positive count or "auto". */
+static pm_result_t parse_leaf(const char *s, uint64_t *leaf_out, int *is_auto_out)
+{
+    *is_auto_out = strcmp(s, "auto") == 0;
+    if (*is_auto_out)
+        return PM_OK;
+    int64_t v;
+    if (pm_parse_i64(s, &v) != PM_OK || v < 1)
+        return pm_error_set(PM_ERR_USAGE, "bad value for --leaf '%s': expected a count of at least 1 or auto", s);
+    *leaf_out = (uint64_t)v;
+    return PM_OK;
+}
+
+static uint64_t cache_bytes(int64_t asked)
+{
+    if (asked > 0)
+        return (uint64_t)asked;
+    long l2 = sysconf(_SC_LEVEL2_CACHE_SIZE);
+    return l2 > 0 ? (uint64_t)l2 : 1u << 20; /* 1 MiB when the system does not say */
+}
+
+/* Copies records perm[0..n) of src into dst, packed: fixed sizes for the four layouts of
+ * the queries format, so that the compiler moves them as whole words. */
+static void gather(unsigned char *dst, const unsigned char *src, const uint32_t *perm, uint64_t n, uint64_t total,
+                   size_t rs)
+{
+#define GATHER_FIXED(SIZE)                                                                        \
+    case SIZE:                                                                                    \
+        for (uint64_t i = 0; i < n; i++) {                                                        \
+            if (i + PREFETCH_AHEAD < total)                                                       \
+                __builtin_prefetch(src + (size_t)perm[i + PREFETCH_AHEAD] * (SIZE));              \
+            memcpy(dst + i * (SIZE), src + (size_t)perm[i] * (SIZE), (SIZE));                     \
+        }                                                                                         \
+        return;
+    switch (rs) {
+        GATHER_FIXED(40)
+        GATHER_FIXED(42)
+        GATHER_FIXED(52)
+        GATHER_FIXED(54)
+    default:
+        for (uint64_t i = 0; i < n; i++)
+            memcpy(dst + i * rs, src + (size_t)perm[i] * rs, rs);
+    }
+#undef GATHER_FIXED
+}
+
+/* Gathers chunk c (of GATHER_RECORDS) into buf on the threads of the enclosing team. */
+static uint64_t gather_chunk(unsigned char *buf, const unsigned char *recs, const uint32_t *perm, uint64_t n,
+                             uint64_t c, size_t rs)
+{
+    uint64_t first = c * GATHER_RECORDS, m = n - first < GATHER_RECORDS ? n - first : GATHER_RECORDS;
+    gather(buf, recs, perm + first, m, n - first, rs);
+    return m;
+}
+
+/* Writes the records in perm's order: chunk c is written while chunk c + 1 is gathered. */
+static pm_result_t write_sorted(pm_writer_t *w, const unsigned char *recs, const uint32_t *perm, uint64_t n,
+                                size_t rs, unsigned char *buf[2])
+{
+    uint64_t chunks = (n + GATHER_RECORDS - 1) / GATHER_RECORDS, m = 0;
+    pm_result_t res = PM_OK;
+    if (chunks)
+        m = gather_chunk(buf[0], recs, perm, n, 0, rs);
+    for (uint64_t c = 0; c < chunks && res == PM_OK; c++) {
+        uint64_t next_m = 0;
+#pragma omp parallel sections num_threads(2)
+        {
+#pragma omp section
+            res = pm_writer_write(w, buf[c & 1], m);
+#pragma omp section
+            if (c + 1 < chunks)
+                next_m = gather_chunk(buf[(c + 1) & 1], recs, perm, n, c + 1, rs);
+        }
+        m = next_m;
+    }
+    return res;
+}
+
+/* The output header: the input's provenance, this command, the input's hash, the order,
+ * then every other key of the input (width, height, materials, unknown keys). */
+static pm_result_t make_header(const pm_stage_t *st, const pm_header_t *in, const char *in_name, uint64_t in_hash,
+                               pm_order_t order, uint64_t leaf, int is_auto, pm_header_t *h)
+{
+    pm_header_init(h, &pm_queries_schema);
+    h->count = in->count;
+    h->channels = in->channels;
+    memcpy(h->bounds, in->bounds, sizeof h->bounds);
+    pm_result_t r = pm_header_inherit(h, in);
+    if (r == PM_OK)
+        r = pm_header_add_command(h, st->argc, st->argv);
+    if (r == PM_OK)
+        r = pm_header_add_input(h, in_name, in_hash);
+    if (r == PM_OK) {
+        if (order == PM_ORDER_NONE)
+            r = pm_header_set(h, "order", "none");
+        else
+            r = pm_header_set(h, "order", "%s leaf=%" PRIu64 "%s", pm_order_names[order], leaf,
+                              is_auto ? " auto" : "");
+    }
+    if (r == PM_OK)
+        r = pm_header_copy_keys(h, in); /* an earlier sort's order key is replaced, not copied */
+    return r;
+}
+
+static pm_result_t run(pm_stage_t *st, const sort_options_t *o)
+{
+    uint64_t leaf = 16;
+    int is_auto = 0;
+    pm_result_t res = parse_leaf(o->leaf, &leaf, &is_auto);
+    if (res != PM_OK)
+        return res;
+    const char *path = st->args.nargs ? st->args.args[0] : "-";
+    const char *in_name = strcmp(path, "-") == 0 ? "stdin" : path;
+    pm_order_t order = (pm_order_t)o->order;
+
+    double t0 = pm_time_wall();
+    pm_reader_t *rd;
+    if ((res = pm_reader_open(path, &pm_queries_schema, 0, &rd)) != PM_OK)
+        return res;
+    const pm_header_t *in = pm_reader_header(rd);
+    uint64_t n = in->count;
+    size_t rs = in->record_size;
+    if (n > UINT32_MAX) {
+        pm_reader_close(rd);
+        return pm_error_set(PM_ERR_INPUT, "queries '%s' has %" PRIu64 " records; hilbert-sort sorts at most %" PRIu32,
+                            in_name, n, UINT32_MAX);
+    }
+    unsigned char *recs = pm_alloc_aligned(n ? n * rs : 1);
+    uint32_t *perm = pm_alloc_aligned(n ? n * sizeof *perm : 1);
+    unsigned char *chunk[2] = {NULL, NULL};
+    if (order != PM_ORDER_NONE)
+        chunk[0] = malloc((size_t)GATHER_RECORDS * rs), chunk[1] = malloc((size_t)GATHER_RECORDS * rs);
+    pm_header_t h = {0};
+    pm_writer_t *w = NULL;
+    if (!recs || !perm || (order != PM_ORDER_NONE && (!chunk[0] || !chunk[1]))) {
+        res = pm_error_set(PM_ERR_NOMEM, "out of memory for %" PRIu64 " queries of '%s' (%.0f MB)", n, in_name,
+                           n * (rs + 24.0) / 1e6);
+        goto done;
+    }
+    uint64_t got, in_hash = 0;
+    if ((res = pm_reader_read(rd, recs, n, &got)) != PM_OK || (res = pm_reader_finish(rd, &in_hash)) != PM_OK)
+        goto done;
+    double t1 = pm_time_wall();
+
+    if (is_auto)
+        leaf = pm_reorder_auto_leaf(n, cache_bytes(o->cache));
+    pm_reorder_info_t info;
+    if ((res = pm_reorder_points(recs, rs, n, order, leaf, perm, &info)) != PM_OK)
+        goto done;
+    double t2 = pm_time_wall();
+
+    if ((res = make_header(st, in, in_name, in_hash, order, leaf, is_auto, &h)) != PM_OK ||
+        (res = pm_writer_open(st->output, &h, &w)) != PM_OK)
+        goto done;
+    if (order == PM_ORDER_NONE)
+        res = pm_writer_write(w, recs, n);
+    else
+        res = write_sorted(w, recs, perm, n, rs, chunk);
+    if (res == PM_OK)
+        res = pm_writer_commit(w);
+    else
+        pm_writer_abort(w);
+    w = NULL;
+    double t3 = pm_time_wall();
+
+    if (res == PM_OK) {
+        st->items = n;
+        pm_stage_stat_int(st, "points", (int64_t)n);
+        pm_stage_stat_double(st, "points_per_s", t3 > t0 ? n / (t3 - t0) : 0.0);
+        pm_stage_stat_string(st, "order", pm_order_names[order]);
+        pm_stage_stat_int(st, "leaf", (int64_t)leaf);
+        pm_stage_stat_string(st, "leaf_rule", is_auto ? "auto" : "fixed");
+        pm_stage_stat_int(st, "octree_depth", info.depth);
+        pm_stage_stat_int(st, "leaves", (int64_t)info.leaves);
+        pm_stage_stat_int(st, "record_bytes", (int64_t)rs);
+        pm_stage_stat_double(st, "read_s", t1 - t0);
+        pm_stage_stat_double(st, "keys_s", info.keys_s);
+        pm_stage_stat_double(st, "sort_s", info.sort_s);
+        pm_stage_stat_double(st, "reorder_s", t2 - t1);
+        pm_stage_stat_double(st, "reorder_points_per_s", t2 > t1 ? n / (t2 - t1) : 0.0);
+        pm_stage_stat_double(st, "write_s", t3 - t2);
+    }
+done:
+    pm_writer_abort(w);
+    pm_header_free(&h);
+    pm_reader_close(rd);
+    free(chunk[0]);
+    free(chunk[1]);
+    free(perm);
+    free(recs);
+    return res;
+}
+
+int main(int argc, char **argv)
+{
+    pm_stage_t st;
+    pm_stage_defaults(&st);
+    sort_options_t o = {.order = PM_ORDER_HILBERT, .leaf = "16"};
+    const pm_option_t options[] = {
+        PM_STAGE_COMMON_OPTIONS(st),
+        {"order", 0, PM_OPT_CHOICE, &o.order, "ORDER",
+         "hilbert (the curve), morton (Z-order, for comparison) or none (records pass through unchanged)", 1, 0,
+         pm_order_names},
+        {"leaf", 0, PM_OPT_STRING, &o.leaf, "N|auto",
+         "stop splitting cells of N points or fewer (1 sorts fully); auto picks N from the point count and cache",
+         1, 0, NULL},
+        {"cache", 0, PM_OPT_INT, &o.cache, "BYTES", "cache size --leaf auto assumes; 0 asks the system (L2)", 0,
+         9e18, NULL},
+        {0},
+    };
+    const pm_cli_t cli = {"hilbert-sort", "[options] [QUERIES|-] [-o OUT|-]",
+                          "Reorder gather points (a queries file) along a 3-D Hilbert curve, so that packets of "
+                          "queries are coherent; the records are unchanged, only their order.",
+                          options, 0, 1};
+    int rc = pm_stage_begin(&st, &cli, argc, argv);
+    if (rc >= 0)
+        return rc;
+    return pm_stage_end(&st, run(&st, &o));
+}

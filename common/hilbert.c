@@ -515,9 +515,9 @@ done:
     free(list.w);
     free(scratch);
     free(hist);
-    free(s.idx[1]);
-    free(s.key[1]);
-    free(s.key[0]);
+    pm_free_aligned(s.idx[1]);
+    pm_free_aligned(s.key[1]);
+    pm_free_aligned(s.key[0]);
     if (res == PM_OK && info_out)
         *info_out = info;
     return res;

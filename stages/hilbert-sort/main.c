@@ -218,8 +218,8 @@ done:
     pm_reader_close(rd);
     free(chunk[0]);
     free(chunk[1]);
-    free(perm);
-    free(recs);
+    pm_free_aligned(perm);
+    pm_free_aligned(recs);
     return res;
 }
 

@@ -174,19 +174,22 @@ static void partition3(elem_t *restrict src, elem_t *restrict dst, uint32_t n, u
     *nmid_out = nmid;
 }
 
-/* Puts the element of rank m on `axis` of src[0, n) at dst[m], with smaller-or-equal keys
- * before it and greater-or-equal after (Floyd and Rivest's idea): two pivots from a
- * sorted sample bracket rank m with high probability, one three-way partition moves
- * everything into dst, and only the small middle group needs an exact selection. */
-static void split_sampled(elem_t *src, elem_t *dst, uint32_t n, uint32_t m, uint32_t axis)
+/* Sample size for a subtree of n photons: about sqrt(n), at most 1024, so that sorting it
+ * stays far below a pass over n. The sample is the keys at (2 i + 1) n / (2 s). */
+static uint32_t sample_size(uint32_t n)
 {
-    /* Sample size about sqrt(n), at most 1024: sorting it stays far below a pass over n. */
-    float sample[1024];
     uint32_t s = SAMPLE_MIN;
     while (s < 1024 && (uint64_t)s * s < n)
         s *= 2;
-    for (uint32_t i = 0; i < s; i++)
-        sample[i] = src[(uint64_t)(2 * i + 1) * n / (2 * s)].p[axis];
+    return s;
+}
+
+static inline uint64_t sample_index(uint32_t i, uint32_t s, uint32_t n) { return (uint64_t)(2 * i + 1) * n / (2 * s); }
+
+/* Sorts the sample and picks two pivots around rank m's place in it, +- 3 standard
+ * deviations of a sample rank (sqrt(s)/2), so that rank m falls between them almost always. */
+static void pick_pivots(float *sample, uint32_t s, uint32_t n, uint32_t m, float *p1, float *p2)
+{
     if (s <= 64) { /* insertion sort: small samples are most of the calls */
         for (uint32_t i = 1; i < s; i++) {
             float v = sample[i];
@@ -198,14 +201,19 @@ static void split_sampled(elem_t *src, elem_t *dst, uint32_t n, uint32_t m, uint
     } else {
         qsort(sample, s, sizeof sample[0], cmp_float);
     }
-    /* Rank m's place in the sample, +- 3 standard deviations of a sample rank (sqrt(s)/2). */
     int64_t c = (int64_t)((uint64_t)m * s / n), g = 1;
     while (4 * g * g < 9 * (int64_t)s)
         g++;
     int64_t lo = c - g < 0 ? 0 : c - g, hi = c + g >= s ? s - 1 : c + g;
-    float p1 = sample[lo], p2 = sample[hi];
-    uint32_t nlt, nmid;
-    partition3(src, dst, n, axis, p1, p2, &nlt, &nmid);
+    *p1 = sample[lo];
+    *p2 = sample[hi];
+}
+
+/* After a three-way partition of dst[0, n) into nlt, nmid and the rest: the exact
+ * selection of rank m inside the group that holds it. */
+static void finish_select(elem_t *dst, uint32_t n, uint32_t m, uint32_t axis, uint32_t nlt, uint32_t nmid, float p1,
+                          float p2)
+{
     if (m < nlt)
         select_rank(dst, nlt, m, axis); /* the pivots missed (rare): the group still holds rank m */
     else if (m >= nlt + nmid)
@@ -214,15 +222,83 @@ static void split_sampled(elem_t *src, elem_t *dst, uint32_t n, uint32_t m, uint
         select_rank(dst + nlt, nmid, m - nlt, axis);
 }
 
+/* Puts the element of rank m on `axis` of src[0, n) at dst[m], with smaller-or-equal keys
+ * before it and greater-or-equal after (Floyd and Rivest's idea): two pivots from a
+ * sorted sample bracket rank m with high probability, one three-way partition moves
+ * everything into dst, and only the small middle group needs an exact selection. */
+static void split_sampled(elem_t *src, elem_t *dst, uint32_t n, uint32_t m, uint32_t axis)
+{
+    float sample[1024], p1, p2;
+    uint32_t s = sample_size(n), nlt, nmid;
+    for (uint32_t i = 0; i < s; i++)
+        sample[i] = src[sample_index(i, s, n)].p[axis];
+    pick_pivots(sample, s, n, m, &p1, &p2);
+    partition3(src, dst, n, axis, p1, p2, &nlt, &nmid);
+    finish_select(dst, n, m, axis, nlt, nmid, p1, p2);
+}
+
 /* Builds the subtree of the photons in a[0, n) at node index `at`; `spare` is a scratch
  * buffer of the same n elements. Returns the subtree's depth. */
+static inline void leaf(const build_t *b, const elem_t *e, uint32_t at)
+{
+    b->node[at] = pm_kdnode_make(e->p[0], PM_KD_LEAF, PM_KD_NONE);
+    b->perm[at] = e->id;
+}
+
+/* Subtrees of 2 and 3 photons, half of all calls, without the general machinery: the
+ * per-call work of bounds and selection cost 20 cycles per photon there. */
+static unsigned build_tiny(const build_t *b, const elem_t *a, uint32_t n, uint32_t at)
+{
+    __m128 p0 = _mm_load_ps(a[0].p), p1 = _mm_load_ps(a[1].p);
+    __m128 lo = _mm_min_ps(p0, p1), hi = _mm_max_ps(p0, p1);
+    if (n == 3) {
+        __m128 p2 = _mm_load_ps(a[2].p);
+        lo = _mm_min_ps(lo, p2);
+        hi = _mm_max_ps(hi, p2);
+    }
+    float l[4], h[4];
+    _mm_storeu_ps(l, lo);
+    _mm_storeu_ps(h, hi);
+    double e0 = (double)h[0] - l[0], e1 = (double)h[1] - l[1], e2 = (double)h[2] - l[2];
+    uint32_t axis = e0 >= e1 ? (e0 >= e2 ? 0u : 2u) : (e1 >= e2 ? 1u : 2u);
+    /* Ranks on the axis by comparisons; ties keep input order (rank by (key, index)). */
+    const elem_t *s0 = &a[0], *s1 = &a[1], *s2 = n == 3 ? &a[2] : NULL;
+    if (s1->p[axis] < s0->p[axis]) {
+        const elem_t *t = s0;
+        s0 = s1;
+        s1 = t;
+    }
+    if (n == 2) { /* median is the larger; the smaller is its left leaf */
+        b->node[at] = pm_kdnode_make(s1->p[axis], axis, PM_KD_NONE);
+        b->perm[at] = s1->id;
+        leaf(b, s0, at + 1);
+        return 2;
+    }
+    if (s2->p[axis] < s1->p[axis]) {
+        const elem_t *t = s1;
+        s1 = s2;
+        s2 = t;
+        if (s1->p[axis] < s0->p[axis]) {
+            t = s0;
+            s0 = s1;
+            s1 = t;
+        }
+    }
+    b->node[at] = pm_kdnode_make(s1->p[axis], axis, at + 2);
+    b->perm[at] = s1->id;
+    leaf(b, s0, at + 1);
+    leaf(b, s2, at + 2);
+    return 2;
+}
+
 static unsigned build(const build_t *b, elem_t *a, elem_t *spare, uint32_t n, uint32_t at)
 {
     if (n == 1) {
-        b->node[at] = pm_kdnode_make(a[0].p[0], PM_KD_LEAF, PM_KD_NONE);
-        b->perm[at] = a[0].id;
+        leaf(b, a, at);
         return 1;
     }
+    if (n <= 3)
+        return build_tiny(b, a, n, at);
     uint32_t axis = longest_axis(a, n);
     uint32_t m = n / 2, nr = n - m - 1; /* m >= 1 photons go left, nr >= 0 right */
     if (n >= SAMPLED_MIN) {
@@ -250,6 +326,98 @@ static unsigned build(const build_t *b, elem_t *a, elem_t *spare, uint32_t n, ui
     return 1 + (dl > dr ? dl : dr);
 }
 
+/* The root level of a large tree, on all threads and straight from the caller's
+ * positions: the same split as build() would make after copying them into elements (the
+ * same sample, the same groups in the same order), but the copy is fused into the
+ * partition and the pass is shared by the threads instead of running on one while the
+ * other waits. Blocks are fixed, not per thread, so the result is the same for any
+ * thread count. */
+enum { ROOT_PARALLEL_MIN = 1 << 18, ROOT_BLOCKS = 64 };
+
+static unsigned build_root(const build_t *b, const float *pos, elem_t *a, elem_t *spare, uint32_t n)
+{
+    /* bounds, in blocks */
+    float blo[ROOT_BLOCKS][3], bhi[ROOT_BLOCKS][3];
+    uint32_t bs = (n + ROOT_BLOCKS - 1) / ROOT_BLOCKS;
+#pragma omp parallel for schedule(static)
+    for (int k = 0; k < ROOT_BLOCKS; k++) {
+        uint64_t i0 = (uint64_t)k * bs, i1 = i0 + bs < n ? i0 + bs : n;
+        float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        for (uint64_t i = i0; i < i1; i++)
+            for (int c = 0; c < 3; c++) {
+                float v = pos[3 * i + c];
+                lo[c] = v < lo[c] ? v : lo[c];
+                hi[c] = v > hi[c] ? v : hi[c];
+            }
+        for (int c = 0; c < 3; c++)
+            blo[k][c] = lo[c], bhi[k][c] = hi[c];
+    }
+    double ext[3];
+    for (int c = 0; c < 3; c++) {
+        float lo = INFINITY, hi = -INFINITY;
+        for (int k = 0; k < ROOT_BLOCKS; k++)
+            lo = blo[k][c] < lo ? blo[k][c] : lo, hi = bhi[k][c] > hi ? bhi[k][c] : hi;
+        ext[c] = (double)hi - lo;
+    }
+    uint32_t axis = ext[0] >= ext[1] ? (ext[0] >= ext[2] ? 0u : 2u) : (ext[1] >= ext[2] ? 1u : 2u);
+    uint32_t m = n / 2, nr = n - m - 1;
+    float sample[1024], p1, p2;
+    uint32_t s = sample_size(n);
+    for (uint32_t i = 0; i < s; i++)
+        sample[i] = pos[3 * sample_index(i, s, n) + axis];
+    pick_pivots(sample, s, n, m, &p1, &p2);
+    /* count, then place: the groups in the order partition3 gives them */
+    uint32_t cnt[ROOT_BLOCKS][2], off[ROOT_BLOCKS][3];
+#pragma omp parallel for schedule(static)
+    for (int k = 0; k < ROOT_BLOCKS; k++) {
+        uint64_t i0 = (uint64_t)k * bs, i1 = i0 + bs < n ? i0 + bs : n;
+        uint32_t lt = 0, gt = 0;
+        for (uint64_t i = i0; i < i1; i++) {
+            float key = pos[3 * i + axis];
+            lt += key < p1;
+            gt += key > p2;
+        }
+        cnt[k][0] = lt, cnt[k][1] = gt;
+    }
+    uint32_t nlt = 0, ngt = 0, nmid = 0;
+    for (int k = 0; k < ROOT_BLOCKS; k++) {
+        uint64_t i0 = (uint64_t)k * bs, i1 = i0 + bs < n ? i0 + bs : n, len = i1 > i0 ? i1 - i0 : 0;
+        off[k][0] = nlt, off[k][1] = nmid, off[k][2] = ngt;
+        nlt += cnt[k][0], ngt += cnt[k][1], nmid += (uint32_t)len - cnt[k][0] - cnt[k][1];
+    }
+#pragma omp parallel for schedule(static)
+    for (int k = 0; k < ROOT_BLOCKS; k++) {
+        uint64_t i0 = (uint64_t)k * bs, i1 = i0 + bs < n ? i0 + bs : n;
+        elem_t *lt = spare + off[k][0], *gt = spare + n - 1 - off[k][2], *mid = a + off[k][1];
+        for (uint64_t i = i0; i < i1; i++) {
+            elem_t e = {{pos[3 * i], pos[3 * i + 1], pos[3 * i + 2]}, (uint32_t)i};
+            float key = e.p[axis];
+            int is_lt = key < p1, is_gt = key > p2;
+            elem_t *d = is_lt ? lt : mid;
+            d = is_gt ? gt : d;
+            *d = e;
+            lt += is_lt;
+            gt -= is_gt;
+            mid += !is_lt & !is_gt;
+        }
+    }
+    memcpy(spare + nlt, a, (size_t)nmid * sizeof *a);
+    finish_select(spare, n, m, axis, nlt, nmid, p1, p2);
+    b->node[0] = pm_kdnode_make(spare[m].p[axis], axis, nr ? 1 + m : PM_KD_NONE);
+    b->perm[0] = spare[m].id;
+    unsigned dl = 0, dr = 0;
+#pragma omp parallel default(none) shared(b, a, spare, m, nr, dl, dr)
+#pragma omp single
+    {
+#pragma omp task default(none) shared(b, a, spare, m, dl)
+        dl = build(b, spare, a, m, 1);
+        if (nr)
+            dr = build(b, spare + m + 1, a + m + 1, nr, 1 + m);
+#pragma omp taskwait
+    }
+    return 1 + (dl > dr ? dl : dr);
+}
+
 pm_result_t pm_kd_build(const float *pos, uint64_t n, pm_kdnode_t *node_out, uint32_t *perm_out,
                         pm_kd_build_stats_t *stats_out)
 {
@@ -269,16 +437,19 @@ pm_result_t pm_kd_build(const float *pos, uint64_t n, pm_kdnode_t *node_out, uin
         return pm_error_set(PM_ERR_NOMEM, "out of memory for the KD-tree build of %llu photons (%.1f MB)",
                             (unsigned long long)n, 2.0 * (double)n * sizeof *a / 1e6);
     }
-#pragma omp parallel for schedule(static)
-    for (uint64_t i = 0; i < n; i++) {
-        a[i].p[0] = pos[3 * i], a[i].p[1] = pos[3 * i + 1], a[i].p[2] = pos[3 * i + 2];
-        a[i].id = (uint32_t)i;
-    }
     build_t b = {node_out, perm_out};
     unsigned depth = 0;
+    if (n < ROOT_PARALLEL_MIN) {
+        for (uint64_t i = 0; i < n; i++) {
+            a[i].p[0] = pos[3 * i], a[i].p[1] = pos[3 * i + 1], a[i].p[2] = pos[3 * i + 2];
+            a[i].id = (uint32_t)i;
+        }
 #pragma omp parallel default(none) shared(b, a, spare, n, depth)
 #pragma omp single
-    depth = build(&b, a, spare, (uint32_t)n, 0);
+        depth = build(&b, a, spare, (uint32_t)n, 0);
+    } else {
+        depth = build_root(&b, pos, a, spare, (uint32_t)n);
+    }
     pm_free_aligned(a);
     pm_free_aligned(spare);
     st.depth = depth;

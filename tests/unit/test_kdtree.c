@@ -150,7 +150,7 @@ static void test_kd_small_counts(void **state)
 static void test_kd_random_large(void **state)
 {
     /* Above the sizes that switch to sampled partitions and to parallel tasks. */
-    const uint32_t sizes[] = {255, 256, 257, 1000, 4097, 40000, 100000};
+    const uint32_t sizes[] = {255, 256, 257, 1000, 4097, 40000, 100000, 300000};
     for (size_t s = 0; s < sizeof sizes / sizeof sizes[0]; s++) {
         float *p = random_points(sizes[s], 100 + s, -10.0f, 10.0f);
         build_and_check(p, sizes[s]);
@@ -202,7 +202,7 @@ static void test_kd_degenerate_inputs(void **state)
 
 static void test_kd_same_tree_for_any_thread_count(void **state)
 {
-    const uint32_t n = 150000; /* large enough for parallel tasks */
+    const uint32_t n = 300000; /* large enough for parallel tasks and the parallel root level */
     float *p = random_points(n, 5, 0.0f, 1.0f);
     pm_kdnode_t *a = malloc(n * 8), *b = malloc(n * 8);
     uint32_t *pa = malloc(n * 4), *pb = malloc(n * 4);

@@ -20,4 +20,10 @@ void pm_strata_grid(unsigned cells, unsigned *nx_out, unsigned *ny_out);
  * Draws 2 numbers per point from rng, in order. */
 void pm_strata_fill(pm_rng_t *rng, unsigned nx, unsigned ny, unsigned per_cell, float *u1, float *u2);
 
+/* Cosine-weighted directions around +z (pdf cos / pi) for n points of [0,1)^2, by the
+ * concentric map like pm_sample_cosine_hemisphere (within 1e-6), but branch-free with
+ * polynomial sine and cosine so that the loop runs in SIMD lanes: this warp is on the
+ * path of every secondary ray. */
+void pm_strata_cosine(const float *u1, const float *u2, unsigned n, float *x_out, float *y_out, float *z_out);
+
 #endif

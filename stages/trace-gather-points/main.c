@@ -23,6 +23,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "../../common/cpu.h"
@@ -85,8 +86,10 @@ typedef struct {
     float *sec_w;          /* secondary ray -> RGB path weight (f cos / pdf / N / primary) */
     size_t sh_cap, sec_cap;
     float *u1, *u2;        /* spp stratified points */
+    float *lx, *ly, *lz;   /* their cosine-weighted directions in the local frame */
     uint64_t n_primary, n_secondary, n_shadow, n_queries;
     double t_secondary;    /* s inside Embree for secondary rays */
+    double cpu_rows;       /* s of this thread's CPU time in trace_row: immune to other processes' load */
 } tgp_scratch_t;
 
 typedef struct {
@@ -242,7 +245,10 @@ static pm_result_t scratch_reserve(tgp_scratch_t *sc, size_t nprim, size_t nshad
     if (!sc->u1 && spp) {
         sc->u1 = malloc(spp * sizeof(float));
         sc->u2 = malloc(spp * sizeof(float));
-        if (!sc->u1 || !sc->u2)
+        sc->lx = malloc(spp * sizeof(float));
+        sc->ly = malloc(spp * sizeof(float));
+        sc->lz = malloc(spp * sizeof(float));
+        if (!sc->u1 || !sc->u2 || !sc->lx || !sc->ly || !sc->lz)
             return pm_error_set(PM_ERR_NOMEM, "out of memory");
     }
     return PM_OK;
@@ -252,13 +258,14 @@ static void scratch_free(tgp_scratch_t *sc)
 {
     pm_rays_free(&sc->prim), pm_rays_free(&sc->shadow), pm_rays_free(&sc->sec);
     free(sc->hit), free(sc->sh_px), free(sc->sh_c), free(sc->sec_px), free(sc->sec_w), free(sc->u1), free(sc->u2);
+    free(sc->lx), free(sc->ly), free(sc->lz);
 }
 
 /* Appends one query record in file layout. */
-static int put_query(const tgp_ctx_t *c, bytebuf_t *out, const float p[3], const float n[3], const float w[3],
+static inline int put_query(const tgp_ctx_t *c, bytebuf_t *out, const float p[3], const float n[3], const float w[3],
                      uint32_t pixel, uint32_t mat, const float wo[3])
 {
-    if (!grow((void **)&out->p, 1, &out->cap, out->n + c->record_size))
+    if (out->n + c->record_size > out->cap && !grow((void **)&out->p, 1, &out->cap, out->n + c->record_size))
         return 0;
     unsigned char *r = out->p + out->n;
     memcpy(r, p, 12);
@@ -278,7 +285,7 @@ static int put_query(const tgp_ctx_t *c, bytebuf_t *out, const float p[3], const
 
 /* The query's weight from the path weight w: a Lambertian query surface has its BRDF kd/pi
  * folded in, a glossy one keeps f for the gather (docs/formats.md, queries). */
-static int query_weight(const pm_material_t *m, const float w[3], float out[3])
+static inline int query_weight(const pm_material_t *m, const float w[3], float out[3])
 {
     int glossy = pm_material_is_glossy(m);
     for (int k = 0; k < 3; k++)
@@ -359,7 +366,8 @@ static int shade_primary(const tgp_ctx_t *c, tgp_scratch_t *sc, size_t i, uint32
     /* Point lights: intensity I (W/sr) at distance r gives irradiance I cos / r^2. */
     for (size_t l = 0; l < s->nlights; l++) {
         const pm_point_light_t *L = &s->lights[l];
-        float v[3] = {L->position[0] - o[0], L->position[1] - o[1], L->position[2] - o[2]};
+        /* Geometry from the hit point itself; only the shadow ray starts off the surface. */
+        float v[3] = {L->position[0] - p[0], L->position[1] - p[1], L->position[2] - p[2]};
         float r2 = dot3(v, v), r = sqrtf(r2);
         if (!(r > 0.0f))
             continue;
@@ -372,7 +380,7 @@ static int shade_primary(const tgp_ctx_t *c, tgp_scratch_t *sc, size_t i, uint32
         for (int k = 0; k < 3; k++)
             sc->sh_c[3 * j + k] = f[k] * L->intensity[k] * cosx / r2 * inv_p;
         sc->sh_px[j] = x;
-        pm_rays_push(&sc->shadow, o, wi, 0.0f, r);
+        pm_rays_push(&sc->shadow, o, wi, 0.0f, r - c->eps);
     }
     /* Area lights: points uniform over the total emissive area A, pdf 1/A per m^2;
      * L = f Ke cos_x cos_y / r^2 * A, averaged over the samples. */
@@ -382,7 +390,7 @@ static int shade_primary(const tgp_ctx_t *c, tgp_scratch_t *sc, size_t i, uint32
         float b0, b1, y[3];
         pm_sample_triangle(pm_rng_float(light_rng), pm_rng_float(light_rng), &b0, &b1);
         triangle_point(s, lt, b0, b1, y);
-        float v[3] = {y[0] - o[0], y[1] - o[1], y[2] - o[2]};
+        float v[3] = {y[0] - p[0], y[1] - p[1], y[2] - p[2]};
         float r2 = dot3(v, v), r = sqrtf(r2);
         if (!(r > 0.0f))
             continue;
@@ -397,7 +405,7 @@ static int shade_primary(const tgp_ctx_t *c, tgp_scratch_t *sc, size_t i, uint32
             sc->sh_c[3 * j + k] = f[k] * lm->ke[k] * g;
         sc->sh_px[j] = x;
         /* Stop short of the light's own surface, by the offset and a relative margin. */
-        pm_rays_push(&sc->shadow, o, wi, 0.0f, r * (1.0f - 1e-4f) - c->eps);
+        pm_rays_push(&sc->shadow, o, wi, 0.0f, r * (1.0f - 1e-4f) - 2.0f * c->eps);
     }
 
     if (c->mode == MODE_DIRECT_VIS) {
@@ -419,25 +427,44 @@ static int shade_primary(const tgp_ctx_t *c, tgp_scratch_t *sc, size_t i, uint32
         pm_v3_store(tb, tv), pm_v3_store(bb, bv);
     }
     pm_strata_fill(gather_rng, c->nx, c->ny, PER_CELL, sc->u1, sc->u2);
+    pm_strata_cosine(sc->u1, sc->u2, c->spp, sc->lx, sc->ly, sc->lz);
     int glossy = pm_material_is_glossy(m);
-    float scale = inv_p / (float)c->spp, wl[3];
-    for (int k = 0; k < 3; k++)
-        wl[k] = m->kd[k] * scale; /* Lambertian: (kd/pi) cos / (cos/pi) = kd */
+    float scale = inv_p / (float)c->spp;
+    if (!glossy) {
+        /* Lambertian: (kd/pi) cos / (cos/pi) = kd for every ray; kd > 0 here. Whole
+         * arrays at once, in SIMD lanes. */
+        pm_rays_t *sr = &sc->sec;
+        size_t j0 = sr->n;
+        unsigned nq = c->spp;
+        float *dx = sr->dx + j0, *dy = sr->dy + j0, *dz = sr->dz + j0, *ox = sr->ox + j0, *oy = sr->oy + j0,
+              *oz = sr->oz + j0, *tn = sr->tnear + j0, *tf = sr->tfar + j0;
+        const float *lx = sc->lx, *ly = sc->ly, *lz = sc->lz;
+#pragma omp simd
+        for (unsigned q = 0; q < nq; q++) {
+            dx[q] = lx[q] * tb[0] + ly[q] * bb[0] + lz[q] * n[0];
+            dy[q] = lx[q] * tb[1] + ly[q] * bb[1] + lz[q] * n[1];
+            dz[q] = lx[q] * tb[2] + ly[q] * bb[2] + lz[q] * n[2];
+            ox[q] = o[0], oy[q] = o[1], oz[q] = o[2];
+            tn[q] = 0.0f, tf[q] = INFINITY;
+        }
+        float w0 = m->kd[0] * scale, w1 = m->kd[1] * scale, w2 = m->kd[2] * scale, *w = sc->sec_w + 3 * j0;
+        uint32_t *px = sc->sec_px + j0;
+        for (unsigned q = 0; q < nq; q++) {
+            w[3 * q] = w0, w[3 * q + 1] = w1, w[3 * q + 2] = w2;
+            px[q] = x;
+        }
+        sr->n += nq;
+        return 1;
+    }
     for (unsigned q = 0; q < c->spp; q++) {
-        pm_vec3_t l = pm_sample_cosine_hemisphere(sc->u1[q], sc->u2[q]);
         float wi[3];
         for (int k = 0; k < 3; k++)
-            wi[k] = l.x * tb[k] + l.y * bb[k] + l.z * n[k];
+            wi[k] = sc->lx[q] * tb[k] + sc->ly[q] * bb[k] + sc->lz[q] * n[k];
         size_t j = sc->sec.n;
-        float *w = sc->sec_w + 3 * j;
-        if (glossy) {
-            float f[3];
-            brdf(m, n, wi, wo, f);
-            for (int k = 0; k < 3; k++)
-                w[k] = f[k] * PM_PI * scale;
-        } else {
-            w[0] = wl[0], w[1] = wl[1], w[2] = wl[2];
-        }
+        float *w = sc->sec_w + 3 * j, f[3];
+        brdf(m, n, wi, wo, f); /* glossy: weight pi f / N per ray */
+        for (int k = 0; k < 3; k++)
+            w[k] = f[k] * PM_PI * scale;
         if (!(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f))
             continue; /* carries nothing: not traced */
         sc->sec_px[j] = x;
@@ -447,7 +474,24 @@ static int shade_primary(const tgp_ctx_t *c, tgp_scratch_t *sc, size_t i, uint32
 }
 
 /* Traces row y: direct radiance into direct[0 .. 3w), queries appended to out in pixel order. */
+static double thread_cpu(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static pm_result_t trace_row_body(const tgp_ctx_t *c, tgp_scratch_t *sc, uint32_t y, double *direct, bytebuf_t *out);
+
 static pm_result_t trace_row(const tgp_ctx_t *c, tgp_scratch_t *sc, uint32_t y, double *direct, bytebuf_t *out)
+{
+    double t0 = thread_cpu();
+    pm_result_t r = trace_row_body(c, sc, y, direct, out);
+    sc->cpu_rows += thread_cpu() - t0;
+    return r;
+}
+
+static pm_result_t trace_row_body(const tgp_ctx_t *c, tgp_scratch_t *sc, uint32_t y, double *direct, bytebuf_t *out)
 {
     const pm_scene_t *s = c->s;
     size_t np = (size_t)c->w * c->primary;
@@ -551,8 +595,10 @@ static pm_result_t setup(tgp_ctx_t *c, const pm_scene_t *s, const pm_rt_t *rt, c
     if (c->mode == MODE_GATHER) {
         int64_t spp = o->spp ? o->spp : s->defaults.spp;
         if (spp <= 0 || spp % PER_CELL != 0 || spp > 65536)
-            return pm_error_set(PM_ERR_USAGE, "%s %" PRId64 " is not a positive multiple of %d up to 65536 (%d samples per stratum cell)",
-                                o->spp ? "--spp" : "the scene's render.spp", spp, PER_CELL, PER_CELL);
+            return pm_error_set(o->spp ? PM_ERR_USAGE : PM_ERR_INPUT,
+                                "%s%s%s %" PRId64 " is not a positive multiple of %d up to 65536 (%d samples per stratum cell)",
+                                o->spp ? "--spp" : "scene '", o->spp ? "" : s->path, o->spp ? "" : "': render.spp", spp,
+                                PER_CELL, PER_CELL);
         c->spp = (unsigned)spp;
         pm_strata_grid(c->spp / PER_CELL, &c->nx, &c->ny);
     }
@@ -711,8 +757,9 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
     pm_progress_end(&prog);
 
     uint64_t np = 0, nsec = 0, nsh = 0, nq = 0;
-    double t_sec = 0.0;
+    double t_sec = 0.0, cpu_rows = 0.0;
     for (int t = 0; t < nthreads && scr; t++) {
+        cpu_rows += scr[t].cpu_rows;
         np += scr[t].n_primary, nsec += scr[t].n_secondary, nsh += scr[t].n_shadow, nq += scr[t].n_queries;
         t_sec += scr[t].t_secondary;
     }
@@ -787,6 +834,8 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
         pm_stage_stat_double(st, "spool_s", t_spool);
         pm_stage_stat_double(st, "rays_per_s", t_trace > 0 ? (double)rays / t_trace : 0.0);
         pm_stage_stat_double(st, "secondary_rays_per_s", t_trace > 0 ? (double)nsec / t_trace : 0.0);
+        pm_stage_stat_double(st, "trace_cpu_s", cpu_rows);
+        pm_stage_stat_double(st, "secondary_rays_per_cpu_s", cpu_rows > 0 ? (double)nsec / cpu_rows : 0.0);
         pm_stage_stat_double(st, "secondary_embree_s", t_sec);
         pm_stage_stat_double(st, "secondary_embree_rays_per_core_s", t_sec > 0 ? (double)nsec / t_sec : 0.0);
         st->items = nq;

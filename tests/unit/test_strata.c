@@ -1,6 +1,8 @@
 /* test_strata.c: the final-gather sampler puts exactly four points in every cell. */
+#include <math.h>
 #include <stdlib.h>
 
+#include "../../common/sampling.h"
 #include "../../common/strata.h"
 #include "unit.h"
 
@@ -64,7 +66,27 @@ static void test_strata_cell_edges(void **state)
     }
 }
 
+/* The batch warp is the concentric cosine map of sampling.h, within float noise. */
+static void test_strata_cosine_matches_concentric(void **state)
+{
+    enum { N = 4096 };
+    static float u1[N], u2[N], x[N], y[N], z[N];
+    pm_rng_t r;
+    pm_rng_init(&r, 11, 0);
+    for (unsigned i = 0; i < N; i++)
+        u1[i] = pm_rng_float(&r), u2[i] = pm_rng_float(&r);
+    u1[0] = u2[0] = 0.5f; /* the centre */
+    u1[1] = 0.0f, u2[1] = 0.5f;
+    pm_strata_cosine(u1, u2, N, x, y, z);
+    for (unsigned i = 0; i < N; i++) {
+        pm_vec3_t d = pm_sample_cosine_hemisphere(u1[i], u2[i]);
+        assert_true(fabsf(d.x - x[i]) < 2e-6f && fabsf(d.y - y[i]) < 2e-6f && fabsf(d.z - z[i]) < 2e-3f);
+        assert_true(fabsf(x[i] * x[i] + y[i] * y[i] + z[i] * z[i] - 1.0f) < 1e-5f && z[i] >= 0.0f);
+    }
+}
+
 static const struct CMUnitTest tests[] = {
+    cmocka_unit_test(test_strata_cosine_matches_concentric),
     cmocka_unit_test(test_strata_grid_shapes),
     cmocka_unit_test(test_strata_four_per_cell),
     cmocka_unit_test(test_strata_cell_edges),

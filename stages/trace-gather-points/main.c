@@ -66,6 +66,7 @@ typedef struct {
     float *tri_n;          /* unit front normal per triangle, (v1-v0) x (v2-v0): the emitting side */
     double *light_cdf;     /* cumulative emissive area over the emissive triangles, ending at 1 */
     double light_area;     /* m^2, all emissive triangles */
+    float *fold;           /* per material: kd/pi when Lambertian, 1 1 1 when glossy (the weight contract) */
     uint32_t w, h;
     unsigned spp, primary, light_samples, nx, ny;
     int mode, width, has_mat, has_dir;
@@ -555,6 +556,9 @@ static pm_result_t trace_row_body(const tgp_ctx_t *c, tgp_scratch_t *sc, uint32_
     sc->t_secondary += pm_time_wall() - t0;
     sc->n_secondary += sc->sec.n;
     const pm_rays_t *sr = &sc->sec;
+    /* Room for every ray's record up front: the loop below then only stores. */
+    if (!grow((void **)&out->p, 1, &out->cap, out->n + sr->n * c->record_size))
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for the queries of row %" PRIu32, y);
     for (size_t j = 0; j < sr->n; j++) {
         uint32_t tri = sr->prim[j];
         if (tri == PM_RAY_MISS)
@@ -567,11 +571,11 @@ static pm_result_t trace_row_body(const tgp_ctx_t *c, tgp_scratch_t *sc, uint32_
         for (int k = 0; k < 3; k++)
             n[k] = side * ng[k];
         uint32_t mi = s->tri_material[tri];
-        float w[3];
-        if (!query_weight(&s->materials[mi], sc->sec_w + 3 * j, w))
-            continue;
-        if (!put_query(c, out, q, n, w, y * c->w + sc->sec_px[j], mi, wo))
-            return pm_error_set(PM_ERR_NOMEM, "out of memory for the queries of row %" PRIu32, y);
+        const float *fold = c->fold + 3 * (size_t)mi, *rw = sc->sec_w + 3 * j;
+        float w[3] = {rw[0] * fold[0], rw[1] * fold[1], rw[2] * fold[2]};
+        if (!(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f))
+            continue; /* a black query surface */
+        put_query(c, out, q, n, w, y * c->w + sc->sec_px[j], mi, wo); /* room reserved above */
         sc->n_queries++;
     }
     return PM_OK;
@@ -626,6 +630,13 @@ static pm_result_t setup(tgp_ctx_t *c, const pm_scene_t *s, const pm_rt_t *rt, c
     c->tan_half = tanf(0.5f * cam->fov_y * PM_PI / 180.0f);
     c->aspect = (float)c->w / (float)c->h;
 
+    c->fold = malloc((s->nmaterials ? s->nmaterials : 1) * 3 * sizeof(float));
+    if (!c->fold)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory");
+    for (size_t m = 0; m < s->nmaterials; m++) {
+        float one[3] = {1.0f, 1.0f, 1.0f};
+        query_weight(&s->materials[m], one, c->fold + 3 * m);
+    }
     c->tri_n = malloc((s->ntris ? s->ntris : 1) * 3 * sizeof(float));
     c->light_cdf = malloc((s->nemissive ? s->nemissive : 1) * sizeof(double));
     if (!c->tri_n || !c->light_cdf)
@@ -850,6 +861,7 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
     free(direct);
     free(c.tri_n);
     free(c.light_cdf);
+    free(c.fold);
     spool_free(&sp);
     return r;
 }

@@ -50,6 +50,28 @@ static void test_strata_four_per_cell(void **state)
     free(u1), free(u2), free(count);
 }
 
+/* The block-at-a-time draw hands out the numbers pm_rng_float would, and leaves the
+ * generator where sequential draws would. */
+static void test_strata_same_draws(void **state)
+{
+    float a1[64], a2[64];
+    for (unsigned spp = 4; spp <= 64; spp += 4) {
+        pm_rng_t r, s;
+        pm_rng_init(&r, 99, 5);
+        pm_rng_init(&s, 99, 5);
+        unsigned nx, ny;
+        pm_strata_grid(spp / 4, &nx, &ny);
+        pm_strata_fill(&r, nx, ny, 4, a1, a2);
+        for (unsigned i = 0; i < spp; i++) {
+            float u = pm_rng_float(&s), v = pm_rng_float(&s);
+            assert_true((unsigned)(a1[i] * nx) == (i / 4) % nx && (unsigned)(a2[i] * ny) == (i / 4) / nx);
+            assert_true(fabsf(a1[i] * nx - (float)((i / 4) % nx) - u) < 1e-5f * nx);
+            assert_true(fabsf(a2[i] * ny - (float)((i / 4) / nx) - v) < 1e-5f * ny);
+        }
+        assert_int_equal(pm_rng_u32(&r), pm_rng_u32(&s));
+    }
+}
+
 /* Points drawn at the very top of a cell stay inside it. */
 static void test_strata_cell_edges(void **state)
 {
@@ -90,5 +112,6 @@ static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_strata_grid_shapes),
     cmocka_unit_test(test_strata_four_per_cell),
     cmocka_unit_test(test_strata_cell_edges),
+    cmocka_unit_test(test_strata_same_draws),
 };
 UNIT_GROUP(unit_strata, "strata", tests);

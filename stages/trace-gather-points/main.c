@@ -13,7 +13,7 @@
  *
  * Rows are the unit of work; rows of a band run in parallel and their records are emitted
  * in pixel order, so the output is the same bytes for any --threads. Records are spooled
- * (memory, then an unlinked temporary file past SPOOL_MEM_MAX) because the header's COUNT
+ * (memory, then an unlinked temporary file past --spool-mem) because the header's COUNT
  * must be known before the first record is written. */
 #include <errno.h>
 #include <fcntl.h>
@@ -37,7 +37,6 @@
 #include "../../formats/formats.h"
 
 #define BAND_ROWS 32                      /* rows traced in parallel before their records are emitted */
-#define SPOOL_MEM_MAX ((size_t)256 << 20) /* bytes of records held in memory before spilling to a file */
 #define PER_CELL 4                        /* samples per stratum cell: the paper's four */
 
 /* RNG streams: pixel p draws from stream 4p + purpose, so each phase of a pixel is
@@ -55,6 +54,7 @@ typedef struct {
     int64_t primary;       /* primary rays per pixel */
     int64_t light_samples; /* area-light samples per primary hit */
     int64_t width, height; /* image size; 0: the scene camera's */
+    int64_t spool_mb;      /* MiB of records held in memory before they spill to a temporary file */
     int mode, schedule;
     const char *isa;
 } tgp_options_t;
@@ -76,9 +76,12 @@ typedef struct {
     float eye[3], fwd[3], right[3], up[3], tan_half, aspect;
 } tgp_ctx_t;
 
-/* A worker's scratch, reused row after row. */
+/* A worker's scratch, reused row after row. Cache-line aligned, like bytebuf_t: each is
+ * written on every ray by one thread, and neighbours sharing a line made two threads slower
+ * than one on the atrium. */
 typedef struct {
-    pm_rays_t prim, shadow, sec;
+    _Alignas(64) pm_rays_t prim;
+    pm_rays_t shadow, sec;
     float *hit;            /* per primary ray: position[3], normal[3] (facing the ray), wo[3] */
     size_t hit_cap;
     uint32_t *sh_px;       /* shadow ray -> pixel column */
@@ -94,7 +97,7 @@ typedef struct {
 } tgp_scratch_t;
 
 typedef struct {
-    unsigned char *p;
+    _Alignas(64) unsigned char *p;
     size_t n, cap;         /* bytes */
     uint64_t count;        /* records */
 } bytebuf_t;
@@ -105,6 +108,7 @@ typedef struct {
     unsigned char **chunk; /* records in memory, chunk_bytes each (whole records), the last one filling */
     size_t nchunks, chunk_cap, fill, chunk_bytes;
     size_t held;           /* bytes in memory */
+    size_t mem_max;        /* bytes held in memory before spilling */
     FILE *f;               /* spilled records, NULL while they fit in memory */
     const char *dir;       /* where a spill file goes */
     uint64_t count;
@@ -132,7 +136,7 @@ static pm_result_t spool_spill(spool_t *sp)
 static pm_result_t spool_add(spool_t *sp, const bytebuf_t *b)
 {
     sp->count += b->count;
-    if (!sp->f && sp->held + b->n > SPOOL_MEM_MAX) {
+    if (!sp->f && sp->held + b->n > sp->mem_max) {
         pm_result_t r = spool_spill(sp);
         if (r != PM_OK)
             return r;
@@ -706,7 +710,9 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
     tgp_ctx_t c;
     pm_result_t r = setup(&c, s, rt, o, st, isa);
     int nthreads = st->threads_used > 0 ? st->threads_used : 1;
-    tgp_scratch_t *scr = calloc((size_t)nthreads, sizeof *scr);
+    tgp_scratch_t *scr = aligned_alloc(64, (size_t)nthreads * sizeof *scr);
+    if (scr)
+        memset(scr, 0, (size_t)nthreads * sizeof *scr);
     bytebuf_t rows[BAND_ROWS];
     pm_result_t row_r[BAND_ROWS];
     memset(rows, 0, sizeof rows);
@@ -722,6 +728,7 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
             strcpy(dir, ".");
     }
     sp.dir = dir;
+    sp.mem_max = (size_t)o->spool_mb << 20;
     sp.chunk_bytes = (size_t)c.record_size << 17; /* whole records, >= 4 MiB: huge pages (common/memory.h) */
     if (r == PM_OK && (!scr || !direct))
         r = pm_error_set(PM_ERR_NOMEM, "out of memory for a %" PRIu32 "x%" PRIu32 " direct buffer", c.w, c.h);
@@ -870,7 +877,7 @@ int main(int argc, char **argv)
 {
     pm_stage_t st;
     pm_stage_defaults(&st);
-    tgp_options_t o = {.primary = 1, .light_samples = 4, .isa = "auto"};
+    tgp_options_t o = {.primary = 1, .light_samples = 4, .isa = "auto", .spool_mb = 256};
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
         {"direct", 0, PM_OPT_STRING, &o.direct, "FILE",
@@ -891,6 +898,9 @@ int main(int argc, char **argv)
         {"schedule", 0, PM_OPT_CHOICE, &o.schedule, "HOW",
          "rows to threads: interleave (row i to thread i mod T), tiles (contiguous blocks), dynamic", 1, 0,
          schedule_names},
+        {"spool-mem", 0, PM_OPT_INT, &o.spool_mb, "MIB",
+         "MiB of query records held in memory; past that they go to a temporary file beside the output", 0, 1 << 20,
+         NULL},
         {0},
     };
     const pm_cli_t cli = {"trace-gather-points", "[options] SCENE -o QUERIES [--direct RADIANCE]",

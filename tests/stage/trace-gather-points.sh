@@ -49,6 +49,14 @@ for args in "--spp 16" "--spp 8 --primary 3" "--mode direct-vis"; do
         fail "$args: threads/schedules identical" "outputs differ"
     fi
 done
+# records spilled to a temporary file (--spool-mem 0) come out the same
+"$T" -q "$CORNELL" --width 40 --height 24 --spp 16 --spool-mem 0 --stats "$TMP/sp.json" -o "$TMP/sp.pm"
+"$T" -q "$CORNELL" --width 40 --height 24 --spp 16 -o "$TMP/mem.pm"
+if grep -q '"spooled_to_file": 1' "$TMP/sp.json" && same_payload "$TMP/sp.pm" "$TMP/mem.pm" && [ -z "$(ls -A "$TMP" | grep '^\.sp')" ]; then
+    pass "records spooled through a temporary file are the same, and no file is left"
+else
+    fail "--spool-mem 0" "$(cat "$TMP/sp.json" 2>&1 | head -c 300)"
+fi
 # queries of one pixel are contiguous and pixels come in order
 "$T" -q "$CORNELL" --width 40 --height 24 --spp 8 -o "$TMP/o.pm"
 if records "$TMP/o.pm" | awk '{ if ($11 < last) bad = 1; last = $11 } END { exit bad }'; then

@@ -88,7 +88,7 @@ typedef struct {
     float *sh_c;           /* shadow ray -> RGB radiance it adds when unblocked, W/(m^2 sr) */
     uint32_t *sec_px;      /* secondary ray -> pixel column */
     float *sec_w;          /* secondary ray -> RGB path weight (f cos / pdf / N / primary) */
-    size_t sh_cap, sec_cap;
+    size_t sh_px_cap, sh_c_cap, sec_px_cap, sec_w_cap; /* elements allocated */
     float *u1, *u2;        /* spp stratified points */
     float *lx, *ly, *lz;   /* their cosine-weighted directions in the local frame */
     uint64_t n_primary, n_secondary, n_shadow, n_queries;
@@ -238,15 +238,13 @@ static int grow(void **p, size_t elem, size_t *cap, size_t want)
 
 static pm_result_t scratch_reserve(tgp_scratch_t *sc, size_t nprim, size_t nshadow, size_t nsec, unsigned spp)
 {
-    size_t hc = sc->hit_cap, sc1 = sc->sh_cap, sc2 = sc->sh_cap, ss1 = sc->sec_cap, ss2 = sc->sec_cap;
     if (pm_rays_reserve(&sc->prim, nprim) != PM_OK || pm_rays_reserve(&sc->shadow, nshadow) != PM_OK ||
-        pm_rays_reserve(&sc->sec, nsec) != PM_OK || !grow((void **)&sc->hit, 9 * sizeof(float), &hc, nprim) ||
-        !grow((void **)&sc->sh_px, sizeof(uint32_t), &sc1, nshadow) ||
-        !grow((void **)&sc->sh_c, 3 * sizeof(float), &sc2, nshadow) ||
-        !grow((void **)&sc->sec_px, sizeof(uint32_t), &ss1, nsec) ||
-        !grow((void **)&sc->sec_w, 3 * sizeof(float), &ss2, nsec))
+        pm_rays_reserve(&sc->sec, nsec) != PM_OK || !grow((void **)&sc->hit, 9 * sizeof(float), &sc->hit_cap, nprim) ||
+        !grow((void **)&sc->sh_px, sizeof(uint32_t), &sc->sh_px_cap, nshadow) ||
+        !grow((void **)&sc->sh_c, 3 * sizeof(float), &sc->sh_c_cap, nshadow) ||
+        !grow((void **)&sc->sec_px, sizeof(uint32_t), &sc->sec_px_cap, nsec) ||
+        !grow((void **)&sc->sec_w, 3 * sizeof(float), &sc->sec_w_cap, nsec))
         return pm_error_set(PM_ERR_NOMEM, "out of memory for a row of %zu rays", nprim + nshadow + nsec);
-    sc->hit_cap = hc, sc->sh_cap = sc1 < sc2 ? sc1 : sc2, sc->sec_cap = ss1 < ss2 ? ss1 : ss2;
     if (!sc->u1 && spp) {
         sc->u1 = malloc(spp * sizeof(float));
         sc->u2 = malloc(spp * sizeof(float));

@@ -1,0 +1,177 @@
+/* gather_kernel.h: the packet traversal and shading of the gather, written once for every
+ * SIMD width. Included by gather_isa.c once per ISA, with these defined:
+ *
+ *   W            lanes (1, 4, 8, 16)           FN(x)        name suffix for this ISA and VAR
+ *   VAR          0: one fixed width h; 1: per-photon widths (the map's width channel)
+ *   V            the vector type               VSET1(x), VLOAD(p), VSTORE(p, v), VADD,
+ *   VSUB, VMUL, VFMA(a, b, c) = a b + c        BLE(a, b), BLT, BGE: lane bits of a <= b, ...
+ *   VMASKED(bits, v): v in the lanes of bits, 0 elsewhere; FLUSH(ar, ag, ab, dacc): adds the
+ *   float accumulators to the double ones (every GATHER_FLUSH shading steps, so that a
+ *   million photons summed into one query keep their digits)
+ *
+ * The walk follows the paper's pseudocode (section 5.3): the packet descends with a lane
+ * mask; at an inner node a lane stays live on the left when its sphere reaches below the
+ * plane and on the right when it reaches above; the node's photon (which lies on the plane)
+ * is shaded for the lanes live on both sides, and the shading applies the exact distance
+ * and normal tests per lane. Planes are compared with a radius grown by the map's
+ * coordinate slack (the split value differs from the photon's coordinate in its low 2
+ * mantissa bits), so no photon in reach is ever skipped. */
+
+static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t end, double *out,
+                               pm_gather_stats_t *st)
+{
+    const pm_gather_map_t *m = c->m;
+    const pm_gather_queries_t *q = c->q;
+    const pm_kdnode_t *node = m->node;
+    const float *pos = m->pos, *pnor = m->normal, *ppow = m->power;
+    uint64_t ops = 0, steps = 0, lanes = 0, visits = 0, packets = 0;
+    const uint32_t full = W == 32 ? 0xffffffffu : (1u << W) - 1u;
+#if !VAR
+    const V rt = VSET1(c->r_trav), nrt = VSET1(-c->r_trav), r2 = VSET1(c->r2);
+#endif
+    const V ncos = VSET1(c->normal_cos), one = VSET1(1.0f), kscale = VSET1(c->kscale), kinv = VSET1(c->inv_r2);
+    const int epan = c->kernel == PM_KERNEL_EPANECHNIKOV;
+
+    for (uint64_t b = begin; b < end; b += W) {
+        uint32_t nl = end - b < (uint64_t)W ? (uint32_t)(end - b) : (uint32_t)W;
+        _Alignas(64) float lq[6][W];
+        uint32_t glossy = 0; /* lanes whose material needs the full BRDF per pair */
+        for (uint32_t l = 0; l < W; l++) {
+            uint64_t i = b + (l < nl ? l : 0); /* idle lanes repeat lane 0: valid numbers */
+            for (int k = 0; k < 3; k++) {
+                lq[k][l] = q->pos[3 * i + k];
+                lq[3 + k][l] = q->normal[3 * i + k];
+            }
+            if (c->glossy && l < nl && c->mat_glossy[q->material ? q->material[i] : 0])
+                glossy |= 1u << l;
+        }
+        const V qx = VLOAD(lq[0]), qy = VLOAD(lq[1]), qz = VLOAD(lq[2]);
+        const V nx = VLOAD(lq[3]), ny = VLOAD(lq[4]), nz = VLOAD(lq[5]);
+        V qa[3] = {qx, qy, qz};
+        uint32_t active = nl == W ? full : (1u << nl) - 1u;
+        V ar = VSET1(0.0f), ag = VSET1(0.0f), ab = VSET1(0.0f);
+        double dacc[3][W];
+        for (int k = 0; k < 3; k++)
+            for (uint32_t l = 0; l < W; l++)
+                dacc[k][l] = 0.0;
+        uint32_t since_flush = 0;
+        packets++;
+
+        struct {
+            uint32_t node, mask;
+        } stack[PM_KD_MAX_DEPTH + 1];
+        int sp = 0;
+        uint32_t ni = 0, mask = m->n ? active : 0;
+        while (mask) {
+            visits++;
+            pm_kdnode_t nd = node[ni];
+            uint32_t bits;
+            memcpy(&bits, &nd.split, 4);
+            uint32_t axis = bits & 3u, shade = mask, ml = 0, mr = 0, right = PM_KD_NONE;
+#if VAR
+            const float wi = m->width[ni];
+#endif
+            if (axis != PM_KD_LEAF) {
+                V dist = VSUB(qa[axis], VSET1(nd.split));
+                uint32_t child = nd.child;
+                int has_left = child != ni + 1;
+                right = has_left ? child : ni + 1;
+#if VAR
+                float wl = has_left ? m->subtree_width[ni + 1] + c->slack : 0.0f;
+                float wr = right != PM_KD_NONE ? m->subtree_width[right] + c->slack : 0.0f;
+                float ws = wi + c->slack;
+                ml = has_left ? mask & BLE(dist, VSET1(wl)) : 0;
+                mr = right != PM_KD_NONE ? mask & BGE(dist, VSET1(-wr)) : 0;
+                shade = mask & BLE(dist, VSET1(ws)) & BGE(dist, VSET1(-ws));
+#else
+                ml = mask & BLE(dist, rt);
+                mr = mask & BGE(dist, nrt);
+                shade = ml & mr; /* only a lane live on both sides can reach the plane's photon */
+                ml = has_left ? ml : 0;
+                mr = right != PM_KD_NONE ? mr : 0;
+#endif
+            }
+            if (shade) {
+                const float *pp = &pos[3 * (size_t)ni];
+                V dx = VSUB(qx, VSET1(pp[0])), dy = VSUB(qy, VSET1(pp[1])), dz = VSUB(qz, VSET1(pp[2]));
+                V d2 = VFMA(dx, dx, VFMA(dy, dy, VMUL(dz, dz)));
+#if VAR
+                const float h2 = wi * wi;
+                uint32_t hit = shade & BLT(d2, VSET1(h2));
+#else
+                uint32_t hit = shade & BLT(d2, r2);
+#endif
+                steps++;
+                lanes += (uint64_t)__builtin_popcount(shade);
+                if (hit) {
+                    const float *pn = &pnor[3 * (size_t)ni];
+                    V dot = VFMA(nx, VSET1(pn[0]), VFMA(ny, VSET1(pn[1]), VMUL(nz, VSET1(pn[2]))));
+                    hit &= BGE(dot, ncos);
+                }
+                if (hit) {
+                    ops += (uint64_t)__builtin_popcount(hit);
+#if VAR
+                    const float ks = c->kscale_unit / h2, ki = 1.0f / h2;
+                    V kv = epan ? VMUL(VSET1(ks), VSUB(one, VMUL(d2, VSET1(ki)))) : VSET1(ks);
+                    (void)kscale, (void)kinv;
+#else
+                    V kv = epan ? VMUL(kscale, VSUB(one, VMUL(d2, kinv))) : kscale;
+#endif
+                    const float *pw = &ppow[3 * (size_t)ni];
+                    uint32_t diffuse = hit & ~glossy;
+                    if (diffuse) {
+                        V kd = VMASKED(diffuse, kv);
+                        ar = VFMA(kd, VSET1(pw[0]), ar);
+                        ag = VFMA(kd, VSET1(pw[1]), ag);
+                        ab = VFMA(kd, VSET1(pw[2]), ab);
+                        if (++since_flush == GATHER_FLUSH) {
+                            FLUSH(ar, ag, ab, dacc);
+                            ar = ag = ab = VSET1(0.0f);
+                            since_flush = 0;
+                        }
+                    }
+                    if (hit & glossy) { /* per lane: each may have its own material */
+                        _Alignas(64) float kl[W];
+                        VSTORE(kl, kv);
+                        for (uint32_t g = hit & glossy; g; g &= g - 1) {
+                            uint32_t l = (uint32_t)__builtin_ctz(g);
+                            gather_glossy_lane(c, b + l, ni, kl[l], &dacc[0][0], W, l);
+                        }
+                    }
+                }
+            }
+            if (ml) {
+                if (mr) {
+                    stack[sp].node = right;
+                    stack[sp].mask = mr;
+                    sp++;
+                }
+                ni = ni + 1;
+                mask = ml;
+                continue;
+            }
+            if (mr) {
+                ni = right;
+                mask = mr;
+                continue;
+            }
+            if (!sp)
+                break;
+            sp--;
+            ni = stack[sp].node;
+            mask = stack[sp].mask;
+        }
+        FLUSH(ar, ag, ab, dacc);
+        for (uint32_t l = 0; l < nl; l++) {
+            const float *w = &q->weight[3 * (b + l)];
+            double *o = &out[3 * (b + l - begin)];
+            for (int k = 0; k < 3; k++)
+                o[k] = dacc[k][l] * w[k];
+        }
+    }
+    st->shader_ops += ops;
+    st->shade_steps += steps;
+    st->active_lanes += lanes;
+    st->nodes_visited += visits;
+    st->packets += packets;
+}

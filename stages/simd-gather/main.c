@@ -1,0 +1,272 @@
+/* simd-gather: photon map + gather points -> indirect radiance buffer (the paper,
+ * sections 3, 5.3 and 7).
+ *
+ * Every query receives the sample-point estimate of the photons around it, multiplied by
+ * its weight, and each query's result is added to its pixel. Packets of W consecutive
+ * queries (W = 16, 8, 4 or 1 by --isa) walk the KD-tree together; hilbert-sort is what
+ * makes consecutive queries close, so that the lanes of a packet stay live together. The
+ * sums per query are in double, and queries are added to pixels in file order, so the
+ * buffer is the same for any thread count. common/gather.c does the work. */
+#include <inttypes.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../../common/gather.h"
+#include "../../common/memory.h"
+#include "../../common/stage.h"
+#include "../../formats/formats.h"
+
+static const char *const kernel_names[] = {"uniform", "epanechnikov", NULL};
+static const char *const width_names[] = {"fixed", "variable", NULL};
+
+typedef struct {
+    double radius;
+    double k;
+    int kernel, widths;
+    double normal_cos;
+    const char *isa;
+    const char *range;
+} gather_options_t;
+
+/* Positions and normals of s queries spread evenly over the whole file, read in one
+ * streaming pass (for the radius of --k when only a range is gathered, so that every shard
+ * of a render uses the same radius). */
+static pm_result_t sample_file(const char *path, uint32_t s, float **pos_out, float **nor_out, uint32_t *got_out)
+{
+    pm_reader_t *r;
+    pm_result_t res = pm_reader_open(path, &pm_queries_schema, pm_schema_required(&pm_queries_schema), &r);
+    if (res != PM_OK)
+        return res;
+    const pm_header_t *h = pm_reader_header(r);
+    uint64_t n = h->count;
+    uint32_t rs = h->record_size, op = pm_schema_offset(&pm_queries_schema, h->channels, PM_QUERY_POSITION),
+             on = pm_schema_offset(&pm_queries_schema, h->channels, PM_QUERY_NORMAL);
+    if (n < s)
+        s = (uint32_t)n;
+    float *pos = malloc((s ? s : 1) * 12), *nor = malloc((s ? s : 1) * 12);
+    const uint64_t chunk = 65536;
+    unsigned char *buf = malloc(chunk * rs);
+    if (!pos || !nor || !buf) {
+        res = pm_error_set(PM_ERR_NOMEM, "out of memory sampling '%s'", path);
+    } else {
+        uint64_t at = 0, got;
+        uint32_t j = 0;
+        while (res == PM_OK && (res = pm_reader_read(r, buf, chunk, &got)) == PM_OK && got) {
+            for (; j < s; j++) {
+                uint64_t want = (2 * (uint64_t)j + 1) * n / (2 * (uint64_t)s);
+                if (want >= at + got)
+                    break;
+                memcpy(&pos[3 * j], buf + (want - at) * rs + op, 12);
+                memcpy(&nor[3 * j], buf + (want - at) * rs + on, 12);
+            }
+            at += got;
+        }
+        if (res == PM_OK)
+            res = pm_reader_finish(r, NULL);
+        *got_out = j;
+    }
+    pm_reader_close(r);
+    free(buf);
+    if (res != PM_OK) {
+        free(pos), free(nor);
+        return res;
+    }
+    *pos_out = pos, *nor_out = nor;
+    return PM_OK;
+}
+
+static pm_result_t run(pm_stage_t *st, const gather_options_t *o)
+{
+    const char *map_path = st->args.args[0], *q_path = st->args.args[1];
+    pm_table_t mt = {0}, qt = {0}, out = {0};
+    pm_gather_map_t map = {0};
+    pm_gather_queries_t q = {0};
+    pm_material_t *mats = NULL;
+    double *per_query = NULL;
+    pm_isa_t isa;
+    pm_result_t r = pm_isa_parse(o->isa, &isa);
+    if (r != PM_OK)
+        return r;
+    uint64_t begin = 0, end = UINT64_MAX;
+    int ranged = o->range != NULL;
+    if (ranged && (r = pm_args_parse_range(o->range, &begin, &end)) != PM_OK)
+        return r;
+    if (o->radius == 0.0 && o->k <= 0.0 && !o->widths)
+        return pm_error_set(PM_ERR_USAGE, "give --radius R or --k K (photons per query) for a fixed kernel width");
+
+    double t0 = pm_time_wall();
+    if ((r = pm_table_read(map_path, &pm_photonmap_schema, pm_schema_required(&pm_photonmap_schema), &mt)) != PM_OK)
+        return r;
+    r = ranged ? pm_table_read_range(q_path, &pm_queries_schema, pm_schema_required(&pm_queries_schema), begin, end, &qt)
+               : pm_table_read(q_path, &pm_queries_schema, pm_schema_required(&pm_queries_schema), &qt);
+    if (r != PM_OK)
+        goto done;
+    double t_read = pm_time_wall() - t0;
+    uint64_t total_queries = qt.hdr.count;
+    if (begin > total_queries)
+        begin = total_queries;
+    if (end > total_queries)
+        end = total_queries;
+    const char *wk = pm_header_get(&qt.hdr, "weights");
+    if (!wk || strcmp(wk, "lambertian-brdf-folded") != 0) {
+        r = pm_error_set(PM_ERR_INPUT, "queries '%s' do not say which weight contract they follow (weights=%s; "
+                         "expected lambertian-brdf-folded, docs/formats.md 3.3)", q_path, wk ? wk : "missing");
+        goto done;
+    }
+    const char *sm = pm_header_get(&mt.hdr, "SCENE"), *sq = pm_header_get(&qt.hdr, "SCENE");
+    if (sm && sq && strcmp(sm, sq) != 0) {
+        r = pm_error_set(PM_ERR_INPUT, "photon map '%s' is of scene '%s' but queries '%s' are of scene '%s'", map_path,
+                         sm, q_path, sq);
+        goto done;
+    }
+    uint32_t width, height;
+    if ((r = pm_header_get_image_size(&qt.hdr, q_path, &width, &height)) != PM_OK)
+        goto done;
+    if ((r = pm_gather_map_init(&map, &mt, o->widths)) != PM_OK ||
+        (r = pm_gather_queries_init(&q, &qt, q_path, &mats)) != PM_OK)
+        goto done;
+
+    /* The kernel width. */
+    double radius = o->radius, t_radius = 0.0;
+    if (!o->widths && radius == 0.0) {
+        t0 = pm_time_wall();
+        const uint32_t samples = 2000;
+        if (!ranged || (begin == 0 && end == total_queries)) {
+            radius = pm_gather_radius_for_k(&map, &q, o->k, (float)o->normal_cos, samples);
+        } else if (strcmp(q_path, "-") == 0) {
+            r = pm_error_set(PM_ERR_USAGE, "--k with --range needs the queries as a file, not stdin, so that every "
+                             "shard finds the same radius; or give --radius");
+            goto done;
+        } else {
+            float *sp, *sn;
+            uint32_t got = 0;
+            if ((r = sample_file(q_path, samples, &sp, &sn, &got)) != PM_OK)
+                goto done;
+            pm_gather_queries_t sq_all = {.n = got, .pos = sp, .normal = sn};
+            radius = pm_gather_radius_for_k(&map, &sq_all, o->k, (float)o->normal_cos, samples);
+            free(sp), free(sn);
+        }
+        t_radius = pm_time_wall() - t0;
+        if (!(radius > 0.0) && map.n && q.n) {
+            r = pm_error_set(PM_ERR_INPUT, "no radius gives %g photons per query", o->k);
+            goto done;
+        }
+        if (!(radius > 0.0))
+            radius = 1.0; /* nothing to gather: any width gives zero */
+    }
+
+    pm_gather_params_t p = {.radius = radius, .kernel = (pm_kernel_t)o->kernel, .variable = o->widths,
+                            .normal_cos = (float)o->normal_cos, .isa = isa};
+    uint64_t nq = end - begin;
+    per_query = pm_alloc_aligned((nq ? nq : 1) * 3 * sizeof *per_query);
+    if (!per_query) {
+        r = pm_error_set(PM_ERR_NOMEM, "out of memory for %" PRIu64 " query results", nq);
+        goto done;
+    }
+    pm_gather_stats_t gs;
+    t0 = pm_time_wall();
+    /* The table holds only [begin, end): its rows are the range, from 0. */
+    uint64_t row0 = qt.count == total_queries ? begin : 0;
+    r = pm_gather_run(&map, &q, row0, row0 + nq, &p, per_query, &gs);
+    double t_gather = pm_time_wall() - t0;
+    if (r != PM_OK)
+        goto done;
+
+    /* Queries into pixels, in file order: the same sums for any thread count. */
+    if ((r = pm_table_alloc(&out, &pm_radiance_schema, pm_schema_required(&pm_radiance_schema),
+                            (uint64_t)width * height)) != PM_OK)
+        goto done;
+    double *px = out.col[PM_RADIANCE_RGB];
+    for (uint64_t i = 0; i < nq; i++) {
+        uint32_t pi = q.pixel[row0 + i];
+        for (int k = 0; k < 3; k++)
+            px[3 * (size_t)pi + k] += per_query[3 * i + k];
+    }
+    pm_header_t *h = &out.hdr;
+    memcpy(h->bounds, qt.hdr.bounds, sizeof h->bounds);
+    if ((r = pm_header_inherit(h, &mt.hdr)) != PM_OK || (r = pm_header_inherit(h, &qt.hdr)) != PM_OK ||
+        (r = pm_header_add_input(h, map_path, mt.checksum)) != PM_OK ||
+        (r = pm_header_add_input(h, q_path, qt.checksum)) != PM_OK ||
+        (r = pm_header_add_command(h, st->argc, st->argv)) != PM_OK ||
+        (r = pm_header_set(h, "width", "%" PRIu32, width)) != PM_OK ||
+        (r = pm_header_set(h, "height", "%" PRIu32, height)) != PM_OK ||
+        (r = pm_header_set(h, "component", "indirect")) != PM_OK ||
+        (r = pm_header_set(h, "kernel", "%s", kernel_names[o->kernel])) != PM_OK ||
+        (r = pm_header_set(h, "widths", "%s", width_names[o->widths])) != PM_OK)
+        goto done;
+    if (!o->widths && (r = pm_header_set(h, "radius", "%.9g", radius)) != PM_OK)
+        goto done;
+    if (ranged && (r = pm_header_set(h, "range", "%" PRIu64 ":%" PRIu64, begin, end)) != PM_OK)
+        goto done;
+    t0 = pm_time_wall();
+    if ((r = pm_table_write(&out, st->output)) != PM_OK)
+        goto done;
+    double t_write = pm_time_wall() - t0;
+
+    int w = pm_isa_width(isa);
+    st->items = nq;
+    pm_stage_stat_string(st, "isa", pm_isa_name(isa));
+    pm_stage_stat_int(st, "packet_width", w);
+    pm_stage_stat_int(st, "queries", (int64_t)nq);
+    pm_stage_stat_int(st, "photons", map.n);
+    if (!o->widths)
+        pm_stage_stat_double(st, "radius_m", radius);
+    pm_stage_stat_string(st, "kernel", kernel_names[o->kernel]);
+    pm_stage_stat_int(st, "shader_ops", (int64_t)gs.shader_ops);
+    pm_stage_stat_double(st, "shader_ops_per_s", t_gather > 0 ? (double)gs.shader_ops / t_gather : 0.0);
+    pm_stage_stat_double(st, "shader_ops_per_s_per_thread",
+                         t_gather > 0 ? (double)gs.shader_ops / t_gather / st->threads_used : 0.0);
+    pm_stage_stat_double(st, "shader_ops_per_query", nq ? (double)gs.shader_ops / nq : 0.0);
+    pm_stage_stat_int(st, "photons_visited", (int64_t)gs.nodes_visited);
+    pm_stage_stat_int(st, "shade_steps", (int64_t)gs.shade_steps);
+    pm_stage_stat_double(st, "active_lanes", gs.shade_steps ? (double)gs.active_lanes / gs.shade_steps : 0.0);
+    pm_stage_stat_double(st, "active_lane_fraction",
+                         gs.shade_steps ? (double)gs.active_lanes / gs.shade_steps / w : 0.0);
+    pm_stage_stat_double(st, "read_s", t_read);
+    pm_stage_stat_double(st, "radius_s", t_radius);
+    pm_stage_stat_double(st, "gather_s", t_gather);
+    pm_stage_stat_double(st, "write_s", t_write);
+    pm_stage_note(st, "%" PRIu64 " queries, %" PRIu32 " photons, %s, %.3g shader ops/query, %.1f M shader ops/s, %.2f of %d lanes",
+                  nq, map.n, pm_isa_name(isa), nq ? (double)gs.shader_ops / nq : 0.0,
+                  t_gather > 0 ? gs.shader_ops / t_gather * 1e-6 : 0.0,
+                  gs.shade_steps ? (double)gs.active_lanes / gs.shade_steps : 0.0, w);
+done:
+    pm_free_aligned(per_query);
+    free(mats);
+    pm_gather_map_free(&map);
+    pm_table_free(&out);
+    pm_table_free(&qt);
+    pm_table_free(&mt);
+    return r;
+}
+
+int main(int argc, char **argv)
+{
+    pm_stage_t st;
+    pm_stage_defaults(&st);
+    gather_options_t o = {.radius = 0.0, .k = 50.0, .kernel = 1, .widths = 0, .normal_cos = 0.5, .isa = "auto"};
+    const pm_option_t options[] = {
+        PM_STAGE_COMMON_OPTIONS(st),
+        {"radius", 'r', PM_OPT_DOUBLE, &o.radius, "R", "kernel width h, m (0: from --k)", 0, 1e18, NULL},
+        {"k", 'k', PM_OPT_DOUBLE, &o.k, "K", "choose h so that about K photons fall in a query's kernel on average", 0,
+         1e7, NULL},
+        {"kernel", 0, PM_OPT_CHOICE, &o.kernel, "K", "kernel shape, normalized over the plane", 0, 0, kernel_names},
+        {"widths", 0, PM_OPT_CHOICE, &o.widths, "W",
+         "fixed: one h for all; variable: each photon's own h (a map built with --width-k)", 0, 0, width_names},
+        {"normal-cos", 0, PM_OPT_DOUBLE, &o.normal_cos, "C",
+         "a photon counts when the cosine between its normal and the query's is at least C", -1, 1, NULL},
+        {"isa", 0, PM_OPT_STRING, &o.isa, "ISA", "auto, scalar, sse4 (4 lanes), avx2 (8) or avx512 (16)", 1, 0, NULL},
+        {"range", 0, PM_OPT_STRING, &o.range, "B:E", "gather only queries [B, E) (shards; composite adds them)", 1, 0,
+         NULL},
+        {0},
+    };
+    const pm_cli_t cli = {"simd-gather", "[options] MAP QUERIES -o RADIANCE",
+                          "Gather photons at every query with SIMD packets and the sample-point estimator; write "
+                          "the indirect radiance per pixel. QUERIES may be - for stdin.",
+                          options, 2, 2};
+    int rc = pm_stage_begin(&st, &cli, argc, argv);
+    if (rc >= 0)
+        return rc;
+    return pm_stage_end(&st, run(&st, &o));
+}

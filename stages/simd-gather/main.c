@@ -98,12 +98,16 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *o)
     double t0 = pm_time_wall();
     if ((r = pm_table_read(map_path, &pm_photonmap_schema, pm_schema_required(&pm_photonmap_schema), &mt)) != PM_OK)
         return r;
-    r = ranged ? pm_table_read_range(q_path, &pm_queries_schema, pm_schema_required(&pm_queries_schema), begin, end, &qt)
-               : pm_table_read(q_path, &pm_queries_schema, pm_schema_required(&pm_queries_schema), &qt);
+    /* The queries: only [begin, end) is kept, the whole file is checked. */
+    pm_reader_t *rd;
+    if ((r = pm_reader_open(q_path, &pm_queries_schema, pm_schema_required(&pm_queries_schema), &rd)) != PM_OK)
+        goto done;
+    uint64_t total_queries = pm_reader_header(rd)->count;
+    r = pm_table_read_from(rd, begin, end, &qt);
+    pm_reader_close(rd);
     if (r != PM_OK)
         goto done;
     double t_read = pm_time_wall() - t0;
-    uint64_t total_queries = qt.hdr.count;
     if (begin > total_queries)
         begin = total_queries;
     if (end > total_queries)
@@ -167,7 +171,7 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *o)
     pm_gather_stats_t gs;
     t0 = pm_time_wall();
     /* The table holds only [begin, end): its rows are the range, from 0. */
-    uint64_t row0 = qt.count == total_queries ? begin : 0;
+    const uint64_t row0 = 0;
     r = pm_gather_run(&map, &q, row0, row0 + nq, &p, per_query, &gs);
     double t_gather = pm_time_wall() - t0;
     if (r != PM_OK)

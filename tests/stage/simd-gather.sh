@@ -1,0 +1,82 @@
+# simd-gather.sh: the gather on golden inputs, across ISAs, threads and shards; variable
+# widths; pipes; bad inputs.
+# Golden file (regenerate only when a change is meant to alter it, and say why):
+#   bin/simd-gather tests/golden/build-photonmap-cornell.pm tests/golden/gather-cornell-16x16-spp8.pm \
+#       --radius 0.05 -o tests/golden/simd-gather-cornell.pm
+G=tests/golden
+MAP=$G/build-photonmap-cornell.pm
+Q=$G/gather-cornell-16x16-spp8.pm
+SG=$BIN/simd-gather
+
+"$SG" "$MAP" "$Q" --radius 0.05 -q -o "$TMP/ind.pm" --stats "$TMP/s.json"
+expect_exit "simd-gather matches its golden file (within float rounding across ISAs)" 0 \
+    "$BIN/pm-compare" --max-rel 1e-5 --max-abs 1e-12 "$G/simd-gather-cornell.pm" "$TMP/ind.pm"
+for key in shader_ops shader_ops_per_s queries photons_visited active_lanes packet_width radius_m; do
+    grep -q "\"$key\"" "$TMP/s.json" || fail "stats has $key" "$(tr -d '\n' <"$TMP/s.json" | head -c 300)"
+done
+pass "stats report shader operations, their rate, queries, photons visited and active lanes"
+if grep -aq '^component=indirect$' "$TMP/ind.pm" && grep -aq '^radius=0.05$' "$TMP/ind.pm" &&
+    [ "$(grep -ac '^INPUT=' "$TMP/ind.pm")" = 2 ]; then
+    pass "the radiance header says indirect, the radius, and both inputs"
+else
+    fail "radiance header" "$(head -c 600 "$TMP/ind.pm")"
+fi
+
+# every ISA this CPU runs gives the same image within float rounding; threads change nothing
+for isa in scalar sse4 avx2 avx512; do
+    if "$SG" "$MAP" "$Q" --radius 0.05 -q --isa $isa -o "$TMP/ind-$isa.pm" 2>"$TMP/err"; then
+        expect_exit "--isa $isa agrees with the default" 0 "$BIN/pm-compare" --max-rel 1e-5 --max-abs 1e-12 \
+            "$TMP/ind.pm" "$TMP/ind-$isa.pm"
+    else
+        grep -q "cannot run" "$TMP/err" && pass "--isa $isa: not on this CPU, refused clearly" ||
+            fail "--isa $isa" "$(cat "$TMP/err")"
+    fi
+done
+"$SG" "$MAP" "$Q" --radius 0.05 -q --threads 1 -o "$TMP/ind1.pm"
+expect_exit "1 and 2 threads give the same buffer" 0 "$BIN/pm-compare" "$TMP/ind.pm" "$TMP/ind1.pm"
+
+# shards: two ranges add up to the whole
+n=$(grep -a '^COUNT=' "$Q" | cut -d= -f2)
+"$SG" "$MAP" "$Q" --radius 0.05 -q --range 0:700 -o "$TMP/a.pm"
+"$SG" "$MAP" "$Q" --radius 0.05 -q --range 700: -o "$TMP/b.pm"
+paste <("$BIN/pm-info" -r "$TMP/a.pm" | awk '$1 ~ /^[0-9]+$/') <("$BIN/pm-info" -r "$TMP/b.pm" | awk '$1 ~ /^[0-9]+$/') \
+    <("$BIN/pm-info" -r "$TMP/ind.pm" | awk '$1 ~ /^[0-9]+$/') |
+    awk '{ for (k = 2; k <= 4; k++) { s = $k + $(k + 4); w = $(k + 8); d = s - w; if (d < 0) d = -d
+           if (d > 1e-6 * (w < 0 ? -w : w) + 1e-15) bad++ } } END { exit bad > 0 }'
+[ "${PIPESTATUS[1]}" = 0 ] && pass "--range 0:700 and 700: add up to the whole gather ($n queries)" ||
+    fail "shards" "the two halves do not add up"
+grep -aq '^range=700:1444$' "$TMP/b.pm" && pass "a shard records its range" || fail "range key" "$(grep -a range "$TMP/b.pm")"
+
+# --k picks a radius; the same for a shard (sampled from the whole file)
+"$SG" "$MAP" "$Q" --k 20 -q -o "$TMP/k.pm" --stats "$TMP/k.json"
+"$SG" "$MAP" "$Q" --k 20 -q --range 100:200 -o "$TMP/k2.pm"
+r1=$(grep -a '^radius=' "$TMP/k.pm"); r2=$(grep -a '^radius=' "$TMP/k2.pm")
+[ -n "$r1" ] && [ "$r1" = "$r2" ] && pass "--k: every shard uses the radius of the whole file ($r1)" ||
+    fail "--k shards" "$r1 vs $r2"
+awk '/"shader_ops_per_query"/ { v = $2 + 0; exit !(v > 10 && v < 40) }' "$TMP/k.json" &&
+    pass "--k 20 gives about 20 photons per query" || fail "--k 20" "$(grep shader_ops_per_query "$TMP/k.json")"
+
+# kernels and variable widths
+"$SG" "$MAP" "$Q" --radius 0.05 --kernel uniform -q -o "$TMP/u.pm"
+expect_exit "--kernel uniform runs and writes a valid buffer" 0 "$BIN/pm-info" "$TMP/u.pm"
+"$BIN/build-photonmap" "$G/trace-photons-cornell.pm" --width-k 16 -q -o "$TMP/wmap.pm"
+"$SG" "$TMP/wmap.pm" "$Q" --widths variable -q -o "$TMP/v.pm" --stats "$TMP/v.json"
+expect_exit "--widths variable on a map with widths" 0 "$BIN/pm-info" "$TMP/v.pm"
+expect_error "--widths variable needs the width channel" "width channel" "$SG" "$MAP" "$Q" --widths variable -o "$TMP/x.pm"
+
+# through pipes: trace-gather-points | hilbert-sort | simd-gather
+"$BIN/trace-gather-points" scenes/cornell-box/scene.json --width 16 --height 16 --spp 8 --seed 1 -q -o - \
+    --direct "$TMP/d.pm" | "$BIN/hilbert-sort" - -q -o - | "$SG" "$MAP" - --radius 0.05 -q -o "$TMP/piped.pm"
+expect_exit "trace-gather-points | hilbert-sort | simd-gather gives the same image" 0 \
+    "$BIN/pm-compare" --max-rel 1e-5 --max-abs 1e-12 "$TMP/ind.pm" "$TMP/piped.pm"
+
+# bad input
+expect_error "queries without the weight contract key" "weight contract" \
+    "$SG" "$MAP" "$G/queries-all.pm" --radius 0.05 -o "$TMP/x.pm"
+"$BIN/trace-gather-points" tests/scenes/closed-box/scene.json --width 8 --height 8 --spp 4 -q -o "$TMP/other.pm" \
+    --direct "$TMP/od.pm"
+expect_error "queries of another scene" "is of scene 'cornell-box .*but queries .* are of scene 'closed-box" \
+    "$SG" "$MAP" "$TMP/other.pm" --radius 0.05 -o "$TMP/x.pm"
+expect_error "a photon map given as queries" "is a photon map, expected a queries" "$SG" "$MAP" "$MAP" -o "$TMP/x.pm"
+expect_exit "--k with --range from stdin is a usage error" 2 sh -c "'$SG' '$MAP' - --k 10 --range 0:10 -o '$TMP/x.pm' <'$Q'"
+[ -e "$TMP/x.pm" ] && fail "no output after an error" "$TMP/x.pm exists" || pass "no output after an error"

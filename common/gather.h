@@ -63,6 +63,7 @@ typedef struct {
     uint64_t shader_ops;     /* photon-query pairs inside the kernel (and normal test) */
     uint64_t shade_steps;    /* calls of the shading step (a node's photon against a packet) */
     uint64_t active_lanes;   /* sum over shading steps of the lanes live in that step */
+    uint64_t straddling_lanes; /* ... of those whose sphere straddles the node's plane (or a leaf's live lanes) */
     uint64_t nodes_visited;  /* packet-node visits */
     uint64_t packets;
 } pm_gather_stats_t;

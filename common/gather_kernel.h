@@ -24,7 +24,7 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
     const pm_gather_queries_t *q = c->q;
     const pm_kdnode_t *node = m->node;
     const float *pos = m->pos, *pnor = m->normal, *ppow = m->power;
-    uint64_t ops = 0, steps = 0, lanes = 0, visits = 0, packets = 0;
+    uint64_t ops = 0, steps = 0, lanes = 0, straddling = 0, visits = 0, packets = 0;
     const uint32_t full = W == 32 ? 0xffffffffu : (1u << W) - 1u;
 #if !VAR
     const V rt = VSET1(c->r_trav), nrt = VSET1(-c->r_trav), r2 = VSET1(c->r2);
@@ -67,7 +67,7 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
             pm_kdnode_t nd = node[ni];
             uint32_t bits;
             memcpy(&bits, &nd.split, 4);
-            uint32_t axis = bits & 3u, shade = mask, ml = 0, mr = 0, right = PM_KD_NONE;
+            uint32_t axis = bits & 3u, shade = mask, straddle = mask, ml = 0, mr = 0, right = PM_KD_NONE;
 #if VAR
             const float wi = m->width[ni];
 #endif
@@ -86,7 +86,11 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
 #else
                 ml = mask & BLE(dist, rt);
                 mr = mask & BGE(dist, nrt);
-                shade = ml & mr; /* only a lane live on both sides can reach the plane's photon */
+                /* Only a lane live on both sides can reach the plane's photon; when one does,
+                 * the photon is shaded for the packet's live lanes, as ShadeCurrentNode of the
+                 * paper does, and the exact test sorts them out. */
+                straddle = ml & mr;
+                shade = straddle ? mask : 0;
                 ml = has_left ? ml : 0;
                 mr = right != PM_KD_NONE ? mr : 0;
 #endif
@@ -103,6 +107,7 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
 #endif
                 steps++;
                 lanes += (uint64_t)__builtin_popcount(shade);
+                straddling += (uint64_t)__builtin_popcount(straddle);
                 if (hit) {
                     const float *pn = &pnor[3 * (size_t)ni];
                     V dot = VFMA(nx, VSET1(pn[0]), VFMA(ny, VSET1(pn[1]), VMUL(nz, VSET1(pn[2]))));
@@ -172,6 +177,7 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
     st->shader_ops += ops;
     st->shade_steps += steps;
     st->active_lanes += lanes;
+    st->straddling_lanes += straddling;
     st->nodes_visited += visits;
     st->packets += packets;
 }

@@ -227,6 +227,8 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *o)
     pm_stage_stat_double(st, "active_lanes", gs.shade_steps ? (double)gs.active_lanes / gs.shade_steps : 0.0);
     pm_stage_stat_double(st, "active_lane_fraction",
                          gs.shade_steps ? (double)gs.active_lanes / gs.shade_steps / w : 0.0);
+    pm_stage_stat_double(st, "straddling_lanes", gs.shade_steps ? (double)gs.straddling_lanes / gs.shade_steps : 0.0);
+    pm_stage_stat_double(st, "useful_lanes", gs.shade_steps ? (double)gs.shader_ops / gs.shade_steps : 0.0);
     pm_stage_stat_double(st, "read_s", t_read);
     pm_stage_stat_double(st, "radius_s", t_radius);
     pm_stage_stat_double(st, "gather_s", t_gather);

@@ -6,7 +6,7 @@
  * photon is shaded, and direction only when the photons file has it (scenes with glossy
  * materials). `--map indirect` leaves out first-hit photons, for renders whose direct
  * light comes from shadow rays. `--width-k K` adds each photon's kernel width for the
- * variable-width estimator: the distance to its K-th nearest photon. */
+ * variable-width estimator: the radius of the disc around it that holds K photons. */
 #include <inttypes.h>
 #include <math.h>
 #include <stdlib.h>
@@ -256,7 +256,7 @@ int main(int argc, char **argv)
         {"split", 0, PM_OPT_CHOICE, &o.split, "RULE", "split rule: median (balanced tree, the paper's)", 0, 0,
          split_kinds},
         {"width-k", 0, PM_OPT_INT, &o.width_k, "K",
-         "store each photon's kernel width: the distance to its K-th nearest photon (0: none)", 0, 65536, NULL},
+         "store each photon's kernel width: the radius holding K photons around it (0: none)", 0, 65536, NULL},
         {"width-max", 0, PM_OPT_DOUBLE, &o.width_max, "M",
          "largest kernel width, m, for --width-k (0: no limit)", 0, 1e30, NULL},
         {0},

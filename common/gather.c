@@ -6,9 +6,11 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "gather_impl.h"
 #include "kdtree.h"
+#include "memory.h"
 
 /* Queries per unit of work handed to a thread: a multiple of every packet width, small
  * enough that two threads stay balanced, large enough that scheduling costs nothing. */
@@ -24,6 +26,18 @@ pm_result_t pm_gather_map_init(pm_gather_map_t *m, const pm_table_t *map, int va
     m->normal = map->col[PM_MAP_NORMAL];
     m->dir = map->col[PM_MAP_DIRECTION];
     m->width = map->col[PM_MAP_WIDTH];
+    if (m->n > PM_GATHER_MAX_PHOTONS)
+        return pm_error_set(PM_ERR_INPUT, "photon map of %" PRIu32 " photons: the gather takes at most %u",
+                            m->n, PM_GATHER_MAX_PHOTONS);
+    m->hot = pm_alloc_aligned((m->n ? m->n : 1) * sizeof *m->hot);
+    if (!m->hot)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for the hot records of %" PRIu32 " photons", m->n);
+    for (uint32_t i = 0; i < m->n; i++) {
+        uint32_t axis = pm_kdnode_axis(m->node[i]), c = m->node[i].child;
+        pm_gather_hot_t *h = &m->hot[i];
+        memcpy(h->p, &m->pos[3 * (size_t)i], 12);
+        h->link = axis << 30 | (c == PM_KD_NONE || axis == PM_KD_LEAF ? PM_GATHER_NO_CHILD : c);
+    }
     float mx = 0.0f;
     for (uint64_t i = 0; i < 3 * (uint64_t)m->n; i++)
         mx = fabsf(m->pos[i]) > mx ? fabsf(m->pos[i]) : mx; /* fmaxf is a library call without -ffast-math */
@@ -55,7 +69,9 @@ pm_result_t pm_gather_map_init(pm_gather_map_t *m, const pm_table_t *map, int va
 void pm_gather_map_free(pm_gather_map_t *m)
 {
     free(m->subtree_width);
+    pm_free_aligned(m->hot);
     m->subtree_width = NULL;
+    m->hot = NULL;
 }
 
 pm_result_t pm_gather_queries_init(pm_gather_queries_t *q, const pm_table_t *t, const char *path,
@@ -193,13 +209,18 @@ pm_result_t pm_gather_run(const pm_gather_map_t *m, const pm_gather_queries_t *q
 #pragma omp parallel
     {
         pm_gather_stats_t st = {0};
-#pragma omp for schedule(dynamic, 1)
+        struct timespec c0, c1;
+        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c0);
+#pragma omp for schedule(dynamic, 1) nowait
         for (uint64_t k = 0; k < nblocks; k++) {
             uint64_t b = begin + k * BLOCK_QUERIES, e = b + BLOCK_QUERIES < end ? b + BLOCK_QUERIES : end;
             fn(&c, b, e, out + 3 * (b - begin), &st);
         }
+        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c1);
+        st.cpu_s = (double)(c1.tv_sec - c0.tv_sec) + 1e-9 * (double)(c1.tv_nsec - c0.tv_nsec);
 #pragma omp critical
         {
+            total.cpu_s += st.cpu_s;
             total.shader_ops += st.shader_ops;
             total.shade_steps += st.shade_steps;
             total.active_lanes += st.active_lanes;

@@ -22,8 +22,8 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
 {
     const pm_gather_map_t *m = c->m;
     const pm_gather_queries_t *q = c->q;
-    const pm_kdnode_t *node = m->node;
-    const float *pos = m->pos, *pnor = m->normal, *ppow = m->power;
+    const pm_gather_hot_t *hot = m->hot;
+    const float *pnor = m->normal, *ppow = m->power;
     uint64_t ops = 0, steps = 0, lanes = 0, straddling = 0, visits = 0, packets = 0;
     const uint32_t full = W == 32 ? 0xffffffffu : (1u << W) - 1u;
 #if !VAR
@@ -50,10 +50,8 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
         V qa[3] = {qx, qy, qz};
         uint32_t active = nl == W ? full : (1u << nl) - 1u;
         V ar = VSET1(0.0f), ag = VSET1(0.0f), ab = VSET1(0.0f);
-        double dacc[3][W];
-        for (int k = 0; k < 3; k++)
-            for (uint32_t l = 0; l < W; l++)
-                dacc[k][l] = 0.0;
+        _Alignas(64) double dacc[3][W];
+        memset(dacc, 0, sizeof dacc);
         uint32_t since_flush = 0;
         packets++;
 
@@ -64,18 +62,17 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
         uint32_t ni = 0, mask = m->n ? active : 0;
         while (mask) {
             visits++;
-            pm_kdnode_t nd = node[ni];
-            uint32_t bits;
-            memcpy(&bits, &nd.split, 4);
-            uint32_t axis = bits & 3u, shade = mask, straddle = mask, ml = 0, mr = 0, right = PM_KD_NONE;
+            const pm_gather_hot_t *hp = &hot[ni];
+            const uint32_t link = hp->link;
+            uint32_t axis = link >> 30, shade = mask, straddle = mask, ml = 0, mr = 0, right = PM_KD_NONE;
 #if VAR
             const float wi = m->width[ni];
 #endif
             if (axis != PM_KD_LEAF) {
-                V dist = VSUB(qa[axis], VSET1(nd.split));
-                uint32_t child = nd.child;
+                V dist = VSUB(qa[axis], VSET1(hp->p[axis]));
+                uint32_t child = link & PM_GATHER_NO_CHILD;
                 int has_left = child != ni + 1;
-                right = has_left ? child : ni + 1;
+                right = child == PM_GATHER_NO_CHILD ? PM_KD_NONE : child; /* child == ni + 1: right only */
 #if VAR
                 float wl = has_left ? m->subtree_width[ni + 1] + c->slack : 0.0f;
                 float wr = right != PM_KD_NONE ? m->subtree_width[right] + c->slack : 0.0f;
@@ -96,7 +93,7 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
 #endif
             }
             if (shade) {
-                const float *pp = &pos[3 * (size_t)ni];
+                const float *pp = hp->p;
                 V dx = VSUB(qx, VSET1(pp[0])), dy = VSUB(qy, VSET1(pp[1])), dz = VSUB(qz, VSET1(pp[2]));
                 V d2 = VFMA(dx, dx, VFMA(dy, dy, VMUL(dz, dz)));
 #if VAR

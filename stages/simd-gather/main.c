@@ -221,6 +221,7 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *o)
     pm_stage_stat_double(st, "shader_ops_per_s", t_gather > 0 ? (double)gs.shader_ops / t_gather : 0.0);
     pm_stage_stat_double(st, "shader_ops_per_s_per_thread",
                          t_gather > 0 ? (double)gs.shader_ops / t_gather / st->threads_used : 0.0);
+    pm_stage_stat_double(st, "shader_ops_per_cpu_s", gs.cpu_s > 0 ? (double)gs.shader_ops / gs.cpu_s : 0.0);
     pm_stage_stat_double(st, "shader_ops_per_query", nq ? (double)gs.shader_ops / nq : 0.0);
     pm_stage_stat_int(st, "photons_visited", (int64_t)gs.nodes_visited);
     pm_stage_stat_int(st, "shade_steps", (int64_t)gs.shade_steps);

@@ -24,6 +24,7 @@ _Static_assert(sizeof(elem_t) == 16, "one element is one SSE register");
 typedef struct {
     pm_kdnode_t *node;
     uint32_t *perm;
+    float vvh_r; /* m: the query radius of the voxel-volume heuristic; 0: median splits */
 } build_t;
 
 /* Subtrees of at least this many photons are handed to another thread: below it a task
@@ -291,7 +292,57 @@ static unsigned build_tiny(const build_t *b, const elem_t *a, uint32_t n, uint32
     return 2;
 }
 
-static unsigned build(const build_t *b, elem_t *a, elem_t *spare, uint32_t n, uint32_t at)
+/* The voxel-volume heuristic (Wald, Guenther and Slusallek 2004): a search of radius r
+ * visits a subtree about as often as a query falls in its box grown by r, and then looks
+ * at its photons, so a split should make N_L V_L + N_R V_R small, with V the grown
+ * volumes. Candidates are the boundaries of 32 bins per axis; the split photon is the
+ * one of rank N_L on the chosen axis, so it lies on the plane as the format wants. Below
+ * VVH_MIN photons, and past VVH_MAX_DEPTH levels (to stay inside the format's 128), the
+ * median is used. Returns the rank; sets *axis_out. */
+enum { VVH_BINS = 32, VVH_MIN = 64, VVH_MAX_DEPTH = 90 };
+
+static uint32_t vvh_split(const elem_t *a, uint32_t n, float r, uint32_t *axis_out)
+{
+    float lo[3] = {a[0].p[0], a[0].p[1], a[0].p[2]}, hi[3] = {lo[0], lo[1], lo[2]};
+    for (uint32_t i = 1; i < n; i++)
+        for (int k = 0; k < 3; k++) {
+            float v = a[i].p[k];
+            lo[k] = v < lo[k] ? v : lo[k];
+            hi[k] = v > hi[k] ? v : hi[k];
+        }
+    double ext[3], scale[3];
+    for (int k = 0; k < 3; k++) {
+        ext[k] = (double)hi[k] - lo[k];
+        scale[k] = ext[k] > 0 ? VVH_BINS / ext[k] : 0.0;
+    }
+    uint32_t hist[3][VVH_BINS] = {{0}};
+    for (uint32_t i = 0; i < n; i++)
+        for (int k = 0; k < 3; k++) {
+            int bin = (int)(((double)a[i].p[k] - lo[k]) * scale[k]);
+            hist[k][bin < 0 ? 0 : (bin >= VVH_BINS ? VVH_BINS - 1 : bin)]++;
+        }
+    double g[3] = {ext[0] + 2.0 * r, ext[1] + 2.0 * r, ext[2] + 2.0 * r}, best = INFINITY;
+    uint32_t best_axis = 0, best_m = n / 2;
+    for (int k = 0; k < 3; k++) {
+        if (!(ext[k] > 0))
+            continue;
+        double side = g[(k + 1) % 3] * g[(k + 2) % 3];
+        uint32_t left = 0;
+        for (int bnd = 1; bnd < VVH_BINS; bnd++) {
+            left += hist[k][bnd - 1];
+            if (left == 0 || left >= n)
+                continue;
+            double x = ext[k] * bnd / VVH_BINS; /* from lo */
+            double cost = ((x + 2.0 * r) * left + (ext[k] - x + 2.0 * r) * (n - left)) * side;
+            if (cost < best)
+                best = cost, best_axis = (uint32_t)k, best_m = left;
+        }
+    }
+    *axis_out = best_axis;
+    return best_m;
+}
+
+static unsigned build(const build_t *b, elem_t *a, elem_t *spare, uint32_t n, uint32_t at, unsigned depth)
 {
     if (n == 1) {
         leaf(b, a, at);
@@ -299,8 +350,14 @@ static unsigned build(const build_t *b, elem_t *a, elem_t *spare, uint32_t n, ui
     }
     if (n <= 3)
         return build_tiny(b, a, n, at);
-    uint32_t axis = longest_axis(a, n);
-    uint32_t m = n / 2, nr = n - m - 1; /* m >= 1 photons go left, nr >= 0 right */
+    uint32_t axis, m;
+    if (b->vvh_r > 0.0f && n >= VVH_MIN && depth < VVH_MAX_DEPTH) {
+        m = vvh_split(a, n, b->vvh_r, &axis);
+    } else {
+        axis = longest_axis(a, n);
+        m = n / 2;
+    }
+    uint32_t nr = n - m - 1; /* m >= 1 photons go left, nr >= 0 right */
     if (n >= SAMPLED_MIN) {
         split_sampled(a, spare, n, m, axis);
         elem_t *t = a; /* the photons are now in spare: swap roles for the children */
@@ -313,15 +370,15 @@ static unsigned build(const build_t *b, elem_t *a, elem_t *spare, uint32_t n, ui
     b->perm[at] = a[m].id;
     unsigned dl = 0, dr = 0;
     if (n >= TASK_MIN) {
-#pragma omp task default(none) shared(dl) firstprivate(b, a, spare, m, at)
-        dl = build(b, a, spare, m, at + 1);
+#pragma omp task default(none) shared(dl) firstprivate(b, a, spare, m, at, depth)
+        dl = build(b, a, spare, m, at + 1, depth + 1);
         if (nr)
-            dr = build(b, a + m + 1, spare + m + 1, nr, at + 1 + m);
+            dr = build(b, a + m + 1, spare + m + 1, nr, at + 1 + m, depth + 1);
 #pragma omp taskwait
     } else {
-        dl = build(b, a, spare, m, at + 1);
+        dl = build(b, a, spare, m, at + 1, depth + 1);
         if (nr)
-            dr = build(b, a + m + 1, spare + m + 1, nr, at + 1 + m);
+            dr = build(b, a + m + 1, spare + m + 1, nr, at + 1 + m, depth + 1);
     }
     return 1 + (dl > dr ? dl : dr);
 }
@@ -410,9 +467,9 @@ static unsigned build_root(const build_t *b, const float *pos, elem_t *a, elem_t
 #pragma omp single
     {
 #pragma omp task default(none) shared(b, a, spare, m, dl)
-        dl = build(b, spare, a, m, 1);
+        dl = build(b, spare, a, m, 1, 1);
         if (nr)
-            dr = build(b, spare + m + 1, a + m + 1, nr, 1 + m);
+            dr = build(b, spare + m + 1, a + m + 1, nr, 1 + m, 1);
 #pragma omp taskwait
     }
     return 1 + (dl > dr ? dl : dr);
@@ -420,6 +477,12 @@ static unsigned build_root(const build_t *b, const float *pos, elem_t *a, elem_t
 
 pm_result_t pm_kd_build(const float *pos, uint64_t n, pm_kdnode_t *node_out, uint32_t *perm_out,
                         pm_kd_build_stats_t *stats_out)
+{
+    return pm_kd_build_vvh(pos, n, 0.0f, node_out, perm_out, stats_out);
+}
+
+pm_result_t pm_kd_build_vvh(const float *pos, uint64_t n, float vvh_radius, pm_kdnode_t *node_out, uint32_t *perm_out,
+                            pm_kd_build_stats_t *stats_out)
 {
     pm_kd_build_stats_t st = {0};
     if (n > (uint64_t)UINT32_MAX - 1)
@@ -437,16 +500,16 @@ pm_result_t pm_kd_build(const float *pos, uint64_t n, pm_kdnode_t *node_out, uin
         return pm_error_set(PM_ERR_NOMEM, "out of memory for the KD-tree build of %llu photons (%.1f MB)",
                             (unsigned long long)n, 2.0 * (double)n * sizeof *a / 1e6);
     }
-    build_t b = {node_out, perm_out};
+    build_t b = {node_out, perm_out, vvh_radius > 0.0f ? vvh_radius : 0.0f};
     unsigned depth = 0;
-    if (n < ROOT_PARALLEL_MIN) {
+    if (n < ROOT_PARALLEL_MIN || b.vvh_r > 0.0f) {
         for (uint64_t i = 0; i < n; i++) {
             a[i].p[0] = pos[3 * i], a[i].p[1] = pos[3 * i + 1], a[i].p[2] = pos[3 * i + 2];
             a[i].id = (uint32_t)i;
         }
 #pragma omp parallel default(none) shared(b, a, spare, n, depth)
 #pragma omp single
-        depth = build(&b, a, spare, (uint32_t)n, 0);
+        depth = build(&b, a, spare, (uint32_t)n, 0, 0);
     } else {
         depth = build_root(&b, pos, a, spare, (uint32_t)n);
     }

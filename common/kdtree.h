@@ -30,6 +30,12 @@ typedef struct {
 pm_result_t pm_kd_build(const float *pos, uint64_t n, pm_kdnode_t *node_out, uint32_t *perm_out,
                         pm_kd_build_stats_t *stats_out);
 
+/* The same with the voxel-volume heuristic of Wald et al. 2004 (the paper's reference 22)
+ * for searches of radius vvh_radius (m): unbalanced splits that make searches visit fewer
+ * photons; vvh_radius 0 is pm_kd_build. The tree stays within PM_KD_MAX_DEPTH levels. */
+pm_result_t pm_kd_build_vvh(const float *pos, uint64_t n, float vvh_radius, pm_kdnode_t *node_out,
+                            uint32_t *perm_out, pm_kd_build_stats_t *stats_out);
+
 /* Distance (m) from photon `self` (a node index) to its k-th nearest photon, itself
  * counted as the first; so k = 1 gives 0. pos is in node order (pos[3 i] is node i's
  * photon). If the tree holds fewer than k photons, the farthest distance. `heap` is

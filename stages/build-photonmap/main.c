@@ -19,12 +19,14 @@
 #include "../../formats/formats.h"
 
 static const char *const map_kinds[] = {"global", "indirect", NULL};
-static const char *const split_kinds[] = {"median", NULL};
+static const char *const split_kinds[] = {"median", "vvh", NULL};
 
 typedef struct {
     int map;         /* index into map_kinds */
     int split;       /* index into split_kinds */
     int64_t width_k; /* 0: no width channel */
+    double vvh_radius; /* m; 0: from vvh_k */
+    int64_t vvh_k;
     double width_max;
 } build_options_t;
 
@@ -125,6 +127,23 @@ static pm_result_t compute_widths(pm_table_t *map, uint32_t k_final, double widt
     return r;
 }
 
+/* The photons' channels in node order (node i holds input photon keep[perm[i]]). */
+static void layout(pm_table_t *map, const uint32_t *perm, const uint32_t *keep, uint64_t n, const float *ppos,
+                   const float *ppow, const float *pnor, const float *pdir)
+{
+    float *mpos = map->col[PM_MAP_POSITION], *mpow = map->col[PM_MAP_POWER], *mnor = map->col[PM_MAP_NORMAL];
+    float *mdir = pdir ? map->col[PM_MAP_DIRECTION] : NULL;
+#pragma omp parallel for schedule(static)
+    for (uint64_t i = 0; i < n; i++) {
+        uint64_t s = keep[perm[i]];
+        memcpy(&mpos[3 * i], &ppos[3 * s], 12);
+        memcpy(&mpow[3 * i], &ppow[3 * s], 12);
+        memcpy(&mnor[3 * i], &pnor[3 * s], 12);
+        if (mdir)
+            memcpy(&mdir[3 * i], &pdir[3 * s], 12);
+    }
+}
+
 static pm_result_t run(pm_stage_t *st, const build_options_t *o)
 {
     const char *in = st->args.args[0];
@@ -173,18 +192,29 @@ static pm_result_t run(pm_stage_t *st, const build_options_t *o)
 
     /* Photon data in node order: hot positions, then the cold channels. */
     t0 = pm_time_wall();
-    float *mpos = map.col[PM_MAP_POSITION], *mpow = map.col[PM_MAP_POWER], *mnor = map.col[PM_MAP_NORMAL];
-    float *mdir = glossy ? map.col[PM_MAP_DIRECTION] : NULL;
     const float *ppow = ph.col[PM_PHOTON_POWER], *pnor = ph.col[PM_PHOTON_NORMAL];
     const float *pdir = glossy ? ph.col[PM_PHOTON_DIRECTION] : NULL;
-#pragma omp parallel for schedule(static)
-    for (uint64_t i = 0; i < n; i++) {
-        uint64_t s = keep[perm[i]];
-        memcpy(&mpos[3 * i], &ppos[3 * s], 12);
-        memcpy(&mpow[3 * i], &ppow[3 * s], 12);
-        memcpy(&mnor[3 * i], &pnor[3 * s], 12);
-        if (mdir)
-            memcpy(&mdir[3 * i], &pdir[3 * s], 12);
+    layout(&map, perm, keep, n, ppos, ppow, pnor, pdir);
+    double vvh_r = 0.0;
+    if (o->split == 1) {
+        /* The heuristic needs the searches' radius: given, or the one at which K photons
+         * fall in a photon's kernel, found on the median tree just built. */
+        vvh_r = o->vvh_radius;
+        if (vvh_r <= 0.0 && n) {
+            pm_gather_map_t gm;
+            if ((r = pm_gather_map_init(&gm, &map, 0)) != PM_OK)
+                goto done;
+            static const pm_material_t folded = {.name = "folded", .kd = {1, 1, 1}};
+            pm_gather_queries_t q = {.n = n, .pos = gm.pos, .normal = gm.normal, .weight = gm.pos,
+                                     .materials = &folded, .nmaterials = 1};
+            vvh_r = pm_gather_radius_for_k(&gm, &q, (double)o->vvh_k, 0.5f, 1000);
+            pm_gather_map_free(&gm);
+        }
+        double t1 = pm_time_wall();
+        if ((r = pm_kd_build_vvh(pos, n, (float)vvh_r, map.col[PM_MAP_NODE], perm, &bs)) != PM_OK)
+            goto done;
+        t_build += pm_time_wall() - t1;
+        layout(&map, perm, keep, n, ppos, ppow, pnor, pdir);
     }
     double t_gather = pm_time_wall() - t0;
 
@@ -196,6 +226,7 @@ static pm_result_t run(pm_stage_t *st, const build_options_t *o)
         (r = pm_header_add_command(h, st->argc, st->argv)) != PM_OK ||
         (r = pm_header_set(h, "map", "%s", map_kinds[o->map])) != PM_OK ||
         (r = pm_header_set(h, "split", "%s", split_kinds[o->split])) != PM_OK ||
+        (o->split == 1 && (r = pm_header_set(h, "vvh_radius", "%.9g", vvh_r)) != PM_OK) ||
         (emitted && (r = pm_header_set(h, "emitted", "%s", emitted)) != PM_OK))
         goto done;
 
@@ -247,14 +278,18 @@ int main(int argc, char **argv)
 {
     pm_stage_t st;
     pm_stage_defaults(&st);
-    build_options_t o = {.map = 0, .split = 0, .width_k = 0, .width_max = 0.0};
+    build_options_t o = {.map = 0, .split = 0, .width_k = 0, .width_max = 0.0, .vvh_radius = 0.0, .vvh_k = 50};
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
         {"map", 0, PM_OPT_CHOICE, &o.map, "KIND",
          "global: every stored photon; indirect: only photons that bounced (direct light from shadow rays)", 0, 0,
          map_kinds},
-        {"split", 0, PM_OPT_CHOICE, &o.split, "RULE", "split rule: median (balanced tree, the paper's)", 0, 0,
+        {"split", 0, PM_OPT_CHOICE, &o.split, "RULE",
+         "median: balanced, the paper's; vvh: the voxel-volume heuristic for searches of one radius", 0, 0,
          split_kinds},
+        {"vvh-radius", 0, PM_OPT_DOUBLE, &o.vvh_radius, "R",
+         "search radius the vvh split plans for, m (0: the radius holding --vvh-k photons)", 0, 1e30, NULL},
+        {"vvh-k", 0, PM_OPT_INT, &o.vvh_k, "K", "photons per search the vvh radius is chosen for", 1, 1e6, NULL},
         {"width-k", 0, PM_OPT_INT, &o.width_k, "K",
          "store each photon's kernel width: the radius holding K photons around it (0: none)", 0, 65536, NULL},
         {"width-max", 0, PM_OPT_DOUBLE, &o.width_max, "M",

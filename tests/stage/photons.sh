@@ -157,6 +157,17 @@ else
 fi
 grep -aq '^CHANNELS=node position power normal$' "$TMP/map.pm" && pass "no width channel unless asked" ||
     fail "no width channel unless asked" "$(grep -a CHANNELS "$TMP/map.pm")"
+# the voxel-volume heuristic builds a valid map (unbalanced) that gathers the same image
+"$BIN/build-photonmap" "$G/trace-photons-cornell.pm" -q --split vvh -o "$TMP/vvh.pm"
+if "$BIN/pm-info" "$TMP/vvh.pm" >/dev/null && grep -aq '^split=vvh$' "$TMP/vvh.pm" && grep -aq '^vvh_radius=' "$TMP/vvh.pm"; then
+    pass "--split vvh writes a valid map and says so"
+else
+    fail "--split vvh" "$(head -c 500 "$TMP/vvh.pm")"
+fi
+"$BIN/simd-gather" "$TMP/map.pm" "$G/gather-cornell-16x16-spp8.pm" --radius 0.05 -q -o "$TMP/g1.pm"
+"$BIN/simd-gather" "$TMP/vvh.pm" "$G/gather-cornell-16x16-spp8.pm" --radius 0.05 -q -o "$TMP/g2.pm"
+expect_exit "a vvh map gathers the same image as the median map" 0 \
+    "$BIN/pm-compare" --max-rel 1e-5 --max-abs 1e-12 --ignore-keys x "$TMP/g1.pm" "$TMP/g2.pm"
 # the glossy box's photons keep their direction in the map
 "$BIN/build-photonmap" "$TMP/boxg.pm" -q -o "$TMP/mapg.pm"
 grep -aq '^CHANNELS=node position power normal direction$' "$TMP/mapg.pm" && pass "a glossy scene's map keeps directions" ||

@@ -284,6 +284,35 @@ static void test_kd_searches_match_brute_force(void **state)
     tree_free(&t);
 }
 
+/* The voxel-volume heuristic: unbalanced but valid trees, within the depth limit, on
+ * random, clustered and degenerate inputs. */
+static void test_kd_vvh_trees_are_valid(void **state)
+{
+    const uint32_t n = 50000;
+    float *p = random_points(n, 41, 0.0f, 1.0f);
+    for (uint32_t i = 0; i < n / 2; i++) /* a dense cluster in one corner */
+        for (int k = 0; k < 3; k++)
+            p[3 * i + k] *= 0.01f;
+    const float radii[] = {1e-4f, 0.01f, 0.3f, 100.0f};
+    for (size_t r = 0; r < sizeof radii / sizeof radii[0]; r++)
+        for (int shape = 0; shape < 2; shape++) {
+            if (shape == 1) /* all on one plane, many duplicates */
+                for (uint32_t i = 0; i < n; i++)
+                    p[3 * i + 2] = 0.5f, p[3 * i] = (float)(i % 7);
+            tree_t t;
+            t.n = n;
+            t.node = malloc(n * sizeof *t.node), t.perm = malloc(n * 4), t.pos = NULL, t.tree_pos = malloc(n * 12);
+            pm_kd_build_stats_t st;
+            assert_int_equal(pm_kd_build_vvh(p, n, radii[r], t.node, t.perm, &st), PM_OK);
+            assert_true(st.depth <= PM_KD_MAX_DEPTH);
+            for (uint32_t i = 0; i < n; i++)
+                memcpy(&t.tree_pos[3 * i], &p[3 * (size_t)t.perm[i]], 12);
+            check_tree(&t);
+            free(t.node), free(t.perm), free(t.tree_pos);
+        }
+    free(p);
+}
+
 /* A valid but degenerate tree, a chain of right children, is refused past the depth that
  * searches' fixed stacks hold. */
 static void test_kd_reader_refuses_too_deep_trees(void **state)
@@ -306,6 +335,7 @@ static void test_kd_reader_refuses_too_deep_trees(void **state)
 }
 
 static const struct CMUnitTest tests[] = {
+    cmocka_unit_test(test_kd_vvh_trees_are_valid),
     cmocka_unit_test(test_kd_reader_refuses_too_deep_trees),
     cmocka_unit_test(test_kd_node_is_8_bytes_and_axis_round_trips),
     cmocka_unit_test(test_kd_small_counts),

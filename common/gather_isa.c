@@ -25,30 +25,8 @@
 #define BGE(a, b) ((uint32_t)((a) >= (b)))
 #define VMASKED(bits, v) ((bits) ? (v) : 0.0f)
 #define FLUSH(ar, ag, ab, dacc) (dacc[0][0] += (ar), dacc[1][0] += (ag), dacc[2][0] += (ab))
-#define VAR 0
-#define FN(x) x##_scalar_fixed
-#include "gather_kernel.h"
-#undef VAR
-#undef FN
-#define VAR 1
-#define FN(x) x##_scalar_var
-#include "gather_kernel.h"
-#undef VAR
-#undef FN
-#undef W
-#undef V
-#undef VSET1
-#undef VLOAD
-#undef VSTORE
-#undef VADD
-#undef VSUB
-#undef VMUL
-#undef VFMA
-#undef BLE
-#undef BLT
-#undef BGE
-#undef VMASKED
-#undef FLUSH
+#define ISA_NAME scalar
+#include "gather_isa_inst.h"
 
 /* ---------------------------------------------------------------- SSE4.1, W = 4 */
 #pragma GCC push_options
@@ -81,30 +59,8 @@ static inline void flush4(__m128 ar, __m128 ag, __m128 ab, double dacc[3][4])
 #define BGE(a, b) ((uint32_t)_mm_movemask_ps(_mm_cmpge_ps(a, b)))
 #define VMASKED(bits, v) _mm_and_ps(mask4(bits), v)
 #define FLUSH(ar, ag, ab, dacc) flush4(ar, ag, ab, dacc)
-#define VAR 0
-#define FN(x) x##_sse4_fixed
-#include "gather_kernel.h"
-#undef VAR
-#undef FN
-#define VAR 1
-#define FN(x) x##_sse4_var
-#include "gather_kernel.h"
-#undef VAR
-#undef FN
-#undef W
-#undef V
-#undef VSET1
-#undef VLOAD
-#undef VSTORE
-#undef VADD
-#undef VSUB
-#undef VMUL
-#undef VFMA
-#undef BLE
-#undef BLT
-#undef BGE
-#undef VMASKED
-#undef FLUSH
+#define ISA_NAME sse4
+#include "gather_isa_inst.h"
 #pragma GCC pop_options
 
 /* ---------------------------------------------------------------- AVX2 + FMA, W = 8 */
@@ -139,30 +95,8 @@ static inline void flush8(__m256 ar, __m256 ag, __m256 ab, double dacc[3][8])
 #define BGE(a, b) ((uint32_t)_mm256_movemask_ps(_mm256_cmp_ps(a, b, _CMP_GE_OQ)))
 #define VMASKED(bits, v) _mm256_and_ps(mask8(bits), v)
 #define FLUSH(ar, ag, ab, dacc) flush8(ar, ag, ab, dacc)
-#define VAR 0
-#define FN(x) x##_avx2_fixed
-#include "gather_kernel.h"
-#undef VAR
-#undef FN
-#define VAR 1
-#define FN(x) x##_avx2_var
-#include "gather_kernel.h"
-#undef VAR
-#undef FN
-#undef W
-#undef V
-#undef VSET1
-#undef VLOAD
-#undef VSTORE
-#undef VADD
-#undef VSUB
-#undef VMUL
-#undef VFMA
-#undef BLE
-#undef BLT
-#undef BGE
-#undef VMASKED
-#undef FLUSH
+#define ISA_NAME avx2
+#include "gather_isa_inst.h"
 #pragma GCC pop_options
 
 /* ---------------------------------------------------------------- AVX-512, W = 16 */
@@ -192,30 +126,8 @@ static inline void flush16(__m512 ar, __m512 ag, __m512 ab, double dacc[3][16])
 #define BGE(a, b) ((uint32_t)_mm512_cmp_ps_mask(a, b, _CMP_GE_OQ))
 #define VMASKED(bits, v) _mm512_maskz_mov_ps((__mmask16)(bits), v)
 #define FLUSH(ar, ag, ab, dacc) flush16(ar, ag, ab, dacc)
-#define VAR 0
-#define FN(x) x##_avx512_fixed
-#include "gather_kernel.h"
-#undef VAR
-#undef FN
-#define VAR 1
-#define FN(x) x##_avx512_var
-#include "gather_kernel.h"
-#undef VAR
-#undef FN
-#undef W
-#undef V
-#undef VSET1
-#undef VLOAD
-#undef VSTORE
-#undef VADD
-#undef VSUB
-#undef VMUL
-#undef VFMA
-#undef BLE
-#undef BLT
-#undef BGE
-#undef VMASKED
-#undef FLUSH
+#define ISA_NAME avx512
+#include "gather_isa_inst.h"
 #pragma GCC pop_options
 
 gather_fn_t gather_kernel_for(pm_isa_t isa, int variable)

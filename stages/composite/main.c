@@ -209,13 +209,10 @@ static pm_result_t run(pm_stage_t *st, const composite_options_t *o)
 
     /* Every header first, so that a mismatch is reported before any pixel is read. */
     int first = -1, ndirect = 0, nindirect = 0, ntotal = 0;
-    for (int i = 0; i < nin && r == PM_OK; i++) {
-        if ((r = parse_input(st->args.args[i], &in[i])) != PM_OK)
-            break;
-        if (!strcmp(in[i].path, "-") && ++nstdin > 1) {
+    for (int i = 0; i < nin && r == PM_OK; i++)
+        if ((r = parse_input(st->args.args[i], &in[i])) == PM_OK && !strcmp(in[i].path, "-") && ++nstdin > 1)
             r = pm_error_set(PM_ERR_USAGE, "stdin ('-') given twice");
-            break;
-        }
+    for (int i = 0; i < nin && r == PM_OK; i++) {
         if ((r = pm_reader_open(in[i].path, &pm_radiance_schema, 0, &in[i].rd)) != PM_OK)
             break;
         const pm_header_t *hi = pm_reader_header(in[i].rd);

@@ -156,3 +156,33 @@ if [ -x "$BIN/simd-gather" ]; then
 else
     skip "render with simd-gather (full image, RADIUS reruns, shards add up)" "bin/simd-gather is not built (issue 6)"
 fi
+
+# ---- pipelines/frames: a camera path, every stage per frame ----
+pipelines/frames "$CORNELL" "$TMP/fr" FRAMES=3 PHOTONS=5000 SPP=4 WIDTH=24 HEIGHT=16 >"$TMP/fr.out" 2>&1
+status=$?
+if [ $status = 0 ] && [ -s "$TMP/fr/frame-0002.exr" ] && [ -s "$TMP/fr/frame-0000.png" ] &&
+    jq -e '.frames == 3 and .fps > 0 and (.per_frame | length) == 3' "$TMP/fr/frames.json" >/dev/null &&
+    grep -qE '^frames: 3 frames in [0-9.]+ s: [0-9.]+ frames per second' "$TMP/fr.out"; then
+    pass "frames renders 3 frames and reports frames per second"
+else
+    fail "frames" "exit $status: $(tail -5 "$TMP/fr.out")"
+fi
+eye() { jq -c .camera.eye "$1"; }
+if [ "$(eye "$TMP/fr/scene-0000.json")" != "$(eye "$TMP/fr/scene-0002.json")" ] &&
+    [ "$(jq -c .camera.eye "$TMP/fr/scene-0001.json")" = "$(jq -c .camera.eye "$CORNELL")" ] &&
+    ! cmp -s <("$BUILD/tests/pm-exrdump" "$TMP/fr/frame-0000.exr") <("$BUILD/tests/pm-exrdump" "$TMP/fr/frame-0002.exr"); then
+    pass "... the eye moves along the path (the middle frame is the scene's own camera) and the frames differ"
+else
+    fail "frames camera path" "$(eye "$TMP/fr/scene-0000.json") $(eye "$TMP/fr/scene-0001.json") $(eye "$TMP/fr/scene-0002.json")"
+fi
+expect_exit "frames MOVE=light needs point lights" 1 pipelines/frames "$CORNELL" "$TMP/fl" MOVE=light FRAMES=1
+
+# ---- the documented examples run ----
+pipelines/examples.sh "$TMP/ex" >"$TMP/ex.out" 2>&1 && [ -s "$TMP/ex/direct.exr" ] && [ -s "$TMP/ex/map.pm" ] &&
+    pass "pipelines/examples.sh runs" || fail "examples.sh" "$(tail -5 "$TMP/ex.out")"
+if [ -x "$BIN/simd-gather" ]; then
+    [ -s "$TMP/ex/image.exr" ] && [ -s "$TMP/ex/sharded.exr" ] && pass "... every example, simd-gather included" ||
+        fail "examples with simd-gather" "$(cat "$TMP/ex.out")"
+else
+    skip "the examples that pipe into simd-gather" "bin/simd-gather is not built (issue 6)"
+fi

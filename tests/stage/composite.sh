@@ -99,7 +99,7 @@ expect_exit "no output at all is a usage error" 2 "$C" "$TMP/r.pm"
 expect_exit "stdin twice is a usage error" 2 "$C" - - -o "$TMP/bad.exr"
 
 # ---- PNG preview, exposure, tone, the sum as a radiance buffer ----
-"$C" -q "$TMP/r.pm" --png "$TMP/p0.png" --png "$TMP/p0.png" --radiance "$TMP/sum.pm"
+"$C" -q "$TMP/r.pm" --png "$TMP/p0.png" --radiance "$TMP/sum.pm"
 "$C" -q "$TMP/r.pm" --png "$TMP/p1.png" --exposure 2
 "$C" -q "$TMP/r.pm" --png "$TMP/pf.png" --tone filmic
 if [ "$(head -c 8 "$TMP/p0.png" | od -An -tx1 | tr -d ' \n')" = 89504e470d0a1a0a ] && ! cmp -s "$TMP/p0.png" "$TMP/p1.png" &&

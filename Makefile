@@ -27,7 +27,7 @@ WERROR ?= 1
 
 # Debian packages this project builds, tests and runs with (README says why each).
 DEBS := gcc make pkg-config libembree-dev libopenexr-dev libassimp-dev libjansson-dev \
-        libpng-dev libxxhash-dev libcmocka-dev
+        libpng-dev libxxhash-dev libcmocka-dev openexr jq
 
 ifeq ($(V),1)
 Q :=
@@ -64,6 +64,7 @@ UNIT_SRC := $(wildcard tests/unit/*.c)
 UNIT_OBJ := $(UNIT_SRC:%.c=$(BUILD)/%.o)
 UNIT := $(BUILD)/tests/unit-tests
 TESTGEN := $(BUILD)/tests/pm-testgen
+EXRDUMP := $(BUILD)/tests/pm-exrdump
 ATRIUM_GEN := $(BUILD)/scenes/make-atrium
 ATRIUM_OBJ := scenes/atrium/atrium.obj
 
@@ -104,6 +105,10 @@ $(TESTGEN): $(BUILD)/tests/pm-testgen.o $(LIB)
 	@mkdir -p $(@D)
 	$(Q)$(CC) $(ALL_LDFLAGS) $< $(LIB) $(LIBS) -o $@
 
+$(EXRDUMP): $(BUILD)/tests/pm-exrdump.o $(LIB)
+	@mkdir -p $(@D)
+	$(Q)$(CC) $(ALL_LDFLAGS) $< $(LIB) $(LIBS) -o $@
+
 # The generator builds with fixed flags: its output must not change with CFLAGS or SAN.
 $(ATRIUM_GEN): scenes/atrium/make-atrium.c
 	@mkdir -p $(@D)
@@ -124,7 +129,7 @@ test: check-deps
 	$(Q)$(MAKE) --no-print-directory test-run
 	$(Q)$(MAKE) --no-print-directory test-asan
 
-test-run: all $(UNIT) $(TESTGEN)
+test-run: all $(UNIT) $(TESTGEN) $(EXRDUMP)
 	$(Q)BIN=$(abspath $(BIN)) BUILD=$(abspath $(BUILD)) bash tests/run
 
 asan:
@@ -170,4 +175,4 @@ deps:
 clean:
 	rm -rf $(BUILD) $(BIN) $(ATRIUM_OBJ) scenes/atrium/atrium.mtl
 
--include $(LIB_OBJ:.o=.d) $(UNIT_OBJ:.o=.d) $(STAGES:%=$(BUILD)/stages/%/main.d) $(BUILD)/tests/pm-testgen.d
+-include $(LIB_OBJ:.o=.d) $(UNIT_OBJ:.o=.d) $(STAGES:%=$(BUILD)/stages/%/main.d) $(BUILD)/tests/pm-testgen.d $(BUILD)/tests/pm-exrdump.d

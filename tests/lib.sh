@@ -1,11 +1,15 @@
 # lib.sh: helpers for the stage tests (sourced by tests/stage/*.sh).
-# Each check prints "ok NAME" or "FAIL NAME: why" and counts into PASS/FAIL.
+# Each check prints "ok NAME", "FAIL NAME: why" or "skip NAME: why" and counts into
+# PASS/FAIL/SKIP; a skipped check is reported by tests/run, never counted as passed.
 PASS=${PASS:-0}
 FAIL=${FAIL:-0}
+SKIP=${SKIP:-0}
 TMP=${TMP:-$(mktemp -d "${TMPDIR:-/tmp}"/pmtk-stage-XXXXXX)}
 
 pass() { PASS=$((PASS + 1)); echo "ok $1"; }
 fail() { FAIL=$((FAIL + 1)); echo "FAIL $1: $2"; }
+# skip NAME WHY: a check that cannot run here (a program not built yet, a missing tool).
+skip() { SKIP=$((SKIP + 1)); echo "skip $1: $2"; }
 
 # expect_exit NAME CODE CMD...: CMD exits with CODE.
 expect_exit() {

@@ -29,10 +29,52 @@ typedef struct {
     const char *range;
 } gather_options_t;
 
-/* Positions and normals of s queries spread evenly over the whole file, read in one
- * streaming pass (for the radius of --k when only a range is gathered, so that every shard
- * of a render uses the same radius). */
-static pm_result_t sample_file(const char *path, uint32_t s, float **pos_out, float **nor_out, uint32_t *got_out)
+/* The queries the radius of --k is measured on: those of the pixels a hash of the pixel
+ * index picks, about `want` in all. Chosen by pixel, not by position in the file, so that
+ * the radius is the same whatever order hilbert-sort (or none) gave the queries, and the
+ * same for every shard of a file. */
+static inline int sample_pixel(uint32_t pixel, uint64_t total, uint32_t want)
+{
+    uint32_t h = pixel * 2654435761u; /* Knuth's multiplicative hash: spreads pixels evenly */
+    h ^= h >> 16;
+    return total <= want || (double)h < (double)want / (double)total * 4294967296.0;
+}
+
+typedef struct {
+    float *pos, *nor;
+    uint32_t n, cap;
+} sample_t;
+
+static int sample_add(sample_t *s, const float *p, const float *n)
+{
+    if (s->n == s->cap) {
+        uint32_t cap = s->cap ? 2 * s->cap : 1024;
+        float *np = realloc(s->pos, (size_t)cap * 12), *nn = np ? realloc(s->nor, (size_t)cap * 12) : NULL;
+        if (np)
+            s->pos = np;
+        if (!nn)
+            return -1;
+        s->nor = nn;
+        s->cap = cap;
+    }
+    memcpy(&s->pos[3 * (size_t)s->n], p, 12);
+    memcpy(&s->nor[3 * (size_t)s->n], n, 12);
+    s->n++;
+    return 0;
+}
+
+/* The sample from the queries in memory (the whole file was read). */
+static pm_result_t sample_table(const pm_gather_queries_t *q, uint32_t want, sample_t *s)
+{
+    for (uint64_t i = 0; i < q->n; i++)
+        if (sample_pixel(q->pixel[i], q->n, want) && sample_add(s, &q->pos[3 * i], &q->normal[3 * i]) != 0)
+            return pm_error_set(PM_ERR_NOMEM, "out of memory for the radius sample");
+    return PM_OK;
+}
+
+/* The same sample read from the whole file in one streaming pass (a shard holds only its
+ * range in memory). */
+static pm_result_t sample_file(const char *path, uint32_t want, sample_t *s)
 {
     pm_reader_t *r;
     pm_result_t res = pm_reader_open(path, &pm_queries_schema, pm_schema_required(&pm_queries_schema), &r);
@@ -41,39 +83,33 @@ static pm_result_t sample_file(const char *path, uint32_t s, float **pos_out, fl
     const pm_header_t *h = pm_reader_header(r);
     uint64_t n = h->count;
     uint32_t rs = h->record_size, op = pm_schema_offset(&pm_queries_schema, h->channels, PM_QUERY_POSITION),
-             on = pm_schema_offset(&pm_queries_schema, h->channels, PM_QUERY_NORMAL);
-    if (n < s)
-        s = (uint32_t)n;
-    float *pos = malloc((s ? s : 1) * 12), *nor = malloc((s ? s : 1) * 12);
+             on = pm_schema_offset(&pm_queries_schema, h->channels, PM_QUERY_NORMAL),
+             ox = pm_schema_offset(&pm_queries_schema, h->channels, PM_QUERY_PIXEL);
     const uint64_t chunk = 65536;
     unsigned char *buf = malloc(chunk * rs);
-    if (!pos || !nor || !buf) {
+    if (!buf) {
         res = pm_error_set(PM_ERR_NOMEM, "out of memory sampling '%s'", path);
     } else {
-        uint64_t at = 0, got;
-        uint32_t j = 0;
-        while (res == PM_OK && (res = pm_reader_read(r, buf, chunk, &got)) == PM_OK && got) {
-            for (; j < s; j++) {
-                uint64_t want = (2 * (uint64_t)j + 1) * n / (2 * (uint64_t)s);
-                if (want >= at + got)
-                    break;
-                memcpy(&pos[3 * j], buf + (want - at) * rs + op, 12);
-                memcpy(&nor[3 * j], buf + (want - at) * rs + on, 12);
+        uint64_t got;
+        while (res == PM_OK && (res = pm_reader_read(r, buf, chunk, &got)) == PM_OK && got)
+            for (uint64_t i = 0; i < got && res == PM_OK; i++) {
+                const unsigned char *rec = buf + i * rs;
+                uint32_t px;
+                float p[3], nn[3];
+                memcpy(&px, rec + ox, 4);
+                if (!sample_pixel(px, n, want))
+                    continue;
+                memcpy(p, rec + op, 12);
+                memcpy(nn, rec + on, 12);
+                if (sample_add(s, p, nn) != 0)
+                    res = pm_error_set(PM_ERR_NOMEM, "out of memory for the radius sample");
             }
-            at += got;
-        }
         if (res == PM_OK)
             res = pm_reader_finish(r, NULL);
-        *got_out = j;
     }
     pm_reader_close(r);
     free(buf);
-    if (res != PM_OK) {
-        free(pos), free(nor);
-        return res;
-    }
-    *pos_out = pos, *nor_out = nor;
-    return PM_OK;
+    return res;
 }
 
 static pm_result_t run(pm_stage_t *st, const gather_options_t *o)
@@ -136,21 +172,22 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *o)
     if (!o->widths && radius == 0.0) {
         t0 = pm_time_wall();
         const uint32_t samples = 2000;
+        sample_t smp = {0};
         if (!ranged || (begin == 0 && end == total_queries)) {
-            radius = pm_gather_radius_for_k(&map, &q, o->k, (float)o->normal_cos, samples);
+            r = sample_table(&q, samples, &smp);
         } else if (strcmp(q_path, "-") == 0) {
             r = pm_error_set(PM_ERR_USAGE, "--k with --range needs the queries as a file, not stdin, so that every "
                              "shard finds the same radius; or give --radius");
-            goto done;
         } else {
-            float *sp, *sn;
-            uint32_t got = 0;
-            if ((r = sample_file(q_path, samples, &sp, &sn, &got)) != PM_OK)
-                goto done;
-            pm_gather_queries_t sq_all = {.n = got, .pos = sp, .normal = sn};
-            radius = pm_gather_radius_for_k(&map, &sq_all, o->k, (float)o->normal_cos, samples);
-            free(sp), free(sn);
+            r = sample_file(q_path, samples, &smp);
         }
+        if (r == PM_OK) {
+            pm_gather_queries_t sq_all = {.n = smp.n, .pos = smp.pos, .normal = smp.nor};
+            radius = pm_gather_radius_for_k(&map, &sq_all, o->k, (float)o->normal_cos, smp.n);
+        }
+        free(smp.pos), free(smp.nor);
+        if (r != PM_OK)
+            goto done;
         t_radius = pm_time_wall() - t0;
         if (!(radius > 0.0) && map.n && q.n) {
             r = pm_error_set(PM_ERR_INPUT, "no radius gives %g photons per query", o->k);

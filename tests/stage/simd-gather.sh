@@ -53,6 +53,10 @@ grep -aq '^range=700:1444$' "$TMP/b.pm" && pass "a shard records its range" || f
 r1=$(grep -a '^radius=' "$TMP/k.pm"); r2=$(grep -a '^radius=' "$TMP/k2.pm")
 [ -n "$r1" ] && [ "$r1" = "$r2" ] && pass "--k: every shard uses the radius of the whole file ($r1)" ||
     fail "--k shards" "$r1 vs $r2"
+"$BIN/hilbert-sort" "$Q" -q -o "$TMP/qh.pm"
+"$SG" "$MAP" "$TMP/qh.pm" --k 20 -q -o "$TMP/k3.pm"
+r3=$(grep -a '^radius=' "$TMP/k3.pm")
+[ "$r1" = "$r3" ] && pass "--k: the radius does not depend on the order of the queries" || fail "--k order" "$r1 vs $r3"
 awk '/"shader_ops_per_query"/ { v = $2 + 0; exit !(v > 10 && v < 40) }' "$TMP/k.json" &&
     pass "--k 20 gives about 20 photons per query" || fail "--k 20" "$(grep shader_ops_per_query "$TMP/k.json")"
 

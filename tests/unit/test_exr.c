@@ -1,0 +1,98 @@
+/* test_exr.c: OpenEXR output (common/exr.c) read back through the OpenEXR C API: float exactly,
+ * half to its rounding, odd sizes across chunk boundaries, string attributes, and the refusals
+ * (stdout, a value that is not finite or too large for half, an unwritable directory). */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "../../common/exr.h"
+#include "unit.h"
+
+static float *ramp(uint32_t w, uint32_t h)
+{
+    float *p = malloc((size_t)3 * w * h * sizeof *p);
+    for (size_t i = 0; i < (size_t)3 * w * h; i++)
+        p[i] = (float)i * 0.37f + 1e-3f * (float)(i % 7); /* distinct values, not all representable in half */
+    return p;
+}
+
+static void roundtrip(pm_exr_pixel_t type, pm_exr_compression_t comp, uint32_t w, uint32_t h)
+{
+    char path[600];
+    snprintf(path, sizeof path, "%s/rt-%d-%d-%ux%u.exr", unit_tmpdir(), (int)type, (int)comp, w, h);
+    float *src = ramp(w, h);
+    if (type == PM_EXR_HALF)
+        for (size_t i = 0; i < (size_t)3 * w * h; i++)
+            src[i] = fminf(src[i], 60000.0f);
+    const pm_exr_attr_t attrs[] = {{"SOFTWARE", "pmtk test"}, {"COMMAND.0", "composite 'a b' -o x.exr"}};
+    assert_int_equal(pm_exr_write_rgb(path, w, h, src, type, comp, attrs, 2), PM_OK);
+    uint32_t rw, rh;
+    float *got;
+    assert_int_equal(pm_exr_read_rgb(path, &rw, &rh, &got), PM_OK);
+    assert_int_equal(rw, w);
+    assert_int_equal(rh, h);
+    for (size_t i = 0; i < (size_t)3 * w * h; i++) {
+        if (type == PM_EXR_FLOAT)
+            assert_true(got[i] == src[i]);
+        else /* half: 11 significant bits, relative error at most 2^-11 */
+            assert_true(fabsf(got[i] - src[i]) <= fabsf(src[i]) * 0x1p-11f);
+    }
+    char *v;
+    assert_int_equal(pm_exr_read_string_attr(path, "COMMAND.0", &v), PM_OK);
+    assert_string_equal(v, "composite 'a b' -o x.exr");
+    free(v);
+    assert_int_equal(pm_exr_read_string_attr(path, "no-such", &v), PM_ERR_INPUT);
+    assert_null(v);
+    free(got);
+    free(src);
+}
+
+static void test_exr_float_roundtrip(void **state)
+{
+    roundtrip(PM_EXR_FLOAT, PM_EXR_ZIP, 37, 35); /* 35 rows: two whole 16-line chunks and a short one */
+    roundtrip(PM_EXR_FLOAT, PM_EXR_NONE, 5, 3);
+    roundtrip(PM_EXR_FLOAT, PM_EXR_PIZ, 1, 1);
+}
+
+static void test_exr_half_roundtrip(void **state)
+{
+    roundtrip(PM_EXR_HALF, PM_EXR_ZIP, 17, 33);
+    roundtrip(PM_EXR_HALF, PM_EXR_PIZ, 40, 40);
+}
+
+static void test_exr_refusals(void **state)
+{
+    char path[600];
+    snprintf(path, sizeof path, "%s/bad.exr", unit_tmpdir());
+    float px[3] = {1.0f, NAN, 0.0f};
+    assert_int_equal(pm_exr_write_rgb(path, 1, 1, px, PM_EXR_FLOAT, PM_EXR_ZIP, NULL, 0), PM_ERR_INTERNAL);
+    assert_non_null(strstr(pm_error_message(), "channel 1 is nan"));
+    px[1] = 70000.0f; /* fine as float, beyond half */
+    assert_int_equal(pm_exr_write_rgb(path, 1, 1, px, PM_EXR_HALF, PM_EXR_ZIP, NULL, 0), PM_ERR_INTERNAL);
+    assert_int_equal(access(path, F_OK), -1); /* nothing left behind */
+    assert_int_equal(pm_exr_write_rgb(path, 1, 1, px, PM_EXR_FLOAT, PM_EXR_ZIP, NULL, 0), PM_OK);
+    assert_int_equal(pm_exr_write_rgb("-", 1, 1, px, PM_EXR_FLOAT, PM_EXR_ZIP, NULL, 0), PM_ERR_USAGE);
+    /* a missing directory is the user's input (common/atomic.c's class) */
+    assert_int_equal(pm_exr_write_rgb("/nonexistent-dir/x.exr", 1, 1, px, PM_EXR_FLOAT, PM_EXR_ZIP, NULL, 0),
+                     PM_ERR_INPUT);
+    uint32_t w, h;
+    float *rgb;
+    assert_int_not_equal(pm_exr_read_rgb("/nonexistent-dir/x.exr", &w, &h, &rgb), PM_OK);
+    assert_null(rgb);
+    /* a file that is not an EXR */
+    snprintf(path, sizeof path, "%s/not.exr", unit_tmpdir());
+    FILE *f = fopen(path, "w");
+    fputs("#?PMTK\nnot an image\n", f);
+    fclose(f);
+    assert_int_equal(pm_exr_read_rgb(path, &w, &h, &rgb), PM_ERR_INPUT);
+    assert_non_null(strstr(pm_error_message(), "not.exr"));
+}
+
+static const struct CMUnitTest tests[] = {
+    cmocka_unit_test(test_exr_float_roundtrip),
+    cmocka_unit_test(test_exr_half_roundtrip),
+    cmocka_unit_test(test_exr_refusals),
+};
+UNIT_GROUP(unit_exr, "exr", tests);

@@ -157,7 +157,10 @@ int main(int argc, char **argv)
                s.camera.eye[1], s.camera.eye[2], s.camera.look_at[0], s.camera.look_at[1], s.camera.look_at[2],
                s.camera.fov_y, s.camera.width, s.camera.height);
         fprintf(out, "needs: direction channels %s, material ids %s, area-light sampling %s\n",
-               s.any_glossy ? "yes" : "no", s.nmaterials > 1 ? "yes" : "no", s.nemissive ? "yes" : "no");
+               /* ids only where the gather must tell glossy materials apart: an all-Lambertian
+                * scene folds its BRDFs into the query weights (docs/formats.md 3.3) */
+               s.any_glossy ? "yes" : "no", s.any_glossy && s.nmaterials > 1 ? "yes" : "no",
+               s.nemissive ? "yes" : "no");
         fprintf(out, "ray epsilon: %.3g m\n", rt.epsilon);
         fprintf(out, "time: load %.3f s, bvh %.3f s\n", t_load, t_bvh);
         if (s.nlights == 0 && s.nemissive == 0)

@@ -45,6 +45,10 @@ static inline void flush4(__m128 ar, __m128 ag, __m128 ab, double dacc[3][4])
         for (int l = 0; l < 4; l++)
             dacc[k][l] += t[k][l];
 }
+typedef float vf4 __attribute__((vector_size(16)));
+typedef int vi4 __attribute__((vector_size(16)));
+#define VF vf4
+#define VI vi4
 #define W 4
 #define V __m128
 #define VSET1(x) _mm_set1_ps(x)
@@ -81,6 +85,10 @@ static inline void flush8(__m256 ar, __m256 ag, __m256 ab, double dacc[3][8])
         _mm256_storeu_pd(&dacc[k][4], _mm256_add_pd(_mm256_loadu_pd(&dacc[k][4]), hi));
     }
 }
+typedef float vf8 __attribute__((vector_size(32)));
+typedef int vi8 __attribute__((vector_size(32)));
+#define VF vf8
+#define VI vi8
 #define W 8
 #define V __m256
 #define VSET1(x) _mm256_set1_ps(x)
@@ -112,6 +120,10 @@ static inline void flush16(__m512 ar, __m512 ag, __m512 ab, double dacc[3][16])
         _mm512_storeu_pd(&dacc[k][8], _mm512_add_pd(_mm512_loadu_pd(&dacc[k][8]), hi));
     }
 }
+typedef float vf16 __attribute__((vector_size(64)));
+typedef int vi16 __attribute__((vector_size(64)));
+#define VF vf16
+#define VI vi16
 #define W 16
 #define V __m512
 #define VSET1(x) _mm512_set1_ps(x)

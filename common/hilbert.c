@@ -1,14 +1,16 @@
 /* hilbert.c: the order of hilbert-sort (see hilbert.h): points to cells of a 2^21 grid over
  * their bounding cube, cells to 63-bit Morton codes (the octant at every level, no state),
- * then an MSD radix sort of (code, index) pairs that descends the octree one to four levels
- * per pass and stops in cells of `leaf` points or fewer. The curve enters per pass: a cell in
+ * then an MSD radix sort of 64-bit words (the point's index and, above it, the Morton digits
+ * of as many levels as fit) that descends the octree one to four levels per pass and stops
+ * in cells of `leaf` points or fewer. The curve enters per pass: a cell in
  * orientation s maps the Morton digits of its next k levels to curve digits (and the child's
  * orientation) with one look-up in a table made from the L-system, so that no per-point chain
  * of look-ups through 21 levels is needed.
  *
- * Why this shape: sorting 4-byte indices with their 8-byte keys moves 12 bytes per point
- * per pass instead of a 40 to 56-byte record, and the records are gathered once by the
- * caller; the first passes (large cells, memory-bound) run on every thread, the cells below
+ * Why this shape: sorting one 8-byte word per point moves 8 bytes per point per pass instead
+ * of a 40 to 56-byte record (or a 12-byte code and index), and the records are gathered once
+ * by the caller; the root's counts are made with the words, and a last pass whose children
+ * are all leaves puts the indices straight into the permutation; the first passes (large cells, memory-bound) run on every thread, the cells below
  * them are independent and shared out dynamically. Every pass is a stable counting scatter,
  * whose result does not depend on how the input was split among threads, so the permutation
  * is the same for any thread count. */
@@ -19,6 +21,9 @@
 #include <stdlib.h>
 #include <string.h>
 #include <xmmintrin.h>
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 #include "memory.h"
 #include "timer.h"
@@ -91,7 +96,9 @@ static pm_result_t digit_tables_build(pm_order_t order, digit_tables_t *d)
 static inline uint32_t cell_of(float x, double lo, double scale)
 {
     double c = ((double)x - lo) * scale;
-    return c > 0.0 ? (c < (double)(CELLS - 1) ? (uint32_t)c : CELLS - 1) : 0;
+    c = c > 0.0 ? c : 0.0; /* clamped without branches (maxsd, minsd): c is never NaN */
+    c = c < (double)(CELLS - 1) ? c : (double)(CELLS - 1);
+    return (uint32_t)c;
 }
 
 /* The 21 bits of v spread to every third bit (bit i to bit 3i). */
@@ -192,11 +199,22 @@ uint64_t pm_reorder_auto_leaf(uint64_t n, uint64_t cache_bytes)
 
 /* ---- the radix sort ---- */
 
+/* A point is one 64-bit word: its index in the low `ib` bits and, above them, the Morton
+ * digits of `cap` consecutive levels of its cell (a window starting at level `base`, its
+ * top level in the highest digit). A pass moves 8 bytes per point, one array, instead of an
+ * 8-byte code and a 4-byte index in two. 10 million points take 24 index bits and leave 13
+ * levels, more than leaves of 16 need unless points cluster; a cell that goes deeper than
+ * its window has its words rewritten from the positions with the next levels (refill). */
 typedef struct {
-    uint64_t *key[2];  /* Morton codes, in one of two buffers; a pass moves them to the other */
-    uint32_t *idx[2];  /* idx[0] is the caller's permutation, where every leaf ends up */
+    uint64_t *w[2];       /* words, in one of two buffers; a pass moves a cell to the other */
+    uint32_t *perm;       /* the caller's permutation, where every leaf ends up */
     uint64_t leaf;
+    unsigned ib, cap;     /* index bits; levels of Morton digits a word holds */
+    uint64_t imask;       /* the index bits */
     digit_tables_t tab;
+    const void *pos;      /* the points, for refills */
+    size_t stride;
+    double lo[3], scale;
 } sorter_t;
 
 typedef struct {
@@ -208,6 +226,7 @@ typedef struct {
 typedef struct {
     uint64_t b, m;     /* the range [b, b + m) */
     uint8_t level;     /* its depth in the octree */
+    uint8_t base;      /* the first level its words hold */
     uint8_t state;     /* its orientation */
     uint8_t buf;       /* which buffer holds it */
     uint8_t is_leaf;   /* 1: a leaf, 2: a leaf whose indices must be put back in input order */
@@ -224,14 +243,75 @@ static int by_u32(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+/* The digits of levels [base, base + cap) of a 63-bit Morton code (levels past the last
+ * are 0), in the low 3 * cap bits. */
+static inline uint64_t window(uint64_t morton, unsigned base, unsigned cap)
+{
+    int sh = 3 * ((int)LEVELS - (int)(base + cap));
+    uint64_t v = sh >= 0 ? morton >> sh : morton << -sh;
+    return v & ((1ull << (3 * cap)) - 1);
+}
+
+static inline uint64_t point_morton(const sorter_t *s, uint64_t i)
+{
+    float p[3];
+    point(s->pos, s->stride, i, p);
+    return morton_of(cell_of(p[0], s->lo[0], s->scale), cell_of(p[1], s->lo[1], s->scale),
+                     cell_of(p[2], s->lo[2], s->scale));
+}
+
+/* The cell [b, b + m) of buffer buf descends below its words' window: rewrite them with
+ * the digits of levels [level, level + cap). Rare: only clustered points get here. */
+static void refill(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsigned level)
+{
+    uint64_t *w = s->w[buf] + b;
+    for (uint64_t j = 0; j < m; j++) {
+        uint64_t i = w[j] & s->imask;
+        w[j] = window(point_morton(s, i), level, s->cap) << s->ib | i;
+    }
+}
+
+/* Levels for the next pass over a cell of m points at `level`: as many (up to 4) as keep the
+ * average child above the leaf size, so that few leaves fall inside a pass. */
+static unsigned pass_levels(uint64_t m, uint64_t leaf, unsigned level)
+{
+    unsigned k = 1;
+    while (k < MAX_PASS_LEVELS && level + k < LEVELS && (m >> (3 * (k + 1))) >= leaf)
+        k++;
+    return k;
+}
+
+/* The pass over a cell of m points at `level` whose words hold levels from *base: its
+ * levels k, within the window (refilling the cell when the window is used up). */
+static unsigned plan_pass(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsigned level, unsigned *base)
+{
+    unsigned k = pass_levels(m, s->leaf, level);
+    if (level + k > *base + s->cap) {
+        if (level == *base + s->cap) {
+            refill(s, buf, b, m, level);
+            *base = level;
+        } else {
+            k = *base + s->cap - level;
+        }
+    }
+    return k;
+}
+
+/* The shift that brings the digits of levels [level, level + k) to the bottom of a word. */
+static inline unsigned pass_shift(const sorter_t *s, unsigned level, unsigned base, unsigned k)
+{
+    return s->ib + 3 * (s->cap - (level - base) - k);
+}
+
 /* A leaf: its points keep their input order. Points that share a cell of the last pass
  * already are (every pass is stable); a leaf found at a level inside a multi-level pass was
  * also ordered by the levels below it, and is sorted back by index (resort). */
 static void leaf_done(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsigned level, int resort, tally_t *t)
 {
-    uint32_t *dst = s->idx[0] + b;
-    if (buf)
-        memcpy(dst, s->idx[1] + b, m * sizeof *dst);
+    uint32_t *dst = s->perm + b;
+    const uint64_t *w = s->w[buf] + b;
+    for (uint64_t i = 0; i < m; i++)
+        dst[i] = (uint32_t)(w[i] & s->imask);
     if (resort) {
         if (m <= 32) {
             for (uint64_t i = 1; i < m; i++) {
@@ -250,42 +330,32 @@ static void leaf_done(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsign
         t->depth = level;
 }
 
-/* Levels for the next pass over a cell of m points at `level`: as many (up to 4) as keep the
- * average child above the leaf size, so that few leaves fall inside a pass. */
-static unsigned pass_levels(uint64_t m, uint64_t leaf, unsigned level)
-{
-    unsigned k = 1;
-    while (k < MAX_PASS_LEVELS && level + k < LEVELS && (m >> (3 * (k + 1))) >= leaf)
-        k++;
-    return k;
-}
+/* One pass: the bucket (curve digits of k levels) of a word, in a cell of state s. */
+#define BUCKET(tab, word) ((tab)[((word) >> shift) & (nb - 1)] & (nb - 1))
 
-/* One pass: the bucket (curve digits of k levels) of a Morton code, in a cell of state s. */
-#define BUCKET(tab, code) ((tab)[((code) >> shift) & (nb - 1)] & (nb - 1))
-
-static void sort_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsigned level, unsigned state,
-                      uint32_t *scratch, tally_t *t);
+static void sort_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsigned level, unsigned base,
+                      unsigned state, uint32_t *scratch, tally_t *t);
 
 /* Walks the cells of one pass, from the pass's first level (j = 1) to its last (j = k), over
  * the bucket ends `end` (relative to b): empty cells are skipped, small ones are leaves, the
  * rest are sorted (now) or queued (list != NULL: the parallel top). tab is the pass's table
  * row, which gives each bucket's state. */
 static void visit(const sorter_t *s, int buf, uint64_t b, const uint32_t *end, unsigned k, unsigned level,
-                  const uint16_t *tab, unsigned j, unsigned first, uint32_t *scratch, tally_t *t, worklist_t *list,
-                  int *oom)
+                  unsigned base, const uint16_t *tab, unsigned j, unsigned first, uint32_t *scratch, tally_t *t,
+                  worklist_t *list, int *oom)
 {
-    unsigned span = 1u << (3 * (k - j)), nb = 1u << (3 * k), shift = 63 - 3 * (level + k);
+    unsigned span = 1u << (3 * (k - j)), nb = 1u << (3 * k), shift = pass_shift(s, level, base, k);
     uint64_t lo = first ? end[first - 1] : 0, hi = end[first + span - 1], m = hi - lo;
     if (m == 0)
         return;
     if (m <= s->leaf || j == k) {
         int leaf = m <= s->leaf;
-        unsigned child = leaf ? 0 : tab[(s->key[buf][b + lo] >> shift) & (nb - 1)] >> 12;
+        unsigned child = leaf ? 0 : tab[(s->w[buf][b + lo] >> shift) & (nb - 1)] >> 12;
         if (!list) {
             if (leaf)
                 leaf_done(s, buf, b + lo, m, level + j, j < k, t);
             else
-                sort_cell(s, buf, b + lo, m, level + k, child, scratch, t);
+                sort_cell(s, buf, b + lo, m, level + k, base, child, scratch, t);
             return;
         }
         if (list->n == list->cap) {
@@ -297,80 +367,95 @@ static void visit(const sorter_t *s, int buf, uint64_t b, const uint32_t *end, u
             }
             list->w = w, list->cap = cap;
         }
-        list->w[list->n++] = (work_t){b + lo, m, (uint8_t)(leaf ? level + j : level + k), (uint8_t)child,
-                                      (uint8_t)buf, (uint8_t)(leaf ? (j < k ? 2 : 1) : 0)};
+        list->w[list->n++] = (work_t){b + lo,       m,           (uint8_t)(leaf ? level + j : level + k),
+                                      (uint8_t)base, (uint8_t)child, (uint8_t)buf,
+                                      (uint8_t)(leaf ? (j < k ? 2 : 1) : 0)};
         return;
     }
     for (unsigned c = 0; c < 8; c++)
-        visit(s, buf, b, end, k, level, tab, j + 1, first + c * (span / 8), scratch, t, list, oom);
+        visit(s, buf, b, end, k, level, base, tab, j + 1, first + c * (span / 8), scratch, t, list, oom);
 }
 
 /* Sorts the cell [b, b + m) at `level` in orientation `state`, held in buffer buf, on this
  * thread. scratch holds LEVELS x (MAX_BUCKETS + 1) counts: one row per level, so that the
  * recursion (which only goes deeper) never reuses a row still in use. */
-static void sort_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsigned level, unsigned state,
-                      uint32_t *scratch, tally_t *t)
+static void sort_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsigned level, unsigned base,
+                      unsigned state, uint32_t *scratch, tally_t *t)
 {
     for (;;) {
         if (m <= s->leaf || level >= LEVELS) {
             leaf_done(s, buf, b, m, level, 0, t);
             return;
         }
-        unsigned k = pass_levels(m, s->leaf, level), nb = 1u << (3 * k), shift = 63 - 3 * (level + k);
+        unsigned k = plan_pass(s, buf, b, m, level, &base), nb = 1u << (3 * k);
+        unsigned shift = pass_shift(s, level, base, k);
         const uint16_t *tab = s->tab.t[k] + (size_t)state * nb;
         uint32_t *cnt = scratch + (size_t)level * (MAX_BUCKETS + 1);
-        const uint64_t *ks = s->key[buf] + b;
-        const uint32_t *is = s->idx[buf] + b;
+        const uint64_t *ws = s->w[buf] + b;
         memset(cnt, 0, nb * sizeof *cnt);
         for (uint64_t i = 0; i < m; i++)
-            cnt[BUCKET(tab, ks[i])]++;
-        if (cnt[BUCKET(tab, ks[0])] == m) { /* one child holds them all: no move */
-            state = tab[(ks[0] >> shift) & (nb - 1)] >> 12;
+            cnt[BUCKET(tab, ws[i])]++;
+        if (cnt[BUCKET(tab, ws[0])] == m) { /* one child holds them all: no move */
+            state = tab[(ws[0] >> shift) & (nb - 1)] >> 12;
             level += k;
             continue;
         }
-        uint32_t sum = 0;
+        uint32_t sum = 0, most = 0, filled = 0;
         for (unsigned x = 0; x < nb; x++) {
             uint32_t c = cnt[x];
             cnt[x] = sum;
             sum += c;
+            most = c > most ? c : most;
+            filled += c > 0;
         }
-        uint64_t *kd = s->key[!buf] + b;
-        uint32_t *id = s->idx[!buf] + b;
-        for (uint64_t i = 0; i < m; i++) {
-            uint32_t p = cnt[BUCKET(tab, ks[i])]++;
-            kd[p] = ks[i];
-            id[p] = is[i];
+        if (k == 1 && most <= s->leaf) {
+            /* Every child is a leaf: its indices go straight to their places, in input
+             * order (the pass is stable), with no copy through the other buffer. */
+            uint32_t *dst = s->perm + b;
+            for (uint64_t i = 0; i < m; i++)
+                dst[cnt[BUCKET(tab, ws[i])]++] = (uint32_t)(ws[i] & s->imask);
+            t->leaves += filled;
+            if (level + 1 > t->depth)
+                t->depth = level + 1;
+            return;
         }
+        uint64_t *wd = s->w[!buf] + b;
+        for (uint64_t i = 0; i < m; i++)
+            wd[cnt[BUCKET(tab, ws[i])]++] = ws[i];
         /* cnt[x] is now the end of bucket x */
         for (unsigned c = 0; c < 8; c++)
-            visit(s, !buf, b, cnt, k, level, tab, 1, c * (nb / 8), scratch, t, NULL, NULL);
+            visit(s, !buf, b, cnt, k, level, base, tab, 1, c * (nb / 8), scratch, t, NULL, NULL);
         return;
     }
 }
 
 /* A pass over a large cell on every thread: counts over nthreads contiguous slices, then a
  * stable scatter (slice i before slice i+1 within every bucket: the same result as one
- * thread). Children still large get another parallel pass; the rest are queued. */
-static pm_result_t par_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsigned level, unsigned state,
-                            uint64_t big, uint32_t *hist, int nthreads, worklist_t *list, tally_t *t)
+ * thread). Children still large get another parallel pass; the rest are queued. counted:
+ * the first pass's counts are already in hist (made with the words, at the root). */
+static pm_result_t par_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsigned level, unsigned base,
+                            unsigned state, uint64_t big, uint32_t *hist, int nthreads, int counted,
+                            worklist_t *list, tally_t *t)
 {
-    for (;;) {
+    for (;; counted = 0) {
         if (m <= s->leaf || level >= LEVELS) {
             leaf_done(s, buf, b, m, level, 0, t);
             return PM_OK;
         }
-        unsigned k = pass_levels(m, s->leaf, level), nb = 1u << (3 * k), shift = 63 - 3 * (level + k);
+        unsigned k = plan_pass(s, buf, b, m, level, &base), nb = 1u << (3 * k);
+        unsigned shift = pass_shift(s, level, base, k);
         const uint16_t *tab = s->tab.t[k] + (size_t)state * nb;
         const int used = nthreads; /* slices, whatever the team size */
+        if (!counted) {
 #pragma omp parallel for num_threads(nthreads) schedule(static, 1)
-        for (int th = 0; th < used; th++) {
-            uint64_t i0 = b + m * (uint64_t)th / (uint64_t)used, i1 = b + m * (uint64_t)(th + 1) / (uint64_t)used;
-            uint32_t *h = hist + (size_t)th * MAX_BUCKETS;
-            const uint64_t *ks = s->key[buf];
-            memset(h, 0, nb * sizeof *h);
-            for (uint64_t i = i0; i < i1; i++)
-                h[BUCKET(tab, ks[i])]++;
+            for (int th = 0; th < used; th++) {
+                uint64_t i0 = b + m * (uint64_t)th / (uint64_t)used, i1 = b + m * (uint64_t)(th + 1) / (uint64_t)used;
+                uint32_t *h = hist + (size_t)th * MAX_BUCKETS;
+                const uint64_t *ws = s->w[buf];
+                memset(h, 0, nb * sizeof *h);
+                for (uint64_t i = i0; i < i1; i++)
+                    h[BUCKET(tab, ws[i])]++;
+            }
         }
         /* Bucket starts per slice: bucket by bucket, slice by slice. */
         uint32_t sum = 0;
@@ -382,11 +467,11 @@ static pm_result_t par_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, 
             }
         /* One child holds every point: go a pass deeper without moving anything. Slice 0's
          * starts are the buckets' starts. */
-        uint64_t code0 = s->key[buf][b];
-        unsigned first = BUCKET(tab, code0);
+        uint64_t word0 = s->w[buf][b];
+        unsigned first = BUCKET(tab, word0);
         uint64_t stop = first + 1 < nb ? hist[first + 1] : m;
         if (stop - hist[first] == m) {
-            state = tab[(code0 >> shift) & (nb - 1)] >> 12;
+            state = tab[(word0 >> shift) & (nb - 1)] >> 12;
             level += k;
             continue;
         }
@@ -394,15 +479,10 @@ static pm_result_t par_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, 
         for (int th = 0; th < used; th++) {
             uint64_t i0 = b + m * (uint64_t)th / (uint64_t)used, i1 = b + m * (uint64_t)(th + 1) / (uint64_t)used;
             uint32_t *h = hist + (size_t)th * MAX_BUCKETS;
-            const uint64_t *ks = s->key[buf];
-            const uint32_t *is = s->idx[buf];
-            uint64_t *kd = s->key[!buf] + b;
-            uint32_t *id = s->idx[!buf] + b;
-            for (uint64_t i = i0; i < i1; i++) {
-                uint32_t p = h[BUCKET(tab, ks[i])]++;
-                kd[p] = ks[i];
-                id[p] = is[i];
-            }
+            const uint64_t *ws = s->w[buf];
+            uint64_t *wd = s->w[!buf] + b;
+            for (uint64_t i = i0; i < i1; i++)
+                wd[h[BUCKET(tab, ws[i])]++] = ws[i];
         }
         /* The last slice's cursors are the bucket ends. */
         uint32_t *end = malloc((size_t)nb * sizeof *end);
@@ -412,7 +492,7 @@ static pm_result_t par_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, 
         size_t first_new = list->n;
         int oom = 0;
         for (unsigned c = 0; c < 8 && !oom; c++)
-            visit(s, !buf, b, end, k, level, tab, 1, c * (nb / 8), NULL, t, list, &oom);
+            visit(s, !buf, b, end, k, level, base, tab, 1, c * (nb / 8), NULL, t, list, &oom);
         free(end);
         if (oom)
             return pm_error_set(PM_ERR_NOMEM, "out of memory sorting %" PRIu64 " points", m);
@@ -422,13 +502,52 @@ static pm_result_t par_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, 
             if (w.is_leaf || w.m < big)
                 continue;
             list->w[i].m = 0; /* done here */
-            pm_result_t r = par_cell(s, w.buf, w.b, w.m, w.level, w.state, big, hist, nthreads, list, t);
+            pm_result_t r = par_cell(s, w.buf, w.b, w.m, w.level, w.base, w.state, big, hist, nthreads, 0, list, t);
             if (r != PM_OK)
                 return r;
         }
         return PM_OK;
     }
 }
+
+/* The words of points [i0, i1) into w[0], and the counts of the root's first pass (k
+ * levels, table row tab, digits at `shift`) into h. SPREAD3 makes a Morton code of three
+ * cell coordinates. */
+#define KEYGEN_LOOP(MORTON)                                                                               \
+    for (uint64_t i = i0; i < i1; i++) {                                                                 \
+        float p[3];                                                                                      \
+        point(s->pos, s->stride, i, p);                                                                  \
+        uint64_t mc = MORTON(cell_of(p[0], s->lo[0], s->scale), cell_of(p[1], s->lo[1], s->scale),       \
+                             cell_of(p[2], s->lo[2], s->scale));                                         \
+        uint64_t word = (mc >> sh) << s->ib | i;                                                         \
+        w[i] = word;                                                                                     \
+        h[BUCKET(tab, word)]++;                                                                          \
+    }
+
+static void keygen(const sorter_t *s, uint64_t i0, uint64_t i1, uint32_t *h, const uint16_t *tab, unsigned shift,
+                   unsigned nb)
+{
+    uint64_t *w = s->w[0];
+    unsigned sh = 3 * (LEVELS - s->cap);
+    KEYGEN_LOOP(morton_of)
+}
+
+#if defined(__x86_64__)
+__attribute__((target("bmi2"))) static inline uint64_t morton_pdep(uint32_t x, uint32_t y, uint32_t z)
+{
+    return _pdep_u64(x, 0x1249249249249249ull) | _pdep_u64(y, 0x2492492492492492ull) |
+           _pdep_u64(z, 0x4924924924924924ull);
+}
+
+/* The same with BMI2's bit deposit: one instruction per axis instead of ten. */
+__attribute__((target("bmi2"))) static void keygen_bmi2(const sorter_t *s, uint64_t i0, uint64_t i1, uint32_t *h,
+                                                        const uint16_t *tab, unsigned shift, unsigned nb)
+{
+    uint64_t *w = s->w[0];
+    unsigned sh = 3 * (LEVELS - s->cap);
+    KEYGEN_LOOP(morton_pdep)
+}
+#endif
 
 pm_result_t pm_reorder_points(const void *pos, size_t stride, uint64_t n, pm_order_t order, uint64_t leaf,
                               uint32_t *perm_out, pm_reorder_info_t *info_out)
@@ -448,35 +567,44 @@ pm_result_t pm_reorder_points(const void *pos, size_t stride, uint64_t n, pm_ord
     }
     unsigned csr = _mm_getcsr();
     int nthreads = omp_get_max_threads();
-    sorter_t s = {.leaf = leaf};
-    s.key[0] = pm_alloc_aligned(n * sizeof(uint64_t));
-    s.key[1] = pm_alloc_aligned(n * sizeof(uint64_t));
-    s.idx[0] = perm_out;
-    s.idx[1] = pm_alloc_aligned(n * sizeof(uint32_t));
+    sorter_t s = {.leaf = leaf, .perm = perm_out, .pos = pos, .stride = stride};
+    s.ib = 64 - (unsigned)__builtin_clzll(n - 1); /* n >= 2 here */
+    s.cap = (64 - s.ib) / 3 < LEVELS ? (64 - s.ib) / 3 : LEVELS;
+    s.imask = (1ull << s.ib) - 1;
+    s.w[0] = pm_alloc_aligned(n * sizeof(uint64_t));
+    s.w[1] = pm_alloc_aligned(n * sizeof(uint64_t));
     uint32_t *hist = malloc((size_t)nthreads * MAX_BUCKETS * sizeof *hist);
     uint32_t *scratch = malloc((size_t)nthreads * LEVELS * (MAX_BUCKETS + 1) * sizeof *scratch);
     worklist_t list = {0};
     pm_result_t res = digit_tables_build(order, &s.tab);
     if (res != PM_OK)
         goto done;
-    if (!s.key[0] || !s.key[1] || !s.idx[1] || !hist || !scratch) {
+    if (!s.w[0] || !s.w[1] || !hist || !scratch) {
         res = pm_error_set(PM_ERR_NOMEM, "out of memory for the keys of %" PRIu64 " points (%.0f MB)", n,
-                           n * 20.0 / 1e6);
+                           n * 16.0 / 1e6);
         goto done;
     }
-    double lo[3], scale;
-    pm_reorder_cube(pos, stride, n, lo, &scale);
-#pragma omp parallel num_threads(nthreads)
-    {
+    pm_reorder_cube(pos, stride, n, s.lo, &s.scale);
+    /* The words, and with them the counts of the root's first pass, on the slices par_cell
+     * uses for it. */
+    unsigned base = 0, k0 = pass_levels(n, leaf, 0), nb0 = 1u << (3 * k0), shift0 = pass_shift(&s, 0, 0, k0);
+    const uint16_t *tab0 = s.tab.t[k0];
+#if defined(__x86_64__)
+    int bmi2 = __builtin_cpu_supports("bmi2");
+#endif
+    const int used = nthreads;
+#pragma omp parallel for num_threads(nthreads) schedule(static, 1)
+    for (int th = 0; th < used; th++) {
         _mm_setcsr(csr);
-#pragma omp for schedule(static)
-        for (uint64_t i = 0; i < n; i++) {
-            float p[3];
-            point(pos, stride, i, p);
-            s.key[0][i] = morton_of(cell_of(p[0], lo[0], scale), cell_of(p[1], lo[1], scale),
-                                    cell_of(p[2], lo[2], scale));
-            s.idx[0][i] = (uint32_t)i;
-        }
+        uint64_t i0 = n * (uint64_t)th / (uint64_t)used, i1 = n * (uint64_t)(th + 1) / (uint64_t)used;
+        uint32_t *h = hist + (size_t)th * MAX_BUCKETS;
+        memset(h, 0, nb0 * sizeof *h);
+#if defined(__x86_64__)
+        if (bmi2)
+            keygen_bmi2(&s, i0, i1, h, tab0, shift0, nb0);
+        else
+#endif
+            keygen(&s, i0, i1, h, tab0, shift0, nb0);
     }
     double t1 = pm_time_wall();
     info.keys_s = t1 - t0;
@@ -485,13 +613,14 @@ pm_result_t pm_reorder_points(const void *pos, size_t stride, uint64_t n, pm_ord
     uint64_t big = n / (uint64_t)(2 * nthreads);
     if (big < PAR_MIN_POINTS)
         big = PAR_MIN_POINTS;
-    res = par_cell(&s, 0, 0, n, 0, 0, big, hist, nthreads, &list, &top);
+    res = par_cell(&s, 0, 0, n, 0, base, 0, big, hist, nthreads, 1, &list, &top);
     if (res != PM_OK)
         goto done;
     uint64_t leaves = top.leaves;
     unsigned depth = top.depth;
 #pragma omp parallel num_threads(nthreads) reduction(+ : leaves) reduction(max : depth)
     {
+        _mm_setcsr(csr); /* refills quantize positions as the words were made */
         tally_t t = {0};
         uint32_t *mine = scratch + (size_t)omp_get_thread_num() * LEVELS * (MAX_BUCKETS + 1);
 #pragma omp for schedule(dynamic, 1)
@@ -502,7 +631,7 @@ pm_result_t pm_reorder_points(const void *pos, size_t stride, uint64_t n, pm_ord
             if (w.is_leaf)
                 leaf_done(&s, w.buf, w.b, w.m, w.level, w.is_leaf == 2, &t);
             else
-                sort_cell(&s, w.buf, w.b, w.m, w.level, w.state, mine, &t);
+                sort_cell(&s, w.buf, w.b, w.m, w.level, w.base, w.state, mine, &t);
         }
         leaves += t.leaves;
         depth = t.depth > depth ? t.depth : depth;
@@ -515,9 +644,8 @@ done:
     free(list.w);
     free(scratch);
     free(hist);
-    pm_free_aligned(s.idx[1]);
-    pm_free_aligned(s.key[1]);
-    pm_free_aligned(s.key[0]);
+    pm_free_aligned(s.w[1]);
+    pm_free_aligned(s.w[0]);
     if (res == PM_OK && info_out)
         *info_out = info;
     return res;

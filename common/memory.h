@@ -1,11 +1,19 @@
 /* memory.h: allocation for the large arrays of photons, nodes and queries.
  *
- * 64-byte aligned (cache lines, AVX-512 loads). Arrays of 1 MiB or more are mapped with
- * their pages populated up front (mmap MAP_POPULATE): on the machines this project runs
- * on, touching fresh memory page by page ran at 0.3 GB/s, a third of the time of reading a
- * million-record file, while populating a whole mapping at once runs at about 5 GB/s
- * (tests/bench measures both). Huge pages are requested for them too, where the kernel
- * gives them. Free with pm_free_aligned, never with free(). */
+ * 64-byte aligned (cache lines, AVX-512 loads). Arrays of 1 MiB or more are mappings whose
+ * pages are populated up front: on the machines this project runs on, touching fresh memory
+ * page by page ran at 0.3 GB/s. Arrays of 4 MiB or more also start on a 2 MiB boundary and
+ * ask for transparent huge pages (MADV_HUGEPAGE, then MADV_POPULATE_WRITE): on these
+ * virtual machines even a populated 4 KiB page costs about 1.4 us at its first write (the
+ * hypervisor fills its shadow page table lazily), so 512 MB of 4 KiB pages cost 0.07 s to
+ * populate and 0.2 s more at first use, while 2 MiB pages populate at about 20 GB/s and are
+ * then at full speed. The catch: huge pages come from free 2 MiB blocks, which the guest
+ * reports to the hypervisor after 2 s idle (free page reporting), and a reported block
+ * costs a host fault per 4 KiB on first touch: "cold", 512 MB populate in 0.6-0.8 s on one
+ * thread, so arrays of 64 MiB or more are populated on every thread (0.35-0.45 s on two),
+ * against 0.26 s for 4 KiB pages, cold or warm. Back-to-back runs (a pipeline, a
+ * benchmark) find them warm. Where the kernel gives no huge pages this is the 4 KiB
+ * behaviour. Free with pm_free_aligned, never with free(). */
 #ifndef PM_MEMORY_H
 #define PM_MEMORY_H
 

@@ -11,6 +11,11 @@
 #include <string.h>
 #include <sys/stat.h>
 #include <xxhash.h>
+#if defined(__x86_64__)
+/* libxxhash's run-time dispatch: XXH3 in AVX2 or AVX-512 where the CPU has them (4x the
+ * SSE2 default here), the same hash. */
+#include <xxh_x86dispatch.h>
+#endif
 
 #include "../common/args.h"
 #include "../common/atomic.h"
@@ -816,10 +821,12 @@ static pm_result_t reader_start(pm_reader_t *r, const pm_schema_t *schema, uint3
 
 const pm_header_t *pm_reader_header(const pm_reader_t *r) { return &r->hdr; }
 
-/* Checks the values of n raw records starting at record index first, against the
- * channel flags of h's schema; path names the file in messages. */
-static pm_result_t check_values(const pm_header_t *h, const char *path, const unsigned char *rec, uint64_t n,
-                                uint64_t first)
+/* The exact check, value by value in double, and the source of every message: checks the
+ * values of n raw records starting at record index first, against the channel flags of h's
+ * schema, channel by channel; path names the file in messages. check_values runs it only on
+ * a chunk where its fast pass saw a value that may fail. */
+static pm_result_t check_values_exact(const pm_header_t *h, const char *path, const unsigned char *rec, uint64_t n,
+                                      uint64_t first)
 {
     const pm_schema_t *s = h->schema;
     size_t off = 0;
@@ -867,7 +874,259 @@ static pm_result_t check_values(const pm_header_t *h, const char *path, const un
     return s->validate_records ? s->validate_records(h, path, rec, n, first) : PM_OK;
 }
 
+/* ---- the fast pass of the value checks ----
+ *
+ * Every chunk a reader reads and a writer writes is checked, so this runs at the speed of
+ * the I/O. It answers one question, "might any value of these records fail?", and is
+ * conservative: it says yes for every value the exact check rejects, and perhaps for a few
+ * it accepts (a negative subnormal, a unit vector within 1e-5 of the tolerance, a channel
+ * with a check it does not model). Then the chunk goes through check_values_exact, which
+ * decides and words the message, so the accepted values and the messages are exactly the
+ * exact check's.
+ *
+ * Records are AoS with any size and alignment (54-byte records put floats at odd offsets),
+ * so each channel of a block of PM_CHECK_BLOCK records is first copied into one small
+ * column per component (in L1), and the tests run as fixed-length loops over those columns
+ * that the compiler vectorizes: integer tests on the bits for finite / >= 0 / > 0, float
+ * arithmetic for unit length. */
+#define PM_CHECK_BLOCK 256 /* records per block: 4 columns of 1 KiB */
+#define PM_F32_EXP 0x7f800000u
+#define PM_F32_ONE 0x3f800000u
+
+typedef struct {
+    uint32_t v[4][PM_CHECK_BLOCK] __attribute__((aligned(64))); /* component k of record i: bits of an f32 */
+} check_block_t;
+
+/* 1 when some value in the block might fail; the block holds PM_CHECK_BLOCK rows (the
+ * rows past the last record are padded with values that pass every check but > 0 on a
+ * unit vector's y and z). */
+static uint32_t block_suspect(const check_block_t *b, unsigned comps, unsigned fl)
+{
+    uint32_t bad = 0;
+    for (unsigned k = 0; k < comps; k++) {
+        const uint32_t *v = b->v[k];
+        /* Not finite: exponent all ones. (x & 0x7fffffff) + 2^23 reaches bit 31 exactly
+         * when x's magnitude is at least that of infinity. */
+        for (unsigned i = 0; i < PM_CHECK_BLOCK; i++)
+            bad |= (v[i] & 0x7fffffffu) + 0x00800000u;
+        if (fl & PM_CH_NONNEG) /* negative: the sign set on a nonzero magnitude (-0 passes) */
+            for (unsigned i = 0; i < PM_CHECK_BLOCK; i++)
+                bad |= (uint32_t)(v[i] > 0x80000000u) << 31;
+        if (fl & PM_CH_POSITIVE) /* not a positive normal number (zero, subnormal, sign set) */
+            for (unsigned i = 0; i < PM_CHECK_BLOCK; i++)
+                bad |= (uint32_t)(v[i] - 0x00800000u > PM_F32_EXP - 1 - 0x00800000u) << 31;
+    }
+    if ((fl & PM_CH_UNIT) && comps == 3) {
+        /* |x^2 + y^2 + z^2 - 1| <= 2e-3 in double; in float the sum is within 3 ulp (2e-7)
+         * of it, so a float sum inside [1 - 2e-3 + 1e-5, 1 + 2e-3 - 1e-5] surely passes.
+         * Outside it, or NaN, the exact check decides. */
+        float acc = 0.0f;
+        for (unsigned i = 0; i < PM_CHECK_BLOCK; i++) {
+            float x, y, z;
+            memcpy(&x, &b->v[0][i], 4);
+            memcpy(&y, &b->v[1][i], 4);
+            memcpy(&z, &b->v[2][i], 4);
+            float d = x * x + y * y + z * z - 1.0f;
+            /* d * d <= t * t also rejects NaN; acc stays 0 while every row passes */
+            acc += d * d <= (2e-3f - 1e-5f) * (2e-3f - 1e-5f) ? 0.0f : 1.0f;
+        }
+        bad |= (uint32_t)!(acc == 0.0f) << 31;
+    } else if (fl & PM_CH_UNIT) {
+        bad |= 1u << 31; /* no such channel yet: let the exact check have it */
+    }
+    return bad >> 31;
+}
+
+/* Copies component k of channel bytes [off, off + 4 * comps) of records [i0, i0 + m) into
+ * the block's columns, padding the rest. */
+static void block_load(check_block_t *b, const unsigned char *rec, size_t rs, size_t off, unsigned comps,
+                       uint64_t m, unsigned fl)
+{
+    const unsigned char *p = rec + off;
+    if (comps == 3) {
+        for (uint64_t i = 0; i < m; i++, p += rs) {
+            memcpy(&b->v[0][i], p, 4);
+            memcpy(&b->v[1][i], p + 4, 4);
+            memcpy(&b->v[2][i], p + 8, 4);
+        }
+    } else {
+        for (uint64_t i = 0; i < m; i++, p += rs)
+            for (unsigned k = 0; k < comps; k++)
+                memcpy(&b->v[k][i], p + 4 * k, 4);
+    }
+    for (unsigned k = 0; k < comps; k++) { /* pad: 1.0 on the first component, 0 (unit) or 1.0 */
+        uint32_t pad = k == 0 || !(fl & PM_CH_UNIT) ? PM_F32_ONE : 0;
+        for (uint64_t i = m; i < PM_CHECK_BLOCK; i++)
+            b->v[k][i] = pad;
+    }
+}
+
+/* 1 when some f64 value of the channel might fail (the same tests on 64-bit patterns). */
+static int f64_suspect(const unsigned char *rec, size_t rs, size_t off, unsigned comps, uint64_t n, unsigned fl)
+{
+    if (fl & PM_CH_UNIT)
+        return 1;
+    uint64_t bad = 0;
+    for (uint64_t i = 0; i < n; i++)
+        for (unsigned k = 0; k < comps; k++) {
+            uint64_t v;
+            memcpy(&v, rec + i * rs + off + 8 * k, 8);
+            bad |= (v & 0x7fffffffffffffffull) + 0x0010000000000000ull;
+            if (fl & PM_CH_NONNEG)
+                bad |= (uint64_t)(v > 0x8000000000000000ull) << 63;
+            if (fl & PM_CH_POSITIVE)
+                bad |= (uint64_t)(v - 0x0010000000000000ull > 0x7fefffffffffffffull - 0x0010000000000000ull) << 63;
+        }
+    return (int)(bad >> 63);
+}
+
+/* The fast pass over n raw records: 1 when some value might fail. */
+static int records_suspect(const pm_header_t *h, const unsigned char *rec, uint64_t n)
+{
+    const pm_schema_t *s = h->schema;
+    const unsigned checked = PM_CH_FINITE | PM_CH_NONNEG | PM_CH_UNIT | PM_CH_POSITIVE;
+    size_t rs = h->record_size, off = 0;
+    check_block_t blk;
+    for (unsigned ci = 0; ci < s->nchannels; ci++) {
+        if (!(h->channels & (1u << ci)))
+            continue;
+        const pm_channel_t *c = &s->channels[ci];
+        size_t at = off;
+        off += channel_size(c);
+        if (!(c->flags & checked))
+            continue;
+        if (c->type == PM_TYPE_F64) {
+            if (f64_suspect(rec, rs, at, c->components, n, c->flags))
+                return 1;
+        } else if (c->type == PM_TYPE_F32) {
+            if (c->components > 4)
+                return 1;
+            for (uint64_t i = 0; i < n; i += PM_CHECK_BLOCK) {
+                uint64_t m = n - i < PM_CHECK_BLOCK ? n - i : PM_CHECK_BLOCK;
+                block_load(&blk, rec + i * rs, rs, at, c->components, m, c->flags);
+                if (block_suspect(&blk, c->components, c->flags))
+                    return 1;
+            }
+        }
+    }
+    return 0;
+}
+
+/* The fast pass over the nv values of PM_CHECK_BLOCK rows of an f32 column already in
+ * memory (SoA: the components of a row side by side): no copy, one flat loop per test (nv
+ * is a constant where it is inlined, so that the loops vectorize), and for a unit vector
+ * one loop over the rows. */
+static inline uint32_t column_block_suspect_n(const float *v, const unsigned nv, unsigned comps, unsigned fl)
+{
+    uint32_t bad = 0;
+    for (unsigned i = 0; i < nv; i++) {
+        uint32_t b;
+        memcpy(&b, &v[i], 4);
+        bad |= (b & 0x7fffffffu) + 0x00800000u;
+    }
+    if (fl & PM_CH_NONNEG)
+        for (unsigned i = 0; i < nv; i++) {
+            uint32_t b;
+            memcpy(&b, &v[i], 4);
+            bad |= (uint32_t)(b > 0x80000000u) << 31;
+        }
+    if (fl & PM_CH_POSITIVE)
+        for (unsigned i = 0; i < nv; i++) {
+            uint32_t b;
+            memcpy(&b, &v[i], 4);
+            bad |= (uint32_t)(b - 0x00800000u > PM_F32_EXP - 1 - 0x00800000u) << 31;
+        }
+    if ((fl & PM_CH_UNIT) && comps == 3) {
+        float acc = 0.0f; /* as in block_suspect */
+        for (unsigned i = 0; i < PM_CHECK_BLOCK; i++) {
+            float d = v[3 * i] * v[3 * i] + v[3 * i + 1] * v[3 * i + 1] + v[3 * i + 2] * v[3 * i + 2] - 1.0f;
+            acc += d * d <= (2e-3f - 1e-5f) * (2e-3f - 1e-5f) ? 0.0f : 1.0f;
+        }
+        bad |= (uint32_t)!(acc == 0.0f) << 31;
+    } else if (fl & PM_CH_UNIT) {
+        bad |= 1u << 31;
+    }
+    return bad >> 31;
+}
+
+static uint32_t column_block_suspect(const float *v, unsigned comps, unsigned fl)
+{
+    switch (comps) { /* the component counts channels have, as constants */
+    case 1: return column_block_suspect_n(v, PM_CHECK_BLOCK, 1, fl);
+    case 3: return column_block_suspect_n(v, 3 * PM_CHECK_BLOCK, 3, fl);
+    default: return column_block_suspect_n(v, comps * PM_CHECK_BLOCK, comps, fl);
+    }
+}
+
+/* The fast pass over rows [at, at + n) of a table's columns: 1 when some value might
+ * fail. The same answer records_suspect gives for those rows as records, with no
+ * transposition: the table already holds each channel apart. */
+static int columns_suspect(const pm_table_t *t, uint64_t at, uint64_t n)
+{
+    const pm_schema_t *s = t->hdr.schema;
+    const unsigned checked = PM_CH_FINITE | PM_CH_NONNEG | PM_CH_UNIT | PM_CH_POSITIVE;
+    float tail[PM_CHECK_BLOCK * 4] __attribute__((aligned(64)));
+    for (unsigned ci = 0; ci < s->nchannels; ci++) {
+        if (!(t->hdr.channels & (1u << ci)))
+            continue;
+        const pm_channel_t *c = &s->channels[ci];
+        if (!(c->flags & checked))
+            continue;
+        size_t cs = channel_size(c);
+        const unsigned char *col = (const unsigned char *)t->col[ci] + at * cs;
+        if (c->type == PM_TYPE_F64) {
+            if (f64_suspect(col, cs, 0, c->components, n, c->flags))
+                return 1;
+        } else if (c->type == PM_TYPE_F32) {
+            if (c->components > 4)
+                return 1;
+            unsigned comps = c->components;
+            uint64_t i = 0;
+            for (; i + PM_CHECK_BLOCK <= n; i += PM_CHECK_BLOCK)
+                if (column_block_suspect((const float *)(const void *)(col + i * cs), comps, c->flags))
+                    return 1;
+            if (i < n) { /* the last rows, padded as block_load pads */
+                uint64_t m = n - i;
+                memcpy(tail, col + i * cs, (size_t)m * cs);
+                for (uint64_t r = m; r < PM_CHECK_BLOCK; r++)
+                    for (unsigned k = 0; k < comps; k++)
+                        tail[r * comps + k] = k == 0 || !(c->flags & PM_CH_UNIT) ? 1.0f : 0.0f;
+                if (column_block_suspect(tail, comps, c->flags))
+                    return 1;
+            }
+        }
+    }
+    return 0;
+}
+
+/* The checks of n raw records starting at record index first, once a fast pass has said
+ * whether some value might fail: the exact check when it might, then (as the exact check
+ * does at its end) the format's record checks. */
+static pm_result_t check_values_after(const pm_header_t *h, const char *path, const unsigned char *rec, uint64_t n,
+                                      uint64_t first, int suspect)
+{
+    if (suspect)
+        return check_values_exact(h, path, rec, n, first);
+    return h->schema->validate_records ? h->schema->validate_records(h, path, rec, n, first) : PM_OK;
+}
+
+/* Checks the values of n raw records starting at record index first (see above). */
+static pm_result_t check_values(const pm_header_t *h, const char *path, const unsigned char *rec, uint64_t n,
+                                uint64_t first)
+{
+    return check_values_after(h, path, rec, n, first, records_suspect(h, rec, n));
+}
+
+/* pm_reader_read, with the value checks left to the caller when check is 0 (a table read
+ * checks each chunk itself, on its columns, before it reads the next). */
+static pm_result_t reader_read(pm_reader_t *r, void *records, uint64_t max, uint64_t *got_out, int check);
+
 pm_result_t pm_reader_read(pm_reader_t *r, void *records, uint64_t max, uint64_t *got_out)
+{
+    return reader_read(r, records, max, got_out, 1);
+}
+
+static pm_result_t reader_read(pm_reader_t *r, void *records, uint64_t max, uint64_t *got_out, int check)
 {
     *got_out = 0;
     uint64_t left = r->hdr.count - r->next;
@@ -888,7 +1147,7 @@ pm_result_t pm_reader_read(pm_reader_t *r, void *records, uint64_t max, uint64_t
                                 reader_title(r), r->path, r->next + got, r->hdr.count);
         }
         XXH3_64bits_update(r->hash, p, n * rs);
-        pm_result_t res = check_values(&r->hdr, r->path, p, n, r->next);
+        pm_result_t res = check ? check_values(&r->hdr, r->path, p, n, r->next) : PM_OK;
         if (res != PM_OK)
             return res;
         r->next += n;
@@ -1027,25 +1286,49 @@ pm_result_t pm_writer_open(const char *path, const pm_header_t *h, pm_writer_t *
     return PM_OK;
 }
 
+/* pm_writer_write; with t, the records are rows [t_at, t_at + n) of table t, whose columns
+ * the fast pass of the checks reads instead of the records. */
+static pm_result_t writer_write(pm_writer_t *w, const void *records, uint64_t n, const pm_table_t *t,
+                                uint64_t t_at);
+
 pm_result_t pm_writer_write(pm_writer_t *w, const void *records, uint64_t n)
+{
+    return writer_write(w, records, n, NULL, 0);
+}
+
+static pm_result_t writer_write(pm_writer_t *w, const void *records, uint64_t n, const pm_table_t *t,
+                                uint64_t t_at)
 {
     if (w->written + n > w->count)
         return pm_error_set(PM_ERR_INTERNAL, "writer given %" PRIu64 " records, header says %" PRIu64,
                             w->written + n, w->count);
-    /* The same checks a reader makes: a stage with a bug (a NaN, a negative power) fails
-     * here with its own name in the message, instead of leaving a file no reader takes. */
-    pm_result_t r = check_values(&w->layout, w->name, records, n, w->written);
-    if (r != PM_OK) {
-        pm_error_prefix("refusing to write");
-        return PM_ERR_INTERNAL;
-    }
-    size_t bytes = (size_t)(n * w->layout.record_size);
-    XXH3_64bits_update(w->hash, records, bytes);
-    if (!w->err && bytes && fwrite(records, 1, bytes, w->out.f) != bytes)
-        w->err = errno ? errno : EIO;
-    if (w->err) /* a full disk: stop now rather than after writing the rest into nothing */
-        return pm_error_set(PM_ERR_IO, "cannot write '%s': %s", w->name, strerror(w->err));
-    w->written += n;
+    /* Checked, hashed and written a chunk at a time, so that the three passes find the
+     * chunk in the cache. */
+    const unsigned char *rec = records;
+    size_t rs = w->layout.record_size;
+    uint64_t first = w->written;
+    uint64_t i = 0;
+    do { /* once when n is 0: a failed header write is still reported */
+        uint64_t m = n - i < PM_CHUNK_RECORDS ? n - i : PM_CHUNK_RECORDS;
+        /* The same checks a reader makes: a stage with a bug (a NaN, a negative power) fails
+         * here with its own name in the message, instead of leaving a file no reader takes.
+         * A refused record is never written (the records before it may be). The message is
+         * the one the check of all n records gives, as if they were checked at once. */
+        int suspect = t ? columns_suspect(t, t_at + i, m) : records_suspect(&w->layout, rec + i * rs, m);
+        if (check_values_after(&w->layout, w->name, rec + i * rs, m, first + i, suspect) != PM_OK) {
+            check_values_exact(&w->layout, w->name, rec, n, first);
+            pm_error_prefix("refusing to write");
+            return PM_ERR_INTERNAL;
+        }
+        size_t bytes = (size_t)(m * rs);
+        XXH3_64bits_update(w->hash, rec + i * rs, bytes);
+        if (!w->err && bytes && fwrite(rec + i * rs, 1, bytes, w->out.f) != bytes)
+            w->err = errno ? errno : EIO;
+        if (w->err) /* a full disk: stop now rather than after writing the rest into nothing */
+            return pm_error_set(PM_ERR_IO, "cannot write '%s': %s", w->name, strerror(w->err));
+        w->written += m;
+        i += m;
+    } while (i < n);
     return PM_OK;
 }
 
@@ -1227,7 +1510,7 @@ pm_result_t pm_table_read_from(pm_reader_t *r, uint64_t begin, uint64_t end, pm_
     uint64_t at = 0, pos = 0;
     while (res == PM_OK && pos < end) {
         uint64_t got;
-        res = pm_reader_read(r, r->scratch, PM_CHUNK_RECORDS, &got);
+        res = reader_read(r, r->scratch, PM_CHUNK_RECORDS, &got, 0);
         if (res != PM_OK || got == 0)
             break;
         /* The overlap of [pos, pos + got) with [begin, end). */
@@ -1239,10 +1522,17 @@ pm_result_t pm_table_read_from(pm_reader_t *r, uint64_t begin, uint64_t end, pm_
             if (res != PM_OK)
                 break;
         }
-        if (lo < hi) {
+        if (lo < hi)
             scatter(out, r->scratch + (lo - pos) * h->record_size, hi - lo, at);
+        /* The chunk's checks, before the next chunk is read: on the columns when the whole
+         * chunk went there, else on the records; messages from the records either way. */
+        int suspect = lo == pos && hi == pos + got ? columns_suspect(out, at, got)
+                                                   : records_suspect(h, r->scratch, got);
+        res = check_values_after(h, r->path, r->scratch, got, pos, suspect);
+        if (res != PM_OK)
+            break;
+        if (lo < hi)
             at += hi - lo;
-        }
         pos += got;
     }
     if (res == PM_OK)
@@ -1297,7 +1587,7 @@ pm_result_t pm_table_write(const pm_table_t *t, const char *path)
     for (uint64_t at = 0; at < t->count && res == PM_OK; at += PM_CHUNK_RECORDS) {
         uint64_t n = t->count - at < PM_CHUNK_RECORDS ? t->count - at : PM_CHUNK_RECORDS;
         gather(t, buf, n, at);
-        res = pm_writer_write(w, buf, n);
+        res = writer_write(w, buf, n, t, at);
     }
     free(buf);
     if (res != PM_OK) {

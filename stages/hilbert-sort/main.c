@@ -7,7 +7,7 @@
  * Reads a queries file (or stdin) whole, computes the order with common/hilbert.c (an octree
  * visited in curve order, stopping at cells of --leaf points), and writes the same records,
  * byte for byte, in that order (to a file or stdout). Memory: one copy of the records plus
- * 24 bytes per point of keys and indices. */
+ * 20 bytes per point of sort words and permutation. */
 #include <inttypes.h>
 #include <stdlib.h>
 #include <string.h>
@@ -166,7 +166,7 @@ static pm_result_t run(pm_stage_t *st, const sort_options_t *o)
     pm_writer_t *w = NULL;
     if (!recs || !perm || (order != PM_ORDER_NONE && (!chunk[0] || !chunk[1]))) {
         res = pm_error_set(PM_ERR_NOMEM, "out of memory for %" PRIu64 " queries of '%s' (%.0f MB)", n, in_name,
-                           n * (rs + 24.0) / 1e6);
+                           n * (rs + 20.0) / 1e6);
         goto done;
     }
     uint64_t got, in_hash = 0;

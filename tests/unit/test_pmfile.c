@@ -239,6 +239,208 @@ static void test_pmfile_writer_refuses_bad_values(void **state)
     pm_table_free(&t);
 }
 
+/* The reference of the value checks (formats.md section 3): every f32 in double, as the
+ * original check was written. The fast pass of check_values must agree with it on every
+ * value, edge cases included. */
+static int ref_value_ok(float f, unsigned fl)
+{
+    volatile double v = f; /* at run time, in the thread's FTZ/DAZ mode, as the check runs */
+    if (!isfinite(v))
+        return 0;
+    if ((fl & PM_CH_NONNEG) && v < 0.0)
+        return 0;
+    if ((fl & PM_CH_POSITIVE) && !(v > 0.0))
+        return 0;
+    return 1;
+}
+
+static int ref_record_ok(const unsigned char *rec, uint32_t mask)
+{
+    const pm_schema_t *s = &pm_photonmap_schema;
+    size_t off = 0;
+    for (unsigned ci = 0; ci < s->nchannels; ci++) {
+        if (!(mask & (1u << ci)))
+            continue;
+        const pm_channel_t *c = &s->channels[ci];
+        if (c->type == PM_TYPE_F32) {
+            double len2 = 0.0;
+            for (unsigned k = 0; k < c->components; k++) {
+                float f;
+                memcpy(&f, rec + off + 4 * k, 4);
+                if (!ref_value_ok(f, c->flags))
+                    return 0;
+                volatile double v = f;
+                len2 += v * v;
+            }
+            if ((c->flags & PM_CH_UNIT) && fabs(len2 - 1.0) > 2e-3)
+                return 0;
+        }
+        off += pm_type_size(c->type) * c->components;
+    }
+    return 1;
+}
+
+/* A value from the edges of the checks: zeros of both signs, subnormals, the largest
+ * floats, infinities, NaNs of both signs, ordinary numbers. */
+static const uint32_t edge_bits[] = {0x00000000, 0x80000000, 0x00000001, 0x80000001, 0x007fffff, 0x807fffff,
+                                     0x00800000, 0x80800000, 0x7f7fffff, 0xff7fffff, 0x7f800000, 0xff800000,
+                                     0x7fc00000, 0xffc00000, 0x7f800001, 0x3f800000, 0xbf800000, 0x2f000000};
+#define NEDGE (sizeof edge_bits / sizeof edge_bits[0])
+
+static float edge_value(pm_rng_t *r)
+{
+    const uint32_t *bits = edge_bits;
+    uint32_t u = pm_rng_u32(r), b;
+    if (u % 4 == 0) {
+        b = bits[(u >> 2) % NEDGE];
+    } else {
+        float f = (pm_rng_float(r) - 0.25f) * 4.0f;
+        memcpy(&b, &f, 4);
+    }
+    float f;
+    memcpy(&f, &b, 4);
+    return f;
+}
+
+/* A unit vector whose squared length is 1 + e, e near the tolerance 2e-3 (or far off). */
+static void edge_unit(pm_rng_t *r, float v[3])
+{
+    double e = (pm_rng_double(r) * 2.0 - 1.0) * 2.2e-3;
+    if (pm_rng_u32(r) % 8 == 0)
+        e = (pm_rng_u32(r) % 2 ? 2e-3 : -2e-3) * (1.0 + (pm_rng_double(r) - 0.5) * 1e-4);
+    double x = pm_rng_double(r) - 0.5, y = pm_rng_double(r) - 0.5, z = pm_rng_double(r) - 0.5;
+    double k = sqrt((1.0 + e) / (x * x + y * y + z * z));
+    v[0] = (float)(x * k), v[1] = (float)(y * k), v[2] = (float)(z * k);
+}
+
+static void test_pmfile_value_checks_match_reference(void **state)
+{
+    char path[256];
+    tmp_path(path, sizeof path, "edges.pm");
+    pm_header_t h;
+    pm_header_init(&h, &pm_photonmap_schema);
+    h.channels = 0x3f; /* every channel, 60-byte records: floats at every offset mod 8 */
+    const size_t rs = 60, n = 3000;
+    h.count = 100 * n; /* more than written: the writer is aborted at the end */
+    pm_writer_t *w;
+    assert_int_equal(pm_writer_open(path, &h, &w), PM_OK);
+    unsigned char *rec = calloc(n, rs);
+    pm_rng_t r;
+    pm_rng_init(&r, 77, 0);
+    size_t accepted = 0, refused = 0;
+    /* One record per write: each goes through the fast pass alone (a block mostly padding). */
+    for (size_t i = 0; i < n; i++) {
+        unsigned char *p = rec + i * rs;
+        float v[3];
+        for (unsigned c = 0; c < 4; c++) { /* position, power: edge values; normal, direction: near unit */
+            if (c < 2)
+                for (unsigned k = 0; k < 3; k++)
+                    v[k] = pm_rng_u32(&r) % 3 ? 0.5f : edge_value(&r);
+            else
+                edge_unit(&r, v);
+            if (c >= 2 && pm_rng_u32(&r) % 16 == 0)
+                v[pm_rng_u32(&r) % 3] = edge_value(&r);
+            memcpy(p + 8 + 12 * c, v, 12);
+        }
+        float width = pm_rng_u32(&r) % 2 ? 0.25f : edge_value(&r);
+        memcpy(p + 56, &width, 4);
+        int want = ref_record_ok(p, h.channels);
+        pm_result_t got = pm_writer_write(w, p, 1);
+        assert_int_equal(got == PM_OK, want);
+        if (!want)
+            assert_non_null(strstr(pm_error_message(), "refusing to write: bad value in photon map"));
+        accepted += (size_t)want, refused += (size_t)!want;
+    }
+    assert_true(accepted > n / 10 && refused > n / 10);
+    /* Many records per write, one bad value each time at a random place: found, and named
+     * as the check of the whole write names it. */
+    for (size_t i = 0; i < n; i++) {
+        unsigned char *p = rec + i * rs;
+        float pos[3] = {1, 2, 3}, pw[3] = {0.0f, -0.0f, 1e-30f}, nrm[3] = {0, 0, 1}, dir[3] = {0.6f, 0.8f, 0}, wd = 1e-3f;
+        memcpy(p + 8, pos, 12), memcpy(p + 20, pw, 12), memcpy(p + 32, nrm, 12), memcpy(p + 44, dir, 12);
+        memcpy(p + 56, &wd, 4);
+    }
+    assert_int_equal(pm_writer_write(w, rec, n), PM_OK); /* -0 and tiny powers pass; records now number accepted + n */
+    for (int t = 0; t < 40; t++) {
+        size_t i = pm_rng_u32(&r) % n, at = 8 + 4 * (pm_rng_u32(&r) % 13);
+        unsigned char save[4];
+        memcpy(save, rec + i * rs + at, 4);
+        float bad = at < 20 ? NAN : at < 32 ? -1.0f : at < 56 ? 2.0f : 0.0f;
+        memcpy(rec + i * rs + at, &bad, 4);
+        assert_int_equal(pm_writer_write(w, rec, n), PM_ERR_INTERNAL);
+        char want[64];
+        snprintf(want, sizeof want, "record %zu channel '", accepted + n + i);
+        assert_non_null(strstr(pm_error_message(), want));
+        memcpy(rec + i * rs + at, save, 4);
+    }
+    /* Two bad values in one write: the first channel wins, as it did when a write was
+     * checked channel by channel, though the chunks are checked one at a time. */
+    float nan = NAN, two = 2.0f;
+    memcpy(rec + 100 * rs + 32, &two, 4);  /* normal of record 100 */
+    memcpy(rec + 2900 * rs + 8, &nan, 4);  /* position of record 2900, another chunk */
+    assert_int_equal(pm_writer_write(w, rec, n), PM_ERR_INTERNAL);
+    char want[96];
+    snprintf(want, sizeof want, "record %zu channel 'position'[0] is nan (not finite)", accepted + n + 2900);
+    assert_non_null(strstr(pm_error_message(), want));
+    pm_writer_abort(w);
+    free(rec);
+    pm_header_free(&h);
+}
+
+/* The same agreement through whole tables, whose checks read the columns: writing a table
+ * with one edge value somewhere, and reading a file with a value patched on disk, whole and
+ * as a range (whose chunks are checked as records). */
+static void test_pmfile_table_value_checks(void **state)
+{
+    char path[256];
+    tmp_path(path, sizeof path, "tedges.pm");
+    pm_table_t t;
+    const uint64_t n = 5000; /* two chunks, the second partly full */
+    assert_int_equal(pm_table_alloc(&t, &pm_photons_schema, 0x1f, n), PM_OK);
+    fill(&t, 5);
+    pm_rng_t r;
+    pm_rng_init(&r, 78, 0);
+    for (unsigned trial = 0; trial < 4 * NEDGE + 100; trial++) { /* every edge in every channel, then random */
+        uint64_t i = pm_rng_u32(&r) % n;
+        unsigned ci = trial < 4 * NEDGE ? trial % 4 : pm_rng_u32(&r) % 4, k = pm_rng_u32(&r) % 3;
+        float *v = (float *)t.col[ci] + 3 * i, save[3];
+        memcpy(save, v, 12);
+        if (trial < 4 * NEDGE)
+            memcpy(&v[k], &edge_bits[trial / 4], 4);
+        else if (ci >= 2 && pm_rng_u32(&r) % 2)
+            edge_unit(&r, v);
+        else
+            v[k] = edge_value(&r);
+        double len2 = (double)v[0] * v[0] + (double)v[1] * v[1] + (double)v[2] * v[2];
+        int want = ref_value_ok(v[0], pm_photons_schema.channels[ci].flags) &&
+                   ref_value_ok(v[1], pm_photons_schema.channels[ci].flags) &&
+                   ref_value_ok(v[2], pm_photons_schema.channels[ci].flags) &&
+                   !((pm_photons_schema.channels[ci].flags & PM_CH_UNIT) && fabs(len2 - 1.0) > 2e-3);
+        pm_result_t got = pm_table_write(&t, path);
+        assert_int_equal(got == PM_OK, want);
+        if (!want) {
+            char msg[96];
+            snprintf(msg, sizeof msg, "record %llu channel '%s'", (unsigned long long)i,
+                     pm_photons_schema.channels[ci].name);
+            assert_non_null(strstr(pm_error_message(), msg));
+        }
+        memcpy(v, save, 12);
+    }
+    assert_int_equal(pm_table_write(&t, path), PM_OK);
+    pm_table_free(&t);
+    /* a NaN patched into record 4500's position: found whole and through a range */
+    FILE *f = fopen(path, "r+b");
+    assert_non_null(f);
+    fseek(f, -8 - (long)(n - 4500) * 52, SEEK_END);
+    float nan = NAN;
+    fwrite(&nan, 4, 1, f);
+    fclose(f);
+    assert_int_equal(pm_table_read(path, &pm_photons_schema, 0, &t), PM_ERR_INPUT);
+    assert_non_null(strstr(pm_error_message(), "record 4500 channel 'position'[0] is nan (not finite)"));
+    assert_int_equal(pm_table_read_range(path, &pm_photons_schema, 0, 4400, 4450, &t), PM_ERR_INPUT);
+    assert_non_null(strstr(pm_error_message(), "record 4500 channel 'position'[0] is nan (not finite)"));
+}
+
 static void test_pmfile_writer_refuses_bad_headers_and_tables(void **state)
 {
     char path[256];
@@ -290,6 +492,8 @@ static void test_pmfile_writer_refuses_bad_headers_and_tables(void **state)
 static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_pmfile_writer_refuses_bad_headers_and_tables),
     cmocka_unit_test(test_pmfile_writer_refuses_bad_values),
+    cmocka_unit_test(test_pmfile_value_checks_match_reference),
+    cmocka_unit_test(test_pmfile_table_value_checks),
     cmocka_unit_test(test_pmfile_roundtrip_every_format),
     cmocka_unit_test(test_pmfile_record_sizes),
     cmocka_unit_test(test_pmfile_range_and_need),

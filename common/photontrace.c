@@ -35,8 +35,11 @@ typedef struct {
  * that storing a photon neither reallocates nor copies, and first-touch page faults come
  * 2 MiB at a time. A chunk's records stay contiguous: a chunk that outgrows its block
  * moves, with the records it has so far, to a fresh block. */
+/* Arenas and chunks are written on every stored photon and every ray by the thread that
+ * owns them: each starts on a cache line of its own, or two threads writing neighbours
+ * pass the line back and forth (measured: two threads used 1.8 times the CPU of one). */
 struct pm_trace_arena {
-    unsigned char **blocks;
+    _Alignas(64) unsigned char **blocks;
     size_t nblocks;
     unsigned char *cur;
     size_t used, cap;   /* bytes of the current block */
@@ -45,7 +48,7 @@ struct pm_trace_arena {
 enum { ARENA_BLOCK = 16 << 20 };
 
 typedef struct {
-    pm_trace_arena_t *arena;
+    _Alignas(64) pm_trace_arena_t *arena;
     unsigned char *buf; /* this chunk's records, inside the arena's current block */
     size_t n;           /* photons stored */
     float *rays;
@@ -335,7 +338,9 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
                                    s->name, p, t.total);
         }
     uint64_t nchunks = (o->photons + CHUNK - 1) / CHUNK;
-    chunk_t *chunks = res == PM_OK ? calloc(nchunks, sizeof *chunks) : NULL;
+    chunk_t *chunks = res == PM_OK ? aligned_alloc(64, nchunks * sizeof *chunks) : NULL;
+    if (chunks)
+        memset(chunks, 0, nchunks * sizeof *chunks);
     if (res == PM_OK && !chunks)
         res = pm_error_set(PM_ERR_NOMEM, "out of memory for %" PRIu64 " photon chunks", nchunks);
     if (res != PM_OK) {
@@ -356,7 +361,9 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
     double t0 = pm_time_wall();
     int failed = 0;
     int nthreads = omp_get_max_threads();
-    pm_trace_arena_t *arenas = calloc((size_t)nthreads, sizeof *arenas);
+    pm_trace_arena_t *arenas = aligned_alloc(64, (size_t)nthreads * sizeof *arenas);
+    if (arenas)
+        memset(arenas, 0, (size_t)nthreads * sizeof *arenas);
     if (!arenas) {
         free(chunks);
         free(t.lights);

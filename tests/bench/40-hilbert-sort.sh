@@ -107,7 +107,8 @@ $qs M points/s.
 $CN queries. Reorder time (in memory) against the leaf size, and a proxy of the gather's
 coherence: the mean diagonal of the bounding box of each packet of 16 consecutive queries,
 as a fraction of the cube's diagonal (input order: $none_ext). The gather's own time against
-the leaf, the other half of the trade-off, waits for simd-gather (issue 6).
+the leaf, the other half of the trade-off, is measured in "Reorder leaf against reorder plus
+gather time" below.
 
 | leaf | reorder ms, median (min to max) | octree depth | packet extent |
 |---|---|---|---|

@@ -176,6 +176,13 @@ else
     fail "frames camera path" "$(eye "$TMP/fr/scene-0000.json") $(eye "$TMP/fr/scene-0001.json") $(eye "$TMP/fr/scene-0002.json")"
 fi
 expect_exit "frames MOVE=light needs point lights" 1 pipelines/frames "$CORNELL" "$TMP/fl" MOVE=light FRAMES=1
+expect_exit "frames MODE=bad is a usage error" 2 pipelines/frames "$CORNELL" "$TMP/fm" MODE=bad FRAMES=1
+if [ -x "$BIN/simd-gather" ]; then
+    pipelines/frames "$CORNELL" "$TMP/fdv" MODE=direct-vis ORDER=none FRAMES=1 PHOTONS=20000 WIDTH=32 HEIGHT=32 \
+        >"$TMP/fdv.out" 2>&1 && [ -s "$TMP/fdv/frame-0000.exr" ] &&
+        pass "frames MODE=direct-vis renders the map's estimate at the primary hits" ||
+        fail "frames direct-vis" "$(tail -3 "$TMP/fdv.out")"
+fi
 
 # ---- the documented examples run ----
 pipelines/examples.sh "$TMP/ex" >"$TMP/ex.out" 2>&1 && [ -s "$TMP/ex/direct.exr" ] && [ -s "$TMP/ex/map.pm" ] &&

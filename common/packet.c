@@ -149,50 +149,40 @@ static void context(struct RTCIntersectContext *ctx, int coherent)
     ctx->flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
 }
 
-void pm_rays_intersect(const pm_rt_t *rt, int width, int coherent, pm_rays_t *r)
+typedef void (*packet_fn)(RTCScene sc, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t b, unsigned n);
+
+/* Single rays as a "packet" of one, so that one loop serves every width. */
+static void intersect1p(RTCScene sc, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t b, unsigned n)
+{
+    (void)n;
+    intersect1(sc, ctx, r, b);
+}
+static void occluded1p(RTCScene sc, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t b, unsigned n)
+{
+    (void)n;
+    occluded1(sc, ctx, r, b);
+}
+
+/* Traces r->n rays in packets of `width` (1, 4, 8 or 16) with fn[0..3], one per width. */
+static void trace_packets(const pm_rt_t *rt, int width, int coherent, pm_rays_t *r, const packet_fn fn[4])
 {
     struct RTCIntersectContext ctx;
     context(&ctx, coherent);
+    unsigned w = width == 16 || width == 8 || width == 4 ? (unsigned)width : 1u;
+    packet_fn f = fn[w == 16 ? 3 : w == 8 ? 2 : w == 4 ? 1 : 0];
     size_t n = r->n;
-    switch (width) {
-    case 16:
-        for (size_t b = 0; b < n; b += 16)
-            intersect16(rt->scene, &ctx, r, b, (unsigned)(n - b < 16 ? n - b : 16));
-        break;
-    case 8:
-        for (size_t b = 0; b < n; b += 8)
-            intersect8(rt->scene, &ctx, r, b, (unsigned)(n - b < 8 ? n - b : 8));
-        break;
-    case 4:
-        for (size_t b = 0; b < n; b += 4)
-            intersect4(rt->scene, &ctx, r, b, (unsigned)(n - b < 4 ? n - b : 4));
-        break;
-    default:
-        for (size_t i = 0; i < n; i++)
-            intersect1(rt->scene, &ctx, r, i);
-    }
+    for (size_t b = 0; b < n; b += w)
+        f(rt->scene, &ctx, r, b, (unsigned)(n - b < w ? n - b : w));
+}
+
+void pm_rays_intersect(const pm_rt_t *rt, int width, int coherent, pm_rays_t *r)
+{
+    static const packet_fn fn[4] = {intersect1p, intersect4, intersect8, intersect16};
+    trace_packets(rt, width, coherent, r, fn);
 }
 
 void pm_rays_occluded(const pm_rt_t *rt, int width, int coherent, pm_rays_t *r)
 {
-    struct RTCIntersectContext ctx;
-    context(&ctx, coherent);
-    size_t n = r->n;
-    switch (width) {
-    case 16:
-        for (size_t b = 0; b < n; b += 16)
-            occluded16(rt->scene, &ctx, r, b, (unsigned)(n - b < 16 ? n - b : 16));
-        break;
-    case 8:
-        for (size_t b = 0; b < n; b += 8)
-            occluded8(rt->scene, &ctx, r, b, (unsigned)(n - b < 8 ? n - b : 8));
-        break;
-    case 4:
-        for (size_t b = 0; b < n; b += 4)
-            occluded4(rt->scene, &ctx, r, b, (unsigned)(n - b < 4 ? n - b : 4));
-        break;
-    default:
-        for (size_t i = 0; i < n; i++)
-            occluded1(rt->scene, &ctx, r, i);
-    }
+    static const packet_fn fn[4] = {occluded1p, occluded4, occluded8, occluded16};
+    trace_packets(rt, width, coherent, r, fn);
 }

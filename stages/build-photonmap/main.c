@@ -205,7 +205,7 @@ static pm_result_t run(pm_stage_t *st, const build_options_t *o)
             if ((r = pm_gather_map_init(&gm, &map, 0)) != PM_OK)
                 goto done;
             static const pm_material_t folded = {.name = "folded", .kd = {1, 1, 1}};
-            pm_gather_queries_t q = {.n = n, .pos = gm.pos, .normal = gm.normal, .weight = gm.pos,
+            pm_gather_queries_t q = {.n = n, .pos = gm.pos, .normal = gm.normal, /* radius_for_k reads no weights */
                                      .materials = &folded, .nmaterials = 1};
             vvh_r = pm_gather_radius_for_k(&gm, &q, (double)o->vvh_k, 0.5f, 1000);
             pm_gather_map_free(&gm);

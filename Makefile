@@ -27,7 +27,7 @@ WERROR ?= 1
 
 # Debian packages this project builds, tests and runs with (README says why each).
 DEBS := gcc make pkg-config libembree-dev libopenexr-dev libassimp-dev libjansson-dev \
-        libpng-dev libxxhash-dev libcmocka-dev openexr jq
+        libpng-dev libxxhash-dev libcmocka-dev openexr jq gnuplot-nox
 
 ifeq ($(V),1)
 Q :=

@@ -3,6 +3,7 @@
 #   make            build every program into bin/
 #   make test       install missing Debian packages, build with -Werror, run every test,
 #                   then the same tests under AddressSanitizer + UBSan
+#   make test-extreme  only the stiff and extreme cases (tests/stage/extreme.sh; also part of test)
 #   make asan       sanitizer build into build/asan/bin
 #   make demo       render the Cornell box with what exists (see README)
 #   make bench      benchmarks into docs/benchmarks.md (BENCH=PATTERN: only those sections)
@@ -68,7 +69,7 @@ EXRDUMP := $(BUILD)/tests/pm-exrdump
 ATRIUM_GEN := $(BUILD)/scenes/make-atrium
 ATRIUM_OBJ := scenes/atrium/atrium.obj
 
-.PHONY: all test test-run asan test-asan demo bench bench-quick fuzz deps clean check-deps
+.PHONY: all test test-run test-extreme asan test-asan demo bench bench-quick fuzz deps clean check-deps
 # Keep the stages' objects: they are intermediate to the pattern rule, and make would
 # otherwise delete them and rebuild them next time.
 .SECONDARY:
@@ -131,6 +132,12 @@ test: check-deps
 
 test-run: all $(UNIT) $(TESTGEN) $(EXRDUMP)
 	$(Q)BIN=$(abspath $(BIN)) BUILD=$(abspath $(BUILD)) bash tests/run
+
+# The stiff and extreme cases alone (docs/extreme-cases.md), with the unit tests that tests/run
+# always runs first; `make test` runs them too.
+test-extreme: check-deps
+	$(Q)$(MAKE) --no-print-directory all $(UNIT) $(TESTGEN) $(EXRDUMP)
+	$(Q)BIN=$(abspath $(BIN)) BUILD=$(abspath $(BUILD)) bash tests/run extreme
 
 asan:
 	$(Q)$(MAKE) --no-print-directory BUILD=build/asan BIN=build/asan/bin CFLAGS="-O1 -g" \

@@ -5,10 +5,12 @@
 
 #include "gather.h"
 
-/* Shading steps between moving the float accumulators into double ones: at most 256
- * float additions per lane, so the sum of any number of photons keeps about 1e-5
- * relative precision (the double sums then lose nothing). */
-#define GATHER_FLUSH 256
+/* Shading steps between moving the float accumulators into double ones: at most 16 float
+ * additions per lane, each rounding by at most half an ulp of the partial sum, so the sum
+ * of any number of photons is good to 16/2 * 2^-24 = 5e-7 relative (the double sums then
+ * lose nothing). At 256 a sum of 4M equal photons was 3e-6 off (tests/unit/test_gather.c,
+ * docs/extreme-cases.md); a flush every 16 steps costs a few vector adds per 16 shadings. */
+#define GATHER_FLUSH 16
 
 typedef struct {
     const pm_gather_map_t *m;

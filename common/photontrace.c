@@ -269,7 +269,9 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
         }
         /* Russian roulette: survive with q = min(albedo, rr_max), reflecting diffusely
          * with probability pd' and glossily with ps' (pd' + ps' = q), and divide the
-         * power by the probability of the branch taken. */
+         * power by the probability of the branch taken. With q = albedo (rr_max 1, the
+         * default) a grey photon's power stays as it was; a cap below albedo^2 lets the
+         * power grow faster than survival falls, and the variance has no bound. */
         float q = pd + ps;
         if (q <= 0.0f) {
             c->absorbed++;

@@ -7,7 +7,7 @@
  * reflects (first hits too, marked depth 0). Each bounce samples the BRDF (cosine for the
  * Lambertian part, the Phong lobe for the glossy part) and Russian roulette ends the path
  * without bias: the photon survives with probability q (its albedo, capped at rr_max) and
- * its power is divided by q. Powers are in watts, so that a density estimate of them is
+ * its power is divided by q (a cap below albedo^2 makes the variance unbounded). Powers are in watts, so that a density estimate of them is
  * irradiance in W/m^2.
  *
  * Determinism: photon i draws only from the counter-based stream (seed, i), and photons

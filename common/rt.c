@@ -43,6 +43,10 @@ pm_result_t pm_rt_create(const pm_scene_t *s, int high_quality, int threads, pm_
     if (!out->scene)
         return fail(out, "create an embree scene");
     rtcSetSceneBuildQuality(out->scene, high_quality ? RTC_BUILD_QUALITY_HIGH : RTC_BUILD_QUALITY_MEDIUM);
+    /* Robust traversal and intersection: without it a ray through the shared edge of two
+     * triangles can slip between them, and in a closed room a photon or camera ray
+     * escapes (seen on rays along a cube's diagonal, docs/extreme-cases.md). */
+    rtcSetSceneFlags(out->scene, RTC_SCENE_FLAG_ROBUST);
     if (s->ntris) {
         RTCGeometry g = rtcNewGeometry(out->device, RTC_GEOMETRY_TYPE_TRIANGLE);
         if (!g)

@@ -39,7 +39,7 @@ else
 fi
 # Albedo 0.99 with survival capped at 0.95: paths stay short, the estimate stays unbiased.
 make_box "$TMP/box99" 0.99 '[{"position":[0.1,0.2,0.3],"intensity":[1,1,1]}]'
-"$BIN/trace-photons" "$TMP/box99/scene.json" --photons 20000 -q -o "$TMP/box99.pm" --stats "$TMP/s99.json"
+"$BIN/trace-photons" "$TMP/box99/scene.json" --photons 20000 --rr-max 0.95 -q -o "$TMP/box99.pm" --stats "$TMP/s99.json"
 if "$BIN/pm-info" -r "$TMP/box99.pm" | awk -v n=20000 -v phi=$phi -v rho=0.99 -v dmax=40 -v exact0=1 \
     -f tests/scenes/energy.awk >"$TMP/energy.txt"; then
     pass "closed box, albedo 0.99: Russian roulette at 0.95 keeps bounce d at 0.99^d"

@@ -340,11 +340,51 @@ static void test_gather_same_result_for_any_thread_count(void **state)
     free(pos), free(pow), free(nor), free(qpos), free(qnor), free(qw), free(a), free(b);
 }
 
+/* Millions of equal photons in one query (docs/extreme-cases.md): 2^22 photons of P W on a
+ * 2048 x 2048 lattice, one query at its centre whose uniform kernel covers them all. The
+ * sum must be n P / (pi h^2) to 1e-6 relative for every ISA: a float accumulator alone
+ * stalls once the sum is 2^24 times a photon (here far below the answer), so only the
+ * flushes into double (GATHER_FLUSH) keep it. */
+static void test_gather_millions_of_photons_in_one_query(void **state)
+{
+    const uint32_t side = 2048, n = side * side;
+    const float P = 1.0f / 3.0f * 1e-6f; /* not a short binary fraction: every addition rounds */
+    float *pos = malloc((size_t)n * 12), *pow = malloc((size_t)n * 12), *nor = malloc((size_t)n * 12);
+    assert_non_null(pos), assert_non_null(pow), assert_non_null(nor);
+    for (uint32_t i = 0; i < n; i++) {
+        pos[3 * (size_t)i] = (float)(i % side) * 1e-3f, pos[3 * (size_t)i + 1] = (float)(i / side) * 1e-3f;
+        pos[3 * (size_t)i + 2] = 0.0f;
+        nor[3 * (size_t)i] = 0, nor[3 * (size_t)i + 1] = 0, nor[3 * (size_t)i + 2] = 1;
+        pow[3 * (size_t)i] = pow[3 * (size_t)i + 1] = pow[3 * (size_t)i + 2] = P;
+    }
+    test_map_t t;
+    map_make(&t, n, pos, pow, nor, NULL, NULL);
+    float qpos[3] = {1.0f, 1.0f, 0.0f}, qnor[3] = {0, 0, 1}, qw[3] = {1, 1, 1};
+    pm_gather_queries_t q = queries(1, qpos, qnor, qw);
+    const double h = 10.0, want = (double)n * (double)P / (M_PI * h * h);
+    for (int isa = 0; isa < PM_ISA_COUNT; isa++) {
+        if (!pm_cpu_supports((pm_isa_t)isa))
+            continue;
+        pm_gather_params_t p = {.radius = h, .kernel = PM_KERNEL_UNIFORM, .normal_cos = 0.5f, .isa = (pm_isa_t)isa};
+        pm_gather_stats_t st;
+        double out[3];
+        assert_int_equal(pm_gather_run(&t.map, &q, 0, 1, &p, out, &st), PM_OK);
+        assert_int_equal(st.shader_ops, n);
+        for (int k = 0; k < 3; k++)
+            if (!(fabs(out[k] / want - 1.0) < 1e-6))
+                fail_msg("isa %d channel %d: %.9g W/m^2 from %u photons, expected %.9g (relative error %.2g)", isa,
+                         k, out[k], n, want, out[k] / want - 1.0);
+    }
+    map_free(&t);
+    free(pos), free(pow), free(nor);
+}
+
 static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_gather_matches_brute_force_for_every_isa),
     cmocka_unit_test(test_gather_glossy_matches_brute_force),
     cmocka_unit_test(test_gather_uniform_density_gives_exact_irradiance),
     cmocka_unit_test(test_gather_edge_cases),
     cmocka_unit_test(test_gather_same_result_for_any_thread_count),
+    cmocka_unit_test(test_gather_millions_of_photons_in_one_query),
 };
 UNIT_GROUP(unit_gather, "gather", tests);

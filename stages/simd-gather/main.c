@@ -106,6 +106,7 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *o)
     pm_stage_stat_double(st, "read_s", in.read_s);
     pm_stage_stat_double(st, "radius_s", t_radius);
     pm_stage_stat_double(st, "gather_s", t_gather);
+    pm_stage_stat_double(st, "gather_cpu_s", gs.cpu_s);
     pm_stage_stat_double(st, "write_s", t_write);
     pm_stage_note(st, "%" PRIu64 " queries, %" PRIu32 " photons, %s, %.3g shader ops/query, %.1f M shader ops/s, %.2f of %d lanes",
                   nq, np, pm_isa_name(isa), nq ? (double)gs.shader_ops / nq : 0.0,

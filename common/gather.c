@@ -6,11 +6,11 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "gather_impl.h"
 #include "kdtree.h"
 #include "memory.h"
+#include "timer.h"
 
 /* Queries per unit of work handed to a thread: a multiple of every packet width, small
  * enough that two threads stay balanced, large enough that scheduling costs nothing. */
@@ -172,21 +172,36 @@ void pm_gather_brute(const pm_gather_map_t *m, const pm_gather_queries_t *q, uin
     }
 }
 
+pm_result_t pm_gather_check_range(const pm_gather_queries_t *q, uint64_t begin, uint64_t end)
+{
+    if (end > q->n || begin > end)
+        return pm_error_set(PM_ERR_INTERNAL, "query range %" PRIu64 ":%" PRIu64 " outside 0:%" PRIu64, begin, end,
+                            q->n);
+    return PM_OK;
+}
+
+pm_result_t pm_gather_check_radius(double radius)
+{
+    if (!(radius > 0.0 && isfinite((float)(radius * radius))))
+        return pm_error_set(PM_ERR_USAGE, "kernel radius %g m is not a positive radius whose square fits a float",
+                            radius);
+    return PM_OK;
+}
+
 pm_result_t pm_gather_run(const pm_gather_map_t *m, const pm_gather_queries_t *q, uint64_t begin, uint64_t end,
                           const pm_gather_params_t *p, double *out, pm_gather_stats_t *stats)
 {
     memset(stats, 0, sizeof *stats);
-    if (end > q->n || begin > end)
-        return pm_error_set(PM_ERR_INTERNAL, "query range %" PRIu64 ":%" PRIu64 " outside 0:%" PRIu64, begin, end,
-                            q->n);
-    if (!p->variable && !(p->radius > 0.0 && isfinite((float)(p->radius * p->radius))))
-        return pm_error_set(PM_ERR_USAGE, "kernel radius %g m is not a positive radius whose square fits a float",
-                            p->radius);
+    pm_result_t res = pm_gather_check_range(q, begin, end);
+    if (res == PM_OK && !p->variable)
+        res = pm_gather_check_radius(p->radius);
+    if (res != PM_OK)
+        return res;
     if (!pm_cpu_supports(p->isa))
         return pm_error_set(PM_ERR_USAGE, "this CPU cannot run --isa %s", pm_isa_name(p->isa));
     unsigned char *mat_glossy = NULL;
     int glossy;
-    pm_result_t res = pm_gather_glossy_table(m, q, &mat_glossy, &glossy);
+    res = pm_gather_glossy_table(m, q, &mat_glossy, &glossy);
     if (res != PM_OK)
         return res;
     gather_ctx_t c = {.m = m, .q = q, .kernel = p->kernel, .normal_cos = p->normal_cos, .glossy = glossy,
@@ -213,15 +228,13 @@ pm_result_t pm_gather_run(const pm_gather_map_t *m, const pm_gather_queries_t *q
 #pragma omp parallel
     {
         pm_gather_stats_t st = {0};
-        struct timespec c0, c1;
-        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c0);
+        double cpu0 = pm_time_thread_cpu();
 #pragma omp for schedule(dynamic, 1) nowait
         for (uint64_t k = 0; k < nblocks; k++) {
             uint64_t b = begin + k * BLOCK_QUERIES, e = b + BLOCK_QUERIES < end ? b + BLOCK_QUERIES : end;
             fn(&c, b, e, out + 3 * (b - begin), &st);
         }
-        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c1);
-        st.cpu_s = (double)(c1.tv_sec - c0.tv_sec) + 1e-9 * (double)(c1.tv_nsec - c0.tv_nsec);
+        st.cpu_s = pm_time_thread_cpu() - cpu0;
 #pragma omp critical
         {
             total.cpu_s += st.cpu_s;

@@ -117,6 +117,11 @@ void pm_gather_brdf(const pm_material_t *mt, const float n[3], const float wi[3]
 pm_result_t pm_gather_glossy_table(const pm_gather_map_t *m, const pm_gather_queries_t *q,
                                    unsigned char **glossy_out, int *any_out);
 
+/* The argument checks every gather makes: [begin, end) within the queries (PM_ERR_INTERNAL),
+ * and a positive kernel radius whose square fits a float (PM_ERR_USAGE). */
+pm_result_t pm_gather_check_range(const pm_gather_queries_t *q, uint64_t begin, uint64_t end);
+pm_result_t pm_gather_check_radius(double radius);
+
 /* The O(n m) reference: every photon against every query, in double. For tests. */
 void pm_gather_brute(const pm_gather_map_t *m, const pm_gather_queries_t *q, uint64_t begin, uint64_t end,
                      const pm_gather_params_t *p, double *out);

@@ -10,6 +10,8 @@
 #include "args.h"
 #include "timer.h"
 
+const char *const pm_kernel_names[] = {"uniform", "epanechnikov", NULL};
+
 pm_result_t pm_gather_inputs_read(pm_gather_inputs_t *in, const char *map_path, const char *q_path,
                                   const char *range, int variable)
 {

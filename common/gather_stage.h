@@ -8,8 +8,20 @@
 #include <stdint.h>
 
 #include "../formats/formats.h"
+#include "args.h"
 #include "error.h"
 #include "gather.h"
+
+/* The kernels' names, in pm_kernel_t order, for --kernel and the `kernel` header key. */
+extern const char *const pm_kernel_names[];
+
+/* The options every gather stage has, with the same meaning and help: --normal-cos C (a
+ * double) and --range B:E (a string). */
+#define PM_GATHER_COMMON_OPTIONS(normal_cos, range)                                                              \
+    {"normal-cos", 0, PM_OPT_DOUBLE, &(normal_cos), "C",                                                         \
+     "a photon counts when the cosine between its normal and the query's is at least C", -1, 1, NULL},           \
+        {"range", 0, PM_OPT_STRING, &(range), "B:E", "gather only queries [B, E) (shards; composite adds them)", \
+         1, 0, NULL}
 
 /* A photon map and a queries file (or the range [begin, end) of one), as the gathers read
  * them. Row i of `q` is query begin + i of the file. */

@@ -4,11 +4,12 @@
  * gather, so the two differ in the estimator and in SIMD, not in the tree or its layout. */
 #include "knn_gather.h"
 
+#include "timer.h"
+
 #include <inttypes.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 /* Queries per unit of work handed to a thread: small enough that two threads stay
  * balanced, large enough that scheduling costs nothing. */
@@ -107,9 +108,9 @@ pm_result_t pm_knn_gather(const pm_gather_map_t *m, const pm_gather_queries_t *q
                           const pm_knn_params_t *p, double *out, pm_knn_stats_t *stats)
 {
     memset(stats, 0, sizeof *stats);
-    if (end > q->n || begin > end)
-        return pm_error_set(PM_ERR_INTERNAL, "query range %" PRIu64 ":%" PRIu64 " outside 0:%" PRIu64, begin, end,
-                            q->n);
+    pm_result_t res = pm_gather_check_range(q, begin, end);
+    if (res != PM_OK)
+        return res;
     if (p->k == 0)
         return pm_error_set(PM_ERR_USAGE, "k = 0: an estimate needs at least one photon");
     float max_r2 = p->max_radius > 0.0 ? (float)(p->max_radius * p->max_radius) : INFINITY;
@@ -118,7 +119,7 @@ pm_result_t pm_knn_gather(const pm_gather_map_t *m, const pm_gather_queries_t *q
                             p->max_radius);
     unsigned char *mat_glossy = NULL;
     int glossy;
-    pm_result_t res = pm_gather_glossy_table(m, q, &mat_glossy, &glossy);
+    res = pm_gather_glossy_table(m, q, &mat_glossy, &glossy);
     if (res != PM_OK)
         return res;
     uint64_t nblocks = (end - begin + BLOCK_QUERIES - 1) / BLOCK_QUERIES;
@@ -128,8 +129,7 @@ pm_result_t pm_knn_gather(const pm_gather_map_t *m, const pm_gather_queries_t *q
 #pragma omp parallel
     {
         pm_knn_stats_t st = {0};
-        struct timespec c0, c1;
-        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c0);
+        double cpu0 = pm_time_thread_cpu();
         cand_t *heap = malloc((size_t)p->k * sizeof *heap);
         uint64_t my_bad = UINT64_MAX;
 #pragma omp for schedule(dynamic, 1) nowait
@@ -165,8 +165,7 @@ pm_result_t pm_knn_gather(const pm_gather_map_t *m, const pm_gather_queries_t *q
                     out[3 * (qi - begin) + ch] = s[ch] * q->weight[3 * qi + ch];
             }
         }
-        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c1);
-        st.cpu_s = (double)(c1.tv_sec - c0.tv_sec) + 1e-9 * (double)(c1.tv_nsec - c0.tv_nsec);
+        st.cpu_s = pm_time_thread_cpu() - cpu0;
 #pragma omp critical
         {
             nomem |= !heap;

@@ -7,7 +7,6 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "kdtree.h"
 #include "memory.h"
@@ -130,19 +129,18 @@ pm_result_t pm_reverse_gather(const pm_gather_map_t *m, const pm_gather_queries_
                               const pm_reverse_params_t *p, double *out, pm_reverse_stats_t *stats)
 {
     memset(stats, 0, sizeof *stats);
-    if (end > q->n || begin > end)
-        return pm_error_set(PM_ERR_INTERNAL, "query range %" PRIu64 ":%" PRIu64 " outside 0:%" PRIu64, begin, end,
-                            q->n);
-    if (!(p->radius > 0.0 && isfinite((float)(p->radius * p->radius))))
-        return pm_error_set(PM_ERR_USAGE, "kernel radius %g m is not a positive radius whose square fits a float",
-                            p->radius);
+    pm_result_t res = pm_gather_check_range(q, begin, end);
+    if (res == PM_OK)
+        res = pm_gather_check_radius(p->radius);
+    if (res != PM_OK)
+        return res;
     uint64_t n64 = end - begin;
     if (n64 > 0xfffffffeu)
         return pm_error_set(PM_ERR_INPUT, "%" PRIu64 " queries: the query tree takes at most %u", n64, 0xfffffffeu);
     uint32_t n = (uint32_t)n64;
     unsigned char *mat_glossy = NULL;
     int glossy;
-    pm_result_t res = pm_gather_glossy_table(m, q, &mat_glossy, &glossy);
+    res = pm_gather_glossy_table(m, q, &mat_glossy, &glossy);
     if (res != PM_OK)
         return res;
 
@@ -208,8 +206,7 @@ pm_result_t pm_reverse_gather(const pm_gather_map_t *m, const pm_gather_queries_
 #pragma omp parallel
     {
         pm_reverse_stats_t st = {0};
-        struct timespec c0, c1;
-        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c0);
+        double cpu0 = pm_time_thread_cpu();
 #pragma omp for schedule(dynamic, 1) nowait
         for (uint32_t t = 0; t < nt; t++)
             for (uint32_t j = 0; j < m->n; j++) { /* photon order: each query's sum in the same order */
@@ -219,8 +216,7 @@ pm_result_t pm_reverse_gather(const pm_gather_map_t *m, const pm_gather_queries_
                 st.searches++;
                 search(&c, &tasks[t], j, &st);
             }
-        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c1);
-        st.cpu_s = (double)(c1.tv_sec - c0.tv_sec) + 1e-9 * (double)(c1.tv_nsec - c0.tv_nsec);
+        st.cpu_s = pm_time_thread_cpu() - cpu0;
 #pragma omp critical
         {
             total.shader_ops += st.shader_ops;

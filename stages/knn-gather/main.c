@@ -16,7 +16,6 @@
 #include "../../common/stage.h"
 #include "../../common/timer.h"
 
-static const char *const kernel_names[] = {"uniform", "epanechnikov", NULL};
 
 typedef struct {
     int64_t k;
@@ -51,7 +50,7 @@ static pm_result_t run(pm_stage_t *st, const knn_options_t *o)
 
     pm_header_t *h = &out.hdr;
     if ((r = pm_gather_output_init(&out, &in, per_query, st->argc, st->argv)) != PM_OK ||
-        (r = pm_header_set(h, "kernel", "%s", kernel_names[o->kernel])) != PM_OK ||
+        (r = pm_header_set(h, "kernel", "%s", pm_kernel_names[o->kernel])) != PM_OK ||
         (r = pm_header_set(h, "widths", "knn")) != PM_OK || (r = pm_header_set(h, "k", "%" PRId64, o->k)) != PM_OK)
         goto done;
     if (o->max_radius > 0.0 && (r = pm_header_set(h, "max_radius", "%.9g", o->max_radius)) != PM_OK)
@@ -65,7 +64,7 @@ static pm_result_t run(pm_stage_t *st, const knn_options_t *o)
     pm_stage_stat_int(st, "queries", (int64_t)nq);
     pm_stage_stat_int(st, "photons", in.map.n);
     pm_stage_stat_int(st, "k", o->k);
-    pm_stage_stat_string(st, "kernel", kernel_names[o->kernel]);
+    pm_stage_stat_string(st, "kernel", pm_kernel_names[o->kernel]);
     pm_stage_stat_int(st, "shader_ops", (int64_t)ks.shader_ops);
     pm_stage_stat_double(st, "shader_ops_per_query", nq ? (double)ks.shader_ops / nq : 0.0);
     pm_stage_stat_double(st, "shader_ops_per_s", t_gather > 0 ? (double)ks.shader_ops / t_gather : 0.0);
@@ -102,11 +101,8 @@ int main(int argc, char **argv)
          NULL},
         {"kernel", 0, PM_OPT_CHOICE, &o.kernel, "K",
          "kernel shape over the disc of radius r_k, normalized over the plane (uniform: Jensen's 1/(pi r^2))", 0, 0,
-         kernel_names},
-        {"normal-cos", 0, PM_OPT_DOUBLE, &o.normal_cos, "C",
-         "a photon counts when the cosine between its normal and the query's is at least C", -1, 1, NULL},
-        {"range", 0, PM_OPT_STRING, &o.range, "B:E", "gather only queries [B, E) (shards; composite adds them)", 1, 0,
-         NULL},
+         pm_kernel_names},
+        PM_GATHER_COMMON_OPTIONS(o.normal_cos, o.range),
         {0},
     };
     const pm_cli_t cli = {"knn-gather", "[options] MAP QUERIES -o RADIANCE",

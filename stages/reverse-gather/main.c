@@ -18,7 +18,6 @@
 #include "../../common/stage.h"
 #include "../../common/timer.h"
 
-static const char *const kernel_names[] = {"uniform", "epanechnikov", NULL};
 
 typedef struct {
     double radius;
@@ -61,7 +60,7 @@ static pm_result_t run(pm_stage_t *st, const reverse_options_t *o)
 
     pm_header_t *h = &out.hdr;
     if ((r = pm_gather_output_init(&out, &in, per_query, st->argc, st->argv)) != PM_OK ||
-        (r = pm_header_set(h, "kernel", "%s", kernel_names[o->kernel])) != PM_OK ||
+        (r = pm_header_set(h, "kernel", "%s", pm_kernel_names[o->kernel])) != PM_OK ||
         (r = pm_header_set(h, "widths", "fixed")) != PM_OK ||
         (r = pm_header_set(h, "radius", "%.9g", radius)) != PM_OK)
         goto done;
@@ -74,7 +73,7 @@ static pm_result_t run(pm_stage_t *st, const reverse_options_t *o)
     pm_stage_stat_int(st, "queries", (int64_t)nq);
     pm_stage_stat_int(st, "photons", in.map.n);
     pm_stage_stat_double(st, "radius_m", radius);
-    pm_stage_stat_string(st, "kernel", kernel_names[o->kernel]);
+    pm_stage_stat_string(st, "kernel", pm_kernel_names[o->kernel]);
     pm_stage_stat_int(st, "shader_ops", (int64_t)rs.shader_ops);
     pm_stage_stat_double(st, "shader_ops_per_query", nq ? (double)rs.shader_ops / nq : 0.0);
     pm_stage_stat_double(st, "shader_ops_per_s", t_gather > 0 ? (double)rs.shader_ops / t_gather : 0.0);
@@ -111,11 +110,8 @@ int main(int argc, char **argv)
         {"radius", 'r', PM_OPT_DOUBLE, &o.radius, "R", "kernel width h, m (0: from --k)", 0, 1e18, NULL},
         {"k", 'k', PM_OPT_DOUBLE, &o.k, "K",
          "choose h so that about K photons fall in a query's kernel on average (as simd-gather does)", 0, 1e7, NULL},
-        {"kernel", 0, PM_OPT_CHOICE, &o.kernel, "K", "kernel shape, normalized over the plane", 0, 0, kernel_names},
-        {"normal-cos", 0, PM_OPT_DOUBLE, &o.normal_cos, "C",
-         "a photon counts when the cosine between its normal and the query's is at least C", -1, 1, NULL},
-        {"range", 0, PM_OPT_STRING, &o.range, "B:E", "gather only queries [B, E) (shards; composite adds them)", 1, 0,
-         NULL},
+        {"kernel", 0, PM_OPT_CHOICE, &o.kernel, "K", "kernel shape, normalized over the plane", 0, 0, pm_kernel_names},
+        PM_GATHER_COMMON_OPTIONS(o.normal_cos, o.range),
         {0},
     };
     const pm_cli_t cli = {"reverse-gather", "[options] MAP QUERIES -o RADIANCE",

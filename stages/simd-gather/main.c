@@ -18,7 +18,6 @@
 #include "../../common/stage.h"
 #include "../../formats/formats.h"
 
-static const char *const kernel_names[] = {"uniform", "epanechnikov", NULL};
 static const char *const width_names[] = {"fixed", "variable", NULL};
 
 typedef struct {
@@ -70,7 +69,7 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *o)
 
     pm_header_t *h = &out.hdr;
     if ((r = pm_gather_output_init(&out, &in, per_query, st->argc, st->argv)) != PM_OK ||
-        (r = pm_header_set(h, "kernel", "%s", kernel_names[o->kernel])) != PM_OK ||
+        (r = pm_header_set(h, "kernel", "%s", pm_kernel_names[o->kernel])) != PM_OK ||
         (r = pm_header_set(h, "widths", "%s", width_names[o->widths])) != PM_OK)
         goto done;
     if (!o->widths && (r = pm_header_set(h, "radius", "%.9g", radius)) != PM_OK)
@@ -89,7 +88,7 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *o)
     pm_stage_stat_int(st, "photons", np);
     if (!o->widths)
         pm_stage_stat_double(st, "radius_m", radius);
-    pm_stage_stat_string(st, "kernel", kernel_names[o->kernel]);
+    pm_stage_stat_string(st, "kernel", pm_kernel_names[o->kernel]);
     pm_stage_stat_int(st, "shader_ops", (int64_t)gs.shader_ops);
     pm_stage_stat_double(st, "shader_ops_per_s", t_gather > 0 ? (double)gs.shader_ops / t_gather : 0.0);
     pm_stage_stat_double(st, "shader_ops_per_s_per_thread",
@@ -129,14 +128,11 @@ int main(int argc, char **argv)
         {"radius", 'r', PM_OPT_DOUBLE, &o.radius, "R", "kernel width h, m (0: from --k)", 0, 1e18, NULL},
         {"k", 'k', PM_OPT_DOUBLE, &o.k, "K", "choose h so that about K photons fall in a query's kernel on average", 0,
          1e7, NULL},
-        {"kernel", 0, PM_OPT_CHOICE, &o.kernel, "K", "kernel shape, normalized over the plane", 0, 0, kernel_names},
+        {"kernel", 0, PM_OPT_CHOICE, &o.kernel, "K", "kernel shape, normalized over the plane", 0, 0, pm_kernel_names},
         {"widths", 0, PM_OPT_CHOICE, &o.widths, "W",
          "fixed: one h for all; variable: each photon's own h (a map built with --width-k)", 0, 0, width_names},
-        {"normal-cos", 0, PM_OPT_DOUBLE, &o.normal_cos, "C",
-         "a photon counts when the cosine between its normal and the query's is at least C", -1, 1, NULL},
         {"isa", 0, PM_OPT_STRING, &o.isa, "ISA", "auto, scalar, sse4 (4 lanes), avx2 (8) or avx512 (16)", 1, 0, NULL},
-        {"range", 0, PM_OPT_STRING, &o.range, "B:E", "gather only queries [B, E) (shards; composite adds them)", 1, 0,
-         NULL},
+        PM_GATHER_COMMON_OPTIONS(o.normal_cos, o.range),
         {0},
     };
     const pm_cli_t cli = {"simd-gather", "[options] MAP QUERIES -o RADIANCE",

@@ -376,6 +376,40 @@ static void random_dirs(uint64_t n, const float *nor, float *dir, uint64_t seed)
     }
 }
 
+/* Random photons and queries (random_scene) with directions and the three materials above,
+ * and its map: the scene both baselines are checked on. */
+typedef struct {
+    uint32_t n;
+    uint64_t nq;
+    float *pos, *pow, *nor, *dir, *qpos, *qnor, *qw, *qdir;
+    uint16_t *qmat;
+    pm_gather_queries_t q;
+    test_map_t t;
+} glossy_scene_t;
+
+static void glossy_scene_make(glossy_scene_t *g, uint32_t n, uint64_t nq, uint64_t seed)
+{
+    g->n = n, g->nq = nq;
+    g->pos = malloc(n * 12), g->pow = malloc(n * 12), g->nor = malloc(n * 12), g->dir = malloc(n * 12);
+    g->qpos = malloc(nq * 12), g->qnor = malloc(nq * 12), g->qw = malloc(nq * 12), g->qdir = malloc(nq * 12);
+    g->qmat = malloc(nq * 2);
+    random_scene(n, nq, seed, g->pos, g->pow, g->nor, g->qpos, g->qnor, g->qw);
+    random_dirs(n, g->nor, g->dir, seed + 1);
+    random_dirs(nq, g->qnor, g->qdir, seed + 2);
+    for (uint64_t i = 0; i < nq; i++)
+        g->qmat[i] = (uint16_t)(i % 3);
+    g->q = (pm_gather_queries_t){.n = nq, .pos = g->qpos, .normal = g->qnor, .weight = g->qw, .material = g->qmat,
+                                 .dir = g->qdir, .materials = baseline_mats, .nmaterials = 3};
+    map_make(&g->t, n, g->pos, g->pow, g->nor, g->dir, NULL);
+}
+
+static void glossy_scene_free(glossy_scene_t *g)
+{
+    map_free(&g->t);
+    free(g->pos), free(g->pow), free(g->nor), free(g->dir), free(g->qpos), free(g->qnor), free(g->qw);
+    free(g->qdir), free(g->qmat);
+}
+
 typedef struct {
     double d2;
     uint32_t j;
@@ -426,18 +460,10 @@ static void test_knn_gather_matches_brute_force(void **state)
 {
     const uint32_t n = 3000;
     const uint64_t nq = 400;
-    float *pos = malloc(n * 12), *pow = malloc(n * 12), *nor = malloc(n * 12), *dir = malloc(n * 12);
-    float *qpos = malloc(nq * 12), *qnor = malloc(nq * 12), *qw = malloc(nq * 12), *qdir = malloc(nq * 12);
-    uint16_t *qmat = malloc(nq * 2);
-    random_scene(n, nq, 41, pos, pow, nor, qpos, qnor, qw);
-    random_dirs(n, nor, dir, 42);
-    random_dirs(nq, qnor, qdir, 43);
-    for (uint64_t i = 0; i < nq; i++)
-        qmat[i] = (uint16_t)(i % 3);
-    pm_gather_queries_t q = {.n = nq, .pos = qpos, .normal = qnor, .weight = qw, .material = qmat, .dir = qdir,
-                             .materials = baseline_mats, .nmaterials = 3};
-    test_map_t t;
-    map_make(&t, n, pos, pow, nor, dir, NULL);
+    glossy_scene_t g;
+    glossy_scene_make(&g, n, nq, 41);
+    const pm_gather_queries_t q = g.q;
+    const test_map_t t = g.t;
     double *got = malloc(nq * 24), *want = malloc(nq * 24);
     /* k 2 to 120; unlimited, and a maximum radius that leaves some queries short of k */
     const uint32_t ks[] = {2, 8, 50, 120};
@@ -472,12 +498,11 @@ static void test_knn_gather_matches_brute_force(void **state)
     assert_int_equal(pm_knn_gather(&t.map, &q, 0, nq, &p, got, &st), PM_ERR_INPUT);
     /* glossy queries need photon directions */
     test_map_t nodir;
-    map_make(&nodir, n, pos, pow, nor, NULL, NULL);
+    map_make(&nodir, n, g.pos, g.pow, g.nor, NULL, NULL);
     p.k = 10;
     assert_int_equal(pm_knn_gather(&nodir.map, &q, 0, nq, &p, got, &st), PM_ERR_INPUT);
     map_free(&nodir);
-    map_free(&t);
-    free(pos), free(pow), free(nor), free(dir), free(qpos), free(qnor), free(qw), free(qdir), free(qmat);
+    glossy_scene_free(&g);
     free(got), free(want);
 }
 
@@ -487,18 +512,10 @@ static void test_reverse_gather_matches_brute_force(void **state)
      * nodes above them */
     const uint32_t n = 2000;
     const uint64_t nq = 20000;
-    float *pos = malloc(n * 12), *pow = malloc(n * 12), *nor = malloc(n * 12), *dir = malloc(n * 12);
-    float *qpos = malloc(nq * 12), *qnor = malloc(nq * 12), *qw = malloc(nq * 12), *qdir = malloc(nq * 12);
-    uint16_t *qmat = malloc(nq * 2);
-    random_scene(n, nq, 51, pos, pow, nor, qpos, qnor, qw);
-    random_dirs(n, nor, dir, 52);
-    random_dirs(nq, qnor, qdir, 53);
-    for (uint64_t i = 0; i < nq; i++)
-        qmat[i] = (uint16_t)(i % 3);
-    pm_gather_queries_t q = {.n = nq, .pos = qpos, .normal = qnor, .weight = qw, .material = qmat, .dir = qdir,
-                             .materials = baseline_mats, .nmaterials = 3};
-    test_map_t t;
-    map_make(&t, n, pos, pow, nor, dir, NULL);
+    glossy_scene_t g;
+    glossy_scene_make(&g, n, nq, 51);
+    const pm_gather_queries_t q = g.q;
+    const test_map_t t = g.t;
     double *got = malloc(nq * 24), *want = malloc(nq * 24), *again = malloc(nq * 24);
     for (int kernel = 0; kernel <= 1; kernel++) {
         pm_gather_params_t gp = {.radius = 0.06, .kernel = (pm_kernel_t)kernel, .normal_cos = 0.5f,
@@ -525,21 +542,20 @@ static void test_reverse_gather_matches_brute_force(void **state)
     expect_close(got, want, 2000, 1e-9, "reverse, range 1000:3000");
     /* glossy queries need photon directions; a radius must be positive */
     test_map_t nodir;
-    map_make(&nodir, n, pos, pow, nor, NULL, NULL);
+    map_make(&nodir, n, g.pos, g.pow, g.nor, NULL, NULL);
     assert_int_equal(pm_reverse_gather(&nodir.map, &q, 0, nq, &p, got, &st), PM_ERR_INPUT);
     map_free(&nodir);
     p.radius = 0.0;
     assert_int_equal(pm_reverse_gather(&t.map, &q, 0, nq, &p, got, &st), PM_ERR_USAGE);
     /* no photons: zeros */
     test_map_t e;
-    map_make(&e, 0, pos, pow, nor, dir, NULL);
+    map_make(&e, 0, g.pos, g.pow, g.nor, g.dir, NULL);
     p.radius = 0.06;
     assert_int_equal(pm_reverse_gather(&e.map, &q, 0, 10, &p, got, &st), PM_OK);
     for (int i = 0; i < 30; i++)
         assert_true(got[i] == 0.0);
     map_free(&e);
-    map_free(&t);
-    free(pos), free(pow), free(nor), free(dir), free(qpos), free(qnor), free(qw), free(qdir), free(qmat);
+    glossy_scene_free(&g);
     free(got), free(want), free(again);
 }
 

@@ -561,14 +561,11 @@ static void test_reverse_gather_matches_brute_force(void **state)
 
 static void test_baselines_same_result_for_any_thread_count(void **state)
 {
-    const uint32_t n = 5000;
     const uint64_t nq = 30000;
-    float *pos = malloc(n * 12), *pow = malloc(n * 12), *nor = malloc(n * 12);
-    float *qpos = malloc(nq * 12), *qnor = malloc(nq * 12), *qw = malloc(nq * 12);
-    random_scene(n, nq, 61, pos, pow, nor, qpos, qnor, qw);
-    test_map_t t;
-    map_make(&t, n, pos, pow, nor, NULL, NULL);
-    pm_gather_queries_t q = queries(nq, qpos, qnor, qw);
+    glossy_scene_t g;
+    glossy_scene_make(&g, 5000, nq, 61);
+    const pm_gather_queries_t q = g.q;
+    const test_map_t t = g.t;
     double *out[3];
     pm_reverse_params_t rp = {.radius = 0.05, .kernel = PM_KERNEL_EPANECHNIKOV, .normal_cos = 0.5f};
     pm_knn_params_t kp = {.k = 30, .kernel = PM_KERNEL_UNIFORM, .normal_cos = 0.5f};
@@ -589,8 +586,7 @@ static void test_baselines_same_result_for_any_thread_count(void **state)
         free(out[0]), free(out[1]), free(out[2]);
     }
     omp_set_num_threads(saved);
-    map_free(&t);
-    free(pos), free(pow), free(nor), free(qpos), free(qnor), free(qw);
+    glossy_scene_free(&g);
 }
 
 static const struct CMUnitTest baseline_tests[] = {

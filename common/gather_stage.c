@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "args.h"
+#include "memory.h"
 #include "timer.h"
 
 const char *const pm_kernel_names[] = {"uniform", "epanechnikov", NULL};
@@ -52,18 +53,24 @@ pm_result_t pm_gather_inputs_read(pm_gather_inputs_t *in, const char *map_path, 
         return pm_error_set(PM_ERR_INPUT, "photon map '%s' is of scene '%s' but queries '%s' are of scene '%s'",
                             map_path, sm, q_path, sq);
     if ((r = pm_header_get_image_size(qh, q_path, &in->width, &in->height)) != PM_OK ||
-        (r = pm_gather_map_init(&in->map, &in->map_table, variable)) != PM_OK)
+        (r = pm_gather_map_init(&in->map, &in->map_table, variable)) != PM_OK ||
+        (r = pm_gather_queries_init(&in->q, &in->q_table, q_path, &in->materials)) != PM_OK)
         return r;
-    return pm_gather_queries_init(&in->q, &in->q_table, q_path, &in->materials);
+    in->per_query = pm_alloc_aligned((in->q.n ? in->q.n : 1) * 3 * sizeof *in->per_query);
+    if (!in->per_query)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for %" PRIu64 " query results", in->q.n);
+    return PM_OK;
 }
 
 void pm_gather_inputs_free(pm_gather_inputs_t *in)
 {
+    pm_free_aligned(in->per_query);
     free(in->materials);
     pm_gather_map_free(&in->map);
     pm_table_free(&in->q_table);
     pm_table_free(&in->map_table);
     in->materials = NULL;
+    in->per_query = NULL;
 }
 
 /* ---- the sample of queries that --k measures the radius on ---- */
@@ -178,9 +185,9 @@ pm_result_t pm_gather_inputs_radius_for_k(const pm_gather_inputs_t *in, double k
     return PM_OK;
 }
 
-pm_result_t pm_gather_output_init(pm_table_t *out, const pm_gather_inputs_t *in, const double *per_query,
-                                  int argc, char **argv)
+pm_result_t pm_gather_output_init(pm_table_t *out, const pm_gather_inputs_t *in, int argc, char **argv)
 {
+    const double *per_query = in->per_query;
     pm_result_t r = pm_table_alloc(out, &pm_radiance_schema, pm_schema_required(&pm_radiance_schema),
                                    (uint64_t)in->width * in->height);
     if (r != PM_OK)
@@ -214,8 +221,9 @@ pm_result_t pm_gather_output_write(pm_table_t *out, const pm_gather_inputs_t *in
     return pm_table_write(out, path);
 }
 
-pm_result_t pm_gather_check_finite(const pm_gather_inputs_t *in, const double *per_query, const char *what)
+pm_result_t pm_gather_check_finite(const pm_gather_inputs_t *in, const char *what)
 {
+    const double *per_query = in->per_query;
     for (uint64_t i = 0; i < 3 * in->q.n; i++)
         if (!isfinite(per_query[i]))
             return pm_error_set(PM_ERR_INPUT, "query %" PRIu64 " of '%s': %s gives a non-finite radiance (%g)",

@@ -35,11 +35,12 @@ typedef struct {
     int ranged;                 /* --range was given */
     uint32_t width, height;     /* image size, pixels */
     double read_s;              /* wall seconds spent reading and checking both files */
+    double *per_query;          /* owned, 3 per row of q: for the gather's weighted radiance, W/(m^2 sr) */
 } pm_gather_inputs_t;
 
 /* Reads MAP and QUERIES (range "B:E" or NULL for all; QUERIES may be "-"), checks the
- * weight contract and that both are of one scene, and views them for the gathers
- * (`variable`: per-photon widths, see pm_gather_map_init). Free with
+ * weight contract and that both are of one scene, views them for the gathers (`variable`:
+ * per-photon widths, see pm_gather_map_init) and allocates per_query. Free with
  * pm_gather_inputs_free, also after a failure. */
 pm_result_t pm_gather_inputs_read(pm_gather_inputs_t *in, const char *map_path, const char *q_path,
                                   const char *range, int variable);
@@ -51,19 +52,18 @@ void pm_gather_inputs_free(pm_gather_inputs_t *in);
 pm_result_t pm_gather_inputs_radius_for_k(const pm_gather_inputs_t *in, double k, float normal_cos,
                                           double *radius_out);
 
-/* The radiance buffer of per_query (3 doubles per row of in->q, weighted radiance): each
+/* The radiance buffer of in->per_query: each
  * query added to its pixel in file order, so the buffer does not depend on how the sums
  * were computed in parallel. The header inherits both inputs, names them, adds the command
  * line, width, height and component=indirect; the caller adds its own keys and then calls
  * pm_gather_output_write. */
-pm_result_t pm_gather_output_init(pm_table_t *out, const pm_gather_inputs_t *in, const double *per_query,
-                                  int argc, char **argv);
+pm_result_t pm_gather_output_init(pm_table_t *out, const pm_gather_inputs_t *in, int argc, char **argv);
 
 /* Adds range=B:E for a shard and writes `out` to path atomically. */
 pm_result_t pm_gather_output_write(pm_table_t *out, const pm_gather_inputs_t *in, const char *path);
 
-/* The same check of the per-query results every estimator needs: no NaN or Inf reaches a
- * file. Names the first bad query (its index in the file). */
-pm_result_t pm_gather_check_finite(const pm_gather_inputs_t *in, const double *per_query, const char *what);
+/* The same check of in->per_query every estimator needs: no NaN or Inf reaches a file.
+ * Names the first bad query (its index in the file) and `what` computed it. */
+pm_result_t pm_gather_check_finite(const pm_gather_inputs_t *in, const char *what);
 
 #endif

@@ -12,7 +12,6 @@
 
 #include "../../common/gather_stage.h"
 #include "../../common/knn_gather.h"
-#include "../../common/memory.h"
 #include "../../common/stage.h"
 #include "../../common/timer.h"
 
@@ -29,27 +28,21 @@ static pm_result_t run(pm_stage_t *st, const knn_options_t *o)
 {
     pm_gather_inputs_t in;
     pm_table_t out = {0};
-    double *per_query = NULL;
     pm_result_t r = pm_gather_inputs_read(&in, st->args.args[0], st->args.args[1], o->range, 0);
     if (r != PM_OK)
         goto done;
     uint64_t nq = in.q.n;
-    per_query = pm_alloc_aligned((nq ? nq : 1) * 3 * sizeof *per_query);
-    if (!per_query) {
-        r = pm_error_set(PM_ERR_NOMEM, "out of memory for %" PRIu64 " query results", nq);
-        goto done;
-    }
     pm_knn_params_t p = {.k = (uint32_t)o->k, .max_radius = o->max_radius, .kernel = (pm_kernel_t)o->kernel,
                          .normal_cos = (float)o->normal_cos};
     pm_knn_stats_t ks;
     double t0 = pm_time_wall();
-    r = pm_knn_gather(&in.map, &in.q, 0, nq, &p, per_query, &ks);
+    r = pm_knn_gather(&in.map, &in.q, 0, nq, &p, in.per_query, &ks);
     double t_gather = pm_time_wall() - t0;
-    if (r != PM_OK || (r = pm_gather_check_finite(&in, per_query, "the k-NN estimate")) != PM_OK)
+    if (r != PM_OK || (r = pm_gather_check_finite(&in, "the k-NN estimate")) != PM_OK)
         goto done;
 
     pm_header_t *h = &out.hdr;
-    if ((r = pm_gather_output_init(&out, &in, per_query, st->argc, st->argv)) != PM_OK ||
+    if ((r = pm_gather_output_init(&out, &in, st->argc, st->argv)) != PM_OK ||
         (r = pm_header_set(h, "kernel", "%s", pm_kernel_names[o->kernel])) != PM_OK ||
         (r = pm_header_set(h, "widths", "knn")) != PM_OK || (r = pm_header_set(h, "k", "%" PRId64, o->k)) != PM_OK)
         goto done;
@@ -82,7 +75,6 @@ static pm_result_t run(pm_stage_t *st, const knn_options_t *o)
     pm_stage_note(st, "%" PRIu64 " queries, %" PRIu32 " photons, k %" PRId64 ", %.3g photons visited/query, %.2f M queries/s",
                   nq, in.map.n, o->k, nq ? (double)ks.nodes_visited / nq : 0.0, t_gather > 0 ? nq / t_gather * 1e-6 : 0.0);
 done:
-    pm_free_aligned(per_query);
     pm_gather_inputs_free(&in);
     pm_table_free(&out);
     return r;

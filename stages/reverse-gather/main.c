@@ -13,7 +13,6 @@
 #include <stdlib.h>
 
 #include "../../common/gather_stage.h"
-#include "../../common/memory.h"
 #include "../../common/reverse_gather.h"
 #include "../../common/stage.h"
 #include "../../common/timer.h"
@@ -31,7 +30,6 @@ static pm_result_t run(pm_stage_t *st, const reverse_options_t *o)
 {
     pm_gather_inputs_t in;
     pm_table_t out = {0};
-    double *per_query = NULL;
     if (o->radius == 0.0 && o->k <= 0.0)
         return pm_error_set(PM_ERR_USAGE, "give --radius R or --k K (photons per query) for the kernel width");
     pm_result_t r = pm_gather_inputs_read(&in, st->args.args[0], st->args.args[1], o->range, 0);
@@ -45,21 +43,16 @@ static pm_result_t run(pm_stage_t *st, const reverse_options_t *o)
         t_radius = pm_time_wall() - t0;
     }
     uint64_t nq = in.q.n;
-    per_query = pm_alloc_aligned((nq ? nq : 1) * 3 * sizeof *per_query);
-    if (!per_query) {
-        r = pm_error_set(PM_ERR_NOMEM, "out of memory for %" PRIu64 " query results", nq);
-        goto done;
-    }
     pm_reverse_params_t p = {.radius = radius, .kernel = (pm_kernel_t)o->kernel, .normal_cos = (float)o->normal_cos};
     pm_reverse_stats_t rs;
     t0 = pm_time_wall();
-    r = pm_reverse_gather(&in.map, &in.q, 0, nq, &p, per_query, &rs);
+    r = pm_reverse_gather(&in.map, &in.q, 0, nq, &p, in.per_query, &rs);
     double t_gather = pm_time_wall() - t0;
-    if (r != PM_OK || (r = pm_gather_check_finite(&in, per_query, "the reverse gather")) != PM_OK)
+    if (r != PM_OK || (r = pm_gather_check_finite(&in, "the reverse gather")) != PM_OK)
         goto done;
 
     pm_header_t *h = &out.hdr;
-    if ((r = pm_gather_output_init(&out, &in, per_query, st->argc, st->argv)) != PM_OK ||
+    if ((r = pm_gather_output_init(&out, &in, st->argc, st->argv)) != PM_OK ||
         (r = pm_header_set(h, "kernel", "%s", pm_kernel_names[o->kernel])) != PM_OK ||
         (r = pm_header_set(h, "widths", "fixed")) != PM_OK ||
         (r = pm_header_set(h, "radius", "%.9g", radius)) != PM_OK)
@@ -94,7 +87,6 @@ static pm_result_t run(pm_stage_t *st, const reverse_options_t *o)
     pm_stage_note(st, "%" PRIu64 " queries, %" PRIu32 " photons, query tree %.3f s, search %.3f s, %.1f M shader ops/s",
                   nq, in.map.n, rs.build_s, rs.search_s, t_gather > 0 ? rs.shader_ops / t_gather * 1e-6 : 0.0);
 done:
-    pm_free_aligned(per_query);
     pm_gather_inputs_free(&in);
     pm_table_free(&out);
     return r;

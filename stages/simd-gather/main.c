@@ -14,7 +14,6 @@
 
 #include "../../common/gather.h"
 #include "../../common/gather_stage.h"
-#include "../../common/memory.h"
 #include "../../common/stage.h"
 #include "../../formats/formats.h"
 
@@ -33,7 +32,6 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *o)
 {
     pm_gather_inputs_t in;
     pm_table_t out = {0};
-    double *per_query = NULL;
     pm_isa_t isa;
     pm_result_t r = pm_isa_parse(o->isa, &isa);
     if (r != PM_OK)
@@ -55,20 +53,15 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *o)
     pm_gather_params_t p = {.radius = radius, .kernel = (pm_kernel_t)o->kernel, .variable = o->widths,
                             .normal_cos = (float)o->normal_cos, .isa = isa};
     uint64_t nq = in.q.n;
-    per_query = pm_alloc_aligned((nq ? nq : 1) * 3 * sizeof *per_query);
-    if (!per_query) {
-        r = pm_error_set(PM_ERR_NOMEM, "out of memory for %" PRIu64 " query results", nq);
-        goto done;
-    }
     pm_gather_stats_t gs;
     t0 = pm_time_wall();
-    r = pm_gather_run(&in.map, &in.q, 0, nq, &p, per_query, &gs);
+    r = pm_gather_run(&in.map, &in.q, 0, nq, &p, in.per_query, &gs);
     double t_gather = pm_time_wall() - t0;
-    if (r != PM_OK || (r = pm_gather_check_finite(&in, per_query, "the gather")) != PM_OK)
+    if (r != PM_OK || (r = pm_gather_check_finite(&in, "the gather")) != PM_OK)
         goto done;
 
     pm_header_t *h = &out.hdr;
-    if ((r = pm_gather_output_init(&out, &in, per_query, st->argc, st->argv)) != PM_OK ||
+    if ((r = pm_gather_output_init(&out, &in, st->argc, st->argv)) != PM_OK ||
         (r = pm_header_set(h, "kernel", "%s", pm_kernel_names[o->kernel])) != PM_OK ||
         (r = pm_header_set(h, "widths", "%s", width_names[o->widths])) != PM_OK)
         goto done;
@@ -112,7 +105,6 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *o)
                   t_gather > 0 ? gs.shader_ops / t_gather * 1e-6 : 0.0,
                   gs.shade_steps ? (double)gs.active_lanes / gs.shade_steps : 0.0, w);
 done:
-    pm_free_aligned(per_query);
     pm_gather_inputs_free(&in);
     pm_table_free(&out);
     return r;

@@ -6,11 +6,11 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "gather_impl.h"
 #include "kdtree.h"
 #include "memory.h"
+#include "timer.h"
 
 /* Queries per unit of work handed to a thread: a multiple of every packet width, small
  * enough that two threads stay balanced, large enough that scheduling costs nothing. */
@@ -94,8 +94,8 @@ pm_result_t pm_gather_queries_init(pm_gather_queries_t *q, const pm_table_t *t, 
     return PM_OK;
 }
 
-/* f(wi, wo) of material mt at a surface of normal n, 1/sr (common/material.h). */
-static void brdf(const pm_material_t *mt, const float n[3], const float wi[3], const float wo[3], double f[3])
+/* f(wi, wo) of material mt at a surface of normal n, 1/sr (common/material.h); see gather.h. */
+void pm_gather_brdf(const pm_material_t *mt, const float n[3], const float wi[3], const float wo[3], double f[3])
 {
     double c = (double)n[0] * wi[0] + (double)n[1] * wi[1] + (double)n[2] * wi[2];
     double r[3] = {2.0 * c * n[0] - wi[0], 2.0 * c * n[1] - wi[1], 2.0 * c * n[2] - wi[2]};
@@ -111,24 +111,36 @@ void gather_glossy_lane(const gather_ctx_t *c, uint64_t qi, uint32_t ni, float k
     const pm_gather_queries_t *q = c->q;
     const pm_material_t *mt = &q->materials[q->material ? q->material[qi] : 0];
     double f[3];
-    brdf(mt, &q->normal[3 * qi], &c->m->dir[3 * (size_t)ni], &q->dir[3 * qi], f);
+    pm_gather_brdf(mt, &q->normal[3 * qi], &c->m->dir[3 * (size_t)ni], &q->dir[3 * qi], f);
     const float *pw = &c->m->power[3 * (size_t)ni];
     for (int ch = 0; ch < 3; ch++)
         dacc[ch * w + l] += (double)k * f[ch] * pw[ch];
 }
 
-/* Which materials need the full BRDF per pair (ks > 0); NULL-free result or -1. */
-static int glossy_table(const pm_gather_queries_t *q, unsigned char **out)
+pm_result_t pm_gather_glossy_table(const pm_gather_map_t *m, const pm_gather_queries_t *q,
+                                   unsigned char **glossy_out, int *any_out)
 {
-    *out = calloc(q->nmaterials ? q->nmaterials : 1, 1);
-    if (!*out)
-        return -1;
+    unsigned char *g = calloc(q->nmaterials ? q->nmaterials : 1, 1);
+    if (!g)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for the material table");
     int any = 0;
     for (uint32_t i = 0; i < q->nmaterials; i++) {
-        (*out)[i] = pm_material_is_glossy(&q->materials[i]);
-        any |= (*out)[i];
+        g[i] = pm_material_is_glossy(&q->materials[i]);
+        any |= g[i];
     }
-    return any;
+    pm_result_t r = PM_OK;
+    if (any && !q->dir)
+        r = pm_error_set(PM_ERR_INPUT, "the queries have glossy materials but no direction channel");
+    else if (any && !m->dir)
+        r = pm_error_set(PM_ERR_INPUT, "the queries have glossy materials but the photon map has no direction "
+                         "channel (trace its photons from the same scene)");
+    if (r != PM_OK) {
+        free(g);
+        return r;
+    }
+    *glossy_out = g;
+    *any_out = any;
+    return PM_OK;
 }
 
 void pm_gather_brute(const pm_gather_map_t *m, const pm_gather_queries_t *q, uint64_t begin, uint64_t end,
@@ -151,7 +163,7 @@ void pm_gather_brute(const pm_gather_map_t *m, const pm_gather_queries_t *q, uin
                 continue;
             double kv = pm_kernel_value(p->kernel, d2, (double)h * h), f[3] = {1, 1, 1};
             if (glossy)
-                brdf(mt, n, &m->dir[3 * (size_t)j], &q->dir[3 * i], f);
+                pm_gather_brdf(mt, n, &m->dir[3 * (size_t)j], &q->dir[3 * i], f);
             for (int k = 0; k < 3; k++)
                 s[k] += kv * f[k] * m->power[3 * (size_t)j + k];
         }
@@ -160,31 +172,38 @@ void pm_gather_brute(const pm_gather_map_t *m, const pm_gather_queries_t *q, uin
     }
 }
 
+pm_result_t pm_gather_check_range(const pm_gather_queries_t *q, uint64_t begin, uint64_t end)
+{
+    if (end > q->n || begin > end)
+        return pm_error_set(PM_ERR_INTERNAL, "query range %" PRIu64 ":%" PRIu64 " outside 0:%" PRIu64, begin, end,
+                            q->n);
+    return PM_OK;
+}
+
+pm_result_t pm_gather_check_radius(double radius)
+{
+    if (!(radius > 0.0 && isfinite((float)(radius * radius))))
+        return pm_error_set(PM_ERR_USAGE, "kernel radius %g m is not a positive radius whose square fits a float",
+                            radius);
+    return PM_OK;
+}
+
 pm_result_t pm_gather_run(const pm_gather_map_t *m, const pm_gather_queries_t *q, uint64_t begin, uint64_t end,
                           const pm_gather_params_t *p, double *out, pm_gather_stats_t *stats)
 {
     memset(stats, 0, sizeof *stats);
-    if (end > q->n || begin > end)
-        return pm_error_set(PM_ERR_INTERNAL, "query range %" PRIu64 ":%" PRIu64 " outside 0:%" PRIu64, begin, end,
-                            q->n);
-    if (!p->variable && !(p->radius > 0.0 && isfinite((float)(p->radius * p->radius))))
-        return pm_error_set(PM_ERR_USAGE, "kernel radius %g m is not a positive radius whose square fits a float",
-                            p->radius);
+    pm_result_t res = pm_gather_check_range(q, begin, end);
+    if (res == PM_OK && !p->variable)
+        res = pm_gather_check_radius(p->radius);
+    if (res != PM_OK)
+        return res;
     if (!pm_cpu_supports(p->isa))
         return pm_error_set(PM_ERR_USAGE, "this CPU cannot run --isa %s", pm_isa_name(p->isa));
     unsigned char *mat_glossy = NULL;
-    int glossy = glossy_table(q, &mat_glossy);
-    if (glossy < 0)
-        return pm_error_set(PM_ERR_NOMEM, "out of memory for the material table");
-    if (glossy && !q->dir) {
-        free(mat_glossy);
-        return pm_error_set(PM_ERR_INPUT, "the queries have glossy materials but no direction channel");
-    }
-    if (glossy && !m->dir) {
-        free(mat_glossy);
-        return pm_error_set(PM_ERR_INPUT, "the queries have glossy materials but the photon map has no direction "
-                            "channel (trace its photons from the same scene)");
-    }
+    int glossy;
+    res = pm_gather_glossy_table(m, q, &mat_glossy, &glossy);
+    if (res != PM_OK)
+        return res;
     gather_ctx_t c = {.m = m, .q = q, .kernel = p->kernel, .normal_cos = p->normal_cos, .glossy = glossy,
                       .mat_glossy = mat_glossy};
     const double inv_pi = 0.31830988618379067;
@@ -209,15 +228,13 @@ pm_result_t pm_gather_run(const pm_gather_map_t *m, const pm_gather_queries_t *q
 #pragma omp parallel
     {
         pm_gather_stats_t st = {0};
-        struct timespec c0, c1;
-        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c0);
+        double cpu0 = pm_time_thread_cpu();
 #pragma omp for schedule(dynamic, 1) nowait
         for (uint64_t k = 0; k < nblocks; k++) {
             uint64_t b = begin + k * BLOCK_QUERIES, e = b + BLOCK_QUERIES < end ? b + BLOCK_QUERIES : end;
             fn(&c, b, e, out + 3 * (b - begin), &st);
         }
-        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c1);
-        st.cpu_s = (double)(c1.tv_sec - c0.tv_sec) + 1e-9 * (double)(c1.tv_nsec - c0.tv_nsec);
+        st.cpu_s = pm_time_thread_cpu() - cpu0;
 #pragma omp critical
         {
             total.cpu_s += st.cpu_s;

@@ -105,6 +105,23 @@ pm_result_t pm_gather_run(const pm_gather_map_t *m, const pm_gather_queries_t *q
 double pm_gather_radius_for_k(const pm_gather_map_t *m, const pm_gather_queries_t *q, double k, float normal_cos,
                               uint32_t samples);
 
+/* f(wi, wo) of material mt (its whole Phong BRDF, 1/sr) at a surface of normal n, in double:
+ * wi toward where the photon came from, wo toward the viewer. The scalar evaluation every
+ * non-SIMD path shares (the references, the baseline gathers). */
+void pm_gather_brdf(const pm_material_t *mt, const float n[3], const float wi[3], const float wo[3], double f[3]);
+
+/* Which of the queries' materials are glossy (need the BRDF per pair): a table of
+ * q->nmaterials bytes (1: glossy) in *glossy_out, freed by the caller, and in *any_out
+ * whether any is. Fails when a glossy material meets queries or a map without the
+ * direction channel. */
+pm_result_t pm_gather_glossy_table(const pm_gather_map_t *m, const pm_gather_queries_t *q,
+                                   unsigned char **glossy_out, int *any_out);
+
+/* The argument checks every gather makes: [begin, end) within the queries (PM_ERR_INTERNAL),
+ * and a positive kernel radius whose square fits a float (PM_ERR_USAGE). */
+pm_result_t pm_gather_check_range(const pm_gather_queries_t *q, uint64_t begin, uint64_t end);
+pm_result_t pm_gather_check_radius(double radius);
+
 /* The O(n m) reference: every photon against every query, in double. For tests. */
 void pm_gather_brute(const pm_gather_map_t *m, const pm_gather_queries_t *q, uint64_t begin, uint64_t end,
                      const pm_gather_params_t *p, double *out);

@@ -13,6 +13,7 @@ static double now(clockid_t id)
 
 double pm_time_wall(void) { return now(CLOCK_MONOTONIC); }
 double pm_time_cpu(void) { return now(CLOCK_PROCESS_CPUTIME_ID); }
+double pm_time_thread_cpu(void) { return now(CLOCK_THREAD_CPUTIME_ID); }
 
 void pm_timer_start(pm_timer_t *t)
 {

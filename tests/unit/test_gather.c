@@ -1,6 +1,8 @@
 /* test_gather.c: the packet gather (common/gather.c) against the O(n m) reference for
  * every ISA this CPU runs, both kernels, fixed and variable widths, glossy materials; a
- * uniform photon density gives the exact irradiance; edge cases of the walk. */
+ * uniform photon density gives the exact irradiance; edge cases of the walk. The baselines
+ * (group "baselines"): knn-gather against a brute-force k nearest neighbours in double, and
+ * reverse-gather against the O(n m) reference; both the same for any thread count. */
 #include <math.h>
 #include <omp.h>
 #include <stdlib.h>
@@ -8,6 +10,8 @@
 
 #include "../../common/gather.h"
 #include "../../common/kdtree.h"
+#include "../../common/knn_gather.h"
+#include "../../common/reverse_gather.h"
 #include "../../common/rng.h"
 #include "unit.h"
 
@@ -388,3 +392,246 @@ static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_gather_millions_of_photons_in_one_query),
 };
 UNIT_GROUP(unit_gather, "gather", tests);
+
+/* ---- the baselines: k-NN gather and reverse gather ---- */
+
+/* Unit directions on each normal's side, and materials cycling over a Lambertian, a soft
+ * and a sharp lobe (so that both baselines are checked with the shared glossy BRDF). */
+static const pm_material_t baseline_mats[3] = {
+    {.name = "folded", .kd = {1, 1, 1}},
+    {.name = "gloss", .kd = {0.2f, 0.3f, 0.4f}, .ks = {0.5f, 0.4f, 0.3f}, .ns = 15},
+    {.name = "sharp", .kd = {0.05f, 0.05f, 0.05f}, .ks = {0.9f, 0.9f, 0.9f}, .ns = 200}};
+
+static void random_dirs(uint64_t n, const float *nor, float *dir, uint64_t seed)
+{
+    pm_rng_t r;
+    pm_rng_init(&r, seed, 0);
+    for (uint64_t i = 0; i < n; i++) {
+        float v[3] = {pm_rng_float(&r) - 0.5f, pm_rng_float(&r) - 0.5f, pm_rng_float(&r) - 0.5f};
+        for (int k = 0; k < 3; k++)
+            v[k] += 0.8f * nor[3 * i + k];
+        float len = sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+        for (int k = 0; k < 3; k++)
+            dir[3 * i + k] = v[k] / len;
+    }
+}
+
+/* Random photons and queries (random_scene) with directions and the three materials above,
+ * and its map: the scene both baselines are checked on. */
+typedef struct {
+    uint32_t n;
+    uint64_t nq;
+    float *pos, *pow, *nor, *dir, *qpos, *qnor, *qw, *qdir;
+    uint16_t *qmat;
+    pm_gather_queries_t q;
+    test_map_t t;
+} glossy_scene_t;
+
+static void glossy_scene_make(glossy_scene_t *g, uint32_t n, uint64_t nq, uint64_t seed)
+{
+    g->n = n, g->nq = nq;
+    g->pos = malloc(n * 12), g->pow = malloc(n * 12), g->nor = malloc(n * 12), g->dir = malloc(n * 12);
+    g->qpos = malloc(nq * 12), g->qnor = malloc(nq * 12), g->qw = malloc(nq * 12), g->qdir = malloc(nq * 12);
+    g->qmat = malloc(nq * 2);
+    random_scene(n, nq, seed, g->pos, g->pow, g->nor, g->qpos, g->qnor, g->qw);
+    random_dirs(n, g->nor, g->dir, seed + 1);
+    random_dirs(nq, g->qnor, g->qdir, seed + 2);
+    for (uint64_t i = 0; i < nq; i++)
+        g->qmat[i] = (uint16_t)(i % 3);
+    g->q = (pm_gather_queries_t){.n = nq, .pos = g->qpos, .normal = g->qnor, .weight = g->qw, .material = g->qmat,
+                                 .dir = g->qdir, .materials = baseline_mats, .nmaterials = 3};
+    map_make(&g->t, n, g->pos, g->pow, g->nor, g->dir, NULL);
+}
+
+static void glossy_scene_free(glossy_scene_t *g)
+{
+    map_free(&g->t);
+    free(g->pos), free(g->pow), free(g->nor), free(g->dir), free(g->qpos), free(g->qnor), free(g->qw);
+    free(g->qdir), free(g->qmat);
+}
+
+typedef struct {
+    double d2;
+    uint32_t j;
+} knn_ref_t;
+
+static int knn_ref_cmp(const void *a, const void *b)
+{
+    double x = ((const knn_ref_t *)a)->d2, y = ((const knn_ref_t *)b)->d2;
+    return x < y ? -1 : x > y;
+}
+
+/* The k-NN estimate by brute force, in double and without the tree: every photon whose
+ * normal agrees, sorted by distance, the first k taken. */
+static void knn_brute(const test_map_t *t, const pm_gather_queries_t *q, const pm_knn_params_t *p, double *out)
+{
+    knn_ref_t *c = malloc((t->n ? t->n : 1) * sizeof *c);
+    for (uint64_t i = 0; i < q->n; i++) {
+        const float *y = &q->pos[3 * i], *n = &q->normal[3 * i];
+        uint32_t m = 0;
+        for (uint32_t j = 0; j < t->n; j++) {
+            const float *x = &t->pos[3 * j], *pn = &t->normal[3 * j];
+            double dn = (double)n[0] * pn[0] + (double)n[1] * pn[1] + (double)n[2] * pn[2];
+            double d2 = 0;
+            for (int a = 0; a < 3; a++)
+                d2 += ((double)y[a] - x[a]) * ((double)y[a] - x[a]);
+            if (dn >= p->normal_cos && (p->max_radius == 0.0 || d2 < p->max_radius * p->max_radius))
+                c[m++] = (knn_ref_t){d2, j};
+        }
+        qsort(c, m, sizeof *c, knn_ref_cmp);
+        uint32_t k = m < p->k ? m : p->k;
+        double r2 = k < p->k && p->max_radius > 0.0 ? p->max_radius * p->max_radius : (k ? c[k - 1].d2 : 1.0);
+        const pm_material_t *mt = &q->materials[q->material ? q->material[i] : 0];
+        double s[3] = {0, 0, 0};
+        for (uint32_t a = 0; a < k; a++) {
+            double f[3] = {1, 1, 1}, kv = pm_kernel_value(p->kernel, c[a].d2, r2);
+            if (pm_material_is_glossy(mt))
+                pm_gather_brdf(mt, n, &t->dir[3 * c[a].j], &q->dir[3 * i], f);
+            for (int ch = 0; ch < 3; ch++)
+                s[ch] += kv * f[ch] * t->power[3 * c[a].j + ch];
+        }
+        for (int ch = 0; ch < 3; ch++)
+            out[3 * i + ch] = s[ch] * q->weight[3 * i + ch];
+    }
+    free(c);
+}
+
+static void test_knn_gather_matches_brute_force(void **state)
+{
+    const uint32_t n = 3000;
+    const uint64_t nq = 400;
+    glossy_scene_t g;
+    glossy_scene_make(&g, n, nq, 41);
+    const pm_gather_queries_t q = g.q;
+    const test_map_t t = g.t;
+    double *got = malloc(nq * 24), *want = malloc(nq * 24);
+    /* k 2 to 120; unlimited, and a maximum radius that leaves some queries short of k */
+    const uint32_t ks[] = {2, 8, 50, 120};
+    const double maxr[] = {0.0, 0.06};
+    for (int kernel = 0; kernel <= 1; kernel++)
+        for (size_t a = 0; a < sizeof ks / sizeof ks[0]; a++)
+            for (size_t b = 0; b < 2; b++) {
+                pm_knn_params_t p = {.k = ks[a], .max_radius = maxr[b], .kernel = (pm_kernel_t)kernel,
+                                     .normal_cos = 0.5f};
+                pm_knn_stats_t st;
+                memset(got, 0xff, nq * 24);
+                assert_int_equal(pm_knn_gather(&t.map, &q, 0, nq, &p, got, &st), PM_OK);
+                knn_brute(&t, &q, &p, want);
+                char what[96];
+                snprintf(what, sizeof what, "k %u, max radius %g, %s kernel", p.k, p.max_radius,
+                         kernel ? "epanechnikov" : "uniform");
+                expect_close(got, want, nq, 1e-5, what);
+                assert_true(st.shader_ops <= (uint64_t)p.k * nq);
+                if (maxr[b] == 0.0)
+                    assert_true(st.shader_ops == (uint64_t)p.k * nq && st.short_queries == 0);
+                else if (p.k == 120)
+                    assert_true(st.short_queries > 0); /* the case of r = max radius is exercised */
+            }
+    /* a range gathers the same queries */
+    pm_knn_params_t p = {.k = 20, .kernel = PM_KERNEL_UNIFORM, .normal_cos = 0.5f};
+    pm_knn_stats_t st;
+    assert_int_equal(pm_knn_gather(&t.map, &q, 0, nq, &p, want, &st), PM_OK);
+    assert_int_equal(pm_knn_gather(&t.map, &q, 100, 300, &p, got, &st), PM_OK);
+    assert_memory_equal(got, want + 300, 200 * 24);
+    /* k = 1 at a query that sits on a photon: r = 0, refused rather than infinite */
+    p.k = 1;
+    assert_int_equal(pm_knn_gather(&t.map, &q, 0, nq, &p, got, &st), PM_ERR_INPUT);
+    /* glossy queries need photon directions */
+    test_map_t nodir;
+    map_make(&nodir, n, g.pos, g.pow, g.nor, NULL, NULL);
+    p.k = 10;
+    assert_int_equal(pm_knn_gather(&nodir.map, &q, 0, nq, &p, got, &st), PM_ERR_INPUT);
+    map_free(&nodir);
+    glossy_scene_free(&g);
+    free(got), free(want);
+}
+
+static void test_reverse_gather_matches_brute_force(void **state)
+{
+    /* more queries than one subtree holds, so that the tree is cut into subtrees and the
+     * nodes above them */
+    const uint32_t n = 2000;
+    const uint64_t nq = 20000;
+    glossy_scene_t g;
+    glossy_scene_make(&g, n, nq, 51);
+    const pm_gather_queries_t q = g.q;
+    const test_map_t t = g.t;
+    double *got = malloc(nq * 24), *want = malloc(nq * 24), *again = malloc(nq * 24);
+    for (int kernel = 0; kernel <= 1; kernel++) {
+        pm_gather_params_t gp = {.radius = 0.06, .kernel = (pm_kernel_t)kernel, .normal_cos = 0.5f,
+                                 .isa = pm_cpu_best_isa()};
+        pm_reverse_params_t p = {.radius = gp.radius, .kernel = gp.kernel, .normal_cos = gp.normal_cos};
+        pm_gather_brute(&t.map, &q, 0, nq, &gp, want);
+        pm_reverse_stats_t st;
+        memset(got, 0xff, nq * 24);
+        assert_int_equal(pm_reverse_gather(&t.map, &q, 0, nq, &p, got, &st), PM_OK);
+        /* the same pairs, kernel values and BRDF in double: only the order of the sums differs */
+        expect_close(got, want, nq, 1e-9, kernel ? "reverse, epanechnikov" : "reverse, uniform");
+        assert_true(st.subtrees > 2);
+        pm_gather_stats_t gs;
+        assert_int_equal(pm_gather_run(&t.map, &q, 0, nq, &gp, again, &gs), PM_OK);
+        assert_int_equal(st.shader_ops, gs.shader_ops); /* the very same photon-query pairs */
+        expect_close(got, again, nq, 1e-4, "reverse against the packet gather");
+    }
+    /* a range: a tree over those queries only */
+    pm_gather_params_t gp = {.radius = 0.06, .kernel = PM_KERNEL_EPANECHNIKOV, .normal_cos = 0.5f};
+    pm_reverse_params_t p = {.radius = 0.06, .kernel = PM_KERNEL_EPANECHNIKOV, .normal_cos = 0.5f};
+    pm_reverse_stats_t st;
+    pm_gather_brute(&t.map, &q, 1000, 3000, &gp, want);
+    assert_int_equal(pm_reverse_gather(&t.map, &q, 1000, 3000, &p, got, &st), PM_OK);
+    expect_close(got, want, 2000, 1e-9, "reverse, range 1000:3000");
+    /* glossy queries need photon directions; a radius must be positive */
+    test_map_t nodir;
+    map_make(&nodir, n, g.pos, g.pow, g.nor, NULL, NULL);
+    assert_int_equal(pm_reverse_gather(&nodir.map, &q, 0, nq, &p, got, &st), PM_ERR_INPUT);
+    map_free(&nodir);
+    p.radius = 0.0;
+    assert_int_equal(pm_reverse_gather(&t.map, &q, 0, nq, &p, got, &st), PM_ERR_USAGE);
+    /* no photons: zeros */
+    test_map_t e;
+    map_make(&e, 0, g.pos, g.pow, g.nor, g.dir, NULL);
+    p.radius = 0.06;
+    assert_int_equal(pm_reverse_gather(&e.map, &q, 0, 10, &p, got, &st), PM_OK);
+    for (int i = 0; i < 30; i++)
+        assert_true(got[i] == 0.0);
+    map_free(&e);
+    glossy_scene_free(&g);
+    free(got), free(want), free(again);
+}
+
+static void test_baselines_same_result_for_any_thread_count(void **state)
+{
+    const uint64_t nq = 30000;
+    glossy_scene_t g;
+    glossy_scene_make(&g, 5000, nq, 61);
+    const pm_gather_queries_t q = g.q;
+    const test_map_t t = g.t;
+    double *out[3];
+    pm_reverse_params_t rp = {.radius = 0.05, .kernel = PM_KERNEL_EPANECHNIKOV, .normal_cos = 0.5f};
+    pm_knn_params_t kp = {.k = 30, .kernel = PM_KERNEL_UNIFORM, .normal_cos = 0.5f};
+    int saved = omp_get_max_threads();
+    for (int which = 0; which < 2; which++) {
+        for (int th = 1; th <= 3; th++) {
+            out[th - 1] = malloc(nq * 24);
+            omp_set_num_threads(th);
+            pm_reverse_stats_t rs;
+            pm_knn_stats_t ks;
+            if (which == 0)
+                assert_int_equal(pm_reverse_gather(&t.map, &q, 0, nq, &rp, out[th - 1], &rs), PM_OK);
+            else
+                assert_int_equal(pm_knn_gather(&t.map, &q, 0, nq, &kp, out[th - 1], &ks), PM_OK);
+        }
+        assert_memory_equal(out[0], out[1], nq * 24);
+        assert_memory_equal(out[0], out[2], nq * 24);
+        free(out[0]), free(out[1]), free(out[2]);
+    }
+    omp_set_num_threads(saved);
+    glossy_scene_free(&g);
+}
+
+static const struct CMUnitTest baseline_tests[] = {
+    cmocka_unit_test(test_knn_gather_matches_brute_force),
+    cmocka_unit_test(test_reverse_gather_matches_brute_force),
+    cmocka_unit_test(test_baselines_same_result_for_any_thread_count),
+};
+UNIT_GROUP(unit_baselines, "baselines", baseline_tests);

@@ -32,6 +32,7 @@
 #include "../../common/rng.h"
 #include "../../common/rt.h"
 #include "../../common/sampling.h"
+#include "../../common/shade.h"
 #include "../../common/stage.h"
 #include "../../common/strata.h"
 #include "../../formats/formats.h"
@@ -63,9 +64,7 @@ typedef struct {
 typedef struct {
     const pm_scene_t *s;
     const pm_rt_t *rt;
-    float *tri_n;          /* unit front normal per triangle, (v1-v0) x (v2-v0): the emitting side */
-    double *light_cdf;     /* cumulative emissive area over the emissive triangles, ending at 1 */
-    double light_area;     /* m^2, all emissive triangles */
+    pm_shade_geom_t geom;  /* front normals (the emitting side) and area lights */
     float *fold;           /* per material: kd/pi when Lambertian, 1 1 1 when glossy (the weight contract) */
     uint32_t w, h;
     unsigned spp, primary, light_samples, nx, ny;
@@ -73,7 +72,7 @@ typedef struct {
     uint32_t record_size, off_mat, off_dir;
     uint64_t seed;
     float eps;             /* m, ray-origin offset along the normal */
-    float eye[3], fwd[3], right[3], up[3], tan_half, aspect;
+    pm_camera_rays_t cam;
 } tgp_ctx_t;
 
 /* A worker's scratch, reused row after row. Cache-line aligned, like bytebuf_t: each is
@@ -207,20 +206,6 @@ static void spool_free(spool_t *sp)
 
 static inline float dot3(const float *a, const float *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
-/* f(wi, wo) of common/material.h, 1/sr, around unit normal n. */
-static void brdf(const pm_material_t *m, const float n[3], const float wi[3], const float wo[3], float f_out[3])
-{
-    float lobe = 0.0f;
-    if (pm_material_is_glossy(m)) {
-        float c = 2.0f * dot3(n, wi), r[3] = {c * n[0] - wi[0], c * n[1] - wi[1], c * n[2] - wi[2]};
-        float cr = dot3(r, wo);
-        if (cr > 0.0f)
-            lobe = (m->ns + 2.0f) / (2.0f * PM_PI) * powf(cr, m->ns);
-    }
-    for (int k = 0; k < 3; k++)
-        f_out[k] = m->kd[k] * (1.0f / PM_PI) + m->ks[k] * lobe;
-}
-
 static int grow(void **p, size_t elem, size_t *cap, size_t want)
 {
     if (want <= *cap)
@@ -296,44 +281,6 @@ static inline int query_weight(const pm_material_t *m, const float w[3], float o
     return out[0] > 0.0f || out[1] > 0.0f || out[2] > 0.0f;
 }
 
-/* Point on emissive triangle t at barycentrics (b0, b1). */
-static void triangle_point(const pm_scene_t *s, uint32_t t, float b0, float b1, float p_out[3])
-{
-    const float *a = s->verts + 3 * s->tris[3 * t], *b = s->verts + 3 * s->tris[3 * t + 1],
-                *c = s->verts + 3 * s->tris[3 * t + 2];
-    float b2 = 1.0f - b0 - b1;
-    for (int k = 0; k < 3; k++)
-        p_out[k] = b0 * a[k] + b1 * b[k] + b2 * c[k];
-}
-
-/* Index of the emissive triangle whose cumulative-area interval holds u. */
-static size_t pick_light(const tgp_ctx_t *c, double u)
-{
-    size_t lo = 0, hi = c->s->nemissive - 1;
-    while (lo < hi) {
-        size_t mid = (lo + hi) / 2;
-        if (u < c->light_cdf[mid])
-            hi = mid;
-        else
-            lo = mid + 1;
-    }
-    return lo;
-}
-
-static void camera_dir(const tgp_ctx_t *c, float px, float py, float d_out[3])
-{
-    float sx = (2.0f * px / (float)c->w - 1.0f) * c->tan_half * c->aspect;
-    float sy = (1.0f - 2.0f * py / (float)c->h) * c->tan_half;
-    float d[3], len = 0.0f;
-    for (int k = 0; k < 3; k++) {
-        d[k] = c->fwd[k] + sx * c->right[k] + sy * c->up[k];
-        len += d[k] * d[k];
-    }
-    len = 1.0f / sqrtf(len);
-    for (int k = 0; k < 3; k++)
-        d_out[k] = d[k] * len;
-}
-
 /* Direct light and spawned rays of primary ray i (pixel column x); 0 when out of memory. */
 static int shade_primary(const tgp_ctx_t *c, tgp_scratch_t *sc, size_t i, uint32_t x, uint32_t pixel,
                           pm_rng_t *light_rng, pm_rng_t *gather_rng, double *direct, bytebuf_t *out)
@@ -344,7 +291,7 @@ static int shade_primary(const tgp_ctx_t *c, tgp_scratch_t *sc, size_t i, uint32
     float inv_p = 1.0f / (float)c->primary;
     float d[3] = {pr->dx[i], pr->dy[i], pr->dz[i]}, t = pr->tfar[i];
     float *p = sc->hit + 9 * i, *n = p + 3, *wo = p + 6;
-    const float *ng = c->tri_n + 3 * (size_t)tri;
+    const float *ng = c->geom.tri_n + 3 * (size_t)tri;
     for (int k = 0; k < 3; k++) {
         p[k] = (k == 0 ? pr->ox[i] : k == 1 ? pr->oy[i] : pr->oz[i]) + t * d[k];
         wo[k] = -d[k];
@@ -378,7 +325,7 @@ static int shade_primary(const tgp_ctx_t *c, tgp_scratch_t *sc, size_t i, uint32
         if (cosx <= 0.0f)
             continue;
         float f[3];
-        brdf(m, n, wi, wo, f);
+        pm_brdf(m, n, wi, wo, f);
         size_t j = sc->shadow.n;
         for (int k = 0; k < 3; k++)
             sc->sh_c[3 * j + k] = f[k] * L->intensity[k] * cosx / r2 * inv_p;
@@ -388,21 +335,21 @@ static int shade_primary(const tgp_ctx_t *c, tgp_scratch_t *sc, size_t i, uint32
     /* Area lights: points uniform over the total emissive area A, pdf 1/A per m^2;
      * L = f Ke cos_x cos_y / r^2 * A, averaged over the samples. */
     for (unsigned q = 0; q < c->light_samples && s->nemissive; q++) {
-        size_t e = pick_light(c, pm_rng_double(light_rng));
+        size_t e = pm_shade_pick_light(&c->geom, pm_rng_double(light_rng));
         uint32_t lt = s->emissive[e];
         float b0, b1, y[3];
         pm_sample_triangle(pm_rng_float(light_rng), pm_rng_float(light_rng), &b0, &b1);
-        triangle_point(s, lt, b0, b1, y);
+        pm_triangle_point(s, lt, b0, b1, y);
         float v[3] = {y[0] - p[0], y[1] - p[1], y[2] - p[2]};
         float r2 = dot3(v, v), r = sqrtf(r2);
         if (!(r > 0.0f))
             continue;
-        float wi[3] = {v[0] / r, v[1] / r, v[2] / r}, cosx = dot3(n, wi), cosy = -dot3(c->tri_n + 3 * (size_t)lt, wi);
+        float wi[3] = {v[0] / r, v[1] / r, v[2] / r}, cosx = dot3(n, wi), cosy = -dot3(c->geom.tri_n + 3 * (size_t)lt, wi);
         if (cosx <= 0.0f || cosy <= 0.0f)
             continue;
         const pm_material_t *lm = &s->materials[s->tri_material[lt]];
-        float f[3], g = cosx * cosy / r2 * (float)c->light_area / (float)c->light_samples * inv_p;
-        brdf(m, n, wi, wo, f);
+        float f[3], g = cosx * cosy / r2 * (float)c->geom.area / (float)c->light_samples * inv_p;
+        pm_brdf(m, n, wi, wo, f);
         size_t j = sc->shadow.n;
         for (int k = 0; k < 3; k++)
             sc->sh_c[3 * j + k] = f[k] * lm->ke[k] * g;
@@ -465,7 +412,7 @@ static int shade_primary(const tgp_ctx_t *c, tgp_scratch_t *sc, size_t i, uint32
             wi[k] = sc->lx[q] * tb[k] + sc->ly[q] * bb[k] + sc->lz[q] * n[k];
         size_t j = sc->sec.n;
         float *w = sc->sec_w + 3 * j, f[3];
-        brdf(m, n, wi, wo, f); /* glossy: weight pi f / N per ray */
+        pm_brdf(m, n, wi, wo, f); /* glossy: weight pi f / N per ray */
         for (int k = 0; k < 3; k++)
             w[k] = f[k] * PM_PI * scale;
         if (!(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f))
@@ -517,8 +464,8 @@ static pm_result_t trace_row_body(const tgp_ctx_t *c, tgp_scratch_t *sc, uint32_
             float jx = 0.5f, jy = 0.5f, d[3];
             if (c->primary > 1)
                 jx = pm_rng_float(&jr), jy = pm_rng_float(&jr);
-            camera_dir(c, (float)x + jx, (float)y + jy, d);
-            pm_rays_push(&sc->prim, c->eye, d, 0.0f, INFINITY);
+            pm_camera_dir(&c->cam, (float)x + jx, (float)y + jy, d);
+            pm_rays_push(&sc->prim, c->cam.eye, d, 0.0f, INFINITY);
         }
     }
     pm_rays_intersect(c->rt, c->width, 1, &sc->prim);
@@ -568,7 +515,7 @@ static pm_result_t trace_row_body(const tgp_ctx_t *c, tgp_scratch_t *sc, uint32_
         float d[3] = {sr->dx[j], sr->dy[j], sr->dz[j]}, t = sr->tfar[j];
         float q[3] = {sr->ox[j] + t * d[0], sr->oy[j] + t * d[1], sr->oz[j] + t * d[2]};
         float wo[3] = {-d[0], -d[1], -d[2]}, n[3];
-        const float *ng = c->tri_n + 3 * (size_t)tri;
+        const float *ng = c->geom.tri_n + 3 * (size_t)tri;
         float side = dot3(ng, wo) >= 0.0f ? 1.0f : -1.0f; /* the side the query sees */
         for (int k = 0; k < 3; k++)
             n[k] = side * ng[k];
@@ -617,20 +564,7 @@ static pm_result_t setup(tgp_ctx_t *c, const pm_scene_t *s, const pm_rt_t *rt, c
     c->off_mat = pm_schema_offset(&pm_queries_schema, mask, PM_QUERY_MATERIAL);
     c->off_dir = pm_schema_offset(&pm_queries_schema, mask, PM_QUERY_DIRECTION);
 
-    const pm_camera_t *cam = &s->camera;
-    float len = 0.0f;
-    for (int k = 0; k < 3; k++) {
-        c->eye[k] = cam->eye[k];
-        c->fwd[k] = cam->look_at[k] - cam->eye[k];
-        len += c->fwd[k] * c->fwd[k];
-    }
-    for (int k = 0; k < 3; k++)
-        c->fwd[k] /= sqrtf(len);
-    pm_vec3_t f = pm_v3_load(c->fwd), r = pm_v3_normalize(pm_v3_cross(f, pm_v3_load(cam->up)));
-    pm_v3_store(c->right, r);
-    pm_v3_store(c->up, pm_v3_cross(r, f));
-    c->tan_half = tanf(0.5f * cam->fov_y * PM_PI / 180.0f);
-    c->aspect = (float)c->w / (float)c->h;
+    pm_camera_setup(&s->camera, c->w, c->h, &c->cam);
 
     c->fold = malloc((s->nmaterials ? s->nmaterials : 1) * 3 * sizeof(float));
     if (!c->fold)
@@ -639,32 +573,7 @@ static pm_result_t setup(tgp_ctx_t *c, const pm_scene_t *s, const pm_rt_t *rt, c
         float one[3] = {1.0f, 1.0f, 1.0f};
         query_weight(&s->materials[m], one, c->fold + 3 * m);
     }
-    c->tri_n = malloc((s->ntris ? s->ntris : 1) * 3 * sizeof(float));
-    c->light_cdf = malloc((s->nemissive ? s->nemissive : 1) * sizeof(double));
-    if (!c->tri_n || !c->light_cdf)
-        return pm_error_set(PM_ERR_NOMEM, "out of memory for %zu triangle normals", s->ntris);
-    for (size_t t = 0; t < s->ntris; t++) {
-        const float *a = s->verts + 3 * s->tris[3 * t], *b = s->verts + 3 * s->tris[3 * t + 1],
-                    *cc = s->verts + 3 * s->tris[3 * t + 2];
-        double e1[3], e2[3], nn[3];
-        for (int k = 0; k < 3; k++)
-            e1[k] = (double)b[k] - a[k], e2[k] = (double)cc[k] - a[k];
-        nn[0] = e1[1] * e2[2] - e1[2] * e2[1];
-        nn[1] = e1[2] * e2[0] - e1[0] * e2[2];
-        nn[2] = e1[0] * e2[1] - e1[1] * e2[0];
-        double l = sqrt(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]);
-        for (int k = 0; k < 3; k++)
-            c->tri_n[3 * t + k] = l > 0.0 ? (float)(nn[k] / l) : (k == 2 ? 1.0f : 0.0f);
-    }
-    double acc = 0.0;
-    for (size_t e = 0; e < s->nemissive; e++)
-        c->light_cdf[e] = acc += pm_scene_triangle_area(s, s->emissive[e]);
-    for (size_t e = 0; e < s->nemissive; e++)
-        c->light_cdf[e] /= acc;
-    if (s->nemissive)
-        c->light_cdf[s->nemissive - 1] = 1.0;
-    c->light_area = acc;
-    return PM_OK;
+    return pm_shade_geom_init(s, &c->geom);
 }
 
 /* Provenance and format keys shared by both outputs. */
@@ -864,8 +773,7 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
         free(rows[b].p);
     free(scr);
     free(direct);
-    free(c.tri_n);
-    free(c.light_cdf);
+    pm_shade_geom_free(&c.geom);
     free(c.fold);
     spool_free(&sp);
     return r;

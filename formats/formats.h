@@ -97,7 +97,8 @@ pm_result_t pm_queries_get_materials(const pm_header_t *h, const char *path, pm_
 
 /* ---- radiance (per-pixel buffers) ---- */
 enum {
-    PM_RADIANCE_RGB = 0 /* f64 x3, W/(m^2 sr): accumulated in double so millions of small terms keep precision */
+    PM_RADIANCE_RGB = 0,     /* f64 x3, W/(m^2 sr): accumulated in double so millions of small terms keep precision */
+    PM_RADIANCE_VARIANCE = 1 /* f64 x3, (W/(m^2 sr))^2: variance of the estimate (optional; trace-reference) */
 };
 extern const pm_schema_t pm_radiance_schema;
 

@@ -1,12 +1,17 @@
 /* radiance.c: per-pixel radiance buffers, written by trace-gather-points (direct light)
  * and simd-gather (indirect), added by composite. Records are pixels in row order from
- * the top-left; header keys width, height and component (direct, indirect or total). */
+ * the top-left; header keys width, height and component (direct, indirect or total). The
+ * optional variance channel is the estimate's own squared standard error per pixel:
+ * trace-reference writes it so that a reference says how wrong it is. */
 #include <inttypes.h>
 
 #include "formats.h"
 
 static const pm_channel_t radiance_channels[] = {
     {"rgb", PM_TYPE_F64, 3, PM_CH_REQUIRED | PM_CH_NONNEG, "W/(m^2 sr)", "RGB radiance toward the camera"},
+    /* Optional: only an estimator that knows its own spread writes it (trace-reference). */
+    {"variance", PM_TYPE_F64, 3, PM_CH_NONNEG, "(W/(m^2 sr))^2",
+     "variance of the pixel's estimate (its squared standard error), RGB"},
 };
 
 static pm_result_t validate_header(const pm_header_t *h, const char *path)

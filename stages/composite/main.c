@@ -102,6 +102,8 @@ static pm_result_t accumulate(input_t *in, double *acc, double *chunk, uint64_t 
 {
     uint64_t done = 0, got;
     pm_result_t r;
+    /* rgb is each record's first channel; a record may carry more (trace-reference's variance). */
+    uint32_t stride = pm_reader_header(in->rd)->record_size / (uint32_t)sizeof(double);
     while (done < n) {
         uint64_t want = n - done < CHUNK_PIXELS ? n - done : CHUNK_PIXELS;
         if ((r = pm_reader_read(in->rd, chunk, want, &got)) != PM_OK)
@@ -110,8 +112,9 @@ static pm_result_t accumulate(input_t *in, double *acc, double *chunk, uint64_t 
             return pm_error_set(PM_ERR_INPUT, "truncated radiance buffer '%s': %" PRIu64 " of %" PRIu64 " pixels",
                                 in->path, done + got, n);
         double *a = acc + 3 * done, s = in->scale;
-        for (uint64_t i = 0; i < 3 * got; i++)
-            a[i] += s * chunk[i];
+        for (uint64_t i = 0; i < got; i++)
+            for (int c = 0; c < 3; c++)
+                a[3 * i + (uint64_t)c] += s * chunk[stride * i + (uint64_t)c];
         done += got;
     }
     return pm_reader_finish(in->rd, hash_out);
@@ -246,7 +249,7 @@ static pm_result_t run(pm_stage_t *st, const composite_options_t *o)
     const char *components = ntotal || (ndirect && nindirect) ? "total" : ndirect ? "direct" : "indirect";
 
     acc = pm_alloc_aligned(3 * n * sizeof *acc);
-    chunk = pm_alloc_aligned(3 * CHUNK_PIXELS * sizeof *chunk);
+    chunk = pm_alloc_aligned(pm_schema_record_size(&pm_radiance_schema, ~0u) * CHUNK_PIXELS); /* the widest record */
     if (!acc || !chunk) {
         r = pm_error_set(PM_ERR_NOMEM, "out of memory for a %" PRIu32 "x%" PRIu32 " image (%.0f MB)", w, ht,
                          n * 24.0 / 1e6);

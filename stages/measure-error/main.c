@@ -42,6 +42,7 @@ typedef struct {
     const char *kind; /* "exr" or "radiance" */
     uint32_t w, h;
     double *rgb;      /* malloc'd, 3 w h values */
+    double *var;      /* the variance of each value's estimate when the file carries it (trace-reference), or NULL */
 } image_t;
 
 static const char *const channel_names[3] = {"R", "G", "B"};
@@ -95,10 +96,20 @@ static pm_result_t image_read(const char *path, image_t *im)
                 r = pm_error_set(PM_ERR_NOMEM, "out of memory for '%s': %zu values", path, n);
             else
                 memcpy(im->rgb, t.col[PM_RADIANCE_RGB], n * sizeof *im->rgb);
+            if (r == PM_OK && t.col[PM_RADIANCE_VARIANCE]) {
+                if (!(im->var = malloc(n * sizeof *im->var)))
+                    r = pm_error_set(PM_ERR_NOMEM, "out of memory for '%s': %zu values", path, n);
+                else
+                    memcpy(im->var, t.col[PM_RADIANCE_VARIANCE], n * sizeof *im->var);
+            }
         }
         pm_table_free(&t);
-        if (r != PM_OK)
+        if (r != PM_OK) {
+            free(im->rgb);
+            free(im->var);
+            im->rgb = im->var = NULL;
             return r;
+        }
     }
     n = (size_t)im->w * im->h * 3;
     for (size_t i = 0; i < n; i++)
@@ -107,7 +118,8 @@ static pm_result_t image_read(const char *path, image_t *im)
             pm_result_t r = pm_error_set(PM_ERR_INPUT, "'%s' pixel (%zu, %zu) channel %s is %g: no error is defined",
                                          path, p % im->w, p / im->w, channel_names[i % 3], im->rgb[i]);
             free(im->rgb);
-            im->rgb = NULL;
+            free(im->var);
+            im->rgb = im->var = NULL;
             return r;
         }
     return PM_OK;
@@ -117,6 +129,9 @@ typedef struct {
     uint64_t values;
     double rmse, relmse, mean_abs_rel, max_abs, mean_test, mean_ref;
     double ch_rmse[3];
+    /* The reference's own noise, when it reports its variance: E[(t - r)^2] = (t - R)^2 + var(r)
+     * for the true R, so these are the floor under rmse and relmse that a better test cannot pass. */
+    double ref_rmse, ref_relmse;
 } errors_t;
 
 /* The metrics, and the error image into err (3 w h floats) when err is not NULL. */
@@ -135,6 +150,10 @@ static void measure(const image_t *t, const image_t *r, const measure_options_t 
         st += a;
         sr += b;
         e->max_abs = fmax(e->max_abs, fabs(d));
+        if (r->var) {
+            e->ref_rmse += r->var[i];
+            e->ref_relmse += r->var[i] / (b * b + o->epsilon);
+        }
         if (err)
             err[i] = (float)(o->error_kind == ERRIMG_REL ? rel : fabs(d));
     }
@@ -147,6 +166,8 @@ static void measure(const image_t *t, const image_t *r, const measure_options_t 
     e->mean_ref = sr / dn;
     for (int c = 0; c < 3; c++)
         e->ch_rmse[c] = sqrt(ch2[c] / (dn / 3));
+    e->ref_rmse = sqrt(e->ref_rmse / dn);
+    e->ref_relmse /= dn;
 }
 
 static pm_result_t write_json(FILE *out, const image_t *t, const image_t *r, const measure_options_t *o,
@@ -171,6 +192,10 @@ static pm_result_t write_json(FILE *out, const image_t *t, const image_t *r, con
     for (int c = 0; c < 3; c++)
         json_array_append_new(ch, json_real(e->ch_rmse[c]));
     json_object_set_new(j, "rmse_rgb", ch);
+    if (r->var) {
+        json_object_set_new(j, "reference_rmse", json_real(e->ref_rmse));
+        json_object_set_new(j, "reference_relmse", json_real(e->ref_relmse));
+    }
     int bad = json_dumpf(j, out, JSON_INDENT(2) | JSON_PRESERVE_ORDER | JSON_REAL_PRECISION(9)) != 0 ||
               fputc('\n', out) == EOF;
     json_decref(j);
@@ -189,6 +214,7 @@ static pm_result_t run(pm_stage_t *st, const measure_options_t *o)
     res = image_read(rn, &r);
     if (res != PM_OK) {
         free(t.rgb);
+        free(t.var);
         return res;
     }
     float *err = NULL;
@@ -223,6 +249,8 @@ static pm_result_t run(pm_stage_t *st, const measure_options_t *o)
     free(err);
     free(t.rgb);
     free(r.rgb);
+    free(t.var);
+    free(r.var);
     return res;
 }
 

@@ -146,3 +146,16 @@ expect_exit "an EXR to stdout is a usage error" 2 "$R" "$C"
 grep -q "^trace-reference: an OpenEXR output needs a file name" "$TMP/err" && pass "... which says so" || fail "stdout message" "$(cat "$TMP/err")"
 expect_exit "the output given twice is a usage error" 2 "$R" "$C" "$TMP/no.exr" -o "$TMP/no.exr"
 [ ! -e "$TMP/no.exr" ] && pass "no output file after a refusal" || fail "refusal output" "$TMP/no.exr exists"
+
+# ---- measure-error against a reference that reports its variance ----
+"$BIN/measure-error" "$TMP/cpm.exr" "$TMP/cref.pm" >"$TMP/cerr2.json"
+rr=$(grep -o '"reference_rmse": *[-0-9.eE+]*' "$TMP/cerr2.json" | sed 's/.*: *//')
+"$R" "$C" -q --width 64 --height 64 --spp 256 --pass 64 --stats "$TMP/cref.json" -o "$TMP/cref2.exr"
+se=$(grep -o '"stderr_rms": *[-0-9.eE+]*' "$TMP/cref.json" | sed 's/.*: *//')
+if awk -v a="$rr" -v b="$se" 'BEGIN { exit !(a > 0 && (a - b) ^ 2 < (1e-6 * b) ^ 2) }'; then
+    pass "measure-error reports the reference's own error floor ($rr, trace-reference's stderr_rms)"
+else
+    fail "measure-error reference_rmse" "'$rr' against stderr_rms '$se'"
+fi
+"$BIN/measure-error" "$TMP/cpm.exr" "$TMP/cref.exr" | grep -q reference_rmse &&
+    fail "an EXR reference has no variance" "reference_rmse reported" || pass "an EXR reference reports no floor it does not know"

@@ -9,8 +9,11 @@ PI4=12.566370614359172 # 4 pi: a point light of 1 W/sr per channel emits 4 pi W 
 
 # ---- trace-photons ----
 "$BIN/trace-photons" scenes/cornell-box/scene.json --photons 3000 --seed 7 -q -o "$TMP/cb.pm"
+# Embree's AVX2 and AVX-512 kernels round a hit differently, and a photon's later bounces carry
+# the difference on: positions agree within 1e-5 relative or 4e-6 m (measured: 8.6e-7 m between
+# the AVX-512 machine that made the golden file and an AVX2 one; the box is 0.56 m).
 expect_exit "trace-photons matches its golden file on the Cornell box" 0 \
-    "$BIN/pm-compare" --max-rel 1e-5 --max-abs 1e-9 "$G/trace-photons-cornell.pm" "$TMP/cb.pm"
+    "$BIN/pm-compare" --max-rel 1e-5 --max-abs 4e-6 "$G/trace-photons-cornell.pm" "$TMP/cb.pm"
 "$BIN/trace-photons" scenes/cornell-box/scene.json --photons 3000 --seed 7 -q --threads 1 -o "$TMP/cb1.pm"
 expect_exit "trace-photons: 1 and 2 threads give the same photons" 0 "$BIN/pm-compare" "$TMP/cb.pm" "$TMP/cb1.pm"
 "$BIN/trace-photons" scenes/cornell-box/scene.json --photons 3000 --seed 8 -q -o "$TMP/cb8.pm"
@@ -174,7 +177,8 @@ grep -aq '^CHANNELS=node position power normal direction$' "$TMP/mapg.pm" && pas
     fail "glossy map" "$(grep -a CHANNELS "$TMP/mapg.pm")"
 # streams: photons through a pipe
 "$BIN/trace-photons" scenes/cornell-box/scene.json --photons 3000 --seed 7 -q -o - | "$BIN/build-photonmap" - -q -o "$TMP/pipe.pm"
-expect_exit "trace-photons | build-photonmap - gives the same map" 0 "$BIN/pm-compare" "$TMP/map.pm" "$TMP/pipe.pm"
+"$BIN/build-photonmap" "$TMP/cb.pm" -q -o "$TMP/cbmap.pm" # this machine's photons, as the pipe's
+expect_exit "trace-photons | build-photonmap - gives the same map" 0 "$BIN/pm-compare" "$TMP/cbmap.pm" "$TMP/pipe.pm"
 # degenerate inputs through the stage: no photons, one photon
 for n in 0 1 2; do
     "$BUILD/tests/pm-testgen" photons $n "$TMP/p$n.pm"

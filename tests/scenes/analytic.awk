@@ -3,9 +3,10 @@
 #   1. `pm-info -r` of the direct-vis queries: each pixel's primary hit (position, normal, pixel)
 #   2. `pm-exrdump` of the image: "size W H", then "x y r g b" per pixel
 #   awk -v kind=point|const -v kd=KD -v I=W_PER_SR [-v lx= -v ly= -v lz=] [-v e=W_PER_M2]
-#       -v tmean=T -v trms=T -v tmax=T -f analytic.awk queries.txt image.txt
-# kind=point: E = I |n . (p - l)| / |p - l|^3 at each pixel's hit p (direct light of a point light
-# at l); kind=const: E = e everywhere. Expected radiance L = kd / pi * E (Lambertian).
+#       [-v le=W_PER_M2_SR] -v tmean=T -v trms=T -v tmax=T -f analytic.awk queries.txt image.txt
+# kind=point: E = I |n . (p - l)| / |p - l|^3 + e at each pixel's hit p (direct light of a point
+# light at l, plus a uniform e, default 0); kind=const: E = e everywhere. Expected radiance
+# L = le + kd / pi * E: the surface's own emission le (default 0) plus Lambertian reflection.
 # Checks, on the ratio measured / expected over all channels and pixels:
 #   - every pixel has a hit and a finite value (no NaN, no Inf, no pixel missing)
 #   - the mean ratio is within tmean of 1, over all pixels and over the brighter and the dimmer
@@ -19,9 +20,9 @@ FNR == NR {
         if (kind == "point") {
             dx = x - lx; dy = y - ly; dz = z - lz; d2 = dx * dx + dy * dy + dz * dz
             c = ($5 * dx + $6 * dy + $7 * dz) / sqrt(d2); if (c < 0) c = -c
-            E = I * c / d2
+            E = I * c / d2 + e
         } else E = e
-        want[px] = kd / 3.141592653589793 * E
+        want[px] = le + kd / 3.141592653589793 * E
     }
     next
 }

@@ -72,6 +72,33 @@ if ref "$TMP/sphere9/scene.json" sphere9 256; then
 else
     fail "sphere 0.9 reference" "trace-reference failed"
 fi
+# The furnace: every surface of a closed sphere emits Le = 1 W/(m^2 sr) with albedo rho, so
+# L = Le / (1 - rho) everywhere, for any closed shape (no facet bias). Emission is found both by
+# light samples and by BRDF samples here, so this checks the MIS weights sum to one.
+for rho in 0.5 0.9; do
+    make_furnace "$TMP/furnace$rho" 1 $rho
+    if ref "$TMP/furnace$rho/scene.json" f$rho 128; then
+        check "furnace, rho $rho: L = Le / (1 - rho) = $(awk -v r=$rho 'BEGIN { print 1 / (1 - r) }')" f$rho \
+            "-v tmean=0.01 -v trms=0.1 -v tmax=0.6" -v kind=const -v kd=$rho -v le=1 \
+            -v e=$(awk -v p=$PI -v r=$rho 'BEGIN { print p / (1 - r) }')
+    else
+        fail "furnace $rho reference" "trace-reference failed"
+    fi
+done
+# Albedo 0.999: a thousand bounces a path (the slow bounce series of a closed white room). Russian
+# roulette with survival = throughput keeps every path's weight at most 1, so the answer stays
+# unbiased with no bounce cap: 8 x 8 pixels at 32 samples, per-sample spread about 1 (the path
+# length is geometric), so the mean has a standard error near 2% and must be within 8% of 1000
+# (a cap at 100 bounces would give a tenth of it), with no path capped.
+make_furnace "$TMP/f999" 1 0.999
+"$R" "$TMP/f999/scene.json" -q --width 8 --height 8 --spp 32 --stats "$TMP/f999.json" -o "$TMP/f999.exr"
+m=$(stat f999 mean_radiance) se=$(stat f999 stderr_rel)
+if awk -v m="$m" 'BEGIN { exit !(m > 920 && m < 1080) }' && [ "$(stat f999 capped_paths)" = 0 ] &&
+    [ "$(stat f999 nonfinite_samples)" = 0 ]; then
+    pass "furnace, albedo 0.999: mean $m against Le / (1 - rho) = 1000 (reported error $se of a pixel), no path capped, all finite"
+else
+    fail "furnace 0.999" "mean $m (expected 1000), capped $(stat f999 capped_paths), reported error $se"
+fi
 
 # ---- the photon pipeline against the reference: the Cornell box at 64 x 64 ----
 # Both render one model, so the means agree within the photon estimate's kernel bias and the

@@ -49,6 +49,24 @@ if ref "$TMP/plane/scene.json" plane 4; then
 else
     fail "plane reference" "trace-reference failed"
 fi
+# Extremes on the same plane (docs/extreme-cases.md): the estimate is linear in power, so lights
+# of 1e-20 and 1e20 W/sr give the pi W/sr image times 1e-20/pi and 1e20/pi; and scaled by 1e-4 and
+# 1e5 with the intensity by the square, the image is the same (ray offsets scale with the scene).
+for case in "1e-20 1" "1e20 1" "3.141592653589793e-8 1e-4" "3.141592653589793e10 1e5"; do
+    set -- $case
+    make_lit_plane "$TMP/px" "$2" "$1" 0.5 "$(awk -v s="$2" 'BEGIN { print 20 * s }')"
+    "$R" "$TMP/px/scene.json" -q --spp 4 --stats "$TMP/px.json" -o "$TMP/px.exr" && "$DUMP" "$TMP/px.exr" >"$TMP/px.txt"
+    f=$(awk -v i="$1" -v s="$2" -v p=$PI 'BEGIN { printf "%.17g", i / p / (s * s) }')
+    if awk -v f="$f" 'NR == FNR { if ($1 != "size") a[$1 " " $2] = $3 " " $4 " " $5; next }
+        $1 != "size" { split(a[$1 " " $2], v, " ")
+            for (c = 3; c <= 5; c++) { w = v[c - 2] * f; if (!($c > 0) || ($c - w) ^ 2 > (1e-5 * w) ^ 2) bad++ } }
+        END { exit bad > 0 }' "$TMP/plane.txt" "$TMP/px.txt" && [ "$(stat px nonfinite_samples)" = 0 ]; then
+        pass "plane, I $1 W/sr at scale $2: every pixel is the I pi image times $f within 1e-5"
+    else
+        fail "plane, I $1 at scale $2" "pixels differ from $f times the reference image (or not finite)"
+    fi
+done
+
 # A point light inside a closed sphere: E = I / R^2 / (1 - kd) everywhere. At 256 samples per
 # pixel the reported relative standard error is about 2% (kd 0.5) and 4% (kd 0.9) per pixel,
 # so over 32 x 32 pixels the mean ratio has a standard error near 0.1%: the mean within 1%

@@ -112,20 +112,6 @@ static int build_lights(tracer_t *t, const pm_scene_t *s)
     return 0;
 }
 
-/* The light whose cdf interval holds u in [0, 1). */
-static size_t pick_light(const tracer_t *t, double u)
-{
-    size_t lo = 0, hi = t->nlights - 1;
-    while (lo < hi) {
-        size_t mid = (lo + hi) / 2;
-        if (u < t->cdf[mid])
-            hi = mid;
-        else
-            lo = mid + 1;
-    }
-    return lo;
-}
-
 /* Room for one more record of rs bytes at the end of chunk c. */
 static int chunk_reserve(chunk_t *c, size_t rs)
 {
@@ -205,7 +191,7 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
     pm_rng_init(&rng, t->o->seed, index);
 
     /* Emission: a light by power, then a point and a direction on it. */
-    const light_t *l = &t->lights[pick_light(t, pm_rng_double(&rng))];
+    const light_t *l = &t->lights[pm_cdf_pick(t->cdf, t->nlights, pm_rng_double(&rng))];
     double power[3];
     pm_vec3_t org, dir;
     float u1 = pm_rng_float(&rng), u2 = pm_rng_float(&rng), u3 = pm_rng_float(&rng), u4 = pm_rng_float(&rng);

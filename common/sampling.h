@@ -4,6 +4,7 @@
 #define PM_SAMPLING_H
 
 #include <math.h>
+#include <stddef.h>
 
 #include "vec.h"
 
@@ -61,6 +62,21 @@ static inline pm_vec3_t pm_sample_sphere(float u1, float u2)
     float z = 1.0f - 2.0f * u1, r2 = 1.0f - z * z, phi = 2.0f * PM_PI * u2;
     float r = r2 > 0.0f ? sqrtf(r2) : 0.0f;
     return pm_v3(r * cosf(phi), r * sinf(phi), z);
+}
+
+/* Index of the interval of a cumulative distribution cdf[0..n) (ascending, cdf[n-1] = 1) that
+ * holds u in [0, 1): the first i with u < cdf[i]. n >= 1. */
+static inline size_t pm_cdf_pick(const double *cdf, size_t n, double u)
+{
+    size_t lo = 0, hi = n - 1;
+    while (lo < hi) {
+        size_t mid = (lo + hi) / 2;
+        if (u < cdf[mid])
+            hi = mid;
+        else
+            lo = mid + 1;
+    }
+    return lo;
 }
 
 /* Uniform point on a triangle by area, as barycentrics (b0, b1); b2 = 1 - b0 - b1. */

@@ -12,6 +12,7 @@
 
 #include "error.h"
 #include "material.h"
+#include "rng.h"
 #include "scene.h"
 
 /* A pinhole camera for a w x h image: pixel (px, py) in [0, w) x [0, h), y down. */
@@ -38,9 +39,24 @@ typedef struct {
 
 pm_result_t pm_shade_geom_init(const pm_scene_t *s, pm_shade_geom_t *out);
 void pm_shade_geom_free(pm_shade_geom_t *g);
-/* Index into s->emissive of the emissive triangle whose area interval holds u in [0, 1). */
-size_t pm_shade_pick_light(const pm_shade_geom_t *g, double u);
 /* Point of triangle t at barycentrics (b0, b1), b2 = 1 - b0 - b1. */
 void pm_triangle_point(const pm_scene_t *s, uint32_t t, float b0, float b1, float p_out[3]);
+
+/* A light as seen from a surface point: unit direction wi toward it, distance r (m), squared
+ * distance r2 (m^2) and the cosine at the surface; for an area light also the triangle and the
+ * cosine at the light (its front face toward the surface). */
+typedef struct {
+    float wi[3], r, r2, cosx, cosy;
+    uint32_t tri;
+} pm_light_sample_t;
+
+/* Point light l from p with normal n (geometry from p itself; only a shadow ray starts off the
+ * surface); 0 when l is at p or behind the surface. */
+int pm_point_light_toward(const pm_point_light_t *l, const float p[3], const float n[3], pm_light_sample_t *out);
+/* One point on the area lights, uniform over their total area g->area (pdf 1/A per m^2), from
+ * three numbers of rng: the triangle (a double), then two floats for the point. 0 when the point
+ * is at p, behind the surface, or sees its back. The scene must have emissive triangles. */
+int pm_area_light_sample(const pm_scene_t *s, const pm_shade_geom_t *g, pm_rng_t *rng, const float p[3],
+                         const float n[3], pm_light_sample_t *out);
 
 #endif

@@ -314,48 +314,33 @@ static int shade_primary(const tgp_ctx_t *c, tgp_scratch_t *sc, size_t i, uint32
         return 1; /* black: reflects no light, direct or gathered */
 
     /* Point lights: intensity I (W/sr) at distance r gives irradiance I cos / r^2. */
+    pm_light_sample_t ls;
     for (size_t l = 0; l < s->nlights; l++) {
         const pm_point_light_t *L = &s->lights[l];
-        /* Geometry from the hit point itself; only the shadow ray starts off the surface. */
-        float v[3] = {L->position[0] - p[0], L->position[1] - p[1], L->position[2] - p[2]};
-        float r2 = dot3(v, v), r = sqrtf(r2);
-        if (!(r > 0.0f))
-            continue;
-        float wi[3] = {v[0] / r, v[1] / r, v[2] / r}, cosx = dot3(n, wi);
-        if (cosx <= 0.0f)
+        if (!pm_point_light_toward(L, p, n, &ls))
             continue;
         float f[3];
-        pm_brdf(m, n, wi, wo, f);
+        pm_brdf(m, n, ls.wi, wo, f);
         size_t j = sc->shadow.n;
         for (int k = 0; k < 3; k++)
-            sc->sh_c[3 * j + k] = f[k] * L->intensity[k] * cosx / r2 * inv_p;
+            sc->sh_c[3 * j + k] = f[k] * L->intensity[k] * ls.cosx / ls.r2 * inv_p;
         sc->sh_px[j] = x;
-        pm_rays_push(&sc->shadow, o, wi, 0.0f, r - c->eps);
+        pm_rays_push(&sc->shadow, o, ls.wi, 0.0f, ls.r - c->eps);
     }
     /* Area lights: points uniform over the total emissive area A, pdf 1/A per m^2;
      * L = f Ke cos_x cos_y / r^2 * A, averaged over the samples. */
     for (unsigned q = 0; q < c->light_samples && s->nemissive; q++) {
-        size_t e = pm_shade_pick_light(&c->geom, pm_rng_double(light_rng));
-        uint32_t lt = s->emissive[e];
-        float b0, b1, y[3];
-        pm_sample_triangle(pm_rng_float(light_rng), pm_rng_float(light_rng), &b0, &b1);
-        pm_triangle_point(s, lt, b0, b1, y);
-        float v[3] = {y[0] - p[0], y[1] - p[1], y[2] - p[2]};
-        float r2 = dot3(v, v), r = sqrtf(r2);
-        if (!(r > 0.0f))
+        if (!pm_area_light_sample(s, &c->geom, light_rng, p, n, &ls))
             continue;
-        float wi[3] = {v[0] / r, v[1] / r, v[2] / r}, cosx = dot3(n, wi), cosy = -dot3(c->geom.tri_n + 3 * (size_t)lt, wi);
-        if (cosx <= 0.0f || cosy <= 0.0f)
-            continue;
-        const pm_material_t *lm = &s->materials[s->tri_material[lt]];
-        float f[3], g = cosx * cosy / r2 * (float)c->geom.area / (float)c->light_samples * inv_p;
-        pm_brdf(m, n, wi, wo, f);
+        const pm_material_t *lm = &s->materials[s->tri_material[ls.tri]];
+        float f[3], g = ls.cosx * ls.cosy / ls.r2 * (float)c->geom.area / (float)c->light_samples * inv_p;
+        pm_brdf(m, n, ls.wi, wo, f);
         size_t j = sc->shadow.n;
         for (int k = 0; k < 3; k++)
             sc->sh_c[3 * j + k] = f[k] * lm->ke[k] * g;
         sc->sh_px[j] = x;
         /* Stop short of the light's own surface, by the offset and a relative margin. */
-        pm_rays_push(&sc->shadow, o, wi, 0.0f, r * (1.0f - 1e-4f) - 2.0f * c->eps);
+        pm_rays_push(&sc->shadow, o, ls.wi, 0.0f, ls.r * (1.0f - 1e-4f) - 2.0f * c->eps);
     }
 
     if (c->mode == MODE_DIRECT_VIS) {

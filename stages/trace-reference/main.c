@@ -191,45 +191,29 @@ static void trace_path(const ref_ctx_t *c, struct RTCIntersectContext *ctx, uint
         float org[3] = {p[0] + c->eps * n[0], p[1] + c->eps * n[1], p[2] + c->eps * n[2]};
 
         /* Point lights: I cos / r^2, each one every vertex. */
+        pm_light_sample_t ls;
         for (size_t l = 0; l < s->nlights; l++) {
             const pm_point_light_t *pl = &s->lights[l];
-            float v[3] = {pl->position[0] - p[0], pl->position[1] - p[1], pl->position[2] - p[2]};
-            float r2 = dot3(v, v), r = sqrtf(r2);
-            if (!(r > 0.0f))
-                continue;
-            float wi[3] = {v[0] / r, v[1] / r, v[2] / r}, cosx = dot3(n, wi);
-            if (cosx <= 0.0f)
+            if (!pm_point_light_toward(pl, p, n, &ls))
                 continue;
             cnt->shadow_rays++;
-            if (occluded(c, ctx, org, wi, r - c->eps))
+            if (occluded(c, ctx, org, ls.wi, ls.r - c->eps))
                 continue;
             float f[3];
-            pm_brdf(m, n, wi, wo, f);
+            pm_brdf(m, n, ls.wi, wo, f);
             for (int q = 0; q < 3; q++)
-                L[q] += beta[q] * (double)f[q] * pl->intensity[q] * cosx / r2;
+                L[q] += beta[q] * (double)f[q] * pl->intensity[q] * ls.cosx / ls.r2;
         }
         /* One point on the area lights, pdf 1/A per m^2, weighted against BRDF sampling. */
-        if (c->geom.nemissive) {
-            uint32_t lt = s->emissive[pm_shade_pick_light(&c->geom, pm_rng_double(&rng))];
-            float b0, b1, yp[3];
-            pm_sample_triangle(pm_rng_float(&rng), pm_rng_float(&rng), &b0, &b1);
-            pm_triangle_point(s, lt, b0, b1, yp);
-            float v[3] = {yp[0] - p[0], yp[1] - p[1], yp[2] - p[2]};
-            float r2 = dot3(v, v), r = sqrtf(r2);
-            if (r > 0.0f) {
-                float wi[3] = {v[0] / r, v[1] / r, v[2] / r}, cosx = dot3(n, wi),
-                      cosy = -dot3(c->geom.tri_n + 3 * (size_t)lt, wi);
-                if (cosx > 0.0f && cosy > 0.0f) {
-                    cnt->shadow_rays++;
-                    if (!occluded(c, ctx, org, wi, r * (1.0f - 1e-4f) - 2.0f * c->eps)) {
-                        const pm_material_t *lm = &s->materials[s->tri_material[lt]];
-                        float pl = r2 / (cosy * (float)c->geom.area), pb = brdf_pdf(m, n, wi, wo), f[3];
-                        pm_brdf(m, n, wi, wo, f);
-                        double g = (double)cosx / pl * power_heuristic(pl, pb);
-                        for (int q = 0; q < 3; q++)
-                            L[q] += beta[q] * (double)f[q] * lm->ke[q] * g;
-                    }
-                }
+        if (c->geom.nemissive && pm_area_light_sample(s, &c->geom, &rng, p, n, &ls)) {
+            cnt->shadow_rays++;
+            if (!occluded(c, ctx, org, ls.wi, ls.r * (1.0f - 1e-4f) - 2.0f * c->eps)) {
+                const pm_material_t *lm = &s->materials[s->tri_material[ls.tri]];
+                float pl = ls.r2 / (ls.cosy * (float)c->geom.area), pb = brdf_pdf(m, n, ls.wi, wo), f[3];
+                pm_brdf(m, n, ls.wi, wo, f);
+                double g = (double)ls.cosx / pl * power_heuristic(pl, pb);
+                for (int q = 0; q < 3; q++)
+                    L[q] += beta[q] * (double)f[q] * lm->ke[q] * g;
             }
         }
 

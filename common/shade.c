@@ -4,6 +4,8 @@
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
+#include <inttypes.h>
 
 #include "sampling.h"
 #include "vec.h"
@@ -134,4 +136,20 @@ int pm_area_light_sample(const pm_scene_t *s, const pm_shade_geom_t *g, pm_rng_t
         o->wi[k] = v[k] / o->r;
     o->cosx = dot3(n, o->wi), o->cosy = -dot3(g->tri_n + 3 * (size_t)o->tri, o->wi);
     return o->cosx > 0.0f && o->cosy > 0.0f;
+}
+
+pm_result_t pm_image_header_begin(pm_header_t *h, int argc, char **argv, const pm_scene_t *s, uint32_t w,
+                                  uint32_t ht)
+{
+    char id[200];
+    pm_scene_id(s, id, sizeof id);
+    memcpy(h->bounds, s->bounds, sizeof h->bounds);
+    pm_result_t r = pm_header_add_command(h, argc, argv);
+    if (r == PM_OK)
+        r = pm_header_set(h, "SCENE", "%s", id);
+    if (r == PM_OK)
+        r = pm_header_set(h, "width", "%" PRIu32, w);
+    if (r == PM_OK)
+        r = pm_header_set(h, "height", "%" PRIu32, ht);
+    return r;
 }

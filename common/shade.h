@@ -10,6 +10,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "../formats/pmfile.h"
 #include "error.h"
 #include "material.h"
 #include "rng.h"
@@ -58,5 +59,10 @@ int pm_point_light_toward(const pm_point_light_t *l, const float p[3], const flo
  * is at p, behind the surface, or sees its back. The scene must have emissive triangles. */
 int pm_area_light_sample(const pm_scene_t *s, const pm_shade_geom_t *g, pm_rng_t *rng, const float p[3],
                          const float n[3], pm_light_sample_t *out);
+
+/* The keys every image-shaped output of a scene starts with: this command's COMMAND line, the
+ * scene bounds, SCENE (name and content hash), width and height. */
+pm_result_t pm_image_header_begin(pm_header_t *h, int argc, char **argv, const pm_scene_t *s, uint32_t w,
+                                  uint32_t ht);
 
 #endif

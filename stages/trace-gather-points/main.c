@@ -564,16 +564,7 @@ static pm_result_t setup(tgp_ctx_t *c, const pm_scene_t *s, const pm_rt_t *rt, c
 /* Provenance and format keys shared by both outputs. */
 static pm_result_t header_common(pm_header_t *h, const pm_stage_t *st, const tgp_ctx_t *c, const pm_scene_t *s)
 {
-    char id[200];
-    pm_scene_id(s, id, sizeof id);
-    memcpy(h->bounds, s->bounds, sizeof h->bounds);
-    pm_result_t r = pm_header_add_command(h, st->argc, st->argv);
-    if (r == PM_OK)
-        r = pm_header_set(h, "SCENE", "%s", id);
-    if (r == PM_OK)
-        r = pm_header_set(h, "width", "%" PRIu32, c->w);
-    if (r == PM_OK)
-        r = pm_header_set(h, "height", "%" PRIu32, c->h);
+    pm_result_t r = pm_image_header_begin(h, st->argc, st->argv, s, c->w, c->h);
     if (r == PM_OK)
         r = pm_header_set(h, "mode", "%s", mode_names[c->mode]);
     if (r == PM_OK && c->mode == MODE_GATHER)

@@ -307,16 +307,7 @@ static void image_error(const ref_ctx_t *c, const ref_accum_t *a, double *rmse, 
 
 static pm_result_t header_common(pm_header_t *h, const pm_stage_t *st, const ref_ctx_t *c, uint64_t n)
 {
-    char id[200];
-    pm_scene_id(c->s, id, sizeof id);
-    memcpy(h->bounds, c->s->bounds, sizeof h->bounds);
-    pm_result_t r = pm_header_add_command(h, st->argc, st->argv);
-    if (r == PM_OK)
-        r = pm_header_set(h, "SCENE", "%s", id);
-    if (r == PM_OK)
-        r = pm_header_set(h, "width", "%" PRIu32, c->w);
-    if (r == PM_OK)
-        r = pm_header_set(h, "height", "%" PRIu32, c->h);
+    pm_result_t r = pm_image_header_begin(h, st->argc, st->argv, c->s, c->w, c->h);
     if (r == PM_OK)
         r = pm_header_set(h, "component", "total");
     if (r == PM_OK)

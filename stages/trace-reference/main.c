@@ -36,6 +36,11 @@
 
 enum { PIXEL_CENTER = 0, PIXEL_BOX = 1 };
 static const char *const pixel_names[] = {"center", "box", NULL};
+/* Which light: a contribution that reflected b times on its way to the camera (emission seen
+ * directly b = 0, direct light b = 1) is direct for b <= 1 and indirect beyond, as
+ * trace-gather-points' direct buffer and simd-gather's indirect one split it. */
+enum { COMP_TOTAL = 0, COMP_DIRECT = 1, COMP_INDIRECT = 2 };
+static const char *const component_names[] = {"total", "direct", "indirect", NULL};
 
 typedef struct {
     int64_t spp;          /* samples per pixel in all, resumed ones included */
@@ -44,7 +49,7 @@ typedef struct {
     int64_t max_bounces;  /* safety net: a path is cut after this many bounces */
     int64_t rr_start;     /* bounces before Russian roulette starts */
     int64_t width, height;
-    int pixel;
+    int pixel, component;
     const char *radiance; /* --radiance FILE: f64 mean and variance per pixel */
     const char *resume;   /* --resume FILE: a --radiance file to continue */
 } ref_options_t;
@@ -57,9 +62,15 @@ typedef struct {
     uint32_t w, h;
     uint64_t seed;
     unsigned max_bounces, rr_start;
-    int pixel;
+    int pixel, component;
     float eps;
 } ref_ctx_t;
+
+/* Whether a contribution that reflected b times belongs to the component asked for. */
+static inline int wanted(const ref_ctx_t *c, unsigned b)
+{
+    return c->component == COMP_TOTAL || (c->component == COMP_DIRECT) == (b <= 1);
+}
 
 /* Per-thread counters, each on its own cache line (written on every ray). */
 typedef struct {
@@ -171,7 +182,7 @@ static void trace_path(const ref_ctx_t *c, struct RTCIntersectContext *ctx, uint
 
         /* Emission, front face only. Seen by the camera it is taken whole; found by a BRDF
          * sample it shares with the light sample of the vertex before (power heuristic). */
-        if (cos_front > 0.0f && pm_material_is_emissive(m)) {
+        if (cos_front > 0.0f && pm_material_is_emissive(m) && wanted(c, depth)) {
             float w = 1.0f;
             if (depth > 0) {
                 float pl = t * t / (cos_front * (float)c->geom.area);
@@ -180,6 +191,8 @@ static void trace_path(const ref_ctx_t *c, struct RTCIntersectContext *ctx, uint
             for (int q = 0; q < 3; q++)
                 L[q] += beta[q] * m->ke[q] * w;
         }
+        if (c->component == COMP_DIRECT && depth >= 1)
+            break; /* what lies beyond is indirect: not traced */
         if (depth >= c->max_bounces) {
             cnt->capped++;
             break;
@@ -192,7 +205,7 @@ static void trace_path(const ref_ctx_t *c, struct RTCIntersectContext *ctx, uint
 
         /* Point lights: I cos / r^2, each one every vertex. */
         pm_light_sample_t ls;
-        for (size_t l = 0; l < s->nlights; l++) {
+        for (size_t l = 0; l < s->nlights && wanted(c, depth + 1); l++) {
             const pm_point_light_t *pl = &s->lights[l];
             if (!pm_point_light_toward(pl, p, n, &ls))
                 continue;
@@ -205,7 +218,7 @@ static void trace_path(const ref_ctx_t *c, struct RTCIntersectContext *ctx, uint
                 L[q] += beta[q] * (double)f[q] * pl->intensity[q] * ls.cosx / ls.r2;
         }
         /* One point on the area lights, pdf 1/A per m^2, weighted against BRDF sampling. */
-        if (c->geom.nemissive && pm_area_light_sample(s, &c->geom, &rng, p, n, &ls)) {
+        if (c->geom.nemissive && pm_area_light_sample(s, &c->geom, &rng, p, n, &ls) && wanted(c, depth + 1)) {
             cnt->shadow_rays++;
             if (!occluded(c, ctx, org, ls.wi, ls.r * (1.0f - 1e-4f) - 2.0f * c->eps)) {
                 const pm_material_t *lm = &s->materials[s->tri_material[ls.tri]];
@@ -309,7 +322,7 @@ static pm_result_t header_common(pm_header_t *h, const pm_stage_t *st, const ref
 {
     pm_result_t r = pm_image_header_begin(h, st->argc, st->argv, c->s, c->w, c->h);
     if (r == PM_OK)
-        r = pm_header_set(h, "component", "total");
+        r = pm_header_set(h, "component", "%s", component_names[c->component]);
     if (r == PM_OK)
         r = pm_header_set(h, "estimator", "path-tracer");
     if (r == PM_OK)
@@ -352,7 +365,7 @@ static pm_result_t write_outputs(const pm_stage_t *st, const ref_options_t *o, c
     for (int i = 0; i < st->argc && at + 1 < sizeof cmd; i++)
         at += (size_t)snprintf(cmd + at, sizeof cmd - at, "%s%s", i ? " " : "", st->argv[i]);
     const pm_exr_attr_t attrs[] = {
-        {"SOFTWARE", "pmtk " PM_VERSION_STRING}, {"SCENE", id}, {"COMMAND.0", cmd}, {"components", "total"},
+        {"SOFTWARE", "pmtk " PM_VERSION_STRING}, {"SCENE", id}, {"COMMAND.0", cmd}, {"components", component_names[c->component]},
         {"estimator", "path-tracer"}, {"samples", samples}, {"seed", seed}, {"pixel", pixel_names[c->pixel]},
         {"stderr_rms", rmse_s},
     };
@@ -390,7 +403,7 @@ static pm_result_t resume(const ref_ctx_t *c, const char *path, ref_accum_t *a)
     char id[200];
     pm_scene_id(c->s, id, sizeof id);
     const char *est = pm_header_get(&t.hdr, "estimator"), *scene = pm_header_get(&t.hdr, "SCENE"),
-               *pix = pm_header_get(&t.hdr, "pixel");
+               *pix = pm_header_get(&t.hdr, "pixel"), *comp = pm_header_get(&t.hdr, "component");
     if ((r = pm_header_get_image_size(&t.hdr, path, &w, &h)) != PM_OK ||
         (r = pm_header_get_u64(&t.hdr, path, "samples", &n)) != PM_OK ||
         (r = pm_header_get_u64(&t.hdr, path, "seed", &seed)) != PM_OK)
@@ -409,6 +422,9 @@ static pm_result_t resume(const ref_ctx_t *c, const char *path, ref_accum_t *a)
     else if (!pix || strcmp(pix, pixel_names[c->pixel]))
         r = pm_error_set(PM_ERR_INPUT, "--resume '%s' has pixel '%s', this render '%s'", path, pix ? pix : "(missing)",
                          pixel_names[c->pixel]);
+    else if (!comp || strcmp(comp, component_names[c->component]))
+        r = pm_error_set(PM_ERR_INPUT, "--resume '%s' is component '%s', this render '%s'", path,
+                         comp ? comp : "(missing)", component_names[c->component]);
     else if (n == 0 || n >= UINT32_MAX)
         r = pm_error_set(PM_ERR_INPUT, "--resume '%s': samples=%" PRIu64 " is not in [1, 2^32)", path, n);
     if (r != PM_OK)
@@ -427,7 +443,8 @@ done:
 
 static pm_result_t run(pm_stage_t *st, const ref_options_t *o, const pm_scene_t *s, const pm_rt_t *rt)
 {
-    ref_ctx_t c = {.s = s, .rt = rt, .seed = (uint64_t)st->seed, .pixel = o->pixel, .eps = rt->epsilon,
+    ref_ctx_t c = {.s = s, .rt = rt, .seed = (uint64_t)st->seed, .pixel = o->pixel, .component = o->component,
+                   .eps = rt->epsilon,
                    .max_bounces = (unsigned)o->max_bounces, .rr_start = (unsigned)o->rr_start};
     c.w = o->width ? (uint32_t)o->width : s->camera.width;
     c.h = o->height ? (uint32_t)o->height : s->camera.height;
@@ -536,6 +553,9 @@ int main(int argc, char **argv)
         {"pixel", 0, PM_OPT_CHOICE, &o.pixel, "HOW",
          "center: through pixel centres, as trace-gather-points with --primary 1; box: uniform over the pixel", 1, 0,
          pixel_names},
+        {"component", 0, PM_OPT_CHOICE, &o.component, "WHICH",
+         "total, or only direct (emission seen and direct light: trace-gather-points --direct) or indirect "
+         "(simd-gather's part)", 1, 0, component_names},
         {"width", 0, PM_OPT_INT, &o.width, "N", "image width in pixels; 0 takes the scene camera's", 0, 65536, NULL},
         {"height", 0, PM_OPT_INT, &o.height, "N", "image height in pixels; 0 takes the scene camera's", 0, 65536, NULL},
         {"max-bounces", 0, PM_OPT_INT, &o.max_bounces, "N",

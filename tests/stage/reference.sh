@@ -103,6 +103,28 @@ for rho in 0.5 0.9; do
         fail "furnace $rho reference" "trace-reference failed"
     fi
 done
+# The split the photon pipeline makes (docs/accuracy.md): --component direct is the emission
+# seen and the direct light (trace-gather-points' direct buffer), indirect the rest (simd-gather's).
+# Sphere kd 0.5: direct kd/pi I/R^2, indirect kd/pi kd I/R^2/(1 - kd); furnace rho 0.5:
+# direct Le + rho Le, indirect rho^2 Le/(1 - rho).
+if ref "$TMP/sphere/scene.json" sphi 256 --component indirect; then
+    check "sphere, kd 0.5, indirect only: kd/pi * kd I / R^2 / (1 - kd)" sphi "-v tmean=0.01 -v trms=0.06 -v tmax=0.4" \
+        -v kind=const -v kd=0.5 -v e=$PI
+else
+    fail "sphere indirect reference" "trace-reference failed"
+fi
+if ref "$TMP/furnace0.5/scene.json" f5d 64 --component direct && ref "$TMP/furnace0.5/scene.json" f5i 256 --component indirect; then
+    check "furnace rho 0.5, direct only: Le + rho Le = 1.5" f5d "-v tmean=0.01 -v trms=0.05 -v tmax=0.4" \
+        -v kind=const -v kd=0.5 -v le=1 -v e=$PI
+    check "furnace rho 0.5, indirect only: rho^2 Le / (1 - rho) = 0.5" f5i "-v tmean=0.01 -v trms=0.1 -v tmax=0.6" \
+        -v kind=const -v kd=0.5 -v e=$PI
+    awk -v d="$(stat f5d rays_per_path)" 'BEGIN { exit !(d <= 2) }' &&
+        pass "--component direct traces no further than the first bounce ($(stat f5d rays_per_path) rays a path)" ||
+        fail "direct component rays" "$(stat f5d rays_per_path) rays per path"
+else
+    fail "furnace component references" "trace-reference failed"
+fi
+
 # Albedo 0.999: a thousand bounces a path (the slow bounce series of a closed white room). Russian
 # roulette with survival = throughput keeps every path's weight at most 1, so the answer stays
 # unbiased with no bounce cap: 8 x 8 pixels at 32 samples, per-sample spread about 1 (the path
@@ -134,6 +156,16 @@ if awk -v a="$mt" -v b="$mr" 'BEGIN { exit !(b > 0 && a / b > 0.97 && a / b < 1.
     pass "Cornell box: photon pipeline mean $mt within 3% of the reference's $mr"
 else
     fail "Cornell box, photon pipeline against reference" "means $mt and $mr"
+fi
+# ... and the gather's part alone, against the reference's indirect component.
+"$R" "$C" -q --width 64 --height 64 --spp 256 --pass 64 --component indirect --radiance "$TMP/crefi.pm" -o "$TMP/crefi.exr" &&
+    "$BIN/measure-error" "$TMP/ci.pm" "$TMP/crefi.pm" >"$TMP/cerri.json"
+mt=$(grep -o '"mean_test": *[-0-9.eE+]*' "$TMP/cerri.json" | sed 's/.*: *//')
+mr=$(grep -o '"mean_reference": *[-0-9.eE+]*' "$TMP/cerri.json" | sed 's/.*: *//')
+if awk -v a="$mt" -v b="$mr" 'BEGIN { exit !(b > 0 && a / b > 0.95 && a / b < 1.05) }'; then
+    pass "Cornell box, indirect only: simd-gather mean $mt within 5% of the reference's $mr"
+else
+    fail "Cornell box indirect, simd-gather against reference" "means $mt and $mr"
 fi
 
 # A glossy floor (normalized Phong, Ns 20) in a closed box: the two renderers sample and

@@ -4,7 +4,7 @@
 # beside coherent primary rays (scene-info --probe). build-photonmap: the tree build alone
 # (its build_s counter) and the whole stage (read, build, write), for 1 million photons.
 P=${PHOTONS:-1000000}
-[ "$QUICK" = 1 ] && P=200000
+[ "$QUICK" = 1 ] && P=100000
 trace_rows=""
 for scene in cornell-box atrium; do
     for t in 1 2; do
@@ -27,7 +27,7 @@ done
 stored=$(grep -o '"stored": *[0-9]*' "$TMP/stats.json" | grep -o '[0-9]*$')
 
 M=1000000
-[ "$QUICK" = 1 ] && M=200000
+[ "$QUICK" = 1 ] && M=100000
 "$BUILD/tests/pm-testgen" photons $M "$TMP/uniform.pm"
 build_rows=""
 for input in uniform cornell; do

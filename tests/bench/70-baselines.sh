@@ -12,7 +12,7 @@
 #    to other load than wall time), medians of RUNS.
 S=scenes/cornell-box/scene.json
 P=500000 size=256 REFP=8000000 KS="10 20 50 100 200 400"
-[ "$QUICK" = 1 ] && P=200000 size=128 REFP=2000000 KS="10 50 200"
+[ "$QUICK" = 1 ] && P=100000 size=128 REFP=1000000 KS="10 50 200"
 num() { grep -o "\"$1\": *[-0-9.eE+]*" "$2" | head -n 1 | sed 's/.*: *//'; }
 
 # ---- 1. forward against reverse ----
@@ -45,7 +45,7 @@ for t in 1 2; do
 done
 
 # ---- 2. simd-gather against knn-gather at equal error ----
-"$BIN/trace-gather-points" $S --mode direct-vis -q -o "$TMP/b-v0.pm" --direct "$TMP/b-vd.pm"
+"$BIN/trace-gather-points" $S --mode direct-vis --width $size --height $size -q -o "$TMP/b-v0.pm" --direct "$TMP/b-vd.pm"
 "$BIN/hilbert-sort" "$TMP/b-v0.pm" -q -o "$TMP/b-v.pm"
 "$BIN/trace-photons" $S -n $REFP --seed 99 -q -o "$TMP/b-rph.pm"
 "$BIN/build-photonmap" "$TMP/b-rph.pm" -q -o "$TMP/b-rmap.pm"

@@ -7,7 +7,7 @@
 # paper's metric; it is a count, the same for every run and every --threads, so each figure
 # is one run. One radius per scene: the one at which about 50 photons fall in the kernel of a
 # 16 spp query (simd-gather --k 50 once), then fixed with --radius for every row.
-P=500000 size=256 SPPS="16 64 100"
+P=500000 size=256
 [ "$QUICK" = 1 ] && P=50000 size=48
 ISAS=$(bench_isas)
 # The paper's Table 1 (4-wide SSE packets, 256x256): as traced / with reordering. Its Sponza
@@ -23,7 +23,7 @@ for scene in cornell-box atrium; do
     "$BIN/build-photonmap" "$TMP/t1-ph.pm" -q -o "$TMP/t1-map.pm"
     rm -f "$TMP/t1-ph.pm"
     R=""
-    for mode in 16 dv 64 100; do # 16 first: it sets the scene's radius
+    for mode in 16 dv 64 100; do # dv: direct visualization; 16 first: it sets the radius
         if [ $mode = dv ]; then
             margs=(--mode direct-vis) label="direct visualization"
         else

@@ -4,18 +4,22 @@
 # beside coherent primary rays (scene-info --probe). build-photonmap: the tree build alone
 # (its build_s counter) and the whole stage (read, build, write), for 1 million photons.
 P=${PHOTONS:-1000000}
-[ "$QUICK" = 1 ] && P=200000
+[ "$QUICK" = 1 ] && P=100000
 trace_rows=""
 for scene in cornell-box atrium; do
     for t in 1 2; do
         cmd=("$BIN/trace-photons" "scenes/$scene/scene.json" --photons "$P" --threads $t -q -o "$TMP/ph.pm" --stats "$TMP/stats.json")
         read -r rate rlo rhi < <(median_stat rays_per_s "${cmd[@]}")
+        # photons emitted per ray segment: fixed by the seed, so photons/s = rays/s times it
+        ppr=$(awk -v e="$(bench_stat emitted "$TMP/stats.json")" -v r="$(bench_stat rays "$TMP/stats.json")" 'BEGIN { print e / r }')
         read -r base blo bhi < <(median_stat embree_rays_per_s "${cmd[@]}" --baseline)
         read -r probe _ _ < <(median_stat probe_rays_per_s "$BIN/scene-info" --probe --threads $t -q -o /dev/null \
             --stats "$TMP/stats.json" "scenes/$scene/scene.json")
-        trace_rows+=$(awk -v s=$scene -v t=$t -v r=$rate -v lo=$rlo -v hi=$rhi -v b=$base -v blo=$blo -v bhi=$bhi -v p=$probe 'BEGIN {
-            printf "| %s | %d | %.2f (%.2f to %.2f) | %.2f | %.2f (%.2f to %.2f) | %.2f | %.2f |\n",
-                s, t, r / 1e6, lo / 1e6, hi / 1e6, r / t / 1e6, b / 1e6, blo / 1e6, bhi / 1e6, r / b, p / 1e6 }')
+        trace_rows+=$(awk -v s=$scene -v t=$t -v r=$rate -v lo=$rlo -v hi=$rhi -v b=$base -v blo=$blo -v bhi=$bhi -v p=$probe \
+            -v f="$ppr" 'BEGIN {
+            printf "| %s | %d | %.2f (%.2f to %.2f) | %.2f | %.2f (%.2f to %.2f) | %.2f | %.2f (%.2f to %.2f) | %.2f | %.2f |\n",
+                s, t, r * f / 1e6, lo * f / 1e6, hi * f / 1e6, r * f / t / 1e6, r / 1e6, lo / 1e6, hi / 1e6, r / t / 1e6,
+                b / 1e6, blo / 1e6, bhi / 1e6, r / b, p / 1e6 }')
         trace_rows+=$'\n'
     done
 done
@@ -23,7 +27,7 @@ done
 stored=$(grep -o '"stored": *[0-9]*' "$TMP/stats.json" | grep -o '[0-9]*$')
 
 M=1000000
-[ "$QUICK" = 1 ] && M=200000
+[ "$QUICK" = 1 ] && M=100000
 "$BUILD/tests/pm-testgen" photons $M "$TMP/uniform.pm"
 build_rows=""
 for input in uniform cornell; do
@@ -45,14 +49,15 @@ cat >>"$MD" <<MD
 
 ## trace-photons
 
-$P photons emitted per run. Rays are ray segments (one per bounce). "Embree, same rays" re-traces
+$P photons emitted per run. Photons/s counts photons emitted (each traced to its end) over
+the tracing loop's time. Rays are ray segments (one per bounce). "Embree, same rays" re-traces
 every ray the run cast with bare \`rtcIntersect1\` (\`trace-photons --baseline\`), so the ratio is
 what emission, shading, Russian roulette and storing cost on top of Embree. Primary rays are
 coherent camera rays (\`scene-info --probe\`), an upper bound for single rays on the scene.
 Goal (issue 3): rays per second per core at least Embree's single-ray rate.
 
-| scene | threads | rays/s, M | per thread, M | Embree, same rays, M/s | ratio | primary rays, M/s |
-|---|---|---|---|---|---|---|
+| scene | threads | photons/s, M | per thread, M | rays/s, M | per thread, M | Embree, same rays, M/s | ratio | primary rays, M/s |
+|---|---|---|---|---|---|---|---|---|
 ${trace_rows}
 ## build-photonmap
 

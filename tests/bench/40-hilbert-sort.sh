@@ -2,7 +2,7 @@
 # Morton keys for comparison, and the leaf-size curve behind --leaf auto (sourced by
 # tests/bench/run). Positions are pm-testgen's: uniform in a cube, all channels (54 bytes).
 HN=10000000
-[ "$QUICK" = 1 ] && HN=1000000
+[ "$QUICK" = 1 ] && HN=300000
 "$BUILD/tests/pm-testgen" queries "$HN" "$TMP/hq.pm" --all
 mb=$(awk -v b="$(stat -c %s "$TMP/hq.pm")" 'BEGIN { printf "%.0f", b / 1e6 }')
 
@@ -60,7 +60,7 @@ qs=$(for i in $(seq "$RUNS"); do "$TMP/qsort-morton" "$HN"; done | sort -g | awk
 # mean diagonal of the bounding box of each run of 16 consecutive queries (a packet), as a
 # fraction of the points' cube (CN points: the packets are measured from pm-info's text).
 CN=1000000
-[ "$QUICK" = 1 ] && CN=200000
+[ "$QUICK" = 1 ] && CN=50000
 "$BUILD/tests/pm-testgen" queries "$CN" "$TMP/hc.pm" --all
 packet_extent() {
     "$BIN/pm-info" -r "$1" | awk '/^[0-9]/ {

@@ -8,7 +8,7 @@
 # lanes per shading step (the paper's Table 1 metric). "image order" gathers the queries as
 # trace-gather-points wrote them, pixel by pixel.
 P=500000 size=256
-[ "$QUICK" = 1 ] && P=200000 size=128
+[ "$QUICK" = 1 ] && P=100000 size=96
 "$BIN/trace-photons" scenes/cornell-box/scene.json --photons $P -q -o "$TMP/g-ph.pm"
 "$BIN/build-photonmap" "$TMP/g-ph.pm" -q -o "$TMP/g-map.pm"
 "$BIN/trace-gather-points" scenes/cornell-box/scene.json --width $size --height $size --spp 16 -q \

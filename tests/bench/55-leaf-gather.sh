@@ -4,7 +4,7 @@
 # photons, the radius for about 50 photons per query; both stages on 2 threads; medians of
 # RUNS runs of the stages' own timers (reorder, gather), so that file reading does not count.
 P=500000 size=256
-[ "$QUICK" = 1 ] && P=200000 size=128
+[ "$QUICK" = 1 ] && P=100000 size=96
 "$BIN/trace-photons" scenes/cornell-box/scene.json --photons $P -q -o "$TMP/l-ph.pm"
 "$BIN/build-photonmap" "$TMP/l-ph.pm" -q -o "$TMP/l-map.pm"
 "$BIN/trace-gather-points" scenes/cornell-box/scene.json --width $size --height $size --spp 16 -q \

@@ -6,9 +6,9 @@
 # variable-width estimator should help). Time: trace-photons + build-photonmap (with the
 # widths for the variable estimator) + simd-gather, wall seconds, median of RUNS.
 S=scenes/cornell-box/scene.json
-REFP=8000000 PS="100000 200000 400000 800000"
-[ "$QUICK" = 1 ] && REFP=2000000 PS="100000 400000"
-"$BIN/trace-gather-points" $S --mode direct-vis -q -o "$TMP/w-q0.pm" --direct "$TMP/w-d.pm"
+REFP=8000000 PS="100000 200000 400000 800000" KS="50 100" DV=256
+[ "$QUICK" = 1 ] && REFP=1000000 PS="50000 200000" KS=50 DV=128
+"$BIN/trace-gather-points" $S --mode direct-vis --width $DV --height $DV -q -o "$TMP/w-q0.pm" --direct "$TMP/w-d.pm"
 "$BIN/hilbert-sort" "$TMP/w-q0.pm" -q -o "$TMP/w-q.pm"
 "$BIN/trace-photons" $S -n $REFP --seed 99 -q -o "$TMP/w-ph.pm"
 "$BIN/build-photonmap" "$TMP/w-ph.pm" -q -o "$TMP/w-map.pm"
@@ -35,7 +35,7 @@ export -f render
 export S
 rows=""
 for P in $PS; do
-    for K in 50 100; do
+    for K in $KS; do
         for mode in fixed variable; do
             read -r t _ _ < <(median_spread bash -c "render $P $K $mode")
             read -r ea ed < <(errors "$TMP/w-o.pm")
@@ -48,7 +48,7 @@ cat >>"$MD" <<MD
 
 ## Variable against fixed kernel widths
 
-Direct visualization of the Cornell box (256x256, queries at the primary hits), against
+Direct visualization of the Cornell box (${DV}x${DV}, queries at the primary hits), against
 $REFP photons gathered with K = 400. "fixed": one radius, chosen by \`--k K\`; "variable":
 each photon's width holds K photons around it (\`build-photonmap --width-k K\`,
 \`simd-gather --widths variable\`). Time: trace-photons + build-photonmap (+ widths) +

@@ -12,7 +12,7 @@
 #    to other load than wall time), medians of RUNS.
 S=scenes/cornell-box/scene.json
 P=500000 size=256 REFP=8000000 KS="10 20 50 100 200 400"
-[ "$QUICK" = 1 ] && P=200000 size=128 REFP=2000000 KS="10 50 200"
+[ "$QUICK" = 1 ] && P=100000 size=128 REFP=1000000 KS="10 50 200"
 num() { grep -o "\"$1\": *[-0-9.eE+]*" "$2" | head -n 1 | sed 's/.*: *//'; }
 
 # ---- 1. forward against reverse ----
@@ -28,16 +28,13 @@ same=$("$BIN/pm-compare" --max-rel 1e-5 --max-abs 1e-12 "$TMP/b-f.pm" "$TMP/b-r.
 DEPTH=$(num query_tree_depth "$TMP/stats.json") SUB=$(num subtrees "$TMP/stats.json")
 frows="" ratios=""
 for t in 1 2; do
-    read -r fg fglo fghi < <(median_stat gather_s "$BIN/simd-gather" "$TMP/b-map.pm" "$TMP/b-qh.pm" --radius "$R" \
+    # one set of RUNS runs per program gives all of its figures
+    out=$(median_stats "gather_s gather_cpu_s" "$BIN/simd-gather" "$TMP/b-map.pm" "$TMP/b-qh.pm" --radius "$R" \
         --threads $t -q -o "$TMP/b-f.pm" --stats "$TMP/stats.json")
-    read -r fc _ _ < <(median_stat gather_cpu_s "$BIN/simd-gather" "$TMP/b-map.pm" "$TMP/b-qh.pm" --radius "$R" \
-        --threads $t -q -o "$TMP/b-f.pm" --stats "$TMP/stats.json")
-    rcmd=("$BIN/reverse-gather" "$TMP/b-map.pm" "$TMP/b-qh.pm" --radius "$R" --threads $t -q -o "$TMP/b-r.pm"
-        --stats "$TMP/stats.json")
-    read -r rg rglo rghi < <(median_stat gather_s "${rcmd[@]}")
-    read -r rb _ _ < <(median_stat build_s "${rcmd[@]}")
-    read -r rs _ _ < <(median_stat search_s "${rcmd[@]}")
-    read -r rc _ _ < <(median_stat search_cpu_s "${rcmd[@]}")
+    { read -r fg fglo fghi; read -r fc _ _; } <<<"$out"
+    out=$(median_stats "gather_s build_s search_s search_cpu_s" "$BIN/reverse-gather" "$TMP/b-map.pm" "$TMP/b-qh.pm" \
+        --radius "$R" --threads $t -q -o "$TMP/b-r.pm" --stats "$TMP/stats.json")
+    { read -r rg rglo rghi; read -r rb _ _; read -r rs _ _; read -r rc _ _; } <<<"$out"
     frows+=$(awk -v t=$t -v fg=$fg -v fl=$fglo -v fh=$fghi -v fc=$fc -v rg=$rg -v rl=$rglo -v rh=$rghi -v rb=$rb \
         -v rs=$rs -v rc=$rc 'BEGIN { printf "| %d | %.3f (%.3f to %.3f) | %.3f | %.3f (%.3f to %.3f) | %.3f | %.3f | %.3f | %.1f |\n",
         t, fg, fl, fh, fc, rg, rl, rh, rb, rs, rc, rg / fg }')
@@ -45,7 +42,7 @@ for t in 1 2; do
 done
 
 # ---- 2. simd-gather against knn-gather at equal error ----
-"$BIN/trace-gather-points" $S --mode direct-vis -q -o "$TMP/b-v0.pm" --direct "$TMP/b-vd.pm"
+"$BIN/trace-gather-points" $S --mode direct-vis --width $size --height $size -q -o "$TMP/b-v0.pm" --direct "$TMP/b-vd.pm"
 "$BIN/hilbert-sort" "$TMP/b-v0.pm" -q -o "$TMP/b-v.pm"
 "$BIN/trace-photons" $S -n $REFP --seed 99 -q -o "$TMP/b-rph.pm"
 "$BIN/build-photonmap" "$TMP/b-rph.pm" -q -o "$TMP/b-rmap.pm"

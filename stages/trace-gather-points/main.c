@@ -87,7 +87,8 @@ typedef struct {
     float *sh_c;           /* shadow ray -> RGB radiance it adds when unblocked, W/(m^2 sr) */
     uint32_t *sec_px;      /* secondary ray -> pixel column */
     float *sec_w;          /* secondary ray -> RGB path weight (f cos / pdf / N / primary) */
-    size_t sh_px_cap, sh_c_cap, sec_px_cap, sec_w_cap; /* elements allocated */
+    float *sec_cos;        /* secondary ray -> cosine at the primary hit (its pdf is cos / pi), for MIS */
+    size_t sh_px_cap, sh_c_cap, sec_px_cap, sec_w_cap, sec_cos_cap; /* elements allocated */
     float *u1, *u2;        /* spp stratified points */
     float *lx, *ly, *lz;   /* their cosine-weighted directions in the local frame */
     uint64_t n_primary, n_secondary, n_shadow, n_queries;
@@ -228,7 +229,8 @@ static pm_result_t scratch_reserve(tgp_scratch_t *sc, size_t nprim, size_t nshad
         !grow((void **)&sc->sh_px, sizeof(uint32_t), &sc->sh_px_cap, nshadow) ||
         !grow((void **)&sc->sh_c, 3 * sizeof(float), &sc->sh_c_cap, nshadow) ||
         !grow((void **)&sc->sec_px, sizeof(uint32_t), &sc->sec_px_cap, nsec) ||
-        !grow((void **)&sc->sec_w, 3 * sizeof(float), &sc->sec_w_cap, nsec))
+        !grow((void **)&sc->sec_w, 3 * sizeof(float), &sc->sec_w_cap, nsec) ||
+        !grow((void **)&sc->sec_cos, sizeof(float), &sc->sec_cos_cap, nsec))
         return pm_error_set(PM_ERR_NOMEM, "out of memory for a row of %zu rays", nprim + nshadow + nsec);
     if (!sc->u1 && spp) {
         sc->u1 = malloc(spp * sizeof(float));
@@ -245,7 +247,7 @@ static pm_result_t scratch_reserve(tgp_scratch_t *sc, size_t nprim, size_t nshad
 static void scratch_free(tgp_scratch_t *sc)
 {
     pm_rays_free(&sc->prim), pm_rays_free(&sc->shadow), pm_rays_free(&sc->sec);
-    free(sc->hit), free(sc->sh_px), free(sc->sh_c), free(sc->sec_px), free(sc->sec_w), free(sc->u1), free(sc->u2);
+    free(sc->hit), free(sc->sh_px), free(sc->sh_c), free(sc->sec_px), free(sc->sec_w), free(sc->sec_cos), free(sc->u1), free(sc->u2);
     free(sc->lx), free(sc->ly), free(sc->lz);
 }
 
@@ -279,6 +281,14 @@ static inline int query_weight(const pm_material_t *m, const float w[3], float o
     for (int k = 0; k < 3; k++)
         out[k] = glossy ? w[k] : w[k] * m->kd[k] * (1.0f / PM_PI);
     return out[0] > 0.0f || out[1] > 0.0f || out[2] > 0.0f;
+}
+
+/* Power heuristic (Veach) for two strategies with n_a p_a and n_b p_b: sample counts times
+ * solid-angle pdfs. Light samples and the secondary rays both find area lights in gather mode. */
+static inline float mis_weight(float a, float b)
+{
+    float d = a * a + b * b;
+    return d > 0.0f ? a * a / d : 0.0f; /* a grazing secondary ray with no light samples: no weight */
 }
 
 /* Direct light and spawned rays of primary ray i (pixel column x); 0 when out of memory. */
@@ -334,6 +344,9 @@ static int shade_primary(const tgp_ctx_t *c, tgp_scratch_t *sc, size_t i, uint32
             continue;
         const pm_material_t *lm = &s->materials[s->tri_material[ls.tri]];
         float f[3], g = ls.cosx * ls.cosy / ls.r2 * (float)c->geom.area / (float)c->light_samples * inv_p;
+        if (c->mode == MODE_GATHER) /* shared with the secondary rays that find the light (MIS) */
+            g *= mis_weight((float)c->light_samples * ls.r2 / (ls.cosy * (float)c->geom.area),
+                            (float)c->spp * ls.cosx * (1.0f / PM_PI));
         pm_brdf(m, n, ls.wi, wo, f);
         size_t j = sc->shadow.n;
         for (int k = 0; k < 3; k++)
@@ -384,6 +397,7 @@ static int shade_primary(const tgp_ctx_t *c, tgp_scratch_t *sc, size_t i, uint32
         }
         float w0 = m->kd[0] * scale, w1 = m->kd[1] * scale, w2 = m->kd[2] * scale, *w = sc->sec_w + 3 * j0;
         uint32_t *px = sc->sec_px + j0;
+        memcpy(sc->sec_cos + j0, lz, nq * sizeof *lz);
         for (unsigned q = 0; q < nq; q++) {
             w[3 * q] = w0, w[3 * q + 1] = w1, w[3 * q + 2] = w2;
             px[q] = x;
@@ -403,6 +417,7 @@ static int shade_primary(const tgp_ctx_t *c, tgp_scratch_t *sc, size_t i, uint32
         if (!(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f))
             continue; /* carries nothing: not traced */
         sc->sec_px[j] = x;
+        sc->sec_cos[j] = sc->lz[q];
         pm_rays_push(&sc->sec, o, wi, 0.0f, INFINITY);
     }
     return 1;
@@ -506,6 +521,15 @@ static pm_result_t trace_row_body(const tgp_ctx_t *c, tgp_scratch_t *sc, uint32_
             n[k] = side * ng[k];
         uint32_t mi = s->tri_material[tri];
         const float *fold = c->fold + 3 * (size_t)mi, *rw = sc->sec_w + 3 * j;
+        /* An emitter's front seen by a secondary ray: direct light of the primary hit, weighted
+         * against the light samples that could have found the same point (MIS, power heuristic). */
+        if (side > 0.0f && pm_material_is_emissive(&s->materials[mi])) {
+            const float *ke = s->materials[mi].ke, cosy = dot3(ng, wo);
+            float wb = mis_weight((float)c->spp * sc->sec_cos[j] * (1.0f / PM_PI),
+                                  (float)c->light_samples * t * t / (cosy * (float)c->geom.area));
+            for (int k = 0; k < 3; k++)
+                direct[3 * sc->sec_px[j] + (uint32_t)k] += (double)(rw[k] * ke[k] * wb);
+        }
         float w[3] = {rw[0] * fold[0], rw[1] * fold[1], rw[2] * fold[2]};
         if (!(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f))
             continue; /* a black query surface */

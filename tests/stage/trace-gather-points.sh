@@ -153,8 +153,8 @@ expect_error "a scene whose render.spp is not a multiple of 4" "render.spp 5 is 
 # with albedo 0.5) the direct buffer is Le + rho Le = 1.5 at every pixel. Light samples alone,
 # uniform by area, have a heavy tail next to a facet's edge (one sample a pixel: RMS 4%, worst
 # pixel 1.43); weighted against the cosine-distributed secondary rays by the power heuristic
-# (of the pdfs, docs/programs/trace-gather-points.md), the RMS must be below 2% and every pixel
-# within 20% (measured: RMS 0.94%, worst 0.83).
+# (docs/programs/trace-gather-points.md), the RMS must be below 2% and every pixel within 20%
+# (measured: RMS 0.24%, worst 0.98).
 source tests/scenes/make-analytic.sh
 make_furnace "$TMP/fu" 1 0.5
 "$T" "$TMP/fu/scene.json" -q --spp 16 --light-samples 1 -o "$TMP/fq.pm" --direct "$TMP/fd.pm" &&

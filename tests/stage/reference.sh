@@ -16,6 +16,18 @@ ref() {
     "$BIN/pm-info" -r "$TMP/$name.q.pm" >"$TMP/$name.q.txt" && "$DUMP" "$TMP/$name.exr" >"$TMP/$name.txt"
 }
 stat() { grep -o "\"$2\": *[-0-9.eE+]*" "$TMP/$1.json" | sed 's/.*: *//'; }
+# means_agree NAME JSON TOL: measure-error's JSON says the test's mean is within TOL (relative)
+# of the reference's.
+means_agree() {
+    local mt mr
+    mt=$(grep -o '"mean_test": *[-0-9.eE+]*' "$2" | sed 's/.*: *//')
+    mr=$(grep -o '"mean_reference": *[-0-9.eE+]*' "$2" | sed 's/.*: *//')
+    if awk -v a="$mt" -v b="$mr" -v t="$3" 'BEGIN { exit !(b > 0 && a / b > 1 - t && a / b < 1 + t) }'; then
+        pass "$1: mean $mt within $3 of the reference's $mr"
+    else
+        fail "$1" "means $mt and $mr (tolerance $3)"
+    fi
+}
 
 # check NAME RENDER TOL awk-options...: the image against the formula (analytic.awk); then,
 # where the estimate is noisy, its RMS deviation against the standard error it reports.
@@ -150,23 +162,11 @@ C=scenes/cornell-box/scene.json
     "$BIN/hilbert-sort" - -q -o - | "$BIN/simd-gather" "$TMP/cmap.pm" - --k 50 -q -o "$TMP/ci.pm" &&
     "$BIN/composite" -q "$TMP/cd.pm" "$TMP/ci.pm" -o "$TMP/cpm.exr" &&
     "$BIN/measure-error" "$TMP/cpm.exr" "$TMP/cref.pm" >"$TMP/cerr.json"
-mt=$(grep -o '"mean_test": *[-0-9.eE+]*' "$TMP/cerr.json" | sed 's/.*: *//')
-mr=$(grep -o '"mean_reference": *[-0-9.eE+]*' "$TMP/cerr.json" | sed 's/.*: *//')
-if awk -v a="$mt" -v b="$mr" 'BEGIN { exit !(b > 0 && a / b > 0.97 && a / b < 1.03) }'; then
-    pass "Cornell box: photon pipeline mean $mt within 3% of the reference's $mr"
-else
-    fail "Cornell box, photon pipeline against reference" "means $mt and $mr"
-fi
+means_agree "Cornell box, photon pipeline against trace-reference" "$TMP/cerr.json" 0.03
 # ... and the gather's part alone, against the reference's indirect component.
 "$R" "$C" -q --width 64 --height 64 --spp 256 --pass 64 --component indirect --radiance "$TMP/crefi.pm" -o "$TMP/crefi.exr" &&
     "$BIN/measure-error" "$TMP/ci.pm" "$TMP/crefi.pm" >"$TMP/cerri.json"
-mt=$(grep -o '"mean_test": *[-0-9.eE+]*' "$TMP/cerri.json" | sed 's/.*: *//')
-mr=$(grep -o '"mean_reference": *[-0-9.eE+]*' "$TMP/cerri.json" | sed 's/.*: *//')
-if awk -v a="$mt" -v b="$mr" 'BEGIN { exit !(b > 0 && a / b > 0.95 && a / b < 1.05) }'; then
-    pass "Cornell box, indirect only: simd-gather mean $mt within 5% of the reference's $mr"
-else
-    fail "Cornell box indirect, simd-gather against reference" "means $mt and $mr"
-fi
+means_agree "Cornell box, indirect only: simd-gather against trace-reference --component indirect" "$TMP/cerri.json" 0.05
 
 # A glossy floor (normalized Phong, Ns 20) in a closed box: the two renderers sample and
 # evaluate the lobe by separate code (trace-photons and simd-gather; trace-reference's BRDF
@@ -178,13 +178,7 @@ GL=tests/scenes/glossy-box/scene.json
     "$BIN/simd-gather" "$TMP/gmap.pm" "$TMP/gq.pm" --k 50 -q -o "$TMP/gi.pm" &&
     "$BIN/composite" -q "$TMP/gd.pm" "$TMP/gi.pm" -o "$TMP/gpm.exr" &&
     "$BIN/measure-error" "$TMP/gpm.exr" "$TMP/gref.pm" >"$TMP/gerr.json"
-mt=$(grep -o '"mean_test": *[-0-9.eE+]*' "$TMP/gerr.json" | sed 's/.*: *//')
-mr=$(grep -o '"mean_reference": *[-0-9.eE+]*' "$TMP/gerr.json" | sed 's/.*: *//')
-if awk -v a="$mt" -v b="$mr" 'BEGIN { exit !(b > 0 && a / b > 0.97 && a / b < 1.03) }'; then
-    pass "glossy box: photon pipeline mean $mt within 3% of the reference's $mr"
-else
-    fail "glossy box, photon pipeline against reference" "means $mt and $mr"
-fi
+means_agree "glossy box, photon pipeline against trace-reference" "$TMP/gerr.json" 0.03
 
 # ---- golden file and determinism ----
 # The Cornell box at 16 x 16, 8 samples, seed 1 (regenerate: bin/trace-reference

@@ -179,3 +179,16 @@ int pm_stage_end(pm_stage_t *st, pm_result_t result)
     pm_args_free(&st->args);
     return pm_result_exit_code(result);
 }
+
+void pm_stage_command_line(const pm_stage_t *st, char *out, size_t cap)
+{
+    size_t at = 0;
+    if (cap)
+        out[0] = '\0';
+    for (int i = 0; i < st->argc && at + 1 < cap; i++) {
+        int n = snprintf(out + at, cap - at, "%s%s", i ? " " : "", st->argv[i]);
+        if (n < 0)
+            break;
+        at += (size_t)n;
+    }
+}

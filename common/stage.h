@@ -15,6 +15,7 @@
 #ifndef PM_STAGE_H
 #define PM_STAGE_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 #include "args.h"
@@ -75,6 +76,9 @@ void pm_stage_stat_int(pm_stage_t *st, const char *key, int64_t v);
 void pm_stage_stat_double(pm_stage_t *st, const char *key, double v);
 void pm_stage_stat_string(pm_stage_t *st, const char *key, const char *v);
 
+/* The command line as given, words joined by spaces and cut to fit cap bytes (an EXR
+ * COMMAND attribute; pmtk files keep it with pm_header_add_command). */
+void pm_stage_command_line(const pm_stage_t *st, char *out, size_t cap);
 /* A note on stderr ("name: ..."), unless --quiet. */
 void pm_stage_note(const pm_stage_t *st, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 

@@ -232,10 +232,8 @@ static pm_result_t run(pm_stage_t *st, const measure_options_t *o)
         pm_stage_stat_double(st, "relmse", e.relmse);
         pm_stage_stat_double(st, "mean_abs_rel", e.mean_abs_rel);
         if (err) {
-            char cmd[1024] = "";
-            size_t len = 0;
-            for (int i = 0; i < st->argc && len < sizeof cmd; i++)
-                len += (size_t)snprintf(cmd + len, sizeof cmd - len, "%s%s", i ? " " : "", st->argv[i]);
+            char cmd[1024];
+            pm_stage_command_line(st, cmd, sizeof cmd);
             const pm_exr_attr_t attrs[] = {{"SOFTWARE", "pmtk " PM_VERSION_STRING},
                                            {"COMMAND.0", cmd},
                                            {"components", o->error_kind == ERRIMG_REL ? "error-rel" : "error-abs"}};

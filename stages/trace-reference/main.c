@@ -360,10 +360,7 @@ static pm_result_t write_outputs(const pm_stage_t *st, const ref_options_t *o, c
     snprintf(samples, sizeof samples, "%" PRIu64, a->n);
     snprintf(seed, sizeof seed, "%" PRIu64, c->seed);
     snprintf(rmse_s, sizeof rmse_s, "%.6g", rmse);
-    size_t at = 0;
-    cmd[0] = '\0';
-    for (int i = 0; i < st->argc && at + 1 < sizeof cmd; i++)
-        at += (size_t)snprintf(cmd + at, sizeof cmd - at, "%s%s", i ? " " : "", st->argv[i]);
+    pm_stage_command_line(st, cmd, sizeof cmd);
     const pm_exr_attr_t attrs[] = {
         {"SOFTWARE", "pmtk " PM_VERSION_STRING}, {"SCENE", id}, {"COMMAND.0", cmd}, {"components", component_names[c->component]},
         {"estimator", "path-tracer"}, {"samples", samples}, {"seed", seed}, {"pixel", pixel_names[c->pixel]},

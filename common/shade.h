@@ -60,6 +60,14 @@ int pm_point_light_toward(const pm_point_light_t *l, const float p[3], const flo
 int pm_area_light_sample(const pm_scene_t *s, const pm_shade_geom_t *g, pm_rng_t *rng, const float p[3],
                          const float n[3], pm_light_sample_t *out);
 
+/* Veach's power heuristic: the weight of strategy a against b, each a sample count times a
+ * solid-angle pdf at one direction; 0 when neither could have produced it. */
+static inline float pm_power_heuristic(float a, float b)
+{
+    float d = a * a + b * b;
+    return d > 0.0f ? a * a / d : 0.0f;
+}
+
 /* The keys every image-shaped output of a scene starts with: this command's COMMAND line, the
  * scene bounds, SCENE (name and content hash), width and height. */
 pm_result_t pm_image_header_begin(pm_header_t *h, int argc, char **argv, const pm_scene_t *s, uint32_t w,

@@ -283,22 +283,6 @@ static inline int query_weight(const pm_material_t *m, const float w[3], float o
     return out[0] > 0.0f || out[1] > 0.0f || out[2] > 0.0f;
 }
 
-/* Power heuristic (Veach) for two strategies, a and b their sample counts times solid-angle
- * pdfs at one direction. Light samples and the secondary rays both find area lights in gather
- * mode. Any weights that sum to one at every direction keep the estimate unbiased; the counts
- * only tune the variance. The secondary rays count as spp / PER_CELL, their stratum cells (the
- * four rays of a cell land close together), not spp: measured on the direct buffer against
- * trace-reference (relative MSE, 128 x 128), counting every ray hands the weight to the rays on
- * the Cornell box, which find its small light far less often than the light samples do (256 spp:
- * 0.0049 by rays, 0.0026 by cells, 0.0029 with no rays counted), and counting none loses on the
- * atrium's large sky (64 spp: 0.033 none, 0.014 cells, 0.011 rays). Without the rays, light
- * samples have unbounded variance next to a light (the 1/r^2 of a sample landing beside the
- * receiver): the atrium's walls touch its sky, and its direct buffer read 2.58. */
-static inline float mis_weight(float a, float b)
-{
-    float d = a * a + b * b;
-    return d > 0.0f ? a * a / d : 0.0f; /* a grazing secondary ray with no light samples: no weight */
-}
 
 /* Direct light and spawned rays of primary ray i (pixel column x); 0 when out of memory. */
 static int shade_primary(const tgp_ctx_t *c, tgp_scratch_t *sc, size_t i, uint32_t x, uint32_t pixel,
@@ -353,8 +337,19 @@ static int shade_primary(const tgp_ctx_t *c, tgp_scratch_t *sc, size_t i, uint32
             continue;
         const pm_material_t *lm = &s->materials[s->tri_material[ls.tri]];
         float f[3], g = ls.cosx * ls.cosy / ls.r2 * (float)c->geom.area / (float)c->light_samples * inv_p;
+        /* MIS of area lights (pm_power_heuristic, common/shade.h): a and b are sample counts times
+         * solid-angle pdfs at one direction. Light samples and the secondary rays both find area
+         * lights in gather mode. Any weights that sum to one at every direction keep the estimate unbiased; the counts
+         * only tune the variance. The secondary rays count as spp / PER_CELL, their stratum cells (the
+         * four rays of a cell land close together), not spp: measured on the direct buffer against
+         * trace-reference (relative MSE, 128 x 128), counting every ray hands the weight to the rays on
+         * the Cornell box, which find its small light far less often than the light samples do (256 spp:
+         * 0.0049 by rays, 0.0026 by cells, 0.0029 with no rays counted), and counting none loses on the
+         * atrium's large sky (64 spp: 0.033 none, 0.014 cells, 0.011 rays). Without the rays, light
+         * samples have unbounded variance next to a light (the 1/r^2 of a sample landing beside the
+         * receiver): the atrium's walls touch its sky, and its direct buffer read 2.58. */
         if (c->mode == MODE_GATHER) /* shared with the secondary rays that find the light (MIS) */
-            g *= mis_weight((float)c->light_samples * ls.r2 / (ls.cosy * (float)c->geom.area),
+            g *= pm_power_heuristic((float)c->light_samples * ls.r2 / (ls.cosy * (float)c->geom.area),
                             (float)(c->spp / PER_CELL) * ls.cosx * (1.0f / PM_PI));
         pm_brdf(m, n, ls.wi, wo, f);
         size_t j = sc->shadow.n;
@@ -534,7 +529,7 @@ static pm_result_t trace_row_body(const tgp_ctx_t *c, tgp_scratch_t *sc, uint32_
          * against the light samples that could have found the same point (MIS, power heuristic). */
         if (side > 0.0f && pm_material_is_emissive(&s->materials[mi])) {
             const float *ke = s->materials[mi].ke, cosy = dot3(ng, wo);
-            float wb = mis_weight((float)(c->spp / PER_CELL) * sc->sec_cos[j] * (1.0f / PM_PI),
+            float wb = pm_power_heuristic((float)(c->spp / PER_CELL) * sc->sec_cos[j] * (1.0f / PM_PI),
                                   (float)c->light_samples * t * t / (cosy * (float)c->geom.area));
             for (int k = 0; k < 3; k++)
                 direct[3 * sc->sec_px[j] + (uint32_t)k] += (double)(rw[k] * ke[k] * wb);

@@ -125,8 +125,6 @@ static int brdf_sample(const pm_material_t *m, const float n[3], const float wo[
     return dot3(n, wi) > 0.0f;
 }
 
-static inline float power_heuristic(float a, float b) { return a * a / (a * a + b * b); }
-
 static inline int occluded(const ref_ctx_t *c, struct RTCIntersectContext *ctx, const float o[3], const float d[3],
                            float tfar)
 {
@@ -186,7 +184,7 @@ static void trace_path(const ref_ctx_t *c, struct RTCIntersectContext *ctx, uint
             float w = 1.0f;
             if (depth > 0) {
                 float pl = t * t / (cos_front * (float)c->geom.area);
-                w = power_heuristic(bsdf_pdf_prev, pl);
+                w = pm_power_heuristic(bsdf_pdf_prev, pl);
             }
             for (int q = 0; q < 3; q++)
                 L[q] += beta[q] * m->ke[q] * w;
@@ -224,7 +222,7 @@ static void trace_path(const ref_ctx_t *c, struct RTCIntersectContext *ctx, uint
                 const pm_material_t *lm = &s->materials[s->tri_material[ls.tri]];
                 float pl = ls.r2 / (ls.cosy * (float)c->geom.area), pb = brdf_pdf(m, n, ls.wi, wo), f[3];
                 pm_brdf(m, n, ls.wi, wo, f);
-                double g = (double)ls.cosx / pl * power_heuristic(pl, pb);
+                double g = (double)ls.cosx / pl * pm_power_heuristic(pl, pb);
                 for (int q = 0; q < 3; q++)
                     L[q] += beta[q] * (double)f[q] * lm->ke[q] * g;
             }

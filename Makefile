@@ -49,12 +49,16 @@ CMOCKA_LIBS := $(shell pkg-config --libs cmocka 2>/dev/null || echo -lcmocka)
 WARN := -Wall -Wextra -Wshadow -Wstrict-prototypes -Wmissing-prototypes -Wpointer-arith -Wformat=2 \
         -Wundef -Wvla -Wno-unused-parameter -Wno-format-truncation
 CFLAGS ?= -O2 -g
-ALL_CFLAGS := -std=c17 -D_GNU_SOURCE $(WARN) $(if $(WERROR),-Werror,) -fopenmp -fno-math-errno \
+# Includes name their layer ("base/error.h", "formats/formats.h"), never a ../ path.
+INCLUDES := -I. -Icommon
+ALL_CFLAGS := -std=c17 -D_GNU_SOURCE $(INCLUDES) $(WARN) $(if $(WERROR),-Werror,) -fopenmp -fno-math-errno \
               $(SAN) $(PKG_CFLAGS) $(EMBREE_CFLAGS) $(CFLAGS)
 ALL_LDFLAGS := -fopenmp $(SAN) $(LDFLAGS)
 LIBS := $(EMBREE_LIBS) $(PKG_LIBS) -lm
 
-LIB_SRC := $(wildcard common/*.c formats/*.c)
+# The library's layers (docs/architecture.md): base, math, formats, then render and photonmap.
+LAYERS := common/base common/math formats common/render common/photonmap
+LIB_SRC := $(foreach d,$(LAYERS),$(wildcard $(d)/*.c))
 LIB_OBJ := $(LIB_SRC:%.c=$(BUILD)/%.o)
 LIB := $(BUILD)/libpmtk.a
 
@@ -168,7 +172,7 @@ fuzz:
 	$(Q)$(MAKE) --no-print-directory BUILD=build/fuzz BIN=build/fuzz/bin CC=clang CFLAGS="-O1 -g" WERROR= \
 	    SAN="-fsanitize=fuzzer-no-link,address,undefined" build/fuzz/libpmtk.a
 	$(Q)for t in $(FUZZ_TARGETS); do \
-	    clang -std=c17 -D_GNU_SOURCE -O1 -g -fsanitize=fuzzer,address,undefined -fopenmp -pthread $(PKG_CFLAGS) \
+	    clang -std=c17 -D_GNU_SOURCE $(INCLUDES) -O1 -g -fsanitize=fuzzer,address,undefined -fopenmp -pthread $(PKG_CFLAGS) \
 	        tests/fuzz/$$t.c build/fuzz/libpmtk.a $(LIBS) -o build/fuzz/$$t || exit 1; \
 	    echo "  FUZZ    $$t ($${FUZZ_SECONDS:-60} s)"; \
 	    mkdir -p build/fuzz/corpus-$$t; \

@@ -1,5 +1,5 @@
 /* formats.c: the registry of every format pmtk reads, for pm-info and pm_schema_find. */
-#include "formats.h"
+#include "formats/formats.h"
 
 static const pm_schema_t *const all_schemas[] = {
     &pm_photons_schema, &pm_photonmap_schema, &pm_queries_schema, &pm_radiance_schema, NULL,

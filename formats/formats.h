@@ -13,8 +13,8 @@
 #include <stdint.h>
 #include <string.h>
 
-#include "../common/material.h"
-#include "pmfile.h"
+#include "formats/material.h"
+#include "formats/pmfile.h"
 
 /* ---- photons ---- */
 enum {

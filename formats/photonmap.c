@@ -9,7 +9,7 @@
 #include <math.h>
 #include <stdlib.h>
 
-#include "formats.h"
+#include "formats/formats.h"
 
 static const pm_channel_t map_channels[] = {
     {"node", PM_TYPE_U32, 2, PM_CH_REQUIRED, "1",

@@ -1,7 +1,7 @@
 /* photons.c: the photons format, written by trace-photons and read by build-photonmap.
  * One record per photon stored at a diffuse hit, first hits included and marked by
  * depth 0, so one file serves both a global and an indirect-only map. */
-#include "formats.h"
+#include "formats/formats.h"
 
 static const pm_channel_t photon_channels[] = {
     {"position", PM_TYPE_F32, 3, PM_CH_REQUIRED | PM_CH_FINITE, "m", "where the photon landed"},

@@ -1,6 +1,6 @@
 /* pmfile.c: reader and writer of the pmtk container (see pmfile.h, docs/formats.md). */
 #define _POSIX_C_SOURCE 200809L
-#include "pmfile.h"
+#include "formats/pmfile.h"
 
 #include <errno.h>
 #include <inttypes.h>
@@ -17,10 +17,10 @@
 #include <xxh_x86dispatch.h>
 #endif
 
-#include "../common/args.h"
-#include "../common/atomic.h"
-#include "../common/memory.h"
-#include "../common/version.h"
+#include "base/args.h"
+#include "base/atomic.h"
+#include "base/memory.h"
+#include "base/version.h"
 
 _Static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "pmtk files are little-endian; port the codecs");
 _Static_assert(sizeof(float) == 4 && sizeof(double) == 8, "IEEE binary32 and binary64 expected");

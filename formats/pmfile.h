@@ -15,7 +15,7 @@
 #include <stdint.h>
 #include <stdio.h>
 
-#include "../common/error.h"
+#include "base/error.h"
 
 #define PM_MAGIC "#?PMTK"
 #define PM_MAX_CHANNELS 16

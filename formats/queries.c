@@ -5,7 +5,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 
-#include "formats.h"
+#include "formats/formats.h"
 
 static const pm_channel_t query_channels[] = {
     {"position", PM_TYPE_F32, 3, PM_CH_REQUIRED | PM_CH_FINITE, "m", "where the radiance estimate is made"},

@@ -5,7 +5,7 @@
  * trace-reference writes it so that a reference says how wrong it is. */
 #include <inttypes.h>
 
-#include "formats.h"
+#include "formats/formats.h"
 
 static const pm_channel_t radiance_channels[] = {
     {"rgb", PM_TYPE_F64, 3, PM_CH_REQUIRED | PM_CH_NONNEG, "W/(m^2 sr)", "RGB radiance toward the camera"},

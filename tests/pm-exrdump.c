@@ -1,4 +1,4 @@
-/* pm-exrdump: reads an OpenEXR image back through common/exr.c (the OpenEXR C API) and prints
+/* pm-exrdump: reads an OpenEXR image back through common/base/exr.c (the OpenEXR C API) and prints
  * it as text, for the stage tests of composite:
  *
  *   pm-exrdump FILE            "size W H", then one line per pixel: "x y r g b" (%.9g)
@@ -9,7 +9,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 
-#include "../common/exr.h"
+#include "base/exr.h"
 
 int main(int argc, char **argv)
 {

@@ -14,8 +14,8 @@
 #include <string.h>
 #include <xxhash.h>
 
-#include "../common/rng.h"
-#include "../formats/formats.h"
+#include "math/rng.h"
+#include "formats/formats.h"
 
 static void unit_vector(pm_rng_t *r, float *v)
 {

@@ -1,6 +1,6 @@
 /* build-photonmap: photons file -> photon map (the paper, section 5.2).
  *
- * Builds the KD-tree with one photon per node on the node's split plane (common/kdtree.c)
+ * Builds the KD-tree with one photon per node on the node's split plane (common/photonmap/kdtree.c)
  * and writes it in depth-first node order: the 8-byte nodes and positions are the hot
  * channels a gather reads on every visit, power and normal the cold ones read only when a
  * photon is shaded, and direction only when the photons file has it (scenes with glossy
@@ -12,11 +12,11 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../common/gather.h"
-#include "../../common/kdtree.h"
-#include "../../common/memory.h"
-#include "../../common/stage.h"
-#include "../../formats/formats.h"
+#include "photonmap/gather.h"
+#include "photonmap/kdtree.h"
+#include "base/memory.h"
+#include "base/stage.h"
+#include "formats/formats.h"
 
 static const char *const map_kinds[] = {"global", "indirect", NULL};
 static const char *const split_kinds[] = {"median", "vvh", NULL};

@@ -15,12 +15,12 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../common/exr.h"
-#include "../../common/image.h"
-#include "../../common/memory.h"
-#include "../../common/stage.h"
-#include "../../common/version.h"
-#include "../../formats/formats.h"
+#include "base/exr.h"
+#include "base/image.h"
+#include "base/memory.h"
+#include "base/stage.h"
+#include "base/version.h"
+#include "formats/formats.h"
 
 #define CHUNK_PIXELS 65536 /* records read at a time: 1.5 MB of f64 RGB */
 

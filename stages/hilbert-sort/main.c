@@ -4,7 +4,7 @@
  *
  *   trace-gather-points -> hilbert-sort -> simd-gather
  *
- * Reads a queries file (or stdin) whole, computes the order with common/hilbert.c (an octree
+ * Reads a queries file (or stdin) whole, computes the order with common/photonmap/hilbert.c (an octree
  * visited in curve order, stopping at cells of --leaf points), and writes the same records,
  * byte for byte, in that order (to a file or stdout). Memory: one copy of the records plus
  * 20 bytes per point of sort words and permutation. */
@@ -13,10 +13,10 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "../../common/hilbert.h"
-#include "../../common/memory.h"
-#include "../../common/stage.h"
-#include "../../formats/formats.h"
+#include "photonmap/hilbert.h"
+#include "base/memory.h"
+#include "base/stage.h"
+#include "formats/formats.h"
 
 /* Records per output chunk: 3.5 MB at 54 bytes. One thread writes a chunk (value checks,
  * checksum, write) while the others gather the next, so the gather's cache misses (the input

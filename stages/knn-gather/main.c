@@ -6,14 +6,14 @@
  * the distance of the k-th. Same inputs, refusals, weight contract and output as
  * simd-gather, so the two swap in a pipeline and their images compare directly. Queries
  * are independent and added to pixels in file order: the buffer is the same for any
- * thread count. common/knn_gather.c does the work. */
+ * thread count. common/photonmap/knn_gather.c does the work. */
 #include <inttypes.h>
 #include <stdlib.h>
 
-#include "../../common/gather_stage.h"
-#include "../../common/knn_gather.h"
-#include "../../common/stage.h"
-#include "../../common/timer.h"
+#include "photonmap/gather_stage.h"
+#include "photonmap/knn_gather.h"
+#include "base/stage.h"
+#include "base/timer.h"
 
 
 typedef struct {

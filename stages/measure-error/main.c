@@ -22,10 +22,10 @@
 
 #include <jansson.h>
 
-#include "../../common/exr.h"
-#include "../../common/stage.h"
-#include "../../common/version.h"
-#include "../../formats/formats.h"
+#include "base/exr.h"
+#include "base/stage.h"
+#include "base/version.h"
+#include "formats/formats.h"
 
 enum { ERRIMG_ABS = 0, ERRIMG_REL = 1 };
 static const char *const errimg_names[] = {"abs", "rel", NULL};

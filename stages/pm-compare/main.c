@@ -10,8 +10,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../common/stage.h"
-#include "../../formats/formats.h"
+#include "base/stage.h"
+#include "formats/formats.h"
 
 typedef struct {
     double max_abs, max_rel, rms;

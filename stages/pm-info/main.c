@@ -7,8 +7,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../common/stage.h"
-#include "../../formats/formats.h"
+#include "base/stage.h"
+#include "formats/formats.h"
 
 typedef struct {
     int records;        /* print records as text */

@@ -7,15 +7,15 @@
  * simd-gather, so the two give the same buffer within float rounding. Same inputs,
  * refusals, weight contract, kernel width from --k and output as simd-gather. The tree is
  * cut into subtrees by depth, never by thread count, and each query sums its photons in
- * photon order, so the buffer is bit-identical for any --threads. common/reverse_gather.c
+ * photon order, so the buffer is bit-identical for any --threads. common/photonmap/reverse_gather.c
  * does the work. */
 #include <inttypes.h>
 #include <stdlib.h>
 
-#include "../../common/gather_stage.h"
-#include "../../common/reverse_gather.h"
-#include "../../common/stage.h"
-#include "../../common/timer.h"
+#include "photonmap/gather_stage.h"
+#include "photonmap/reverse_gather.h"
+#include "base/stage.h"
+#include "base/timer.h"
 
 
 typedef struct {

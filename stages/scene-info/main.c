@@ -9,9 +9,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../common/image.h"
-#include "../../common/rt.h"
-#include "../../common/stage.h"
+#include "base/image.h"
+#include "render/rt.h"
+#include "base/stage.h"
 
 typedef struct {
     int probe;

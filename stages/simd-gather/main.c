@@ -6,16 +6,16 @@
  * queries (W = 16, 8, 4 or 1 by --isa) walk the KD-tree together; hilbert-sort is what
  * makes consecutive queries close, so that the lanes of a packet stay live together. The
  * sums per query are in double, and queries are added to pixels in file order, so the
- * buffer is the same for any thread count. common/gather.c does the work. */
+ * buffer is the same for any thread count. common/photonmap/gather.c does the work. */
 #include <inttypes.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../common/gather.h"
-#include "../../common/gather_stage.h"
-#include "../../common/stage.h"
-#include "../../formats/formats.h"
+#include "photonmap/gather.h"
+#include "photonmap/gather_stage.h"
+#include "base/stage.h"
+#include "formats/formats.h"
 
 static const char *const width_names[] = {"fixed", "variable", NULL};
 

@@ -26,16 +26,16 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "../../common/cpu.h"
-#include "../../common/memory.h"
-#include "../../common/packet.h"
-#include "../../common/rng.h"
-#include "../../common/rt.h"
-#include "../../common/sampling.h"
-#include "../../common/shade.h"
-#include "../../common/stage.h"
-#include "../../common/strata.h"
-#include "../../formats/formats.h"
+#include "base/cpu.h"
+#include "base/memory.h"
+#include "render/packet.h"
+#include "math/rng.h"
+#include "render/rt.h"
+#include "math/sampling.h"
+#include "render/shade.h"
+#include "base/stage.h"
+#include "math/strata.h"
+#include "formats/formats.h"
 
 #define BAND_ROWS 32                      /* rows traced in parallel before their records are emitted */
 #define PER_CELL 4                        /* samples per stratum cell: the paper's four */
@@ -337,7 +337,7 @@ static int shade_primary(const tgp_ctx_t *c, tgp_scratch_t *sc, size_t i, uint32
             continue;
         const pm_material_t *lm = &s->materials[s->tri_material[ls.tri]];
         float f[3], g = ls.cosx * ls.cosy / ls.r2 * (float)c->geom.area / (float)c->light_samples * inv_p;
-        /* MIS of area lights (pm_power_heuristic, common/shade.h): a and b are sample counts times
+        /* MIS of area lights (pm_power_heuristic, common/render/shade.h): a and b are sample counts times
          * solid-angle pdfs at one direction. Light samples and the secondary rays both find area
          * lights in gather mode. Any weights that sum to one at every direction keep the estimate unbiased; the counts
          * only tune the variance. The secondary rays count as spp / PER_CELL, their stratum cells (the
@@ -640,7 +640,7 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
     }
     sp.dir = dir;
     sp.mem_max = (size_t)o->spool_mb << 20;
-    sp.chunk_bytes = (size_t)c.record_size << 17; /* whole records, >= 4 MiB: huge pages (common/memory.h) */
+    sp.chunk_bytes = (size_t)c.record_size << 17; /* whole records, >= 4 MiB: huge pages (common/base/memory.h) */
     if (r == PM_OK && (!scr || !direct))
         r = pm_error_set(PM_ERR_NOMEM, "out of memory for a %" PRIu32 "x%" PRIu32 " direct buffer", c.w, c.h);
 

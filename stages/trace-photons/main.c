@@ -4,17 +4,17 @@
  * single Embree rays (packets would bias which photons travel together; the paper keeps
  * single rays for that reason) and writes every photon stored at a reflecting surface,
  * first hits included with depth 0, in watts. The direction channel is written only for
- * scenes with glossy materials, where the gather needs it. common/photontrace.c does the
+ * scenes with glossy materials, where the gather needs it. common/render/photontrace.c does the
  * work; this main reads options, loads the scene and writes the file. */
 #include <inttypes.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 
-#include "../../common/photontrace.h"
-#include "../../common/rt.h"
-#include "../../common/stage.h"
-#include "../../formats/formats.h"
+#include "render/photontrace.h"
+#include "render/rt.h"
+#include "base/stage.h"
+#include "formats/formats.h"
 
 typedef struct {
     int64_t photons;     /* 0: the scene's render.photons */

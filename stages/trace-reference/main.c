@@ -1,5 +1,5 @@
 /* trace-reference: ground truth for the photon pipeline. An unbiased path tracer over the same
- * scene model as trace-photons and trace-gather-points (common/shade.h: camera, BRDF, front-face
+ * scene model as trace-photons and trace-gather-points (common/render/shade.h: camera, BRDF, front-face
  * emitters; point lights in W/sr, Ke in W/(m^2 sr)), so that measure-error can say how wrong a
  * photon-mapped image is.
  *
@@ -24,15 +24,15 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../common/cpu.h"
-#include "../../common/exr.h"
-#include "../../common/rng.h"
-#include "../../common/rt.h"
-#include "../../common/sampling.h"
-#include "../../common/shade.h"
-#include "../../common/stage.h"
-#include "../../common/version.h"
-#include "../../formats/formats.h"
+#include "base/cpu.h"
+#include "base/exr.h"
+#include "math/rng.h"
+#include "render/rt.h"
+#include "math/sampling.h"
+#include "render/shade.h"
+#include "base/stage.h"
+#include "base/version.h"
+#include "formats/formats.h"
 
 enum { PIXEL_CENTER = 0, PIXEL_BOX = 1 };
 static const char *const pixel_names[] = {"center", "box", NULL};

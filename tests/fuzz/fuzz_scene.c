@@ -4,7 +4,7 @@
 #include <stdio.h>
 #include <unistd.h>
 
-#include "../../common/scene.h"
+#include "render/scene.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

@@ -1,5 +1,5 @@
 # composite.sh: radiance buffers into OpenEXR and PNG. The EXR is read back two ways: pixel
-# values through the OpenEXR C API (build/tests/pm-exrdump, common/exr.c's reader), channels
+# values through the OpenEXR C API (build/tests/pm-exrdump, common/base/exr.c's reader), channels
 # and attributes through OpenEXR's own exrheader. No timing here.
 G=tests/golden
 C=$BIN/composite

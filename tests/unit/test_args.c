@@ -2,7 +2,7 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "../../common/args.h"
+#include "base/args.h"
 #include "unit.h"
 
 typedef struct {

@@ -2,10 +2,10 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "../../common/cpu.h"
-#include "../../common/error.h"
-#include "../../common/hash.h"
-#include "../../common/threads.h"
+#include "base/cpu.h"
+#include "base/error.h"
+#include "base/hash.h"
+#include "base/threads.h"
 #include "unit.h"
 
 static void test_common_isa(void **state)

@@ -1,4 +1,4 @@
-/* test_exr.c: OpenEXR output (common/exr.c) read back through the OpenEXR C API: float exactly,
+/* test_exr.c: OpenEXR output (common/base/exr.c) read back through the OpenEXR C API: float exactly,
  * half to its rounding, odd sizes across chunk boundaries, string attributes, and the refusals
  * (stdout, a value that is not finite or too large for half, an unwritable directory). */
 #include <math.h>
@@ -7,7 +7,7 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "../../common/exr.h"
+#include "base/exr.h"
 #include "unit.h"
 
 static float *ramp(uint32_t w, uint32_t h)
@@ -74,7 +74,7 @@ static void test_exr_refusals(void **state)
     assert_int_equal(access(path, F_OK), -1); /* nothing left behind */
     assert_int_equal(pm_exr_write_rgb(path, 1, 1, px, PM_EXR_FLOAT, PM_EXR_ZIP, NULL, 0), PM_OK);
     assert_int_equal(pm_exr_write_rgb("-", 1, 1, px, PM_EXR_FLOAT, PM_EXR_ZIP, NULL, 0), PM_ERR_USAGE);
-    /* a missing directory is the user's input (common/atomic.c's class) */
+    /* a missing directory is the user's input (common/base/atomic.c's class) */
     assert_int_equal(pm_exr_write_rgb("/nonexistent-dir/x.exr", 1, 1, px, PM_EXR_FLOAT, PM_EXR_ZIP, NULL, 0),
                      PM_ERR_INPUT);
     uint32_t w, h;

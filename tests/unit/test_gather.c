@@ -1,4 +1,4 @@
-/* test_gather.c: the packet gather (common/gather.c) against the O(n m) reference for
+/* test_gather.c: the packet gather (common/photonmap/gather.c) against the O(n m) reference for
  * every ISA this CPU runs, both kernels, fixed and variable widths, glossy materials; a
  * uniform photon density gives the exact irradiance; edge cases of the walk. The baselines
  * (group "baselines"): knn-gather against a brute-force k nearest neighbours in double, and
@@ -8,11 +8,11 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../common/gather.h"
-#include "../../common/kdtree.h"
-#include "../../common/knn_gather.h"
-#include "../../common/reverse_gather.h"
-#include "../../common/rng.h"
+#include "photonmap/gather.h"
+#include "photonmap/kdtree.h"
+#include "photonmap/knn_gather.h"
+#include "photonmap/reverse_gather.h"
+#include "math/rng.h"
 #include "unit.h"
 
 typedef struct {

@@ -1,4 +1,4 @@
-/* test_hilbert.c: the Hilbert curve's L-system table (common/hilbert.c) and the reorder.
+/* test_hilbert.c: the Hilbert curve's L-system table (common/photonmap/hilbert.c) and the reorder.
  *
  * The table is checked three ways: its rows are permutations and every state is reachable;
  * the curve it draws at levels 1 to 5 visits every cell once, consecutive cells sharing a
@@ -11,8 +11,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../common/hilbert.h"
-#include "../../common/rng.h"
+#include "photonmap/hilbert.h"
+#include "math/rng.h"
 #include "unit.h"
 
 #define S PM_HILBERT_STATES

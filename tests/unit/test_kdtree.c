@@ -1,4 +1,4 @@
-/* test_kdtree.c: the photon KD-tree build and searches (common/kdtree.c).
+/* test_kdtree.c: the photon KD-tree build and searches (common/photonmap/kdtree.c).
  *
  * Every tree is checked by an invariant walk written here, independent of the photon-map
  * reader's: node i holds input photon perm[i] and perm is a permutation; every photon of a
@@ -11,8 +11,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../common/kdtree.h"
-#include "../../common/rng.h"
+#include "photonmap/kdtree.h"
+#include "math/rng.h"
 #include "unit.h"
 
 typedef struct {

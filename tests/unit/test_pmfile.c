@@ -7,9 +7,9 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "../../common/rng.h"
-#include "../../formats/formats.h"
-#include "../../common/kdtree.h"
+#include "math/rng.h"
+#include "formats/formats.h"
+#include "photonmap/kdtree.h"
 #include "unit.h"
 
 static void tmp_path(char *out, size_t cap, const char *name) { snprintf(out, cap, "%s/%s", unit_tmpdir(), name); }

@@ -2,7 +2,7 @@
  * kat_vectors), and the stream properties the stages rely on. */
 #include <math.h>
 
-#include "../../common/rng.h"
+#include "math/rng.h"
 #include "unit.h"
 
 static void test_rng_known_answers(void **state)

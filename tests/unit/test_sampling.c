@@ -1,8 +1,8 @@
 /* test_sampling.c: the warps produce the distributions they claim. */
 #include <math.h>
 
-#include "../../common/rng.h"
-#include "../../common/sampling.h"
+#include "math/rng.h"
+#include "math/sampling.h"
 #include "unit.h"
 
 static void test_sampling_cosine_hemisphere(void **state)

@@ -4,8 +4,8 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "../../common/rt.h"
-#include "../../common/scene.h"
+#include "render/rt.h"
+#include "render/scene.h"
 #include "unit.h"
 
 static void write_file(const char *name, const char *text, char *path_out, size_t cap)

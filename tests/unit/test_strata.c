@@ -2,8 +2,8 @@
 #include <math.h>
 #include <stdlib.h>
 
-#include "../../common/sampling.h"
-#include "../../common/strata.h"
+#include "math/sampling.h"
+#include "math/strata.h"
 #include "unit.h"
 
 static void test_strata_grid_shapes(void **state)

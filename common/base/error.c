@@ -1,0 +1,64 @@
+/* error.c: the thread-local error message behind pm_error_set. */
+#include "base/error.h"
+
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+
+#define PM_ERROR_MAX 1024 /* bytes; messages are one line, longer ones are cut */
+
+static _Thread_local char pm_error_buf[PM_ERROR_MAX];
+
+static void pm_error_sanitize(char *s)
+{
+    /* One line, always: a path or a value with a newline must not split the message. */
+    for (; *s; s++)
+        if (*s == '\n' || *s == '\r')
+            *s = ' ';
+}
+
+pm_result_t pm_error_set(pm_result_t code, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(pm_error_buf, sizeof pm_error_buf, fmt, ap);
+    va_end(ap);
+    pm_error_sanitize(pm_error_buf);
+    return code;
+}
+
+const char *pm_error_message(void) { return pm_error_buf; }
+
+void pm_error_prefix(const char *fmt, ...)
+{
+    char prefix[PM_ERROR_MAX], old[PM_ERROR_MAX];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(prefix, sizeof prefix, fmt, ap);
+    va_end(ap);
+    memcpy(old, pm_error_buf, sizeof old);
+    /* Cut the prefix first so the message it introduces keeps as much as it can. */
+    int n = (int)strnlen(prefix, PM_ERROR_MAX / 2);
+    snprintf(pm_error_buf, sizeof pm_error_buf, "%.*s: %.*s", n, prefix, PM_ERROR_MAX - n - 3, old);
+    pm_error_sanitize(pm_error_buf);
+}
+
+const char *pm_result_string(pm_result_t code)
+{
+    switch (code) {
+    case PM_OK: return "ok";
+    case PM_ERR_USAGE: return "usage";
+    case PM_ERR_INPUT: return "input";
+    case PM_ERR_IO: return "io";
+    case PM_ERR_NOMEM: return "nomem";
+    case PM_ERR_INTERNAL: return "internal";
+    default: return "unknown";
+    }
+}
+
+int pm_result_exit_code(pm_result_t code)
+{
+    if (code == PM_OK)
+        return 0;
+    return code == PM_ERR_USAGE ? 2 : 1;
+}

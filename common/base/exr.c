@@ -1,0 +1,288 @@
+/* exr.c: OpenEXR output and read-back through the OpenEXR 3 C API (see exr.h).
+ *
+ * Writing follows the Core API's steps: start a write context on a temporary path, define
+ * one scanline part (required attributes, channels, string attributes), write the header,
+ * then encode chunk after chunk (16 scanlines for ZIP, 32 for PIZ, 1 uncompressed) from the
+ * caller's interleaved buffer through strides, and finish. OpenEXR's own messages go through
+ * an error handler into a thread-local buffer, so a failure is one pmtk message naming the
+ * file and OpenEXR's words. */
+#include "base/exr.h"
+
+#include <math.h>
+#include <openexr.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/atomic.h"
+
+/* The last message OpenEXR reported on this thread (contexts are used by one thread). */
+static _Thread_local char exr_msg[512];
+
+static void exr_error_handler(exr_const_context_t ctxt, exr_result_t code, const char *msg)
+{
+    (void)ctxt;
+    snprintf(exr_msg, sizeof exr_msg, "%s (%s)", msg ? msg : "", exr_get_error_code_as_string(code));
+}
+
+/* A pmtk error for OpenEXR result rv while doing what to path. */
+static pm_result_t exr_fail(exr_result_t rv, const char *what, const char *path)
+{
+    const char *detail = exr_msg[0] ? exr_msg : exr_get_default_error_message(rv);
+    pm_result_t code = rv == EXR_ERR_OUT_OF_MEMORY ? PM_ERR_NOMEM
+                       : (rv == EXR_ERR_FILE_ACCESS || rv == EXR_ERR_WRITE_IO || rv == EXR_ERR_READ_IO)
+                           ? PM_ERR_IO
+                           : PM_ERR_INPUT;
+    return pm_error_set(code, "cannot %s OpenEXR image '%s': %s", what, path, detail);
+}
+
+static exr_context_initializer_t exr_init(void)
+{
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.error_handler_fn = exr_error_handler;
+    exr_msg[0] = '\0';
+    return init;
+}
+
+/* Converts rows [y0, y0 + lines) of the caller's float RGB into the file's pixel type, one
+ * plane per channel (planar data needs no strides the encoder might misread). */
+static void pack_rows(const float *rgb, uint32_t w, uint32_t y0, int32_t lines, pm_exr_pixel_t type, void *planes[3])
+{
+    size_t n = (size_t)w * (size_t)lines, base = (size_t)y0 * w;
+    for (int c = 0; c < 3; c++) {
+        if (type == PM_EXR_HALF) {
+            _Float16 *p = planes[c];
+            for (size_t i = 0; i < n; i++)
+                p[i] = (_Float16)rgb[3 * (base + i) + (size_t)c];
+        } else {
+            float *p = planes[c];
+            for (size_t i = 0; i < n; i++)
+                p[i] = rgb[3 * (base + i) + (size_t)c];
+        }
+    }
+}
+
+pm_result_t pm_exr_write_rgb(const char *path, uint32_t w, uint32_t h, const float *rgb, pm_exr_pixel_t type,
+                             pm_exr_compression_t comp, const pm_exr_attr_t *attrs, size_t nattrs)
+{
+    if (!path || !strcmp(path, "-"))
+        return pm_error_set(PM_ERR_USAGE, "OpenEXR needs a seekable file, not stdout");
+    if (w < 1 || h < 1 || w > INT32_MAX / 2 || h > INT32_MAX / 2)
+        return pm_error_set(PM_ERR_INTERNAL, "OpenEXR image '%s': size %ux%u out of range", path, w, h);
+    /* The contract: the caller has checked every value; a bad one here is a bug upstream. */
+    float lim = type == PM_EXR_HALF ? PM_EXR_HALF_MAX : 3.4028235e38f;
+    for (size_t i = 0; i < (size_t)3 * w * h; i++)
+        if (!(fabsf(rgb[i]) <= lim))
+            return pm_error_set(PM_ERR_INTERNAL, "refusing to write OpenEXR image '%s': pixel %zu channel %zu is %g",
+                                path, i / 3, i % 3, (double)rgb[i]);
+
+    pm_atomic_t tmp;
+    pm_result_t r = pm_atomic_reserve(path, &tmp);
+    if (r != PM_OK)
+        return r;
+    exr_context_initializer_t init = exr_init();
+    exr_context_t ctx = NULL;
+    exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
+    int enc_live = 0, part = 0;
+    void *planes[3] = {NULL, NULL, NULL};
+    static const exr_compression_t comps[] = {EXR_COMPRESSION_ZIP, EXR_COMPRESSION_NONE, EXR_COMPRESSION_PIZ};
+    exr_pixel_type_t ptype = type == PM_EXR_HALF ? EXR_PIXEL_HALF : EXR_PIXEL_FLOAT;
+    size_t esize = type == PM_EXR_HALF ? 2 : 4;
+
+    exr_result_t rv = exr_start_write(&ctx, tmp.tmp_path, EXR_WRITE_FILE_DIRECTLY, &init);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_add_part(ctx, "rgb", EXR_STORAGE_SCANLINE, &part);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_initialize_required_attr_simple(ctx, part, (int32_t)w, (int32_t)h, comps[comp]);
+    /* Colour channels are perceptually logarithmic (the hint lossy codecs read). */
+    for (int c = 0; c < 3 && rv == EXR_ERR_SUCCESS; c++)
+        rv = exr_add_channel(ctx, part, (const char *[]){"R", "G", "B"}[c], ptype, EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1);
+    for (size_t i = 0; i < nattrs && rv == EXR_ERR_SUCCESS; i++)
+        rv = exr_attr_set_string(ctx, part, attrs[i].name, attrs[i].value);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_write_header(ctx);
+    int32_t lines = 1;
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_get_scanlines_per_chunk(ctx, part, &lines);
+    if (rv != EXR_ERR_SUCCESS) {
+        r = exr_fail(rv, "write", path);
+        goto done;
+    }
+    for (int c = 0; c < 3; c++)
+        if (!(planes[c] = malloc((size_t)w * (size_t)lines * esize))) {
+            r = pm_error_set(PM_ERR_NOMEM, "out of memory writing OpenEXR image '%s'", path);
+            goto done;
+        }
+    for (uint32_t y = 0; y < h && rv == EXR_ERR_SUCCESS; y += (uint32_t)lines) {
+        exr_chunk_info_t ci;
+        rv = exr_write_scanline_chunk_info(ctx, part, (int)y, &ci);
+        if (rv != EXR_ERR_SUCCESS)
+            break;
+        rv = enc_live ? exr_encoding_update(ctx, part, &ci, &enc) : exr_encoding_initialize(ctx, part, &ci, &enc);
+        if (rv != EXR_ERR_SUCCESS)
+            break;
+        enc_live = 1;
+        pack_rows(rgb, w, y, ci.height, type, planes);
+        for (int k = 0; k < enc.channel_count; k++) {
+            exr_coding_channel_info_t *ch = &enc.channels[k];
+            int c = ch->channel_name[0] == 'R' ? 0 : ch->channel_name[0] == 'G' ? 1 : 2;
+            ch->user_bytes_per_element = (int16_t)esize;
+            ch->user_data_type = (uint16_t)ptype;
+            ch->user_pixel_stride = (int32_t)esize;
+            ch->user_line_stride = (int32_t)(esize * w);
+            ch->encode_from_ptr = planes[c];
+        }
+        if (y == 0)
+            rv = exr_encoding_choose_default_routines(ctx, part, &enc);
+        if (rv == EXR_ERR_SUCCESS)
+            rv = exr_encoding_run(ctx, part, &enc);
+    }
+    if (enc_live) {
+        exr_result_t rv2 = exr_encoding_destroy(ctx, &enc);
+        if (rv == EXR_ERR_SUCCESS)
+            rv = rv2;
+        enc_live = 0;
+    }
+    if (rv != EXR_ERR_SUCCESS) {
+        r = exr_fail(rv, "write", path);
+        goto done;
+    }
+    rv = exr_finish(&ctx); /* writes the chunk offset table and closes the file */
+    ctx = NULL;
+    if (rv != EXR_ERR_SUCCESS) {
+        r = exr_fail(rv, "finish", path);
+        goto done;
+    }
+    r = pm_atomic_commit(&tmp);
+done:
+    if (enc_live)
+        exr_encoding_destroy(ctx, &enc);
+    if (ctx)
+        exr_finish(&ctx);
+    for (int c = 0; c < 3; c++)
+        free(planes[c]);
+    if (r != PM_OK)
+        pm_atomic_abort(&tmp);
+    return r;
+}
+
+pm_result_t pm_exr_read_rgb(const char *path, uint32_t *w_out, uint32_t *h_out, float **rgb_out)
+{
+    *rgb_out = NULL;
+    *w_out = *h_out = 0;
+    exr_context_initializer_t init = exr_init();
+    exr_context_t ctx = NULL;
+    exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
+    int dec_live = 0;
+    float *rgb = NULL, *planes[3] = {NULL, NULL, NULL};
+    pm_result_t r = PM_OK;
+    exr_attr_box2i_t dw;
+    exr_storage_t storage;
+    int32_t lines = 1;
+    exr_result_t rv = exr_start_read(&ctx, path, &init);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_get_storage(ctx, 0, &storage);
+    if (rv == EXR_ERR_SUCCESS && storage != EXR_STORAGE_SCANLINE) {
+        r = pm_error_set(PM_ERR_INPUT, "OpenEXR image '%s' is not a scanline image; pmtk reads only those", path);
+        goto done;
+    }
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_get_data_window(ctx, 0, &dw);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_get_scanlines_per_chunk(ctx, 0, &lines);
+    if (rv != EXR_ERR_SUCCESS) {
+        r = exr_fail(rv, "read", path);
+        goto done;
+    }
+    int64_t w = (int64_t)dw.max.x - dw.min.x + 1, h = (int64_t)dw.max.y - dw.min.y + 1;
+    if (w < 1 || h < 1 || w * h > (int64_t)1 << 31) {
+        r = pm_error_set(PM_ERR_INPUT, "OpenEXR image '%s': data window of %lldx%lld pixels", path, (long long)w,
+                         (long long)h);
+        goto done;
+    }
+    rgb = malloc((size_t)(3 * w * h) * sizeof *rgb);
+    for (int c = 0; c < 3; c++)
+        planes[c] = malloc((size_t)(w * lines) * sizeof(float));
+    if (!rgb || !planes[0] || !planes[1] || !planes[2]) {
+        r = pm_error_set(PM_ERR_NOMEM, "out of memory reading OpenEXR image '%s'", path);
+        goto done;
+    }
+    for (int64_t y = dw.min.y; y <= dw.max.y && rv == EXR_ERR_SUCCESS; y += lines) {
+        exr_chunk_info_t ci;
+        rv = exr_read_scanline_chunk_info(ctx, 0, (int)y, &ci);
+        if (rv != EXR_ERR_SUCCESS)
+            break;
+        rv = dec_live ? exr_decoding_update(ctx, 0, &ci, &dec) : exr_decoding_initialize(ctx, 0, &ci, &dec);
+        if (rv != EXR_ERR_SUCCESS)
+            break;
+        dec_live = 1;
+        int found = 0;
+        for (int k = 0; k < dec.channel_count; k++) {
+            exr_coding_channel_info_t *ch = &dec.channels[k];
+            const char *n = ch->channel_name;
+            int c = !strcmp(n, "R") ? 0 : !strcmp(n, "G") ? 1 : !strcmp(n, "B") ? 2 : -1;
+            if (c < 0) {
+                ch->decode_to_ptr = NULL; /* other channels are skipped */
+                continue;
+            }
+            found |= 1 << c;
+            ch->user_bytes_per_element = 4;
+            ch->user_data_type = EXR_PIXEL_FLOAT;
+            ch->user_pixel_stride = 4;
+            ch->user_line_stride = (int32_t)(4 * w);
+            ch->decode_to_ptr = (uint8_t *)planes[c];
+        }
+        if (found != 7) {
+            r = pm_error_set(PM_ERR_INPUT, "OpenEXR image '%s' has no channel %s", path,
+                             !(found & 1) ? "R" : !(found & 2) ? "G" : "B");
+            goto done;
+        }
+        if (y == dw.min.y)
+            rv = exr_decoding_choose_default_routines(ctx, 0, &dec);
+        if (rv == EXR_ERR_SUCCESS)
+            rv = exr_decoding_run(ctx, 0, &dec);
+        for (int64_t i = 0; rv == EXR_ERR_SUCCESS && i < (int64_t)ci.height * w; i++)
+            for (int c = 0; c < 3; c++)
+                rgb[3 * ((y - dw.min.y) * w + i) + c] = planes[c][i];
+    }
+    if (rv != EXR_ERR_SUCCESS) {
+        r = exr_fail(rv, "read", path);
+        goto done;
+    }
+    *w_out = (uint32_t)w, *h_out = (uint32_t)h;
+    *rgb_out = rgb;
+    rgb = NULL;
+done:
+    if (dec_live)
+        exr_decoding_destroy(ctx, &dec);
+    if (ctx)
+        exr_finish(&ctx);
+    for (int c = 0; c < 3; c++)
+        free(planes[c]);
+    free(rgb);
+    return r;
+}
+
+pm_result_t pm_exr_read_string_attr(const char *path, const char *name, char **value_out)
+{
+    *value_out = NULL;
+    exr_context_initializer_t init = exr_init();
+    exr_context_t ctx = NULL;
+    pm_result_t r = PM_OK;
+    const char *s = NULL;
+    int32_t len = 0;
+    exr_result_t rv = exr_start_read(&ctx, path, &init);
+    if (rv != EXR_ERR_SUCCESS) {
+        r = exr_fail(rv, "read", path);
+    } else if (exr_attr_get_string(ctx, 0, name, &len, &s) != EXR_ERR_SUCCESS || !s) {
+        r = pm_error_set(PM_ERR_INPUT, "OpenEXR image '%s' has no string attribute '%s'", path, name);
+    } else if (!(*value_out = malloc((size_t)len + 1))) {
+        r = pm_error_set(PM_ERR_NOMEM, "out of memory reading OpenEXR image '%s'", path);
+    } else {
+        memcpy(*value_out, s, (size_t)len);
+        (*value_out)[len] = '\0';
+    }
+    if (ctx)
+        exr_finish(&ctx);
+    return r;
+}

@@ -1,0 +1,194 @@
+/* stage.c: the common main skeleton of pmtk programs (see stage.h). */
+#include "base/stage.h"
+
+#include <jansson.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/atomic.h"
+#include "base/cpu.h"
+#include "base/threads.h"
+#include "base/version.h"
+
+struct pm_stats {
+    json_t *obj;
+};
+
+void pm_stage_defaults(pm_stage_t *st)
+{
+    memset(st, 0, sizeof *st);
+    st->out.slot = -1;
+    st->output = "-";
+    st->seed = 1;
+}
+
+int pm_stage_begin(pm_stage_t *st, const pm_cli_t *cli, int argc, char **argv)
+{
+    st->name = cli->program;
+    st->cli = cli;
+    st->argc = argc;
+    st->argv = argv;
+    pm_timer_start(&st->timer);
+    pm_cpu_set_ftz_daz();
+    pm_atomic_install_cleanup();
+    pm_result_t r = pm_args_parse(cli, argc, argv, &st->args);
+    if (r != PM_OK) {
+        fprintf(stderr, "%s: %s\n", st->name, pm_error_message());
+        if (r == PM_ERR_USAGE)
+            fprintf(stderr, "usage: %s %s (try --help)\n", cli->program, cli->synopsis);
+        pm_args_free(&st->args);
+        return pm_result_exit_code(r);
+    }
+    if (st->help) {
+        pm_args_usage(cli, stdout);
+        pm_args_free(&st->args);
+        return 0;
+    }
+    if (st->version) {
+        printf("%s (pmtk) %s\n", cli->program, PM_VERSION_STRING);
+        pm_args_free(&st->args);
+        return 0;
+    }
+    if (st->print_settings) {
+        st->print_settings = 0;
+        pm_args_print_settings(cli, stdout);
+        pm_args_free(&st->args);
+        return 0;
+    }
+    int n = st->args.nargs;
+    if (n < cli->min_args || (cli->max_args >= 0 && n > cli->max_args)) {
+        if (cli->min_args == cli->max_args)
+            fprintf(stderr, "%s: expected %d argument%s, got %d\n", st->name, cli->min_args,
+                    cli->min_args == 1 ? "" : "s", n);
+        else if (cli->max_args < 0)
+            fprintf(stderr, "%s: expected at least %d argument%s, got %d\n", st->name, cli->min_args,
+                    cli->min_args == 1 ? "" : "s", n);
+        else
+            fprintf(stderr, "%s: expected %d to %d arguments, got %d\n", st->name, cli->min_args, cli->max_args, n);
+        fprintf(stderr, "usage: %s %s (try --help)\n", cli->program, cli->synopsis);
+        pm_args_free(&st->args);
+        return 2;
+    }
+    st->threads_used = pm_threads_use(st->threads);
+    if (st->stats_path) {
+        st->stats = calloc(1, sizeof *st->stats);
+        if (st->stats)
+            st->stats->obj = json_object();
+        if (!st->stats || !st->stats->obj) {
+            fprintf(stderr, "%s: out of memory for stats\n", st->name);
+            free(st->stats);
+            st->stats = NULL;
+            pm_args_free(&st->args);
+            return 1;
+        }
+    }
+    return -1;
+}
+
+void pm_stage_stat_int(pm_stage_t *st, const char *key, int64_t v)
+{
+    if (st->stats)
+        json_object_set_new(st->stats->obj, key, json_integer(v));
+}
+
+void pm_stage_stat_double(pm_stage_t *st, const char *key, double v)
+{
+    /* JSON has no NaN or Inf: a counter that is not finite is written as null. */
+    if (st->stats)
+        json_object_set_new(st->stats->obj, key, isfinite(v) ? json_real(v) : json_null());
+}
+
+void pm_stage_stat_string(pm_stage_t *st, const char *key, const char *v)
+{
+    if (st->stats)
+        json_object_set_new(st->stats->obj, key, json_string(v));
+}
+
+void pm_stage_note(const pm_stage_t *st, const char *fmt, ...)
+{
+    if (st->quiet)
+        return;
+    va_list ap;
+    va_start(ap, fmt);
+    fprintf(stderr, "%s: ", st->name);
+    vfprintf(stderr, fmt, ap);
+    fputc('\n', stderr);
+    va_end(ap);
+}
+
+static pm_result_t write_stats(pm_stage_t *st)
+{
+    double wall = pm_timer_wall(&st->timer), cpu = pm_timer_cpu(&st->timer);
+    /* The fixed keys go first so every stats file reads alike. */
+    json_t *o = json_object();
+    if (!o)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory writing stats");
+    json_object_set_new(o, "stage", json_string(st->name));
+    json_object_set_new(o, "version", json_string(PM_VERSION_STRING));
+    json_object_set_new(o, "threads", json_integer(st->threads_used));
+    json_object_set_new(o, "wall_s", json_real(wall));
+    json_object_set_new(o, "cpu_s", json_real(cpu));
+    json_object_set_new(o, "items", json_integer((json_int_t)st->items));
+    json_object_set_new(o, "items_per_s", json_real(wall > 0.0 ? (double)st->items / wall : 0.0));
+    json_object_update(o, st->stats->obj);
+    pm_result_t r = PM_OK;
+    if (strcmp(st->stats_path, "-") == 0) {
+        if (json_dumpf(o, stderr, JSON_INDENT(2) | JSON_PRESERVE_ORDER | JSON_REAL_PRECISION(9)) != 0)
+            r = pm_error_set(PM_ERR_IO, "cannot write stats to stderr");
+        fputc('\n', stderr);
+    } else {
+        pm_atomic_t a;
+        r = pm_atomic_open(st->stats_path, &a);
+        if (r == PM_OK) {
+            if (json_dumpf(o, a.f, JSON_INDENT(2) | JSON_PRESERVE_ORDER | JSON_REAL_PRECISION(9)) != 0 ||
+                fputc('\n', a.f) == EOF) {
+                pm_atomic_abort(&a);
+                r = pm_error_set(PM_ERR_IO, "cannot write stats '%s'", st->stats_path);
+            } else {
+                r = pm_atomic_commit(&a);
+            }
+        }
+    }
+    json_decref(o);
+    return r;
+}
+
+pm_result_t pm_stage_open_output(pm_stage_t *st, FILE **f_out)
+{
+    pm_result_t r = pm_atomic_open(st->output, &st->out);
+    *f_out = r == PM_OK ? st->out.f : NULL;
+    return r;
+}
+
+int pm_stage_end(pm_stage_t *st, pm_result_t result)
+{
+    if (st->out.f)
+        result = result == PM_OK ? pm_atomic_commit(&st->out) : (pm_atomic_abort(&st->out), result);
+    if (result == PM_OK && st->stats)
+        result = write_stats(st);
+    if (result != PM_OK)
+        fprintf(stderr, "%s: %s\n", st->name, pm_error_message());
+    if (st->stats) {
+        json_decref(st->stats->obj);
+        free(st->stats);
+        st->stats = NULL;
+    }
+    pm_args_free(&st->args);
+    return pm_result_exit_code(result);
+}
+
+void pm_stage_command_line(const pm_stage_t *st, char *out, size_t cap)
+{
+    size_t at = 0;
+    if (cap)
+        out[0] = '\0';
+    for (int i = 0; i < st->argc && at + 1 < cap; i++) {
+        int n = snprintf(out + at, cap - at, "%s%s", i ? " " : "", st->argv[i]);
+        if (n < 0)
+            break;
+        at += (size_t)n;
+    }
+}

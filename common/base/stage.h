@@ -1,0 +1,89 @@
+/* stage.h: the shape every pmtk program's main shares.
+ *
+ *   int main(int argc, char **argv) {
+ *       my_options_t o = {defaults};
+ *       pm_stage_t st;
+ *       const pm_option_t opts[] = {PM_STAGE_COMMON_OPTIONS(st), {my options...}, {0}};
+ *       int rc = pm_stage_begin(&st, &cli, argc, argv);   // parse, --help, --version
+ *       if (rc >= 0) return rc;
+ *       ... validate, read, process, write ...
+ *       return pm_stage_end(&st, result);                  // stats, message, exit code
+ *   }
+ *
+ * Common options: -o/--output, --threads, --seed, --stats, --quiet, --help, --version,
+ * --print-settings. Exit status: 0 ok, 1 failure, 2 bad usage. */
+#ifndef PM_STAGE_H
+#define PM_STAGE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "base/args.h"
+#include "base/atomic.h"
+#include "base/error.h"
+#include "base/progress.h"
+#include "base/timer.h"
+
+typedef struct pm_stats pm_stats_t;
+
+typedef struct {
+    const char *name;        /* program name for messages */
+    const pm_cli_t *cli;
+    pm_args_t args;          /* positional arguments after parsing */
+    int argc;
+    char **argv;             /* as given, for the COMMAND provenance line */
+    /* common option values */
+    const char *output;      /* -o; "-" means stdout */
+    int64_t threads;         /* 0 = all cores, resolved into threads_used */
+    int64_t seed;
+    const char *stats_path;  /* --stats FILE, NULL when not asked */
+    int quiet, help, version, print_settings;
+    int threads_used;
+    pm_timer_t timer;
+    pm_stats_t *stats;       /* the stage's counters, written by pm_stage_end */
+    uint64_t items;          /* what items_per_s counts (photons, queries, ...) */
+    pm_atomic_t out;         /* the -o output of a text-writing program, once opened */
+} pm_stage_t;
+
+#define PM_STAGE_COMMON_OPTIONS(st)                                                                           \
+    {"output", 'o', PM_OPT_STRING, &(st).output, "FILE", "write the output here; - is stdout", 1, 0, NULL},    \
+        {"threads", 0, PM_OPT_INT, &(st).threads, "N", "worker threads; 0 uses every core", 0, 4096, NULL},   \
+        {"seed", 0, PM_OPT_INT, &(st).seed, "N", "seed of the counter-based random numbers", 0, 9.2e18, NULL}, \
+        {"stats", 0, PM_OPT_STRING, &(st).stats_path, "FILE", "write counters and timings as JSON; - is stderr", \
+         1, 0, NULL},                                                                                          \
+        {"quiet", 'q', PM_OPT_FLAG, &(st).quiet, NULL, "no progress bar and no notes on stderr", 1, 0, NULL},  \
+        {"print-settings", 0, PM_OPT_FLAG, &(st).print_settings, NULL,                                         \
+         "print the effective settings (readable back as @FILE) and exit", 1, 0, NULL},                       \
+        {"help", 'h', PM_OPT_FLAG, &(st).help, NULL, "print this help and exit", 1, 0, NULL},                  \
+        {"version", 0, PM_OPT_FLAG, &(st).version, NULL, "print the version and exit", 1, 0, NULL}
+
+/* Call before the option table is built: sets common defaults (output "-", seed 1). */
+void pm_stage_defaults(pm_stage_t *st);
+
+/* Parses options and handles --help, --version, --print-settings, positional counts.
+ * Returns -1 to go on, or the exit status to return now. */
+int pm_stage_begin(pm_stage_t *st, const pm_cli_t *cli, int argc, char **argv);
+
+/* Opens -o (stdout for "-") for a program whose output is text; pm_stage_end commits it
+ * on success and removes it on failure. Stages writing pmtk files use pm_writer instead. */
+pm_result_t pm_stage_open_output(pm_stage_t *st, FILE **f_out);
+
+/* Progress bar wish: not quiet. */
+static inline int pm_stage_progress(const pm_stage_t *st) { return !st->quiet; }
+
+/* Stage counters for --stats (no-ops when --stats was not given). */
+void pm_stage_stat_int(pm_stage_t *st, const char *key, int64_t v);
+void pm_stage_stat_double(pm_stage_t *st, const char *key, double v);
+void pm_stage_stat_string(pm_stage_t *st, const char *key, const char *v);
+
+/* The command line as given, words joined by spaces and cut to fit cap bytes (an EXR
+ * COMMAND attribute; pmtk files keep it with pm_header_add_command). */
+void pm_stage_command_line(const pm_stage_t *st, char *out, size_t cap);
+/* A note on stderr ("name: ..."), unless --quiet. */
+void pm_stage_note(const pm_stage_t *st, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
+/* Finishes: on failure prints "name: message" and returns 1 or 2; on success writes
+ * --stats (stage, version, threads, wall_s, cpu_s, items, items_per_s and counters). */
+int pm_stage_end(pm_stage_t *st, pm_result_t result);
+
+#endif

@@ -1,0 +1,232 @@
+/* gather_stage.c: reading, kernel width and output shared by the gather stages
+ * (simd-gather, knn-gather, reverse-gather); see gather_stage.h. */
+#include "photonmap/gather_stage.h"
+
+#include <inttypes.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/args.h"
+#include "base/memory.h"
+#include "base/timer.h"
+
+const char *const pm_kernel_names[] = {"uniform", "epanechnikov", NULL};
+
+pm_result_t pm_gather_inputs_read(pm_gather_inputs_t *in, const char *map_path, const char *q_path,
+                                  const char *range, int variable)
+{
+    memset(in, 0, sizeof *in);
+    in->map_path = map_path;
+    in->q_path = q_path;
+    in->begin = 0;
+    in->end = UINT64_MAX;
+    in->ranged = range != NULL;
+    pm_result_t r;
+    if (in->ranged && (r = pm_args_parse_range(range, &in->begin, &in->end)) != PM_OK)
+        return r;
+    double t0 = pm_time_wall();
+    if ((r = pm_table_read(map_path, &pm_photonmap_schema, pm_schema_required(&pm_photonmap_schema),
+                           &in->map_table)) != PM_OK)
+        return r;
+    /* The queries: only [begin, end) is kept, the whole file is checked. */
+    pm_reader_t *rd;
+    if ((r = pm_reader_open(q_path, &pm_queries_schema, pm_schema_required(&pm_queries_schema), &rd)) != PM_OK)
+        return r;
+    in->total = pm_reader_header(rd)->count;
+    r = pm_table_read_from(rd, in->begin, in->end, &in->q_table);
+    pm_reader_close(rd);
+    if (r != PM_OK)
+        return r;
+    in->read_s = pm_time_wall() - t0;
+    if (in->begin > in->total)
+        in->begin = in->total;
+    if (in->end > in->total)
+        in->end = in->total;
+    const pm_header_t *mh = &in->map_table.hdr, *qh = &in->q_table.hdr;
+    const char *wk = pm_header_get(qh, "weights");
+    if (!wk || strcmp(wk, "lambertian-brdf-folded") != 0)
+        return pm_error_set(PM_ERR_INPUT, "queries '%s' do not say which weight contract they follow (weights=%s; "
+                            "expected lambertian-brdf-folded, docs/formats.md 3.3)", q_path, wk ? wk : "missing");
+    const char *sm = pm_header_get(mh, "SCENE"), *sq = pm_header_get(qh, "SCENE");
+    if (sm && sq && strcmp(sm, sq) != 0)
+        return pm_error_set(PM_ERR_INPUT, "photon map '%s' is of scene '%s' but queries '%s' are of scene '%s'",
+                            map_path, sm, q_path, sq);
+    if ((r = pm_header_get_image_size(qh, q_path, &in->width, &in->height)) != PM_OK ||
+        (r = pm_gather_map_init(&in->map, &in->map_table, variable)) != PM_OK ||
+        (r = pm_gather_queries_init(&in->q, &in->q_table, q_path, &in->materials)) != PM_OK)
+        return r;
+    in->per_query = pm_alloc_aligned((in->q.n ? in->q.n : 1) * 3 * sizeof *in->per_query);
+    if (!in->per_query)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for %" PRIu64 " query results", in->q.n);
+    return PM_OK;
+}
+
+void pm_gather_inputs_free(pm_gather_inputs_t *in)
+{
+    pm_free_aligned(in->per_query);
+    free(in->materials);
+    pm_gather_map_free(&in->map);
+    pm_table_free(&in->q_table);
+    pm_table_free(&in->map_table);
+    in->materials = NULL;
+    in->per_query = NULL;
+}
+
+/* ---- the sample of queries that --k measures the radius on ---- */
+
+/* The queries the radius of --k is measured on: those of the pixels a hash of the pixel
+ * index picks, about `want` in all. Chosen by pixel, not by position in the file, so that
+ * the radius is the same whatever order hilbert-sort (or none) gave the queries, and the
+ * same for every shard of a file. */
+static inline int sample_pixel(uint32_t pixel, uint64_t total, uint32_t want)
+{
+    uint32_t h = pixel * 2654435761u; /* Knuth's multiplicative hash: spreads pixels evenly */
+    h ^= h >> 16;
+    return total <= want || (double)h < (double)want / (double)total * 4294967296.0;
+}
+
+typedef struct {
+    float *pos, *nor;
+    uint32_t n, cap;
+} sample_t;
+
+static int sample_add(sample_t *s, const float *p, const float *n)
+{
+    if (s->n == s->cap) {
+        uint32_t cap = s->cap ? 2 * s->cap : 1024;
+        float *np = realloc(s->pos, (size_t)cap * 12), *nn = np ? realloc(s->nor, (size_t)cap * 12) : NULL;
+        if (np)
+            s->pos = np;
+        if (!nn)
+            return -1;
+        s->nor = nn;
+        s->cap = cap;
+    }
+    memcpy(&s->pos[3 * (size_t)s->n], p, 12);
+    memcpy(&s->nor[3 * (size_t)s->n], n, 12);
+    s->n++;
+    return 0;
+}
+
+/* The sample from the queries in memory (the whole file was read). */
+static pm_result_t sample_table(const pm_gather_queries_t *q, uint32_t want, sample_t *s)
+{
+    for (uint64_t i = 0; i < q->n; i++)
+        if (sample_pixel(q->pixel[i], q->n, want) && sample_add(s, &q->pos[3 * i], &q->normal[3 * i]) != 0)
+            return pm_error_set(PM_ERR_NOMEM, "out of memory for the radius sample");
+    return PM_OK;
+}
+
+/* The same sample read from the whole file in one streaming pass (a shard holds only its
+ * range in memory). */
+static pm_result_t sample_file(const char *path, uint32_t want, sample_t *s)
+{
+    pm_reader_t *r;
+    pm_result_t res = pm_reader_open(path, &pm_queries_schema, pm_schema_required(&pm_queries_schema), &r);
+    if (res != PM_OK)
+        return res;
+    const pm_header_t *h = pm_reader_header(r);
+    uint64_t n = h->count;
+    uint32_t rs = h->record_size, op = pm_schema_offset(&pm_queries_schema, h->channels, PM_QUERY_POSITION),
+             on = pm_schema_offset(&pm_queries_schema, h->channels, PM_QUERY_NORMAL),
+             ox = pm_schema_offset(&pm_queries_schema, h->channels, PM_QUERY_PIXEL);
+    const uint64_t chunk = 65536;
+    unsigned char *buf = malloc(chunk * rs);
+    if (!buf) {
+        res = pm_error_set(PM_ERR_NOMEM, "out of memory sampling '%s'", path);
+    } else {
+        uint64_t got;
+        while (res == PM_OK && (res = pm_reader_read(r, buf, chunk, &got)) == PM_OK && got)
+            for (uint64_t i = 0; i < got && res == PM_OK; i++) {
+                const unsigned char *rec = buf + i * rs;
+                uint32_t px;
+                float p[3], nn[3];
+                memcpy(&px, rec + ox, 4);
+                if (!sample_pixel(px, n, want))
+                    continue;
+                memcpy(p, rec + op, 12);
+                memcpy(nn, rec + on, 12);
+                if (sample_add(s, p, nn) != 0)
+                    res = pm_error_set(PM_ERR_NOMEM, "out of memory for the radius sample");
+            }
+        if (res == PM_OK)
+            res = pm_reader_finish(r, NULL);
+    }
+    pm_reader_close(r);
+    free(buf);
+    return res;
+}
+
+pm_result_t pm_gather_inputs_radius_for_k(const pm_gather_inputs_t *in, double k, float normal_cos,
+                                          double *radius_out)
+{
+    const uint32_t samples = 2000;
+    sample_t smp = {0};
+    pm_result_t r;
+    double radius = 0.0;
+    if (!in->ranged || (in->begin == 0 && in->end == in->total))
+        r = sample_table(&in->q, samples, &smp);
+    else if (strcmp(in->q_path, "-") == 0)
+        r = pm_error_set(PM_ERR_USAGE, "--k with --range needs the queries as a file, not stdin, so that every "
+                         "shard finds the same radius; or give --radius");
+    else
+        r = sample_file(in->q_path, samples, &smp);
+    if (r == PM_OK) {
+        pm_gather_queries_t all = {.n = smp.n, .pos = smp.pos, .normal = smp.nor};
+        radius = pm_gather_radius_for_k(&in->map, &all, k, normal_cos, smp.n);
+    }
+    free(smp.pos), free(smp.nor);
+    if (r != PM_OK)
+        return r;
+    if (!(radius > 0.0) && in->map.n && in->q.n)
+        return pm_error_set(PM_ERR_INPUT, "no radius gives %g photons per query", k);
+    *radius_out = radius > 0.0 ? radius : 1.0; /* nothing to gather: any width gives zero */
+    return PM_OK;
+}
+
+pm_result_t pm_gather_output_init(pm_table_t *out, const pm_gather_inputs_t *in, int argc, char **argv)
+{
+    const double *per_query = in->per_query;
+    pm_result_t r = pm_table_alloc(out, &pm_radiance_schema, pm_schema_required(&pm_radiance_schema),
+                                   (uint64_t)in->width * in->height);
+    if (r != PM_OK)
+        return r;
+    /* Queries into pixels, in file order: the same sums for any thread count. */
+    double *px = out->col[PM_RADIANCE_RGB];
+    for (uint64_t i = 0; i < in->q.n; i++) {
+        uint32_t pi = in->q.pixel[i];
+        for (int k = 0; k < 3; k++)
+            px[3 * (size_t)pi + k] += per_query[3 * i + k];
+    }
+    pm_header_t *h = &out->hdr;
+    memcpy(h->bounds, in->q_table.hdr.bounds, sizeof h->bounds);
+    if ((r = pm_header_inherit(h, &in->map_table.hdr)) != PM_OK ||
+        (r = pm_header_inherit(h, &in->q_table.hdr)) != PM_OK ||
+        (r = pm_header_add_input(h, in->map_path, in->map_table.checksum)) != PM_OK ||
+        (r = pm_header_add_input(h, in->q_path, in->q_table.checksum)) != PM_OK ||
+        (r = pm_header_add_command(h, argc, argv)) != PM_OK ||
+        (r = pm_header_set(h, "width", "%" PRIu32, in->width)) != PM_OK ||
+        (r = pm_header_set(h, "height", "%" PRIu32, in->height)) != PM_OK)
+        return r;
+    return pm_header_set(h, "component", "indirect");
+}
+
+pm_result_t pm_gather_output_write(pm_table_t *out, const pm_gather_inputs_t *in, const char *path)
+{
+    pm_result_t r;
+    if (in->ranged &&
+        (r = pm_header_set(&out->hdr, "range", "%" PRIu64 ":%" PRIu64, in->begin, in->end)) != PM_OK)
+        return r;
+    return pm_table_write(out, path);
+}
+
+pm_result_t pm_gather_check_finite(const pm_gather_inputs_t *in, const char *what)
+{
+    const double *per_query = in->per_query;
+    for (uint64_t i = 0; i < 3 * in->q.n; i++)
+        if (!isfinite(per_query[i]))
+            return pm_error_set(PM_ERR_INPUT, "query %" PRIu64 " of '%s': %s gives a non-finite radiance (%g)",
+                                in->begin + i / 3, in->q_path, what, per_query[i]);
+    return PM_OK;
+}

@@ -1,0 +1,69 @@
+/* gather_stage.h: what the three gather stages (simd-gather, knn-gather, reverse-gather)
+ * share around their estimators, so that they are swappable: the same inputs read and
+ * refused by the same rules, the same kernel width from --k, and the same output (queries
+ * added to pixels in file order, provenance of both inputs). */
+#ifndef PM_GATHER_STAGE_H
+#define PM_GATHER_STAGE_H
+
+#include <stdint.h>
+
+#include "formats/formats.h"
+#include "base/args.h"
+#include "base/error.h"
+#include "photonmap/gather.h"
+
+/* The kernels' names, in pm_kernel_t order, for --kernel and the `kernel` header key. */
+extern const char *const pm_kernel_names[];
+
+/* The options every gather stage has, with the same meaning and help: --normal-cos C (a
+ * double) and --range B:E (a string). */
+#define PM_GATHER_COMMON_OPTIONS(normal_cos, range)                                                              \
+    {"normal-cos", 0, PM_OPT_DOUBLE, &(normal_cos), "C",                                                         \
+     "a photon counts when the cosine between its normal and the query's is at least C", -1, 1, NULL},           \
+        {"range", 0, PM_OPT_STRING, &(range), "B:E", "gather only queries [B, E) (shards; composite adds them)", \
+         1, 0, NULL}
+
+/* A photon map and a queries file (or the range [begin, end) of one), as the gathers read
+ * them. Row i of `q` is query begin + i of the file. */
+typedef struct {
+    const char *map_path, *q_path;
+    pm_table_t map_table, q_table;
+    pm_gather_map_t map;
+    pm_gather_queries_t q;
+    pm_material_t *materials;
+    uint64_t begin, end, total; /* the range held, and the file's query count */
+    int ranged;                 /* --range was given */
+    uint32_t width, height;     /* image size, pixels */
+    double read_s;              /* wall seconds spent reading and checking both files */
+    double *per_query;          /* owned, 3 per row of q: for the gather's weighted radiance, W/(m^2 sr) */
+} pm_gather_inputs_t;
+
+/* Reads MAP and QUERIES (range "B:E" or NULL for all; QUERIES may be "-"), checks the
+ * weight contract and that both are of one scene, views them for the gathers (`variable`:
+ * per-photon widths, see pm_gather_map_init) and allocates per_query. Free with
+ * pm_gather_inputs_free, also after a failure. */
+pm_result_t pm_gather_inputs_read(pm_gather_inputs_t *in, const char *map_path, const char *q_path,
+                                  const char *range, int variable);
+void pm_gather_inputs_free(pm_gather_inputs_t *in);
+
+/* The kernel width at which about k photons contribute to a query (pm_gather_radius_for_k),
+ * measured on the queries of the pixels a hash picks, so that it does not depend on the
+ * order of the queries; a shard samples the whole file (which must then not be stdin). */
+pm_result_t pm_gather_inputs_radius_for_k(const pm_gather_inputs_t *in, double k, float normal_cos,
+                                          double *radius_out);
+
+/* The radiance buffer of in->per_query: each
+ * query added to its pixel in file order, so the buffer does not depend on how the sums
+ * were computed in parallel. The header inherits both inputs, names them, adds the command
+ * line, width, height and component=indirect; the caller adds its own keys and then calls
+ * pm_gather_output_write. */
+pm_result_t pm_gather_output_init(pm_table_t *out, const pm_gather_inputs_t *in, int argc, char **argv);
+
+/* Adds range=B:E for a shard and writes `out` to path atomically. */
+pm_result_t pm_gather_output_write(pm_table_t *out, const pm_gather_inputs_t *in, const char *path);
+
+/* The same check of in->per_query every estimator needs: no NaN or Inf reaches a file.
+ * Names the first bad query (its index in the file) and `what` computed it. */
+pm_result_t pm_gather_check_finite(const pm_gather_inputs_t *in, const char *what);
+
+#endif

@@ -1,0 +1,64 @@
+/* photontrace.h: forward photon tracing (the paper, section 5.1), the engine of
+ * trace-photons.
+ *
+ * Photon i is emitted from a light chosen in proportion to its power (point lights in all
+ * directions, emissive triangles from a uniform point, cosine-weighted about the front
+ * face), traced with single Embree rays, and stored at every hit on a surface that
+ * reflects (first hits too, marked depth 0). Each bounce samples the BRDF (cosine for the
+ * Lambertian part, the Phong lobe for the glossy part) and Russian roulette ends the path
+ * without bias: the photon survives with probability q (its albedo, capped at rr_max) and
+ * its power is divided by q (a cap below albedo^2 makes the variance unbounded). Powers are in watts, so that a density estimate of them is
+ * irradiance in W/m^2.
+ *
+ * Determinism: photon i draws only from the counter-based stream (seed, i), and photons
+ * are stored in index order, so the output is bit-identical for any thread count. */
+#ifndef PM_PHOTONTRACE_H
+#define PM_PHOTONTRACE_H
+
+#include <stdint.h>
+
+#include "base/error.h"
+#include "render/rt.h"
+#include "render/scene.h"
+
+typedef struct {
+    uint64_t photons;      /* photon paths to emit, >= 1 */
+    uint64_t seed;
+    uint32_t max_bounces;  /* safety cap on a path's bounces (paths cut there are counted) */
+    double rr_max;         /* highest survival probability of Russian roulette, in (0, 1] */
+    int direction;         /* store the direction channel (scenes with glossy materials) */
+    int record_rays;       /* keep every ray for pm_trace_replay (benchmark baseline) */
+    int progress;          /* progress bar on a terminal */
+} pm_trace_options_t;
+
+typedef struct pm_trace_arena pm_trace_arena_t;
+
+typedef struct {
+    /* The photons in the photons format's record layout, as nchunks runs in photon-index
+     * order: run i is chunk_count[i] records at chunk_data[i]. */
+    const unsigned char **chunk_data;
+    uint64_t *chunk_count;
+    uint64_t nchunks;
+    pm_trace_arena_t *arenas; /* where the runs live */
+    int narenas;
+    uint64_t count;
+    uint32_t channels, record_size;
+    uint64_t emitted, first_hits, rays, escaped, absorbed, capped, longest;
+    double power_emitted[3];  /* W: sum over emitted photons */
+    double power_first[3];    /* W: sum over stored first hits */
+    double trace_s;           /* wall seconds of the tracing loop */
+    float *rays_kept;         /* record_rays: 7 floats per ray (origin, direction, tnear) */
+} pm_trace_result_t;
+
+/* Traces o->photons photons through s and rt. Fails with a clear message when the scene
+ * has no lights, its power does not fit the photons' f32 powers, or memory runs out. */
+pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_trace_options_t *o,
+                             pm_trace_result_t *out);
+
+/* Re-traces the rays kept by record_rays with bare rtcIntersect1, on as many threads as
+ * the trace used: Embree's own single-ray rate on exactly the same rays. Returns rays/s. */
+double pm_trace_replay(const pm_rt_t *rt, const pm_trace_result_t *r);
+
+void pm_trace_free(pm_trace_result_t *r);
+
+#endif

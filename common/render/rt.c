@@ -1,0 +1,89 @@
+/* rt.c: Embree device and scene construction (see rt.h). */
+#include "render/rt.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+/* Embree reports errors through this callback, possibly from its own worker threads, so
+ * the first one goes to a process-wide buffer (one device is built at a time). */
+static char rt_error[512];
+static enum RTCError rt_code;
+
+static void on_embree_error(void *user, enum RTCError code, const char *str)
+{
+    (void)user;
+    if (rt_code != RTC_ERROR_NONE)
+        return;
+    rt_code = code;
+    snprintf(rt_error, sizeof rt_error, "embree error %d: %s", (int)code, str ? str : "(no message)");
+}
+
+static pm_result_t fail(pm_rt_t *rt, const char *what)
+{
+    pm_result_t r = pm_error_set(rt_code == RTC_ERROR_OUT_OF_MEMORY ? PM_ERR_NOMEM : PM_ERR_INTERNAL, "cannot %s: %s",
+                                 what, rt_error[0] ? rt_error : "unknown embree error");
+    pm_rt_destroy(rt);
+    return r;
+}
+
+pm_result_t pm_rt_create(const pm_scene_t *s, int high_quality, int threads, pm_rt_t *out)
+{
+    memset(out, 0, sizeof *out);
+    rt_error[0] = '\0';
+    rt_code = RTC_ERROR_NONE;
+    char config[64];
+    snprintf(config, sizeof config, "threads=%d", threads > 0 ? threads : 0); /* 0: Embree's own choice */
+    out->device = rtcNewDevice(config);
+    if (!out->device)
+        return pm_error_set(PM_ERR_INTERNAL, "cannot create the embree device: error %d",
+                            (int)rtcGetDeviceError(NULL));
+    rtcSetDeviceErrorFunction(out->device, on_embree_error, NULL);
+    out->scene = rtcNewScene(out->device);
+    if (!out->scene)
+        return fail(out, "create an embree scene");
+    rtcSetSceneBuildQuality(out->scene, high_quality ? RTC_BUILD_QUALITY_HIGH : RTC_BUILD_QUALITY_MEDIUM);
+    /* Robust traversal and intersection: without it a ray through the shared edge of two
+     * triangles can slip between them, and in a closed room a photon or camera ray
+     * escapes (seen on rays along a cube's diagonal, docs/extreme-cases.md). */
+    rtcSetSceneFlags(out->scene, RTC_SCENE_FLAG_ROBUST);
+    if (s->ntris) {
+        RTCGeometry g = rtcNewGeometry(out->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+        if (!g)
+            return fail(out, "create triangle geometry");
+        /* Embree reads vertex buffers 16 bytes at a time: one spare vertex of padding. */
+        float *v = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+                                           s->nverts + 1);
+        unsigned *t = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
+                                              s->ntris);
+        if (!v || !t) {
+            rtcReleaseGeometry(g);
+            return fail(out, "allocate geometry buffers");
+        }
+        memcpy(v, s->verts, 3 * s->nverts * sizeof(float));
+        memset(v + 3 * s->nverts, 0, 3 * sizeof(float));
+        memcpy(t, s->tris, 3 * s->ntris * sizeof(unsigned));
+        rtcCommitGeometry(g);
+        rtcAttachGeometryByID(out->scene, g, 0);
+        rtcReleaseGeometry(g); /* the scene holds it now */
+    }
+    rtcCommitScene(out->scene);
+    if (rtcGetDeviceError(out->device) != RTC_ERROR_NONE)
+        return fail(out, "build the embree scene");
+    /* Offsets relative to the scene's size: float spacing at the largest coordinate,
+     * times a margin, so a ray leaving a surface does not find that surface again. */
+    float ext = 0.0f;
+    for (int k = 0; k < 6; k++)
+        ext = fmaxf(ext, fabsf(s->bounds[k]));
+    out->epsilon = fmaxf(ext, 1e-30f) * 0x1p-17f;
+    return PM_OK;
+}
+
+void pm_rt_destroy(pm_rt_t *rt)
+{
+    if (rt->scene)
+        rtcReleaseScene(rt->scene);
+    if (rt->device)
+        rtcReleaseDevice(rt->device);
+    memset(rt, 0, sizeof *rt);
+}

@@ -1,0 +1,71 @@
+/* scene.h: the scene model every stage shares, loaded from a scene file
+ * (docs/scene-format.md): triangle meshes (OBJ/MTL and whatever else assimp reads),
+ * materials, point lights, emissive triangles as area lights, a pinhole camera and
+ * render defaults. Units: metres, watts, W/sr for point-light intensity, W/(m^2 sr)
+ * for emitted radiance. */
+#ifndef PM_SCENE_H
+#define PM_SCENE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "base/error.h"
+#include "formats/material.h"
+
+typedef struct {
+    float position[3];  /* m */
+    float intensity[3]; /* W/sr, RGB; the light's power is 4 pi times this */
+} pm_point_light_t;
+
+typedef struct {
+    float eye[3], look_at[3], up[3]; /* m */
+    float fov_y;                     /* degrees, vertical, in (0, 180) */
+    uint32_t width, height;          /* pixels */
+} pm_camera_t;
+
+/* Render defaults a scene suggests; stages use them when their option is not given. */
+typedef struct {
+    int64_t photons;  /* photons emitted */
+    int64_t spp;      /* secondary rays per pixel */
+    double radius;    /* m, fixed kernel width; 0 = choose from k */
+    int64_t k;        /* photons per query the radius aims at */
+    int64_t leaf;     /* hilbert-sort leaf size */
+    int64_t seed;
+} pm_render_defaults_t;
+
+typedef struct {
+    char name[128];         /* "cornell-box" */
+    char path[1024];        /* the scene file */
+    uint64_t hash;          /* XXH3-64 of the scene file and everything loaded from it */
+    size_t nverts, ntris;
+    float *verts;           /* nverts * 3, m */
+    uint32_t *tris;         /* ntris * 3 vertex indices */
+    uint32_t *tri_material; /* ntris material indices */
+    pm_material_t *materials;
+    size_t nmaterials;
+    pm_point_light_t *lights;
+    size_t nlights;
+    uint32_t *emissive;     /* indices of triangles whose material emits */
+    size_t nemissive;
+    size_t ndropped;        /* degenerate (zero-area) triangles left out at load */
+    pm_camera_t camera;
+    pm_render_defaults_t defaults;
+    float bounds[6];        /* min xyz, max xyz of all triangles and point lights, m */
+    int any_glossy;         /* 1 when some material has ks > 0: direction channels are needed */
+} pm_scene_t;
+
+/* Loads and checks a scene file. Errors name the file and the line (JSON syntax) or the
+ * key path ("camera.fov_y") and the offending value. */
+pm_result_t pm_scene_load(const char *path, pm_scene_t *out);
+void pm_scene_free(pm_scene_t *s);
+
+/* Total emitted power, W, RGB: point lights (4 pi I) plus area lights (pi Ke area). */
+void pm_scene_power(const pm_scene_t *s, double power_out[3]);
+
+/* Area of triangle t, m^2. */
+double pm_scene_triangle_area(const pm_scene_t *s, size_t t);
+
+/* "NAME xxh3:HASH", the value of a file header's SCENE key. */
+void pm_scene_id(const pm_scene_t *s, char *out, size_t cap);
+
+#endif

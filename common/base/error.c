@@ -1,11 +1,10 @@
-/* error.c: the thread-local error message behind pm_error_set. */
+/* error.c: the thread-local error message behind pm_error_set, and the slots that carry one
+ * out of a parallel region. */
 #include "base/error.h"
 
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
-
-#define PM_ERROR_MAX 1024 /* bytes; messages are one line, longer ones are cut */
 
 static _Thread_local char pm_error_buf[PM_ERROR_MAX];
 
@@ -61,4 +60,34 @@ int pm_result_exit_code(pm_result_t code)
     if (code == PM_OK)
         return 0;
     return code == PM_ERR_USAGE ? 2 : 1;
+}
+
+void pm_error_slot_init(pm_error_slot_t *slot)
+{
+    slot->code = PM_OK;
+    slot->task = UINT64_MAX;
+    slot->message[0] = '\0';
+}
+
+pm_result_t pm_error_slot_record(pm_error_slot_t *slot, uint64_t task, pm_result_t code)
+{
+    if (code == PM_OK)
+        return code;
+    /* A named critical section: OpenMP's, since every parallel region in pmtk is OpenMP's. */
+#pragma omp critical(pm_error_slot)
+    {
+        if (slot->code == PM_OK || task < slot->task) {
+            slot->code = code;
+            slot->task = task;
+            memcpy(slot->message, pm_error_buf, sizeof slot->message);
+        }
+    }
+    return code;
+}
+
+pm_result_t pm_error_slot_raise(const pm_error_slot_t *slot)
+{
+    if (slot->code != PM_OK)
+        memcpy(pm_error_buf, slot->message, sizeof pm_error_buf);
+    return slot->code;
 }

@@ -31,6 +31,31 @@ const char *pm_error_message(void);
 /* Prefixes the current message with "prefix: " (for adding a file name upstream). */
 void pm_error_prefix(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 
+/* Messages are one line of at most this many bytes (longer ones are cut). */
+#define PM_ERROR_MAX 1024
+
+/* An error raised inside a parallel region, kept for the thread that started it. The
+ * message behind pm_error_set is thread-local, so one set on an OpenMP worker never reaches
+ * the caller: a task that fails records its code and message here (pm_error_slot_record,
+ * safe from any thread), and after the region the caller re-raises it on its own thread
+ * (pm_error_slot_raise). Of several failures the lowest task index wins, so the message
+ * is the same for any thread count. */
+typedef struct {
+    pm_result_t code;          /* PM_OK while no task failed */
+    uint64_t task;             /* index of the failed task that is kept */
+    char message[PM_ERROR_MAX];
+} pm_error_slot_t;
+
+void pm_error_slot_init(pm_error_slot_t *slot);
+
+/* Records task's failure with the calling thread's current message, unless a task of a
+ * lower index already failed. Returns code, so a worker can `return` through it. */
+pm_result_t pm_error_slot_record(pm_error_slot_t *slot, uint64_t task, pm_result_t code);
+
+/* On the thread that reports: makes the recorded message this thread's and returns the
+ * recorded code (PM_OK, message untouched, when no task failed). */
+pm_result_t pm_error_slot_raise(const pm_error_slot_t *slot);
+
 /* A short name of a result code: "ok", "usage", "input", "io", "nomem", "internal". */
 const char *pm_result_string(pm_result_t code);
 

@@ -90,22 +90,24 @@ static pm_result_t write_sorted(pm_writer_t *w, const unsigned char *recs, const
                                 size_t rs, unsigned char *buf[2])
 {
     uint64_t chunks = (n + GATHER_RECORDS - 1) / GATHER_RECORDS, m = 0;
-    pm_result_t res = PM_OK;
+    /* The write may run on a worker thread, whose error message would die with it. */
+    pm_error_slot_t err;
+    pm_error_slot_init(&err);
     if (chunks)
         m = gather_chunk(buf[0], recs, perm, n, 0, rs);
-    for (uint64_t c = 0; c < chunks && res == PM_OK; c++) {
+    for (uint64_t c = 0; c < chunks && err.code == PM_OK; c++) {
         uint64_t next_m = 0;
 #pragma omp parallel sections num_threads(2)
         {
 #pragma omp section
-            res = pm_writer_write(w, buf[c & 1], m);
+            pm_error_slot_record(&err, c, pm_writer_write(w, buf[c & 1], m));
 #pragma omp section
             if (c + 1 < chunks)
                 next_m = gather_chunk(buf[(c + 1) & 1], recs, perm, n, c + 1, rs);
         }
         m = next_m;
     }
-    return res;
+    return pm_error_slot_raise(&err);
 }
 
 /* The output header: the input's provenance, this command, the input's hash, the order,

@@ -153,3 +153,24 @@ if grep -q '"points": 200000' "$TMP/st.json" && grep -q '"points_per_s"' "$TMP/s
 else
     fail "--leaf auto / stats" "$(cat "$TMP/st.json")"
 fi
+
+# A failed write on the worker thread that writes while the next chunk is gathered: the
+# message must reach the user whole every time (it once came out as "hilbert-sort: " with
+# nothing after it, the worker's thread-local message lost). Repeated to catch the race.
+if [ -w /dev/full ]; then
+    bad=0
+    for i in $(seq 1 20); do
+        "$HS" -q --threads 2 "$TMP/big-in.pm" -o - >/dev/full 2>"$TMP/full.err"
+        st=$?
+        if [ "$st" != 1 ] || ! grep -qx "hilbert-sort: cannot write 'stdout': No space left on device" "$TMP/full.err"; then
+            bad=$((bad + 1)) last="exit $st: $(cat "$TMP/full.err")"
+        fi
+    done
+    if [ "$bad" = 0 ]; then
+        pass "a full disk (/dev/full) gives the whole message from the writing thread, 20 of 20 runs"
+    else
+        fail "full disk message" "$bad of 20 runs wrong; last: $last"
+    fi
+else
+    skip "full disk message" "no writable /dev/full"
+fi

@@ -44,6 +44,33 @@ static void test_common_errors(void **state)
     assert_true(strlen(pm_error_message()) < 1024);
 }
 
+/* Errors raised on OpenMP workers reach the calling thread, the lowest task's message for
+ * any thread count, and a region with no failure leaves the caller's message alone. */
+static void test_common_error_slot(void **state)
+{
+    for (int threads = 1; threads <= 4; threads++) {
+        pm_error_slot_t slot;
+        pm_error_slot_init(&slot);
+        pm_error_set(PM_ERR_INPUT, "the caller's own");
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 1)
+        for (int t = 0; t < 64; t++) {
+            if (t % 7 == 5)
+                pm_error_slot_record(&slot, (uint64_t)t, pm_error_set(t < 20 ? PM_ERR_IO : PM_ERR_INPUT, "task %d failed", t));
+            else
+                pm_error_slot_record(&slot, (uint64_t)t, PM_OK);
+        }
+        assert_int_equal(pm_error_slot_raise(&slot), PM_ERR_IO);
+        assert_string_equal(pm_error_message(), "task 5 failed");
+    }
+    pm_error_slot_t none;
+    pm_error_slot_init(&none);
+    pm_error_set(PM_ERR_INPUT, "kept");
+#pragma omp parallel num_threads(2)
+    pm_error_slot_record(&none, 0, PM_OK);
+    assert_int_equal(pm_error_slot_raise(&none), PM_OK);
+    assert_string_equal(pm_error_message(), "kept");
+}
+
 static void test_common_threads_and_hash(void **state)
 {
     assert_int_equal(pm_threads_use(3), 3);
@@ -57,6 +84,7 @@ static void test_common_threads_and_hash(void **state)
 static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_common_isa),
     cmocka_unit_test(test_common_errors),
+    cmocka_unit_test(test_common_error_slot),
     cmocka_unit_test(test_common_threads_and_hash),
 };
 UNIT_GROUP(unit_common, "common", tests);

@@ -75,7 +75,7 @@ pm_result_t pm_header_format(const pm_header_t *h, char **text_out, size_t *len_
     text_printf(&t, "RECORD_SIZE=%" PRIu32 "\n", pm_schema_record_size(s, h->channels));
     text_printf(&t, "CHANNELS=");
     channels_text(s, h->channels, &t);
-    text_printf(&t, "\nCHANNEL_MASK=0x%08" PRIx32 "\n", h->channels);
+    text_printf(&t, "\n");
     /* %.9g round-trips every float exactly. */
     text_printf(&t, "BOUNDS=%.9g %.9g %.9g %.9g %.9g %.9g\n", h->bounds[0], h->bounds[1], h->bounds[2],
                 h->bounds[3], h->bounds[4], h->bounds[5]);
@@ -204,22 +204,23 @@ static pm_result_t parse_lines(pm_header_t *h, const char *path, char *text, fie
     return PM_OK;
 }
 
-/* The container keys every header has; the first one missing is named. */
+/* The container keys every version's header has; the first one missing is named
+ * (CHANNEL_MASK, of version 1 alone, once the version is known). */
 static pm_result_t require_fields(const char *path, const fields_t *f)
 {
     const struct {
         const char *value, *key;
     } required[] = {{f->format, "FORMAT"}, {f->version, "VERSION"}, {f->order, "BYTE_ORDER"},
                     {f->count, "COUNT"},   {f->rsize, "RECORD_SIZE"}, {f->chans, "CHANNELS"},
-                    {f->mask, "CHANNEL_MASK"}, {f->bounds, "BOUNDS"}};
+                    {f->bounds, "BOUNDS"}};
     for (size_t k = 0; k < sizeof required / sizeof required[0]; k++)
         if (!required[k].value)
             return pm_error_set(PM_ERR_INPUT, "header of '%s' lacks %s", path, required[k].key);
     return PM_OK;
 }
 
-/* VERSION=MAJOR.MINOR, each decimal below a million; a major other than the schema's is
- * refused. */
+/* VERSION=MAJOR.MINOR, each decimal below a million; a major above the schema's or below
+ * the oldest it reads is refused. */
 static pm_result_t parse_version(pm_header_t *h, const char *path, const char *version)
 {
     const pm_schema_t *s = h->schema;
@@ -239,19 +240,22 @@ static pm_result_t parse_version(pm_header_t *h, const char *path, const char *v
     if (major > s->major)
         return pm_error_set(PM_ERR_INPUT, "%s '%s' is version %u.%u, newer than this reader (%u.x)", s->title,
                             path, major, minor, s->major);
-    if (major < s->major)
-        return pm_error_set(PM_ERR_INPUT, "%s '%s' is version %u.%u, older than this reader (%u.x)", s->title,
-                            path, major, minor, s->major);
+    unsigned oldest = s->oldest_major ? s->oldest_major : s->major;
+    if (major < oldest)
+        return pm_error_set(PM_ERR_INPUT, "%s '%s' is version %u.%u, older than this reader (%u.x to %u.x)",
+                            s->title, path, major, minor, oldest, s->major);
     h->major = major;
     h->minor = minor;
     return PM_OK;
 }
 
-/* CHANNEL_MASK and CHANNELS: the mask well formed, of known channels, the names its
- * spelling; the schema's required channels and the caller's present. */
-static pm_result_t parse_channels(pm_header_t *h, const char *path, const fields_t *f, uint32_t need)
+/* Version 1: CHANNEL_MASK well formed and of known channels, and CHANNELS exactly the
+ * names it implies. */
+static pm_result_t channels_from_mask(pm_header_t *h, const char *path, const fields_t *f)
 {
     const pm_schema_t *s = h->schema;
+    if (!f->mask)
+        return pm_error_set(PM_ERR_INPUT, "header of '%s' lacks CHANNEL_MASK", path);
     if (parse_u32_hex(f->mask, &h->channels) != PM_OK)
         return pm_error_set(PM_ERR_INPUT, "%s '%s': malformed CHANNEL_MASK '%s'", s->title, path, f->mask);
     uint32_t known = s->nchannels >= 32 ? 0xffffffffu : (1u << s->nchannels) - 1;
@@ -266,6 +270,66 @@ static pm_result_t parse_channels(pm_header_t *h, const char *path, const fields
     if (!agree)
         return pm_error_set(PM_ERR_INPUT, "%s '%s': CHANNELS '%s' disagrees with CHANNEL_MASK %s", s->title, path,
                             f->chans, f->mask);
+    return PM_OK;
+}
+
+/* The index of the schema's channel named by the len bytes at p, or nchannels if none. */
+static unsigned channel_named(const pm_schema_t *s, const char *p, size_t len)
+{
+    unsigned ci = 0;
+    while (ci < s->nchannels && !(strlen(s->channels[ci].name) == len && !strncmp(s->channels[ci].name, p, len)))
+        ci++;
+    return ci;
+}
+
+/* Version 2 on: CHANNELS alone, each name a channel of the schema, spelled as a writer
+ * writes it (channel order, each once, one space apart), so that one set of channels has
+ * one spelling. A CHANNEL_MASK is refused: no writer of these versions writes one, and a
+ * second statement of the channels could only disagree with the first. */
+static pm_result_t channels_from_names(pm_header_t *h, const char *path, const fields_t *f)
+{
+    const pm_schema_t *s = h->schema;
+    if (f->mask)
+        return pm_error_set(PM_ERR_INPUT, "%s '%s' is version %u.%u but has CHANNEL_MASK, a version-%u key",
+                            s->title, path, h->major, h->minor, PM_MAJOR_WITH_MASK);
+    uint32_t mask = 0;
+    for (const char *p = f->chans; *p;) {
+        size_t len = strcspn(p, " ");
+        unsigned ci = channel_named(s, p, len);
+        if (len && ci == s->nchannels)
+            return pm_error_set(PM_ERR_INPUT, "%s '%s': CHANNELS names '%.*s', not a channel of version %u.%u",
+                                s->title, path, (int)(len < 64 ? len : 64), p, s->major, s->minor);
+        if (len)
+            mask |= 1u << ci;
+        p += len + (p[len] == ' ');
+    }
+    text_t ct = {0};
+    channels_text(s, mask, &ct);
+    if (ct.oom) {
+        free(ct.s);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory reading '%s'", path);
+    }
+    const char *canonical = ct.s ? ct.s : "";
+    int same = strcmp(canonical, f->chans) == 0;
+    pm_result_t res = same ? PM_OK
+                           : pm_error_set(PM_ERR_INPUT,
+                                          "%s '%s': CHANNELS '%s' is not spelled '%s' (channel order, each once, "
+                                          "one space apart)",
+                                          s->title, path, f->chans, canonical);
+    free(ct.s);
+    h->channels = mask;
+    return res;
+}
+
+/* The channels present, from CHANNEL_MASK and CHANNELS (version 1) or CHANNELS alone; the
+ * schema's required channels and the caller's among them. */
+static pm_result_t parse_channels(pm_header_t *h, const char *path, const fields_t *f, uint32_t need)
+{
+    const pm_schema_t *s = h->schema;
+    pm_result_t res = h->major <= PM_MAJOR_WITH_MASK ? channels_from_mask(h, path, f)
+                                                     : channels_from_names(h, path, f);
+    if (res != PM_OK)
+        return res;
     uint32_t missing = pm_schema_required(s) & ~h->channels;
     if (missing)
         return pm_error_set(PM_ERR_INPUT, "%s '%s' lacks required channel '%s'", s->title, path,

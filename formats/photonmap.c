@@ -126,8 +126,9 @@ static pm_result_t validate_tree(const pm_table_t *t, const char *path)
 
 const pm_schema_t pm_photonmap_schema = {
     .name = "photonmap",
-    .major = 1,
+    .major = 2,
     .minor = 0,
+    .oldest_major = 1,
     .title = "photon map",
     .channels = map_channels,
     .nchannels = sizeof map_channels / sizeof map_channels[0],

@@ -15,8 +15,9 @@ static const pm_channel_t photon_channels[] = {
 
 const pm_schema_t pm_photons_schema = {
     .name = "photons",
-    .major = 1,
+    .major = 2,
     .minor = 0,
+    .oldest_major = 1,
     .title = "photons file",
     .channels = photon_channels,
     .nchannels = sizeof photon_channels / sizeof photon_channels[0],

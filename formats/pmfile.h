@@ -47,9 +47,15 @@ typedef struct {
 typedef struct pm_table pm_table_t;
 typedef struct pm_header pm_header_t;
 
+/* The container's versions. Major 1 headers say their channels twice, as CHANNELS (names)
+ * and CHANNEL_MASK (bits); from major 2 on CHANNELS alone says them. Readers still read
+ * major 1 files, and check that the two keys agree; writers write the schema's version. */
+#define PM_MAJOR_WITH_MASK 1 /* the last major version whose headers carry CHANNEL_MASK */
+
 typedef struct {
     const char *name;        /* FORMAT value: "photons" */
-    unsigned major, minor;   /* the version this code writes and reads */
+    unsigned major, minor;   /* the version this code writes, and the newest it reads */
+    unsigned oldest_major;   /* the oldest major version it still reads */
     const char *title;       /* "photons file", used in messages */
     const pm_channel_t *channels;
     unsigned nchannels;

@@ -130,8 +130,9 @@ static pm_result_t validate_records(const pm_header_t *h, const char *path, cons
 
 const pm_schema_t pm_queries_schema = {
     .name = "queries",
-    .major = 1,
+    .major = 2,
     .minor = 0,
+    .oldest_major = 1,
     .title = "queries",
     .channels = query_channels,
     .nchannels = sizeof query_channels / sizeof query_channels[0],

@@ -32,8 +32,9 @@ static pm_result_t validate_header(const pm_header_t *h, const char *path)
 
 const pm_schema_t pm_radiance_schema = {
     .name = "radiance",
-    .major = 1,
+    .major = 2,
     .minor = 0,
+    .oldest_major = 1,
     .title = "radiance buffer",
     .channels = radiance_channels,
     .nchannels = sizeof radiance_channels / sizeof radiance_channels[0],

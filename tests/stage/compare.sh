@@ -7,6 +7,13 @@ expect_error "different channels differ" "channel mask 0x0000001f, .* has 0x0000
     "$BIN/pm-compare" "$G/photons-all.pm" "$G/photons-required.pm"
 expect_error "different formats differ" "is a photons file but .* is a queries" \
     "$BIN/pm-compare" "$G/photons-all.pm" "$G/queries-all.pm"
+# a version-1 file (CHANNEL_MASK beside CHANNELS) and a version-2 one of the same content
+for f in photons photonmap queries radiance; do
+    expect_exit "version-1 and version-2 $f files agree" 0 "$BIN/pm-compare" "$G/v1/$f-all.pm" "$G/$f-all.pm"
+    expect_exit "... in either order" 0 "$BIN/pm-compare" "$G/$f-all.pm" "$G/v1/$f-all.pm"
+done
+expect_error "a version-1 file with other channels differs" "channel mask 0x0000001f, .* has 0x00000017" \
+    "$BIN/pm-compare" "$G/v1/photons-all.pm" "$G/photons-required.pm"
 # the same content made by another command line: volatile keys are ignored
 "$TG" photons 7 "$TMP/again.pm" --all
 expect_exit "a regenerated file agrees" 0 "$BIN/pm-compare" "$G/photons-all.pm" "$TMP/again.pm"

@@ -1,5 +1,6 @@
 # formats.sh: every format against its golden file, pm-info's text against its golden
-# text, and the bad-input corpus: each corrupt file gets its one-line error and exit 1.
+# text, version-1 files read as before, and the bad-input corpus: each corrupt file gets
+# its one-line error and exit 1.
 G=tests/golden
 TG=$BUILD/tests/pm-testgen
 
@@ -16,6 +17,47 @@ for f in photons photonmap queries radiance; do
     expect_same "pm-info reads $f from stdin" "$G/$f-all.txt" "$TMP/pipe.txt"
 done
 
+# ---- version 1 (CHANNELS and CHANNEL_MASK): read, checked and printed as before ----
+for f in photons photonmap queries radiance; do
+    "$BIN/pm-info" -r "$G/v1/$f-all.pm" >"$TMP/v1.txt" 2>"$TMP/err"
+    expect_same "pm-info -r a version-1 $f file matches its golden text" "$G/v1/$f-all.txt" "$TMP/v1.txt"
+    cat "$G/v1/$f-all.pm" | "$BIN/pm-info" -r - >"$TMP/v1-pipe.txt" 2>"$TMP/err"
+    expect_same "pm-info reads a version-1 $f file from stdin" "$G/v1/$f-all.txt" "$TMP/v1-pipe.txt"
+    expect_exit "pm-compare: version-1 and version-2 $f files of one content agree" 0 \
+        "$BIN/pm-compare" "$G/v1/$f-all.pm" "$G/$f-all.pm"
+    # the records are the same bytes; only the header (and so the checksum) changed
+    v1_hdr=$(grep -a -n -m 1 '^$' "$G/v1/$f-all.pm" | cut -d: -f1)
+    v2_hdr=$(grep -a -n -m 1 '^$' "$G/$f-all.pm" | cut -d: -f1)
+    expect_same "version-1 and version-2 $f records are byte-identical" \
+        <(tail -n +$((v1_hdr + 1)) "$G/v1/$f-all.pm" | head -c -8) <(tail -n +$((v2_hdr + 1)) "$G/$f-all.pm" | head -c -8)
+done
+# a stage reading a version-1 file writes version 2, without the mask
+"$BIN/hilbert-sort" --order none -q "$G/v1/queries-all.pm" -o "$TMP/from-v1.pm"
+if "$BIN/pm-info" --header "$TMP/from-v1.pm" | grep -qx 'VERSION=2.0' &&
+    ! "$BIN/pm-info" --header "$TMP/from-v1.pm" | grep -q '^CHANNEL_MASK='; then
+    pass "a version-1 input gives a version-2 output without CHANNEL_MASK"
+else
+    fail "a version-1 input gives a version-2 output without CHANNEL_MASK" "$("$BIN/pm-info" --header "$TMP/from-v1.pm" 2>&1 | head -9)"
+fi
+v1=$G/v1/photons-all.pm
+for spelling in 0x1f 0x0000001F "0x 000001f" 31; do
+    sed "0,/CHANNEL_MASK=0x0000001f/s//CHANNEL_MASK=$spelling/" "$v1" >"$TMP/spelled.pm"
+    expect_error "version 1: CHANNEL_MASK spelled '$spelling'" "malformed CHANNEL_MASK" "$BIN/pm-info" "$TMP/spelled.pm"
+done
+sed '0,/CHANNEL_MASK=0x0000001f/s//CHANNEL_MASK=0x0000003f/' "$v1" >"$TMP/mask.pm"
+expect_error "version 1: unknown channel bit" "CHANNEL_MASK 0x0000003f names channels unknown" "$BIN/pm-info" "$TMP/mask.pm"
+sed '0,/CHANNEL_MASK=0x0000001f/s//CHANNEL_MASK=0x00000017/' "$v1" >"$TMP/names.pm"
+expect_error "version 1: a mask that disagrees with the names" \
+    "CHANNELS 'position power normal direction depth' disagrees with CHANNEL_MASK 0x00000017" "$BIN/pm-info" "$TMP/names.pm"
+sed '0,/CHANNELS=position power normal direction depth/s//CHANNELS=position power normal depth direction/' "$v1" >"$TMP/names.pm"
+expect_error "version 1: names that disagree with the mask" "CHANNELS .* disagrees with CHANNEL_MASK" "$BIN/pm-info" "$TMP/names.pm"
+grep -av '^CHANNEL_MASK=' "$v1" >"$TMP/nomask.pm"
+expect_error "version 1: CHANNEL_MASK missing" "lacks CHANNEL_MASK" "$BIN/pm-info" "$TMP/nomask.pm"
+sed '0,/VERSION=1.0/s//VERSION=2.0/' "$v1" >"$TMP/v2mask.pm"
+expect_error "version 2 with a CHANNEL_MASK" "is version 2.0 but has CHANNEL_MASK, a version-1 key" "$BIN/pm-info" "$TMP/v2mask.pm"
+sed '0,/VERSION=1.0/s//VERSION=3.0/' "$v1" >"$TMP/v3.pm"
+expect_error "version 1 file relabelled 3.0" "version 3.0, newer than this reader" "$BIN/pm-info" "$TMP/v3.pm"
+
 # ---- the bad-input corpus, made from the golden files ----
 src=$G/photons-all.pm
 size=$(stat -c %s "$src")
@@ -31,8 +73,10 @@ expect_error "truncated on a pipe" "truncated photons file 'stdin'" sh -c "cat '
 expect_error "empty file" "empty input" "$BIN/pm-info" "$TMP/empty.pm"
 printf 'P6\n4 4\n255\n' >"$TMP/ppm.pm"
 expect_error "bad magic" "bad magic .*found 'P6" "$BIN/pm-info" "$TMP/ppm.pm"
-sed '0,/VERSION=1.0/s//VERSION=2.0/' "$src" >"$TMP/v2.pm"
-expect_error "newer major version" "version 2.0, newer than this reader" "$BIN/pm-info" "$TMP/v2.pm"
+sed '0,/VERSION=2.0/s//VERSION=3.0/' "$src" >"$TMP/v3.pm"
+expect_error "newer major version" "version 3.0, newer than this reader \(2.x\)" "$BIN/pm-info" "$TMP/v3.pm"
+sed '0,/VERSION=2.0/s//VERSION=0.9/' "$src" >"$TMP/v0.pm"
+expect_error "older major version" "version 0.9, older than this reader \(1.x to 2.x\)" "$BIN/pm-info" "$TMP/v0.pm"
 sed '0,/FORMAT=photons/s//FORMAT=voxels/' "$src" >"$TMP/fmt.pm"
 expect_error "unknown format" "unknown format 'voxels'" "$BIN/pm-info" "$TMP/fmt.pm"
 sed '0,/COUNT=7/s//COUNT=9/' "$src" >"$TMP/count9.pm"
@@ -45,12 +89,8 @@ for spelling in -7 +7 7.0 7e0 7E0 0x7 " 7" 07x 07; do
     sed "0,/COUNT=7/s//COUNT=$spelling/" "$src" >"$TMP/spelled.pm"
     expect_error "COUNT spelled '$spelling'" "absurd COUNT" "$BIN/pm-info" "$TMP/spelled.pm"
 done
-for spelling in 0x1f 0x0000001F "0x 000001f" 31; do
-    sed "0,/CHANNEL_MASK=0x0000001f/s//CHANNEL_MASK=$spelling/" "$src" >"$TMP/spelled.pm"
-    expect_error "CHANNEL_MASK spelled '$spelling'" "malformed CHANNEL_MASK" "$BIN/pm-info" "$TMP/spelled.pm"
-done
-for spelling in +1.0 1 1.0.0 1.x; do
-    sed "0,/VERSION=1.0/s//VERSION=$spelling/" "$src" >"$TMP/spelled.pm"
+for spelling in +2.0 2 2.0.0 2.x 02.0; do
+    sed "0,/VERSION=2.0/s//VERSION=$spelling/" "$src" >"$TMP/spelled.pm"
     expect_error "VERSION spelled '$spelling'" "malformed VERSION" "$BIN/pm-info" "$TMP/spelled.pm"
 done
 sed '0,/RECORD_SIZE=52/s//RECORD_SIZE=52.0/' "$src" >"$TMP/spelled.pm"
@@ -61,10 +101,17 @@ sed '0,/^component=indirect$/s//component=glow/' "$G/radiance-all.pm" >"$TMP/com
 expect_error "radiance component unknown" "component 'glow' is not direct, indirect or total" "$BIN/pm-info" "$TMP/comp.pm"
 sed '0,/RECORD_SIZE=52/s//RECORD_SIZE=48/' "$src" >"$TMP/rsize.pm"
 expect_error "record size disagrees with channels" "RECORD_SIZE '48' but its channels take 52 bytes" "$BIN/pm-info" "$TMP/rsize.pm"
-sed '0,/CHANNEL_MASK=0x0000001f/s//CHANNEL_MASK=0x0000003f/' "$src" >"$TMP/mask.pm"
-expect_error "unknown channel bit" "CHANNEL_MASK 0x0000003f names channels unknown" "$BIN/pm-info" "$TMP/mask.pm"
-sed '0,/CHANNELS=position power normal direction depth/s//CHANNELS=position power normal depth direction/' "$src" >"$TMP/names.pm"
-expect_error "channel names disagree with the mask" "CHANNELS .* disagrees with CHANNEL_MASK" "$BIN/pm-info" "$TMP/names.pm"
+ch='position power normal direction depth'
+sed "0,/CHANNELS=$ch/s//CHANNELS=position power normal colour depth/" "$src" >"$TMP/names.pm"
+expect_error "an unknown channel name" "CHANNELS names 'colour', not a channel of version 2.0" "$BIN/pm-info" "$TMP/names.pm"
+for spelling in "position power normal depth direction" "position power power normal direction depth" \
+    "position  power normal direction depth" "position power normal direction depth " \
+    " position power normal direction depth"; do
+    sed "0,/CHANNELS=$ch/s//CHANNELS=$spelling/" "$src" >"$TMP/names.pm"
+    expect_error "CHANNELS spelled '$spelling'" "CHANNELS '$spelling' is not spelled '$ch'" "$BIN/pm-info" "$TMP/names.pm"
+done
+sed "0,/CHANNELS=$ch/s//CHANNELS=position power direction depth/" "$src" >"$TMP/names.pm"
+expect_error "a required channel left out of CHANNELS" "lacks required channel 'normal'" "$BIN/pm-info" "$TMP/names.pm"
 sed '0,/BYTE_ORDER=little-endian/s//BYTE_ORDER=big-endian/' "$src" >"$TMP/be.pm"
 expect_error "big-endian header" "BYTE_ORDER 'big-endian' is not little-endian" "$BIN/pm-info" "$TMP/be.pm"
 sed '0,/^BOUNDS=.*/s//BOUNDS=nan 0 0 1 1 1/' "$src" >"$TMP/bounds.pm"
@@ -73,8 +120,8 @@ sed '0,/^BOUNDS=.*/s//BOUNDS=1 0 0 0 1 1/' "$src" >"$TMP/bounds2.pm"
 expect_error "inverted bounds" "min above max on axis x" "$BIN/pm-info" "$TMP/bounds2.pm"
 sed '0,/^COUNT=7$/s//COUNT 7/' "$src" >"$TMP/line.pm"
 expect_error "header line without =" "malformed header line 5 .*has no '='" "$BIN/pm-info" "$TMP/line.pm"
-grep -av '^CHANNEL_MASK=' "$src" >"$TMP/nomask.pm"
-expect_error "missing required key" "lacks CHANNEL_MASK" "$BIN/pm-info" "$TMP/nomask.pm"
+grep -av '^CHANNELS=' "$src" >"$TMP/nochannels.pm"
+expect_error "missing required key" "lacks CHANNELS" "$BIN/pm-info" "$TMP/nochannels.pm"
 # a flipped byte in the payload where any value is valid: only the checksum catches it
 blank=$(grep -a -n -m 1 '^$' "$src" | cut -d: -f1)
 hdr_bytes=$(head -n "$blank" "$src" | wc -c)

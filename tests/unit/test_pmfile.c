@@ -489,7 +489,124 @@ static void test_pmfile_writer_refuses_bad_headers_and_tables(void **state)
     pm_header_free(&h);
 }
 
+/* Reads a whole small file into a NUL-terminated string (the header text is what matters). */
+static char *slurp(const char *path)
+{
+    FILE *f = fopen(path, "rb");
+    assert_non_null(f);
+    char *buf = calloc(1, 1 << 16);
+    assert_non_null(buf);
+    size_t n = fread(buf, 1, (1 << 16) - 1, f);
+    fclose(f);
+    buf[n] = '\0';
+    return buf;
+}
+
+/* Version 1 headers carry CHANNEL_MASK beside CHANNELS; version 2 drops the mask. A
+ * version-1 file reads into the same table as its version-2 twin, and nothing of its mask
+ * reaches a file written from it, whether the table is written back or a new header takes
+ * its provenance and keys. */
+static void test_pmfile_version1_read_and_rewritten(void **state)
+{
+    pm_table_t v1, v2;
+    assert_int_equal(pm_table_read("tests/golden/v1/photons-all.pm", &pm_photons_schema, 0, &v1), PM_OK);
+    assert_int_equal(pm_table_read("tests/golden/photons-all.pm", &pm_photons_schema, 0, &v2), PM_OK);
+    assert_int_equal(v1.hdr.major, 1);
+    assert_int_equal(v2.hdr.major, 2);
+    assert_int_equal(pm_photons_schema.major, 2);
+    assert_int_equal(v1.hdr.channels, 0x1f);
+    assert_int_equal(v2.hdr.channels, v1.hdr.channels);
+    assert_int_equal(v1.count, v2.count);
+    for (unsigned ci = 0; ci < pm_photons_schema.nchannels; ci++) {
+        const pm_channel_t *c = &pm_photons_schema.channels[ci];
+        assert_memory_equal(v1.col[ci], v2.col[ci], v1.count * pm_type_size(c->type) * c->components);
+    }
+    assert_int_not_equal(v1.checksum, v2.checksum); /* the headers differ */
+
+    /* written back, the version-1 table is a version-2 file */
+    char path[256];
+    tmp_path(path, sizeof path, "from-v1.pm");
+    assert_int_equal(pm_table_write(&v1, path), PM_OK);
+    char *text = slurp(path);
+    assert_non_null(strstr(text, "\nVERSION=2.0\n"));
+    assert_null(strstr(text, "CHANNEL_MASK"));
+    assert_non_null(strstr(text, "\nCHANNELS=position power normal direction depth\n"));
+    free(text);
+    pm_table_t back;
+    assert_int_equal(pm_table_read(path, &pm_photons_schema, 0, &back), PM_OK);
+    assert_int_equal(back.hdr.major, 2);
+    pm_table_free(&back);
+
+    /* a derived header takes provenance and keys from it, never the mask */
+    pm_header_t h;
+    pm_header_init(&h, &pm_photons_schema);
+    h.channels = pm_schema_required(&pm_photons_schema);
+    assert_int_equal(pm_header_inherit(&h, &v1.hdr), PM_OK);
+    assert_int_equal(pm_header_copy_keys(&h, &v1.hdr), PM_OK);
+    assert_null(pm_header_get(&h, "CHANNEL_MASK"));
+    assert_int_equal(pm_header_set(&h, "CHANNEL_MASK", "0x0000001f"), PM_ERR_INTERNAL); /* the container's key */
+    size_t len;
+    assert_int_equal(pm_header_format(&h, &text, &len), PM_OK);
+    assert_non_null(strstr(text, "\nVERSION=2.0\n"));
+    assert_null(strstr(text, "CHANNEL_MASK"));
+    assert_non_null(strstr(text, "\nemitted=14\n"));
+    free(text);
+    pm_header_free(&h);
+    pm_table_free(&v1);
+    pm_table_free(&v2);
+}
+
+/* Opens an in-memory radiance file (1x1, its record not read) whose header has the given
+ * lines besides the fixed ones: the header parser on the versions it takes and the CHANNELS
+ * it refuses. */
+static pm_result_t open_text(const char *header)
+{
+    char buf[1024];
+    int n = snprintf(buf, sizeof buf, "#?PMTK\nFORMAT=radiance\n%sBYTE_ORDER=little-endian\nCOUNT=1\n"
+                     "BOUNDS=0 0 0 1 1 1\nwidth=1\nheight=1\ncomponent=direct\n\n\x04\x03\x02\x01", header);
+    FILE *f = fmemopen(buf, (size_t)n, "rb");
+    assert_non_null(f);
+    pm_reader_t *r;
+    pm_result_t res = pm_reader_open_stream(f, "mem", NULL, 0, &r);
+    if (res == PM_OK)
+        pm_reader_close(r);
+    fclose(f);
+    return res;
+}
+
+static void test_pmfile_version_and_channels_keys(void **state)
+{
+    const char *rs = "RECORD_SIZE=24\n";
+    char h[256];
+#define HDR(...) (snprintf(h, sizeof h, __VA_ARGS__), h)
+    assert_int_equal(open_text(HDR("VERSION=2.0\n%sCHANNELS=rgb\n", rs)), PM_OK);
+    assert_int_equal(open_text(HDR("VERSION=2.7\n%sCHANNELS=rgb\n", rs)), PM_OK); /* any minor */
+    assert_int_equal(open_text(HDR("VERSION=1.0\n%sCHANNELS=rgb\nCHANNEL_MASK=0x00000001\n", rs)), PM_OK);
+    assert_int_equal(open_text(HDR("VERSION=1.0\n%sCHANNELS=rgb\n", rs)), PM_ERR_INPUT);
+    assert_non_null(strstr(pm_error_message(), "lacks CHANNEL_MASK"));
+    assert_int_equal(open_text(HDR("VERSION=1.0\n%sCHANNELS=rgb variance\nCHANNEL_MASK=0x00000001\n", rs)),
+                     PM_ERR_INPUT);
+    assert_non_null(strstr(pm_error_message(), "disagrees with CHANNEL_MASK"));
+    assert_int_equal(open_text(HDR("VERSION=2.0\n%sCHANNELS=rgb\nCHANNEL_MASK=0x00000001\n", rs)), PM_ERR_INPUT);
+    assert_non_null(strstr(pm_error_message(), "has CHANNEL_MASK, a version-1 key"));
+    assert_int_equal(open_text(HDR("VERSION=3.0\n%sCHANNELS=rgb\n", rs)), PM_ERR_INPUT);
+    assert_non_null(strstr(pm_error_message(), "newer than this reader"));
+    assert_int_equal(open_text(HDR("VERSION=0.1\n%sCHANNELS=rgb\n", rs)), PM_ERR_INPUT);
+    assert_non_null(strstr(pm_error_message(), "older than this reader"));
+    assert_int_equal(open_text(HDR("VERSION=2.0\n%sCHANNELS=\n", rs)), PM_ERR_INPUT);
+    assert_non_null(strstr(pm_error_message(), "lacks required channel 'rgb'"));
+    assert_int_equal(open_text(HDR("VERSION=2.0\n%sCHANNELS=rgb rgb\n", rs)), PM_ERR_INPUT);
+    assert_non_null(strstr(pm_error_message(), "is not spelled 'rgb'"));
+    assert_int_equal(open_text(HDR("VERSION=2.0\n%sCHANNELS=RGB\n", rs)), PM_ERR_INPUT);
+    assert_non_null(strstr(pm_error_message(), "names 'RGB', not a channel"));
+    assert_int_equal(open_text(HDR("VERSION=2.0\nRECORD_SIZE=48\nCHANNELS=rgb variance\n")), PM_OK);
+    assert_int_equal(open_text(HDR("VERSION=2.0\nRECORD_SIZE=48\nCHANNELS=variance rgb\n")), PM_ERR_INPUT);
+#undef HDR
+}
+
 static const struct CMUnitTest tests[] = {
+    cmocka_unit_test(test_pmfile_version1_read_and_rewritten),
+    cmocka_unit_test(test_pmfile_version_and_channels_keys),
     cmocka_unit_test(test_pmfile_writer_refuses_bad_headers_and_tables),
     cmocka_unit_test(test_pmfile_writer_refuses_bad_values),
     cmocka_unit_test(test_pmfile_value_checks_match_reference),

@@ -439,7 +439,8 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
         int64_t spp = o->spp ? (int64_t)o->spp : s->defaults.spp;
         if (spp <= 0 || spp % PER_CELL != 0 || spp > 65536)
             r = pm_error_set(o->spp ? PM_ERR_USAGE : PM_ERR_INPUT,
-                             "%s%s%s %" PRId64 " is not a positive multiple of %d up to 65536 (%d samples per stratum cell)",
+                             "%s%s%s %" PRId64
+                             " is not a positive multiple of %d up to 65536 (%d samples per stratum cell)",
                              o->spp ? "--spp" : "scene '", o->spp ? "" : s->path, o->spp ? "" : "': render.spp", spp,
                              PER_CELL, PER_CELL);
         else {

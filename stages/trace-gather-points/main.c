@@ -211,7 +211,8 @@ int main(int argc, char **argv)
     if (o.direct && !strcmp(o.direct, "-") && !strcmp(st.output, "-"))
         return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "-o and --direct cannot both be stdout"));
     if (o.spp % PM_EYE_PER_CELL != 0)
-        return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "--spp %" PRId64 " is not a multiple of %d (%d samples per stratum cell)",
+        return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE,
+                                              "--spp %" PRId64 " is not a multiple of %d (%d samples per stratum cell)",
                                               o.spp, PM_EYE_PER_CELL, PM_EYE_PER_CELL));
     if ((r = check_writable(st.output)) != PM_OK || (r = check_writable(o.direct)) != PM_OK)
         return pm_stage_end(&st, r);

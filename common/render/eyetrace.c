@@ -501,14 +501,15 @@ pm_result_t pm_eye_trace(pm_eye_t *c, const pm_eye_sink_t *sink, pm_eye_stats_t 
     int nthreads = c->threads;
     pm_result_t r = PM_OK;
     scratch_t *scr = aligned_alloc(64, (size_t)nthreads * sizeof *scr);
-    double *direct = malloc((size_t)BAND_ROWS * c->w * 3 * sizeof(double));
+    uint32_t band = c->h < BAND_ROWS ? c->h : BAND_ROWS;
+    double *direct = malloc(((size_t)band * c->w * 3 + 1) * sizeof(double));
     bytebuf_t rows[BAND_ROWS];
     memset(rows, 0, sizeof rows);
     if (scr)
         memset(scr, 0, (size_t)nthreads * sizeof *scr);
     if (!scr || !direct)
-        r = pm_error_set(PM_ERR_NOMEM, "out of memory for %d threads' buffers and %d rows of %" PRIu32 " pixels",
-                         nthreads, BAND_ROWS, c->w);
+        r = pm_error_set(PM_ERR_NOMEM, "out of memory for %d threads' buffers and %" PRIu32 " rows of %" PRIu32
+                         " pixels", nthreads, band, c->w);
 
     pm_progress_t prog;
     pm_progress_begin(&prog, "rows", c->h, c->progress);

@@ -167,21 +167,21 @@ why=$(awk '$1 != "size" { for (c = 3; c <= 5; c++) { r = $c / 1.5; n++; ss += (r
 # ---- failures while rows are traced reach stderr whole ----
 # Inside the parallel row loop a row can fail only for memory: each worker grows its ray buffers
 # and the row's records there. A 65536-pixel row at 65536 spp needs 2^32 secondary rays (16 GiB
-# per ray array), which an address-space limit of 4 GB refuses at once, on every row and thread.
+# per ray array), which an address-space limit of 8 GB refuses at once, on every row and thread.
 # The message of the lowest row must come out whole whichever thread traced it: with
 # --schedule dynamic any thread may take row 0, and a message set on a worker used to be lost
 # with its thread. Repeated to catch the race. Not under AddressSanitizer, whose shadow memory
 # does not fit an address-space limit.
 if ldd "$T" 2>/dev/null | grep -q libasan; then
     skip "row failures on worker threads" "AddressSanitizer build: no address-space limit"
-elif ! (ulimit -v 4000000) 2>/dev/null; then
+elif ! (ulimit -v 8000000) 2>/dev/null; then
     skip "row failures on worker threads" "ulimit -v is not available"
 else
     want="trace-gather-points: out of memory for the rays of row 0: 65536 primary, 262144 shadow, 4294967296 secondary"
     bad=0 last=""
     for i in $(seq 1 10); do
         for sched in dynamic interleave; do
-            (ulimit -v 4000000 && exec "$T" -q "$CORNELL" --width 65536 --height 8 --spp 65536 --threads 2 \
+            (ulimit -v 8000000 && exec "$T" -q "$CORNELL" --width 65536 --height 8 --spp 65536 --threads 2 \
                 --schedule $sched -o "$TMP/oom.pm" --direct "$TMP/oomd.pm") >/dev/null 2>"$TMP/oom.err"
             st=$?
             if [ "$st" != 1 ] || [ "$(cat "$TMP/oom.err")" != "$want" ] || [ -e "$TMP/oom.pm" ] || [ -e "$TMP/oomd.pm" ]; then

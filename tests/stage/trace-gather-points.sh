@@ -163,3 +163,47 @@ why=$(awk '$1 != "size" { for (c = 3; c <= 5; c++) { r = $c / 1.5; n++; ss += (r
     END { printf "rms %.4f, min %.4f, max %.4f over %d values", sqrt(ss / n), mn, mx, n; exit !(n == 3072 && ss / n < 0.02 ^ 2 && mn > 0.8 && mx < 1.2) }' "$TMP/fd.txt")
 [ $? = 0 ] && pass "furnace, one light sample a pixel: the MIS direct buffer is Le + rho Le without the light samples' tail ($why)" ||
     fail "furnace direct buffer with MIS" "$why"
+
+# ---- failures while rows are traced reach stderr whole ----
+# Inside the parallel row loop a row can fail only for memory: each worker grows its ray buffers
+# and the row's records there. A 65536-pixel row at 65536 spp needs 2^32 secondary rays (16 GiB
+# per ray array), which an address-space limit of 8 GB refuses at once, on every row and thread.
+# The message of the lowest row must come out whole whichever thread traced it: with
+# --schedule dynamic any thread may take row 0, and a message set on a worker used to be lost
+# with its thread. Repeated to catch the race. Not under AddressSanitizer, whose shadow memory
+# does not fit an address-space limit.
+if ldd "$T" 2>/dev/null | grep -q libasan; then
+    skip "row failures on worker threads" "AddressSanitizer build: no address-space limit"
+elif ! (ulimit -v 8000000) 2>/dev/null; then
+    skip "row failures on worker threads" "ulimit -v is not available"
+else
+    want="trace-gather-points: out of memory for the rays of row 0: 65536 primary, 262144 shadow, 4294967296 secondary"
+    bad=0 last=""
+    for i in $(seq 1 10); do
+        for sched in dynamic interleave; do
+            (ulimit -v 8000000 && exec "$T" -q "$CORNELL" --width 65536 --height 8 --spp 65536 --threads 2 \
+                --schedule $sched -o "$TMP/oom.pm" --direct "$TMP/oomd.pm") >/dev/null 2>"$TMP/oom.err"
+            st=$?
+            if [ "$st" != 1 ] || [ "$(cat "$TMP/oom.err")" != "$want" ] || [ -e "$TMP/oom.pm" ] || [ -e "$TMP/oomd.pm" ]; then
+                bad=$((bad + 1)) last="--schedule $sched: exit $st: $(cat "$TMP/oom.err")"
+            fi
+        done
+    done
+    if [ "$bad" = 0 ]; then
+        pass "rows out of memory on two threads: row 0's whole message, status 1, no output, 20 of 20 runs"
+    else
+        fail "row failure message" "$bad of 20 runs wrong; last: $last"
+    fi
+fi
+# The spool runs on the calling thread between bands; a spill file that cannot grow (here a
+# file-size limit, as on a full disk) stops the stage with the file's folder and the reason.
+mkdir -p "$TMP/spill"
+(trap '' XFSZ && ulimit -f 64 && exec "$T" -q "$CORNELL" --width 40 --height 24 --spp 16 --spool-mem 0 \
+    -o "$TMP/spill/q.pm") >/dev/null 2>"$TMP/spill.err"
+st=$?
+if [ "$st" = 1 ] && [ "$(cat "$TMP/spill.err")" = "trace-gather-points: cannot write the spool file in '$TMP/spill': File too large" ] &&
+    [ -z "$(ls -A "$TMP/spill")" ]; then
+    pass "a spill file that cannot grow: one whole line, status 1, nothing left in the output folder"
+else
+    fail "spool write failure" "exit $st: $(cat "$TMP/spill.err"); left: $(ls -A "$TMP/spill")"
+fi

@@ -1,0 +1,630 @@
+/* eyetrace.c: the eye tracer behind trace-gather-points (see eyetrace.h): camera rays,
+ * shading at the primary hits, direct light with multiple importance sampling, the stratified
+ * secondary rays and the query records they leave.
+ *
+ * Reads a scene and its Embree scene; writes nothing itself: each band of rows is traced in
+ * parallel into per-row buffers, then handed to the caller's sink in pixel order. The shading
+ * (BRDF, light sampling, MIS weight, camera) is render/shade.h's, shared with trace-reference. */
+#include "render/eyetrace.h"
+
+#include <inttypes.h>
+#include <math.h>
+#include <omp.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/progress.h"
+#include "base/timer.h"
+#include "formats/formats.h"
+#include "math/rng.h"
+#include "math/sampling.h"
+#include "math/strata.h"
+#include "math/vec.h"
+#include "render/packet.h"
+#include "render/shade.h"
+
+#define BAND_ROWS 32 /* rows traced in parallel before their records go to the sink */
+#define PER_CELL PM_EYE_PER_CELL
+
+/* RNG streams: pixel p draws from stream 4p + purpose, so each phase of a pixel is
+ * reproducible on its own and no two pixels or phases share numbers. */
+enum { STREAM_JITTER = 0, STREAM_LIGHT = 1, STREAM_GATHER = 2 };
+
+const char *const pm_eye_mode_names[] = {"gather", "direct-vis", NULL};
+const char *const pm_eye_schedule_names[] = {"interleave", "tiles", "dynamic", NULL};
+
+/* A row's query records in file layout. Cache-line aligned: each is written by one thread,
+ * and neighbours sharing a line would make the threads slow each other down. */
+typedef struct {
+    _Alignas(64) unsigned char *p;
+    size_t n, cap;         /* bytes */
+    uint64_t count;        /* records */
+} bytebuf_t;
+
+/* A worker's scratch, reused row after row. Cache-line aligned like bytebuf_t: each is written
+ * on every ray by one thread (false sharing between them costs more than a second thread gains;
+ * docs/programs/trace-gather-points.md). */
+typedef struct {
+    _Alignas(64) pm_rays_t prim;
+    pm_rays_t shadow, sec;
+    float *hit;            /* per primary ray: position[3], normal[3] (facing the ray), wo[3] */
+    size_t hit_cap;
+    uint32_t *sh_px;       /* shadow ray -> pixel column */
+    float *sh_c;           /* shadow ray -> RGB radiance it adds when unblocked, W/(m^2 sr) */
+    uint32_t *sec_px;      /* secondary ray -> pixel column */
+    float *sec_w;          /* secondary ray -> RGB path weight (f cos / pdf / N / primary) */
+    float *sec_cos;        /* secondary ray -> cosine at the primary hit (its pdf is cos / pi), for MIS */
+    size_t sh_px_cap, sh_c_cap, sec_px_cap, sec_w_cap, sec_cos_cap; /* elements allocated */
+    float *u1, *u2;        /* spp stratified points */
+    float *lx, *ly, *lz;   /* their cosine-weighted directions in the local frame */
+    uint64_t n_primary, n_secondary, n_shadow, n_queries;
+    double t_secondary;    /* s inside Embree for secondary rays */
+    double cpu_rows;       /* s of this thread's CPU time in trace_row */
+} scratch_t;
+
+struct pm_eye {
+    pm_eye_info_t info;
+    const pm_scene_t *s;
+    const pm_rt_t *rt;
+    pm_shade_geom_t geom;  /* front normals (the emitting side) and area lights */
+    float *fold;           /* per material: kd/pi when Lambertian, 1 1 1 when glossy (the weight contract) */
+    uint32_t w, h;
+    unsigned spp, primary, light_samples, nx, ny;
+    int mode, schedule, width, threads, progress, has_mat, has_dir;
+    uint32_t record_size, off_pos, off_nor, off_w, off_pix, off_mat, off_dir; /* bytes */
+    uint64_t seed;
+    float eps;             /* m, ray-origin offset along the normal */
+    pm_camera_rays_t cam;
+};
+
+/* ------------------------------------------------------------------ buffers */
+
+static int grow(void **p, size_t elem, size_t *cap, size_t want)
+{
+    if (want <= *cap)
+        return 1;
+    size_t c = *cap ? *cap : 256;
+    while (c < want)
+        c *= 2;
+    void *q = realloc(*p, c * elem);
+    if (!q)
+        return 0;
+    *p = q;
+    *cap = c;
+    return 1;
+}
+
+static pm_result_t scratch_reserve(scratch_t *sc, uint32_t y, size_t nprim, size_t nshadow, size_t nsec, unsigned spp)
+{
+    if (pm_rays_reserve(&sc->prim, nprim) != PM_OK || pm_rays_reserve(&sc->shadow, nshadow) != PM_OK ||
+        pm_rays_reserve(&sc->sec, nsec) != PM_OK || !grow((void **)&sc->hit, 9 * sizeof(float), &sc->hit_cap, nprim) ||
+        !grow((void **)&sc->sh_px, sizeof(uint32_t), &sc->sh_px_cap, nshadow) ||
+        !grow((void **)&sc->sh_c, 3 * sizeof(float), &sc->sh_c_cap, nshadow) ||
+        !grow((void **)&sc->sec_px, sizeof(uint32_t), &sc->sec_px_cap, nsec) ||
+        !grow((void **)&sc->sec_w, 3 * sizeof(float), &sc->sec_w_cap, nsec) ||
+        !grow((void **)&sc->sec_cos, sizeof(float), &sc->sec_cos_cap, nsec))
+        return pm_error_set(PM_ERR_NOMEM,
+                            "out of memory for the rays of row %" PRIu32 ": %zu primary, %zu shadow, %zu secondary", y,
+                            nprim, nshadow, nsec);
+    if (spp) {
+        float **a[] = {&sc->u1, &sc->u2, &sc->lx, &sc->ly, &sc->lz};
+        for (size_t k = 0; k < sizeof a / sizeof a[0]; k++)
+            if (!*a[k] && !(*a[k] = malloc(spp * sizeof(float))))
+                return pm_error_set(PM_ERR_NOMEM, "out of memory for the directions of row %" PRIu32 ": %u samples",
+                                    y, spp);
+    }
+    return PM_OK;
+}
+
+static void scratch_free(scratch_t *sc)
+{
+    pm_rays_free(&sc->prim), pm_rays_free(&sc->shadow), pm_rays_free(&sc->sec);
+    free(sc->hit), free(sc->sh_px), free(sc->sh_c), free(sc->sec_px), free(sc->sec_w), free(sc->sec_cos);
+    free(sc->u1), free(sc->u2), free(sc->lx), free(sc->ly), free(sc->lz);
+}
+
+/* Appends one query record in file layout; 0 when out of memory. */
+static inline int put_query(const pm_eye_t *c, bytebuf_t *out, const float p[3], const float n[3], const float w[3],
+                            uint32_t pixel, uint32_t mat, const float wo[3])
+{
+    if (out->n + c->record_size > out->cap && !grow((void **)&out->p, 1, &out->cap, out->n + c->record_size))
+        return 0;
+    unsigned char *r = out->p + out->n;
+    memcpy(r + c->off_pos, p, 12);
+    memcpy(r + c->off_nor, n, 12);
+    memcpy(r + c->off_w, w, 12);
+    memcpy(r + c->off_pix, &pixel, 4);
+    if (c->has_mat) {
+        uint16_t m16 = (uint16_t)mat;
+        memcpy(r + c->off_mat, &m16, 2);
+    }
+    if (c->has_dir)
+        memcpy(r + c->off_dir, wo, 12);
+    out->n += c->record_size;
+    out->count++;
+    return 1;
+}
+
+/* ------------------------------------------------------------------ shading */
+
+/* The query's weight from the path weight w: a Lambertian query surface has its BRDF kd/pi
+ * folded in, a glossy one keeps f for the gather (docs/formats.md, queries). */
+static inline int query_weight(const pm_material_t *m, const float w[3], float out[3])
+{
+    int glossy = pm_material_is_glossy(m);
+    for (int k = 0; k < 3; k++)
+        out[k] = glossy ? w[k] : w[k] * m->kd[k] * (1.0f / PM_PI);
+    return out[0] > 0.0f || out[1] > 0.0f || out[2] > 0.0f;
+}
+
+/* Direct light and spawned rays of primary ray i (pixel column x); 0 when out of memory. */
+static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x, uint32_t pixel, pm_rng_t *light_rng,
+                         pm_rng_t *gather_rng, double *direct, bytebuf_t *out)
+{
+    const pm_scene_t *s = c->s;
+    const pm_rays_t *pr = &sc->prim;
+    uint32_t tri = pr->prim[i];
+    float inv_p = 1.0f / (float)c->primary;
+    float d[3] = {pr->dx[i], pr->dy[i], pr->dz[i]}, t = pr->tfar[i];
+    float *p = sc->hit + 9 * i, *n = p + 3, *wo = p + 6;
+    const float *ng = c->geom.tri_n + 3 * (size_t)tri;
+    for (int k = 0; k < 3; k++) {
+        p[k] = (k == 0 ? pr->ox[i] : k == 1 ? pr->oy[i] : pr->oz[i]) + t * d[k];
+        wo[k] = -d[k];
+    }
+    float side = pm_dot3(ng, wo) >= 0.0f ? 1.0f : -1.0f; /* both sides reflect: face the viewer */
+    for (int k = 0; k < 3; k++)
+        n[k] = side * ng[k];
+    const pm_material_t *m = &s->materials[s->tri_material[tri]];
+    float o[3];
+    for (int k = 0; k < 3; k++)
+        o[k] = p[k] + c->eps * n[k];
+
+    /* Emission seen directly: emitters radiate from their front side only. */
+    if (side > 0.0f && pm_material_is_emissive(m))
+        for (int k = 0; k < 3; k++)
+            direct[3 * x + k] += (double)(m->ke[k] * inv_p);
+
+    int reflects = m->kd[0] > 0.0f || m->kd[1] > 0.0f || m->kd[2] > 0.0f || pm_material_is_glossy(m);
+    if (!reflects)
+        return 1; /* black: reflects no light, direct or gathered */
+
+    /* Point lights: intensity I (W/sr) at distance r gives irradiance I cos / r^2. */
+    pm_light_sample_t ls;
+    for (size_t l = 0; l < s->nlights; l++) {
+        const pm_point_light_t *L = &s->lights[l];
+        if (!pm_point_light_toward(L, p, n, &ls))
+            continue;
+        float f[3];
+        pm_brdf(m, n, ls.wi, wo, f);
+        size_t j = sc->shadow.n;
+        for (int k = 0; k < 3; k++)
+            sc->sh_c[3 * j + k] = f[k] * L->intensity[k] * ls.cosx / ls.r2 * inv_p;
+        sc->sh_px[j] = x;
+        pm_rays_push(&sc->shadow, o, ls.wi, 0.0f, ls.r - c->eps);
+    }
+    /* Area lights: points uniform over the total emissive area A, pdf 1/A per m^2;
+     * L = f Ke cos_x cos_y / r^2 * A, averaged over the samples. */
+    for (unsigned q = 0; q < c->light_samples && s->nemissive; q++) {
+        if (!pm_area_light_sample(s, &c->geom, light_rng, p, n, &ls))
+            continue;
+        const pm_material_t *lm = &s->materials[s->tri_material[ls.tri]];
+        float f[3], g = ls.cosx * ls.cosy / ls.r2 * (float)c->geom.area / (float)c->light_samples * inv_p;
+        /* MIS of area lights (pm_power_heuristic, render/shade.h): a and b are sample counts
+         * times solid-angle pdfs at one direction. In gather mode the light samples and the
+         * secondary rays both find area lights. Any weights that sum to one at every direction
+         * keep the estimate unbiased; the counts only tune the variance. The secondary rays
+         * count as spp / PER_CELL, their stratum cells (the four rays of a cell land close
+         * together), not as spp: counting every ray hands the weight to the rays where a small
+         * light is far more often found by the light samples, and counting none leaves a large
+         * emitter to light samples alone, whose variance is unbounded next to it (the 1/r^2 of
+         * a sample landing beside the receiver). The measurements behind this choice are in
+         * docs/programs/trace-gather-points.md. */
+        if (c->mode == PM_EYE_GATHER) /* shared with the secondary rays that find the light (MIS) */
+            g *= pm_power_heuristic((float)c->light_samples * ls.r2 / (ls.cosy * (float)c->geom.area),
+                                    (float)(c->spp / PER_CELL) * ls.cosx * (1.0f / PM_PI));
+        pm_brdf(m, n, ls.wi, wo, f);
+        size_t j = sc->shadow.n;
+        for (int k = 0; k < 3; k++)
+            sc->sh_c[3 * j + k] = f[k] * lm->ke[k] * g;
+        sc->sh_px[j] = x;
+        /* Stop short of the light's own surface, by the offset and a relative margin. */
+        pm_rays_push(&sc->shadow, o, ls.wi, 0.0f, ls.r * (1.0f - 1e-4f) - 2.0f * c->eps);
+    }
+
+    if (c->mode == PM_EYE_DIRECT_VIS) {
+        /* The primary hit is the query: path weight 1 (over the primary rays of the pixel). */
+        float w[3] = {inv_p, inv_p, inv_p}, qw[3];
+        if (query_weight(m, w, qw)) {
+            if (!put_query(c, out, p, n, qw, pixel, s->tri_material[tri], wo))
+                return 0;
+            sc->n_queries++;
+        }
+        return 1;
+    }
+
+    /* Secondary rays: cosine-weighted (pdf cos/pi), so f cos / pdf = pi f, over N. */
+    float tb[3], bb[3];
+    {
+        pm_vec3_t tv, bv;
+        pm_onb(pm_v3_load(n), &tv, &bv);
+        pm_v3_store(tb, tv), pm_v3_store(bb, bv);
+    }
+    pm_strata_fill(gather_rng, c->nx, c->ny, PER_CELL, sc->u1, sc->u2);
+    pm_strata_cosine(sc->u1, sc->u2, c->spp, sc->lx, sc->ly, sc->lz);
+    int glossy = pm_material_is_glossy(m);
+    float scale = inv_p / (float)c->spp;
+    if (!glossy) {
+        /* Lambertian: (kd/pi) cos / (cos/pi) = kd for every ray; kd > 0 here. Whole
+         * arrays at once, in SIMD lanes. */
+        pm_rays_t *sr = &sc->sec;
+        size_t j0 = sr->n;
+        unsigned nq = c->spp;
+        float *dx = sr->dx + j0, *dy = sr->dy + j0, *dz = sr->dz + j0, *ox = sr->ox + j0, *oy = sr->oy + j0,
+              *oz = sr->oz + j0, *tn = sr->tnear + j0, *tf = sr->tfar + j0;
+        const float *lx = sc->lx, *ly = sc->ly, *lz = sc->lz;
+#pragma omp simd
+        for (unsigned q = 0; q < nq; q++) {
+            dx[q] = lx[q] * tb[0] + ly[q] * bb[0] + lz[q] * n[0];
+            dy[q] = lx[q] * tb[1] + ly[q] * bb[1] + lz[q] * n[1];
+            dz[q] = lx[q] * tb[2] + ly[q] * bb[2] + lz[q] * n[2];
+            ox[q] = o[0], oy[q] = o[1], oz[q] = o[2];
+            tn[q] = 0.0f, tf[q] = INFINITY;
+        }
+        float w0 = m->kd[0] * scale, w1 = m->kd[1] * scale, w2 = m->kd[2] * scale, *w = sc->sec_w + 3 * j0;
+        uint32_t *px = sc->sec_px + j0;
+        memcpy(sc->sec_cos + j0, lz, nq * sizeof *lz);
+        for (unsigned q = 0; q < nq; q++) {
+            w[3 * q] = w0, w[3 * q + 1] = w1, w[3 * q + 2] = w2;
+            px[q] = x;
+        }
+        sr->n += nq;
+        return 1;
+    }
+    for (unsigned q = 0; q < c->spp; q++) {
+        float wi[3];
+        for (int k = 0; k < 3; k++)
+            wi[k] = sc->lx[q] * tb[k] + sc->ly[q] * bb[k] + sc->lz[q] * n[k];
+        size_t j = sc->sec.n;
+        float *w = sc->sec_w + 3 * j, f[3];
+        pm_brdf(m, n, wi, wo, f); /* glossy: weight pi f / N per ray */
+        for (int k = 0; k < 3; k++)
+            w[k] = f[k] * PM_PI * scale;
+        if (!(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f))
+            continue; /* carries nothing: not traced */
+        sc->sec_px[j] = x;
+        sc->sec_cos[j] = sc->lz[q];
+        pm_rays_push(&sc->sec, o, wi, 0.0f, INFINITY);
+    }
+    return 1;
+}
+
+/* ------------------------------------------------------------------ rows */
+
+/* Traces row y: direct radiance into direct[0 .. 3w), queries into out in pixel order. */
+static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, double *direct, bytebuf_t *out)
+{
+    const pm_scene_t *s = c->s;
+    size_t np = (size_t)c->w * c->primary;
+    size_t nshadow = np * (s->nlights + (s->nemissive ? c->light_samples : 0));
+    size_t nsec = c->mode == PM_EYE_GATHER ? np * c->spp : 0;
+    pm_result_t r = scratch_reserve(sc, y, np, nshadow, nsec, c->mode == PM_EYE_GATHER ? c->spp : 0);
+    if (r != PM_OK)
+        return r;
+    memset(direct, 0, 3 * sizeof(double) * c->w);
+    out->n = 0;
+    out->count = 0;
+
+    /* Primary rays, pixel by pixel along the row: coherent packets. */
+    sc->prim.n = 0;
+    for (uint32_t x = 0; x < c->w; x++) {
+        uint64_t pixel = (uint64_t)y * c->w + x;
+        pm_rng_t jr;
+        pm_rng_init(&jr, c->seed, 4 * pixel + STREAM_JITTER);
+        for (unsigned j = 0; j < c->primary; j++) {
+            float jx = 0.5f, jy = 0.5f, d[3];
+            if (c->primary > 1)
+                jx = pm_rng_float(&jr), jy = pm_rng_float(&jr);
+            pm_camera_dir(&c->cam, (float)x + jx, (float)y + jy, d);
+            pm_rays_push(&sc->prim, c->cam.eye, d, 0.0f, INFINITY);
+        }
+    }
+    pm_rays_intersect(c->rt, c->width, 1, &sc->prim);
+    sc->n_primary += np;
+
+    sc->shadow.n = 0;
+    sc->sec.n = 0;
+    pm_rng_t light_rng, gather_rng;
+    pm_rng_init(&light_rng, c->seed, 0); /* re-keyed per pixel below */
+    pm_rng_init(&gather_rng, c->seed, 0);
+    for (size_t i = 0; i < np; i++) {
+        uint32_t x = (uint32_t)(i / c->primary);
+        uint32_t pixel = y * c->w + x;
+        if (i % c->primary == 0) {
+            pm_rng_init(&light_rng, c->seed, 4 * (uint64_t)pixel + STREAM_LIGHT);
+            pm_rng_init(&gather_rng, c->seed, 4 * (uint64_t)pixel + STREAM_GATHER);
+        }
+        if (sc->prim.prim[i] == PM_RAY_MISS)
+            continue; /* sky: no query, no direct light */
+        if (!shade_primary(c, sc, i, x, pixel, &light_rng, &gather_rng, direct, out))
+            return pm_error_set(PM_ERR_NOMEM, "out of memory for the queries of row %" PRIu32 ": %" PRIu64 " records",
+                                y, out->count + 1);
+    }
+
+    /* Shadow rays; each unblocked one adds its radiance, in ray (so pixel) order. */
+    pm_rays_occluded(c->rt, c->width, 0, &sc->shadow);
+    sc->n_shadow += sc->shadow.n;
+    for (size_t j = 0; j < sc->shadow.n; j++)
+        if (sc->shadow.tfar[j] >= 0.0f)
+            for (int k = 0; k < 3; k++)
+                direct[3 * sc->sh_px[j] + k] += (double)sc->sh_c[3 * j + k];
+
+    if (c->mode != PM_EYE_GATHER)
+        return PM_OK;
+    /* Secondary rays: consecutive rays share a cell or a pixel, so packets stay coherent. */
+    double t0 = pm_time_wall();
+    pm_rays_intersect(c->rt, c->width, 0, &sc->sec);
+    sc->t_secondary += pm_time_wall() - t0;
+    sc->n_secondary += sc->sec.n;
+    const pm_rays_t *sr = &sc->sec;
+    /* Room for every ray's record up front: the loop below then only stores. */
+    if (!grow((void **)&out->p, 1, &out->cap, out->n + sr->n * c->record_size))
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for the queries of row %" PRIu32 ": %zu records", y,
+                            out->count + sr->n);
+    for (size_t j = 0; j < sr->n; j++) {
+        uint32_t tri = sr->prim[j];
+        if (tri == PM_RAY_MISS)
+            continue; /* escaped: no query */
+        float d[3] = {sr->dx[j], sr->dy[j], sr->dz[j]}, t = sr->tfar[j];
+        float q[3] = {sr->ox[j] + t * d[0], sr->oy[j] + t * d[1], sr->oz[j] + t * d[2]};
+        float wo[3] = {-d[0], -d[1], -d[2]}, n[3];
+        const float *ng = c->geom.tri_n + 3 * (size_t)tri;
+        float side = pm_dot3(ng, wo) >= 0.0f ? 1.0f : -1.0f; /* the side the query sees */
+        for (int k = 0; k < 3; k++)
+            n[k] = side * ng[k];
+        uint32_t mi = s->tri_material[tri];
+        const float *fold = c->fold + 3 * (size_t)mi, *rw = sc->sec_w + 3 * j;
+        /* An emitter's front seen by a secondary ray: direct light of the primary hit, weighted
+         * against the light samples that could have found the same point (MIS, power heuristic). */
+        if (side > 0.0f && pm_material_is_emissive(&s->materials[mi])) {
+            const float *ke = s->materials[mi].ke, cosy = pm_dot3(ng, wo);
+            float wb = pm_power_heuristic((float)(c->spp / PER_CELL) * sc->sec_cos[j] * (1.0f / PM_PI),
+                                          (float)c->light_samples * t * t / (cosy * (float)c->geom.area));
+            for (int k = 0; k < 3; k++)
+                direct[3 * sc->sec_px[j] + (uint32_t)k] += (double)(rw[k] * ke[k] * wb);
+        }
+        float w[3] = {rw[0] * fold[0], rw[1] * fold[1], rw[2] * fold[2]};
+        if (!(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f))
+            continue; /* a black query surface */
+        put_query(c, out, q, n, w, y * c->w + sc->sec_px[j], mi, wo); /* room reserved above */
+        sc->n_queries++;
+    }
+    return PM_OK;
+}
+
+/* Row y on the calling worker, its CPU time counted; a failure goes into err, so that its
+ * message outlives the worker's thread-local one. */
+static void trace_row(const pm_eye_t *c, scratch_t *sc, uint32_t y, double *direct, bytebuf_t *out,
+                      pm_error_slot_t *err)
+{
+    double t0 = pm_time_thread_cpu();
+    pm_result_t r = trace_row_body(c, sc, y, direct, out);
+    sc->cpu_rows += pm_time_thread_cpu() - t0;
+    if (r != PM_OK)
+        pm_error_slot_record(err, y, r);
+}
+
+/* ------------------------------------------------------------------ context */
+
+pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_options_t *o, pm_eye_t **out)
+{
+    *out = NULL;
+    pm_eye_t *c = calloc(1, sizeof *c);
+    if (!c)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for the eye tracer's context");
+    c->s = s, c->rt = rt;
+    c->w = o->width ? o->width : s->camera.width;
+    c->h = o->height ? o->height : s->camera.height;
+    c->mode = o->mode;
+    c->schedule = o->schedule;
+    c->primary = o->primary ? o->primary : 1;
+    c->light_samples = o->light_samples;
+    c->seed = o->seed;
+    c->threads = o->threads > 0 ? o->threads : 1;
+    c->progress = o->progress;
+    c->eps = rt->epsilon;
+    c->width = pm_packet_width(rt, o->isa);
+    pm_result_t r = PM_OK;
+    if (c->mode == PM_EYE_GATHER) {
+        int64_t spp = o->spp ? (int64_t)o->spp : s->defaults.spp;
+        if (spp <= 0 || spp % PER_CELL != 0 || spp > 65536)
+            r = pm_error_set(o->spp ? PM_ERR_USAGE : PM_ERR_INPUT,
+                             "%s%s%s %" PRId64
+                             " is not a positive multiple of %d up to 65536 (%d samples per stratum cell)",
+                             o->spp ? "--spp" : "scene '", o->spp ? "" : s->path, o->spp ? "" : "': render.spp", spp,
+                             PER_CELL, PER_CELL);
+        else {
+            c->spp = (unsigned)spp;
+            pm_strata_grid(c->spp / PER_CELL, &c->nx, &c->ny);
+        }
+    }
+    /* Channels: leave out what the scene does not need (docs/formats.md). */
+    c->has_dir = s->any_glossy;
+    c->has_mat = s->any_glossy && s->nmaterials > 1;
+    uint32_t mask = pm_schema_required(&pm_queries_schema) | (c->has_mat ? 1u << PM_QUERY_MATERIAL : 0) |
+                    (c->has_dir ? 1u << PM_QUERY_DIRECTION : 0);
+    c->record_size = pm_schema_record_size(&pm_queries_schema, mask);
+    c->off_pos = pm_schema_offset(&pm_queries_schema, mask, PM_QUERY_POSITION);
+    c->off_nor = pm_schema_offset(&pm_queries_schema, mask, PM_QUERY_NORMAL);
+    c->off_w = pm_schema_offset(&pm_queries_schema, mask, PM_QUERY_WEIGHT);
+    c->off_pix = pm_schema_offset(&pm_queries_schema, mask, PM_QUERY_PIXEL);
+    c->off_mat = pm_schema_offset(&pm_queries_schema, mask, PM_QUERY_MATERIAL);
+    c->off_dir = pm_schema_offset(&pm_queries_schema, mask, PM_QUERY_DIRECTION);
+
+    pm_camera_setup(&s->camera, c->w, c->h, &c->cam);
+
+    if (r == PM_OK && !(c->fold = malloc((s->nmaterials ? s->nmaterials : 1) * 3 * sizeof(float))))
+        r = pm_error_set(PM_ERR_NOMEM, "out of memory for the weights of %zu materials", s->nmaterials);
+    for (size_t m = 0; r == PM_OK && m < s->nmaterials; m++) {
+        float one[3] = {1.0f, 1.0f, 1.0f};
+        query_weight(&s->materials[m], one, c->fold + 3 * m);
+    }
+    if (r == PM_OK)
+        r = pm_shade_geom_init(s, &c->geom);
+    if (r != PM_OK) {
+        pm_eye_destroy(c);
+        return r;
+    }
+    c->info = (pm_eye_info_t){.mode = c->mode, .width = c->w, .height = c->h, .spp = c->spp, .primary = c->primary,
+                              .light_samples = c->light_samples, .seed = c->seed, .packet_width = c->width,
+                              .channels = mask, .record_size = c->record_size};
+    *out = c;
+    return PM_OK;
+}
+
+const pm_eye_info_t *pm_eye_info(const pm_eye_t *e) { return &e->info; }
+
+void pm_eye_destroy(pm_eye_t *e)
+{
+    if (!e)
+        return;
+    pm_shade_geom_free(&e->geom);
+    free(e->fold);
+    free(e);
+}
+
+/* ------------------------------------------------------------------ the trace */
+
+pm_result_t pm_eye_trace(pm_eye_t *c, const pm_eye_sink_t *sink, pm_eye_stats_t *stats_out)
+{
+    memset(stats_out, 0, sizeof *stats_out);
+    int nthreads = c->threads;
+    pm_result_t r = PM_OK;
+    scratch_t *scr = aligned_alloc(64, (size_t)nthreads * sizeof *scr);
+    uint32_t band = c->h < BAND_ROWS ? c->h : BAND_ROWS;
+    double *direct = malloc(((size_t)band * c->w * 3 + 1) * sizeof(double));
+    bytebuf_t rows[BAND_ROWS];
+    memset(rows, 0, sizeof rows);
+    if (scr)
+        memset(scr, 0, (size_t)nthreads * sizeof *scr);
+    if (!scr || !direct)
+        r = pm_error_set(PM_ERR_NOMEM, "out of memory for %d threads' buffers and %" PRIu32 " rows of %" PRIu32
+                         " pixels", nthreads, band, c->w);
+
+    pm_progress_t prog;
+    pm_progress_begin(&prog, "rows", c->h, c->progress);
+    double t0 = pm_time_wall(), t_sink = 0.0;
+    uint64_t delivered = 0;
+    for (uint32_t y0 = 0; y0 < c->h && r == PM_OK; y0 += BAND_ROWS) {
+        int nb = (int)(c->h - y0 < BAND_ROWS ? c->h - y0 : BAND_ROWS);
+        /* A row that fails on a worker records its message here; the lowest row's wins. */
+        pm_error_slot_t err;
+        pm_error_slot_init(&err);
+#pragma omp parallel num_threads(nthreads)
+        {
+            pm_cpu_set_ftz_daz(); /* per thread: MXCSR is not inherited by OpenMP workers */
+            scratch_t *sc = &scr[omp_get_thread_num()];
+            if (c->schedule == PM_EYE_INTERLEAVE) {
+#pragma omp for schedule(static, 1)
+                for (int b = 0; b < nb; b++) {
+                    trace_row(c, sc, y0 + (uint32_t)b, direct + (size_t)b * c->w * 3, &rows[b], &err);
+                    pm_progress_add(&prog, 1);
+                }
+            } else if (c->schedule == PM_EYE_TILES) {
+#pragma omp for schedule(static)
+                for (int b = 0; b < nb; b++) {
+                    trace_row(c, sc, y0 + (uint32_t)b, direct + (size_t)b * c->w * 3, &rows[b], &err);
+                    pm_progress_add(&prog, 1);
+                }
+            } else {
+#pragma omp for schedule(dynamic, 1)
+                for (int b = 0; b < nb; b++) {
+                    trace_row(c, sc, y0 + (uint32_t)b, direct + (size_t)b * c->w * 3, &rows[b], &err);
+                    pm_progress_add(&prog, 1);
+                }
+            }
+        }
+        r = pm_error_slot_raise(&err);
+        double t1 = pm_time_wall();
+        for (int b = 0; b < nb && r == PM_OK; b++)
+            if (rows[b].count) {
+                r = sink->queries(sink->user, rows[b].p, rows[b].count);
+                delivered += rows[b].count;
+            }
+        if (r == PM_OK && sink->direct)
+            r = sink->direct(sink->user, y0, (uint32_t)nb, direct);
+        t_sink += pm_time_wall() - t1;
+    }
+    /* Ray throughput is measured without the sink's copying, which is output cost. */
+    stats_out->trace_s = pm_time_wall() - t0 - t_sink;
+    stats_out->sink_s = t_sink;
+    pm_progress_end(&prog);
+
+    for (int t = 0; t < nthreads && scr; t++) {
+        stats_out->trace_cpu_s += scr[t].cpu_rows;
+        stats_out->primary_rays += scr[t].n_primary;
+        stats_out->secondary_rays += scr[t].n_secondary;
+        stats_out->shadow_rays += scr[t].n_shadow;
+        stats_out->queries += scr[t].n_queries;
+        stats_out->secondary_embree_s += scr[t].t_secondary;
+    }
+    if (r == PM_OK && stats_out->queries != delivered)
+        r = pm_error_set(PM_ERR_INTERNAL, "counted %" PRIu64 " queries but delivered %" PRIu64, stats_out->queries,
+                         delivered);
+    for (int t = 0; t < nthreads && scr; t++)
+        scratch_free(&scr[t]);
+    for (int b = 0; b < BAND_ROWS; b++)
+        free(rows[b].p);
+    free(scr);
+    free(direct);
+    return r;
+}
+
+/* ------------------------------------------------------------------ headers */
+
+/* Provenance and format keys shared by both outputs. */
+static pm_result_t header_common(const pm_eye_t *c, int argc, char **argv, pm_header_t *h)
+{
+    pm_result_t r = pm_image_header_begin(h, argc, argv, c->s, c->w, c->h);
+    if (r == PM_OK)
+        r = pm_header_set(h, "mode", "%s", pm_eye_mode_names[c->mode]);
+    if (r == PM_OK && c->mode == PM_EYE_GATHER)
+        r = pm_header_set(h, "spp", "%u", c->spp);
+    if (r == PM_OK)
+        r = pm_header_set(h, "primary", "%u", c->primary);
+    if (r == PM_OK)
+        r = pm_header_set(h, "seed", "%" PRIu64, c->seed);
+    return r;
+}
+
+pm_result_t pm_eye_queries_header(const pm_eye_t *c, int argc, char **argv, uint64_t count, pm_header_t *h)
+{
+    const pm_scene_t *s = c->s;
+    pm_header_init(h, &pm_queries_schema);
+    h->count = count;
+    h->channels = c->info.channels;
+    pm_result_t r = header_common(c, argc, argv, h);
+    if (r == PM_OK && s->any_glossy) {
+        r = pm_queries_set_materials(h, s->materials, s->nmaterials);
+    } else if (r == PM_OK) {
+        /* No glossy material: every query has its BRDF in its weight (docs/formats.md). */
+        pm_material_t folded = {.name = "folded", .kd = {1, 1, 1}};
+        r = pm_queries_set_materials(h, &folded, 1);
+    }
+    if (r == PM_OK)
+        r = pm_header_set(h, "weights", "lambertian-brdf-folded");
+    return r;
+}
+
+pm_result_t pm_eye_direct_header(const pm_eye_t *c, int argc, char **argv, pm_header_t *h)
+{
+    pm_header_init(h, &pm_radiance_schema);
+    h->count = (uint64_t)c->w * c->h;
+    h->channels = pm_schema_required(&pm_radiance_schema);
+    pm_result_t r = header_common(c, argc, argv, h);
+    if (r == PM_OK)
+        r = pm_header_set(h, "component", "direct");
+    if (r == PM_OK)
+        r = pm_header_set(h, "light_samples", "%u", c->light_samples);
+    return r;
+}

@@ -1,0 +1,103 @@
+/* eyetrace.h: the eye side of the final gather (the paper, sections 5.1 and 6.1), the engine of
+ * trace-gather-points.
+ *
+ * Casts one primary ray per pixel (or `primary` jittered ones) as Embree packets; at each
+ * primary hit adds emission seen directly and direct light (shadow rays to point lights and to
+ * sampled points of emissive triangles) into the direct radiance buffer; and spawns `spp`
+ * cosine-weighted secondary rays, stratified with PM_EYE_PER_CELL samples per cell so that
+ * groups of four share origin and direction, also traced as packets. Each secondary hit becomes
+ * one gather point, a record of the queries format (formats/formats.h) with the weight contract
+ * of docs/formats.md. PM_EYE_DIRECT_VIS makes the primary hits themselves the queries (the
+ * paper's Figure 4, left).
+ *
+ * Rows are the unit of work: rows of a band run in parallel, and the caller's sink receives their
+ * records and direct radiance on the calling thread in pixel order, so what it receives is the
+ * same bytes for any thread count and schedule. Pixel p draws from the Philox streams
+ * (seed, 4p + purpose): jitter, light samples, secondary rays. */
+#ifndef PM_EYETRACE_H
+#define PM_EYETRACE_H
+
+#include <stdint.h>
+
+#include "base/cpu.h"
+#include "base/error.h"
+#include "formats/pmfile.h"
+#include "render/rt.h"
+#include "render/scene.h"
+
+#define PM_EYE_PER_CELL 4 /* secondary samples per stratum cell: the paper's four */
+
+enum { PM_EYE_GATHER = 0, PM_EYE_DIRECT_VIS = 1 };              /* where the queries are */
+enum { PM_EYE_INTERLEAVE = 0, PM_EYE_TILES = 1, PM_EYE_DYNAMIC = 2 }; /* rows of a band to threads */
+/* Their names, indexed by the enums and NULL-terminated (option tables, headers, stats). */
+extern const char *const pm_eye_mode_names[];
+extern const char *const pm_eye_schedule_names[];
+
+typedef struct {
+    int mode;                /* PM_EYE_GATHER or PM_EYE_DIRECT_VIS */
+    int schedule;            /* PM_EYE_INTERLEAVE, PM_EYE_TILES or PM_EYE_DYNAMIC */
+    uint32_t width, height;  /* pixels; 0 takes the scene camera's */
+    uint32_t spp;            /* secondary rays per primary hit (gather mode); 0 takes the scene's render.spp */
+    uint32_t primary;        /* primary rays per pixel, >= 1; more than 1 are jittered */
+    uint32_t light_samples;  /* area-light samples per primary hit */
+    uint64_t seed;
+    pm_isa_t isa;            /* packet width (narrowed to what Embree runs natively) */
+    int threads;             /* worker threads, >= 1 */
+    int progress;            /* a progress line on a terminal */
+} pm_eye_options_t;
+
+/* What a context settled on: sizes, the effective spp, the queries' record layout. */
+typedef struct {
+    int mode;
+    uint32_t width, height;
+    uint32_t spp;            /* 0 in direct-vis mode */
+    uint32_t primary, light_samples;
+    uint64_t seed;
+    int packet_width;        /* lanes: 1, 4, 8 or 16 */
+    uint32_t channels;       /* mask of the queries channels written (direction, material only when needed) */
+    uint32_t record_size;    /* bytes per query record */
+} pm_eye_info_t;
+
+/* Counters of one pm_eye_trace. */
+typedef struct {
+    uint64_t primary_rays, secondary_rays, shadow_rays, queries;
+    double trace_s;          /* wall s of the row loop, without the time spent in the sink */
+    double sink_s;           /* wall s spent in the sink (the caller's output cost) */
+    double trace_cpu_s;      /* CPU s the threads spent tracing rows: immune to other processes' load */
+    double secondary_embree_s; /* s inside Embree for secondary rays, summed over threads */
+} pm_eye_stats_t;
+
+/* Where the results go. Both calls are made on the thread that called pm_eye_trace, never
+ * concurrently, and a failure they return stops the trace and is returned as it is. */
+typedef struct {
+    /* count query records (pm_eye_info_t's record_size bytes each), in pixel order; the
+     * queries of a pixel are contiguous and pixels come in row-major order. */
+    pm_result_t (*queries)(void *user, const void *records, uint64_t count);
+    /* Direct radiance of rows [y0, y0 + rows): width * rows RGB triples, W/(m^2 sr). */
+    pm_result_t (*direct)(void *user, uint32_t y0, uint32_t rows, const double *rgb);
+    void *user;
+} pm_eye_sink_t;
+
+typedef struct pm_eye pm_eye_t;
+
+/* A context over a loaded scene and its Embree scene (both must outlive it). Fails with
+ * PM_ERR_INPUT when the scene's render.spp is needed and is not a positive multiple of
+ * PM_EYE_PER_CELL up to 65536 (PM_ERR_USAGE when o->spp is the one), or PM_ERR_NOMEM. */
+pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_options_t *o, pm_eye_t **out);
+
+const pm_eye_info_t *pm_eye_info(const pm_eye_t *e);
+
+/* Traces every row and feeds sink. A failure on a worker thread (out of memory for a row's
+ * rays or records) reaches the caller whole, with the lowest failing row's message. */
+pm_result_t pm_eye_trace(pm_eye_t *e, const pm_eye_sink_t *sink, pm_eye_stats_t *stats_out);
+
+/* The headers of the two outputs, initialized here (free with pm_header_free): provenance
+ * (argc, argv: this command), SCENE, sizes, mode, spp, primary, seed; the queries header also
+ * its channels, the material table and the weight contract, with COUNT count; the direct one
+ * component=direct and light_samples, with COUNT width * height. */
+pm_result_t pm_eye_queries_header(const pm_eye_t *e, int argc, char **argv, uint64_t count, pm_header_t *h);
+pm_result_t pm_eye_direct_header(const pm_eye_t *e, int argc, char **argv, pm_header_t *h);
+
+void pm_eye_destroy(pm_eye_t *e);
+
+#endif

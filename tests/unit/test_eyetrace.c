@@ -1,0 +1,146 @@
+/* test_eyetrace.c: the eye tracer of common/render/eyetrace.h through its API, on the closed
+ * box of tests/scenes (8 x 8 pixels, no ray escapes): the sink gets every query in pixel
+ * order and every row of direct light once, the same bytes for any thread count and
+ * schedule; a sink's failure stops the trace with its message; a bad spp is refused. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/cpu.h"
+#include "base/error.h"
+#include "formats/formats.h"
+#include "render/eyetrace.h"
+#include "render/rt.h"
+#include "render/scene.h"
+#include "unit.h"
+
+#define CLOSED_BOX "tests/scenes/closed-box/scene.json"
+
+typedef struct {
+    unsigned char *q;      /* every query record received */
+    size_t qn, qcap;
+    double direct[8 * 8 * 3];
+    int rows_seen[8];
+    uint32_t record_size, off_pixel, last_pixel;
+    int out_of_order, fail_after; /* fail_after: records after which the queries sink fails, 0 for never */
+} sink_t;
+
+static pm_result_t got_queries(void *user, const void *records, uint64_t count)
+{
+    sink_t *k = user;
+    if (k->fail_after && k->qn / k->record_size + count > (size_t)k->fail_after)
+        return pm_error_set(PM_ERR_IO, "cannot write 'test sink': %zu records in", k->qn / k->record_size);
+    size_t bytes = (size_t)count * k->record_size;
+    if (k->qn + bytes > k->qcap) {
+        k->qcap = 2 * (k->qn + bytes);
+        k->q = realloc(k->q, k->qcap);
+        assert_non_null(k->q);
+    }
+    memcpy(k->q + k->qn, records, bytes);
+    for (uint64_t i = 0; i < count; i++) {
+        uint32_t px;
+        memcpy(&px, k->q + k->qn + i * k->record_size + k->off_pixel, 4);
+        if (px < k->last_pixel)
+            k->out_of_order = 1;
+        k->last_pixel = px;
+    }
+    k->qn += bytes;
+    return PM_OK;
+}
+
+static pm_result_t got_direct(void *user, uint32_t y0, uint32_t rows, const double *rgb)
+{
+    sink_t *k = user;
+    for (uint32_t y = y0; y < y0 + rows; y++)
+        k->rows_seen[y]++;
+    memcpy(k->direct + (size_t)y0 * 8 * 3, rgb, (size_t)rows * 8 * 3 * sizeof *rgb);
+    return PM_OK;
+}
+
+static void trace(const pm_scene_t *s, const pm_rt_t *rt, int threads, int schedule, sink_t *k, pm_eye_stats_t *x)
+{
+    pm_eye_options_t o = {.mode = PM_EYE_GATHER, .schedule = schedule, .primary = 1, .light_samples = 4,
+                          .seed = 1, .isa = pm_cpu_best_isa(), .threads = threads};
+    pm_eye_t *e;
+    if (pm_eye_create(s, rt, &o, &e) != PM_OK)
+        fail_msg("%s", pm_error_message());
+    const pm_eye_info_t *in = pm_eye_info(e);
+    assert_int_equal(in->width, 8);
+    assert_int_equal(in->spp, 16); /* the scene's render.spp */
+    assert_int_equal(in->channels, pm_schema_required(&pm_queries_schema)); /* Lambertian: no material, no direction */
+    assert_int_equal(in->record_size, 40);
+    memset(k, 0, sizeof *k);
+    k->record_size = in->record_size;
+    k->off_pixel = pm_schema_offset(&pm_queries_schema, in->channels, PM_QUERY_PIXEL);
+    const pm_eye_sink_t sink = {got_queries, got_direct, k};
+    if (pm_eye_trace(e, &sink, x) != PM_OK)
+        fail_msg("%s", pm_error_message());
+    pm_eye_destroy(e);
+}
+
+static void test_eyetrace_closed_box(void **state)
+{
+    pm_scene_t s;
+    pm_rt_t rt;
+    if (pm_scene_load(CLOSED_BOX, &s) != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_int_equal(pm_rt_create(&s, 0, 2, &rt), PM_OK);
+    sink_t a, b;
+    pm_eye_stats_t xa, xb;
+    trace(&s, &rt, 1, PM_EYE_INTERLEAVE, &a, &xa);
+    /* a closed box: every pixel sends 16 secondary rays and each finds a wall */
+    assert_int_equal(xa.primary_rays, 64);
+    assert_int_equal(xa.secondary_rays, 64 * 16);
+    assert_int_equal(xa.queries, 64 * 16);
+    assert_int_equal(a.qn, 64 * 16 * 40);
+    assert_false(a.out_of_order);
+    for (int y = 0; y < 8; y++)
+        assert_int_equal(a.rows_seen[y], 1);
+    for (int i = 0; i < 64; i++)
+        assert_true(a.direct[3 * i] > 0.0); /* the point light reaches every wall in view */
+    for (int sched = PM_EYE_INTERLEAVE; sched <= PM_EYE_DYNAMIC; sched++) {
+        trace(&s, &rt, 3, sched, &b, &xb);
+        assert_int_equal(b.qn, a.qn);
+        assert_memory_equal(b.q, a.q, a.qn);
+        assert_memory_equal(b.direct, a.direct, sizeof a.direct);
+        free(b.q);
+    }
+    free(a.q);
+    pm_rt_destroy(&rt);
+    pm_scene_free(&s);
+}
+
+static void test_eyetrace_failures(void **state)
+{
+    pm_scene_t s;
+    pm_rt_t rt;
+    if (pm_scene_load(CLOSED_BOX, &s) != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_int_equal(pm_rt_create(&s, 0, 2, &rt), PM_OK);
+    pm_eye_options_t o = {.mode = PM_EYE_GATHER, .primary = 1, .spp = 6, .isa = PM_ISA_SCALAR, .threads = 2};
+    pm_eye_t *e = (pm_eye_t *)&o;
+    assert_int_equal(pm_eye_create(&s, &rt, &o, &e), PM_ERR_USAGE);
+    assert_null(e);
+    assert_non_null(strstr(pm_error_message(), "--spp 6 is not a positive multiple of 4"));
+
+    /* the sink fails past 200 records, in the second row (128 a row): the trace stops with its
+     * code and message */
+    o.spp = 0;
+    assert_int_equal(pm_eye_create(&s, &rt, &o, &e), PM_OK);
+    sink_t k = {.record_size = pm_eye_info(e)->record_size, .fail_after = 200};
+    const pm_eye_sink_t sink = {got_queries, got_direct, &k};
+    pm_eye_stats_t x;
+    assert_int_equal(pm_eye_trace(e, &sink, &x), PM_ERR_IO);
+    assert_string_equal(pm_error_message(), "cannot write 'test sink': 128 records in");
+    for (int y = 0; y < 8; y++)
+        assert_int_equal(k.rows_seen[y], 0); /* the band's direct rows never went out */
+    free(k.q);
+    pm_eye_destroy(e);
+    pm_rt_destroy(&rt);
+    pm_scene_free(&s);
+}
+
+static const struct CMUnitTest tests[] = {
+    cmocka_unit_test(test_eyetrace_closed_box),
+    cmocka_unit_test(test_eyetrace_failures),
+};
+UNIT_GROUP(unit_eyetrace, "eyetrace", tests);

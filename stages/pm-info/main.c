@@ -140,6 +140,7 @@ static json_t *header_json(const char *name, const pm_header_t *h, const char *t
     json_object_set_new(j, "file", json_string(name));
     json_object_set_new(j, "format", json_string(h->schema->name));
     json_object_set_new(j, "version", json_string(version));
+    json_object_set_new(j, "byte_order", json_string("little-endian")); /* the only order a reader accepts */
     json_object_set_new(j, "count", json_integer((json_int_t)h->count));
     json_object_set_new(j, "record_size", json_integer(h->record_size));
     for (unsigned ci = 0; ci < h->schema->nchannels; ci++)

@@ -99,16 +99,36 @@ static void print_record(FILE *out, const pm_header_t *h, const unsigned char *p
     fputc('\n', out);
 }
 
+/* Strings go into JSON through one door that remembers the first that failed: JSON carries
+ * UTF-8 only, and a header value in another encoding must be an error naming its key, not a
+ * key silently left out. */
+typedef struct {
+    const char *failed; /* the key of the first string that could not be made, or NULL */
+    int nomem;          /* it failed for want of memory, not for its encoding */
+} json_strings_t;
+
+static json_t *jstr(json_strings_t *js, const char *key, const char *s, size_t n)
+{
+    json_t *v = json_stringn(s, n);
+    if (!v && !js->failed) {
+        json_t *raw = json_stringn_nocheck(s, n); /* succeeds unless memory is short */
+        js->failed = key;
+        js->nomem = raw == NULL;
+        json_decref(raw);
+    }
+    return v;
+}
+
 /* The value of the first line KEY=... of a header text, up to its newline; null if none.
  * SOFTWARE is read here because the reader drops it (each writer rewrites it). */
-static json_t *text_key(const char *text, const char *key)
+static json_t *text_key(json_strings_t *js, const char *text, const char *key)
 {
     size_t n = strlen(key);
     for (const char *p = text; *p;) {
         const char *end = strchr(p, '\n');
         size_t len = end ? (size_t)(end - p) : strlen(p);
         if (len > n && !strncmp(p, key, n) && p[n] == '=')
-            return json_stringn(p + n + 1, len - n - 1);
+            return jstr(js, key, p + n + 1, len - n - 1);
         if (!end)
             break;
         p = end + 1;
@@ -118,26 +138,28 @@ static json_t *text_key(const char *text, const char *key)
 
 /* An INPUT value, "<path> xxh3:<hex>", as {"path", "hash"}: the path is everything before
  * the last " xxh3:" (docs/formats.md). */
-static json_t *input_json(const char *value)
+static json_t *input_json(json_strings_t *js, const char *value)
 {
     const char *at = NULL;
     for (const char *p = strstr(value, " xxh3:"); p; p = strstr(p + 1, " xxh3:"))
         at = p;
-    if (!at)
-        return json_pack("{s:s, s:n}", "path", value, "hash");
-    return json_pack("{s:s%, s:s}", "path", value, (size_t)(at - value), "hash", at + 1);
+    json_t *o = json_object();
+    json_object_set_new(o, "path", jstr(js, "INPUT", value, at ? (size_t)(at - value) : strlen(value)));
+    json_object_set_new(o, "hash", at ? jstr(js, "INPUT", at + 1, strlen(at + 1)) : json_null());
+    return o;
 }
 
 /* One file's header as a JSON object: the structural keys typed (count and record size as
  * integers, channels as names, bounds as numbers), COMMAND and INPUT lines as arrays in file
  * order, every other key as a string under "keys" (a repeated one by its first value). */
-static json_t *header_json(const char *name, const pm_header_t *h, const char *text)
+static pm_result_t header_json(const char *name, const pm_header_t *h, const char *text, json_t **out)
 {
+    json_strings_t js = {0};
     json_t *j = json_object(), *ch = json_array(), *b = json_array(), *cmds = json_array(),
            *inputs = json_array(), *keys = json_object();
     char version[32];
     snprintf(version, sizeof version, "%u.%u", h->major, h->minor);
-    json_object_set_new(j, "file", json_string(name));
+    json_object_set_new(j, "file", jstr(&js, "the file name", name, strlen(name)));
     json_object_set_new(j, "format", json_string(h->schema->name));
     json_object_set_new(j, "version", json_string(version));
     json_object_set_new(j, "byte_order", json_string("little-endian")); /* the only order a reader accepts */
@@ -151,25 +173,33 @@ static json_t *header_json(const char *name, const pm_header_t *h, const char *t
     for (int k = 0; k < 6; k++)
         json_array_append_new(b, json_real(h->bounds[k]));
     json_object_set_new(j, "bounds", b);
-    json_object_set_new(j, "software", text_key(text, "SOFTWARE"));
+    json_object_set_new(j, "software", text_key(&js, text, "SOFTWARE"));
     for (size_t i = 0; i < h->ncommands; i++)
-        json_array_append_new(cmds, json_string(h->commands[i]));
+        json_array_append_new(cmds, jstr(&js, "COMMAND", h->commands[i], strlen(h->commands[i])));
     json_object_set_new(j, "commands", cmds);
     for (size_t i = 0; i < h->nkeys; i++) {
-        if (!strcmp(h->keys[i].key, "INPUT"))
-            json_array_append_new(inputs, input_json(h->keys[i].value));
-        else if (!json_object_get(keys, h->keys[i].key))
-            json_object_set_new(keys, h->keys[i].key, json_string(h->keys[i].value));
+        const pm_kv_t *kv = &h->keys[i];
+        if (!strcmp(kv->key, "INPUT"))
+            json_array_append_new(inputs, input_json(&js, kv->value));
+        else if (!json_object_get(keys, kv->key))
+            json_object_set_new(keys, kv->key, jstr(&js, kv->key, kv->value, strlen(kv->value)));
     }
     json_object_set_new(j, "inputs", inputs);
     json_object_set_new(j, "keys", keys);
-    return j;
+    if (js.failed && !js.nomem) {
+        json_decref(j);
+        return pm_error_set(PM_ERR_INPUT, "cannot describe '%s' as JSON: %s is not UTF-8", name, js.failed);
+    }
+    if (!j || js.failed) {
+        json_decref(j);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory describing '%s' as JSON", name);
+    }
+    *out = j;
+    return PM_OK;
 }
 
 static pm_result_t write_json(FILE *out, json_t *j, const char *name)
 {
-    if (!j)
-        return pm_error_set(PM_ERR_NOMEM, "out of memory describing '%s' as JSON", name);
     int bad = json_dumpf(j, out, JSON_INDENT(2) | JSON_PRESERVE_ORDER | JSON_REAL_PRECISION(9)) != 0 ||
               fputc('\n', out) == EOF;
     json_decref(j);
@@ -183,7 +213,11 @@ static pm_result_t info_file(FILE *out, const char *path, const info_options_t *
     if (res != PM_OK)
         return res;
     /* JSON is written after the check, so that a reader of it sees a whole object or none. */
-    json_t *j = o->json ? header_json(path, pm_reader_header(r), pm_reader_header_text(r)) : NULL;
+    json_t *j = NULL;
+    if (o->json && (res = header_json(path, pm_reader_header(r), pm_reader_header_text(r), &j)) != PM_OK) {
+        pm_reader_close(r);
+        return res;
+    }
     if (!o->json)
         fputs(pm_reader_header_text(r), out);
     if (o->header_only) {

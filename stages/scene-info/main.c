@@ -152,6 +152,26 @@ static void print_text(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, double
     fprintf(out, "time: load %.3f s, bvh %.3f s\n", load_s, bvh_s);
 }
 
+/* Strings go into JSON through one door that remembers the first that failed: JSON carries
+ * UTF-8 only, and a name in another encoding (a material from an MTL file, a path) must be an
+ * error naming it, not a key silently left out. */
+typedef struct {
+    const char *failed; /* what the first string that could not be made was, or NULL */
+    int nomem;          /* it failed for want of memory, not for its encoding */
+} json_strings_t;
+
+static json_t *jstr(json_strings_t *js, const char *what, const char *s)
+{
+    json_t *v = json_string(s);
+    if (!v && !js->failed) {
+        json_t *raw = json_string_nocheck(s); /* succeeds unless memory is short */
+        js->failed = what;
+        js->nomem = raw == NULL;
+        json_decref(raw);
+    }
+    return v;
+}
+
 static json_t *floats_json(const float *v, size_t n)
 {
     json_t *a = json_array();
@@ -162,9 +182,10 @@ static json_t *floats_json(const float *v, size_t n)
 
 /* The facts of print_text as one object, numbers at full float precision; units in the key
  * names where they are not counts. */
-static json_t *summary_json(const pm_scene_t *s, const pm_rt_t *rt, double load_s, double bvh_s,
-                            const probe_result_t *pr)
+static pm_result_t summary_json(const pm_scene_t *s, const pm_rt_t *rt, double load_s, double bvh_s,
+                                const probe_result_t *pr, json_t **out)
 {
+    json_strings_t js = {0};
     double p[3];
     pm_scene_power(s, p);
     char id[200];
@@ -172,18 +193,22 @@ static json_t *summary_json(const pm_scene_t *s, const pm_rt_t *rt, double load_
     scene_needs_t need = scene_needs(s);
     json_t *j = json_object(), *mats = json_array(), *power = json_array(), *cam = json_object(),
            *needs = json_object();
-    json_object_set_new(j, "scene", json_string(id));
-    json_object_set_new(j, "name", json_string(s->name));
-    json_object_set_new(j, "file", json_string(s->path));
+    json_object_set_new(j, "scene", jstr(&js, "the scene's name", id));
+    json_object_set_new(j, "name", jstr(&js, "the scene's name", s->name));
+    json_object_set_new(j, "file", jstr(&js, "the scene's path", s->path));
     json_object_set_new(j, "triangles", json_integer((json_int_t)s->ntris));
     json_object_set_new(j, "degenerate_triangles", json_integer((json_int_t)s->ndropped));
     json_object_set_new(j, "vertices", json_integer((json_int_t)s->nverts));
     json_object_set_new(j, "glossy", json_boolean(s->any_glossy));
     for (size_t i = 0; i < s->nmaterials; i++) {
         const pm_material_t *m = &s->materials[i];
-        json_array_append_new(mats, json_pack("{s:s, s:o, s:o, s:f, s:o}", "name", m->name, "kd",
-                                              floats_json(m->kd, 3), "ks", floats_json(m->ks, 3), "ns",
-                                              (double)m->ns, "ke", floats_json(m->ke, 3)));
+        json_t *mj = json_object();
+        json_object_set_new(mj, "name", jstr(&js, "a material's name", m->name));
+        json_object_set_new(mj, "kd", floats_json(m->kd, 3));
+        json_object_set_new(mj, "ks", floats_json(m->ks, 3));
+        json_object_set_new(mj, "ns", json_real(m->ns));
+        json_object_set_new(mj, "ke", floats_json(m->ke, 3));
+        json_array_append_new(mats, mj);
     }
     json_object_set_new(j, "materials", mats);
     json_object_set_new(j, "point_lights", json_integer((json_int_t)s->nlights));
@@ -212,7 +237,16 @@ static json_t *summary_json(const pm_scene_t *s, const pm_rt_t *rt, double load_
                                       (json_int_t)pr->hits, "hit_fraction",
                                       pr->rays ? (double)pr->hits / (double)pr->rays : 0.0, "rays_per_s",
                                       pr->rays_per_s));
-    return j;
+    if (js.failed && !js.nomem) {
+        json_decref(j);
+        return pm_error_set(PM_ERR_INPUT, "cannot describe scene '%s' as JSON: %s is not UTF-8", s->path, js.failed);
+    }
+    if (!j || js.failed) {
+        json_decref(j);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory describing scene '%s' as JSON", s->path);
+    }
+    *out = j;
+    return PM_OK;
 }
 
 static pm_result_t run(pm_stage_t *st, const scene_info_options_t *o)
@@ -263,11 +297,10 @@ static pm_result_t run(pm_stage_t *st, const scene_info_options_t *o)
                         100.0 * (double)pr.hits / (double)pr.rays, 1e-6 * pr.rays_per_s);
         }
         if (r == PM_OK && o->json) {
-            json_t *j = summary_json(&s, &rt, t_load, t_bvh, o->probe || o->preview ? &pr : NULL);
-            if (!j)
-                r = pm_error_set(PM_ERR_NOMEM, "out of memory describing scene '%s' as JSON", s.path);
-            else if (json_dumpf(j, out, JSON_INDENT(2) | JSON_PRESERVE_ORDER | JSON_REAL_PRECISION(9)) != 0 ||
-                     fputc('\n', out) == EOF)
+            json_t *j = NULL;
+            r = summary_json(&s, &rt, t_load, t_bvh, o->probe || o->preview ? &pr : NULL, &j);
+            if (r == PM_OK && (json_dumpf(j, out, JSON_INDENT(2) | JSON_PRESERVE_ORDER | JSON_REAL_PRECISION(9)) != 0 ||
+                               fputc('\n', out) == EOF))
                 r = pm_error_set(PM_ERR_IO, "cannot write the summary of scene '%s'", s.path);
             json_decref(j);
         }

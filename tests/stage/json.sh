@@ -58,6 +58,11 @@ expect_exit "pm-info --json with --records is a usage error" 2 "$PI" --json -r "
 head -c 300 "$G/photons-all.pm" >"$TMP/short.pm"
 expect_error "pm-info --json of a truncated file fails" "pm-info: .*short.pm" "$PI" --json "$TMP/short.pm"
 [ ! -s "$TMP/out" ] && pass "... and prints no partial JSON" || fail "pm-info --json partial output" "$(head -c 200 "$TMP/out")"
+# JSON carries UTF-8 only: a header value in another encoding is an error that names its key.
+# (--header: the checksum, which the edit breaks, is not read.)
+LC_ALL=C sed 's/^SCENE=test /SCENE=t\xe9s /' "$G/photons-all.pm" >"$TMP/latin1.pm"
+expect_error "pm-info --json: a header value that is not UTF-8 is named, not left out" \
+    "cannot describe '.*latin1.pm' as JSON: SCENE is not UTF-8" "$PI" --json --header "$TMP/latin1.pm"
 
 # ---- scene-info --json against scene-info's text, for every scene it can load here ----
 scenes=(scenes/cornell-box/scene.json tests/scenes/glossy-box/scene.json tests/scenes/lit-floor/scene.json
@@ -117,6 +122,10 @@ jq -e '.stage == "scene-info" and .triangles == 32 and .probe_rays == 65536' "$T
         .point_lights == 1 and (has("probe") | not)' >/dev/null &&
     pass "scene-info --json of a glossy scene with a point light: directions and material ids, no area lights" ||
     fail "scene-info --json glossy-box" "wrong needs"
+cp -r tests/scenes/lit-floor "$TMP/latin1"
+LC_ALL=C sed -i 's/mtl floor/mtl fl\xe9or/' "$TMP/latin1/floor.mtl" "$TMP/latin1/floor.obj"
+expect_error "scene-info --json: a material name that is not UTF-8 is an error" \
+    "cannot describe scene '.*' as JSON: a material's name is not UTF-8" "$SI" -q --json "$TMP/latin1/scene.json"
 printf '{\n  "pmtk_scene": 1,\n  "name": "x"\n  "camera": {}\n}\n' >"$TMP/bad.json"
 expect_error "scene-info --json of a bad scene fails with one line" "scene '.*bad.json' line 4" "$SI" --json "$TMP/bad.json"
 [ ! -s "$TMP/out" ] && pass "... and prints no JSON" || fail "scene-info --json partial output" "$(head -c 200 "$TMP/out")"

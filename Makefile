@@ -137,8 +137,8 @@ test: check-deps
 test-run: all $(UNIT) $(TESTGEN) $(EXRDUMP)
 	$(Q)BIN=$(abspath $(BIN)) BUILD=$(abspath $(BUILD)) bash tests/run
 
-# The stiff and extreme cases alone (docs/extreme-cases.md), with the unit tests that tests/run
-# always runs first; `make test` runs them too.
+# The stiff and extreme cases alone (docs/extreme-cases.md; tests/run's pattern also selects
+# any unit test named for them); `make test` runs them too.
 test-extreme: check-deps
 	$(Q)$(MAKE) --no-print-directory all $(UNIT) $(TESTGEN) $(EXRDUMP)
 	$(Q)BIN=$(abspath $(BIN)) BUILD=$(abspath $(BUILD)) bash tests/run extreme

@@ -124,6 +124,39 @@ static pm_result_t compare(FILE *out, const pm_table_t *a, const pm_table_t *b, 
     return PM_OK;
 }
 
+/* Reads A and B whole and writes the per-channel report to -o. */
+static pm_result_t run(pm_stage_t *st, const compare_options_t *o)
+{
+    const char *an = st->args.args[0], *bn = st->args.args[1];
+    if (!strcmp(an, "-") && !strcmp(bn, "-"))
+        return pm_error_set(PM_ERR_USAGE, "only one of A and B can be stdin");
+    pm_table_t a, b;
+    FILE *out;
+    pm_result_t r = pm_table_read(an, NULL, 0, &a);
+    if (r != PM_OK)
+        return r;
+    r = pm_table_read(bn, NULL, 0, &b);
+    if (r != PM_OK) {
+        pm_table_free(&a);
+        return r;
+    }
+    r = pm_stage_open_output(st, &out);
+    if (r == PM_OK) {
+        r = compare(out, &a, &b, an, bn, o, st);
+        /* "they differ" is an answer, not a failure to answer: keep the report. */
+        if (r == PM_ERR_INPUT && st->out.f) {
+            char msg[1024];
+            snprintf(msg, sizeof msg, "%s", pm_error_message());
+            r = pm_atomic_commit(&st->out);
+            if (r == PM_OK)
+                r = pm_error_set(PM_ERR_INPUT, "%s", msg);
+        }
+    }
+    pm_table_free(&b);
+    pm_table_free(&a);
+    return r;
+}
+
 int main(int argc, char **argv)
 {
     pm_stage_t st;
@@ -146,30 +179,5 @@ int main(int argc, char **argv)
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;
-    const char *an = st.args.args[0], *bn = st.args.args[1];
-    if (!strcmp(an, "-") && !strcmp(bn, "-"))
-        return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "only one of A and B can be stdin"));
-    pm_table_t a, b;
-    FILE *out;
-    pm_result_t r = pm_table_read(an, NULL, 0, &a);
-    if (r == PM_OK) {
-        r = pm_table_read(bn, NULL, 0, &b);
-        if (r == PM_OK) {
-            r = pm_stage_open_output(&st, &out);
-            if (r == PM_OK) {
-                r = compare(out, &a, &b, an, bn, &o, &st);
-                /* "they differ" is an answer, not a failure to answer: keep the report. */
-                if (r == PM_ERR_INPUT && st.out.f) {
-                    char msg[1024];
-                    snprintf(msg, sizeof msg, "%s", pm_error_message());
-                    r = pm_atomic_commit(&st.out);
-                    if (r == PM_OK)
-                        r = pm_error_set(PM_ERR_INPUT, "%s", msg);
-                }
-            }
-            pm_table_free(&b);
-        }
-        pm_table_free(&a);
-    }
-    return pm_stage_end(&st, r);
+    return pm_stage_end(&st, run(&st, &o));
 }

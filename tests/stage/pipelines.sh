@@ -1,7 +1,7 @@
 # pipelines.sh: pipelines/render reruns exactly the stages whose inputs changed, says what it
 # left out, and writes image.exr, image.png and stats.json; pipelines/frames and the documented
-# examples run. Checks that need simd-gather (issue 6) are skipped until bin/simd-gather exists;
-# the dependency logic is checked with a stand-in gather (GATHER=PATH) meanwhile.
+# examples run. The dependency logic is checked with a stand-in gather (GATHER=PATH) that is
+# fast and whose output is known, then the whole render with the real simd-gather.
 R=pipelines/render
 CORNELL=scenes/cornell-box/scene.json
 SMALL="PHOTONS=20000 SPP=4 WIDTH=32 HEIGHT=24"
@@ -124,37 +124,34 @@ if [ $status = 1 ] && grep -q 'render: stage trace-gather-points failed' "$TMP/f
 else
     fail "failing stage" "exit $status: $(cat "$TMP/f.out")"
 fi
-if [ -x "$BIN/simd-gather" ]; then
-    expect_exit "targets before the gather build without it" 0 $R "$SCENE" "$TMP/t" $SMALL photonmap.pm sorted.pm
-else
-    expect_error "without simd-gather the full render says what to do" "not built \(simd-gather: issue 6\); GATHER=none" \
-        $R "$SCENE" "$TMP/t" $SMALL
-    $R "$SCENE" "$TMP/t" $SMALL photonmap.pm sorted.pm direct.pm >/dev/null 2>&1
-    expect_ran "... while the targets before it build" "$TMP/t" "trace-photons build-photonmap trace-gather-points hilbert-sort"
-fi
+$R "$SCENE" "$TMP/t" $SMALL photonmap.pm sorted.pm direct.pm >/dev/null 2>&1
+expect_ran "targets build only what they need" "$TMP/t" "trace-photons build-photonmap trace-gather-points hilbert-sort"
+expect_error "a gather program that is not there is a failure, named" "gather program '$TMP/no-such-gather' is not an executable" \
+    $R "$SCENE" "$TMP/t" $SMALL GATHER="$TMP/no-such-gather"
+# Every program is built; one missing is a failure of every pipeline, never a skip.
+mkdir -p "$TMP/bin-partial"
+ln -s "$BIN"/* "$TMP/bin-partial/" && rm "$TMP/bin-partial/hilbert-sort"
+expect_error "a missing stage program is a failure, named" "bin-partial/hilbert-sort' is not built" \
+    env BIN="$TMP/bin-partial" $R "$SCENE" "$TMP/t" $SMALL
 
-# ---- with the real simd-gather (issue 6) ----
-if [ -x "$BIN/simd-gather" ]; then
-    G=$TMP/real
-    $R "$CORNELL" "$G" $SMALL >"$TMP/real.out" 2>&1 && [ -s "$G/image.exr" ] &&
-        [ "$("$BUILD/tests/pm-exrdump" "$G/image.exr" components)" = total ] && pass "the full render with simd-gather" ||
-        fail "render with simd-gather" "$(tail -5 "$TMP/real.out")"
-    $R "$CORNELL" "$G" $SMALL RADIUS=0.03 >/dev/null 2>&1
-    expect_ran "simd-gather: RADIUS reruns only simd-gather and composite" "$G" "simd-gather composite"
-    $R "$CORNELL" "$G" $SMALL RADIUS=0.03 >/dev/null 2>&1
-    expect_ran "simd-gather: nothing changed, nothing reruns" "$G" ""
-    $R "$CORNELL" "$G" $SMALL RADIUS=0.03 SHARDS=3 >/dev/null 2>&1
-    cp "$G/image.exr" "$TMP/sharded.exr"
-    $R "$CORNELL" "$G" $SMALL RADIUS=0.03 SHARDS=1 >/dev/null 2>&1
-    if paste -d' ' <("$BUILD/tests/pm-exrdump" "$TMP/sharded.exr") <("$BUILD/tests/pm-exrdump" "$G/image.exr") | awk 'NR > 1 {
-            for (c = 3; c <= 5; c++) { a = $c; b = $(c + 5); d = a - b; if (d < 0) d = -d; if (d > 1e-5 * (a + b) + 1e-12) bad = 1 } }
-        END { exit bad }'; then
-        pass "simd-gather: three shards composite to the image of one gather"
-    else
-        fail "shards add up" "images differ"
-    fi
+# ---- with the real simd-gather ----
+G=$TMP/real
+$R "$CORNELL" "$G" $SMALL >"$TMP/real.out" 2>&1 && [ -s "$G/image.exr" ] &&
+    [ "$("$BUILD/tests/pm-exrdump" "$G/image.exr" components)" = total ] && pass "the full render with simd-gather" ||
+    fail "render with simd-gather" "$(tail -5 "$TMP/real.out")"
+$R "$CORNELL" "$G" $SMALL RADIUS=0.03 >/dev/null 2>&1
+expect_ran "simd-gather: RADIUS reruns only simd-gather and composite" "$G" "simd-gather composite"
+$R "$CORNELL" "$G" $SMALL RADIUS=0.03 >/dev/null 2>&1
+expect_ran "simd-gather: nothing changed, nothing reruns" "$G" ""
+$R "$CORNELL" "$G" $SMALL RADIUS=0.03 SHARDS=3 >/dev/null 2>&1
+cp "$G/image.exr" "$TMP/sharded.exr"
+$R "$CORNELL" "$G" $SMALL RADIUS=0.03 SHARDS=1 >/dev/null 2>&1
+if paste -d' ' <("$BUILD/tests/pm-exrdump" "$TMP/sharded.exr") <("$BUILD/tests/pm-exrdump" "$G/image.exr") | awk 'NR > 1 {
+        for (c = 3; c <= 5; c++) { a = $c; b = $(c + 5); d = a - b; if (d < 0) d = -d; if (d > 1e-5 * (a + b) + 1e-12) bad = 1 } }
+    END { exit bad }'; then
+    pass "simd-gather: three shards composite to the image of one gather"
 else
-    skip "render with simd-gather (full image, RADIUS reruns, shards add up)" "bin/simd-gather is not built (issue 6)"
+    fail "shards add up" "images differ"
 fi
 
 # ---- pipelines/frames: a camera path, every stage per frame ----
@@ -177,19 +174,21 @@ else
 fi
 expect_exit "frames MOVE=light needs point lights" 1 pipelines/frames "$CORNELL" "$TMP/fl" MOVE=light FRAMES=1
 expect_exit "frames MODE=bad is a usage error" 2 pipelines/frames "$CORNELL" "$TMP/fm" MODE=bad FRAMES=1
-if [ -x "$BIN/simd-gather" ]; then
-    pipelines/frames "$CORNELL" "$TMP/fdv" MODE=direct-vis ORDER=none FRAMES=1 PHOTONS=20000 WIDTH=32 HEIGHT=32 \
-        >"$TMP/fdv.out" 2>&1 && [ -s "$TMP/fdv/frame-0000.exr" ] &&
-        pass "frames MODE=direct-vis renders the map's estimate at the primary hits" ||
-        fail "frames direct-vis" "$(tail -3 "$TMP/fdv.out")"
-fi
+pipelines/frames "$CORNELL" "$TMP/fdv" MODE=direct-vis ORDER=none FRAMES=1 PHOTONS=20000 WIDTH=32 HEIGHT=32 \
+    >"$TMP/fdv.out" 2>&1 && [ -s "$TMP/fdv/frame-0000.exr" ] &&
+    pass "frames MODE=direct-vis renders the map's estimate at the primary hits" ||
+    fail "frames direct-vis" "$(tail -3 "$TMP/fdv.out")"
+expect_error "frames: a missing stage program is a failure, named" "bin-partial/hilbert-sort' is not built" \
+    env BIN="$TMP/bin-partial" pipelines/frames "$CORNELL" "$TMP/fp" FRAMES=1
 
 # ---- the documented examples run ----
 pipelines/examples.sh "$TMP/ex" >"$TMP/ex.out" 2>&1 && [ -s "$TMP/ex/direct.exr" ] && [ -s "$TMP/ex/map.pm" ] &&
-    pass "pipelines/examples.sh runs" || fail "examples.sh" "$(tail -5 "$TMP/ex.out")"
-if [ -x "$BIN/simd-gather" ]; then
-    [ -s "$TMP/ex/image.exr" ] && [ -s "$TMP/ex/sharded.exr" ] && pass "... every example, simd-gather included" ||
-        fail "examples with simd-gather" "$(cat "$TMP/ex.out")"
+    [ -s "$TMP/ex/image.exr" ] && [ -s "$TMP/ex/direct-vis.exr" ] && [ -s "$TMP/ex/sharded.exr" ] &&
+    grep -q '^trace-gather-points ' "$TMP/ex.out" &&
+    pass "pipelines/examples.sh runs every example" || fail "examples.sh" "$(tail -5 "$TMP/ex.out")"
+if env BIN="$TMP/bin-partial" pipelines/examples.sh "$TMP/exp" >"$TMP/exp.out" 2>&1; then
+    fail "examples.sh without hilbert-sort" "exit 0: $(tail -3 "$TMP/exp.out")"
 else
-    skip "the examples that pipe into simd-gather" "bin/simd-gather is not built (issue 6)"
+    grep -q 'hilbert-sort: command not found' "$TMP/exp.out" && pass "examples.sh: a missing program stops it with a failure" ||
+        fail "examples.sh without hilbert-sort" "$(tail -3 "$TMP/exp.out")"
 fi

@@ -169,7 +169,6 @@ static pm_result_t header_json(const char *name, const pm_header_t *h, const cha
         if (h->channels & (1u << ci))
             json_array_append_new(ch, json_string(h->schema->channels[ci].name));
     json_object_set_new(j, "channels", ch);
-    json_object_set_new(j, "channel_mask", json_integer(h->channels));
     for (int k = 0; k < 6; k++)
         json_array_append_new(b, json_real(h->bounds[k]));
     json_object_set_new(j, "bounds", b);

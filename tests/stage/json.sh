@@ -7,7 +7,8 @@ PI=$BIN/pm-info
 SI=$BIN/scene-info
 
 # ---- pm-info --json against pm-info's own header text, for every golden file ----
-# The header lines rebuilt from the JSON, except BOUNDS and CHANNEL_MASK (numbers checked apart).
+# The header lines rebuilt from the JSON, except BOUNDS (numbers, checked apart) and a version-1
+# file's CHANNEL_MASK (the channel names say the same; --json gives only the names).
 rebuild='"FORMAT=\(.format)", "VERSION=\(.version)", "BYTE_ORDER=\(.byte_order)", "COUNT=\(.count)",
     "RECORD_SIZE=\(.record_size)", "CHANNELS=\(.channels | join(" "))", "SOFTWARE=\(.software)",
     (.commands[] | "COMMAND=\(.)"), (.inputs[] | "INPUT=\(.path) \(.hash)"),
@@ -23,8 +24,6 @@ for f in "$G"/*.pm; do
     sed -n '2,/^$/p' "$TMP/t.txt" | grep -v -E '^(BOUNDS|CHANNEL_MASK)=|^$' | sort >"$TMP/want"
     jq -r "$rebuild" "$TMP/j.json" | sort >"$TMP/got"
     cmp -s "$TMP/want" "$TMP/got" || { bad+=" $f: header lines differ: $(diff "$TMP/want" "$TMP/got" | head -4 | tr '\n' ' ')"; continue; }
-    mask=$(printf '0x%08x' "$(jq .channel_mask "$TMP/j.json")")
-    grep -qx "CHANNEL_MASK=$mask" "$TMP/t.txt" || { bad+=" $f: channel_mask $mask"; continue; }
     # BOUNDS prints floats with %.9g, which reads back to the same float: equal as numbers.
     paste <(sed -n 's/^BOUNDS=//p' "$TMP/t.txt" | tr ' ' '\n') <(jq '.bounds[]' "$TMP/j.json") |
         awk 'NF == 2 && $1 + 0 == $2 + 0 { n++ } END { exit n != 6 }' || { bad+=" $f: bounds"; continue; }
@@ -38,7 +37,7 @@ done
 # Known values of one golden file, written out: a gather's radiance buffer with two inputs.
 "$PI" --json "$G/simd-gather-cornell.pm" >"$TMP/sg.json"
 jq -e '.format == "radiance" and .version == "1.0" and .count == 256 and .record_size == 24 and
-    .channels == ["rgb"] and .channel_mask == 1 and (.commands | length) == 4 and
+    .channels == ["rgb"] and (has("channel_mask") | not) and (.commands | length) == 4 and
     ([.inputs[].path] == ["tests/golden/build-photonmap-cornell.pm", "tests/golden/gather-cornell-16x16-spp8.pm"]) and
     (.inputs[0].hash | test("^xxh3:[0-9a-f]{16}$")) and .keys.component == "indirect" and .keys.radius == "0.05" and
     (.keys.SCENE | startswith("cornell-box xxh3:")) and (.checksum | test("^xxh3:[0-9a-f]{16}$"))' "$TMP/sg.json" >/dev/null &&

@@ -56,8 +56,8 @@ ALL_CFLAGS := -std=c17 -D_GNU_SOURCE $(INCLUDES) $(WARN) $(if $(WERROR),-Werror,
 ALL_LDFLAGS := -fopenmp $(SAN) $(LDFLAGS)
 LIBS := $(EMBREE_LIBS) $(PKG_LIBS) -lm
 
-# The library's layers (docs/architecture.md): base, math, formats, then render and photonmap.
-LAYERS := common/base common/math formats common/render common/photonmap
+# The library's layers (docs/architecture.md): base, math, formats, then render, photonmap and image.
+LAYERS := common/base common/math formats common/render common/photonmap common/image
 LIB_SRC := $(foreach d,$(LAYERS),$(wildcard $(d)/*.c))
 LIB_OBJ := $(LIB_SRC:%.c=$(BUILD)/%.o)
 LIB := $(BUILD)/libpmtk.a

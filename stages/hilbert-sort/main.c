@@ -14,15 +14,10 @@
 #include <unistd.h>
 
 #include "photonmap/hilbert.h"
+#include "photonmap/reorder.h"
 #include "base/memory.h"
 #include "base/stage.h"
 #include "formats/formats.h"
-
-/* Records per output chunk: 3.5 MB at 54 bytes. One thread writes a chunk (value checks,
- * checksum, write) while the others gather the next, so the gather's cache misses (the input
- * is in any order) hide behind the writer. */
-#define GATHER_RECORDS 65536
-#define PREFETCH_AHEAD 16 /* records: enough misses in flight to cover DRAM latency */
 
 typedef struct {
     int order;           /* pm_order_t */
@@ -49,65 +44,6 @@ static uint64_t cache_bytes(int64_t asked)
         return (uint64_t)asked;
     long l2 = sysconf(_SC_LEVEL2_CACHE_SIZE);
     return l2 > 0 ? (uint64_t)l2 : 1u << 20; /* 1 MiB when the system does not say */
-}
-
-/* Copies records perm[0..n) of src into dst, packed: fixed sizes for the four layouts of
- * the queries format, so that the compiler moves them as whole words. */
-static void gather(unsigned char *dst, const unsigned char *src, const uint32_t *perm, uint64_t n, uint64_t total,
-                   size_t rs)
-{
-#define GATHER_FIXED(SIZE)                                                                        \
-    case SIZE:                                                                                    \
-        for (uint64_t i = 0; i < n; i++) {                                                        \
-            if (i + PREFETCH_AHEAD < total)                                                       \
-                __builtin_prefetch(src + (size_t)perm[i + PREFETCH_AHEAD] * (SIZE));              \
-            memcpy(dst + i * (SIZE), src + (size_t)perm[i] * (SIZE), (SIZE));                     \
-        }                                                                                         \
-        return;
-    switch (rs) {
-        GATHER_FIXED(40)
-        GATHER_FIXED(42)
-        GATHER_FIXED(52)
-        GATHER_FIXED(54)
-    default:
-        for (uint64_t i = 0; i < n; i++)
-            memcpy(dst + i * rs, src + (size_t)perm[i] * rs, rs);
-    }
-#undef GATHER_FIXED
-}
-
-/* Gathers chunk c (of GATHER_RECORDS) into buf on the threads of the enclosing team. */
-static uint64_t gather_chunk(unsigned char *buf, const unsigned char *recs, const uint32_t *perm, uint64_t n,
-                             uint64_t c, size_t rs)
-{
-    uint64_t first = c * GATHER_RECORDS, m = n - first < GATHER_RECORDS ? n - first : GATHER_RECORDS;
-    gather(buf, recs, perm + first, m, n - first, rs);
-    return m;
-}
-
-/* Writes the records in perm's order: chunk c is written while chunk c + 1 is gathered. */
-static pm_result_t write_sorted(pm_writer_t *w, const unsigned char *recs, const uint32_t *perm, uint64_t n,
-                                size_t rs, unsigned char *buf[2])
-{
-    uint64_t chunks = (n + GATHER_RECORDS - 1) / GATHER_RECORDS, m = 0;
-    /* The write may run on a worker thread, whose error message would die with it. */
-    pm_error_slot_t err;
-    pm_error_slot_init(&err);
-    if (chunks)
-        m = gather_chunk(buf[0], recs, perm, n, 0, rs);
-    for (uint64_t c = 0; c < chunks && err.code == PM_OK; c++) {
-        uint64_t next_m = 0;
-#pragma omp parallel sections num_threads(2)
-        {
-#pragma omp section
-            pm_error_slot_record(&err, c, pm_writer_write(w, buf[c & 1], m));
-#pragma omp section
-            if (c + 1 < chunks)
-                next_m = gather_chunk(buf[(c + 1) & 1], recs, perm, n, c + 1, rs);
-        }
-        m = next_m;
-    }
-    return pm_error_slot_raise(&err);
 }
 
 /* The output header: the input's provenance, this command, the input's hash, the order,
@@ -163,7 +99,7 @@ static pm_result_t run(pm_stage_t *st, const sort_options_t *o)
     uint32_t *perm = pm_alloc_aligned(n ? n * sizeof *perm : 1);
     unsigned char *chunk[2] = {NULL, NULL};
     if (order != PM_ORDER_NONE)
-        chunk[0] = malloc((size_t)GATHER_RECORDS * rs), chunk[1] = malloc((size_t)GATHER_RECORDS * rs);
+        chunk[0] = malloc((size_t)PM_REORDER_CHUNK * rs), chunk[1] = malloc((size_t)PM_REORDER_CHUNK * rs);
     pm_header_t h = {0};
     pm_writer_t *w = NULL;
     if (!recs || !perm || (order != PM_ORDER_NONE && (!chunk[0] || !chunk[1]))) {
@@ -189,7 +125,7 @@ static pm_result_t run(pm_stage_t *st, const sort_options_t *o)
     if (order == PM_ORDER_NONE)
         res = pm_writer_write(w, recs, n);
     else
-        res = write_sorted(w, recs, perm, n, rs, chunk);
+        res = pm_reorder_write(w, recs, rs, n, perm, chunk);
     if (res == PM_OK)
         res = pm_writer_commit(w);
     else

@@ -13,7 +13,8 @@ layer_allows() {
     formats) echo "formats base" ;;
     render) echo "render math formats base" ;;
     photonmap) echo "photonmap math formats base" ;;
-    top) echo "render photonmap math formats base" ;; # stages/, tests/: anything in the library
+    image) echo "image math formats base" ;;
+    top) echo "render photonmap image math formats base" ;; # stages/, tests/: anything in the library
     esac
 }
 
@@ -24,6 +25,7 @@ layer_of() {
     formats/*) echo formats ;;
     common/render/*) echo render ;;
     common/photonmap/*) echo photonmap ;;
+    common/image/*) echo image ;;
     common/*) echo stray ;; # a file directly in common/ belongs to no layer
     *) echo top ;;
     esac
@@ -37,7 +39,7 @@ check_layers() (
             [ -f "$f" ] || continue
             l=$(layer_of "$f")
             if [ "$l" = stray ]; then
-                echo "$f: not in a layer folder (common/base, math, render, photonmap)"
+                echo "$f: not in a layer folder (common/base, math, render, photonmap, image)"
                 continue
             fi
             allowed=$(layer_allows "$l")
@@ -58,10 +60,10 @@ check_layers() (
                     esac
                     top=${inc%%/*}
                     case $top in
-                    base | math | render | photonmap) path=common/$inc ;;
+                    base | math | render | photonmap | image) path=common/$inc ;;
                     formats) path=$inc ;;
                     *)
-                        echo "$f:$n: include '$inc' is not in a layer (base, math, formats, render, photonmap)"
+                        echo "$f:$n: include '$inc' is not in a layer (base, math, formats, render, photonmap, image)"
                         continue
                         ;;
                     esac
@@ -81,20 +83,22 @@ else
     fail "layers" "$(printf '%s\n' "$out" | head -n 20)"
 fi
 
-# The check itself must catch a wrong-way include and a ../ path: copy the tree's layout
-# with two bad files and expect both named.
-mkdir -p "$TMP/layers/common/base" "$TMP/layers/common/render" "$TMP/layers/formats"
+# The check itself must catch a wrong-way include, a ../ path and an include across from the
+# image layer to render: copy the tree's layout with three bad files and expect each named.
+mkdir -p "$TMP/layers/common/base" "$TMP/layers/common/render" "$TMP/layers/common/image" "$TMP/layers/formats"
 (
     cd "$TMP/layers" && git init -q . &&
         printf '#include "render/x.h"\n' >common/base/bad.c &&
         printf '#include "../base/bad.h"\n' >common/render/x.h &&
+        printf '#include "render/x.h"\n' >common/image/across.c &&
         printf '#include "formats/y.h"\n' >formats/y.h
 )
 bad=$(check_layers "$TMP/layers")
 if echo "$bad" | grep -q "common/base/bad.c:1: layer base includes 'render/x.h'" &&
     echo "$bad" | grep -q "common/render/x.h:1: include '../base/bad.h' climbs" &&
+    echo "$bad" | grep -q "common/image/across.c:1: layer image includes 'render/x.h'" &&
     ! echo "$bad" | grep -q "formats/y.h"; then
-    pass "layers: the check names an upward include and a ../ path"
+    pass "layers: the check names an upward include, a ../ path and image reaching across to render"
 else
-    fail "layers: the check names an upward include and a ../ path" "got: $bad"
+    fail "layers: the check names an upward include, a ../ path and image reaching across" "got: $bad"
 fi

@@ -1,0 +1,327 @@
+/* composite.c: radiance buffers (direct, indirect, shards), each times a scale, summed into
+ * one image and written as OpenEXR, PNG preview or radiance buffer: the work of the composite
+ * stage (see composite.h). Buffers are read one after the other in chunks and added in f64 in
+ * the order given, so the sum depends on nothing but the arguments. */
+#include "image/composite.h"
+
+#include <inttypes.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/memory.h"
+#include "base/args.h"
+#include "base/version.h"
+#include "formats/formats.h"
+
+#define CHUNK_PIXELS 65536 /* records read at a time: 1.5 MB of f64 RGB */
+
+const char *const pm_composite_only_names[] = {"all", "direct", "indirect", NULL};
+
+/* One buffer: a path with its scale. */
+typedef struct {
+    char *path;
+    double scale;
+    pm_reader_t *rd;
+    const char *component; /* the header's, owned by the reader */
+    int used;              /* not left out by --only */
+    uint64_t hash;         /* content hash, once read */
+} input_t;
+
+struct pm_composite {
+    pm_composite_info_t info;
+    input_t *in;
+    int nin;
+    int first;       /* the buffer whose resolution, scene and bounds the others must share */
+    pm_header_t hdr; /* the outputs' provenance, from pm_composite_sum */
+    double *acc;     /* 3 per pixel, the sum */
+    float *pix;      /* 3 per pixel, the EXR's values, from pm_composite_finish */
+    int half;
+};
+
+pm_result_t pm_composite_parse_input(const char *arg, char **path_out, double *scale_out)
+{
+    const char *colon = strrchr(arg, ':');
+    double s;
+    *scale_out = 1.0;
+    if (colon && colon != arg && pm_parse_double(colon + 1, &s) == PM_OK) {
+        if (!isfinite(s))
+            return pm_error_set(PM_ERR_USAGE, "bad scale in '%s': %g is not finite", arg, s);
+        *scale_out = s;
+        *path_out = strndup(arg, (size_t)(colon - arg));
+    } else {
+        *path_out = strdup(arg);
+    }
+    return *path_out ? PM_OK : pm_error_set(PM_ERR_NOMEM, "out of memory");
+}
+
+/* The checks across buffers: the first buffer sets the resolution and the scene. */
+static pm_result_t check_same(const char *first, const pm_header_t *h0, const char *path, const pm_header_t *h)
+{
+    uint32_t w0, ht0, w, ht;
+    pm_result_t r = pm_header_get_image_size(h0, first, &w0, &ht0);
+    if (r == PM_OK)
+        r = pm_header_get_image_size(h, path, &w, &ht);
+    if (r != PM_OK)
+        return r;
+    if (w != w0 || ht != ht0)
+        return pm_error_set(PM_ERR_INPUT, "resolution mismatch: '%s' is %" PRIu32 "x%" PRIu32 ", '%s' is %" PRIu32
+                            "x%" PRIu32, path, w, ht, first, w0, ht0);
+    const char *s0 = pm_header_get(h0, "SCENE"), *s = pm_header_get(h, "SCENE");
+    if ((s0 || s) && (!s0 || !s || strcmp(s0, s)))
+        return pm_error_set(PM_ERR_INPUT, "scene mismatch: '%s' is of scene '%s', '%s' of scene '%s'", path,
+                            s ? s : "(none)", first, s0 ? s0 : "(none)");
+    return PM_OK;
+}
+
+pm_result_t pm_composite_open(pm_composite_t **c_out, char *const *args, int nin, pm_composite_only_t only)
+{
+    pm_composite_t *c = calloc(1, sizeof *c);
+    *c_out = c;
+    if (!c || !(c->in = calloc(nin > 0 ? (size_t)nin : 1, sizeof *c->in)))
+        return pm_error_set(PM_ERR_NOMEM, "out of memory");
+    c->nin = nin;
+    c->first = -1;
+    pm_header_init(&c->hdr, &pm_radiance_schema);
+    input_t *in = c->in;
+    pm_result_t r = PM_OK;
+    int nstdin = 0, ndirect = 0, nindirect = 0, ntotal = 0;
+    for (int i = 0; i < nin && r == PM_OK; i++)
+        if ((r = pm_composite_parse_input(args[i], &in[i].path, &in[i].scale)) == PM_OK && !strcmp(in[i].path, "-") &&
+            ++nstdin > 1)
+            r = pm_error_set(PM_ERR_USAGE, "stdin ('-') given twice");
+    for (int i = 0; i < nin && r == PM_OK; i++) {
+        if ((r = pm_reader_open(in[i].path, &pm_radiance_schema, 0, &in[i].rd)) != PM_OK)
+            break;
+        const pm_header_t *hi = pm_reader_header(in[i].rd);
+        in[i].component = pm_header_get(hi, "component");
+        int is_direct = !strcmp(in[i].component, "direct"), is_indirect = !strcmp(in[i].component, "indirect");
+        if (only != PM_ONLY_ALL && !is_direct && !is_indirect) {
+            r = pm_error_set(PM_ERR_INPUT, "--only %s: radiance buffer '%s' is component=%s, direct and indirect "
+                             "together", pm_composite_only_names[only], in[i].path, in[i].component);
+            break;
+        }
+        in[i].used = only == PM_ONLY_ALL || (only == PM_ONLY_DIRECT ? is_direct : is_indirect);
+        if (c->first < 0)
+            c->first = i;
+        else if ((r = check_same(in[c->first].path, pm_reader_header(in[c->first].rd), in[i].path, hi)) != PM_OK)
+            break;
+        if (in[i].used)
+            ndirect += is_direct, nindirect += is_indirect, ntotal += !is_direct && !is_indirect;
+    }
+    if (r != PM_OK)
+        return r;
+    if (ndirect + nindirect + ntotal == 0)
+        return pm_error_set(PM_ERR_INPUT, "--only %s: none of the %d buffers is %s", pm_composite_only_names[only],
+                            nin, pm_composite_only_names[only]);
+    pm_composite_info_t *info = &c->info;
+    if ((r = pm_header_get_image_size(pm_reader_header(in[c->first].rd), in[c->first].path, &info->width,
+                                      &info->height)) != PM_OK)
+        return r;
+    info->pixels = (uint64_t)info->width * info->height;
+    info->buffers = ndirect + nindirect + ntotal;
+    info->components = ntotal || (ndirect && nindirect) ? "total" : ndirect ? "direct" : "indirect";
+    return PM_OK;
+}
+
+/* Adds one buffer, scaled, into acc (3 doubles per pixel), reading it in chunks. */
+static pm_result_t accumulate(input_t *in, double *acc, double *chunk, uint64_t n, uint64_t *hash_out)
+{
+    uint64_t done = 0, got;
+    pm_result_t r;
+    /* rgb is each record's first channel; a record may carry more (trace-reference's variance). */
+    uint32_t stride = pm_reader_header(in->rd)->record_size / (uint32_t)sizeof(double);
+    while (done < n) {
+        uint64_t want = n - done < CHUNK_PIXELS ? n - done : CHUNK_PIXELS;
+        if ((r = pm_reader_read(in->rd, chunk, want, &got)) != PM_OK)
+            return r;
+        if (got != want) /* the reader reports truncation itself; this is a guard */
+            return pm_error_set(PM_ERR_INPUT, "truncated radiance buffer '%s': %" PRIu64 " of %" PRIu64 " pixels",
+                                in->path, done + got, n);
+        double *a = acc + 3 * done, s = in->scale;
+        for (uint64_t i = 0; i < got; i++)
+            for (int c = 0; c < 3; c++)
+                a[3 * i + (uint64_t)c] += s * chunk[stride * i + (uint64_t)c];
+        done += got;
+    }
+    return pm_reader_finish(in->rd, hash_out);
+}
+
+pm_result_t pm_composite_sum(pm_composite_t *c, int argc, char **argv, pm_composite_note_fn note, void *note_ctx)
+{
+    uint64_t n = c->info.pixels;
+    input_t *in = c->in;
+    pm_result_t r = PM_OK;
+    c->acc = pm_alloc_aligned(3 * n * sizeof *c->acc);
+    double *chunk = pm_alloc_aligned(pm_schema_record_size(&pm_radiance_schema, ~0u) * CHUNK_PIXELS); /* widest */
+    if (!c->acc || !chunk) {
+        pm_free_aligned(chunk);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for a %" PRIu32 "x%" PRIu32 " image (%.0f MB)",
+                            c->info.width, c->info.height, n * 24.0 / 1e6);
+    }
+    memset(c->acc, 0, 3 * n * sizeof *c->acc);
+    /* Buffers left out by --only are not read, and give no provenance. */
+    for (int i = 0; i < c->nin && r == PM_OK; i++)
+        if (in[i].used)
+            r = pm_header_inherit(&c->hdr, pm_reader_header(in[i].rd));
+    if (r == PM_OK)
+        r = pm_header_add_command(&c->hdr, argc, argv);
+    for (int i = 0; i < c->nin && r == PM_OK; i++) {
+        if (!in[i].used)
+            continue;
+        if ((r = accumulate(&in[i], c->acc, chunk, n, &in[i].hash)) != PM_OK ||
+            (r = pm_header_add_input(&c->hdr, strcmp(in[i].path, "-") ? in[i].path : "stdin", in[i].hash)) != PM_OK)
+            break;
+        for (int j = 0; j < i && note; j++)
+            if (in[j].used && in[j].hash == in[i].hash) {
+                note(note_ctx, in[i].path, in[j].path, in[i].hash);
+                break;
+            }
+    }
+    pm_free_aligned(chunk);
+    return r;
+}
+
+pm_result_t pm_composite_finish(pm_composite_t *c, int half)
+{
+    uint64_t n = c->info.pixels;
+    uint32_t w = c->info.width;
+    const double *acc = c->acc;
+    double lmin = INFINITY, lmax = -INFINITY, lsum = 0.0;
+    float lim = half ? PM_EXR_HALF_MAX : 3.4028235e38f;
+    c->half = half;
+    if (!(c->pix = pm_alloc_aligned(3 * n * sizeof *c->pix)))
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for a %" PRIu32 "x%" PRIu32 " image", w, c->info.height);
+    for (uint64_t p = 0; p < n; p++) {
+        for (int ch = 0; ch < 3; ch++) {
+            double v = acc[3 * p + (uint64_t)ch];
+            if (!(fabs(v) <= (double)lim))
+                return pm_error_set(PM_ERR_INPUT, "pixel (%" PRIu64 ", %" PRIu64 ") channel %c is %g after scaling, "
+                                    "beyond %s (largest %g)", p % w, p / w, "RGB"[ch], v, half ? "half" : "float",
+                                    (double)lim);
+            c->pix[3 * p + (uint64_t)ch] = (float)v;
+        }
+        double l = pm_luminance(acc + 3 * p);
+        lmin = l < lmin ? l : lmin, lmax = l > lmax ? l : lmax, lsum += l;
+    }
+    c->info.luminance_min = lmin;
+    c->info.luminance_max = lmax;
+    c->info.luminance_mean = n ? lsum / (double)n : 0.0;
+    return PM_OK;
+}
+
+/* The EXR's string attributes: the provenance in the pmtk header's words. names_out holds
+ * the names made here, NULL-terminated. */
+static pm_result_t exr_attrs(const pm_header_t *h, const char *components, pm_exr_attr_t **attrs_out, size_t *n_out,
+                             char ***names_out)
+{
+    size_t ninput = 0;
+    for (size_t i = 0; i < h->nkeys; i++)
+        ninput += !strcmp(h->keys[i].key, "INPUT");
+    size_t cap = 4 + h->ncommands + ninput, n = 0;
+    pm_exr_attr_t *a = calloc(cap, sizeof *a);
+    char **names = calloc(cap + 1, sizeof *names);
+    if (!a || !names) {
+        free(a);
+        free(names);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for OpenEXR attributes");
+    }
+    a[n++] = (pm_exr_attr_t){"SOFTWARE", "pmtk " PM_VERSION_STRING};
+    const char *scene = pm_header_get(h, "SCENE");
+    if (scene)
+        a[n++] = (pm_exr_attr_t){"SCENE", scene};
+    a[n++] = (pm_exr_attr_t){"components", components};
+    size_t nn = 0, ki = 0;
+    for (size_t i = 0; i < h->ncommands; i++) {
+        char buf[32];
+        snprintf(buf, sizeof buf, "COMMAND.%zu", i);
+        names[nn] = strdup(buf);
+        a[n++] = (pm_exr_attr_t){names[nn++], h->commands[i]};
+    }
+    for (size_t i = 0; i < h->nkeys; i++) {
+        if (strcmp(h->keys[i].key, "INPUT"))
+            continue;
+        char buf[32];
+        snprintf(buf, sizeof buf, "INPUT.%zu", ki++);
+        names[nn] = strdup(buf);
+        a[n++] = (pm_exr_attr_t){names[nn++], h->keys[i].value};
+    }
+    for (size_t i = 0; i < nn; i++)
+        if (!names[i]) {
+            for (size_t j = 0; j < nn; j++)
+                free(names[j]);
+            free(names);
+            free(a);
+            return pm_error_set(PM_ERR_NOMEM, "out of memory for OpenEXR attributes");
+        }
+    *attrs_out = a, *n_out = n, *names_out = names;
+    return PM_OK;
+}
+
+pm_result_t pm_composite_write_exr(const pm_composite_t *c, const char *path, pm_exr_compression_t comp)
+{
+    pm_exr_attr_t *attrs = NULL;
+    char **names = NULL;
+    size_t nattrs = 0;
+    pm_result_t r = exr_attrs(&c->hdr, c->info.components, &attrs, &nattrs, &names);
+    if (r != PM_OK)
+        return r;
+    r = pm_exr_write_rgb(path, c->info.width, c->info.height, c->pix, c->half ? PM_EXR_HALF : PM_EXR_FLOAT, comp,
+                         attrs, nattrs);
+    for (size_t i = 0; names[i]; i++)
+        free(names[i]);
+    free(names);
+    free(attrs);
+    return r;
+}
+
+pm_result_t pm_composite_write_png(const pm_composite_t *c, const char *path, double exposure, pm_tone_t tone,
+                                   double *clipped_out)
+{
+    return pm_tone_write_png(path, c->acc, c->info.width, c->info.height, exposure, tone, clipped_out);
+}
+
+pm_result_t pm_composite_write_radiance(const pm_composite_t *c, const char *path)
+{
+    const pm_header_t *h = &c->hdr, *h0 = pm_reader_header(c->in[c->first].rd);
+    uint64_t n = c->info.pixels;
+    pm_table_t t;
+    pm_result_t r = pm_table_alloc(&t, &pm_radiance_schema, 1u << PM_RADIANCE_RGB, n);
+    if (r != PM_OK)
+        return r;
+    memcpy(t.hdr.bounds, h0->bounds, sizeof t.hdr.bounds);
+    r = pm_header_inherit(&t.hdr, h);
+    for (size_t i = 0; i < h->nkeys && r == PM_OK; i++)
+        if (!strcmp(h->keys[i].key, "INPUT"))
+            r = pm_header_add(&t.hdr, "INPUT", "%s", h->keys[i].value);
+    if (r == PM_OK)
+        r = pm_header_set(&t.hdr, "width", "%" PRIu32, c->info.width);
+    if (r == PM_OK)
+        r = pm_header_set(&t.hdr, "height", "%" PRIu32, c->info.height);
+    if (r == PM_OK)
+        r = pm_header_set(&t.hdr, "component", "%s", c->info.components);
+    if (r == PM_OK) {
+        memcpy(t.col[PM_RADIANCE_RGB], c->acc, 3 * n * sizeof *c->acc);
+        r = pm_table_write(&t, path);
+    }
+    pm_table_free(&t);
+    return r;
+}
+
+const pm_composite_info_t *pm_composite_info(const pm_composite_t *c) { return &c->info; }
+
+void pm_composite_free(pm_composite_t *c)
+{
+    if (!c)
+        return;
+    pm_free_aligned(c->pix);
+    pm_free_aligned(c->acc);
+    pm_header_free(&c->hdr);
+    for (int i = 0; c->in && i < c->nin; i++) {
+        pm_reader_close(c->in[i].rd);
+        free(c->in[i].path);
+    }
+    free(c->in);
+    free(c);
+}

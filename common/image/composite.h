@@ -1,0 +1,85 @@
+/* composite.h: the sum of radiance buffers that the composite stage writes: the direct light
+ * of trace-gather-points, the indirect light of a gather or its shards, each times a scale,
+ * added in f64 into one image, then written as OpenEXR, an 8-bit PNG preview, or a radiance
+ * buffer again.
+ *
+ *   pm_composite_open      every header first: resolution, scene and component checked
+ *   pm_composite_sum       every buffer read in chunks and added, in the order given
+ *   pm_composite_finish    the f32 pixels of the EXR, each value checked, luminance statistics
+ *   pm_composite_write_*   the outputs, any of them
+ *   pm_composite_free
+ *
+ * Memory is one f64 RGB accumulator and one f32 RGB image per pixel; the sum depends on
+ * nothing but the buffers, their scales and their order. */
+#ifndef PM_IMAGE_COMPOSITE_H
+#define PM_IMAGE_COMPOSITE_H
+
+#include <stdint.h>
+
+#include "base/error.h"
+#include "base/exr.h"
+#include "image/tone.h"
+
+/* Which buffers are added, by their header's component key. */
+typedef enum {
+    PM_ONLY_ALL = 0,     /* every buffer */
+    PM_ONLY_DIRECT = 1,  /* only component=direct */
+    PM_ONLY_INDIRECT = 2 /* only component=indirect */
+} pm_composite_only_t;
+
+/* Words for the --only option, indexed by pm_composite_only_t, NULL-terminated. */
+extern const char *const pm_composite_only_names[];
+
+typedef struct pm_composite pm_composite_t;
+
+/* What a composite is, valid from pm_composite_open (sizes, buffers, components) and
+ * pm_composite_finish (luminances, in the buffers' unit, W/(m^2 sr)). */
+typedef struct {
+    uint32_t width, height; /* pixels */
+    uint64_t pixels;
+    int buffers;            /* buffers added: those --only keeps */
+    const char *components; /* "direct", "indirect" or "total" (direct and indirect, or a total buffer) */
+    double luminance_min, luminance_max, luminance_mean; /* Rec. 709 weights */
+} pm_composite_info_t;
+
+/* Splits an argument "FILE:SCALE" when what follows the last ':' is a whole number, which must
+ * be finite; otherwise the whole word is the path (scale 1), so "a:b.pm" is a path and a file
+ * named "x:2" is given as "x:2:1". *path_out is malloc'd. */
+pm_result_t pm_composite_parse_input(const char *arg, char **path_out, double *scale_out);
+
+/* Opens the n buffers args[i] ("FILE[:SCALE]", "-" for stdin at most once) and checks every
+ * header before any pixel is read: each must have the first's resolution and SCENE, and with
+ * only != PM_ONLY_ALL each must be direct or indirect, and one at least of that component.
+ * Free with pm_composite_free, also after a failure (*c_out is then set or NULL). */
+pm_result_t pm_composite_open(pm_composite_t **c_out, char *const *args, int n, pm_composite_only_t only);
+
+/* Called for a buffer whose content equals an earlier one's, most likely a slip. */
+typedef void (*pm_composite_note_fn)(void *ctx, const char *path, const char *same_as, uint64_t hash);
+
+/* Reads every buffer kept and adds it, times its scale, in the order given. The provenance
+ * of the outputs gathers the kept buffers' COMMAND lines once each and SCENE, then this
+ * command (argc, argv) and one INPUT per buffer read. note (may be NULL) hears of repeats. */
+pm_result_t pm_composite_sum(pm_composite_t *c, int argc, char **argv, pm_composite_note_fn note, void *note_ctx);
+
+/* Converts the sum to the f32 pixels of the EXR and takes the luminance statistics. A value
+ * beyond half (half != 0) or float, or not finite, is an error naming the pixel: a scale
+ * can overflow even though every input is finite. */
+pm_result_t pm_composite_finish(pm_composite_t *c, int half);
+
+/* After pm_composite_finish: the OpenEXR image (R G B, half or float as finished), with the
+ * provenance as string attributes SOFTWARE, SCENE, components, COMMAND.i and INPUT.i. */
+pm_result_t pm_composite_write_exr(const pm_composite_t *c, const char *path, pm_exr_compression_t comp);
+
+/* The 8-bit sRGB preview (pm_tone_write_png) of the f64 sum. */
+pm_result_t pm_composite_write_png(const pm_composite_t *c, const char *path, double exposure, pm_tone_t tone,
+                                   double *clipped_out);
+
+/* The f64 sum as a pmtk radiance buffer (RGB channel only), with the first buffer's bounds,
+ * the provenance, width, height and component. */
+pm_result_t pm_composite_write_radiance(const pm_composite_t *c, const char *path);
+
+const pm_composite_info_t *pm_composite_info(const pm_composite_t *c);
+
+void pm_composite_free(pm_composite_t *c);
+
+#endif

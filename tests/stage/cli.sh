@@ -105,7 +105,8 @@ fi
 # one of the two threads fails, the worker about half the time; its message must arrive whole
 # every time. A program that cannot run under a limit at all (a sanitizer build) skips.
 KNN_ARGS=(tests/golden/build-photonmap-cornell.pm tests/golden/gather-cornell-16x16-spp8.pm -q --threads 2 -o "$TMP/knn.pm")
-knn_under() { (ulimit -v "$1" && exec "$BIN/knn-gather" "${KNN_ARGS[@]}" --k "$2" "${@:3}") >/dev/null 2>&1; }
+# (the outer 2>/dev/null keeps bash's "Aborted" notice of a sanitizer build off the output)
+knn_under() { { (ulimit -v "$1" && exec "$BIN/knn-gather" "${KNN_ARGS[@]}" --k "$2" "${@:3}") >/dev/null 2>&1; } 2>/dev/null; }
 lo=0 hi=1048576 # KiB
 if knn_under $hi 50; then
     while [ $((hi - lo)) -gt 256 ]; do

@@ -3,7 +3,8 @@
  * Library functions never exit: they return a pm_result_t and, on failure, leave
  * a one-line message naming the subject and the values in a thread-local buffer
  * (pm_error_message). Only a stage's main decides the exit status, by class:
- * PM_ERR_USAGE exits 2, every other failure exits 1 (see docs/cli.md). */
+ * PM_ERR_USAGE exits 2, every other failure exits 1; the class's name (pm_result_string)
+ * ends the printed message and is error.class in --stats (see docs/cli.md). */
 #ifndef PM_ERROR_H
 #define PM_ERROR_H
 

@@ -25,6 +25,34 @@ void pm_stage_defaults(pm_stage_t *st)
     st->seed = 1;
 }
 
+/* The one line a failure prints: "PROGRAM: message (CLASS error)". The class word goes last
+ * so that the line still reads "program: what 'subject': values" from its start, and a script
+ * can take the class from the end without parsing the message. */
+static void print_failure(const pm_stage_t *st, pm_result_t code, const char *message)
+{
+    if (message[0])
+        fprintf(stderr, "%s: %s (%s error)\n", st->name, message, pm_result_string(code));
+    else
+        fprintf(stderr, "%s: %s error\n", st->name, pm_result_string(code));
+}
+
+static pm_result_t write_stats(pm_stage_t *st, pm_result_t code, const char *message);
+
+/* A failure before the work starts: message, --stats when the command line named it, and
+ * the usage hint for a usage error. Returns the exit status. */
+static int begin_fail(pm_stage_t *st, pm_result_t code, int stats_known)
+{
+    char msg[PM_ERROR_MAX];
+    snprintf(msg, sizeof msg, "%s", pm_error_message());
+    if (stats_known && st->stats_path)
+        write_stats(st, code, msg); /* best effort: the failure being reported is this one */
+    print_failure(st, code, msg);
+    if (code == PM_ERR_USAGE)
+        fprintf(stderr, "usage: %s %s (try --help)\n", st->cli->program, st->cli->synopsis);
+    pm_args_free(&st->args);
+    return pm_result_exit_code(code);
+}
+
 int pm_stage_begin(pm_stage_t *st, const pm_cli_t *cli, int argc, char **argv)
 {
     st->name = cli->program;
@@ -35,13 +63,9 @@ int pm_stage_begin(pm_stage_t *st, const pm_cli_t *cli, int argc, char **argv)
     pm_cpu_set_ftz_daz();
     pm_atomic_install_cleanup();
     pm_result_t r = pm_args_parse(cli, argc, argv, &st->args);
-    if (r != PM_OK) {
-        fprintf(stderr, "%s: %s\n", st->name, pm_error_message());
-        if (r == PM_ERR_USAGE)
-            fprintf(stderr, "usage: %s %s (try --help)\n", cli->program, cli->synopsis);
-        pm_args_free(&st->args);
-        return pm_result_exit_code(r);
-    }
+    /* No stats for a command line that does not parse: the --stats it names is in doubt. */
+    if (r != PM_OK)
+        return begin_fail(st, r, 0);
     if (st->help) {
         pm_args_usage(cli, stdout);
         pm_args_free(&st->args);
@@ -58,31 +82,27 @@ int pm_stage_begin(pm_stage_t *st, const pm_cli_t *cli, int argc, char **argv)
         pm_args_free(&st->args);
         return 0;
     }
+    st->threads_used = pm_threads_use(st->threads);
     int n = st->args.nargs;
     if (n < cli->min_args || (cli->max_args >= 0 && n > cli->max_args)) {
         if (cli->min_args == cli->max_args)
-            fprintf(stderr, "%s: expected %d argument%s, got %d\n", st->name, cli->min_args,
-                    cli->min_args == 1 ? "" : "s", n);
+            pm_error_set(PM_ERR_USAGE, "expected %d argument%s, got %d", cli->min_args, cli->min_args == 1 ? "" : "s",
+                         n);
         else if (cli->max_args < 0)
-            fprintf(stderr, "%s: expected at least %d argument%s, got %d\n", st->name, cli->min_args,
-                    cli->min_args == 1 ? "" : "s", n);
+            pm_error_set(PM_ERR_USAGE, "expected at least %d argument%s, got %d", cli->min_args,
+                         cli->min_args == 1 ? "" : "s", n);
         else
-            fprintf(stderr, "%s: expected %d to %d arguments, got %d\n", st->name, cli->min_args, cli->max_args, n);
-        fprintf(stderr, "usage: %s %s (try --help)\n", cli->program, cli->synopsis);
-        pm_args_free(&st->args);
-        return 2;
+            pm_error_set(PM_ERR_USAGE, "expected %d to %d arguments, got %d", cli->min_args, cli->max_args, n);
+        return begin_fail(st, PM_ERR_USAGE, 1);
     }
-    st->threads_used = pm_threads_use(st->threads);
     if (st->stats_path) {
         st->stats = calloc(1, sizeof *st->stats);
         if (st->stats)
             st->stats->obj = json_object();
         if (!st->stats || !st->stats->obj) {
-            fprintf(stderr, "%s: out of memory for stats\n", st->name);
             free(st->stats);
             st->stats = NULL;
-            pm_args_free(&st->args);
-            return 1;
+            return begin_fail(st, pm_error_set(PM_ERR_NOMEM, "out of memory for stats"), 0);
         }
     }
     return -1;
@@ -119,7 +139,9 @@ void pm_stage_note(const pm_stage_t *st, const char *fmt, ...)
     va_end(ap);
 }
 
-static pm_result_t write_stats(pm_stage_t *st)
+/* Writes --stats: the fixed keys, on failure the error (class and message), then the stage's
+ * counters. code is the run's result and message its text (NULL on success). */
+static pm_result_t write_stats(pm_stage_t *st, pm_result_t code, const char *message)
 {
     double wall = pm_timer_wall(&st->timer), cpu = pm_timer_cpu(&st->timer);
     /* The fixed keys go first so every stats file reads alike. */
@@ -133,7 +155,23 @@ static pm_result_t write_stats(pm_stage_t *st)
     json_object_set_new(o, "cpu_s", json_real(cpu));
     json_object_set_new(o, "items", json_integer((json_int_t)st->items));
     json_object_set_new(o, "items_per_s", json_real(wall > 0.0 ? (double)st->items / wall : 0.0));
-    json_object_update(o, st->stats->obj);
+    if (code != PM_OK) {
+        /* A message that is not valid UTF-8 (a path's bytes) is kept as far as it is. */
+        json_t *err = json_object(), *m = json_string(message);
+        if (!m) {
+            char clean[PM_ERROR_MAX];
+            size_t k = 0;
+            for (const unsigned char *c = (const unsigned char *)message; *c && k + 1 < sizeof clean; c++)
+                clean[k++] = *c < 0x80 ? (char)*c : '?';
+            clean[k] = '\0';
+            m = json_string(clean);
+        }
+        json_object_set_new(err, "class", json_string(pm_result_string(code)));
+        json_object_set_new(err, "message", m);
+        json_object_set_new(o, "error", err);
+    }
+    if (st->stats)
+        json_object_update(o, st->stats->obj);
     pm_result_t r = PM_OK;
     if (strcmp(st->stats_path, "-") == 0) {
         if (json_dumpf(o, stderr, JSON_INDENT(2) | JSON_PRESERVE_ORDER | JSON_REAL_PRECISION(9)) != 0)
@@ -167,10 +205,21 @@ int pm_stage_end(pm_stage_t *st, pm_result_t result)
 {
     if (st->out.f)
         result = result == PM_OK ? pm_atomic_commit(&st->out) : (pm_atomic_abort(&st->out), result);
-    if (result == PM_OK && st->stats)
-        result = write_stats(st);
-    if (result != PM_OK)
-        fprintf(stderr, "%s: %s\n", st->name, pm_error_message());
+    int stats_failed = 0;
+    if (result == PM_OK && st->stats_path) {
+        result = write_stats(st, PM_OK, NULL);
+        stats_failed = result != PM_OK;
+    }
+    if (result != PM_OK) {
+        /* Kept before the stats are written: writing them may set a message of its own. */
+        char msg[PM_ERROR_MAX];
+        snprintf(msg, sizeof msg, "%s", pm_error_message());
+        /* Best effort: when the stats cannot be written either, the run's own failure is the
+         * one line reported. */
+        if (st->stats_path && !stats_failed)
+            write_stats(st, result, msg);
+        print_failure(st, result, msg);
+    }
     if (st->stats) {
         json_decref(st->stats->obj);
         free(st->stats);

@@ -11,7 +11,8 @@
  *   }
  *
  * Common options: -o/--output, --threads, --seed, --stats, --quiet, --help, --version,
- * --print-settings. Exit status: 0 ok, 1 failure, 2 bad usage. */
+ * --print-settings. Exit status: 0 ok, 1 failure, 2 bad usage; the failure's class (usage,
+ * input, io, nomem, internal) ends its one-line message and is in --stats (docs/cli.md). */
 #ifndef PM_STAGE_H
 #define PM_STAGE_H
 
@@ -82,8 +83,10 @@ void pm_stage_command_line(const pm_stage_t *st, char *out, size_t cap);
 /* A note on stderr ("name: ..."), unless --quiet. */
 void pm_stage_note(const pm_stage_t *st, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 
-/* Finishes: on failure prints "name: message" and returns 1 or 2; on success writes
- * --stats (stage, version, threads, wall_s, cpu_s, items, items_per_s and counters). */
+/* Finishes: writes --stats (stage, version, threads, wall_s, cpu_s, items, items_per_s, on
+ * failure "error": {"class", "message"}, then the counters); on failure prints
+ * "name: message (CLASS error)" with CLASS from pm_result_string, and returns the exit
+ * status (0, 1, or 2 for a usage error). */
 int pm_stage_end(pm_stage_t *st, pm_result_t result);
 
 #endif

@@ -123,19 +123,27 @@ pm_result_t pm_knn_gather(const pm_gather_map_t *m, const pm_gather_queries_t *q
     if (res != PM_OK)
         return res;
     uint64_t nblocks = (end - begin + BLOCK_QUERIES - 1) / BLOCK_QUERIES;
-    uint64_t bad = UINT64_MAX; /* the first query whose k-th photon is at distance 0 */
-    int nomem = 0;
+    /* A worker's failure (its heap, a query with r = 0) is recorded under its block's index
+     * and raised after the region: the lowest block's, whatever thread met it. A thread's
+     * blocks come in increasing order, so its first failure is the only one worth keeping. */
+    pm_error_slot_t err;
+    pm_error_slot_init(&err);
     pm_knn_stats_t total = {0};
 #pragma omp parallel
     {
         pm_knn_stats_t st = {0};
         double cpu0 = pm_time_thread_cpu();
         cand_t *heap = malloc((size_t)p->k * sizeof *heap);
-        uint64_t my_bad = UINT64_MAX;
+        int failed = 0;
 #pragma omp for schedule(dynamic, 1) nowait
         for (uint64_t blk = 0; blk < nblocks; blk++) {
-            if (!heap)
+            if (!heap) {
+                if (!failed)
+                    pm_error_slot_record(&err, blk, pm_error_set(PM_ERR_NOMEM, "out of memory for heaps of %" PRIu32
+                                                                 " photons", p->k));
+                failed = 1;
                 continue;
+            }
             uint64_t b = begin + blk * BLOCK_QUERIES, e = b + BLOCK_QUERIES < end ? b + BLOCK_QUERIES : end;
             for (uint64_t qi = b; qi < e; qi++) {
                 const float *y = &q->pos[3 * qi], *n = &q->normal[3 * qi];
@@ -147,7 +155,11 @@ pm_result_t pm_knn_gather(const pm_gather_map_t *m, const pm_gather_queries_t *q
                  * or, unlimited, the farthest found */
                 double r2 = cnt < p->k && p->max_radius > 0.0 ? (double)max_r2 : (cnt ? (double)heap[0].d2 : 0.0);
                 if (cnt && !(r2 > 0.0)) {
-                    my_bad = qi < my_bad ? qi : my_bad;
+                    if (!failed)
+                        pm_error_slot_record(&err, blk, pm_error_set(PM_ERR_INPUT, "query %" PRIu64 ": its %" PRIu32
+                                                                     " nearest photons all lie at its position (r = 0 m "
+                                                                     "gives no finite estimate); raise --k", qi, p->k));
+                    failed = 1;
                     cnt = 0;
                 }
                 uint16_t mi = q->material ? q->material[qi] : 0;
@@ -168,8 +180,6 @@ pm_result_t pm_knn_gather(const pm_gather_map_t *m, const pm_gather_queries_t *q
         st.cpu_s = pm_time_thread_cpu() - cpu0;
 #pragma omp critical
         {
-            nomem |= !heap;
-            bad = my_bad < bad ? my_bad : bad;
             total.shader_ops += st.shader_ops;
             total.nodes_visited += st.nodes_visited;
             total.heap_pushes += st.heap_pushes;
@@ -180,10 +190,5 @@ pm_result_t pm_knn_gather(const pm_gather_map_t *m, const pm_gather_queries_t *q
     }
     free(mat_glossy);
     *stats = total;
-    if (nomem)
-        return pm_error_set(PM_ERR_NOMEM, "out of memory for heaps of %" PRIu32 " photons", p->k);
-    if (bad != UINT64_MAX)
-        return pm_error_set(PM_ERR_INPUT, "query %" PRIu64 ": its %" PRIu32 " nearest photons all lie at its position "
-                            "(r = 0 m gives no finite estimate); raise --k", bad, p->k);
-    return PM_OK;
+    return pm_error_slot_raise(&err);
 }

@@ -10,6 +10,12 @@ for p in "$BIN"/*; do
     "$p" --version >"$TMP/v" 2>&1
     if [ $? = 0 ] && grep -qE "^$n \(pmtk\) [0-9]+\.[0-9]+\.[0-9]+$" "$TMP/v"; then pass "$n --version"; else fail "$n --version" "$(cat "$TMP/v")"; fi
     expect_exit "$n unknown option exits 2" 2 "$p" --no-such-option
+    if [ "$(sed -n 1p "$TMP/err")" = "$n: unknown option '--no-such-option' (usage error)" ] &&
+        grep -q "^usage: $n " <(sed -n 2p "$TMP/err") && [ "$(wc -l <"$TMP/err")" = 2 ]; then
+        pass "$n: a usage error says its class, then the usage line"
+    else
+        fail "$n usage error message" "$(head -c 300 "$TMP/err")"
+    fi
     expect_exit "$n bad number exits 2" 2 "$p" --threads lots
     "$p" --threads 3 --seed 9 --print-settings >"$TMP/settings" 2>&1
     "$p" @"$TMP/settings" --print-settings >"$TMP/settings2" 2>&1
@@ -51,4 +57,75 @@ if [ "$seen" = 1 ] && [ "$left" = 0 ] && [ ! -e "$TMP/sig/out.txt" ]; then
     pass "SIGTERM removes the temporary output"
 else
     fail "SIGTERM removes the temporary output" "temporary seen $seen, left $left"
+fi
+
+# ---- error classes: the one line ends in "(CLASS error)" and --stats has error.class ----
+# expect_class NAME CLASS STATUS CMD...: CMD (run with --stats) exits STATUS, its first stderr
+# line ends in "(CLASS error)" and the stats file's error.class and error.message agree with it.
+expect_class() {
+    local name=$1 class=$2 status=$3
+    shift 3
+    rm -f "$TMP/class.json"
+    "$@" --stats "$TMP/class.json" >"$TMP/out" 2>"$TMP/err"
+    local got=$? line
+    line=$(head -n 1 "$TMP/err")
+    if [ "$got" != "$status" ]; then
+        fail "$name" "exit $got, expected $status: $(head -c 300 "$TMP/err")"
+    elif [[ "$line" != *" ($class error)" ]]; then
+        fail "$name" "'$line' does not end in '($class error)'"
+    elif [ ! -s "$TMP/class.json" ] || [ "$(jq -r .error.class "$TMP/class.json")" != "$class" ] ||
+        [ "$(jq -r .stage "$TMP/class.json"): $(jq -r .error.message "$TMP/class.json") ($class error)" != "$line" ]; then
+        fail "$name" "stats: $(head -c 400 "$TMP/class.json" 2>&1)"
+    else
+        pass "$name"
+    fi
+}
+expect_class "usage: hilbert-sort --leaf x, in the message and in --stats" usage 2 \
+    "$BIN/hilbert-sort" --leaf x tests/golden/hilbert-input.pm -o "$TMP/cls.pm"
+expect_class "usage: a wrong argument count, in the message and in --stats" usage 2 \
+    "$BIN/pm-compare" tests/golden/photons-all.pm
+expect_class "input: pm-info on a file that is not pmtk's" input 1 "$BIN/pm-info" /etc/hostname
+expect_class "input: pm-compare's answer 'they differ'" input 1 "$BIN/pm-compare" "$TMP/r1.pm" "$TMP/r2.pm"
+if [ -w /dev/full ]; then
+    expect_class "io: pm-info writing to a full disk (/dev/full)" io 1 \
+        bash -c '"$0" "$@" >/dev/full' "$BIN/pm-info" tests/golden/photons-all.pm
+else
+    skip "io: pm-info writing to a full disk" "no writable /dev/full"
+fi
+"$BIN/pm-info" tests/golden/photons-all.pm --stats "$TMP/ok.json" >/dev/null
+[ "$(jq 'has("error")' "$TMP/ok.json")" = false ] && pass "a successful run's stats have no error key" ||
+    fail "no error key on success" "$(head -c 300 "$TMP/ok.json")"
+"$BIN/pm-info" tests/golden/photons-all.pm --bogus --stats "$TMP/none.json" >/dev/null 2>&1
+[ ! -e "$TMP/none.json" ] && pass "a command line that does not parse writes no stats" ||
+    fail "no stats on a bad command line" "$(head -c 300 "$TMP/none.json")"
+
+# nomem, from a worker thread: knn-gather allocates a heap of k photons on every thread inside
+# its parallel region. The address-space limit (ulimit -v) is set to what a run with small
+# heaps needs plus 12 MiB: room for one heap of 10^6 photons (7.6 MiB) but not for two, so that
+# one of the two threads fails, the worker about half the time; its message must arrive whole
+# every time. A program that cannot run under a limit at all (a sanitizer build) skips.
+KNN_ARGS=(tests/golden/build-photonmap-cornell.pm tests/golden/gather-cornell-16x16-spp8.pm -q --threads 2 -o "$TMP/knn.pm")
+# (the outer 2>/dev/null keeps bash's "Aborted" notice of a sanitizer build off the output)
+knn_under() { { (ulimit -v "$1" && exec "$BIN/knn-gather" "${KNN_ARGS[@]}" --k "$2" "${@:3}") >/dev/null 2>&1; } 2>/dev/null; }
+lo=0 hi=1048576 # KiB
+if knn_under $hi 50; then
+    while [ $((hi - lo)) -gt 256 ]; do
+        mid=$(((lo + hi) / 2))
+        if knn_under $mid 50; then hi=$mid; else lo=$mid; fi
+    done
+    bad=0 last=
+    for i in $(seq 1 10); do
+        (ulimit -v $((hi + 12288)) && exec "$BIN/knn-gather" "${KNN_ARGS[@]}" --k 1000000) >/dev/null 2>"$TMP/knn.err"
+        st=$?
+        if [ "$st" != 1 ] || ! grep -qx "knn-gather: out of memory for heaps of 1000000 photons (nomem error)" "$TMP/knn.err"; then
+            bad=$((bad + 1)) last="exit $st: $(cat "$TMP/knn.err")"
+        fi
+    done
+    [ "$bad" = 0 ] && pass "nomem: knn-gather's heap failing on a thread gives the whole message, 10 of 10 runs" ||
+        fail "knn-gather heap out of memory" "$bad of 10 runs wrong (limit $((hi + 12288)) KiB); last: $last"
+    ulimit_v=$((hi + 12288))
+    expect_class "nomem: knn-gather under ulimit -v, in the message and in --stats" nomem 1 \
+        bash -c 'ulimit -v "$0" && exec "$@"' "$ulimit_v" "$BIN/knn-gather" "${KNN_ARGS[@]}" --k 1000000
+else
+    skip "nomem: knn-gather under ulimit -v" "knn-gather does not run under a 1 GiB address-space limit (sanitizer build?)"
 fi

@@ -79,13 +79,13 @@ expect_error "--only with no buffer of that component" "--only direct: none of t
 
 # ---- refusals: one line, exit 1, no output ----
 expect_error "buffers of different resolution" \
-    "^composite: resolution mismatch: '$G/direct-cornell-16x16.pm' is 16x16, '$TMP/r.pm' is 4x3$" \
+    "^composite: resolution mismatch: '$G/direct-cornell-16x16.pm' is 16x16, '$TMP/r.pm' is 4x3 \(input error\)$" \
     "$C" "$TMP/r.pm" "$G/direct-cornell-16x16.pm" -o "$TMP/bad.exr" --png "$TMP/bad.png"
 expect_error "buffers of different scenes" \
-    "^composite: scene mismatch: '$TMP/other.pm' is of scene 'other xxh3:fedcba9876543210', '$TMP/r.pm' of scene 'test xxh3:0123456789abcdef'$" \
+    "^composite: scene mismatch: '$TMP/other.pm' is of scene 'other xxh3:fedcba9876543210', '$TMP/r.pm' of scene 'test xxh3:0123456789abcdef' \(input error\)$" \
     "$C" "$TMP/r.pm" "$TMP/other.pm" -o "$TMP/bad.exr"
 expect_error "a scale that overflows float is refused, not written as Inf" \
-    "^composite: pixel \([0-9], [0-9]\) channel [RGB] is .*e\+38 after scaling, beyond float \(largest 3.40282e\+38\)$" \
+    "^composite: pixel \([0-9], [0-9]\) channel [RGB] is .*e\+38 after scaling, beyond float \(largest 3.40282e\+38\) \(input error\)$" \
     "$C" "$TMP/r.pm:3.5e38" -o "$TMP/bad.exr"
 expect_error "a sum that overflows f64 is refused" "^composite: pixel \(0, 0\) channel R is inf after scaling" \
     "$C" -q "$TMP/r.pm:1.5e308" "$TMP/r.pm:1.5e308" -o "$TMP/bad.exr"

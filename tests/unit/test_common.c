@@ -1,10 +1,15 @@
-/* test_common.c: ISA detection and parsing, error messages, thread counts, hashing. */
+/* test_common.c: ISA detection and parsing, error messages and their classes at a stage's
+ * end, thread counts, hashing. */
+#include <fcntl.h>
+#include <jansson.h>
 #include <stdio.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "base/cpu.h"
 #include "base/error.h"
 #include "base/hash.h"
+#include "base/stage.h"
 #include "base/threads.h"
 #include "unit.h"
 
@@ -71,6 +76,78 @@ static void test_common_error_slot(void **state)
     assert_string_equal(pm_error_message(), "kept");
 }
 
+/* Runs a do-nothing stage whose work returns `code` with a fixed message, stderr caught in a
+ * file; extra is one more positional argument (a usage error: the stage takes none).
+ * Returns the exit status; the stderr text and the parsed --stats go to the out-parameters. */
+static int run_stage(pm_result_t code, const char *extra, char *err_out, size_t cap, json_t **stats_out)
+{
+    char stats[1024], errpath[1024];
+    snprintf(stats, sizeof stats, "%s/stage-end.json", unit_tmpdir());
+    snprintf(errpath, sizeof errpath, "%s/stage-end.err", unit_tmpdir());
+    unlink(stats);
+    pm_stage_t st;
+    pm_stage_defaults(&st);
+    const pm_option_t opts[] = {PM_STAGE_COMMON_OPTIONS(st), {0}};
+    const pm_cli_t cli = {"unit-stage", "[options]", "a stage that only fails", opts, 0, 0};
+    char *argv[] = {"unit-stage", "--stats", stats, (char *)extra, NULL};
+    fflush(stderr);
+    int saved = dup(2), fd = open(errpath, O_WRONLY | O_CREAT | O_TRUNC, 0600);
+    assert_true(saved >= 0 && fd >= 0);
+    dup2(fd, 2);
+    close(fd);
+    int rc = pm_stage_begin(&st, &cli, extra ? 4 : 3, argv);
+    if (rc < 0) {
+        pm_stage_stat_int(&st, "counted", 7);
+        rc = pm_stage_end(&st, code == PM_OK ? PM_OK : pm_error_set(code, "cannot frob 'thing': %d of %d", 3, 5));
+    }
+    fflush(stderr);
+    dup2(saved, 2);
+    close(saved);
+    FILE *f = fopen(errpath, "r");
+    assert_non_null(f);
+    size_t n = fread(err_out, 1, cap - 1, f);
+    err_out[n] = '\0';
+    fclose(f);
+    *stats_out = json_load_file(stats, 0, NULL);
+    return rc;
+}
+
+/* Every class: the exit status, the one line ending in "(CLASS error)", and --stats written
+ * on failure with error.class and error.message; a success has no error key. */
+static void test_common_stage_end_classes(void **state)
+{
+    static const pm_result_t codes[] = {PM_ERR_USAGE, PM_ERR_INPUT, PM_ERR_IO, PM_ERR_NOMEM, PM_ERR_INTERNAL};
+    char err[4096], want[256];
+    json_t *js;
+    for (size_t i = 0; i < sizeof codes / sizeof codes[0]; i++) {
+        const char *cls = pm_result_string(codes[i]);
+        assert_int_equal(run_stage(codes[i], NULL, err, sizeof err, &js), codes[i] == PM_ERR_USAGE ? 2 : 1);
+        snprintf(want, sizeof want, "unit-stage: cannot frob 'thing': 3 of 5 (%s error)\n", cls);
+        assert_string_equal(err, want);
+        assert_non_null(js);
+        assert_string_equal(json_string_value(json_object_get(js, "stage")), "unit-stage");
+        json_t *e = json_object_get(js, "error");
+        assert_string_equal(json_string_value(json_object_get(e, "class")), cls);
+        assert_string_equal(json_string_value(json_object_get(e, "message")), "cannot frob 'thing': 3 of 5");
+        assert_int_equal(json_integer_value(json_object_get(js, "counted")), 7); /* counters set before it */
+        json_decref(js);
+    }
+    /* a wrong number of arguments: usage, the hint, and the stats say so too */
+    assert_int_equal(run_stage(PM_OK, "surplus", err, sizeof err, &js), 2);
+    assert_string_equal(err, "unit-stage: expected 0 arguments, got 1 (usage error)\n"
+                             "usage: unit-stage [options] (try --help)\n");
+    assert_non_null(js);
+    assert_string_equal(json_string_value(json_object_get(json_object_get(js, "error"), "class")), "usage");
+    json_decref(js);
+    /* success: nothing on stderr, no error key */
+    assert_int_equal(run_stage(PM_OK, NULL, err, sizeof err, &js), 0);
+    assert_string_equal(err, "");
+    assert_non_null(js);
+    assert_null(json_object_get(js, "error"));
+    assert_int_equal(json_integer_value(json_object_get(js, "counted")), 7);
+    json_decref(js);
+}
+
 static void test_common_threads_and_hash(void **state)
 {
     assert_int_equal(pm_threads_use(3), 3);
@@ -85,6 +162,7 @@ static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_common_isa),
     cmocka_unit_test(test_common_errors),
     cmocka_unit_test(test_common_error_slot),
+    cmocka_unit_test(test_common_stage_end_classes),
     cmocka_unit_test(test_common_threads_and_hash),
 };
 UNIT_GROUP(unit_common, "common", tests);

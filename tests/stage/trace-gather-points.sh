@@ -177,7 +177,7 @@ if ldd "$T" 2>/dev/null | grep -q libasan; then
 elif ! (ulimit -v 8000000) 2>/dev/null; then
     skip "row failures on worker threads" "ulimit -v is not available"
 else
-    want="trace-gather-points: out of memory for the rays of row 0: 65536 primary, 262144 shadow, 4294967296 secondary"
+    want="trace-gather-points: out of memory for the rays of row 0: 65536 primary, 262144 shadow, 4294967296 secondary (nomem error)"
     bad=0 last=""
     for i in $(seq 1 10); do
         for sched in dynamic interleave; do
@@ -201,7 +201,7 @@ mkdir -p "$TMP/spill"
 (trap '' XFSZ && ulimit -f 64 && exec "$T" -q "$CORNELL" --width 40 --height 24 --spp 16 --spool-mem 0 \
     -o "$TMP/spill/q.pm") >/dev/null 2>"$TMP/spill.err"
 st=$?
-if [ "$st" = 1 ] && [ "$(cat "$TMP/spill.err")" = "trace-gather-points: cannot write the spool file in '$TMP/spill': File too large" ] &&
+if [ "$st" = 1 ] && [ "$(cat "$TMP/spill.err")" = "trace-gather-points: cannot write the spool file in '$TMP/spill': File too large (io error)" ] &&
     [ -z "$(ls -A "$TMP/spill")" ]; then
     pass "a spill file that cannot grow: one whole line, status 1, nothing left in the output folder"
 else

@@ -3,6 +3,7 @@
 #include "render/rt.h"
 
 #include <math.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -89,11 +90,16 @@ void pm_rt_destroy(pm_rt_t *rt)
     memset(rt, 0, sizeof *rt);
 }
 
-pm_result_t pm_rt_thread_error(const pm_rt_t *rt, const char *what)
+pm_result_t pm_rt_thread_error(const pm_rt_t *rt, const char *fmt, ...)
 {
     enum RTCError e = rtcGetDeviceError(rt->device);
     if (e == RTC_ERROR_NONE)
         return PM_OK;
+    char what[256];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(what, sizeof what, fmt, ap);
+    va_end(ap);
     static const char *const names[] = {"none", "unknown error", "invalid argument", "invalid operation",
                                          "out of memory", "unsupported cpu", "cancelled"};
     const char *name = (unsigned)e < sizeof names / sizeof names[0] ? names[e] : "unknown error";

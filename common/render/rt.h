@@ -59,8 +59,9 @@ static inline int pm_rt_occluded1(const pm_rt_t *rt, struct RTCIntersectContext 
 }
 
 /* The first Embree error raised on the calling thread since the last call (Embree keeps one
- * per thread and device), as a pm_error_set message about `what`; PM_OK when none. Workers
- * call it after their rays and hand a failure to a pm_error_slot_t. */
-pm_result_t pm_rt_thread_error(const pm_rt_t *rt, const char *what);
+ * per thread and device), as a pm_error_set message "embree failed WHAT: ..." with WHAT
+ * formatted from fmt only then; PM_OK when none. Workers call it after their rays and hand a
+ * failure to a pm_error_slot_t. */
+pm_result_t pm_rt_thread_error(const pm_rt_t *rt, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 
 #endif

@@ -335,6 +335,8 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
     pm_progress_begin(&prog, "photons", o->photons, o->progress);
     double t0 = pm_time_wall();
     int failed = 0;
+    pm_error_slot_t err;
+    pm_error_slot_init(&err);
     int nthreads = omp_get_max_threads();
     pm_trace_arena_t *arenas = aligned_alloc(64, (size_t)nthreads * sizeof *arenas);
     if (arenas)
@@ -360,9 +362,13 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
             for (uint64_t i = b; i < e && !c->failed; i++)
                 trace_one(&t, c, i, &ctx);
             failed |= c->failed;
+            /* Embree's errors are per thread: this worker's reach the caller through the slot. */
+            pm_error_slot_record(&err, ci, pm_rt_thread_error(rt, "tracing photons %" PRIu64 " to %" PRIu64, b, e - 1));
             pm_progress_add(&prog, e - b);
         }
     }
+    pm_result_t embree = pm_error_slot_raise(&err);
+    failed |= embree != PM_OK;
     out->trace_s = pm_time_wall() - t0;
     pm_progress_end(&prog);
 
@@ -411,6 +417,8 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
     out->emitted = o->photons;
     if (failed) {
         pm_trace_free(out);
+        if (embree != PM_OK)
+            return embree; /* its message is already this thread's */
         return pm_error_set(PM_ERR_NOMEM, "out of memory storing the photons of scene '%s' (%" PRIu64
                             " stored so far)", s->name, total);
     }

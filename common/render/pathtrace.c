@@ -32,8 +32,6 @@ static inline int wanted(const pm_pathtracer_t *pt, unsigned b)
     return pt->set.component == PM_PT_TOTAL || (pt->set.component == PM_PT_DIRECT) == (b <= 1);
 }
 
-static inline float max3(const float *v) { return fmaxf(v[0], fmaxf(v[1], v[2])); }
-
 pm_result_t pm_pathtracer_init(pm_pathtracer_t *pt, const pm_scene_t *s, const pm_rt_t *rt,
                                const pm_pathtrace_settings_t *set)
 {
@@ -110,7 +108,9 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
             cnt->capped++;
             break;
         }
-        if (!(max3(m->kd) > 0.0f || pm_material_is_glossy(m)))
+        float pd, ps;
+        pm_bsdf_albedo(m, &pd, &ps);
+        if (!(pd > 0.0f || pm_material_is_glossy(m)))
             break; /* black: reflects nothing */
         if (depth + 1 > cnt->longest)
             cnt->longest = depth + 1;

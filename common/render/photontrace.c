@@ -180,8 +180,6 @@ static void store_photon(const tracer_t *t, chunk_t *c, const float p[3], const 
     }
 }
 
-static inline float max3(const float v[3]) { return fmaxf(v[0], fmaxf(v[1], v[2])); }
-
 /* Traces photon `index` into chunk c. */
 static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCIntersectContext *ctx)
 {
@@ -240,7 +238,8 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
         if (pm_dot3(n, dir) > 0.0f) /* the side the photon arrived from */
             pm_v3_store(n, pm_v3_scale(pm_v3_load(n), -1.0f));
         const pm_material_t *m = &s->materials[s->tri_material[hit]];
-        float pd = max3(m->kd), ps = max3(m->ks);
+        float pd, ps;
+        pm_bsdf_albedo(m, &pd, &ps);
         if (pd + ps > 0.0f)
             store_photon(t, c, p, power, n, wo, depth);
         if (c->failed)

@@ -67,11 +67,10 @@ float pm_bsdf_lobe_pdf(const pm_material_t *m, pm_lobe_t lobe, const float n[3],
     return lobe == PM_LOBE_DIFFUSE ? diffuse_pdf_w(1.0f, pm_dot3(n, wi)) : glossy_pdf_w(m, 1.0f, n, wi, wo);
 }
 
-static inline float max3(const float v[3]) { return fmaxf(v[0], fmaxf(v[1], v[2])); }
-
 float pm_bsdf_diffuse_share(const pm_material_t *m)
 {
-    float pd = max3(m->kd), ps = max3(m->ks);
+    float pd, ps;
+    pm_bsdf_albedo(m, &pd, &ps);
     return pd + ps > 0.0f ? pd / (pd + ps) : 1.0f;
 }
 

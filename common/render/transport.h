@@ -14,6 +14,7 @@
 #ifndef PM_TRANSPORT_H
 #define PM_TRANSPORT_H
 
+#include <math.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -58,6 +59,13 @@ float pm_bsdf_lobe_pdf(const pm_material_t *m, pm_lobe_t lobe, const float n[3],
 static inline double pm_phong_weight(const pm_material_t *m, float cosi)
 {
     return (m->ns + 2.0) / (m->ns + 1.0) * cosi;
+}
+
+/* The lobes' albedos as the samplers weigh them: max(kd) and max(ks) over the channels. */
+static inline void pm_bsdf_albedo(const pm_material_t *m, float *pd_out, float *ps_out)
+{
+    *pd_out = fmaxf(m->kd[0], fmaxf(m->kd[1], m->kd[2]));
+    *ps_out = fmaxf(m->ks[0], fmaxf(m->ks[1], m->ks[2]));
 }
 
 /* Probability that the mixture sampler picks the diffuse lobe: its share of the albedo,

@@ -13,6 +13,7 @@
 #include "math/rng.h"
 #include "math/sampling.h"
 #include "math/vec.h"
+#include "render/rt.h"
 #include "render/transport.h"
 #include "unit.h"
 
@@ -426,6 +427,44 @@ static void test_transport_point_light(void **state)
     assert_int_equal(pm_point_light_toward(&l, l.position, up, &s), 0); /* at the point */
 }
 
+/* The single-ray wrappers on the two-triangle lights, and an Embree error raised on one OpenMP
+ * worker (a geometry of no valid type) reaching the caller whole through pm_rt_thread_error
+ * and a pm_error_slot_t, as the tracers' parallel regions report it. */
+static void test_transport_rt_single_rays(void **state)
+{
+    light_scene_t ls;
+    light_scene(&ls, 0);
+    pm_rt_t rt;
+    assert_int_equal(pm_rt_create(&ls.s, 0, 1, &rt), PM_OK);
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    const float o[3] = {0.25f, 0.25f, 0.0f}, up[3] = {0.0f, 0.0f, 1.0f}, side[3] = {1.0f, 0.0f, 0.0f};
+    float t, ng[3];
+    assert_int_equal(pm_rt_intersect1(&rt, &ctx, o, up, 0.0f, INFINITY, &t, ng), 0);
+    assert_true(fabsf(t - 1.0f) < 1e-6f && ng[2] < 0.0f); /* (v1 - v0) x (v2 - v0) faces down */
+    assert_int_equal(pm_rt_intersect1(&rt, &ctx, o, side, 0.0f, INFINITY, &t, NULL), PM_RAY_MISS);
+    assert_true(t == INFINITY);
+    assert_int_equal(pm_rt_occluded1(&rt, &ctx, o, up, 0.0f, 2.0f), 1);
+    assert_int_equal(pm_rt_occluded1(&rt, &ctx, o, up, 0.0f, 0.5f), 0); /* stops short */
+    assert_int_equal(pm_rt_thread_error(&rt, "before anything failed"), PM_OK);
+
+    pm_error_slot_t slot;
+    pm_error_slot_init(&slot);
+#pragma omp parallel for num_threads(2) schedule(static, 1)
+    for (int task = 0; task < 4; task++) {
+        if (task == 3) {
+            RTCGeometry g = rtcNewGeometry(rt.device, (enum RTCGeometryType)999);
+            if (g)
+                rtcReleaseGeometry(g);
+        }
+        pm_error_slot_record(&slot, (uint64_t)task, pm_rt_thread_error(&rt, "in task %d", task));
+    }
+    assert_int_not_equal(pm_error_slot_raise(&slot), PM_OK);
+    if (!strstr(pm_error_message(), "embree failed in task 3: "))
+        fail_msg("the worker's message came back as '%s'", pm_error_message());
+    pm_rt_destroy(&rt);
+}
+
 static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_transport_pdf_integrates_to_one),
     cmocka_unit_test(test_transport_sampler_matches_pdf),
@@ -433,5 +472,6 @@ static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_transport_area_light_uniform),
     cmocka_unit_test(test_transport_area_light_pdf),
     cmocka_unit_test(test_transport_point_light),
+    cmocka_unit_test(test_transport_rt_single_rays),
 };
 UNIT_GROUP(transport_group, "transport", tests)

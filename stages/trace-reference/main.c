@@ -8,7 +8,6 @@
  * outputs are rewritten after every pass, so a run can be stopped and continued with
  * --resume. The same settings give the same bits for any --threads. */
 #include <inttypes.h>
-#include <stdio.h>
 #include <string.h>
 
 #include "base/stage.h"

@@ -89,14 +89,15 @@ int pm_packet_width(const pm_rt_t *rt, pm_isa_t isa)
     } while (0)
 
 #define PM_DEFINE_PACKETS(W)                                                                               \
-    static void intersect##W(RTCScene sc, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t b, unsigned n) \
+    static void intersect##W(const pm_rt_t *rt, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t b,   \
+                             unsigned n)                                                                   \
     {                                                                                                      \
         struct RTCRayHit##W rh;                                                                            \
         _Alignas(64) int valid[W];                                                                         \
         PM_FILL_RAY(rh.ray, W, r, b, n);                                                                   \
         for (unsigned k = 0; k < (W); k++)                                                                 \
             rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;                                                    \
-        rtcIntersect##W(valid, sc, ctx, &rh);                                                              \
+        rtcIntersect##W(valid, rt->scene, ctx, &rh);                                                       \
         for (unsigned k = 0; k < n; k++) {                                                                 \
             size_t i = b + k;                                                                              \
             int hit = rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID;                                         \
@@ -105,12 +106,13 @@ int pm_packet_width(const pm_rt_t *rt, pm_isa_t isa)
             r->ngx[i] = rh.hit.Ng_x[k], r->ngy[i] = rh.hit.Ng_y[k], r->ngz[i] = rh.hit.Ng_z[k];            \
         }                                                                                                  \
     }                                                                                                      \
-    static void occluded##W(RTCScene sc, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t b, unsigned n) \
+    static void occluded##W(const pm_rt_t *rt, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t b,    \
+                            unsigned n)                                                                    \
     {                                                                                                      \
         struct RTCRay##W ray;                                                                              \
         _Alignas(64) int valid[W];                                                                         \
         PM_FILL_RAY(ray, W, r, b, n);                                                                      \
-        rtcOccluded##W(valid, sc, ctx, &ray);                                                              \
+        rtcOccluded##W(valid, rt->scene, ctx, &ray);                                                       \
         memcpy(r->tfar + b, ray.tfar, sizeof(float) * n);                                                  \
     }
 
@@ -118,29 +120,19 @@ PM_DEFINE_PACKETS(4)
 PM_DEFINE_PACKETS(8)
 PM_DEFINE_PACKETS(16)
 
-static void intersect1(RTCScene sc, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t i)
+/* Width 1: a lane of the arrays through the single-ray wrappers of rt.h. */
+static void intersect1(const pm_rt_t *rt, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t i)
 {
-    struct RTCRayHit rh;
-    rh.ray.org_x = r->ox[i], rh.ray.org_y = r->oy[i], rh.ray.org_z = r->oz[i];
-    rh.ray.dir_x = r->dx[i], rh.ray.dir_y = r->dy[i], rh.ray.dir_z = r->dz[i];
-    rh.ray.tnear = r->tnear[i], rh.ray.tfar = r->tfar[i], rh.ray.time = 0.0f;
-    rh.ray.mask = 0xffffffffu, rh.ray.id = 0, rh.ray.flags = 0;
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(sc, ctx, &rh);
-    r->tfar[i] = rh.ray.tfar;
-    r->prim[i] = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID ? rh.hit.primID : PM_RAY_MISS;
-    r->ngx[i] = rh.hit.Ng_x, r->ngy[i] = rh.hit.Ng_y, r->ngz[i] = rh.hit.Ng_z;
+    float o[3] = {r->ox[i], r->oy[i], r->oz[i]}, d[3] = {r->dx[i], r->dy[i], r->dz[i]}, ng[3];
+    r->prim[i] = pm_rt_intersect1(rt, ctx, o, d, r->tnear[i], r->tfar[i], &r->tfar[i], ng);
+    r->ngx[i] = ng[0], r->ngy[i] = ng[1], r->ngz[i] = ng[2];
 }
 
-static void occluded1(RTCScene sc, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t i)
+static void occluded1(const pm_rt_t *rt, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t i)
 {
-    struct RTCRay ray;
-    ray.org_x = r->ox[i], ray.org_y = r->oy[i], ray.org_z = r->oz[i];
-    ray.dir_x = r->dx[i], ray.dir_y = r->dy[i], ray.dir_z = r->dz[i];
-    ray.tnear = r->tnear[i], ray.tfar = r->tfar[i], ray.time = 0.0f;
-    ray.mask = 0xffffffffu, ray.id = 0, ray.flags = 0;
-    rtcOccluded1(sc, ctx, &ray);
-    r->tfar[i] = ray.tfar;
+    float o[3] = {r->ox[i], r->oy[i], r->oz[i]}, d[3] = {r->dx[i], r->dy[i], r->dz[i]};
+    if (pm_rt_occluded1(rt, ctx, o, d, r->tnear[i], r->tfar[i]))
+        r->tfar[i] = -INFINITY;
 }
 
 static void context(struct RTCIntersectContext *ctx, int coherent)
@@ -149,18 +141,18 @@ static void context(struct RTCIntersectContext *ctx, int coherent)
     ctx->flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
 }
 
-typedef void (*packet_fn)(RTCScene sc, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t b, unsigned n);
+typedef void (*packet_fn)(const pm_rt_t *rt, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t b, unsigned n);
 
 /* Single rays as a "packet" of one, so that one loop serves every width. */
-static void intersect1p(RTCScene sc, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t b, unsigned n)
+static void intersect1p(const pm_rt_t *rt, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t b, unsigned n)
 {
     (void)n;
-    intersect1(sc, ctx, r, b);
+    intersect1(rt, ctx, r, b);
 }
-static void occluded1p(RTCScene sc, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t b, unsigned n)
+static void occluded1p(const pm_rt_t *rt, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t b, unsigned n)
 {
     (void)n;
-    occluded1(sc, ctx, r, b);
+    occluded1(rt, ctx, r, b);
 }
 
 /* Traces r->n rays in packets of `width` (1, 4, 8 or 16) with fn[0..3], one per width. */
@@ -172,7 +164,7 @@ static void trace_packets(const pm_rt_t *rt, int width, int coherent, pm_rays_t 
     packet_fn f = fn[w == 16 ? 3 : w == 8 ? 2 : w == 4 ? 1 : 0];
     size_t n = r->n;
     for (size_t b = 0; b < n; b += w)
-        f(rt->scene, &ctx, r, b, (unsigned)(n - b < w ? n - b : w));
+        f(rt, &ctx, r, b, (unsigned)(n - b < w ? n - b : w));
 }
 
 void pm_rays_intersect(const pm_rt_t *rt, int width, int coherent, pm_rays_t *r)

@@ -15,8 +15,6 @@
 #include "base/error.h"
 #include "render/rt.h"
 
-#define PM_RAY_MISS 0xffffffffu /* prim of a ray that hit nothing */
-
 typedef struct {
     size_t n, cap;                          /* rays held, rays allocated */
     float *ox, *oy, *oz;                    /* in: origin, m */
@@ -24,7 +22,7 @@ typedef struct {
     float *tnear;                           /* in: m along dir */
     float *tfar;                            /* in: m; out: hit distance (intersect), -inf when occluded */
     float *ngx, *ngy, *ngz;                 /* out (intersect): Embree's unnormalized geometric normal */
-    uint32_t *prim;                         /* out (intersect): triangle index, PM_RAY_MISS for none */
+    uint32_t *prim;                         /* out (intersect): triangle index, PM_RAY_MISS (rt.h) for none */
 } pm_rays_t;
 
 /* Makes room for cap rays (keeps the first n); arrays padded to whole 16-lane packets. */

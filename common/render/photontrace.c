@@ -18,7 +18,9 @@
 #include "base/progress.h"
 #include "math/rng.h"
 #include "math/sampling.h"
+#include "math/vec.h"
 #include "base/timer.h"
+#include "render/transport.h"
 
 /* Photons per chunk: large enough that the per-chunk bookkeeping vanishes, small enough
  * that two threads stay balanced on 100,000 photons. */
@@ -138,7 +140,7 @@ static int chunk_reserve(chunk_t *c, size_t rs)
     return 0;
 }
 
-static int keep_ray(chunk_t *c, const struct RTCRay *r)
+static int keep_ray(chunk_t *c, const float o[3], const float d[3], float tnear)
 {
     if (c->nrays == c->rays_cap) {
         size_t cap = c->rays_cap ? 2 * c->rays_cap : 4 * CHUNK;
@@ -149,13 +151,14 @@ static int keep_ray(chunk_t *c, const struct RTCRay *r)
         c->rays_cap = cap;
     }
     float *p = &c->rays[7 * c->nrays++];
-    p[0] = r->org_x, p[1] = r->org_y, p[2] = r->org_z;
-    p[3] = r->dir_x, p[4] = r->dir_y, p[5] = r->dir_z, p[6] = r->tnear;
+    p[0] = o[0], p[1] = o[1], p[2] = o[2];
+    p[3] = d[0], p[4] = d[1], p[5] = d[2], p[6] = tnear;
     return 0;
 }
 
-static void store_photon(const tracer_t *t, chunk_t *c, pm_vec3_t p, const double power[3], pm_vec3_t n,
-                         pm_vec3_t back, uint32_t depth)
+/* A photon at p (m) of `power` (W) on the side n faces, arrived from direction back. */
+static void store_photon(const tracer_t *t, chunk_t *c, const float p[3], const double power[3], const float n[3],
+                         const float back[3], uint32_t depth)
 {
     if (chunk_reserve(c, t->rs) != 0) {
         c->failed = 1;
@@ -164,14 +167,11 @@ static void store_photon(const tracer_t *t, chunk_t *c, pm_vec3_t p, const doubl
     unsigned char *rec = c->buf + c->n++ * t->rs;
     c->arena->used += t->rs;
     float pw[3] = {(float)power[0], (float)power[1], (float)power[2]};
-    float pos[3] = {p.x, p.y, p.z}, nor[3] = {n.x, n.y, n.z};
-    memcpy(rec + t->off_pos, pos, 12);
+    memcpy(rec + t->off_pos, p, 12);
     memcpy(rec + t->off_pow, pw, 12);
-    memcpy(rec + t->off_nor, nor, 12);
-    if (t->o->direction) {
-        float d[3] = {back.x, back.y, back.z};
-        memcpy(rec + t->off_dir, d, 12);
-    }
+    memcpy(rec + t->off_nor, n, 12);
+    if (t->o->direction)
+        memcpy(rec + t->off_dir, back, 12);
     memcpy(rec + t->off_depth, &depth, 4);
     if (depth == 0) {
         c->first++;
@@ -179,8 +179,6 @@ static void store_photon(const tracer_t *t, chunk_t *c, pm_vec3_t p, const doubl
             c->power_first[k] += pw[k];
     }
 }
-
-static inline float max3(const float v[3]) { return fmaxf(v[0], fmaxf(v[1], v[2])); }
 
 /* Traces photon `index` into chunk c. */
 static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCIntersectContext *ctx)
@@ -193,24 +191,24 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
     /* Emission: a light by power, then a point and a direction on it. */
     const light_t *l = &t->lights[pm_cdf_pick(t->cdf, t->nlights, pm_rng_double(&rng))];
     double power[3];
-    pm_vec3_t org, dir;
+    float org[3], dir[3];
     float u1 = pm_rng_float(&rng), u2 = pm_rng_float(&rng), u3 = pm_rng_float(&rng), u4 = pm_rng_float(&rng);
     if (l->kind == 0) {
         const pm_point_light_t *pl = &s->lights[l->index];
-        org = pm_v3_load(pl->position);
-        dir = pm_sample_sphere(u1, u2);
+        memcpy(org, pl->position, sizeof org);
+        pm_v3_store(dir, pm_sample_sphere(u1, u2));
     } else {
         const uint32_t *tri = &s->tris[3 * (size_t)l->index];
         pm_vec3_t v0 = pm_v3_load(&s->verts[3 * (size_t)tri[0]]), v1 = pm_v3_load(&s->verts[3 * (size_t)tri[1]]),
                   v2 = pm_v3_load(&s->verts[3 * (size_t)tri[2]]);
-        float b0, b1;
+        float b0, b1, p[3];
         pm_sample_triangle(u1, u2, &b0, &b1);
-        pm_vec3_t p = pm_v3_add(pm_v3_add(pm_v3_scale(v0, b0), pm_v3_scale(v1, b1)), pm_v3_scale(v2, 1.0f - b0 - b1));
+        pm_triangle_point(s, l->index, b0, b1, p);
         /* Area lights emit from their front face: the right-hand-rule normal of (v0, v1, v2). */
         pm_vec3_t n = pm_v3_normalize(pm_v3_cross(pm_v3_sub(v1, v0), pm_v3_sub(v2, v0))), tb, bb;
         pm_onb(n, &tb, &bb);
-        dir = pm_onb_to_world(pm_sample_cosine_hemisphere(u3, u4), tb, bb, n);
-        org = pm_v3_add(p, pm_v3_scale(n, eps));
+        pm_v3_store(dir, pm_onb_to_world(pm_sample_cosine_hemisphere(u3, u4), tb, bb, n));
+        pm_v3_store(org, pm_v3_add(pm_v3_load(p), pm_v3_scale(n, eps)));
     }
     /* Flux of one photon: the light's power over the probability of picking it and the
      * number of photons, so that summing all photons gives the lights' total power. */
@@ -221,32 +219,29 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
     }
 
     for (uint32_t depth = 0;; depth++) {
-        struct RTCRayHit rh;
-        rh.ray.org_x = org.x, rh.ray.org_y = org.y, rh.ray.org_z = org.z;
-        rh.ray.dir_x = dir.x, rh.ray.dir_y = dir.y, rh.ray.dir_z = dir.z;
-        rh.ray.tnear = 0.0f, rh.ray.tfar = INFINITY, rh.ray.time = 0.0f;
-        rh.ray.mask = 0xffffffffu, rh.ray.id = 0, rh.ray.flags = 0;
-        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-        if (t->o->record_rays && keep_ray(c, &rh.ray) != 0) {
+        if (t->o->record_rays && keep_ray(c, org, dir, 0.0f) != 0) {
             c->failed = 1;
             return;
         }
-        rtcIntersect1(t->rt->scene, ctx, &rh);
+        float tfar, ng[3];
+        uint32_t hit = pm_rt_intersect1(t->rt, ctx, org, dir, 0.0f, INFINITY, &tfar, ng);
         c->rays_traced++;
         if (depth > c->longest)
             c->longest = depth;
-        if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
+        if (hit == PM_RAY_MISS) {
             c->escaped++;
             return;
         }
-        pm_vec3_t p = pm_v3_add(org, pm_v3_scale(dir, rh.ray.tfar));
-        pm_vec3_t n = pm_v3_normalize(pm_v3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z));
-        if (pm_v3_dot(n, dir) > 0.0f) /* the side the photon arrived from */
-            n = pm_v3_scale(n, -1.0f);
-        const pm_material_t *m = &s->materials[s->tri_material[rh.hit.primID]];
-        float pd = max3(m->kd), ps = max3(m->ks);
+        float p[3], n[3], wo[3] = {-dir[0], -dir[1], -dir[2]};
+        pm_v3_store(p, pm_v3_add(pm_v3_load(org), pm_v3_scale(pm_v3_load(dir), tfar)));
+        pm_v3_store(n, pm_v3_normalize(pm_v3_load(ng)));
+        if (pm_dot3(n, dir) > 0.0f) /* the side the photon arrived from */
+            pm_v3_store(n, pm_v3_scale(pm_v3_load(n), -1.0f));
+        const pm_material_t *m = &s->materials[s->tri_material[hit]];
+        float pd, ps;
+        pm_bsdf_albedo(m, &pd, &ps);
         if (pd + ps > 0.0f)
-            store_photon(t, c, p, power, n, pm_v3_scale(dir, -1.0f), depth);
+            store_photon(t, c, p, power, n, wo, depth);
         if (c->failed)
             return;
         if (depth + 1 >= t->o->max_bounces) {
@@ -266,34 +261,25 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
         float qs = fminf(q, (float)t->o->rr_max) / q;
         float pdq = pd * qs, psq = ps * qs;
         float u = pm_rng_float(&rng), v1 = pm_rng_float(&rng), v2 = pm_rng_float(&rng);
-        pm_vec3_t tb, bb;
         if (u < pdq) {
-            pm_onb(n, &tb, &bb);
-            dir = pm_onb_to_world(pm_sample_cosine_hemisphere(v1, v2), tb, bb, n);
+            /* f cos / pdf of the diffuse lobe is kd; a cosine sample is above the surface up to
+             * rounding and is kept as drawn. */
+            pm_bsdf_sample_lobe(m, PM_LOBE_DIFFUSE, n, wo, v1, v2, dir);
             for (int k = 0; k < 3; k++)
                 power[k] *= (double)m->kd[k] / pdq;
         } else if (u < pdq + psq) {
-            /* Normalized Phong: sample cos(alpha)^ns about the mirror direction (pdf
-             * (ns + 1) / (2 pi) cos^ns); the weight f cos / pdf is ks (ns + 2) / (ns + 1) cos. */
-            pm_vec3_t r = pm_v3_sub(dir, pm_v3_scale(n, 2.0f * pm_v3_dot(dir, n)));
-            r = pm_v3_normalize(r);
-            float ca = powf(v1, 1.0f / (m->ns + 1.0f)), sa = sqrtf(fmaxf(0.0f, 1.0f - ca * ca)),
-                  phi = 2.0f * PM_PI * v2;
-            pm_onb(r, &tb, &bb);
-            dir = pm_v3_normalize(pm_onb_to_world(pm_v3(sa * cosf(phi), sa * sinf(phi), ca), tb, bb, r));
-            float cos_o = pm_v3_dot(dir, n);
-            if (cos_o <= 0.0f) { /* below the surface: the lobe's energy loss */
-                c->absorbed++;
+            if (!pm_bsdf_sample_lobe(m, PM_LOBE_GLOSSY, n, wo, v1, v2, dir)) {
+                c->absorbed++; /* below the surface: the lobe's energy loss */
                 return;
             }
-            double w = (m->ns + 2.0) / (m->ns + 1.0) * cos_o / psq;
+            double w = pm_phong_weight(m, pm_dot3(dir, n)) / psq;
             for (int k = 0; k < 3; k++)
                 power[k] *= m->ks[k] * w;
         } else {
             c->absorbed++;
             return;
         }
-        org = pm_v3_add(p, pm_v3_scale(n, eps));
+        pm_v3_store(org, pm_v3_add(pm_v3_load(p), pm_v3_scale(pm_v3_load(n), eps)));
     }
 }
 
@@ -348,6 +334,8 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
     pm_progress_begin(&prog, "photons", o->photons, o->progress);
     double t0 = pm_time_wall();
     int failed = 0;
+    pm_error_slot_t err;
+    pm_error_slot_init(&err);
     int nthreads = omp_get_max_threads();
     pm_trace_arena_t *arenas = aligned_alloc(64, (size_t)nthreads * sizeof *arenas);
     if (arenas)
@@ -373,9 +361,13 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
             for (uint64_t i = b; i < e && !c->failed; i++)
                 trace_one(&t, c, i, &ctx);
             failed |= c->failed;
+            /* Embree's errors are per thread: this worker's reach the caller through the slot. */
+            pm_error_slot_record(&err, ci, pm_rt_thread_error(rt, "tracing photons %" PRIu64 " to %" PRIu64, b, e - 1));
             pm_progress_add(&prog, e - b);
         }
     }
+    pm_result_t embree = pm_error_slot_raise(&err);
+    failed |= embree != PM_OK;
     out->trace_s = pm_time_wall() - t0;
     pm_progress_end(&prog);
 
@@ -424,6 +416,8 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
     out->emitted = o->photons;
     if (failed) {
         pm_trace_free(out);
+        if (embree != PM_OK)
+            return embree; /* its message is already this thread's */
         return pm_error_set(PM_ERR_NOMEM, "out of memory storing the photons of scene '%s' (%" PRIu64
                             " stored so far)", s->name, total);
     }
@@ -445,14 +439,8 @@ double pm_trace_replay(const pm_rt_t *rt, const pm_trace_result_t *r)
 #pragma omp for schedule(dynamic, 4096)
         for (uint64_t i = 0; i < n; i++) {
             const float *p = &r->rays_kept[7 * i];
-            struct RTCRayHit rh;
-            rh.ray.org_x = p[0], rh.ray.org_y = p[1], rh.ray.org_z = p[2];
-            rh.ray.dir_x = p[3], rh.ray.dir_y = p[4], rh.ray.dir_z = p[5];
-            rh.ray.tnear = p[6], rh.ray.tfar = INFINITY, rh.ray.time = 0.0f;
-            rh.ray.mask = 0xffffffffu, rh.ray.id = 0, rh.ray.flags = 0;
-            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-            rtcIntersect1(rt->scene, &ctx, &rh);
-            hits += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+            float t;
+            hits += pm_rt_intersect1(rt, &ctx, p, p + 3, p[6], INFINITY, &t, NULL) != PM_RAY_MISS;
         }
     }
     double dt = pm_time_wall() - t0;

@@ -3,9 +3,10 @@
  *
  * Photon i is emitted from a light chosen in proportion to its power (point lights in all
  * directions, emissive triangles from a uniform point, cosine-weighted about the front
- * face), traced with single Embree rays, and stored at every hit on a surface that
- * reflects (first hits too, marked depth 0). Each bounce samples the BRDF (cosine for the
- * Lambertian part, the Phong lobe for the glossy part) and Russian roulette ends the path
+ * face), traced with single Embree rays (pm_rt_intersect1), and stored at every hit on a
+ * surface that reflects (first hits too, marked depth 0). Each bounce samples one lobe of the
+ * BRDF (render/transport.h: cosine for the Lambertian part, the Phong lobe for the glossy part)
+ * and Russian roulette ends the path
  * without bias: the photon survives with probability q (its albedo, capped at rr_max) and
  * its power is divided by q (a cap below albedo^2 makes the variance unbounded). Powers are in watts, so that a density estimate of them is
  * irradiance in W/m^2.
@@ -55,8 +56,9 @@ typedef struct {
 pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_trace_options_t *o,
                              pm_trace_result_t *out);
 
-/* Re-traces the rays kept by record_rays with bare rtcIntersect1, on as many threads as
- * the trace used: Embree's own single-ray rate on exactly the same rays. Returns rays/s. */
+/* Re-traces the rays kept by record_rays with single rays and nothing else
+ * (pm_rt_intersect1, a thin inline around rtcIntersect1), on as many threads as the trace
+ * used: Embree's own single-ray rate on exactly the same rays. Returns rays/s. */
 double pm_trace_replay(const pm_rt_t *rt, const pm_trace_result_t *r);
 
 void pm_trace_free(pm_trace_result_t *r);

@@ -1,7 +1,9 @@
-/* rt.c: Embree device and scene construction (see rt.h). */
+/* rt.c: the Embree device and scene every ray is cast into (rt.h), built once per stage from
+ * the scene's triangles; the single-ray wrappers are inline in rt.h. */
 #include "render/rt.h"
 
 #include <math.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -86,4 +88,21 @@ void pm_rt_destroy(pm_rt_t *rt)
     if (rt->device)
         rtcReleaseDevice(rt->device);
     memset(rt, 0, sizeof *rt);
+}
+
+pm_result_t pm_rt_thread_error(const pm_rt_t *rt, const char *fmt, ...)
+{
+    enum RTCError e = rtcGetDeviceError(rt->device);
+    if (e == RTC_ERROR_NONE)
+        return PM_OK;
+    char what[256];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(what, sizeof what, fmt, ap);
+    va_end(ap);
+    static const char *const names[] = {"none", "unknown error", "invalid argument", "invalid operation",
+                                         "out of memory", "unsupported cpu", "cancelled"};
+    const char *name = (unsigned)e < sizeof names / sizeof names[0] ? names[e] : "unknown error";
+    return pm_error_set(e == RTC_ERROR_OUT_OF_MEMORY ? PM_ERR_NOMEM : PM_ERR_INTERNAL, "embree failed %s: %s (error %d)",
+                        what, name, (int)e);
 }

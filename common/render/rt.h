@@ -2,11 +2,12 @@
  *
  * One device per process, created with an error callback so that Embree's own
  * messages reach the user; one static scene of the scene's triangles (geometry id 0,
- * primitive id = triangle index in pm_scene_t). Rays are cast by the stages directly
- * with rtcIntersect1/4/8/16 on pm_rt_t.scene. */
+ * primitive id = triangle index in pm_scene_t). Single rays go through pm_rt_intersect1 and
+ * pm_rt_occluded1 below; arrays of rays in packets through render/packet.h. */
 #ifndef PM_RT_H
 #define PM_RT_H
 
+#include <stdint.h>
 #include <embree3/rtcore.h>
 
 #include "base/error.h"
@@ -23,5 +24,44 @@ typedef struct {
  * stages), "medium" is Embree's default. */
 pm_result_t pm_rt_create(const pm_scene_t *s, int high_quality, int threads, pm_rt_t *out);
 void pm_rt_destroy(pm_rt_t *rt);
+
+#define PM_RAY_MISS 0xffffffffu /* the triangle of a ray that hit nothing */
+
+/* One ray (o, d) over [tnear, tfar] (m along d; d need not be unit) for its closest hit: the
+ * triangle index, or PM_RAY_MISS. *t_out becomes the hit distance (tfar when it missed);
+ * ng_out, unless NULL, Embree's geometric normal of the hit, unnormalized ((v1 - v0) x (v2 -
+ * v0); zero when it missed). ctx is the caller's, one per thread. */
+static inline uint32_t pm_rt_intersect1(const pm_rt_t *rt, struct RTCIntersectContext *ctx, const float o[3],
+                                        const float d[3], float tnear, float tfar, float *t_out, float ng_out[3])
+{
+    struct RTCRayHit rh;
+    rh.ray.org_x = o[0], rh.ray.org_y = o[1], rh.ray.org_z = o[2], rh.ray.tnear = tnear;
+    rh.ray.dir_x = d[0], rh.ray.dir_y = d[1], rh.ray.dir_z = d[2], rh.ray.time = 0.0f;
+    rh.ray.tfar = tfar, rh.ray.mask = 0xffffffffu, rh.ray.id = 0, rh.ray.flags = 0;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.Ng_x = rh.hit.Ng_y = rh.hit.Ng_z = 0.0f;
+    rtcIntersect1(rt->scene, ctx, &rh);
+    *t_out = rh.ray.tfar;
+    if (ng_out)
+        ng_out[0] = rh.hit.Ng_x, ng_out[1] = rh.hit.Ng_y, ng_out[2] = rh.hit.Ng_z;
+    return rh.hit.geomID != RTC_INVALID_GEOMETRY_ID ? rh.hit.primID : PM_RAY_MISS;
+}
+
+/* Shadow ray (o, d) over [tnear, tfar]: 1 when anything blocks it. */
+static inline int pm_rt_occluded1(const pm_rt_t *rt, struct RTCIntersectContext *ctx, const float o[3],
+                                  const float d[3], float tnear, float tfar)
+{
+    struct RTCRay ray = {.org_x = o[0], .org_y = o[1], .org_z = o[2], .tnear = tnear,
+                         .dir_x = d[0], .dir_y = d[1], .dir_z = d[2], .time = 0.0f,
+                         .tfar = tfar, .mask = 0xffffffffu, .id = 0, .flags = 0};
+    rtcOccluded1(rt->scene, ctx, &ray);
+    return ray.tfar < 0.0f; /* Embree sets tfar to -inf on a blocked ray */
+}
+
+/* The first Embree error raised on the calling thread since the last call (Embree keeps one
+ * per thread and device), as a pm_error_set message "embree failed WHAT: ..." with WHAT
+ * formatted from fmt only then; PM_OK when none. Workers call it after their rays and hand a
+ * failure to a pm_error_slot_t. */
+pm_result_t pm_rt_thread_error(const pm_rt_t *rt, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 
 #endif

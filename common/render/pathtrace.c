@@ -1,0 +1,399 @@
+/* pathtrace.c: the reference path tracer (pathtrace.h), the engine of trace-reference.
+ *
+ * Reads a scene and its Embree scene; writes an OpenEXR image of the mean radiance and, when
+ * asked, a radiance buffer (formats/formats.h) with each pixel's variance, which is also what
+ * a later run resumes from. Every reflection, pdf and light sample is render/transport.h's, the
+ * one the photon tracers use, so the reference and the estimate it judges share one physics. */
+#include "render/pathtrace.h"
+
+#include <float.h>
+#include <inttypes.h>
+#include <math.h>
+#include <omp.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/cpu.h"
+#include "base/exr.h"
+#include "base/progress.h"
+#include "base/timer.h"
+#include "base/version.h"
+#include "formats/formats.h"
+#include "math/rng.h"
+#include "math/vec.h"
+
+const char *const pm_pt_pixel_names[] = {"center", "box", NULL};
+const char *const pm_pt_component_names[] = {"total", "direct", "indirect", NULL};
+
+/* Whether a contribution that reflected b times belongs to the component asked for. */
+static inline int wanted(const pm_pathtracer_t *pt, unsigned b)
+{
+    return pt->set.component == PM_PT_TOTAL || (pt->set.component == PM_PT_DIRECT) == (b <= 1);
+}
+
+pm_result_t pm_pathtracer_init(pm_pathtracer_t *pt, const pm_scene_t *s, const pm_rt_t *rt,
+                               const pm_pathtrace_settings_t *set)
+{
+    memset(pt, 0, sizeof *pt);
+    pt->s = s, pt->rt = rt, pt->set = *set;
+    if (pt->set.threads < 1)
+        pt->set.threads = 1;
+    pm_camera_setup(&s->camera, set->width, set->height, &pt->cam);
+    size_t np = (size_t)set->width * set->height;
+    pm_result_t r = pm_shade_geom_init(s, &pt->geom);
+    if (r != PM_OK)
+        return r;
+    pt->mean = calloc(np * 3, sizeof(double));
+    pt->m2 = calloc(np * 3, sizeof(double));
+    pt->count = aligned_alloc(64, (size_t)pt->set.threads * sizeof *pt->count);
+    if (!pt->mean || !pt->m2 || !pt->count) {
+        pm_pathtracer_free(pt);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for a %" PRIu32 "x%" PRIu32 " image", set->width,
+                            set->height);
+    }
+    memset(pt->count, 0, (size_t)pt->set.threads * sizeof *pt->count);
+    return PM_OK;
+}
+
+void pm_pathtracer_free(pm_pathtracer_t *pt)
+{
+    free(pt->mean);
+    free(pt->m2);
+    free(pt->count);
+    pm_shade_geom_free(&pt->geom);
+    pt->mean = pt->m2 = NULL, pt->count = NULL;
+}
+
+void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *ctx, uint32_t x, uint32_t y,
+                         uint32_t k, pm_pathtrace_counts_t *cnt, double L[3])
+{
+    const pm_scene_t *s = pt->s;
+    const pm_shade_geom_t *g = &pt->geom;
+    const float eps = pt->rt->epsilon;
+    pm_rng_t rng;
+    pm_rng_init(&rng, pt->set.seed, ((uint64_t)(y * pt->set.width + x) << 32) | k);
+    float jx = 0.5f, jy = 0.5f;
+    if (pt->set.pixel == PM_PT_PIXEL_BOX)
+        jx = pm_rng_float(&rng), jy = pm_rng_float(&rng);
+    float o[3] = {pt->cam.eye[0], pt->cam.eye[1], pt->cam.eye[2]}, d[3], t = 0.0f;
+    pm_camera_dir(&pt->cam, (float)x + jx, (float)y + jy, d);
+    L[0] = L[1] = L[2] = 0.0;
+    double beta[3] = {1.0, 1.0, 1.0}; /* path throughput: f cos / pdf products over survival */
+    float bsdf_pdf_prev = 0.0f;       /* solid-angle pdf of the BSDF sample that made this ray */
+    cnt->paths++;
+    for (unsigned depth = 0;; depth++) {
+        cnt->rays++;
+        uint32_t tri = pm_rt_intersect1(pt->rt, ctx, o, d, 0.0f, INFINITY, &t, NULL);
+        if (tri == PM_RAY_MISS)
+            break; /* no sky: escaped light is lost */
+        float p[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]}, wo[3] = {-d[0], -d[1], -d[2]};
+        const float *ng = g->tri_n + 3 * (size_t)tri;
+        float cos_front = pm_dot3(ng, wo), side = cos_front >= 0.0f ? 1.0f : -1.0f;
+        float n[3] = {side * ng[0], side * ng[1], side * ng[2]};
+        const pm_material_t *m = &s->materials[s->tri_material[tri]];
+
+        /* Emission, front face only. Seen by the camera it is taken whole; found by a BSDF
+         * sample it shares with the light sample of the vertex before (power heuristic). */
+        if (cos_front > 0.0f && pm_material_is_emissive(m) && wanted(pt, depth)) {
+            float w = 1.0f;
+            if (depth > 0)
+                w = pm_power_heuristic(bsdf_pdf_prev, pm_area_light_pdf(g, t * t, cos_front));
+            for (int q = 0; q < 3; q++)
+                L[q] += beta[q] * m->ke[q] * w;
+        }
+        if (pt->set.component == PM_PT_DIRECT && depth >= 1)
+            break; /* what lies beyond is indirect: not traced */
+        if (depth >= pt->set.max_bounces) {
+            cnt->capped++;
+            break;
+        }
+        float pd, ps;
+        pm_bsdf_albedo(m, &pd, &ps);
+        if (!(pd > 0.0f || pm_material_is_glossy(m)))
+            break; /* black: reflects nothing */
+        if (depth + 1 > cnt->longest)
+            cnt->longest = depth + 1;
+        float org[3] = {p[0] + eps * n[0], p[1] + eps * n[1], p[2] + eps * n[2]};
+
+        /* Point lights: I cos / r^2, each one every vertex. */
+        pm_light_sample_t ls;
+        for (size_t l = 0; l < s->nlights && wanted(pt, depth + 1); l++) {
+            const pm_point_light_t *pl = &s->lights[l];
+            if (!pm_point_light_toward(pl, p, n, &ls))
+                continue;
+            cnt->shadow_rays++;
+            if (pm_rt_occluded1(pt->rt, ctx, org, ls.wi, 0.0f, ls.r - eps))
+                continue;
+            float f[3];
+            pm_brdf(m, n, ls.wi, wo, f);
+            for (int q = 0; q < 3; q++)
+                L[q] += beta[q] * (double)f[q] * pl->intensity[q] * ls.cosx / ls.r2;
+        }
+        /* One point on the area lights, pdf 1/A per m^2, weighted against BSDF sampling. */
+        if (g->nemissive && pm_area_light_sample(s, g, &rng, p, n, &ls) && wanted(pt, depth + 1)) {
+            cnt->shadow_rays++;
+            /* Stop short of the light's own surface, by the offset and a relative margin. */
+            if (!pm_rt_occluded1(pt->rt, ctx, org, ls.wi, 0.0f, ls.r * (1.0f - 1e-4f) - 2.0f * eps)) {
+                const pm_material_t *lm = &s->materials[s->tri_material[ls.tri]];
+                float pl = pm_area_light_pdf(g, ls.r2, ls.cosy), pb = pm_bsdf_pdf(m, n, ls.wi, wo), f[3];
+                pm_brdf(m, n, ls.wi, wo, f);
+                double gw = (double)ls.cosx / pl * pm_power_heuristic(pl, pb);
+                for (int q = 0; q < 3; q++)
+                    L[q] += beta[q] * (double)f[q] * lm->ke[q] * gw;
+            }
+        }
+
+        /* Continue along a BSDF sample: the lobe, then two numbers for the direction. */
+        float wi[3], u = pm_rng_float(&rng), u1 = pm_rng_float(&rng), u2 = pm_rng_float(&rng);
+        if (!pm_bsdf_sample(m, n, wo, u, u1, u2, wi))
+            break; /* the Phong lobe's share below the surface: its energy loss */
+        float pdf = pm_bsdf_pdf(m, n, wi, wo), f[3];
+        if (!(pdf > 0.0f))
+            break;
+        pm_brdf(m, n, wi, wo, f);
+        float cosi = pm_dot3(n, wi);
+        for (int q = 0; q < 3; q++)
+            beta[q] *= (double)f[q] * cosi / pdf;
+        if (depth + 1 >= pt->set.rr_start) {
+            double qs = fmax(beta[0], fmax(beta[1], beta[2]));
+            if (qs < 1.0) {
+                if (!(pm_rng_double(&rng) < qs))
+                    break;
+                for (int q = 0; q < 3; q++)
+                    beta[q] /= qs;
+            }
+        }
+        bsdf_pdf_prev = pdf;
+        memcpy(o, org, sizeof o);
+        memcpy(d, wi, sizeof d);
+    }
+    if (!(isfinite(L[0]) && isfinite(L[1]) && isfinite(L[2]))) {
+        cnt->nonfinite++; /* counted and reported; never written */
+        L[0] = L[1] = L[2] = 0.0;
+    }
+}
+
+pm_result_t pm_pathtrace_pass(pm_pathtracer_t *pt, uint32_t k1)
+{
+    uint32_t k0 = (uint32_t)pt->n, w = pt->set.width, h = pt->set.height;
+    double nb = (double)(k1 - k0), na = (double)pt->n, nn = na + nb;
+    pm_error_slot_t err;
+    pm_error_slot_init(&err);
+#pragma omp parallel num_threads(pt->set.threads)
+    {
+        pm_cpu_set_ftz_daz();
+        pm_pathtrace_counts_t *my = &pt->count[omp_get_thread_num()];
+        struct RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+#pragma omp for schedule(dynamic, 1)
+        for (uint32_t y = 0; y < h; y++) {
+            for (uint32_t x = 0; x < w; x++) {
+                double mean[3] = {0, 0, 0}, m2[3] = {0, 0, 0}, L[3];
+                for (uint32_t k = k0; k < k1; k++) {
+                    pm_pathtrace_sample(pt, &ctx, x, y, k, my, L);
+                    double j = (double)(k - k0 + 1);
+                    for (int q = 0; q < 3; q++) {
+                        double dl = L[q] - mean[q];
+                        mean[q] += dl / j;
+                        m2[q] += dl * (L[q] - mean[q]);
+                    }
+                }
+                size_t i = 3 * ((size_t)y * w + x);
+                for (int q = 0; q < 3; q++) {
+                    double dl = mean[q] - pt->mean[i + q];
+                    pt->mean[i + q] += dl * (nb / nn);
+                    pt->m2[i + q] += m2[q] + dl * dl * (na * nb / nn);
+                }
+            }
+            /* The message is this worker's: it reaches the caller through the slot. */
+            pm_result_t r = pm_rt_thread_error(pt->rt, "tracing row %" PRIu32 " of samples %" PRIu32 "..%" PRIu32, y,
+                                               k0, k1 - 1);
+            if (r != PM_OK)
+                pm_error_slot_record(&err, y, r);
+        }
+    }
+    pm_result_t r = pm_error_slot_raise(&err);
+    if (r == PM_OK)
+        pt->n = k1;
+    return r;
+}
+
+void pm_pathtrace_counts(const pm_pathtracer_t *pt, pm_pathtrace_counts_t *sum)
+{
+    memset(sum, 0, sizeof *sum);
+    for (int i = 0; i < pt->set.threads && pt->count; i++) {
+        const pm_pathtrace_counts_t *c = &pt->count[i];
+        sum->paths += c->paths, sum->rays += c->rays, sum->shadow_rays += c->shadow_rays;
+        sum->capped += c->capped, sum->nonfinite += c->nonfinite;
+        if (c->longest > sum->longest)
+            sum->longest = c->longest;
+    }
+}
+
+void pm_pathtrace_image_error(const pm_pathtracer_t *pt, double *rmse, double *mean_out, double *rel)
+{
+    size_t np = (size_t)pt->set.width * pt->set.height * 3;
+    double v = 0.0, m = 0.0;
+    for (size_t i = 0; i < np; i++) {
+        m += pt->mean[i];
+        if (pt->n > 1)
+            v += pt->m2[i] / ((double)pt->n * (double)(pt->n - 1));
+    }
+    *rmse = np ? sqrt(v / (double)np) : 0.0;
+    *mean_out = np ? m / (double)np : 0.0;
+    *rel = *mean_out > 0.0 ? *rmse / *mean_out : 0.0;
+}
+
+/* The radiance buffer's header: the image keys, then what a resume must match. */
+static pm_result_t header_common(pm_header_t *h, const pm_pathtracer_t *pt, const pm_pathtrace_output_t *out)
+{
+    const pm_pathtrace_settings_t *c = &pt->set;
+    pm_result_t r = pm_image_header_begin(h, out->argc, out->argv, pt->s, c->width, c->height);
+    if (r == PM_OK)
+        r = pm_header_set(h, "component", "%s", pm_pt_component_names[c->component]);
+    if (r == PM_OK)
+        r = pm_header_set(h, "estimator", "path-tracer");
+    if (r == PM_OK)
+        r = pm_header_set(h, "samples", "%" PRIu64, pt->n);
+    if (r == PM_OK)
+        r = pm_header_set(h, "seed", "%" PRIu64, c->seed);
+    if (r == PM_OK)
+        r = pm_header_set(h, "pixel", "%s", pm_pt_pixel_names[c->pixel]);
+    if (r == PM_OK)
+        r = pm_header_set(h, "max_bounces", "%u", c->max_bounces);
+    if (r == PM_OK)
+        r = pm_header_set(h, "rr_start", "%u", c->rr_start);
+    return r;
+}
+
+pm_result_t pm_pathtrace_write(const pm_pathtracer_t *pt, const pm_pathtrace_output_t *out)
+{
+    const pm_pathtrace_settings_t *c = &pt->set;
+    size_t np = (size_t)c->width * c->height;
+    float *rgb = malloc(np * 3 * sizeof(float));
+    if (!rgb)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for a %" PRIu32 "x%" PRIu32 " image", c->width, c->height);
+    pm_result_t r = PM_OK;
+    for (size_t i = 0; i < 3 * np && r == PM_OK; i++) {
+        if (!(pt->mean[i] <= FLT_MAX))
+            r = pm_error_set(PM_ERR_INPUT, "pixel (%zu, %zu) of '%s': radiance %g W/(m^2 sr) does not fit in a float",
+                             i / 3 % c->width, i / 3 / c->width, out->exr, pt->mean[i]);
+        rgb[i] = (float)pt->mean[i];
+    }
+    char id[200], samples[32], seed[32], rmse_s[32];
+    double rmse, mean, rel;
+    pm_pathtrace_image_error(pt, &rmse, &mean, &rel);
+    pm_scene_id(pt->s, id, sizeof id);
+    snprintf(samples, sizeof samples, "%" PRIu64, pt->n);
+    snprintf(seed, sizeof seed, "%" PRIu64, c->seed);
+    snprintf(rmse_s, sizeof rmse_s, "%.6g", rmse);
+    const pm_exr_attr_t attrs[] = {
+        {"SOFTWARE", "pmtk " PM_VERSION_STRING}, {"SCENE", id}, {"COMMAND.0", out->command},
+        {"components", pm_pt_component_names[c->component]}, {"estimator", "path-tracer"}, {"samples", samples},
+        {"seed", seed}, {"pixel", pm_pt_pixel_names[c->pixel]}, {"stderr_rms", rmse_s},
+    };
+    if (r == PM_OK)
+        r = pm_exr_write_rgb(out->exr, c->width, c->height, rgb, PM_EXR_FLOAT, PM_EXR_ZIP, attrs,
+                             sizeof attrs / sizeof attrs[0]);
+    free(rgb);
+    if (r != PM_OK || !out->radiance)
+        return r;
+
+    pm_table_t t = {0};
+    r = pm_table_alloc(&t, &pm_radiance_schema, (1u << PM_RADIANCE_RGB) | (1u << PM_RADIANCE_VARIANCE), np);
+    if (r == PM_OK)
+        r = header_common(&t.hdr, pt, out);
+    if (r == PM_OK) {
+        double *m = t.col[PM_RADIANCE_RGB], *v = t.col[PM_RADIANCE_VARIANCE];
+        memcpy(m, pt->mean, np * 3 * sizeof(double));
+        for (size_t i = 0; i < 3 * np; i++)
+            v[i] = pt->n > 1 ? pt->m2[i] / ((double)pt->n * (double)(pt->n - 1)) : 0.0;
+        r = pm_table_write(&t, out->radiance);
+    }
+    pm_table_free(&t);
+    return r;
+}
+
+pm_result_t pm_pathtrace_resume(pm_pathtracer_t *pt, const char *path)
+{
+    const pm_pathtrace_settings_t *c = &pt->set;
+    pm_table_t t;
+    pm_result_t r = pm_table_read(path, &pm_radiance_schema, (1u << PM_RADIANCE_RGB) | (1u << PM_RADIANCE_VARIANCE), &t);
+    if (r != PM_OK)
+        return r;
+    uint32_t w, h;
+    uint64_t n = 0, seed = 0;
+    char id[200];
+    pm_scene_id(pt->s, id, sizeof id);
+    const char *est = pm_header_get(&t.hdr, "estimator"), *scene = pm_header_get(&t.hdr, "SCENE"),
+               *pix = pm_header_get(&t.hdr, "pixel"), *comp = pm_header_get(&t.hdr, "component");
+    const char *want_pix = pm_pt_pixel_names[c->pixel], *want_comp = pm_pt_component_names[c->component];
+    if ((r = pm_header_get_image_size(&t.hdr, path, &w, &h)) != PM_OK ||
+        (r = pm_header_get_u64(&t.hdr, path, "samples", &n)) != PM_OK ||
+        (r = pm_header_get_u64(&t.hdr, path, "seed", &seed)) != PM_OK)
+        goto done;
+    if (!est || strcmp(est, "path-tracer"))
+        r = pm_error_set(PM_ERR_INPUT, "--resume '%s' was not written by trace-reference (estimator '%s')", path,
+                         est ? est : "(missing)");
+    else if (!scene || strcmp(scene, id))
+        r = pm_error_set(PM_ERR_INPUT, "--resume '%s' is of scene '%s', not '%s'", path, scene ? scene : "(missing)", id);
+    else if (w != c->width || h != c->height)
+        r = pm_error_set(PM_ERR_INPUT, "--resume '%s' is %" PRIu32 "x%" PRIu32 ", this render %" PRIu32 "x%" PRIu32,
+                         path, w, h, c->width, c->height);
+    else if (seed != c->seed)
+        r = pm_error_set(PM_ERR_INPUT, "--resume '%s' has seed %" PRIu64 ", this render %" PRIu64
+                         " (its samples would repeat or differ)", path, seed, c->seed);
+    else if (!pix || strcmp(pix, want_pix))
+        r = pm_error_set(PM_ERR_INPUT, "--resume '%s' has pixel '%s', this render '%s'", path, pix ? pix : "(missing)",
+                         want_pix);
+    else if (!comp || strcmp(comp, want_comp))
+        r = pm_error_set(PM_ERR_INPUT, "--resume '%s' is component '%s', this render '%s'", path,
+                         comp ? comp : "(missing)", want_comp);
+    else if (n == 0 || n >= UINT32_MAX)
+        r = pm_error_set(PM_ERR_INPUT, "--resume '%s': samples=%" PRIu64 " is not in [1, 2^32)", path, n);
+    if (r != PM_OK)
+        goto done;
+    size_t np = (size_t)w * h * 3;
+    const double *m = t.col[PM_RADIANCE_RGB], *v = t.col[PM_RADIANCE_VARIANCE];
+    for (size_t i = 0; i < np; i++) {
+        pt->mean[i] = m[i];
+        pt->m2[i] = v[i] * (double)n * (double)(n - 1);
+    }
+    pt->n = n;
+done:
+    pm_table_free(&t);
+    return r;
+}
+
+pm_result_t pm_pathtrace_render(pm_pathtracer_t *pt, const pm_pathtrace_plan_t *plan,
+                                const pm_pathtrace_output_t *out, pm_pathtrace_run_t *run)
+{
+    memset(run, 0, sizeof *run);
+    run->resumed = pt->n;
+    pm_result_t r = PM_OK;
+    pm_progress_t prog;
+    uint64_t todo = plan->spp > pt->n ? plan->spp - pt->n : 0;
+    pm_progress_begin(&prog, "samples", todo, plan->progress);
+    double t0 = pm_time_wall();
+    while (r == PM_OK && pt->n < plan->spp) {
+        if (plan->time_s > 0.0 && run->passes > 0 && pm_time_wall() - t0 >= plan->time_s) {
+            run->timed_out = 1;
+            break;
+        }
+        uint64_t k0 = pt->n, k1 = k0 + plan->pass < plan->spp ? k0 + plan->pass : plan->spp;
+        r = pm_pathtrace_pass(pt, (uint32_t)k1);
+        if (r != PM_OK)
+            break;
+        run->passes++;
+        pm_progress_add(&prog, k1 - k0);
+        double tw = pm_time_wall();
+        r = pm_pathtrace_write(pt, out);
+        run->write_s += pm_time_wall() - tw;
+    }
+    run->trace_s = pm_time_wall() - t0 - run->write_s;
+    pm_progress_end(&prog);
+    if (r == PM_OK && run->passes == 0)
+        r = pm_pathtrace_write(pt, out); /* already at spp: the outputs say so */
+    return r;
+}

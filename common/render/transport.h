@@ -1,0 +1,130 @@
+/* transport.h: the light transport of the scene model, defined once for every tracer: the
+ * photon tracer (render/photontrace.h), the eye-ray tracer of trace-gather-points and the
+ * reference path tracer (render/pathtrace.h) evaluate, sample and weigh reflection and lights
+ * only through these functions, so that an estimate and its ground truth cannot drift apart.
+ *
+ * The BSDF is the one of formats/material.h: a Lambertian lobe kd / pi plus a normalized Phong
+ * lobe ks (ns + 2) / (2 pi) cos^ns(alpha), alpha between wo and the mirror direction of wi.
+ * Directions are unit vectors pointing away from the surface point; n is the unit normal on
+ * the side that is lit. Lights: point lights of intensity I (W/sr) and emissive triangles of
+ * radiance Ke (W/(m^2 sr)) that emit from their front face (right-hand rule), sampled uniformly
+ * over their total area.
+ *
+ * Units: metres; BSDF 1/sr; pdfs over solid angle 1/sr, over area 1/m^2. */
+#ifndef PM_TRANSPORT_H
+#define PM_TRANSPORT_H
+
+#include <math.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "base/error.h"
+#include "formats/material.h"
+#include "math/rng.h"
+#include "math/vec.h"
+#include "render/scene.h"
+
+/* ---- the BSDF ---- */
+
+/* The lobes a direction is sampled from. */
+typedef enum { PM_LOBE_DIFFUSE = 0, PM_LOBE_GLOSSY = 1 } pm_lobe_t;
+
+/* Mirror direction of w about n: 2 (n.w) n - w (unit up to rounding for unit n and w). */
+static inline void pm_reflect(const float n[3], const float w[3], float r_out[3])
+{
+    float c = 2.0f * pm_dot3(n, w);
+    for (int k = 0; k < 3; k++)
+        r_out[k] = c * n[k] - w[k];
+}
+
+/* f(wi, wo) of formats/material.h, 1/sr, around unit normal n (wi, wo unit, pointing away). */
+void pm_brdf(const pm_material_t *m, const float n[3], const float wi[3], const float wo[3], float f_out[3]);
+
+/* Samples direction wi from one lobe with the uniforms u1, u2 in [0, 1): the diffuse lobe
+ * cosine-weighted about n, the glossy one as cos^ns about the mirror direction of wo. Returns
+ * whether wi lies above the surface (n.wi > 0); a glossy sample below it is the lobe's energy
+ * loss, which callers treat as absorption. */
+int pm_bsdf_sample_lobe(const pm_material_t *m, pm_lobe_t lobe, const float n[3], const float wo[3], float u1,
+                        float u2, float wi_out[3]);
+
+/* Solid-angle pdf, 1/sr, of pm_bsdf_sample_lobe producing wi: cos(theta) / pi above the
+ * surface (0 below) for the diffuse lobe; (ns + 1) / (2 pi) cos^ns(alpha) within 90 degrees of
+ * the mirror direction of wo for the glossy one, below the surface included. Each integrates
+ * to 1 over the sphere. */
+float pm_bsdf_lobe_pdf(const pm_material_t *m, pm_lobe_t lobe, const float n[3], const float wi[3],
+                       const float wo[3]);
+
+/* f cos / pdf of the glossy lobe alone over ks, at n.wi = cosi: (ns + 2) / (ns + 1) cosi, in
+ * double (the photon tracer's weight for a glossy bounce). */
+static inline double pm_phong_weight(const pm_material_t *m, float cosi)
+{
+    return (m->ns + 2.0) / (m->ns + 1.0) * cosi;
+}
+
+/* The lobes' albedos as the samplers weigh them: max(kd) and max(ks) over the channels. */
+static inline void pm_bsdf_albedo(const pm_material_t *m, float *pd_out, float *ps_out)
+{
+    *pd_out = fmaxf(m->kd[0], fmaxf(m->kd[1], m->kd[2]));
+    *ps_out = fmaxf(m->ks[0], fmaxf(m->ks[1], m->ks[2]));
+}
+
+/* Probability that the mixture sampler picks the diffuse lobe: its share of the albedo,
+ * max(kd) / (max(kd) + max(ks)); 1 when the material reflects nothing. */
+float pm_bsdf_diffuse_share(const pm_material_t *m);
+
+/* The BSDF sampled as a mixture: the diffuse lobe when u < pm_bsdf_diffuse_share, else the
+ * glossy one, from u1, u2. Returns whether wi lies above the surface. */
+int pm_bsdf_sample(const pm_material_t *m, const float n[3], const float wo[3], float u, float u1, float u2,
+                   float wi_out[3]);
+
+/* Solid-angle pdf, 1/sr, of pm_bsdf_sample producing wi above the surface; 0 below it (the
+ * mixture's pdf integrates to its probability of landing above the surface). */
+float pm_bsdf_pdf(const pm_material_t *m, const float n[3], const float wi[3], const float wo[3]);
+
+/* ---- lights ---- */
+
+/* Per-triangle unit front normals and the area lights of a scene. */
+typedef struct {
+    float *tri_n;      /* ntris * 3: (v1 - v0) x (v2 - v0), normalized; the side that emits */
+    double *cdf;       /* nemissive: cumulative emissive area, ending at exactly 1 */
+    double area;       /* m^2, all emissive triangles */
+    size_t nemissive;
+} pm_shade_geom_t;
+
+pm_result_t pm_shade_geom_init(const pm_scene_t *s, pm_shade_geom_t *out);
+void pm_shade_geom_free(pm_shade_geom_t *g);
+/* Point of triangle t at barycentrics (b0, b1), b2 = 1 - b0 - b1. */
+void pm_triangle_point(const pm_scene_t *s, uint32_t t, float b0, float b1, float p_out[3]);
+
+/* A light as seen from a surface point: unit direction wi toward it, distance r (m), squared
+ * distance r2 (m^2) and the cosine at the surface; for an area light also the triangle and the
+ * cosine at the light (its front face toward the surface). */
+typedef struct {
+    float wi[3], r, r2, cosx, cosy;
+    uint32_t tri;
+} pm_light_sample_t;
+
+/* Point light l from p with normal n (geometry from p itself; only a shadow ray starts off the
+ * surface); 0 when l is at p or behind the surface. */
+int pm_point_light_toward(const pm_point_light_t *l, const float p[3], const float n[3], pm_light_sample_t *out);
+/* One point on the area lights, uniform over their total area g->area (pdf 1/A per m^2), from
+ * three numbers of rng: the triangle (a double), then two floats for the point. 0 when the point
+ * is at p, behind the surface, or sees its back. The scene must have emissive triangles. */
+int pm_area_light_sample(const pm_scene_t *s, const pm_shade_geom_t *g, pm_rng_t *rng, const float p[3],
+                         const float n[3], pm_light_sample_t *out);
+/* The pdf of pm_area_light_sample over solid angle, 1/sr, at a light point r2 m^2 away whose
+ * front face is at cosine cos_light to the direction: r2 / (cos_light A). */
+static inline float pm_area_light_pdf(const pm_shade_geom_t *g, float r2, float cos_light)
+{
+    return r2 / (cos_light * (float)g->area);
+}
+
+/* Veach's power heuristic: the weight of strategy a against b, each a sample count times a
+ * solid-angle pdf at one direction; 0 when neither could have produced it. */
+static inline float pm_power_heuristic(float a, float b)
+{
+    float d = a * a + b * b;
+    return d > 0.0f ? a * a / d : 0.0f;
+}
+
+#endif

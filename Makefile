@@ -10,6 +10,7 @@
 #   make bench-quick the same on smaller inputs, in under two minutes
 #   make fuzz       libFuzzer targets for every reader (clang), not part of test
 #   make deps       install the Debian packages (apt-get, when root)
+#   make format     lay out every C file as .clang-format says (format-check: only check; part of test)
 #   make clean
 #
 # Out-of-tree objects in $(BUILD); dependencies from -MMD -MP; a change of flags
@@ -28,7 +29,7 @@ WERROR ?= 1
 
 # Debian packages this project builds, tests and runs with (README says why each).
 DEBS := gcc make pkg-config libembree-dev libopenexr-dev libassimp-dev libjansson-dev \
-        libpng-dev libxxhash-dev libcmocka-dev openexr jq gnuplot-nox
+        libpng-dev libxxhash-dev libcmocka-dev openexr jq gnuplot-nox clang-format
 
 ifeq ($(V),1)
 Q :=
@@ -73,7 +74,10 @@ EXRDUMP := $(BUILD)/tests/pm-exrdump
 ATRIUM_GEN := $(BUILD)/scenes/make-atrium
 ATRIUM_OBJ := scenes/atrium/atrium.obj
 
-.PHONY: all test test-run test-extreme asan test-asan demo bench bench-quick fuzz deps clean check-deps
+# The C sources clang-format keeps (.clang-format); the generated and fuzz-regression files are not C.
+FORMAT_SRC = $(shell git ls-files '*.c' '*.h' 2>/dev/null)
+
+.PHONY: format format-check all test test-run test-extreme asan test-asan demo bench bench-quick fuzz deps clean check-deps
 # Keep the stages' objects: they are intermediate to the pattern rule, and make would
 # otherwise delete them and rebuild them next time.
 .SECONDARY:
@@ -128,9 +132,24 @@ $(ATRIUM_OBJ) scenes/atrium/atrium.mtl &: $(ATRIUM_GEN)
 check-deps:
 	@sh tests/install-deps.sh $(DEBS)
 
+# Every C file as clang-format lays it out (.clang-format); a difference names the file and
+# the first lines, and `make format` rewrites them.
+format-check:
+	@command -v clang-format >/dev/null || { echo "format-check: needs clang-format (make deps)" >&2; exit 1; }
+	@bad=0; for f in $(FORMAT_SRC); do \
+	    if ! clang-format --dry-run --Werror "$$f" 2>/dev/null; then \
+	        echo "format-check: '$$f' is not as clang-format lays it out (make format):" >&2; \
+	        clang-format "$$f" | diff -u "$$f" - | sed -n '3,12p' >&2; bad=1; \
+	    fi; \
+	done; [ $$bad = 0 ] && echo "format-check: $(words $(FORMAT_SRC)) files as .clang-format lays them out"
+
+format:
+	$(Q)clang-format -i $(FORMAT_SRC)
+
 # Targets that install packages first re-run make, so that the pkg-config look-ups above
 # happen after the packages are there (they are evaluated when the Makefile is read).
 test: check-deps
+	$(Q)$(MAKE) --no-print-directory format-check
 	$(Q)$(MAKE) --no-print-directory test-run
 	$(Q)$(MAKE) --no-print-directory test-asan
 

@@ -15,7 +15,7 @@
  * schema, channel by channel; path names the file in messages. pmfile_check_records runs it only on
  * a chunk where its fast pass saw a value that may fail. */
 pm_result_t pmfile_check_exact(const pm_header_t *h, const char *path, const unsigned char *rec, uint64_t n,
-                                      uint64_t first)
+                               uint64_t first)
 {
     const pm_schema_t *s = h->schema;
     size_t off = 0;
@@ -119,7 +119,7 @@ static uint32_t block_suspect(const check_block_t *b, unsigned comps, unsigned f
             /* d * d <= t * t also rejects NaN; acc stays 0 while every row passes */
             acc += d * d <= (2e-3f - 1e-5f) * (2e-3f - 1e-5f) ? 0.0f : 1.0f;
         }
-        bad |= (uint32_t)!(acc == 0.0f) << 31;
+        bad |= (uint32_t) !(acc == 0.0f) << 31;
     } else if (fl & PM_CH_UNIT) {
         bad |= 1u << 31; /* no such channel yet: let the exact check have it */
     }
@@ -128,8 +128,8 @@ static uint32_t block_suspect(const check_block_t *b, unsigned comps, unsigned f
 
 /* Copies component k of channel bytes [off, off + 4 * comps) of records [i0, i0 + m) into
  * the block's columns, padding the rest. */
-static void block_load(check_block_t *b, const unsigned char *rec, size_t rs, size_t off, unsigned comps,
-                       uint64_t m, unsigned fl)
+static void block_load(check_block_t *b, const unsigned char *rec, size_t rs, size_t off, unsigned comps, uint64_t m,
+                       unsigned fl)
 {
     const unsigned char *p = rec + off;
     if (comps == 3) {
@@ -231,7 +231,7 @@ static inline uint32_t column_block_suspect_n(const float *v, const unsigned nv,
             float d = v[3 * i] * v[3 * i] + v[3 * i + 1] * v[3 * i + 1] + v[3 * i + 2] * v[3 * i + 2] - 1.0f;
             acc += d * d <= (2e-3f - 1e-5f) * (2e-3f - 1e-5f) ? 0.0f : 1.0f;
         }
-        bad |= (uint32_t)!(acc == 0.0f) << 31;
+        bad |= (uint32_t) !(acc == 0.0f) << 31;
     } else if (fl & PM_CH_UNIT) {
         bad |= 1u << 31;
     }
@@ -292,7 +292,7 @@ int pmfile_columns_suspect(const pm_table_t *t, uint64_t at, uint64_t n)
  * whether some value might fail: the exact check when it might, then (as the exact check
  * does at its end) the format's record checks. */
 pm_result_t pmfile_check_after(const pm_header_t *h, const char *path, const unsigned char *rec, uint64_t n,
-                                      uint64_t first, int suspect)
+                               uint64_t first, int suspect)
 {
     if (suspect)
         return pmfile_check_exact(h, path, rec, n, first);
@@ -302,7 +302,7 @@ pm_result_t pmfile_check_after(const pm_header_t *h, const char *path, const uns
 /* Checks the values of n raw records starting at record index first: the fast pass, then
  * the exact check where it is needed. */
 pm_result_t pmfile_check_records(const pm_header_t *h, const char *path, const unsigned char *rec, uint64_t n,
-                                uint64_t first)
+                                 uint64_t first)
 {
     return pmfile_check_after(h, path, rec, n, first, pmfile_records_suspect(h, rec, n));
 }

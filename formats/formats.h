@@ -79,12 +79,12 @@ static inline pm_kdnode_t pm_kdnode_make(float coord, uint32_t axis, uint32_t ch
 
 /* ---- queries (gather points) ---- */
 enum {
-    PM_QUERY_POSITION = 0,  /* f32 x3, m: where the radiance estimate is made */
-    PM_QUERY_NORMAL = 1,    /* f32 x3: unit surface normal (photons on other surfaces are rejected) */
-    PM_QUERY_WEIGHT = 2,    /* f32 x3: RGB factor from the estimate to the pixel's radiance */
-    PM_QUERY_PIXEL = 3,     /* u32: y * width + x */
-    PM_QUERY_MATERIAL = 4,  /* u16: index into the header's material table (scenes with several) */
-    PM_QUERY_DIRECTION = 5  /* f32 x3: unit outgoing direction (glossy scenes only) */
+    PM_QUERY_POSITION = 0, /* f32 x3, m: where the radiance estimate is made */
+    PM_QUERY_NORMAL = 1,   /* f32 x3: unit surface normal (photons on other surfaces are rejected) */
+    PM_QUERY_WEIGHT = 2,   /* f32 x3: RGB factor from the estimate to the pixel's radiance */
+    PM_QUERY_PIXEL = 3,    /* u32: y * width + x */
+    PM_QUERY_MATERIAL = 4, /* u16: index into the header's material table (scenes with several) */
+    PM_QUERY_DIRECTION = 5 /* f32 x3: unit outgoing direction (glossy scenes only) */
 };
 extern const pm_schema_t pm_queries_schema;
 
@@ -92,8 +92,7 @@ extern const pm_schema_t pm_queries_schema;
  * the gather's business). */
 pm_result_t pm_queries_set_materials(pm_header_t *h, const pm_material_t *m, size_t n);
 /* Reads them back; *m_out is malloc'd. */
-pm_result_t pm_queries_get_materials(const pm_header_t *h, const char *path, pm_material_t **m_out,
-                                     size_t *n_out);
+pm_result_t pm_queries_get_materials(const pm_header_t *h, const char *path, pm_material_t **m_out, size_t *n_out);
 
 /* ---- radiance (per-pixel buffers) ---- */
 enum {

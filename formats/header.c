@@ -86,8 +86,8 @@ void pm_header_free(pm_header_t *h)
 
 int pmfile_key_char_ok(int c)
 {
-    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
-           c == '.' || c == '-';
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' || c == '.' ||
+           c == '-';
 }
 
 int pmfile_key_ok(const char *k)
@@ -111,8 +111,9 @@ static void value_clean(char *v)
 /* Keys the container writes itself; a stage setting one would write it twice. */
 static int key_reserved(const char *k)
 {
-    static const char *const reserved[] = {"FORMAT",   "VERSION", "BYTE_ORDER", "COUNT",   "RECORD_SIZE",
-                                           "CHANNELS", "CHANNEL_MASK", "BOUNDS", "SOFTWARE", "COMMAND", NULL};
+    static const char *const reserved[] = {"FORMAT",   "VERSION",      "BYTE_ORDER", "COUNT",    "RECORD_SIZE",
+                                           "CHANNELS", "CHANNEL_MASK", "BOUNDS",     "SOFTWARE", "COMMAND",
+                                           NULL};
     for (const char *const *r = reserved; *r; r++)
         if (strcmp(*r, k) == 0)
             return 1;
@@ -221,8 +222,8 @@ pm_result_t pm_header_get_u64(const pm_header_t *h, const char *path, const char
     if (!v)
         return pm_error_set(PM_ERR_INPUT, "%s '%s' lacks header key '%s'", pmfile_title(h), path, key);
     if (!pmfile_parse_decimal(v, out))
-        return pm_error_set(PM_ERR_INPUT, "%s '%s': header key %s='%s' is not a decimal integer", pmfile_title(h),
-                            path, key, v);
+        return pm_error_set(PM_ERR_INPUT, "%s '%s': header key %s='%s' is not a decimal integer", pmfile_title(h), path,
+                            key, v);
     return PM_OK;
 }
 
@@ -324,4 +325,3 @@ pm_result_t pm_header_copy_keys(pm_header_t *h, const pm_header_t *src)
     }
     return PM_OK;
 }
-

@@ -77,8 +77,8 @@ pm_result_t pm_header_format(const pm_header_t *h, char **text_out, size_t *len_
     channels_text(s, h->channels, &t);
     text_printf(&t, "\n");
     /* %.9g round-trips every float exactly. */
-    text_printf(&t, "BOUNDS=%.9g %.9g %.9g %.9g %.9g %.9g\n", h->bounds[0], h->bounds[1], h->bounds[2],
-                h->bounds[3], h->bounds[4], h->bounds[5]);
+    text_printf(&t, "BOUNDS=%.9g %.9g %.9g %.9g %.9g %.9g\n", h->bounds[0], h->bounds[1], h->bounds[2], h->bounds[3],
+                h->bounds[4], h->bounds[5]);
     text_printf(&t, "SOFTWARE=pmtk %s\n", PM_VERSION_STRING);
     for (size_t i = 0; i < h->ncommands; i++)
         text_printf(&t, "COMMAND=%s\n", h->commands[i]);
@@ -153,8 +153,7 @@ static pm_result_t parse_line(pm_header_t *h, const char *path, unsigned lineno,
     if (!eq) {
         char shown[80];
         pmfile_show_bytes((const unsigned char *)line, strnlen(line, 40), shown, sizeof shown);
-        return pm_error_set(PM_ERR_INPUT, "malformed header line %u in '%s': '%s' has no '='", lineno, path,
-                            shown);
+        return pm_error_set(PM_ERR_INPUT, "malformed header line %u in '%s': '%s' has no '='", lineno, path, shown);
     }
     *eq = '\0';
     const char *key = line, *val = eq + 1;
@@ -162,8 +161,8 @@ static pm_result_t parse_line(pm_header_t *h, const char *path, unsigned lineno,
         return pm_error_set(PM_ERR_INPUT, "malformed header line %u in '%s': bad key", lineno, path);
     for (const char *c = val; *c; c++)
         if ((unsigned char)*c < 0x20 || *c == 0x7f)
-            return pm_error_set(PM_ERR_INPUT, "malformed header line %u in '%s': control byte in %s", lineno,
-                                path, key);
+            return pm_error_set(PM_ERR_INPUT, "malformed header line %u in '%s': control byte in %s", lineno, path,
+                                key);
     const struct {
         const char *key;
         const char **value;
@@ -210,9 +209,8 @@ static pm_result_t require_fields(const char *path, const fields_t *f)
 {
     const struct {
         const char *value, *key;
-    } required[] = {{f->format, "FORMAT"}, {f->version, "VERSION"}, {f->order, "BYTE_ORDER"},
-                    {f->count, "COUNT"},   {f->rsize, "RECORD_SIZE"}, {f->chans, "CHANNELS"},
-                    {f->bounds, "BOUNDS"}};
+    } required[] = {{f->format, "FORMAT"},     {f->version, "VERSION"}, {f->order, "BYTE_ORDER"}, {f->count, "COUNT"},
+                    {f->rsize, "RECORD_SIZE"}, {f->chans, "CHANNELS"},  {f->bounds, "BOUNDS"}};
     for (size_t k = 0; k < sizeof required / sizeof required[0]; k++)
         if (!required[k].value)
             return pm_error_set(PM_ERR_INPUT, "header of '%s' lacks %s", path, required[k].key);
@@ -238,12 +236,12 @@ static pm_result_t parse_version(pm_header_t *h, const char *path, const char *v
         return pm_error_set(PM_ERR_INPUT, "%s '%s': malformed VERSION '%s'", s->title, path, version);
     unsigned major = (unsigned)vmaj, minor = (unsigned)vmin;
     if (major > s->major)
-        return pm_error_set(PM_ERR_INPUT, "%s '%s' is version %u.%u, newer than this reader (%u.x)", s->title,
-                            path, major, minor, s->major);
+        return pm_error_set(PM_ERR_INPUT, "%s '%s' is version %u.%u, newer than this reader (%u.x)", s->title, path,
+                            major, minor, s->major);
     unsigned oldest = s->oldest_major ? s->oldest_major : s->major;
     if (major < oldest)
-        return pm_error_set(PM_ERR_INPUT, "%s '%s' is version %u.%u, older than this reader (%u.x to %u.x)",
-                            s->title, path, major, minor, oldest, s->major);
+        return pm_error_set(PM_ERR_INPUT, "%s '%s' is version %u.%u, older than this reader (%u.x to %u.x)", s->title,
+                            path, major, minor, oldest, s->major);
     h->major = major;
     h->minor = minor;
     return PM_OK;
@@ -290,8 +288,8 @@ static pm_result_t channels_from_names(pm_header_t *h, const char *path, const f
 {
     const pm_schema_t *s = h->schema;
     if (f->mask)
-        return pm_error_set(PM_ERR_INPUT, "%s '%s' is version %u.%u but has CHANNEL_MASK, a version-%u key",
-                            s->title, path, h->major, h->minor, PM_MAJOR_WITH_MASK);
+        return pm_error_set(PM_ERR_INPUT, "%s '%s' is version %u.%u but has CHANNEL_MASK, a version-%u key", s->title,
+                            path, h->major, h->minor, PM_MAJOR_WITH_MASK);
     uint32_t mask = 0;
     for (const char *p = f->chans; *p;) {
         size_t len = strcspn(p, " ");
@@ -326,8 +324,7 @@ static pm_result_t channels_from_names(pm_header_t *h, const char *path, const f
 static pm_result_t parse_channels(pm_header_t *h, const char *path, const fields_t *f, uint32_t need)
 {
     const pm_schema_t *s = h->schema;
-    pm_result_t res = h->major <= PM_MAJOR_WITH_MASK ? channels_from_mask(h, path, f)
-                                                     : channels_from_names(h, path, f);
+    pm_result_t res = h->major <= PM_MAJOR_WITH_MASK ? channels_from_mask(h, path, f) : channels_from_names(h, path, f);
     if (res != PM_OK)
         return res;
     uint32_t missing = pm_schema_required(s) & ~h->channels;
@@ -376,13 +373,12 @@ static pm_result_t parse_bounds(pm_header_t *h, const char *path, const char *bo
     }
     for (int i = 0; i < 3; i++)
         if (h->bounds[i] > h->bounds[i + 3])
-            return pm_error_set(PM_ERR_INPUT, "%s '%s': BOUNDS '%s' has min above max on axis %c", title, path,
-                                bounds, "xyz"[i]);
+            return pm_error_set(PM_ERR_INPUT, "%s '%s': BOUNDS '%s' has min above max on axis %c", title, path, bounds,
+                                "xyz"[i]);
     return PM_OK;
 }
 
-pm_result_t pmfile_header_parse(pm_header_t *h, const char *path, char *text, const pm_schema_t *want,
-                                uint32_t need)
+pm_result_t pmfile_header_parse(pm_header_t *h, const char *path, char *text, const pm_schema_t *want, uint32_t need)
 {
     fields_t f = {0};
     pm_result_t res = parse_lines(h, path, text, &f);
@@ -402,8 +398,7 @@ pm_result_t pmfile_header_parse(pm_header_t *h, const char *path, char *text, co
     if (res != PM_OK)
         return res;
     if (strcmp(f.order, "little-endian") != 0)
-        return pm_error_set(PM_ERR_INPUT, "%s '%s': BYTE_ORDER '%s' is not little-endian", s->title, path,
-                            f.order);
+        return pm_error_set(PM_ERR_INPUT, "%s '%s': BYTE_ORDER '%s' is not little-endian", s->title, path, f.order);
     if (!pmfile_parse_decimal(f.count, &h->count) || h->count > PM_COUNT_MAX)
         return pm_error_set(PM_ERR_INPUT, "%s '%s': absurd COUNT '%s'", s->title, path, f.count);
     res = parse_channels(h, path, &f, need);

@@ -34,8 +34,8 @@ static pm_result_t validate_tree(const pm_table_t *t, const char *path)
     if (n == 0)
         return PM_OK;
     if (n > UINT32_MAX - 1)
-        return pm_error_set(PM_ERR_INPUT, "photon map '%s' has %" PRIu64 " nodes, more than 32-bit indices reach",
-                            path, n);
+        return pm_error_set(PM_ERR_INPUT, "photon map '%s' has %" PRIu64 " nodes, more than 32-bit indices reach", path,
+                            n);
     const pm_kdnode_t *node = t->col[PM_MAP_NODE];
     const float *pos = t->col[PM_MAP_POSITION];
     /* Pre-order: at node i the stack holds at most i entries, so n + 1 always suffice. */
@@ -50,14 +50,18 @@ static pm_result_t validate_tree(const pm_table_t *t, const char *path)
         uint32_t i = e.node;
         /* Pre-order: the left subtree is exactly [i + 1, child) and the right starts at child. */
         if (i != expected) {
-            res = pm_error_set(PM_ERR_INPUT, "corrupt photon map '%s': node %" PRIu32
-                               " is out of depth-first order (expected node %" PRIu64 " next)", path, i, expected);
+            res = pm_error_set(PM_ERR_INPUT,
+                               "corrupt photon map '%s': node %" PRIu32
+                               " is out of depth-first order (expected node %" PRIu64 " next)",
+                               path, i, expected);
             break;
         }
         expected++;
         if (e.depth > PM_KD_MAX_DEPTH) {
-            res = pm_error_set(PM_ERR_INPUT, "photon map '%s' is deeper than %u levels at node %" PRIu32
-                               " (searches keep a stack of that depth)", path, PM_KD_MAX_DEPTH, i);
+            res = pm_error_set(PM_ERR_INPUT,
+                               "photon map '%s' is deeper than %u levels at node %" PRIu32
+                               " (searches keep a stack of that depth)",
+                               path, PM_KD_MAX_DEPTH, i);
             break;
         }
         const float *p = &pos[3 * (size_t)i];
@@ -66,16 +70,17 @@ static pm_result_t validate_tree(const pm_table_t *t, const char *path)
             if (p[k] < e.lo[k] || p[k] > e.hi[k])
                 axis_out = k;
         if (axis_out >= 0) {
-            res = pm_error_set(PM_ERR_INPUT, "corrupt photon map '%s': photon %" PRIu32 " at %c = %.9g lies outside "
-                               "[%.9g, %.9g], the planes of its ancestors", path, i, "xyz"[axis_out], p[axis_out],
-                               e.lo[axis_out], e.hi[axis_out]);
+            res = pm_error_set(PM_ERR_INPUT,
+                               "corrupt photon map '%s': photon %" PRIu32 " at %c = %.9g lies outside "
+                               "[%.9g, %.9g], the planes of its ancestors",
+                               path, i, "xyz"[axis_out], p[axis_out], e.lo[axis_out], e.hi[axis_out]);
             break;
         }
         uint32_t axis = pm_kdnode_axis(node[i]), child = node[i].child;
         if (axis == PM_KD_LEAF) {
             if (child != PM_KD_NONE) {
-                res = pm_error_set(PM_ERR_INPUT, "corrupt photon map '%s': leaf %" PRIu32 " has child %" PRIu32,
-                                   path, i, child);
+                res = pm_error_set(PM_ERR_INPUT, "corrupt photon map '%s': leaf %" PRIu32 " has child %" PRIu32, path,
+                                   i, child);
                 break;
             }
             continue;
@@ -91,8 +96,8 @@ static pm_result_t validate_tree(const pm_table_t *t, const char *path)
         }
         int has_left = child != (uint64_t)i + 1, has_right = child != PM_KD_NONE;
         if (has_left && (uint64_t)i + 1 >= n) {
-            res = pm_error_set(PM_ERR_INPUT, "corrupt photon map '%s': node %" PRIu32 " has its left child past the end",
-                               path, i);
+            res = pm_error_set(PM_ERR_INPUT,
+                               "corrupt photon map '%s': node %" PRIu32 " has its left child past the end", path, i);
             break;
         }
         if (has_right && (child <= i || child >= n)) {
@@ -118,8 +123,9 @@ static pm_result_t validate_tree(const pm_table_t *t, const char *path)
         }
     }
     if (res == PM_OK && expected != n)
-        res = pm_error_set(PM_ERR_INPUT, "corrupt photon map '%s': %" PRIu64 " of %" PRIu64
-                           " nodes unreachable from the root", path, n - expected, n);
+        res = pm_error_set(PM_ERR_INPUT,
+                           "corrupt photon map '%s': %" PRIu64 " of %" PRIu64 " nodes unreachable from the root", path,
+                           n - expected, n);
     free(stack);
     return res;
 }

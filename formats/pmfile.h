@@ -36,12 +36,12 @@ enum {
 };
 
 typedef struct {
-    const char *name;     /* "position" */
+    const char *name; /* "position" */
     pm_type_t type;
-    unsigned components;  /* 3 for a vector or RGB */
-    unsigned flags;       /* PM_CH_* */
-    const char *unit;     /* "m", "W", "1" */
-    const char *doc;      /* one line for docs and pm-info */
+    unsigned components; /* 3 for a vector or RGB */
+    unsigned flags;      /* PM_CH_* */
+    const char *unit;    /* "m", "W", "1" */
+    const char *doc;     /* one line for docs and pm-info */
 } pm_channel_t;
 
 typedef struct pm_table pm_table_t;
@@ -53,10 +53,10 @@ typedef struct pm_header pm_header_t;
 #define PM_MAJOR_WITH_MASK 1 /* the last major version whose headers carry CHANNEL_MASK */
 
 typedef struct {
-    const char *name;        /* FORMAT value: "photons" */
-    unsigned major, minor;   /* the version this code writes, and the newest it reads */
-    unsigned oldest_major;   /* the oldest major version it still reads */
-    const char *title;       /* "photons file", used in messages */
+    const char *name;      /* FORMAT value: "photons" */
+    unsigned major, minor; /* the version this code writes, and the newest it reads */
+    unsigned oldest_major; /* the oldest major version it still reads */
+    const char *title;     /* "photons file", used in messages */
     const pm_channel_t *channels;
     unsigned nchannels;
     /* Checks the format's own header keys once the header is read (may be NULL). */
@@ -76,14 +76,14 @@ typedef struct {
 
 struct pm_header {
     const pm_schema_t *schema;
-    unsigned major, minor;   /* as read; a writer always writes the schema's */
-    uint64_t count;          /* records */
-    uint32_t channels;       /* bit i set: channel i of the schema is present */
-    uint32_t record_size;    /* bytes */
-    float bounds[6];         /* scene bounds: min x y z, max x y z, in scene units (m) */
-    char **commands;         /* COMMAND lines, oldest first: the pipeline that made the file */
+    unsigned major, minor; /* as read; a writer always writes the schema's */
+    uint64_t count;        /* records */
+    uint32_t channels;     /* bit i set: channel i of the schema is present */
+    uint32_t record_size;  /* bytes */
+    float bounds[6];       /* scene bounds: min x y z, max x y z, in scene units (m) */
+    char **commands;       /* COMMAND lines, oldest first: the pipeline that made the file */
     size_t ncommands;
-    pm_kv_t *keys;           /* every other key, in file order (INPUT, SCENE, format keys) */
+    pm_kv_t *keys; /* every other key, in file order (INPUT, SCENE, format keys) */
     size_t nkeys;
 };
 
@@ -92,9 +92,9 @@ struct pm_header {
  * pm_header_inherit (and pm_header_copy_keys for a same-format pass-through). */
 struct pm_table {
     pm_header_t hdr;
-    uint64_t count;                 /* records held (== hdr.count) */
-    void *col[PM_MAX_CHANNELS];     /* channel i: count * components values of its type */
-    uint64_t checksum;              /* XXH3-64 of the file as read (its content hash) */
+    uint64_t count;             /* records held (== hdr.count) */
+    void *col[PM_MAX_CHANNELS]; /* channel i: count * components values of its type */
+    uint64_t checksum;          /* XXH3-64 of the file as read (its content hash) */
 };
 
 /* ---- schemas ---- */
@@ -114,10 +114,8 @@ const pm_schema_t *const *pm_schema_all(void);
 void pm_header_init(pm_header_t *h, const pm_schema_t *s);
 void pm_header_free(pm_header_t *h);
 /* Sets key (replacing its first occurrence) or, with add, appends another. */
-pm_result_t pm_header_set(pm_header_t *h, const char *key, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
-pm_result_t pm_header_add(pm_header_t *h, const char *key, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
+pm_result_t pm_header_set(pm_header_t *h, const char *key, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+pm_result_t pm_header_add(pm_header_t *h, const char *key, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 /* The value of the first occurrence of key, or NULL. */
 const char *pm_header_get(const pm_header_t *h, const char *key);
 /* A decimal integer key: fails with a message naming path and key when missing or malformed. */

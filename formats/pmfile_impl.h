@@ -31,11 +31,11 @@ struct pm_reader {
     char *path;
     pm_header_t hdr;
     XXH3_state_t *hash;
-    uint64_t next;            /* index of the next record to read */
-    uint64_t file_size;       /* bytes, when the input is a regular file; else 0 */
-    uint64_t payload_offset;  /* bytes before the first record */
-    unsigned char *scratch;   /* one chunk of raw records for validation */
-    char *raw;                /* the header text as read */
+    uint64_t next;           /* index of the next record to read */
+    uint64_t file_size;      /* bytes, when the input is a regular file; else 0 */
+    uint64_t payload_offset; /* bytes before the first record */
+    unsigned char *scratch;  /* one chunk of raw records for validation */
+    char *raw;               /* the header text as read */
 };
 
 /* ---- header.c: the header model ---- */
@@ -62,8 +62,7 @@ void pmfile_show_bytes(const unsigned char *b, size_t n, char *out, size_t cap);
  * schema is set from FORMAT: the structure, version, channels, record size, bounds and
  * the format's own rules. want: the schema expected (NULL: any); need: channels the
  * caller requires; path names the file in messages. */
-pm_result_t pmfile_header_parse(pm_header_t *h, const char *path, char *text, const pm_schema_t *want,
-                                uint32_t need);
+pm_result_t pmfile_header_parse(pm_header_t *h, const char *path, char *text, const pm_schema_t *want, uint32_t need);
 
 /* ---- check.c: the value checks ---- */
 /* The exact check of n raw records from record index first, then the format's record
@@ -88,7 +87,6 @@ pm_result_t pmfile_check_records(const pm_header_t *h, const char *path, const u
 pm_result_t pmfile_reader_read(pm_reader_t *r, void *records, uint64_t max, uint64_t *got_out, int check);
 /* pm_writer_write; with t, the records are rows [t_at, t_at + n) of table t, whose columns
  * the fast pass of the checks reads instead of the records. */
-pm_result_t pmfile_writer_write(pm_writer_t *w, const void *records, uint64_t n, const pm_table_t *t,
-                                uint64_t t_at);
+pm_result_t pmfile_writer_write(pm_writer_t *w, const void *records, uint64_t n, const pm_table_t *t, uint64_t t_at);
 
 #endif

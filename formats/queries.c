@@ -63,8 +63,10 @@ pm_result_t pm_queries_get_materials(const pm_header_t *h, const char *path, pm_
         snprintf(key, sizeof key, "material.%" PRIu64, i);
         const char *v = pm_header_get(h, key);
         int used = 0;
-        if (!v || sscanf(v, "%63s kd %f %f %f ks %f %f %f ns %f%n", m[i].name, &m[i].kd[0], &m[i].kd[1], &m[i].kd[2],
-                         &m[i].ks[0], &m[i].ks[1], &m[i].ks[2], &m[i].ns, &used) != 8 || v[used] != '\0') {
+        if (!v ||
+            sscanf(v, "%63s kd %f %f %f ks %f %f %f ns %f%n", m[i].name, &m[i].kd[0], &m[i].kd[1], &m[i].kd[2],
+                   &m[i].ks[0], &m[i].ks[1], &m[i].ks[2], &m[i].ns, &used) != 8 ||
+            v[used] != '\0') {
             free(m);
             return pm_error_set(PM_ERR_INPUT, "queries '%s': header key %s is %s", path, key,
                                 v ? "not 'NAME kd R G B ks R G B ns E'" : "missing");
@@ -115,14 +117,17 @@ static pm_result_t validate_records(const pm_header_t *h, const char *path, cons
         uint32_t pix;
         memcpy(&pix, rec + i * rs + pix_off, 4);
         if (pix >= npix)
-            return pm_error_set(PM_ERR_INPUT, "bad value in queries '%s': record %" PRIu64 " pixel %" PRIu32
-                                " outside the %" PRIu32 "x%" PRIu32 " image", path, first + i, pix, w, ht);
+            return pm_error_set(PM_ERR_INPUT,
+                                "bad value in queries '%s': record %" PRIu64 " pixel %" PRIu32 " outside the %" PRIu32
+                                "x%" PRIu32 " image",
+                                path, first + i, pix, w, ht);
         if (has_mat) {
             uint16_t m;
             memcpy(&m, rec + i * rs + mat_off, 2);
             if (m >= nmat)
-                return pm_error_set(PM_ERR_INPUT, "bad value in queries '%s': record %" PRIu64 " material %u of %" PRIu64,
-                                    path, first + i, m, nmat);
+                return pm_error_set(PM_ERR_INPUT,
+                                    "bad value in queries '%s': record %" PRIu64 " material %u of %" PRIu64, path,
+                                    first + i, m, nmat);
         }
     }
     return PM_OK;

@@ -62,8 +62,7 @@ static pm_result_t read_header_text(pm_reader_t *r, char **text_out, size_t *len
         if (c != '\n') {
             if (n - line_start > PM_HEADER_LINE_MAX) {
                 free(t);
-                return pm_error_set(PM_ERR_INPUT, "header line of '%s' exceeds %u bytes", r->path,
-                                    PM_HEADER_LINE_MAX);
+                return pm_error_set(PM_ERR_INPUT, "header line of '%s' exceeds %u bytes", r->path, PM_HEADER_LINE_MAX);
             }
             continue;
         }
@@ -148,11 +147,11 @@ static pm_result_t reader_start(pm_reader_t *r, const pm_schema_t *schema, uint3
             res = pm_error_set(PM_ERR_INPUT, "truncated %s '%s': no byte-order marker after the header",
                                reader_title(r), r->path);
         else if (bom[0] == 0x01 && bom[1] == 0x02 && bom[2] == 0x03 && bom[3] == 0x04)
-            res = pm_error_set(PM_ERR_INPUT, "%s '%s' is big-endian; pmtk reads little-endian files",
-                               reader_title(r), r->path);
+            res = pm_error_set(PM_ERR_INPUT, "%s '%s' is big-endian; pmtk reads little-endian files", reader_title(r),
+                               r->path);
         else if (memcmp(bom, pmfile_bom, 4) != 0)
-            res = pm_error_set(PM_ERR_INPUT, "%s '%s': bad byte-order marker %02x %02x %02x %02x",
-                               reader_title(r), r->path, bom[0], bom[1], bom[2], bom[3]);
+            res = pm_error_set(PM_ERR_INPUT, "%s '%s': bad byte-order marker %02x %02x %02x %02x", reader_title(r),
+                               r->path, bom[0], bom[1], bom[2], bom[3]);
         else
             XXH3_64bits_update(r->hash, bom, 4);
         r->payload_offset = len + 4;
@@ -209,8 +208,7 @@ pm_result_t pmfile_reader_read(pm_reader_t *r, void *records, uint64_t max, uint
         size_t got = rs ? fread(p, rs, (size_t)n, r->f) : (size_t)n;
         if (got < n) {
             if (ferror(r->f))
-                return pm_error_set(PM_ERR_IO, "cannot read %s '%s': %s", reader_title(r), r->path,
-                                    strerror(errno));
+                return pm_error_set(PM_ERR_IO, "cannot read %s '%s': %s", reader_title(r), r->path, strerror(errno));
             return pm_error_set(PM_ERR_INPUT, "truncated %s '%s': ends in record %" PRIu64 " of %" PRIu64,
                                 reader_title(r), r->path, r->next + got, r->hdr.count);
         }
@@ -251,9 +249,9 @@ pm_result_t pm_reader_finish(pm_reader_t *r, uint64_t *checksum_out)
         uint64_t extra = 1;
         while (getc(r->f) != EOF && extra < (1u << 20))
             extra++;
-        return pm_error_set(PM_ERR_INPUT, "wrong count in %s '%s': COUNT=%" PRIu64 " but %s%" PRIu64
-                            " bytes follow the checksum", reader_title(r), r->path, r->hdr.count,
-                            extra >= (1u << 20) ? "over " : "", extra);
+        return pm_error_set(PM_ERR_INPUT,
+                            "wrong count in %s '%s': COUNT=%" PRIu64 " but %s%" PRIu64 " bytes follow the checksum",
+                            reader_title(r), r->path, r->hdr.count, extra >= (1u << 20) ? "over " : "", extra);
     }
     if (checksum_out)
         *checksum_out = computed;

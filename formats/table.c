@@ -62,9 +62,9 @@ void pm_table_free(pm_table_t *t)
 static void copy_strided(unsigned char *dst, size_t dstride, const unsigned char *src, size_t sstride, uint64_t n,
                          size_t cs)
 {
-#define PM_COPY(SIZE)                                                                                        \
-    for (uint64_t i = 0; i < n; i++)                                                                         \
-        memcpy(dst + i * dstride, src + i * sstride, SIZE);                                                  \
+#define PM_COPY(SIZE)                                                                                                  \
+    for (uint64_t i = 0; i < n; i++)                                                                                   \
+        memcpy(dst + i * dstride, src + i * sstride, SIZE);                                                            \
     return;
     switch (cs) {
     case 2: PM_COPY(2)

@@ -13,12 +13,12 @@
 #include "formats/pmfile_impl.h"
 
 struct pm_writer {
-    pm_header_t layout;  /* the header as a reader parses it, for checking records */
-    char *name;          /* the path, for messages */
+    pm_header_t layout; /* the header as a reader parses it, for checking records */
+    char *name;         /* the path, for messages */
     pm_atomic_t out;
     XXH3_state_t *hash;
     uint64_t count, written;
-    int err;             /* errno of the first failed write, 0 while all is well */
+    int err; /* errno of the first failed write, 0 while all is well */
 };
 
 /* Frees a writer whose output is already committed, aborted or never opened. */
@@ -91,12 +91,11 @@ pm_result_t pm_writer_write(pm_writer_t *w, const void *records, uint64_t n)
     return pmfile_writer_write(w, records, n, NULL, 0);
 }
 
-pm_result_t pmfile_writer_write(pm_writer_t *w, const void *records, uint64_t n, const pm_table_t *t,
-                                uint64_t t_at)
+pm_result_t pmfile_writer_write(pm_writer_t *w, const void *records, uint64_t n, const pm_table_t *t, uint64_t t_at)
 {
     if (w->written + n > w->count)
-        return pm_error_set(PM_ERR_INTERNAL, "writer given %" PRIu64 " records, header says %" PRIu64,
-                            w->written + n, w->count);
+        return pm_error_set(PM_ERR_INTERNAL, "writer given %" PRIu64 " records, header says %" PRIu64, w->written + n,
+                            w->count);
     /* Checked, hashed and written a chunk at a time, so that the three passes find the
      * chunk in the cache. */
     const unsigned char *rec = records;
@@ -130,8 +129,8 @@ pm_result_t pmfile_writer_write(pm_writer_t *w, const void *records, uint64_t n,
 pm_result_t pm_writer_commit(pm_writer_t *w)
 {
     if (w->written != w->count) {
-        pm_result_t r = pm_error_set(PM_ERR_INTERNAL, "writer got %" PRIu64 " records, header says %" PRIu64,
-                                     w->written, w->count);
+        pm_result_t r =
+            pm_error_set(PM_ERR_INTERNAL, "writer got %" PRIu64 " records, header says %" PRIu64, w->written, w->count);
         pm_writer_abort(w);
         return r;
     }

@@ -14,8 +14,8 @@
 #include <string.h>
 #include <xxhash.h>
 
-#include "math/rng.h"
 #include "formats/formats.h"
+#include "math/rng.h"
 
 static void unit_vector(pm_rng_t *r, float *v)
 {
@@ -34,8 +34,8 @@ static unsigned sort_axis;
 
 static int by_axis(const void *a, const void *b)
 {
-    float x = sort_pos[3 * (size_t)*(const uint32_t *)a + sort_axis];
-    float y = sort_pos[3 * (size_t)*(const uint32_t *)b + sort_axis];
+    float x = sort_pos[3 * (size_t) * (const uint32_t *)a + sort_axis];
+    float y = sort_pos[3 * (size_t) * (const uint32_t *)b + sort_axis];
     return (x > y) - (x < y);
 }
 
@@ -193,7 +193,8 @@ static int poison(const char *path, size_t off, const void *bytes, size_t len)
 int main(int argc, char **argv)
 {
     if (argc < 4) {
-        fprintf(stderr, "usage: pm-testgen FORMAT N OUT [--all] [--set KEY=VALUE] [--shape equal|line|plane|huge] [--poison nan|inf|negative|unit|tree|order|pixel|nudge]\n");
+        fprintf(stderr, "usage: pm-testgen FORMAT N OUT [--all] [--set KEY=VALUE] [--shape equal|line|plane|huge] "
+                        "[--poison nan|inf|negative|unit|tree|order|pixel|nudge]\n");
         return 2;
     }
     int all = 0;
@@ -257,7 +258,8 @@ int main(int argc, char **argv)
     else if (!strcmp(what, "inf"))
         bad = poison(argv[3], first_float + 4, &inf, 4);
     else if (!strcmp(what, "order") && s == &pm_photonmap_schema)
-        bad = poison(argv[3], 60 + 8, &big_coord, 4); /* record 1 (root's left child, split on y): x beyond the root's plane */
+        bad = poison(argv[3], 60 + 8, &big_coord,
+                     4); /* record 1 (root's left child, split on y): x beyond the root's plane */
     else if (!strcmp(what, "negative") && s == &pm_photons_schema)
         bad = poison(argv[3], 12, &neg, 4); /* power.r */
     else if (!strcmp(what, "unit") && s == &pm_photons_schema)

@@ -104,16 +104,14 @@ static const pm_option_t *find_short(const pm_cli_t *cli, char c)
 static pm_result_t set_value(const pm_option_t *o, const char *v)
 {
     switch (o->kind) {
-    case PM_OPT_FLAG:
-        *(int *)o->dest = 1;
-        return PM_OK;
+    case PM_OPT_FLAG: *(int *)o->dest = 1; return PM_OK;
     case PM_OPT_INT: {
         int64_t x;
         if (pm_parse_i64(v, &x) != PM_OK)
             return pm_error_set(PM_ERR_USAGE, "option --%s: '%s' is not an integer", o->name, v);
         if (o->min <= o->max && ((double)x < o->min || (double)x > o->max))
-            return pm_error_set(PM_ERR_USAGE, "option --%s: %" PRId64 " is outside [%.17g, %.17g]",
-                                o->name, x, o->min, o->max);
+            return pm_error_set(PM_ERR_USAGE, "option --%s: %" PRId64 " is outside [%.17g, %.17g]", o->name, x, o->min,
+                                o->max);
         *(int64_t *)o->dest = x;
         return PM_OK;
     }
@@ -122,14 +120,12 @@ static pm_result_t set_value(const pm_option_t *o, const char *v)
         if (pm_parse_double(v, &x) != PM_OK)
             return pm_error_set(PM_ERR_USAGE, "option --%s: '%s' is not a finite number", o->name, v);
         if (o->min <= o->max && (x < o->min || x > o->max))
-            return pm_error_set(PM_ERR_USAGE, "option --%s: %.17g is outside [%.17g, %.17g]",
-                                o->name, x, o->min, o->max);
+            return pm_error_set(PM_ERR_USAGE, "option --%s: %.17g is outside [%.17g, %.17g]", o->name, x, o->min,
+                                o->max);
         *(double *)o->dest = x;
         return PM_OK;
     }
-    case PM_OPT_STRING:
-        *(const char **)o->dest = v;
-        return PM_OK;
+    case PM_OPT_STRING: *(const char **)o->dest = v; return PM_OK;
     case PM_OPT_CHOICE:
         for (int i = 0; o->choices[i]; i++)
             if (strcmp(o->choices[i], v) == 0) {
@@ -389,8 +385,7 @@ void pm_args_usage(const pm_cli_t *cli, FILE *f)
             snprintf(left, sizeof left, "-%c, --%s%s%s", o->short_name, o->name, o->metavar ? " " : "",
                      o->metavar ? o->metavar : "");
         else
-            snprintf(left, sizeof left, "    --%s%s%s", o->name, o->metavar ? " " : "",
-                     o->metavar ? o->metavar : "");
+            snprintf(left, sizeof left, "    --%s%s%s", o->name, o->metavar ? " " : "", o->metavar ? o->metavar : "");
         fprintf(f, "  %-26s %s", left, o->help);
         if (o->kind == PM_OPT_CHOICE) {
             fputs(" (", f);

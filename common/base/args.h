@@ -23,31 +23,31 @@ typedef enum {
 } pm_opt_kind_t;
 
 typedef struct {
-    const char *name;            /* long name without "--" */
-    char short_name;             /* 0 when none */
+    const char *name; /* long name without "--" */
+    char short_name;  /* 0 when none */
     pm_opt_kind_t kind;
     void *dest;
-    const char *metavar;         /* shown in help: "N", "FILE" */
-    const char *help;            /* one line; the default is appended by the usage printer */
-    double min, max;             /* inclusive range for INT and DOUBLE; ignored when min > max */
-    const char *const *choices;  /* NULL-terminated words, for CHOICE */
+    const char *metavar;        /* shown in help: "N", "FILE" */
+    const char *help;           /* one line; the default is appended by the usage printer */
+    double min, max;            /* inclusive range for INT and DOUBLE; ignored when min > max */
+    const char *const *choices; /* NULL-terminated words, for CHOICE */
 } pm_option_t;
 
 typedef struct {
-    const char *program;         /* "trace-photons" */
-    const char *synopsis;        /* "[options] SCENE" */
-    const char *summary;         /* what the program does, one line */
-    const pm_option_t *options;  /* the table, terminated by an entry whose name is NULL */
-    int min_args, max_args;      /* how many positional arguments; max_args < 0 means any */
+    const char *program;        /* "trace-photons" */
+    const char *synopsis;       /* "[options] SCENE" */
+    const char *summary;        /* what the program does, one line */
+    const pm_option_t *options; /* the table, terminated by an entry whose name is NULL */
+    int min_args, max_args;     /* how many positional arguments; max_args < 0 means any */
 } pm_cli_t;
 
 /* Parsed positional arguments, and the storage behind @file words. */
 typedef struct {
     char **args;
     int nargs;
-    char **owned;  /* words read from @files, freed by pm_args_free */
+    char **owned; /* words read from @files, freed by pm_args_free */
     size_t nowned;
-    char **argv;   /* the expanded argument vector */
+    char **argv; /* the expanded argument vector */
 } pm_args_t;
 
 /* Parses argv[1..] into the table's destinations and the positional arguments.

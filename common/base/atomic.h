@@ -14,10 +14,10 @@
 #include "base/error.h"
 
 typedef struct {
-    FILE *f;          /* where to write */
-    char *path;       /* the final path; NULL for stdout */
-    char *tmp_path;   /* the temporary path; NULL for stdout */
-    int slot;         /* index in the cleanup registry, -1 when none */
+    FILE *f;        /* where to write */
+    char *path;     /* the final path; NULL for stdout */
+    char *tmp_path; /* the temporary path; NULL for stdout */
+    int slot;       /* index in the cleanup registry, -1 when none */
 } pm_atomic_t;
 
 /* Installs the signal handlers that remove registered temporary files. Idempotent. */

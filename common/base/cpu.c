@@ -2,9 +2,9 @@
 #include "base/cpu.h"
 
 #include <cpuid.h>
+#include <pmmintrin.h>
 #include <string.h>
 #include <xmmintrin.h>
-#include <pmmintrin.h>
 
 int pm_cpu_supports(pm_isa_t isa)
 {

@@ -8,18 +8,12 @@
 
 #include "base/error.h"
 
-typedef enum {
-    PM_ISA_SCALAR = 0,
-    PM_ISA_SSE4 = 1,
-    PM_ISA_AVX2 = 2,
-    PM_ISA_AVX512 = 3,
-    PM_ISA_COUNT
-} pm_isa_t;
+typedef enum { PM_ISA_SCALAR = 0, PM_ISA_SSE4 = 1, PM_ISA_AVX2 = 2, PM_ISA_AVX512 = 3, PM_ISA_COUNT } pm_isa_t;
 
-int pm_cpu_supports(pm_isa_t isa);       /* 1 when this CPU and OS can run isa */
-pm_isa_t pm_cpu_best_isa(void);           /* the widest supported */
-const char *pm_isa_name(pm_isa_t isa);    /* "scalar", "sse4", "avx2", "avx512" */
-int pm_isa_width(pm_isa_t isa);           /* lanes of 32-bit floats: 1, 4, 8, 16 */
+int pm_cpu_supports(pm_isa_t isa);     /* 1 when this CPU and OS can run isa */
+pm_isa_t pm_cpu_best_isa(void);        /* the widest supported */
+const char *pm_isa_name(pm_isa_t isa); /* "scalar", "sse4", "avx2", "avx512" */
+int pm_isa_width(pm_isa_t isa);        /* lanes of 32-bit floats: 1, 4, 8, 16 */
 
 /* Parses "auto" or an ISA name; fails (PM_ERR_USAGE) for an unknown name or one this
  * CPU cannot run, naming what it can. */

@@ -73,7 +73,7 @@ pm_result_t pm_error_slot_record(pm_error_slot_t *slot, uint64_t task, pm_result
 {
     if (code == PM_OK)
         return code;
-    /* A named critical section: OpenMP's, since every parallel region in pmtk is OpenMP's. */
+        /* A named critical section: OpenMP's, since every parallel region in pmtk is OpenMP's. */
 #pragma omp critical(pm_error_slot)
     {
         if (slot->code == PM_OK || task < slot->task) {

@@ -14,17 +14,16 @@ typedef int32_t pm_result_t;
 
 enum {
     PM_OK = 0,
-    PM_ERR_USAGE = 1,    /* bad command line: unknown option, bad number, missing argument */
-    PM_ERR_INPUT = 2,    /* bad input data: malformed file, scene, value out of range */
-    PM_ERR_IO = 3,       /* the system failed us: open, read, write, rename */
-    PM_ERR_NOMEM = 4,    /* an allocation failed */
-    PM_ERR_INTERNAL = 5  /* a bug in pmtk: an invariant did not hold */
+    PM_ERR_USAGE = 1,   /* bad command line: unknown option, bad number, missing argument */
+    PM_ERR_INPUT = 2,   /* bad input data: malformed file, scene, value out of range */
+    PM_ERR_IO = 3,      /* the system failed us: open, read, write, rename */
+    PM_ERR_NOMEM = 4,   /* an allocation failed */
+    PM_ERR_INTERNAL = 5 /* a bug in pmtk: an invariant did not hold */
 };
 
 /* Sets the thread's message (printf-style) and returns code, so that
  * `return pm_error_set(PM_ERR_INPUT, "...", ...)` reads as one statement. */
-pm_result_t pm_error_set(pm_result_t code, const char *fmt, ...)
-    __attribute__((format(printf, 2, 3)));
+pm_result_t pm_error_set(pm_result_t code, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 
 /* The message of the last failure on this thread ("" when none). */
 const char *pm_error_message(void);
@@ -42,8 +41,8 @@ void pm_error_prefix(const char *fmt, ...) __attribute__((format(printf, 1, 2)))
  * (pm_error_slot_raise). Of several failures the lowest task index wins, so the message
  * is the same for any thread count. */
 typedef struct {
-    pm_result_t code;          /* PM_OK while no task failed */
-    uint64_t task;             /* index of the failed task that is kept */
+    pm_result_t code; /* PM_OK while no task failed */
+    uint64_t task;    /* index of the failed task that is kept */
     char message[PM_ERROR_MAX];
 } pm_error_slot_t;
 

@@ -29,10 +29,9 @@ static void exr_error_handler(exr_const_context_t ctxt, exr_result_t code, const
 static pm_result_t exr_fail(exr_result_t rv, const char *what, const char *path)
 {
     const char *detail = exr_msg[0] ? exr_msg : exr_get_default_error_message(rv);
-    pm_result_t code = rv == EXR_ERR_OUT_OF_MEMORY ? PM_ERR_NOMEM
-                       : (rv == EXR_ERR_FILE_ACCESS || rv == EXR_ERR_WRITE_IO || rv == EXR_ERR_READ_IO)
-                           ? PM_ERR_IO
-                           : PM_ERR_INPUT;
+    pm_result_t code = rv == EXR_ERR_OUT_OF_MEMORY                                                      ? PM_ERR_NOMEM
+                       : (rv == EXR_ERR_FILE_ACCESS || rv == EXR_ERR_WRITE_IO || rv == EXR_ERR_READ_IO) ? PM_ERR_IO
+                                                                                                        : PM_ERR_INPUT;
     return pm_error_set(code, "cannot %s OpenEXR image '%s': %s", what, path, detail);
 }
 
@@ -234,7 +233,9 @@ pm_result_t pm_exr_read_rgb(const char *path, uint32_t *w_out, uint32_t *h_out, 
         }
         if (found != 7) {
             r = pm_error_set(PM_ERR_INPUT, "OpenEXR image '%s' has no channel %s", path,
-                             !(found & 1) ? "R" : !(found & 2) ? "G" : "B");
+                             !(found & 1)   ? "R"
+                             : !(found & 2) ? "G"
+                                            : "B");
             goto done;
         }
         if (y == dw.min.y)

@@ -12,9 +12,9 @@ typedef struct {
     const char *label;
     uint64_t total;
     _Atomic uint64_t done;
-    _Atomic int drawing;   /* 1 while a thread redraws */
-    _Atomic int64_t next;  /* us (wall) of the next redraw */
-    double t0;             /* s (wall) at begin */
+    _Atomic int drawing;  /* 1 while a thread redraws */
+    _Atomic int64_t next; /* us (wall) of the next redraw */
+    double t0;            /* s (wall) at begin */
     int enabled;
 } pm_progress_t;
 

@@ -19,14 +19,14 @@
 typedef struct {
     unsigned char **chunk; /* records in memory, chunk_bytes each (whole records), the last one filling */
     size_t nchunks, chunk_cap;
-    size_t fill;           /* bytes used in the last chunk */
-    size_t chunk_bytes;    /* bytes per chunk, a whole number of records */
-    size_t held;           /* bytes in memory */
-    size_t mem_max;        /* bytes held in memory before spilling */
-    size_t record_size;    /* bytes per record */
-    FILE *f;               /* spilled records, NULL while they fit in memory */
-    char dir[1024];        /* where a spill file goes */
-    uint64_t count;        /* records added */
+    size_t fill;        /* bytes used in the last chunk */
+    size_t chunk_bytes; /* bytes per chunk, a whole number of records */
+    size_t held;        /* bytes in memory */
+    size_t mem_max;     /* bytes held in memory before spilling */
+    size_t record_size; /* bytes per record */
+    FILE *f;            /* spilled records, NULL while they fit in memory */
+    char dir[1024];     /* where a spill file goes */
+    uint64_t count;     /* records added */
 } pm_spool_t;
 
 /* An empty spool of records of record_size bytes (>= 1) that spills past mem_max bytes into an

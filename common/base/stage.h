@@ -28,35 +28,44 @@
 typedef struct pm_stats pm_stats_t;
 
 typedef struct {
-    const char *name;        /* program name for messages */
+    const char *name; /* program name for messages */
     const pm_cli_t *cli;
-    pm_args_t args;          /* positional arguments after parsing */
+    pm_args_t args; /* positional arguments after parsing */
     int argc;
-    char **argv;             /* as given, for the COMMAND provenance line */
+    char **argv; /* as given, for the COMMAND provenance line */
     /* common option values */
-    const char *output;      /* -o; "-" means stdout */
-    int64_t threads;         /* 0 = all cores, resolved into threads_used */
+    const char *output; /* -o; "-" means stdout */
+    int64_t threads;    /* 0 = all cores, resolved into threads_used */
     int64_t seed;
-    const char *stats_path;  /* --stats FILE, NULL when not asked */
+    const char *stats_path; /* --stats FILE, NULL when not asked */
     int quiet, help, version, print_settings;
     int threads_used;
     pm_timer_t timer;
-    pm_stats_t *stats;       /* the stage's counters, written by pm_stage_end */
-    uint64_t items;          /* what items_per_s counts (photons, queries, ...) */
-    pm_atomic_t out;         /* the -o output of a text-writing program, once opened */
+    pm_stats_t *stats; /* the stage's counters, written by pm_stage_end */
+    uint64_t items;    /* what items_per_s counts (photons, queries, ...) */
+    pm_atomic_t out;   /* the -o output of a text-writing program, once opened */
 } pm_stage_t;
 
-#define PM_STAGE_COMMON_OPTIONS(st)                                                                           \
-    {"output", 'o', PM_OPT_STRING, &(st).output, "FILE", "write the output here; - is stdout", 1, 0, NULL},    \
-        {"threads", 0, PM_OPT_INT, &(st).threads, "N", "worker threads; 0 uses every core", 0, 4096, NULL},   \
-        {"seed", 0, PM_OPT_INT, &(st).seed, "N", "seed of the counter-based random numbers", 0, 9.2e18, NULL}, \
-        {"stats", 0, PM_OPT_STRING, &(st).stats_path, "FILE", "write counters and timings as JSON; - is stderr", \
-         1, 0, NULL},                                                                                          \
-        {"quiet", 'q', PM_OPT_FLAG, &(st).quiet, NULL, "no progress bar and no notes on stderr", 1, 0, NULL},  \
-        {"print-settings", 0, PM_OPT_FLAG, &(st).print_settings, NULL,                                         \
-         "print the effective settings (readable back as @FILE) and exit", 1, 0, NULL},                       \
-        {"help", 'h', PM_OPT_FLAG, &(st).help, NULL, "print this help and exit", 1, 0, NULL},                  \
-        {"version", 0, PM_OPT_FLAG, &(st).version, NULL, "print the version and exit", 1, 0, NULL}
+#define PM_STAGE_COMMON_OPTIONS(st)                                                                                    \
+    {"output", 'o', PM_OPT_STRING, &(st).output, "FILE", "write the output here; - is stdout", 1, 0, NULL},            \
+        {"threads", 0, PM_OPT_INT, &(st).threads, "N", "worker threads; 0 uses every core", 0, 4096, NULL},            \
+        {"seed", 0, PM_OPT_INT, &(st).seed, "N", "seed of the counter-based random numbers", 0, 9.2e18, NULL},         \
+        {"stats", 0, PM_OPT_STRING, &(st).stats_path, "FILE", "write counters and timings as JSON; - is stderr",       \
+         1,       0, NULL},                                                                                            \
+        {"quiet", 'q', PM_OPT_FLAG, &(st).quiet, NULL, "no progress bar and no notes on stderr", 1, 0, NULL},          \
+        {"print-settings",                                                                                             \
+         0,                                                                                                            \
+         PM_OPT_FLAG,                                                                                                  \
+         &(st).print_settings,                                                                                         \
+         NULL,                                                                                                         \
+         "print the effective settings (readable back as @FILE) and exit",                                             \
+         1,                                                                                                            \
+         0,                                                                                                            \
+         NULL},                                                                                                        \
+        {"help", 'h', PM_OPT_FLAG, &(st).help, NULL, "print this help and exit", 1, 0, NULL},                          \
+    {                                                                                                                  \
+        "version", 0, PM_OPT_FLAG, &(st).version, NULL, "print the version and exit", 1, 0, NULL                       \
+    }
 
 /* Call before the option table is built: sets common defaults (output "-", seed 1). */
 void pm_stage_defaults(pm_stage_t *st);

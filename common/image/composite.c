@@ -10,8 +10,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "base/memory.h"
 #include "base/args.h"
+#include "base/memory.h"
 #include "base/version.h"
 #include "formats/formats.h"
 
@@ -66,8 +66,9 @@ static pm_result_t check_same(const char *first, const pm_header_t *h0, const ch
     if (r != PM_OK)
         return r;
     if (w != w0 || ht != ht0)
-        return pm_error_set(PM_ERR_INPUT, "resolution mismatch: '%s' is %" PRIu32 "x%" PRIu32 ", '%s' is %" PRIu32
-                            "x%" PRIu32, path, w, ht, first, w0, ht0);
+        return pm_error_set(PM_ERR_INPUT,
+                            "resolution mismatch: '%s' is %" PRIu32 "x%" PRIu32 ", '%s' is %" PRIu32 "x%" PRIu32, path,
+                            w, ht, first, w0, ht0);
     const char *s0 = pm_header_get(h0, "SCENE"), *s = pm_header_get(h, "SCENE");
     if ((s0 || s) && (!s0 || !s || strcmp(s0, s)))
         return pm_error_set(PM_ERR_INPUT, "scene mismatch: '%s' is of scene '%s', '%s' of scene '%s'", path,
@@ -98,8 +99,10 @@ pm_result_t pm_composite_open(pm_composite_t **c_out, char *const *args, int nin
         in[i].component = pm_header_get(hi, "component");
         int is_direct = !strcmp(in[i].component, "direct"), is_indirect = !strcmp(in[i].component, "indirect");
         if (only != PM_ONLY_ALL && !is_direct && !is_indirect) {
-            r = pm_error_set(PM_ERR_INPUT, "--only %s: radiance buffer '%s' is component=%s, direct and indirect "
-                             "together", pm_composite_only_names[only], in[i].path, in[i].component);
+            r = pm_error_set(PM_ERR_INPUT,
+                             "--only %s: radiance buffer '%s' is component=%s, direct and indirect "
+                             "together",
+                             pm_composite_only_names[only], in[i].path, in[i].component);
             break;
         }
         in[i].used = only == PM_ONLY_ALL || (only == PM_ONLY_DIRECT ? is_direct : is_indirect);
@@ -113,8 +116,8 @@ pm_result_t pm_composite_open(pm_composite_t **c_out, char *const *args, int nin
     if (r != PM_OK)
         return r;
     if (ndirect + nindirect + ntotal == 0)
-        return pm_error_set(PM_ERR_INPUT, "--only %s: none of the %d buffers is %s", pm_composite_only_names[only],
-                            nin, pm_composite_only_names[only]);
+        return pm_error_set(PM_ERR_INPUT, "--only %s: none of the %d buffers is %s", pm_composite_only_names[only], nin,
+                            pm_composite_only_names[only]);
     pm_composite_info_t *info = &c->info;
     if ((r = pm_header_get_image_size(pm_reader_header(in[c->first].rd), in[c->first].path, &info->width,
                                       &info->height)) != PM_OK)
@@ -157,8 +160,8 @@ pm_result_t pm_composite_sum(pm_composite_t *c, int argc, char **argv, pm_compos
     double *chunk = pm_alloc_aligned(pm_schema_record_size(&pm_radiance_schema, ~0u) * CHUNK_PIXELS); /* widest */
     if (!c->acc || !chunk) {
         pm_free_aligned(chunk);
-        return pm_error_set(PM_ERR_NOMEM, "out of memory for a %" PRIu32 "x%" PRIu32 " image (%.0f MB)",
-                            c->info.width, c->info.height, n * 24.0 / 1e6);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for a %" PRIu32 "x%" PRIu32 " image (%.0f MB)", c->info.width,
+                            c->info.height, n * 24.0 / 1e6);
     }
     memset(c->acc, 0, 3 * n * sizeof *c->acc);
     /* Buffers left out by --only are not read, and give no provenance. */
@@ -197,9 +200,10 @@ pm_result_t pm_composite_finish(pm_composite_t *c, int half)
         for (int ch = 0; ch < 3; ch++) {
             double v = acc[3 * p + (uint64_t)ch];
             if (!(fabs(v) <= (double)lim))
-                return pm_error_set(PM_ERR_INPUT, "pixel (%" PRIu64 ", %" PRIu64 ") channel %c is %g after scaling, "
-                                    "beyond %s (largest %g)", p % w, p / w, "RGB"[ch], v, half ? "half" : "float",
-                                    (double)lim);
+                return pm_error_set(PM_ERR_INPUT,
+                                    "pixel (%" PRIu64 ", %" PRIu64 ") channel %c is %g after scaling, "
+                                    "beyond %s (largest %g)",
+                                    p % w, p / w, "RGB"[ch], v, half ? "half" : "float", (double)lim);
             c->pix[3 * p + (uint64_t)ch] = (float)v;
         }
         double l = pm_luminance(acc + 3 * p);
@@ -267,8 +271,8 @@ pm_result_t pm_composite_write_exr(const pm_composite_t *c, const char *path, pm
     pm_result_t r = exr_attrs(&c->hdr, c->info.components, &attrs, &nattrs, &names);
     if (r != PM_OK)
         return r;
-    r = pm_exr_write_rgb(path, c->info.width, c->info.height, c->pix, c->half ? PM_EXR_HALF : PM_EXR_FLOAT, comp,
-                         attrs, nattrs);
+    r = pm_exr_write_rgb(path, c->info.width, c->info.height, c->pix, c->half ? PM_EXR_HALF : PM_EXR_FLOAT, comp, attrs,
+                         nattrs);
     for (size_t i = 0; names[i]; i++)
         free(names[i]);
     free(names);

@@ -26,12 +26,12 @@ typedef enum {
 extern const char *const pm_errimg_names[];
 
 typedef struct {
-    uint64_t values;    /* 3 w h */
-    double epsilon;     /* as given: added to r^2 ((W/(m^2 sr))^2) and to |r| (W/(m^2 sr)) */
+    uint64_t values; /* 3 w h */
+    double epsilon;  /* as given: added to r^2 ((W/(m^2 sr))^2) and to |r| (W/(m^2 sr)) */
     double rmse, relmse, mean_abs_rel;
-    double max_abs;     /* largest |t - r| */
+    double max_abs; /* largest |t - r| */
     double mean_test, mean_ref;
-    double ch_rmse[3];  /* rmse of R, G, B alone */
+    double ch_rmse[3]; /* rmse of R, G, B alone */
     /* The reference's own noise, when it reports its variance: E[(t - r)^2] = (t - R)^2 + var(r)
      * for the true R, so these are the floor under rmse and relmse that a better test cannot pass. */
     int has_ref_noise;

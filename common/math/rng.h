@@ -9,10 +9,10 @@
 #include <stdint.h>
 
 typedef struct {
-    uint32_t key[2];  /* the seed */
-    uint32_t ctr[4];  /* ctr[0..1]: block within the stream, ctr[2..3]: the stream id */
-    uint32_t buf[4];  /* the current block */
-    unsigned used;    /* words of buf already handed out */
+    uint32_t key[2]; /* the seed */
+    uint32_t ctr[4]; /* ctr[0..1]: block within the stream, ctr[2..3]: the stream id */
+    uint32_t buf[4]; /* the current block */
+    unsigned used;   /* words of buf already handed out */
 } pm_rng_t;
 
 /* One Philox4x32-10 block: out = bijection of ctr under key. */

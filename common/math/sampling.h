@@ -88,8 +88,8 @@ static inline void pm_sample_triangle(float u1, float u2, float *b0_out, float *
 }
 
 /* Point (u1, u2) placed inside cell (cx, cy) of an nx by ny grid over [0,1)^2. */
-static inline void pm_stratify(unsigned cx, unsigned cy, unsigned nx, unsigned ny, float u1, float u2,
-                               float *s1_out, float *s2_out)
+static inline void pm_stratify(unsigned cx, unsigned cy, unsigned nx, unsigned ny, float u1, float u2, float *s1_out,
+                               float *s2_out)
 {
     *s1_out = ((float)cx + u1) / (float)nx;
     *s2_out = ((float)cy + u2) / (float)ny;

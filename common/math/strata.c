@@ -48,16 +48,24 @@ void pm_strata_fill(pm_rng_t *rng, unsigned nx, unsigned ny, unsigned per_cell, 
             uint64_t b = first + j;
             uint32_t x0 = (uint32_t)b, x1 = (uint32_t)(b >> 32), x2 = c2, x3 = c3, y0 = k0, y1 = k1;
             /* pm_philox4x32_10 of rng.h, its rounds written out so the loop has no inner loop */
-#define PHILOX_ROUND                                                                                   \
-    do {                                                                                               \
-        uint64_t p0 = (uint64_t)0xD2511F53u * x0, p1 = (uint64_t)0xCD9E8D57u * x2;                      \
-        uint32_t n0 = (uint32_t)(p1 >> 32) ^ x1 ^ y0, n1 = (uint32_t)p1;                                \
-        uint32_t n2 = (uint32_t)(p0 >> 32) ^ x3 ^ y1, n3 = (uint32_t)p0;                                \
-        x0 = n0, x1 = n1, x2 = n2, x3 = n3;                                                            \
-        y0 += 0x9E3779B9u, y1 += 0xBB67AE85u;                                                          \
+#define PHILOX_ROUND                                                                                                   \
+    do {                                                                                                               \
+        uint64_t p0 = (uint64_t)0xD2511F53u * x0, p1 = (uint64_t)0xCD9E8D57u * x2;                                     \
+        uint32_t n0 = (uint32_t)(p1 >> 32) ^ x1 ^ y0, n1 = (uint32_t)p1;                                               \
+        uint32_t n2 = (uint32_t)(p0 >> 32) ^ x3 ^ y1, n3 = (uint32_t)p0;                                               \
+        x0 = n0, x1 = n1, x2 = n2, x3 = n3;                                                                            \
+        y0 += 0x9E3779B9u, y1 += 0xBB67AE85u;                                                                          \
     } while (0)
-            PHILOX_ROUND; PHILOX_ROUND; PHILOX_ROUND; PHILOX_ROUND; PHILOX_ROUND;
-            PHILOX_ROUND; PHILOX_ROUND; PHILOX_ROUND; PHILOX_ROUND; PHILOX_ROUND;
+            PHILOX_ROUND;
+            PHILOX_ROUND;
+            PHILOX_ROUND;
+            PHILOX_ROUND;
+            PHILOX_ROUND;
+            PHILOX_ROUND;
+            PHILOX_ROUND;
+            PHILOX_ROUND;
+            PHILOX_ROUND;
+            PHILOX_ROUND;
 #undef PHILOX_ROUND
             u1[2 * j] = (float)(x0 >> 8) * 0x1p-24f;
             u2[2 * j] = (float)(x1 >> 8) * 0x1p-24f;

@@ -7,10 +7,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "photonmap/gather_impl.h"
-#include "photonmap/kdtree.h"
 #include "base/memory.h"
 #include "base/timer.h"
+#include "photonmap/gather_impl.h"
+#include "photonmap/kdtree.h"
 
 /* Queries per unit of work handed to a thread: a multiple of every packet width, small
  * enough that two threads stay balanced, large enough that scheduling costs nothing. */
@@ -27,8 +27,8 @@ pm_result_t pm_gather_map_init(pm_gather_map_t *m, const pm_table_t *map, int va
     m->dir = map->col[PM_MAP_DIRECTION];
     m->width = map->col[PM_MAP_WIDTH];
     if (m->n > PM_GATHER_MAX_PHOTONS)
-        return pm_error_set(PM_ERR_INPUT, "photon map of %" PRIu32 " photons: the gather takes at most %u",
-                            m->n, PM_GATHER_MAX_PHOTONS);
+        return pm_error_set(PM_ERR_INPUT, "photon map of %" PRIu32 " photons: the gather takes at most %u", m->n,
+                            PM_GATHER_MAX_PHOTONS);
     m->hot = pm_alloc_aligned((m->n ? m->n : 1) * sizeof *m->hot);
     if (!m->hot)
         return pm_error_set(PM_ERR_NOMEM, "out of memory for the hot records of %" PRIu32 " photons", m->n);
@@ -45,7 +45,7 @@ pm_result_t pm_gather_map_init(pm_gather_map_t *m, const pm_table_t *map, int va
     if (variable) {
         if (!m->width)
             return pm_error_set(PM_ERR_INPUT, "variable kernel widths need a photon map with the width channel "
-                                "(build-photonmap --width-k K)");
+                                              "(build-photonmap --width-k K)");
         m->subtree_width = malloc((m->n ? m->n : 1) * sizeof *m->subtree_width);
         if (!m->subtree_width)
             return pm_error_set(PM_ERR_NOMEM, "out of memory for the subtree widths of %" PRIu32 " photons", m->n);
@@ -105,8 +105,7 @@ void pm_gather_brdf(const pm_material_t *mt, const float n[3], const float wi[3]
         f[k] = mt->kd[k] / M_PI + mt->ks[k] * lobe;
 }
 
-void gather_glossy_lane(const gather_ctx_t *c, uint64_t qi, uint32_t ni, float k, double *dacc, uint32_t w,
-                        uint32_t l)
+void gather_glossy_lane(const gather_ctx_t *c, uint64_t qi, uint32_t ni, float k, double *dacc, uint32_t w, uint32_t l)
 {
     const pm_gather_queries_t *q = c->q;
     const pm_material_t *mt = &q->materials[q->material ? q->material[qi] : 0];
@@ -117,8 +116,8 @@ void gather_glossy_lane(const gather_ctx_t *c, uint64_t qi, uint32_t ni, float k
         dacc[ch * w + l] += (double)k * f[ch] * pw[ch];
 }
 
-pm_result_t pm_gather_glossy_table(const pm_gather_map_t *m, const pm_gather_queries_t *q,
-                                   unsigned char **glossy_out, int *any_out)
+pm_result_t pm_gather_glossy_table(const pm_gather_map_t *m, const pm_gather_queries_t *q, unsigned char **glossy_out,
+                                   int *any_out)
 {
     unsigned char *g = calloc(q->nmaterials ? q->nmaterials : 1, 1);
     if (!g)
@@ -133,7 +132,7 @@ pm_result_t pm_gather_glossy_table(const pm_gather_map_t *m, const pm_gather_que
         r = pm_error_set(PM_ERR_INPUT, "the queries have glossy materials but no direction channel");
     else if (any && !m->dir)
         r = pm_error_set(PM_ERR_INPUT, "the queries have glossy materials but the photon map has no direction "
-                         "channel (trace its photons from the same scene)");
+                                       "channel (trace its photons from the same scene)");
     if (r != PM_OK) {
         free(g);
         return r;
@@ -204,8 +203,8 @@ pm_result_t pm_gather_run(const pm_gather_map_t *m, const pm_gather_queries_t *q
     res = pm_gather_glossy_table(m, q, &mat_glossy, &glossy);
     if (res != PM_OK)
         return res;
-    gather_ctx_t c = {.m = m, .q = q, .kernel = p->kernel, .normal_cos = p->normal_cos, .glossy = glossy,
-                      .mat_glossy = mat_glossy};
+    gather_ctx_t c = {
+        .m = m, .q = q, .kernel = p->kernel, .normal_cos = p->normal_cos, .glossy = glossy, .mat_glossy = mat_glossy};
     const double inv_pi = 0.31830988618379067;
     c.kscale_unit = (float)((p->kernel == PM_KERNEL_UNIFORM ? 1.0 : 2.0) * inv_pi);
     double r = p->variable ? 0.0 : p->radius;

@@ -20,9 +20,9 @@
 
 #include <stdint.h>
 
-#include "formats/formats.h"
 #include "base/cpu.h"
 #include "base/error.h"
+#include "formats/formats.h"
 
 typedef enum { PM_KERNEL_UNIFORM = 0, PM_KERNEL_EPANECHNIKOV = 1 } pm_kernel_t;
 
@@ -43,14 +43,14 @@ typedef struct {
 typedef struct {
     uint32_t n;
     const pm_kdnode_t *node;
-    const float *pos;      /* n * 3, m */
-    const float *power;    /* n * 3, W */
-    const float *normal;   /* n * 3 */
-    const float *dir;      /* n * 3 or NULL: toward where the photon came from (glossy scenes) */
-    const float *width;    /* n or NULL: kernel width h_i, m (variable widths) */
-    float *subtree_width;  /* n, owned: the largest width in node i's subtree (variable widths) */
-    pm_gather_hot_t *hot;  /* n, owned: node and position interleaved, the walk's only reads */
-    float max_abs;         /* largest |coordinate| of any photon, m: bounds the split planes' slack */
+    const float *pos;     /* n * 3, m */
+    const float *power;   /* n * 3, W */
+    const float *normal;  /* n * 3 */
+    const float *dir;     /* n * 3 or NULL: toward where the photon came from (glossy scenes) */
+    const float *width;   /* n or NULL: kernel width h_i, m (variable widths) */
+    float *subtree_width; /* n, owned: the largest width in node i's subtree (variable widths) */
+    pm_gather_hot_t *hot; /* n, owned: node and position interleaved, the walk's only reads */
+    float max_abs;        /* largest |coordinate| of any photon, m: bounds the split planes' slack */
 } pm_gather_map_t;
 
 /* The queries as the gather reads them (structure of arrays, from a queries table). */
@@ -58,28 +58,28 @@ typedef struct {
     uint64_t n;
     const float *pos, *normal, *weight; /* n * 3 each */
     const uint32_t *pixel;
-    const uint16_t *material;           /* NULL: every query has material 0 */
-    const float *dir;                   /* n * 3 or NULL */
-    const pm_material_t *materials;     /* the file's material table */
+    const uint16_t *material;       /* NULL: every query has material 0 */
+    const float *dir;               /* n * 3 or NULL */
+    const pm_material_t *materials; /* the file's material table */
     uint32_t nmaterials;
 } pm_gather_queries_t;
 
 typedef struct {
-    double radius;           /* m: fixed kernel width h (ignored with variable widths) */
+    double radius; /* m: fixed kernel width h (ignored with variable widths) */
     pm_kernel_t kernel;
-    int variable;            /* 1: each photon's own width from the map's width channel */
-    float normal_cos;        /* a photon counts when dot(n_photon, n_query) >= this */
+    int variable;     /* 1: each photon's own width from the map's width channel */
+    float normal_cos; /* a photon counts when dot(n_photon, n_query) >= this */
     pm_isa_t isa;
 } pm_gather_params_t;
 
 typedef struct {
-    uint64_t shader_ops;     /* photon-query pairs inside the kernel (and normal test) */
-    uint64_t shade_steps;    /* calls of the shading step (a node's photon against a packet) */
-    uint64_t active_lanes;   /* sum over shading steps of the lanes live in that step */
+    uint64_t shader_ops;       /* photon-query pairs inside the kernel (and normal test) */
+    uint64_t shade_steps;      /* calls of the shading step (a node's photon against a packet) */
+    uint64_t active_lanes;     /* sum over shading steps of the lanes live in that step */
     uint64_t straddling_lanes; /* ... of those whose sphere straddles the node's plane (or a leaf's live lanes) */
-    uint64_t nodes_visited;  /* packet-node visits */
+    uint64_t nodes_visited;    /* packet-node visits */
     uint64_t packets;
-    double cpu_s;            /* CPU seconds the threads spent in the kernels (robust to other load) */
+    double cpu_s; /* CPU seconds the threads spent in the kernels (robust to other load) */
 } pm_gather_stats_t;
 
 /* Views the map table's columns (no copy); with variable widths also computes the
@@ -114,8 +114,8 @@ void pm_gather_brdf(const pm_material_t *mt, const float n[3], const float wi[3]
  * q->nmaterials bytes (1: glossy) in *glossy_out, freed by the caller, and in *any_out
  * whether any is. Fails when a glossy material meets queries or a map without the
  * direction channel. */
-pm_result_t pm_gather_glossy_table(const pm_gather_map_t *m, const pm_gather_queries_t *q,
-                                   unsigned char **glossy_out, int *any_out);
+pm_result_t pm_gather_glossy_table(const pm_gather_map_t *m, const pm_gather_queries_t *q, unsigned char **glossy_out,
+                                   int *any_out);
 
 /* The argument checks every gather makes: [begin, end) within the queries (PM_ERR_INTERNAL),
  * and a positive kernel radius whose square fits a float (PM_ERR_USAGE). */

@@ -16,22 +16,20 @@ typedef struct {
     const pm_gather_map_t *m;
     const pm_gather_queries_t *q;
     pm_kernel_t kernel;
-    float r, r2, inv_r2, r_trav;  /* fixed width h, h^2, 1/h^2, h grown by the slack (m) */
-    float kscale;                 /* K(0) / h^2: 1/(pi h^2) uniform, 2/(pi h^2) Epanechnikov */
-    float kscale_unit;            /* the same for h = 1 (variable widths divide by h_i^2) */
-    float slack;                  /* m: the split planes' and distances' rounding, see gather.c */
+    float r, r2, inv_r2, r_trav; /* fixed width h, h^2, 1/h^2, h grown by the slack (m) */
+    float kscale;                /* K(0) / h^2: 1/(pi h^2) uniform, 2/(pi h^2) Epanechnikov */
+    float kscale_unit;           /* the same for h = 1 (variable widths divide by h_i^2) */
+    float slack;                 /* m: the split planes' and distances' rounding, see gather.c */
     float normal_cos;
-    int glossy;                   /* some query material is glossy */
+    int glossy;                      /* some query material is glossy */
     const unsigned char *mat_glossy; /* per material: 1 when ks > 0 */
 } gather_ctx_t;
 
-typedef void (*gather_fn_t)(const gather_ctx_t *c, uint64_t begin, uint64_t end, double *out,
-                            pm_gather_stats_t *st);
+typedef void (*gather_fn_t)(const gather_ctx_t *c, uint64_t begin, uint64_t end, double *out, pm_gather_stats_t *st);
 
 /* One glossy pair: query qi (lane l of a W-lane packet) and photon node ni with kernel
  * value k (K / h^2): adds k f(wi, wo) power to dacc[channel * w + l]. */
-void gather_glossy_lane(const gather_ctx_t *c, uint64_t qi, uint32_t ni, float k, double *dacc, uint32_t w,
-                        uint32_t l);
+void gather_glossy_lane(const gather_ctx_t *c, uint64_t qi, uint32_t ni, float k, double *dacc, uint32_t w, uint32_t l);
 
 /* The kernels of gather_isa.c: [isa][variable]. */
 gather_fn_t gather_kernel_for(pm_isa_t isa, int variable);

@@ -80,7 +80,8 @@ static inline void flush8(__m256 ar, __m256 ag, __m256 ab, double dacc[3][8])
 {
     __m256 v[3] = {ar, ag, ab};
     for (int k = 0; k < 3; k++) {
-        __m256d lo = _mm256_cvtps_pd(_mm256_castps256_ps128(v[k])), hi = _mm256_cvtps_pd(_mm256_extractf128_ps(v[k], 1));
+        __m256d lo = _mm256_cvtps_pd(_mm256_castps256_ps128(v[k])),
+                hi = _mm256_cvtps_pd(_mm256_extractf128_ps(v[k], 1));
         _mm256_storeu_pd(&dacc[k][0], _mm256_add_pd(_mm256_loadu_pd(&dacc[k][0]), lo));
         _mm256_storeu_pd(&dacc[k][4], _mm256_add_pd(_mm256_loadu_pd(&dacc[k][4]), hi));
     }
@@ -145,13 +146,9 @@ typedef int vi16 __attribute__((vector_size(64)));
 gather_fn_t gather_kernel_for(pm_isa_t isa, int variable)
 {
     switch (isa) {
-    case PM_ISA_SSE4:
-        return variable ? gather_packets_sse4_var : gather_packets_sse4_fixed;
-    case PM_ISA_AVX2:
-        return variable ? gather_packets_avx2_var : gather_packets_avx2_fixed;
-    case PM_ISA_AVX512:
-        return variable ? gather_packets_avx512_var : gather_packets_avx512_fixed;
-    default:
-        return variable ? gather_packets_scalar_var : gather_packets_scalar_fixed;
+    case PM_ISA_SSE4: return variable ? gather_packets_sse4_var : gather_packets_sse4_fixed;
+    case PM_ISA_AVX2: return variable ? gather_packets_avx2_var : gather_packets_avx2_fixed;
+    case PM_ISA_AVX512: return variable ? gather_packets_avx512_var : gather_packets_avx512_fixed;
+    default: return variable ? gather_packets_scalar_var : gather_packets_scalar_fixed;
     }
 }

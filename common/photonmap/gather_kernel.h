@@ -36,22 +36,26 @@ static inline VF FN(vpow)(VF x, VF n)
     e = e - big; /* big is -1 where true */
     VF t = (mnt - 1.0f) / (mnt + 1.0f), t2 = t * t;
     VF lg = t * (2.8853900817779268f +
-                 t2 * (0.9617966939259756f + t2 * (0.5770780163555854f + t2 * (0.4121985831111324f + t2 * 0.3205988979753252f))));
+                 t2 * (0.9617966939259756f +
+                       t2 * (0.5770780163555854f + t2 * (0.4121985831111324f + t2 * 0.3205988979753252f))));
     VF y = n * (__builtin_convertvector(e, VF) + lg);
     VI under = y < -126.0f;
     y = (VF)(((VI)y & ~under) | ((VI)((VF){0} - 126.0f) & under));
     VI i = -__builtin_convertvector(0.5f - y, VI); /* round: 0.5 - y > 0 unless y > 0.5 */
     VF f = y - __builtin_convertvector(i, VF);
-    VF p = 1.0f + f * (0.6931471805599453f + f * (0.2402265069591007f + f * (0.05550410866482158f +
-             f * (0.009618129107628477f + f * (0.0013333558146428443f + f * (1.5403530393381608e-4f +
-             f * 1.525273380405984e-5f))))));
+    VF p =
+        1.0f +
+        f * (0.6931471805599453f +
+             f * (0.2402265069591007f +
+                  f * (0.05550410866482158f +
+                       f * (0.009618129107628477f +
+                            f * (0.0013333558146428443f + f * (1.5403530393381608e-4f + f * 1.525273380405984e-5f))))));
     VF r = p * (VF)((i + 127) << 23);
     return (VF)((VI)r & ~under & pos);
 }
 #endif
 
-static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t end, double *out,
-                               pm_gather_stats_t *st)
+static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t end, double *out, pm_gather_stats_t *st)
 {
     const pm_gather_map_t *m = c->m;
     const pm_gather_queries_t *q = c->q;

@@ -13,8 +13,8 @@
 
 const char *const pm_kernel_names[] = {"uniform", "epanechnikov", NULL};
 
-pm_result_t pm_gather_inputs_read(pm_gather_inputs_t *in, const char *map_path, const char *q_path,
-                                  const char *range, int variable)
+pm_result_t pm_gather_inputs_read(pm_gather_inputs_t *in, const char *map_path, const char *q_path, const char *range,
+                                  int variable)
 {
     memset(in, 0, sizeof *in);
     in->map_path = map_path;
@@ -26,8 +26,8 @@ pm_result_t pm_gather_inputs_read(pm_gather_inputs_t *in, const char *map_path, 
     if (in->ranged && (r = pm_args_parse_range(range, &in->begin, &in->end)) != PM_OK)
         return r;
     double t0 = pm_time_wall();
-    if ((r = pm_table_read(map_path, &pm_photonmap_schema, pm_schema_required(&pm_photonmap_schema),
-                           &in->map_table)) != PM_OK)
+    if ((r = pm_table_read(map_path, &pm_photonmap_schema, pm_schema_required(&pm_photonmap_schema), &in->map_table)) !=
+        PM_OK)
         return r;
     /* The queries: only [begin, end) is kept, the whole file is checked. */
     pm_reader_t *rd;
@@ -46,8 +46,10 @@ pm_result_t pm_gather_inputs_read(pm_gather_inputs_t *in, const char *map_path, 
     const pm_header_t *mh = &in->map_table.hdr, *qh = &in->q_table.hdr;
     const char *wk = pm_header_get(qh, "weights");
     if (!wk || strcmp(wk, "lambertian-brdf-folded") != 0)
-        return pm_error_set(PM_ERR_INPUT, "queries '%s' do not say which weight contract they follow (weights=%s; "
-                            "expected lambertian-brdf-folded, docs/formats.md 3.3)", q_path, wk ? wk : "missing");
+        return pm_error_set(PM_ERR_INPUT,
+                            "queries '%s' do not say which weight contract they follow (weights=%s; "
+                            "expected lambertian-brdf-folded, docs/formats.md 3.3)",
+                            q_path, wk ? wk : "missing");
     const char *sm = pm_header_get(mh, "SCENE"), *sq = pm_header_get(qh, "SCENE");
     if (sm && sq && strcmp(sm, sq) != 0)
         return pm_error_set(PM_ERR_INPUT, "photon map '%s' is of scene '%s' but queries '%s' are of scene '%s'",
@@ -158,8 +160,7 @@ static pm_result_t sample_file(const char *path, uint32_t want, sample_t *s)
     return res;
 }
 
-pm_result_t pm_gather_inputs_radius_for_k(const pm_gather_inputs_t *in, double k, float normal_cos,
-                                          double *radius_out)
+pm_result_t pm_gather_inputs_radius_for_k(const pm_gather_inputs_t *in, double k, float normal_cos, double *radius_out)
 {
     const uint32_t samples = 2000;
     sample_t smp = {0};
@@ -169,7 +170,7 @@ pm_result_t pm_gather_inputs_radius_for_k(const pm_gather_inputs_t *in, double k
         r = sample_table(&in->q, samples, &smp);
     else if (strcmp(in->q_path, "-") == 0)
         r = pm_error_set(PM_ERR_USAGE, "--k with --range needs the queries as a file, not stdin, so that every "
-                         "shard finds the same radius; or give --radius");
+                                       "shard finds the same radius; or give --radius");
     else
         r = sample_file(in->q_path, samples, &smp);
     if (r == PM_OK) {
@@ -215,8 +216,7 @@ pm_result_t pm_gather_output_init(pm_table_t *out, const pm_gather_inputs_t *in,
 pm_result_t pm_gather_output_write(pm_table_t *out, const pm_gather_inputs_t *in, const char *path)
 {
     pm_result_t r;
-    if (in->ranged &&
-        (r = pm_header_set(&out->hdr, "range", "%" PRIu64 ":%" PRIu64, in->begin, in->end)) != PM_OK)
+    if (in->ranged && (r = pm_header_set(&out->hdr, "range", "%" PRIu64 ":%" PRIu64, in->begin, in->end)) != PM_OK)
         return r;
     return pm_table_write(out, path);
 }

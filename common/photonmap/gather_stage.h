@@ -7,9 +7,9 @@
 
 #include <stdint.h>
 
-#include "formats/formats.h"
 #include "base/args.h"
 #include "base/error.h"
+#include "formats/formats.h"
 #include "photonmap/gather.h"
 
 /* The kernels' names, in pm_kernel_t order, for --kernel and the `kernel` header key. */
@@ -17,11 +17,20 @@ extern const char *const pm_kernel_names[];
 
 /* The options every gather stage has, with the same meaning and help: --normal-cos C (a
  * double) and --range B:E (a string). */
-#define PM_GATHER_COMMON_OPTIONS(normal_cos, range)                                                              \
-    {"normal-cos", 0, PM_OPT_DOUBLE, &(normal_cos), "C",                                                         \
-     "a photon counts when the cosine between its normal and the query's is at least C", -1, 1, NULL},           \
-        {"range", 0, PM_OPT_STRING, &(range), "B:E", "gather only queries [B, E) (shards; composite adds them)", \
-         1, 0, NULL}
+#define PM_GATHER_COMMON_OPTIONS(normal_cos, range)                                                                    \
+    {"normal-cos",                                                                                                     \
+     0,                                                                                                                \
+     PM_OPT_DOUBLE,                                                                                                    \
+     &(normal_cos),                                                                                                    \
+     "C",                                                                                                              \
+     "a photon counts when the cosine between its normal and the query's is at least C",                               \
+     -1,                                                                                                               \
+     1,                                                                                                                \
+     NULL},                                                                                                            \
+    {                                                                                                                  \
+        "range", 0, PM_OPT_STRING, &(range), "B:E", "gather only queries [B, E) (shards; composite adds them)", 1, 0,  \
+            NULL                                                                                                       \
+    }
 
 /* A photon map and a queries file (or the range [begin, end) of one), as the gathers read
  * them. Row i of `q` is query begin + i of the file. */
@@ -42,15 +51,14 @@ typedef struct {
  * weight contract and that both are of one scene, views them for the gathers (`variable`:
  * per-photon widths, see pm_gather_map_init) and allocates per_query. Free with
  * pm_gather_inputs_free, also after a failure. */
-pm_result_t pm_gather_inputs_read(pm_gather_inputs_t *in, const char *map_path, const char *q_path,
-                                  const char *range, int variable);
+pm_result_t pm_gather_inputs_read(pm_gather_inputs_t *in, const char *map_path, const char *q_path, const char *range,
+                                  int variable);
 void pm_gather_inputs_free(pm_gather_inputs_t *in);
 
 /* The kernel width at which about k photons contribute to a query (pm_gather_radius_for_k),
  * measured on the queries of the pixels a hash picks, so that it does not depend on the
  * order of the queries; a shard samples the whole file (which must then not be stdin). */
-pm_result_t pm_gather_inputs_radius_for_k(const pm_gather_inputs_t *in, double k, float normal_cos,
-                                          double *radius_out);
+pm_result_t pm_gather_inputs_radius_for_k(const pm_gather_inputs_t *in, double k, float normal_cos, double *radius_out);
 
 /* The radiance buffer of in->per_query: each
  * query added to its pixel in file order, so the buffer does not depend on how the sums

@@ -10,10 +10,10 @@
  * Why this shape: sorting one 8-byte word per point moves 8 bytes per point per pass instead
  * of a 40 to 56-byte record (or a 12-byte code and index), and the records are gathered once
  * by the caller; the root's counts are made with the words, and a last pass whose children
- * are all leaves puts the indices straight into the permutation; the first passes (large cells, memory-bound) run on every thread, the cells below
- * them are independent and shared out dynamically. Every pass is a stable counting scatter,
- * whose result does not depend on how the input was split among threads, so the permutation
- * is the same for any thread count. */
+ * are all leaves puts the indices straight into the permutation; the first passes (large cells, memory-bound) run on
+ * every thread, the cells below them are independent and shared out dynamically. Every pass is a stable counting
+ * scatter, whose result does not depend on how the input was split among threads, so the permutation is the same for
+ * any thread count. */
 #include "photonmap/hilbert.h"
 
 #include <inttypes.h>
@@ -38,18 +38,18 @@ const uint8_t pm_hilbert_order[PM_HILBERT_STATES][8] = {
     {5, 4, 6, 7, 3, 2, 0, 1}, {3, 7, 6, 2, 0, 4, 5, 1}, {3, 1, 5, 7, 6, 4, 0, 2}, {6, 7, 5, 4, 0, 1, 3, 2},
 };
 const uint8_t pm_hilbert_child[PM_HILBERT_STATES][8] = {
-    {1, 2, 0, 3, 4, 5, 5, 6},   {2, 0, 1, 4, 7, 8, 8, 9},   {0, 1, 2, 7, 3, 10, 10, 11}, {8, 6, 3, 10, 2, 7, 7, 4},
-    {10, 9, 4, 5, 0, 3, 3, 7},  {11, 7, 5, 1, 9, 6, 6, 0},  {3, 8, 6, 11, 10, 0, 0, 5},  {5, 11, 7, 8, 1, 4, 4, 3},
-    {6, 3, 8, 2, 11, 9, 9, 1},  {4, 10, 9, 6, 5, 1, 1, 8},  {9, 4, 10, 0, 6, 11, 11, 2}, {7, 5, 11, 9, 8, 2, 2, 10},
+    {1, 2, 0, 3, 4, 5, 5, 6},  {2, 0, 1, 4, 7, 8, 8, 9},  {0, 1, 2, 7, 3, 10, 10, 11}, {8, 6, 3, 10, 2, 7, 7, 4},
+    {10, 9, 4, 5, 0, 3, 3, 7}, {11, 7, 5, 1, 9, 6, 6, 0}, {3, 8, 6, 11, 10, 0, 0, 5},  {5, 11, 7, 8, 1, 4, 4, 3},
+    {6, 3, 8, 2, 11, 9, 9, 1}, {4, 10, 9, 6, 5, 1, 1, 8}, {9, 4, 10, 0, 6, 11, 11, 2}, {7, 5, 11, 9, 8, 2, 2, 10},
 };
 
 const char *const pm_order_names[] = {"none", "morton", "hilbert", NULL};
 
 #define LEVELS PM_HILBERT_LEVELS
-#define CELLS (1u << LEVELS)  /* cells per axis at the deepest level */
-#define MAX_PASS_LEVELS 4     /* levels per radix pass: 4096 buckets, 16 KiB of counts */
+#define CELLS (1u << LEVELS) /* cells per axis at the deepest level */
+#define MAX_PASS_LEVELS 4    /* levels per radix pass: 4096 buckets, 16 KiB of counts */
 #define MAX_BUCKETS (1u << (3 * MAX_PASS_LEVELS))
-#define PAR_MIN_POINTS 65536  /* cells at least this large (and a large share) get a parallel pass */
+#define PAR_MIN_POINTS 65536 /* cells at least this large (and a large share) get a parallel pass */
 
 /* Per-pass tables: for a pass of k levels (1..4) over a cell in state s, entry
  * [s * 8^k + m] of t[k] maps the cell's next k Morton digits m (3 bits per level, the top
@@ -206,13 +206,13 @@ uint64_t pm_reorder_auto_leaf(uint64_t n, uint64_t cache_bytes)
  * levels, more than leaves of 16 need unless points cluster; a cell that goes deeper than
  * its window has its words rewritten from the positions with the next levels (refill). */
 typedef struct {
-    uint64_t *w[2];       /* words, in one of two buffers; a pass moves a cell to the other */
-    uint32_t *perm;       /* the caller's permutation, where every leaf ends up */
+    uint64_t *w[2]; /* words, in one of two buffers; a pass moves a cell to the other */
+    uint32_t *perm; /* the caller's permutation, where every leaf ends up */
     uint64_t leaf;
-    unsigned ib, cap;     /* index bits; levels of Morton digits a word holds */
-    uint64_t imask;       /* the index bits */
+    unsigned ib, cap; /* index bits; levels of Morton digits a word holds */
+    uint64_t imask;   /* the index bits */
     digit_tables_t tab;
-    const void *pos;      /* the points, for refills */
+    const void *pos; /* the points, for refills */
     size_t stride;
     double lo[3], scale;
 } sorter_t;
@@ -224,12 +224,12 @@ typedef struct {
 
 /* Work left after the parallel passes: a cell to sort, or a leaf to put in place. */
 typedef struct {
-    uint64_t b, m;     /* the range [b, b + m) */
-    uint8_t level;     /* its depth in the octree */
-    uint8_t base;      /* the first level its words hold */
-    uint8_t state;     /* its orientation */
-    uint8_t buf;       /* which buffer holds it */
-    uint8_t is_leaf;   /* 1: a leaf, 2: a leaf whose indices must be put back in input order */
+    uint64_t b, m;   /* the range [b, b + m) */
+    uint8_t level;   /* its depth in the octree */
+    uint8_t base;    /* the first level its words hold */
+    uint8_t state;   /* its orientation */
+    uint8_t buf;     /* which buffer holds it */
+    uint8_t is_leaf; /* 1: a leaf, 2: a leaf whose indices must be put back in input order */
 } work_t;
 
 typedef struct {
@@ -333,8 +333,8 @@ static void leaf_done(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsign
 /* One pass: the bucket (curve digits of k levels) of a word, in a cell of state s. */
 #define BUCKET(tab, word) ((tab)[((word) >> shift) & (nb - 1)] & (nb - 1))
 
-static void sort_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsigned level, unsigned base,
-                      unsigned state, uint32_t *scratch, tally_t *t);
+static void sort_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsigned level, unsigned base, unsigned state,
+                      uint32_t *scratch, tally_t *t);
 
 /* Walks the cells of one pass, from the pass's first level (j = 1) to its last (j = k), over
  * the bucket ends `end` (relative to b): empty cells are skipped, small ones are leaves, the
@@ -367,8 +367,12 @@ static void visit(const sorter_t *s, int buf, uint64_t b, const uint32_t *end, u
             }
             list->w = w, list->cap = cap;
         }
-        list->w[list->n++] = (work_t){b + lo,       m,           (uint8_t)(leaf ? level + j : level + k),
-                                      (uint8_t)base, (uint8_t)child, (uint8_t)buf,
+        list->w[list->n++] = (work_t){b + lo,
+                                      m,
+                                      (uint8_t)(leaf ? level + j : level + k),
+                                      (uint8_t)base,
+                                      (uint8_t)child,
+                                      (uint8_t)buf,
                                       (uint8_t)(leaf ? (j < k ? 2 : 1) : 0)};
         return;
     }
@@ -379,8 +383,8 @@ static void visit(const sorter_t *s, int buf, uint64_t b, const uint32_t *end, u
 /* Sorts the cell [b, b + m) at `level` in orientation `state`, held in buffer buf, on this
  * thread. scratch holds LEVELS x (MAX_BUCKETS + 1) counts: one row per level, so that the
  * recursion (which only goes deeper) never reuses a row still in use. */
-static void sort_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsigned level, unsigned base,
-                      unsigned state, uint32_t *scratch, tally_t *t)
+static void sort_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsigned level, unsigned base, unsigned state,
+                      uint32_t *scratch, tally_t *t)
 {
     for (;;) {
         if (m <= s->leaf || level >= LEVELS) {
@@ -434,8 +438,8 @@ static void sort_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsign
  * thread). Children still large get another parallel pass; the rest are queued. counted:
  * the first pass's counts are already in hist (made with the words, at the root). */
 static pm_result_t par_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, unsigned level, unsigned base,
-                            unsigned state, uint64_t big, uint32_t *hist, int nthreads, int counted,
-                            worklist_t *list, tally_t *t)
+                            unsigned state, uint64_t big, uint32_t *hist, int nthreads, int counted, worklist_t *list,
+                            tally_t *t)
 {
     for (;; counted = 0) {
         if (m <= s->leaf || level >= LEVELS) {
@@ -513,15 +517,15 @@ static pm_result_t par_cell(const sorter_t *s, int buf, uint64_t b, uint64_t m, 
 /* The words of points [i0, i1) into w[0], and the counts of the root's first pass (k
  * levels, table row tab, digits at `shift`) into h. SPREAD3 makes a Morton code of three
  * cell coordinates. */
-#define KEYGEN_LOOP(MORTON)                                                                               \
-    for (uint64_t i = i0; i < i1; i++) {                                                                 \
-        float p[3];                                                                                      \
-        point(s->pos, s->stride, i, p);                                                                  \
-        uint64_t mc = MORTON(cell_of(p[0], s->lo[0], s->scale), cell_of(p[1], s->lo[1], s->scale),       \
-                             cell_of(p[2], s->lo[2], s->scale));                                         \
-        uint64_t word = (mc >> sh) << s->ib | i;                                                         \
-        w[i] = word;                                                                                     \
-        h[BUCKET(tab, word)]++;                                                                          \
+#define KEYGEN_LOOP(MORTON)                                                                                            \
+    for (uint64_t i = i0; i < i1; i++) {                                                                               \
+        float p[3];                                                                                                    \
+        point(s->pos, s->stride, i, p);                                                                                \
+        uint64_t mc = MORTON(cell_of(p[0], s->lo[0], s->scale), cell_of(p[1], s->lo[1], s->scale),                     \
+                             cell_of(p[2], s->lo[2], s->scale));                                                       \
+        uint64_t word = (mc >> sh) << s->ib | i;                                                                       \
+        w[i] = word;                                                                                                   \
+        h[BUCKET(tab, word)]++;                                                                                        \
     }
 
 static void keygen(const sorter_t *s, uint64_t i0, uint64_t i1, uint32_t *h, const uint16_t *tab, unsigned shift,
@@ -580,8 +584,8 @@ pm_result_t pm_reorder_points(const void *pos, size_t stride, uint64_t n, pm_ord
     if (res != PM_OK)
         goto done;
     if (!s.w[0] || !s.w[1] || !hist || !scratch) {
-        res = pm_error_set(PM_ERR_NOMEM, "out of memory for the keys of %" PRIu64 " points (%.0f MB)", n,
-                           n * 16.0 / 1e6);
+        res =
+            pm_error_set(PM_ERR_NOMEM, "out of memory for the keys of %" PRIu64 " points (%.0f MB)", n, n * 16.0 / 1e6);
         goto done;
     }
     pm_reorder_cube(pos, stride, n, s.lo, &s.scale);

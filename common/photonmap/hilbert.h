@@ -26,19 +26,19 @@ extern const uint8_t pm_hilbert_order[PM_HILBERT_STATES][8];
 extern const uint8_t pm_hilbert_child[PM_HILBERT_STATES][8];
 
 typedef enum {
-    PM_ORDER_NONE = 0,    /* input order, unchanged */
-    PM_ORDER_MORTON = 1,  /* Z-order: octants in the fixed order 0..7 at every level */
-    PM_ORDER_HILBERT = 2  /* the Hilbert curve of the table above */
+    PM_ORDER_NONE = 0,   /* input order, unchanged */
+    PM_ORDER_MORTON = 1, /* Z-order: octants in the fixed order 0..7 at every level */
+    PM_ORDER_HILBERT = 2 /* the Hilbert curve of the table above */
 } pm_order_t;
 
 /* Words for the --order option, indexed by pm_order_t, NULL-terminated. */
 extern const char *const pm_order_names[];
 
 typedef struct {
-    unsigned depth;     /* deepest level at which a leaf was made (0: the root was a leaf) */
-    uint64_t leaves;    /* leaf cells */
-    double keys_s;      /* s: bounds, quantization and curve keys */
-    double sort_s;      /* s: the octree (MSD radix) passes */
+    unsigned depth;  /* deepest level at which a leaf was made (0: the root was a leaf) */
+    uint64_t leaves; /* leaf cells */
+    double keys_s;   /* s: bounds, quantization and curve keys */
+    double sort_s;   /* s: the octree (MSD radix) passes */
 } pm_reorder_info_t;
 
 /* The leaf size --leaf auto picks for n points with the given cache (bytes; see

@@ -161,7 +161,7 @@ static void partition3(elem_t *restrict src, elem_t *restrict dst, uint32_t n, u
     for (uint32_t i = 0; i < n; i++) {
         __m128 v = _mm_load_ps(src[i].p);
         float k = src[i].p[axis];
-        int is_lt = k < p1, is_gt = k > p2;
+        int is_lt = k<p1, is_gt = k> p2;
         elem_t *d = is_lt ? lt : mid;
         d = is_gt ? gt : d;
         _mm_store_ps(d->p, v);
@@ -449,7 +449,7 @@ static unsigned build_root(const build_t *b, const float *pos, elem_t *a, elem_t
         for (uint64_t i = i0; i < i1; i++) {
             elem_t e = {{pos[3 * i], pos[3 * i + 1], pos[3 * i + 2]}, (uint32_t)i};
             float key = e.p[axis];
-            int is_lt = key < p1, is_gt = key > p2;
+            int is_lt = key<p1, is_gt = key> p2;
             elem_t *d = is_lt ? lt : mid;
             d = is_gt ? gt : d;
             *d = e;
@@ -583,8 +583,7 @@ static void heap_push(float *heap, uint32_t *cnt, uint32_t k, float d2)
     heap[c] = d2;
 }
 
-float pm_kd_knn_radius(const pm_kdnode_t *node, const float *pos, uint32_t n, const float q[3], uint32_t k,
-                       float *heap)
+float pm_kd_knn_radius(const pm_kdnode_t *node, const float *pos, uint32_t n, const float q[3], uint32_t k, float *heap)
 {
     if (n == 0 || k == 0)
         return 0.0f;

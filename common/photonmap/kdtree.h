@@ -16,11 +16,11 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "formats/formats.h"
 #include "base/error.h"
+#include "formats/formats.h"
 
 typedef struct {
-    unsigned depth;     /* levels: 0 for an empty tree, 1 for a single leaf */
+    unsigned depth; /* levels: 0 for an empty tree, 1 for a single leaf */
     uint64_t leaves;
 } pm_kd_build_stats_t;
 
@@ -33,8 +33,8 @@ pm_result_t pm_kd_build(const float *pos, uint64_t n, pm_kdnode_t *node_out, uin
 /* The same with the voxel-volume heuristic of Wald et al. 2004 (the paper's reference 22)
  * for searches of radius vvh_radius (m): unbalanced splits that make searches visit fewer
  * photons; vvh_radius 0 is pm_kd_build. The tree stays within PM_KD_MAX_DEPTH levels. */
-pm_result_t pm_kd_build_vvh(const float *pos, uint64_t n, float vvh_radius, pm_kdnode_t *node_out,
-                            uint32_t *perm_out, pm_kd_build_stats_t *stats_out);
+pm_result_t pm_kd_build_vvh(const float *pos, uint64_t n, float vvh_radius, pm_kdnode_t *node_out, uint32_t *perm_out,
+                            pm_kd_build_stats_t *stats_out);
 
 /* Distance (m) from photon `self` (a node index) to its k-th nearest photon, itself
  * counted as the first; so k = 1 gives 0. pos is in node order (pos[3 i] is node i's

@@ -139,8 +139,8 @@ pm_result_t pm_knn_gather(const pm_gather_map_t *m, const pm_gather_queries_t *q
         for (uint64_t blk = 0; blk < nblocks; blk++) {
             if (!heap) {
                 if (!failed)
-                    pm_error_slot_record(&err, blk, pm_error_set(PM_ERR_NOMEM, "out of memory for heaps of %" PRIu32
-                                                                 " photons", p->k));
+                    pm_error_slot_record(
+                        &err, blk, pm_error_set(PM_ERR_NOMEM, "out of memory for heaps of %" PRIu32 " photons", p->k));
                 failed = 1;
                 continue;
             }
@@ -156,9 +156,12 @@ pm_result_t pm_knn_gather(const pm_gather_map_t *m, const pm_gather_queries_t *q
                 double r2 = cnt < p->k && p->max_radius > 0.0 ? (double)max_r2 : (cnt ? (double)heap[0].d2 : 0.0);
                 if (cnt && !(r2 > 0.0)) {
                     if (!failed)
-                        pm_error_slot_record(&err, blk, pm_error_set(PM_ERR_INPUT, "query %" PRIu64 ": its %" PRIu32
-                                                                     " nearest photons all lie at its position (r = 0 m "
-                                                                     "gives no finite estimate); raise --k", qi, p->k));
+                        pm_error_slot_record(&err, blk,
+                                             pm_error_set(PM_ERR_INPUT,
+                                                          "query %" PRIu64 ": its %" PRIu32
+                                                          " nearest photons all lie at its position (r = 0 m "
+                                                          "gives no finite estimate); raise --k",
+                                                          qi, p->k));
                     failed = 1;
                     cnt = 0;
                 }

@@ -20,10 +20,10 @@
 #include "photonmap/gather.h"
 
 typedef struct {
-    uint32_t k;           /* photons per estimate, >= 1 */
-    double max_radius;    /* m; 0: unlimited */
+    uint32_t k;        /* photons per estimate, >= 1 */
+    double max_radius; /* m; 0: unlimited */
     pm_kernel_t kernel;
-    float normal_cos;     /* a photon counts when dot(n_photon, n_query) >= this */
+    float normal_cos; /* a photon counts when dot(n_photon, n_query) >= this */
 } pm_knn_params_t;
 
 typedef struct {

@@ -34,8 +34,7 @@ enum { WIDTH_STRIDE = 8 };
  * dark regions for little time saved (docs/programs/build-photonmap.md). */
 enum { PILOT_K = 1 << 20 };
 
-static pm_result_t compute_widths(pm_table_t *map, uint32_t k_final, double width_max, double *mean_out,
-                                  double *r0_out)
+static pm_result_t compute_widths(pm_table_t *map, uint32_t k_final, double width_max, double *mean_out, double *r0_out)
 {
     const uint32_t k = k_final < PILOT_K ? k_final : PILOT_K;
     const double scale = sqrt((double)k_final / k);
@@ -49,7 +48,8 @@ static pm_result_t compute_widths(pm_table_t *map, uint32_t k_final, double widt
     if (n == 0)
         return PM_OK;
     float *ones = pm_alloc_aligned((size_t)n * 3 * sizeof *ones);
-    float *qpos = pm_alloc_aligned((size_t)n * 3 * sizeof *qpos), *qnor = pm_alloc_aligned((size_t)n * 3 * sizeof *qnor);
+    float *qpos = pm_alloc_aligned((size_t)n * 3 * sizeof *qpos),
+          *qnor = pm_alloc_aligned((size_t)n * 3 * sizeof *qnor);
     double *dens = pm_alloc_aligned((size_t)n * 3 * sizeof *dens);
     uint32_t *pending = malloc((size_t)n * sizeof *pending);
     if (!ones || !qpos || !qnor || !dens || !pending) {
@@ -64,8 +64,8 @@ static pm_result_t compute_widths(pm_table_t *map, uint32_t k_final, double widt
     const float normal_cos = 0.5f;
     if (r == PM_OK) {
         gm.power = ones;
-        pm_gather_queries_t all = {.n = n, .pos = gm.pos, .normal = gm.normal, .weight = ones, .materials = &folded,
-                                   .nmaterials = 1};
+        pm_gather_queries_t all = {
+            .n = n, .pos = gm.pos, .normal = gm.normal, .weight = ones, .materials = &folded, .nmaterials = 1};
         double r0 = pm_gather_radius_for_k(&gm, &all, (double)k, normal_cos, 1000);
         *r0_out = r0;
         double rad = fmax(0.5 * r0, floor_w);
@@ -81,10 +81,10 @@ static pm_result_t compute_widths(pm_table_t *map, uint32_t k_final, double widt
                 memcpy(&qpos[3 * (size_t)j], &gm.pos[3 * (size_t)pending[j]], 12);
                 memcpy(&qnor[3 * (size_t)j], &gm.normal[3 * (size_t)pending[j]], 12);
             }
-            pm_gather_queries_t q = {.n = np, .pos = qpos, .normal = qnor, .weight = ones, .materials = &folded,
-                                     .nmaterials = 1};
-            pm_gather_params_t p = {.radius = rad, .kernel = PM_KERNEL_UNIFORM, .normal_cos = normal_cos,
-                                    .isa = pm_cpu_best_isa()};
+            pm_gather_queries_t q = {
+                .n = np, .pos = qpos, .normal = qnor, .weight = ones, .materials = &folded, .nmaterials = 1};
+            pm_gather_params_t p = {
+                .radius = rad, .kernel = PM_KERNEL_UNIFORM, .normal_cos = normal_cos, .isa = pm_cpu_best_isa()};
             pm_gather_stats_t st;
             if ((r = pm_gather_run(&gm, &q, 0, np, &p, dens, &st)) != PM_OK)
                 break;
@@ -188,8 +188,11 @@ pm_result_t pm_map_build(const pm_table_t *ph, const char *path, const pm_map_bu
             if ((r = pm_gather_map_init(&gm, map, 0)) != PM_OK)
                 goto done;
             static const pm_material_t folded = {.name = "folded", .kd = {1, 1, 1}};
-            pm_gather_queries_t q = {.n = n, .pos = gm.pos, .normal = gm.normal, /* radius_for_k reads no weights */
-                                     .materials = &folded, .nmaterials = 1};
+            pm_gather_queries_t q = {.n = n,
+                                     .pos = gm.pos,
+                                     .normal = gm.normal, /* radius_for_k reads no weights */
+                                     .materials = &folded,
+                                     .nmaterials = 1};
             vvh_r = pm_gather_radius_for_k(&gm, &q, (double)p->vvh_k, 0.5f, 1000);
             pm_gather_map_free(&gm);
         }

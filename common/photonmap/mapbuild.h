@@ -37,12 +37,12 @@ typedef struct {
 typedef struct {
     uint64_t photons_in, photons; /* read, and kept in the map */
     pm_kd_build_stats_t tree;
-    double vvh_radius;            /* m, the radius the vvh split planned for (0 with median) */
-    double build_s;               /* s: the tree alone (both trees with vvh) */
-    double layout_s;              /* s: node-order channels, and the vvh radius */
-    double width_s;               /* s: kernel widths */
-    double mean_width;            /* m, mean kernel width (0 without widths) */
-    double pilot_radius;          /* m, the radius holding width_k photons on average */
+    double vvh_radius;   /* m, the radius the vvh split planned for (0 with median) */
+    double build_s;      /* s: the tree alone (both trees with vvh) */
+    double layout_s;     /* s: node-order channels, and the vvh radius */
+    double width_s;      /* s: kernel widths */
+    double mean_width;   /* m, mean kernel width (0 without widths) */
+    double pilot_radius; /* m, the radius holding width_k photons on average */
 } pm_map_build_stats_t;
 
 /* Builds the map of the photons table read from path (path names it in messages) into

@@ -12,13 +12,13 @@
 static void gather(unsigned char *dst, const unsigned char *src, const uint32_t *perm, uint64_t n, uint64_t total,
                    size_t rs)
 {
-#define GATHER_FIXED(SIZE)                                                                        \
-    case SIZE:                                                                                    \
-        for (uint64_t i = 0; i < n; i++) {                                                        \
-            if (i + PREFETCH_AHEAD < total)                                                       \
-                __builtin_prefetch(src + (size_t)perm[i + PREFETCH_AHEAD] * (SIZE));              \
-            memcpy(dst + i * (SIZE), src + (size_t)perm[i] * (SIZE), (SIZE));                     \
-        }                                                                                         \
+#define GATHER_FIXED(SIZE)                                                                                             \
+    case SIZE:                                                                                                         \
+        for (uint64_t i = 0; i < n; i++) {                                                                             \
+            if (i + PREFETCH_AHEAD < total)                                                                            \
+                __builtin_prefetch(src + (size_t)perm[i + PREFETCH_AHEAD] * (SIZE));                                   \
+            memcpy(dst + i * (SIZE), src + (size_t)perm[i] * (SIZE), (SIZE));                                          \
+        }                                                                                                              \
         return;
     switch (rs) {
         GATHER_FIXED(40)

@@ -8,9 +8,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "photonmap/kdtree.h"
 #include "base/memory.h"
 #include "base/timer.h"
+#include "photonmap/kdtree.h"
 
 /* About this many queries per subtree (a unit of work): enough subtrees for two threads to
  * balance, few enough that testing every photon against every subtree's box stays a small
@@ -26,20 +26,20 @@ typedef struct {
 typedef struct {
     const pm_gather_map_t *m;
     const pm_gather_queries_t *q;
-    const pm_kdnode_t *node;  /* the query tree */
-    const uint32_t *perm;     /* node i holds query begin + perm[i] */
-    const float *pos, *nor;   /* node order, n * 3 */
-    double *sum;              /* node order, n * 3: the unweighted estimates */
+    const pm_kdnode_t *node; /* the query tree */
+    const uint32_t *perm;    /* node i holds query begin + perm[i] */
+    const float *pos, *nor;  /* node order, n * 3 */
+    double *sum;             /* node order, n * 3: the unweighted estimates */
     const unsigned char *mat_glossy;
     uint64_t begin;
     pm_kernel_t kernel;
     float r2, normal_cos;
-    double h2;                /* h^2 in double, as the kernel value takes it */
+    double h2; /* h^2 in double, as the kernel value takes it */
 } ctx_t;
 
 /* Collects the subtrees at depth `cut` below [i, e) (fewer where the tree is shallower). */
 static void collect(const pm_kdnode_t *node, uint32_t i, uint32_t e, unsigned depth, unsigned cut, task_t *tasks,
-                   uint32_t *nt)
+                    uint32_t *nt)
 {
     if (i >= e)
         return;
@@ -198,9 +198,19 @@ pm_result_t pm_reverse_gather(const pm_gather_map_t *m, const pm_gather_queries_
     stats->subtrees = nt;
 
     float h = (float)p->radius;
-    ctx_t c = {.m = m, .q = q, .node = node, .perm = perm, .pos = pos, .nor = nor, .sum = sum,
-               .mat_glossy = glossy ? mat_glossy : NULL, .begin = begin, .kernel = p->kernel, .r2 = h * h,
-               .normal_cos = p->normal_cos, .h2 = (double)h * h};
+    ctx_t c = {.m = m,
+               .q = q,
+               .node = node,
+               .perm = perm,
+               .pos = pos,
+               .nor = nor,
+               .sum = sum,
+               .mat_glossy = glossy ? mat_glossy : NULL,
+               .begin = begin,
+               .kernel = p->kernel,
+               .r2 = h * h,
+               .normal_cos = p->normal_cos,
+               .h2 = (double)h * h};
     t0 = pm_time_wall();
     pm_reverse_stats_t total = {0};
 #pragma omp parallel

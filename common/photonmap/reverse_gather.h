@@ -18,9 +18,9 @@
 #include "photonmap/gather.h"
 
 typedef struct {
-    double radius;        /* m: the kernel width h */
+    double radius; /* m: the kernel width h */
     pm_kernel_t kernel;
-    float normal_cos;     /* a photon counts when dot(n_photon, n_query) >= this */
+    float normal_cos; /* a photon counts when dot(n_photon, n_query) >= this */
 } pm_reverse_params_t;
 
 typedef struct {

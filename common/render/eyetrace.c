@@ -37,8 +37,8 @@ const char *const pm_eye_schedule_names[] = {"interleave", "tiles", "dynamic", N
  * and neighbours sharing a line would make the threads slow each other down. */
 typedef struct {
     _Alignas(64) unsigned char *p;
-    size_t n, cap;         /* bytes */
-    uint64_t count;        /* records */
+    size_t n, cap;  /* bytes */
+    uint64_t count; /* records */
 } bytebuf_t;
 
 /* A worker's scratch, reused row after row. Cache-line aligned like bytebuf_t: each is written
@@ -47,33 +47,33 @@ typedef struct {
 typedef struct {
     _Alignas(64) pm_rays_t prim;
     pm_rays_t shadow, sec;
-    float *hit;            /* per primary ray: position[3], normal[3] (facing the ray), wo[3] */
+    float *hit; /* per primary ray: position[3], normal[3] (facing the ray), wo[3] */
     size_t hit_cap;
-    uint32_t *sh_px;       /* shadow ray -> pixel column */
-    float *sh_c;           /* shadow ray -> RGB radiance it adds when unblocked, W/(m^2 sr) */
-    uint32_t *sec_px;      /* secondary ray -> pixel column */
-    float *sec_w;          /* secondary ray -> RGB path weight (f cos / pdf / N / primary) */
-    float *sec_cos;        /* secondary ray -> cosine at the primary hit (its pdf is cos / pi), for MIS */
+    uint32_t *sh_px;  /* shadow ray -> pixel column */
+    float *sh_c;      /* shadow ray -> RGB radiance it adds when unblocked, W/(m^2 sr) */
+    uint32_t *sec_px; /* secondary ray -> pixel column */
+    float *sec_w;     /* secondary ray -> RGB path weight (f cos / pdf / N / primary) */
+    float *sec_cos;   /* secondary ray -> cosine at the primary hit (its pdf is cos / pi), for MIS */
     size_t sh_px_cap, sh_c_cap, sec_px_cap, sec_w_cap, sec_cos_cap; /* elements allocated */
-    float *u1, *u2;        /* spp stratified points */
-    float *lx, *ly, *lz;   /* their cosine-weighted directions in the local frame */
+    float *u1, *u2;                                                 /* spp stratified points */
+    float *lx, *ly, *lz; /* their cosine-weighted directions in the local frame */
     uint64_t n_primary, n_secondary, n_shadow, n_queries;
-    double t_secondary;    /* s inside Embree for secondary rays */
-    double cpu_rows;       /* s of this thread's CPU time in trace_row */
+    double t_secondary; /* s inside Embree for secondary rays */
+    double cpu_rows;    /* s of this thread's CPU time in trace_row */
 } scratch_t;
 
 struct pm_eye {
     pm_eye_info_t info;
     const pm_scene_t *s;
     const pm_rt_t *rt;
-    pm_shade_geom_t geom;  /* front normals (the emitting side) and area lights */
-    float *fold;           /* per material: kd/pi when Lambertian, 1 1 1 when glossy (the weight contract) */
+    pm_shade_geom_t geom; /* front normals (the emitting side) and area lights */
+    float *fold;          /* per material: kd/pi when Lambertian, 1 1 1 when glossy (the weight contract) */
     uint32_t w, h;
     unsigned spp, primary, light_samples, nx, ny;
     int mode, schedule, width, threads, progress, has_mat, has_dir;
     uint32_t record_size, off_pos, off_nor, off_w, off_pix, off_mat, off_dir; /* bytes */
     uint64_t seed;
-    float eps;             /* m, ray-origin offset along the normal */
+    float eps; /* m, ray-origin offset along the normal */
     pm_camera_rays_t cam;
 };
 
@@ -110,8 +110,8 @@ static pm_result_t scratch_reserve(scratch_t *sc, uint32_t y, size_t nprim, size
         float **a[] = {&sc->u1, &sc->u2, &sc->lx, &sc->ly, &sc->lz};
         for (size_t k = 0; k < sizeof a / sizeof a[0]; k++)
             if (!*a[k] && !(*a[k] = malloc(spp * sizeof(float))))
-                return pm_error_set(PM_ERR_NOMEM, "out of memory for the directions of row %" PRIu32 ": %u samples",
-                                    y, spp);
+                return pm_error_set(PM_ERR_NOMEM, "out of memory for the directions of row %" PRIu32 ": %u samples", y,
+                                    spp);
     }
     return PM_OK;
 }
@@ -395,7 +395,7 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
         }
         float w[3] = {rw[0] * fold[0], rw[1] * fold[1], rw[2] * fold[2]};
         if (!(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f))
-            continue; /* a black query surface */
+            continue;                                                 /* a black query surface */
         put_query(c, out, q, n, w, y * c->w + sc->sec_px[j], mi, wo); /* room reserved above */
         sc->n_queries++;
     }
@@ -475,9 +475,16 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
         pm_eye_destroy(c);
         return r;
     }
-    c->info = (pm_eye_info_t){.mode = c->mode, .width = c->w, .height = c->h, .spp = c->spp, .primary = c->primary,
-                              .light_samples = c->light_samples, .seed = c->seed, .packet_width = c->width,
-                              .channels = mask, .record_size = c->record_size};
+    c->info = (pm_eye_info_t){.mode = c->mode,
+                              .width = c->w,
+                              .height = c->h,
+                              .spp = c->spp,
+                              .primary = c->primary,
+                              .light_samples = c->light_samples,
+                              .seed = c->seed,
+                              .packet_width = c->width,
+                              .channels = mask,
+                              .record_size = c->record_size};
     *out = c;
     return PM_OK;
 }
@@ -508,8 +515,9 @@ pm_result_t pm_eye_trace(pm_eye_t *c, const pm_eye_sink_t *sink, pm_eye_stats_t 
     if (scr)
         memset(scr, 0, (size_t)nthreads * sizeof *scr);
     if (!scr || !direct)
-        r = pm_error_set(PM_ERR_NOMEM, "out of memory for %d threads' buffers and %" PRIu32 " rows of %" PRIu32
-                         " pixels", nthreads, band, c->w);
+        r = pm_error_set(PM_ERR_NOMEM,
+                         "out of memory for %d threads' buffers and %" PRIu32 " rows of %" PRIu32 " pixels", nthreads,
+                         band, c->w);
 
     pm_progress_t prog;
     pm_progress_begin(&prog, "rows", c->h, c->progress);

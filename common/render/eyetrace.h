@@ -27,43 +27,43 @@
 
 #define PM_EYE_PER_CELL 4 /* secondary samples per stratum cell: the paper's four */
 
-enum { PM_EYE_GATHER = 0, PM_EYE_DIRECT_VIS = 1 };              /* where the queries are */
+enum { PM_EYE_GATHER = 0, PM_EYE_DIRECT_VIS = 1 };                    /* where the queries are */
 enum { PM_EYE_INTERLEAVE = 0, PM_EYE_TILES = 1, PM_EYE_DYNAMIC = 2 }; /* rows of a band to threads */
 /* Their names, indexed by the enums and NULL-terminated (option tables, headers, stats). */
 extern const char *const pm_eye_mode_names[];
 extern const char *const pm_eye_schedule_names[];
 
 typedef struct {
-    int mode;                /* PM_EYE_GATHER or PM_EYE_DIRECT_VIS */
-    int schedule;            /* PM_EYE_INTERLEAVE, PM_EYE_TILES or PM_EYE_DYNAMIC */
-    uint32_t width, height;  /* pixels; 0 takes the scene camera's */
-    uint32_t spp;            /* secondary rays per primary hit (gather mode); 0 takes the scene's render.spp */
-    uint32_t primary;        /* primary rays per pixel, >= 1; more than 1 are jittered */
-    uint32_t light_samples;  /* area-light samples per primary hit */
+    int mode;               /* PM_EYE_GATHER or PM_EYE_DIRECT_VIS */
+    int schedule;           /* PM_EYE_INTERLEAVE, PM_EYE_TILES or PM_EYE_DYNAMIC */
+    uint32_t width, height; /* pixels; 0 takes the scene camera's */
+    uint32_t spp;           /* secondary rays per primary hit (gather mode); 0 takes the scene's render.spp */
+    uint32_t primary;       /* primary rays per pixel, >= 1; more than 1 are jittered */
+    uint32_t light_samples; /* area-light samples per primary hit */
     uint64_t seed;
-    pm_isa_t isa;            /* packet width (narrowed to what Embree runs natively) */
-    int threads;             /* worker threads, >= 1 */
-    int progress;            /* a progress line on a terminal */
+    pm_isa_t isa; /* packet width (narrowed to what Embree runs natively) */
+    int threads;  /* worker threads, >= 1 */
+    int progress; /* a progress line on a terminal */
 } pm_eye_options_t;
 
 /* What a context settled on: sizes, the effective spp, the queries' record layout. */
 typedef struct {
     int mode;
     uint32_t width, height;
-    uint32_t spp;            /* 0 in direct-vis mode */
+    uint32_t spp; /* 0 in direct-vis mode */
     uint32_t primary, light_samples;
     uint64_t seed;
-    int packet_width;        /* lanes: 1, 4, 8 or 16 */
-    uint32_t channels;       /* mask of the queries channels written (direction, material only when needed) */
-    uint32_t record_size;    /* bytes per query record */
+    int packet_width;     /* lanes: 1, 4, 8 or 16 */
+    uint32_t channels;    /* mask of the queries channels written (direction, material only when needed) */
+    uint32_t record_size; /* bytes per query record */
 } pm_eye_info_t;
 
 /* Counters of one pm_eye_trace. */
 typedef struct {
     uint64_t primary_rays, secondary_rays, shadow_rays, queries;
-    double trace_s;          /* wall s of the row loop, without the time spent in the sink */
-    double sink_s;           /* wall s spent in the sink (the caller's output cost) */
-    double trace_cpu_s;      /* CPU s the threads spent tracing rows: immune to other processes' load */
+    double trace_s;            /* wall s of the row loop, without the time spent in the sink */
+    double sink_s;             /* wall s spent in the sink (the caller's output cost) */
+    double trace_cpu_s;        /* CPU s the threads spent tracing rows: immune to other processes' load */
     double secondary_embree_s; /* s inside Embree for secondary rays, summed over threads */
 } pm_eye_stats_t;
 

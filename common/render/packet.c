@@ -63,57 +63,55 @@ int pm_packet_width(const pm_rt_t *rt, pm_isa_t isa)
 
 /* Lane k of the packet reads ray b + k; the idle lanes of a partial packet repeat ray b so
  * that they hold valid numbers, and the valid mask turns them off. */
-#define PM_FILL_RAY(P, W, r, b, n)                                                                         \
-    do {                                                                                                   \
-        if ((n) == (W)) {                                                                                  \
-            memcpy((P).org_x, (r)->ox + (b), sizeof(float) * (W));                                         \
-            memcpy((P).org_y, (r)->oy + (b), sizeof(float) * (W));                                         \
-            memcpy((P).org_z, (r)->oz + (b), sizeof(float) * (W));                                         \
-            memcpy((P).dir_x, (r)->dx + (b), sizeof(float) * (W));                                         \
-            memcpy((P).dir_y, (r)->dy + (b), sizeof(float) * (W));                                         \
-            memcpy((P).dir_z, (r)->dz + (b), sizeof(float) * (W));                                         \
-            memcpy((P).tnear, (r)->tnear + (b), sizeof(float) * (W));                                      \
-            memcpy((P).tfar, (r)->tfar + (b), sizeof(float) * (W));                                        \
-        } else {                                                                                           \
-            for (unsigned k = 0; k < (W); k++) {                                                           \
-                size_t i = (b) + (k < (n) ? k : 0);                                                        \
-                (P).org_x[k] = (r)->ox[i], (P).org_y[k] = (r)->oy[i], (P).org_z[k] = (r)->oz[i];           \
-                (P).dir_x[k] = (r)->dx[i], (P).dir_y[k] = (r)->dy[i], (P).dir_z[k] = (r)->dz[i];           \
-                (P).tnear[k] = (r)->tnear[i], (P).tfar[k] = (r)->tfar[i];                                  \
-            }                                                                                              \
-        }                                                                                                  \
-        for (unsigned k = 0; k < (W); k++) {                                                               \
-            (P).time[k] = 0.0f, (P).mask[k] = 0xffffffffu, (P).id[k] = k, (P).flags[k] = 0;                \
-            valid[k] = k < (n) ? -1 : 0;                                                                   \
-        }                                                                                                  \
+#define PM_FILL_RAY(P, W, r, b, n)                                                                                     \
+    do {                                                                                                               \
+        if ((n) == (W)) {                                                                                              \
+            memcpy((P).org_x, (r)->ox + (b), sizeof(float) * (W));                                                     \
+            memcpy((P).org_y, (r)->oy + (b), sizeof(float) * (W));                                                     \
+            memcpy((P).org_z, (r)->oz + (b), sizeof(float) * (W));                                                     \
+            memcpy((P).dir_x, (r)->dx + (b), sizeof(float) * (W));                                                     \
+            memcpy((P).dir_y, (r)->dy + (b), sizeof(float) * (W));                                                     \
+            memcpy((P).dir_z, (r)->dz + (b), sizeof(float) * (W));                                                     \
+            memcpy((P).tnear, (r)->tnear + (b), sizeof(float) * (W));                                                  \
+            memcpy((P).tfar, (r)->tfar + (b), sizeof(float) * (W));                                                    \
+        } else {                                                                                                       \
+            for (unsigned k = 0; k < (W); k++) {                                                                       \
+                size_t i = (b) + (k < (n) ? k : 0);                                                                    \
+                (P).org_x[k] = (r)->ox[i], (P).org_y[k] = (r)->oy[i], (P).org_z[k] = (r)->oz[i];                       \
+                (P).dir_x[k] = (r)->dx[i], (P).dir_y[k] = (r)->dy[i], (P).dir_z[k] = (r)->dz[i];                       \
+                (P).tnear[k] = (r)->tnear[i], (P).tfar[k] = (r)->tfar[i];                                              \
+            }                                                                                                          \
+        }                                                                                                              \
+        for (unsigned k = 0; k < (W); k++) {                                                                           \
+            (P).time[k] = 0.0f, (P).mask[k] = 0xffffffffu, (P).id[k] = k, (P).flags[k] = 0;                            \
+            valid[k] = k < (n) ? -1 : 0;                                                                               \
+        }                                                                                                              \
     } while (0)
 
-#define PM_DEFINE_PACKETS(W)                                                                               \
-    static void intersect##W(const pm_rt_t *rt, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t b,   \
-                             unsigned n)                                                                   \
-    {                                                                                                      \
-        struct RTCRayHit##W rh;                                                                            \
-        _Alignas(64) int valid[W];                                                                         \
-        PM_FILL_RAY(rh.ray, W, r, b, n);                                                                   \
-        for (unsigned k = 0; k < (W); k++)                                                                 \
-            rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;                                                    \
-        rtcIntersect##W(valid, rt->scene, ctx, &rh);                                                       \
-        for (unsigned k = 0; k < n; k++) {                                                                 \
-            size_t i = b + k;                                                                              \
-            int hit = rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID;                                         \
-            r->tfar[i] = rh.ray.tfar[k];                                                                   \
-            r->prim[i] = hit ? rh.hit.primID[k] : PM_RAY_MISS;                                             \
-            r->ngx[i] = rh.hit.Ng_x[k], r->ngy[i] = rh.hit.Ng_y[k], r->ngz[i] = rh.hit.Ng_z[k];            \
-        }                                                                                                  \
-    }                                                                                                      \
-    static void occluded##W(const pm_rt_t *rt, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t b,    \
-                            unsigned n)                                                                    \
-    {                                                                                                      \
-        struct RTCRay##W ray;                                                                              \
-        _Alignas(64) int valid[W];                                                                         \
-        PM_FILL_RAY(ray, W, r, b, n);                                                                      \
-        rtcOccluded##W(valid, rt->scene, ctx, &ray);                                                       \
-        memcpy(r->tfar + b, ray.tfar, sizeof(float) * n);                                                  \
+#define PM_DEFINE_PACKETS(W)                                                                                           \
+    static void intersect##W(const pm_rt_t *rt, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t b, unsigned n)   \
+    {                                                                                                                  \
+        struct RTCRayHit##W rh;                                                                                        \
+        _Alignas(64) int valid[W];                                                                                     \
+        PM_FILL_RAY(rh.ray, W, r, b, n);                                                                               \
+        for (unsigned k = 0; k < (W); k++)                                                                             \
+            rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;                                                                \
+        rtcIntersect##W(valid, rt->scene, ctx, &rh);                                                                   \
+        for (unsigned k = 0; k < n; k++) {                                                                             \
+            size_t i = b + k;                                                                                          \
+            int hit = rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID;                                                     \
+            r->tfar[i] = rh.ray.tfar[k];                                                                               \
+            r->prim[i] = hit ? rh.hit.primID[k] : PM_RAY_MISS;                                                         \
+            r->ngx[i] = rh.hit.Ng_x[k], r->ngy[i] = rh.hit.Ng_y[k], r->ngz[i] = rh.hit.Ng_z[k];                        \
+        }                                                                                                              \
+    }                                                                                                                  \
+    static void occluded##W(const pm_rt_t *rt, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t b, unsigned n)    \
+    {                                                                                                                  \
+        struct RTCRay##W ray;                                                                                          \
+        _Alignas(64) int valid[W];                                                                                     \
+        PM_FILL_RAY(ray, W, r, b, n);                                                                                  \
+        rtcOccluded##W(valid, rt->scene, ctx, &ray);                                                                   \
+        memcpy(r->tfar + b, ray.tfar, sizeof(float) * n);                                                              \
     }
 
 PM_DEFINE_PACKETS(4)

@@ -16,13 +16,13 @@
 #include "render/rt.h"
 
 typedef struct {
-    size_t n, cap;                          /* rays held, rays allocated */
-    float *ox, *oy, *oz;                    /* in: origin, m */
-    float *dx, *dy, *dz;                    /* in: direction (unit for the callers of pmtk) */
-    float *tnear;                           /* in: m along dir */
-    float *tfar;                            /* in: m; out: hit distance (intersect), -inf when occluded */
-    float *ngx, *ngy, *ngz;                 /* out (intersect): Embree's unnormalized geometric normal */
-    uint32_t *prim;                         /* out (intersect): triangle index, PM_RAY_MISS (rt.h) for none */
+    size_t n, cap;          /* rays held, rays allocated */
+    float *ox, *oy, *oz;    /* in: origin, m */
+    float *dx, *dy, *dz;    /* in: direction (unit for the callers of pmtk) */
+    float *tnear;           /* in: m along dir */
+    float *tfar;            /* in: m; out: hit distance (intersect), -inf when occluded */
+    float *ngx, *ngy, *ngz; /* out (intersect): Embree's unnormalized geometric normal */
+    uint32_t *prim;         /* out (intersect): triangle index, PM_RAY_MISS (rt.h) for none */
 } pm_rays_t;
 
 /* Makes room for cap rays (keeps the first n); arrays padded to whole 16-lane packets. */

@@ -49,8 +49,7 @@ pm_result_t pm_pathtracer_init(pm_pathtracer_t *pt, const pm_scene_t *s, const p
     pt->count = aligned_alloc(64, (size_t)pt->set.threads * sizeof *pt->count);
     if (!pt->mean || !pt->m2 || !pt->count) {
         pm_pathtracer_free(pt);
-        return pm_error_set(PM_ERR_NOMEM, "out of memory for a %" PRIu32 "x%" PRIu32 " image", set->width,
-                            set->height);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for a %" PRIu32 "x%" PRIu32 " image", set->width, set->height);
     }
     memset(pt->count, 0, (size_t)pt->set.threads * sizeof *pt->count);
     return PM_OK;
@@ -65,8 +64,8 @@ void pm_pathtracer_free(pm_pathtracer_t *pt)
     pt->mean = pt->m2 = NULL, pt->count = NULL;
 }
 
-void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *ctx, uint32_t x, uint32_t y,
-                         uint32_t k, pm_pathtrace_counts_t *cnt, double L[3])
+void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *ctx, uint32_t x, uint32_t y, uint32_t k,
+                         pm_pathtrace_counts_t *cnt, double L[3])
 {
     const pm_scene_t *s = pt->s;
     const pm_shade_geom_t *g = &pt->geom;
@@ -207,8 +206,8 @@ pm_result_t pm_pathtrace_pass(pm_pathtracer_t *pt, uint32_t k1)
                 }
             }
             /* The message is this worker's: it reaches the caller through the slot. */
-            pm_result_t r = pm_rt_thread_error(pt->rt, "tracing row %" PRIu32 " of samples %" PRIu32 "..%" PRIu32, y,
-                                               k0, k1 - 1);
+            pm_result_t r =
+                pm_rt_thread_error(pt->rt, "tracing row %" PRIu32 " of samples %" PRIu32 "..%" PRIu32, y, k0, k1 - 1);
             if (r != PM_OK)
                 pm_error_slot_record(&err, y, r);
         }
@@ -289,9 +288,15 @@ pm_result_t pm_pathtrace_write(const pm_pathtracer_t *pt, const pm_pathtrace_out
     snprintf(seed, sizeof seed, "%" PRIu64, c->seed);
     snprintf(rmse_s, sizeof rmse_s, "%.6g", rmse);
     const pm_exr_attr_t attrs[] = {
-        {"SOFTWARE", "pmtk " PM_VERSION_STRING}, {"SCENE", id}, {"COMMAND.0", out->command},
-        {"components", pm_pt_component_names[c->component]}, {"estimator", "path-tracer"}, {"samples", samples},
-        {"seed", seed}, {"pixel", pm_pt_pixel_names[c->pixel]}, {"stderr_rms", rmse_s},
+        {"SOFTWARE", "pmtk " PM_VERSION_STRING},
+        {"SCENE", id},
+        {"COMMAND.0", out->command},
+        {"components", pm_pt_component_names[c->component]},
+        {"estimator", "path-tracer"},
+        {"samples", samples},
+        {"seed", seed},
+        {"pixel", pm_pt_pixel_names[c->pixel]},
+        {"stderr_rms", rmse_s},
     };
     if (r == PM_OK)
         r = pm_exr_write_rgb(out->exr, c->width, c->height, rgb, PM_EXR_FLOAT, PM_EXR_ZIP, attrs,
@@ -319,7 +324,8 @@ pm_result_t pm_pathtrace_resume(pm_pathtracer_t *pt, const char *path)
 {
     const pm_pathtrace_settings_t *c = &pt->set;
     pm_table_t t;
-    pm_result_t r = pm_table_read(path, &pm_radiance_schema, (1u << PM_RADIANCE_RGB) | (1u << PM_RADIANCE_VARIANCE), &t);
+    pm_result_t r =
+        pm_table_read(path, &pm_radiance_schema, (1u << PM_RADIANCE_RGB) | (1u << PM_RADIANCE_VARIANCE), &t);
     if (r != PM_OK)
         return r;
     uint32_t w, h;
@@ -337,13 +343,16 @@ pm_result_t pm_pathtrace_resume(pm_pathtracer_t *pt, const char *path)
         r = pm_error_set(PM_ERR_INPUT, "--resume '%s' was not written by trace-reference (estimator '%s')", path,
                          est ? est : "(missing)");
     else if (!scene || strcmp(scene, id))
-        r = pm_error_set(PM_ERR_INPUT, "--resume '%s' is of scene '%s', not '%s'", path, scene ? scene : "(missing)", id);
+        r = pm_error_set(PM_ERR_INPUT, "--resume '%s' is of scene '%s', not '%s'", path, scene ? scene : "(missing)",
+                         id);
     else if (w != c->width || h != c->height)
         r = pm_error_set(PM_ERR_INPUT, "--resume '%s' is %" PRIu32 "x%" PRIu32 ", this render %" PRIu32 "x%" PRIu32,
                          path, w, h, c->width, c->height);
     else if (seed != c->seed)
-        r = pm_error_set(PM_ERR_INPUT, "--resume '%s' has seed %" PRIu64 ", this render %" PRIu64
-                         " (its samples would repeat or differ)", path, seed, c->seed);
+        r = pm_error_set(PM_ERR_INPUT,
+                         "--resume '%s' has seed %" PRIu64 ", this render %" PRIu64
+                         " (its samples would repeat or differ)",
+                         path, seed, c->seed);
     else if (!pix || strcmp(pix, want_pix))
         r = pm_error_set(PM_ERR_INPUT, "--resume '%s' has pixel '%s', this render '%s'", path, pix ? pix : "(missing)",
                          want_pix);
@@ -366,8 +375,8 @@ done:
     return r;
 }
 
-pm_result_t pm_pathtrace_render(pm_pathtracer_t *pt, const pm_pathtrace_plan_t *plan,
-                                const pm_pathtrace_output_t *out, pm_pathtrace_run_t *run)
+pm_result_t pm_pathtrace_render(pm_pathtracer_t *pt, const pm_pathtrace_plan_t *plan, const pm_pathtrace_output_t *out,
+                                pm_pathtrace_run_t *run)
 {
     memset(run, 0, sizeof *run);
     run->resumed = pt->n;

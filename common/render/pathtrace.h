@@ -31,7 +31,7 @@
 /* Where in the pixel a path starts: its centre (as trace-gather-points with --primary 1) or
  * uniform over it. */
 enum { PM_PT_PIXEL_CENTER = 0, PM_PT_PIXEL_BOX = 1 };
-extern const char *const pm_pt_pixel_names[];     /* "center", "box", NULL */
+extern const char *const pm_pt_pixel_names[]; /* "center", "box", NULL */
 /* Which light: a contribution that reflected b times on its way to the camera (emission seen
  * directly b = 0, direct light b = 1) is direct for b <= 1 and indirect beyond, as
  * trace-gather-points' direct buffer and simd-gather's indirect one split it. */
@@ -39,13 +39,13 @@ enum { PM_PT_TOTAL = 0, PM_PT_DIRECT = 1, PM_PT_INDIRECT = 2 };
 extern const char *const pm_pt_component_names[]; /* "total", "direct", "indirect", NULL */
 
 typedef struct {
-    uint32_t width, height;  /* pixels */
+    uint32_t width, height; /* pixels */
     uint64_t seed;
-    unsigned max_bounces;    /* a path is cut after this many bounces (counted in capped) */
-    unsigned rr_start;       /* bounces before Russian roulette may end a path */
-    int pixel;               /* PM_PT_PIXEL_* */
-    int component;           /* PM_PT_* */
-    int threads;             /* OpenMP threads of a pass, >= 1 */
+    unsigned max_bounces; /* a path is cut after this many bounces (counted in capped) */
+    unsigned rr_start;    /* bounces before Russian roulette may end a path */
+    int pixel;            /* PM_PT_PIXEL_* */
+    int component;        /* PM_PT_* */
+    int threads;          /* OpenMP threads of a pass, >= 1 */
 } pm_pathtrace_settings_t;
 
 /* Counters of traced work; per thread during a pass, each on its own cache line. */
@@ -75,8 +75,8 @@ void pm_pathtracer_free(pm_pathtracer_t *pt);
 
 /* One path through pixel (x, y), sample k: its radiance estimate in L_out (0 for a sample
  * that is not finite, which is counted in cnt->nonfinite). ctx is the calling thread's. */
-void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *ctx, uint32_t x, uint32_t y,
-                         uint32_t k, pm_pathtrace_counts_t *cnt, double L_out[3]);
+void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *ctx, uint32_t x, uint32_t y, uint32_t k,
+                         pm_pathtrace_counts_t *cnt, double L_out[3]);
 
 /* Samples [pt->n, k1) of every pixel, traced on set.threads threads and merged into the
  * running mean; pt->n becomes k1. An Embree error on a worker fails the pass with its message. */
@@ -95,32 +95,32 @@ pm_result_t pm_pathtrace_resume(pm_pathtracer_t *pt, const char *path);
 
 /* Where the image goes, and what its headers say about the command that made it. */
 typedef struct {
-    const char *exr;        /* OpenEXR image of the mean (a file: OpenEXR cannot write to a pipe) */
-    const char *radiance;   /* NULL, or the radiance buffer with each pixel's variance */
-    int argc;               /* the command, for the radiance buffer's COMMAND line */
+    const char *exr;      /* OpenEXR image of the mean (a file: OpenEXR cannot write to a pipe) */
+    const char *radiance; /* NULL, or the radiance buffer with each pixel's variance */
+    int argc;             /* the command, for the radiance buffer's COMMAND line */
     char **argv;
-    const char *command;    /* the same as one line, for the image's COMMAND.0 attribute */
+    const char *command; /* the same as one line, for the image's COMMAND.0 attribute */
 } pm_pathtrace_output_t;
 
 /* Writes the image and, when asked, the radiance buffer, each atomically. */
 pm_result_t pm_pathtrace_write(const pm_pathtracer_t *pt, const pm_pathtrace_output_t *out);
 
 typedef struct {
-    uint64_t spp;     /* samples per pixel in all, resumed ones included */
-    uint64_t pass;    /* samples per pixel per pass, >= 1 */
-    double time_s;    /* stop at the first pass boundary after this many seconds; 0: no limit */
-    int progress;     /* a progress bar on a terminal */
+    uint64_t spp;  /* samples per pixel in all, resumed ones included */
+    uint64_t pass; /* samples per pixel per pass, >= 1 */
+    double time_s; /* stop at the first pass boundary after this many seconds; 0: no limit */
+    int progress;  /* a progress bar on a terminal */
 } pm_pathtrace_plan_t;
 
 typedef struct {
-    uint64_t resumed;          /* samples per pixel that were there before */
+    uint64_t resumed; /* samples per pixel that were there before */
     int passes, timed_out;
-    double trace_s, write_s;   /* wall seconds tracing and writing the outputs */
+    double trace_s, write_s; /* wall seconds tracing and writing the outputs */
 } pm_pathtrace_run_t;
 
 /* Passes until plan->spp samples per pixel or plan->time_s, the outputs rewritten after
  * each; with no pass to run (already at spp) the outputs are written once. */
-pm_result_t pm_pathtrace_render(pm_pathtracer_t *pt, const pm_pathtrace_plan_t *plan,
-                                const pm_pathtrace_output_t *out, pm_pathtrace_run_t *run_out);
+pm_result_t pm_pathtrace_render(pm_pathtracer_t *pt, const pm_pathtrace_plan_t *plan, const pm_pathtrace_output_t *out,
+                                pm_pathtrace_run_t *run_out);
 
 #endif

@@ -13,13 +13,13 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "formats/formats.h"
 #include "base/memory.h"
 #include "base/progress.h"
+#include "base/timer.h"
+#include "formats/formats.h"
 #include "math/rng.h"
 #include "math/sampling.h"
 #include "math/vec.h"
-#include "base/timer.h"
 #include "render/transport.h"
 
 /* Photons per chunk: large enough that the per-chunk bookkeeping vanishes, small enough
@@ -27,10 +27,10 @@
 enum { CHUNK = 2048 };
 
 typedef struct {
-    int kind;           /* 0 point light, 1 emissive triangle */
-    uint32_t index;     /* into s->lights or the triangle index */
-    double power[3];    /* W */
-    double scalar;      /* power[0] + power[1] + power[2] */
+    int kind;        /* 0 point light, 1 emissive triangle */
+    uint32_t index;  /* into s->lights or the triangle index */
+    double power[3]; /* W */
+    double scalar;   /* power[0] + power[1] + power[2] */
 } light_t;
 
 /* A thread's storage: big blocks (huge pages, see memory.h) that chunks append to, so
@@ -44,7 +44,7 @@ struct pm_trace_arena {
     _Alignas(64) unsigned char **blocks;
     size_t nblocks;
     unsigned char *cur;
-    size_t used, cap;   /* bytes of the current block */
+    size_t used, cap; /* bytes of the current block */
 };
 
 enum { ARENA_BLOCK = 16 << 20 };
@@ -65,9 +65,9 @@ typedef struct {
     const pm_rt_t *rt;
     const pm_trace_options_t *o;
     light_t *lights;
-    double *cdf;        /* cdf[i]: probability of lights 0..i; the last is 1 */
+    double *cdf; /* cdf[i]: probability of lights 0..i; the last is 1 */
     size_t nlights;
-    double total;       /* W, sum of the lights' scalar powers */
+    double total; /* W, sum of the lights' scalar powers */
     uint32_t rs, off_pos, off_pow, off_nor, off_dir, off_depth;
 } tracer_t;
 
@@ -297,8 +297,7 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
     }
     pm_result_t res = PM_OK;
     if (t.nlights == 0)
-        res = pm_error_set(PM_ERR_INPUT, "scene '%s' has no light with positive power: no photons to trace",
-                           s->name);
+        res = pm_error_set(PM_ERR_INPUT, "scene '%s' has no light with positive power: no photons to trace", s->name);
     else if (!isfinite(t.total))
         res = pm_error_set(PM_ERR_INPUT, "scene '%s': the lights' total power overflows (%g W)", s->name, t.total);
     /* The largest and smallest channel a photon can start with must fit an f32. */
@@ -418,8 +417,8 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
         pm_trace_free(out);
         if (embree != PM_OK)
             return embree; /* its message is already this thread's */
-        return pm_error_set(PM_ERR_NOMEM, "out of memory storing the photons of scene '%s' (%" PRIu64
-                            " stored so far)", s->name, total);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory storing the photons of scene '%s' (%" PRIu64 " stored so far)",
+                            s->name, total);
     }
     return PM_OK;
 }

@@ -8,8 +8,8 @@
  * BRDF (render/transport.h: cosine for the Lambertian part, the Phong lobe for the glossy part)
  * and Russian roulette ends the path
  * without bias: the photon survives with probability q (its albedo, capped at rr_max) and
- * its power is divided by q (a cap below albedo^2 makes the variance unbounded). Powers are in watts, so that a density estimate of them is
- * irradiance in W/m^2.
+ * its power is divided by q (a cap below albedo^2 makes the variance unbounded). Powers are in watts, so that a density
+ * estimate of them is irradiance in W/m^2.
  *
  * Determinism: photon i draws only from the counter-based stream (seed, i), and photons
  * are stored in index order, so the output is bit-identical for any thread count. */
@@ -23,13 +23,13 @@
 #include "render/scene.h"
 
 typedef struct {
-    uint64_t photons;      /* photon paths to emit, >= 1 */
+    uint64_t photons; /* photon paths to emit, >= 1 */
     uint64_t seed;
-    uint32_t max_bounces;  /* safety cap on a path's bounces (paths cut there are counted) */
-    double rr_max;         /* highest survival probability of Russian roulette, in (0, 1] */
-    int direction;         /* store the direction channel (scenes with glossy materials) */
-    int record_rays;       /* keep every ray for pm_trace_replay (benchmark baseline) */
-    int progress;          /* progress bar on a terminal */
+    uint32_t max_bounces; /* safety cap on a path's bounces (paths cut there are counted) */
+    double rr_max;        /* highest survival probability of Russian roulette, in (0, 1] */
+    int direction;        /* store the direction channel (scenes with glossy materials) */
+    int record_rays;      /* keep every ray for pm_trace_replay (benchmark baseline) */
+    int progress;         /* progress bar on a terminal */
 } pm_trace_options_t;
 
 typedef struct pm_trace_arena pm_trace_arena_t;
@@ -45,10 +45,10 @@ typedef struct {
     uint64_t count;
     uint32_t channels, record_size;
     uint64_t emitted, first_hits, rays, escaped, absorbed, capped, longest;
-    double power_emitted[3];  /* W: sum over emitted photons */
-    double power_first[3];    /* W: sum over stored first hits */
-    double trace_s;           /* wall seconds of the tracing loop */
-    float *rays_kept;         /* record_rays: 7 floats per ray (origin, direction, tnear) */
+    double power_emitted[3]; /* W: sum over emitted photons */
+    double power_first[3];   /* W: sum over stored first hits */
+    double trace_s;          /* wall seconds of the tracing loop */
+    float *rays_kept;        /* record_rays: 7 floats per ray (origin, direction, tnear) */
 } pm_trace_result_t;
 
 /* Traces o->photons photons through s and rt. Fails with a clear message when the scene

@@ -38,8 +38,7 @@ pm_result_t pm_rt_create(const pm_scene_t *s, int high_quality, int threads, pm_
     snprintf(config, sizeof config, "threads=%d", threads > 0 ? threads : 0); /* 0: Embree's own choice */
     out->device = rtcNewDevice(config);
     if (!out->device)
-        return pm_error_set(PM_ERR_INTERNAL, "cannot create the embree device: error %d",
-                            (int)rtcGetDeviceError(NULL));
+        return pm_error_set(PM_ERR_INTERNAL, "cannot create the embree device: error %d", (int)rtcGetDeviceError(NULL));
     rtcSetDeviceErrorFunction(out->device, on_embree_error, NULL);
     out->scene = rtcNewScene(out->device);
     if (!out->scene)
@@ -54,10 +53,10 @@ pm_result_t pm_rt_create(const pm_scene_t *s, int high_quality, int threads, pm_
         if (!g)
             return fail(out, "create triangle geometry");
         /* Embree reads vertex buffers 16 bytes at a time: one spare vertex of padding. */
-        float *v = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
-                                           s->nverts + 1);
-        unsigned *t = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
-                                              s->ntris);
+        float *v =
+            rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), s->nverts + 1);
+        unsigned *t =
+            rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), s->ntris);
         if (!v || !t) {
             rtcReleaseGeometry(g);
             return fail(out, "allocate geometry buffers");
@@ -100,9 +99,9 @@ pm_result_t pm_rt_thread_error(const pm_rt_t *rt, const char *fmt, ...)
     va_start(ap, fmt);
     vsnprintf(what, sizeof what, fmt, ap);
     va_end(ap);
-    static const char *const names[] = {"none", "unknown error", "invalid argument", "invalid operation",
-                                         "out of memory", "unsupported cpu", "cancelled"};
+    static const char *const names[] = {"none",          "unknown error",   "invalid argument", "invalid operation",
+                                        "out of memory", "unsupported cpu", "cancelled"};
     const char *name = (unsigned)e < sizeof names / sizeof names[0] ? names[e] : "unknown error";
-    return pm_error_set(e == RTC_ERROR_OUT_OF_MEMORY ? PM_ERR_NOMEM : PM_ERR_INTERNAL, "embree failed %s: %s (error %d)",
-                        what, name, (int)e);
+    return pm_error_set(e == RTC_ERROR_OUT_OF_MEMORY ? PM_ERR_NOMEM : PM_ERR_INTERNAL,
+                        "embree failed %s: %s (error %d)", what, name, (int)e);
 }

@@ -7,8 +7,8 @@
 #ifndef PM_RT_H
 #define PM_RT_H
 
-#include <stdint.h>
 #include <embree3/rtcore.h>
+#include <stdint.h>
 
 #include "base/error.h"
 #include "render/scene.h"
@@ -51,9 +51,18 @@ static inline uint32_t pm_rt_intersect1(const pm_rt_t *rt, struct RTCIntersectCo
 static inline int pm_rt_occluded1(const pm_rt_t *rt, struct RTCIntersectContext *ctx, const float o[3],
                                   const float d[3], float tnear, float tfar)
 {
-    struct RTCRay ray = {.org_x = o[0], .org_y = o[1], .org_z = o[2], .tnear = tnear,
-                         .dir_x = d[0], .dir_y = d[1], .dir_z = d[2], .time = 0.0f,
-                         .tfar = tfar, .mask = 0xffffffffu, .id = 0, .flags = 0};
+    struct RTCRay ray = {.org_x = o[0],
+                         .org_y = o[1],
+                         .org_z = o[2],
+                         .tnear = tnear,
+                         .dir_x = d[0],
+                         .dir_y = d[1],
+                         .dir_z = d[2],
+                         .time = 0.0f,
+                         .tfar = tfar,
+                         .mask = 0xffffffffu,
+                         .id = 0,
+                         .flags = 0};
     rtcOccluded1(rt->scene, ctx, &ray);
     return ray.tfar < 0.0f; /* Embree sets tfar to -inf on a blocked ray */
 }

@@ -16,12 +16,12 @@
 
 #include "base/hash.h"
 
-#define PM_SCENE_MAX_TRIS (1u << 30)  /* triangles: 32-bit indices with room to spare */
+#define PM_SCENE_MAX_TRIS (1u << 30) /* triangles: 32-bit indices with room to spare */
 #define PM_SCENE_MAX_LIGHTS 65536
-#define PM_SCENE_COORD_MAX 1e30       /* m: beyond this, float products overflow */
+#define PM_SCENE_COORD_MAX 1e30 /* m: beyond this, float products overflow */
 
 typedef struct {
-    const char *file;   /* the scene file, for messages */
+    const char *file; /* the scene file, for messages */
     pm_scene_t *s;
 } ctx_t;
 
@@ -60,15 +60,14 @@ static pm_result_t only_keys(const ctx_t *c, json_t *obj, const char *where, con
 
 /* obj's member name into *v_out: NULL when it is absent and optional (leave the
  * default), an error naming path when it is absent and required. */
-static pm_result_t member(const ctx_t *c, json_t *obj, const char *name, const char *path, int required,
-                          json_t **v_out)
+static pm_result_t member(const ctx_t *c, json_t *obj, const char *name, const char *path, int required, json_t **v_out)
 {
     *v_out = json_object_get(obj, name);
     return !*v_out && required ? bad(c, path, "missing") : PM_OK;
 }
 
-static pm_result_t get_number(const ctx_t *c, json_t *obj, const char *name, const char *path, int required,
-                              double lo, double hi, double *out)
+static pm_result_t get_number(const ctx_t *c, json_t *obj, const char *name, const char *path, int required, double lo,
+                              double hi, double *out)
 {
     json_t *v;
     pm_result_t r = member(c, obj, name, path, required, &v);
@@ -83,8 +82,8 @@ static pm_result_t get_number(const ctx_t *c, json_t *obj, const char *name, con
     return PM_OK;
 }
 
-static pm_result_t get_int(const ctx_t *c, json_t *obj, const char *name, const char *path, int required,
-                           int64_t lo, int64_t hi, int64_t *out)
+static pm_result_t get_int(const ctx_t *c, json_t *obj, const char *name, const char *path, int required, int64_t lo,
+                           int64_t hi, int64_t *out)
 {
     json_t *v;
     pm_result_t r = member(c, obj, name, path, required, &v);
@@ -99,8 +98,8 @@ static pm_result_t get_int(const ctx_t *c, json_t *obj, const char *name, const 
     return PM_OK;
 }
 
-static pm_result_t get_vec3(const ctx_t *c, json_t *obj, const char *name, const char *path, int required,
-                            double lo, double hi, float out[3])
+static pm_result_t get_vec3(const ctx_t *c, json_t *obj, const char *name, const char *path, int required, double lo,
+                            double hi, float out[3])
 {
     json_t *v;
     pm_result_t r = member(c, obj, name, path, required, &v);
@@ -255,12 +254,13 @@ static pm_result_t load_material(const ctx_t *c, const char *mesh, const struct 
     float kdv[3] = {kd.r, kd.g, kd.b}, ksv[3] = {ks.r, ks.g, ks.b}, kev[3] = {ke.r, ke.g, ke.b};
     for (int i = 0; i < 3; i++) {
         if (!(kdv[i] >= 0.0f && kdv[i] <= 1.0f) || !(ksv[i] >= 0.0f && ksv[i] <= 1.0f))
-            return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': Kd %g and Ks %g in channel %c must lie in [0, 1]",
-                                mesh, m->name, kdv[i], ksv[i], "rgb"[i]);
-        if (kdv[i] + ksv[i] > 1.0f + 1e-6f)
             return pm_error_set(PM_ERR_INPUT,
-                                "mesh '%s': material '%s': Kd + Ks = %g in channel %c exceeds 1 (not energy conserving)",
-                                mesh, m->name, kdv[i] + ksv[i], "rgb"[i]);
+                                "mesh '%s': material '%s': Kd %g and Ks %g in channel %c must lie in [0, 1]", mesh,
+                                m->name, kdv[i], ksv[i], "rgb"[i]);
+        if (kdv[i] + ksv[i] > 1.0f + 1e-6f)
+            return pm_error_set(
+                PM_ERR_INPUT, "mesh '%s': material '%s': Kd + Ks = %g in channel %c exceeds 1 (not energy conserving)",
+                mesh, m->name, kdv[i] + ksv[i], "rgb"[i]);
         if (!(kev[i] >= 0.0f && kev[i] <= 1e30f))
             return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': Ke %g in channel %c must lie in [0, 1e30]",
                                 mesh, m->name, kev[i], "rgb"[i]);
@@ -407,8 +407,9 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
             for (int k = 0; k < 3; k++) {
                 double x = p[k] * scale + tr[k];
                 if (!isfinite(x) || fabs(x) > PM_SCENE_COORD_MAX) {
-                    r = pm_error_set(PM_ERR_INPUT, "mesh '%s': vertex %u coordinate %c = %g is not finite or beyond 1e30",
-                                     path, v, "xyz"[k], x);
+                    r = pm_error_set(PM_ERR_INPUT,
+                                     "mesh '%s': vertex %u coordinate %c = %g is not finite or beyond 1e30", path, v,
+                                     "xyz"[k], x);
                     break;
                 }
                 s->verts[3 * (v0 + v) + k] = (float)x;
@@ -541,8 +542,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     if (!root)
         return pm_error_set(PM_ERR_INPUT, "scene '%s' line %d column %d: %s", path, je.line, je.column, je.text);
     static const char *const keys[] = {"pmtk_scene", "name", "meshes", "camera", "point_lights", "render", NULL};
-    pm_result_t r = json_is_object(root) ? only_keys(&c, root, "top level", keys)
-                                          : bad(&c, "top level", "must be a JSON object");
+    pm_result_t r =
+        json_is_object(root) ? only_keys(&c, root, "top level", keys) : bad(&c, "top level", "must be a JSON object");
     int64_t version = 0;
     if (r == PM_OK)
         r = get_int(&c, root, "pmtk_scene", "pmtk_scene", 1, 1, 1, &version);

@@ -25,18 +25,18 @@ typedef struct {
 
 /* Render defaults a scene suggests; stages use them when their option is not given. */
 typedef struct {
-    int64_t photons;  /* photons emitted */
-    int64_t spp;      /* secondary rays per pixel */
-    double radius;    /* m, fixed kernel width; 0 = choose from k */
-    int64_t k;        /* photons per query the radius aims at */
-    int64_t leaf;     /* hilbert-sort leaf size */
+    int64_t photons; /* photons emitted */
+    int64_t spp;     /* secondary rays per pixel */
+    double radius;   /* m, fixed kernel width; 0 = choose from k */
+    int64_t k;       /* photons per query the radius aims at */
+    int64_t leaf;    /* hilbert-sort leaf size */
     int64_t seed;
 } pm_render_defaults_t;
 
 typedef struct {
-    char name[128];         /* "cornell-box" */
-    char path[1024];        /* the scene file */
-    uint64_t hash;          /* XXH3-64 of the scene file and everything loaded from it */
+    char name[128];  /* "cornell-box" */
+    char path[1024]; /* the scene file */
+    uint64_t hash;   /* XXH3-64 of the scene file and everything loaded from it */
     size_t nverts, ntris;
     float *verts;           /* nverts * 3, m */
     uint32_t *tris;         /* ntris * 3 vertex indices */
@@ -45,13 +45,13 @@ typedef struct {
     size_t nmaterials;
     pm_point_light_t *lights;
     size_t nlights;
-    uint32_t *emissive;     /* indices of triangles whose material emits */
+    uint32_t *emissive; /* indices of triangles whose material emits */
     size_t nemissive;
-    size_t ndropped;        /* degenerate (zero-area) triangles left out at load */
+    size_t ndropped; /* degenerate (zero-area) triangles left out at load */
     pm_camera_t camera;
     pm_render_defaults_t defaults;
-    float bounds[6];        /* min xyz, max xyz of all triangles and point lights, m */
-    int any_glossy;         /* 1 when some material has ks > 0: direction channels are needed */
+    float bounds[6]; /* min xyz, max xyz of all triangles and point lights, m */
+    int any_glossy;  /* 1 when some material has ks > 0: direction channels are needed */
 } pm_scene_t;
 
 /* Loads and checks a scene file. Errors name the file and the line (JSON syntax) or the

@@ -2,10 +2,10 @@
  * the BRDF and the lights are render/transport.c. */
 #include "render/shade.h"
 
+#include <inttypes.h>
 #include <math.h>
 #include <stdint.h>
 #include <string.h>
-#include <inttypes.h>
 
 #include "math/sampling.h"
 #include "math/vec.h"
@@ -42,8 +42,7 @@ void pm_camera_dir(const pm_camera_rays_t *c, float px, float py, float d_out[3]
         d_out[k] = d[k] * len;
 }
 
-pm_result_t pm_image_header_begin(pm_header_t *h, int argc, char **argv, const pm_scene_t *s, uint32_t w,
-                                  uint32_t ht)
+pm_result_t pm_image_header_begin(pm_header_t *h, int argc, char **argv, const pm_scene_t *s, uint32_t w, uint32_t ht)
 {
     char id[200];
     pm_scene_id(s, id, sizeof id);

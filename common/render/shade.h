@@ -28,7 +28,6 @@ void pm_camera_dir(const pm_camera_rays_t *c, float px, float py, float d_out[3]
 
 /* The keys every image-shaped output of a scene starts with: this command's COMMAND line, the
  * scene bounds, SCENE (name and content hash), width and height. */
-pm_result_t pm_image_header_begin(pm_header_t *h, int argc, char **argv, const pm_scene_t *s, uint32_t w,
-                                  uint32_t ht);
+pm_result_t pm_image_header_begin(pm_header_t *h, int argc, char **argv, const pm_scene_t *s, uint32_t w, uint32_t ht);
 
 #endif

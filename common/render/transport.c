@@ -25,8 +25,8 @@ void pm_brdf(const pm_material_t *m, const float n[3], const float wi[3], const 
         f_out[k] = m->kd[k] * (1.0f / PM_PI) + m->ks[k] * lobe;
 }
 
-int pm_bsdf_sample_lobe(const pm_material_t *m, pm_lobe_t lobe, const float n[3], const float wo[3], float u1,
-                        float u2, float wi_out[3])
+int pm_bsdf_sample_lobe(const pm_material_t *m, pm_lobe_t lobe, const float n[3], const float wo[3], float u1, float u2,
+                        float wi_out[3])
 {
     pm_vec3_t t, b, d;
     if (lobe == PM_LOBE_DIFFUSE) {
@@ -47,10 +47,7 @@ int pm_bsdf_sample_lobe(const pm_material_t *m, pm_lobe_t lobe, const float n[3]
 }
 
 /* The lobe's pdf at wi times w, multiplied in the order the mixture needs (w first). */
-static inline float diffuse_pdf_w(float w, float cosi)
-{
-    return cosi > 0.0f ? w * cosi * (1.0f / PM_PI) : 0.0f;
-}
+static inline float diffuse_pdf_w(float w, float cosi) { return cosi > 0.0f ? w * cosi * (1.0f / PM_PI) : 0.0f; }
 
 static inline float glossy_pdf_w(const pm_material_t *m, float w, const float n[3], const float wi[3],
                                  const float wo[3])
@@ -61,8 +58,7 @@ static inline float glossy_pdf_w(const pm_material_t *m, float w, const float n[
     return ca > 0.0f ? w * (m->ns + 1.0f) / (2.0f * PM_PI) * powf(ca, m->ns) : 0.0f;
 }
 
-float pm_bsdf_lobe_pdf(const pm_material_t *m, pm_lobe_t lobe, const float n[3], const float wi[3],
-                       const float wo[3])
+float pm_bsdf_lobe_pdf(const pm_material_t *m, pm_lobe_t lobe, const float n[3], const float wi[3], const float wo[3])
 {
     return lobe == PM_LOBE_DIFFUSE ? diffuse_pdf_w(1.0f, pm_dot3(n, wi)) : glossy_pdf_w(m, 1.0f, n, wi, wo);
 }

@@ -44,15 +44,14 @@ void pm_brdf(const pm_material_t *m, const float n[3], const float wi[3], const 
  * cosine-weighted about n, the glossy one as cos^ns about the mirror direction of wo. Returns
  * whether wi lies above the surface (n.wi > 0); a glossy sample below it is the lobe's energy
  * loss, which callers treat as absorption. */
-int pm_bsdf_sample_lobe(const pm_material_t *m, pm_lobe_t lobe, const float n[3], const float wo[3], float u1,
-                        float u2, float wi_out[3]);
+int pm_bsdf_sample_lobe(const pm_material_t *m, pm_lobe_t lobe, const float n[3], const float wo[3], float u1, float u2,
+                        float wi_out[3]);
 
 /* Solid-angle pdf, 1/sr, of pm_bsdf_sample_lobe producing wi: cos(theta) / pi above the
  * surface (0 below) for the diffuse lobe; (ns + 1) / (2 pi) cos^ns(alpha) within 90 degrees of
  * the mirror direction of wo for the glossy one, below the surface included. Each integrates
  * to 1 over the sphere. */
-float pm_bsdf_lobe_pdf(const pm_material_t *m, pm_lobe_t lobe, const float n[3], const float wi[3],
-                       const float wo[3]);
+float pm_bsdf_lobe_pdf(const pm_material_t *m, pm_lobe_t lobe, const float n[3], const float wi[3], const float wo[3]);
 
 /* f cos / pdf of the glossy lobe alone over ks, at n.wi = cosi: (ns + 2) / (ns + 1) cosi, in
  * double (the photon tracer's weight for a glossy bounce). */
@@ -85,9 +84,9 @@ float pm_bsdf_pdf(const pm_material_t *m, const float n[3], const float wi[3], c
 
 /* Per-triangle unit front normals and the area lights of a scene. */
 typedef struct {
-    float *tri_n;      /* ntris * 3: (v1 - v0) x (v2 - v0), normalized; the side that emits */
-    double *cdf;       /* nemissive: cumulative emissive area, ending at exactly 1 */
-    double area;       /* m^2, all emissive triangles */
+    float *tri_n; /* ntris * 3: (v1 - v0) x (v2 - v0), normalized; the side that emits */
+    double *cdf;  /* nemissive: cumulative emissive area, ending at exactly 1 */
+    double area;  /* m^2, all emissive triangles */
     size_t nemissive;
 } pm_shade_geom_t;
 

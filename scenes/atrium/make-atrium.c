@@ -61,63 +61,77 @@ static const double PI = 3.14159265358979323846;
 /* Dimensions                                                               */
 /* ------------------------------------------------------------------------ */
 
-#define BAYS_X 10              /* bays along each long side of the court  */
-#define BAYS_Z 4               /* bays along each short side of the court */
+#define BAYS_X 10 /* bays along each long side of the court  */
+#define BAYS_Z 4  /* bays along each short side of the court */
 
-static const double COURT_HX = 15.0;   /* half length of the court (x)      */
-static const double COURT_HZ = 6.5;    /* half width of the court (z)       */
-static const double GALLERY = 3.0;     /* column line to outer wall inside  */
-static const double OUTER_T = 0.5;     /* outer wall thickness              */
-static const double SKY_GAP = 0.1;     /* sky quad height above the roof    */
-static const double COPING_W = 0.3;    /* width of the coping round the sky */
+static const double COURT_HX = 15.0; /* half length of the court (x)      */
+static const double COURT_HZ = 6.5;  /* half width of the court (z)       */
+static const double GALLERY = 3.0;   /* column line to outer wall inside  */
+static const double OUTER_T = 0.5;   /* outer wall thickness              */
+static const double SKY_GAP = 0.1;   /* sky quad height above the roof    */
+static const double COPING_W = 0.3;  /* width of the coping round the sky */
 
 /* Tessellation. */
 enum {
-    ARCH_SEGS = 64,            /* segments of one semicircular arch        */
-    SHAFT_SEGS = 32,           /* segments around a column shaft           */
-    BALUSTER_SEGS = 10,        /* segments around a baluster               */
-    DRAPE_COLS = 30,           /* drape grid, across                       */
-    DRAPE_ROWS = 4             /* drape grid, down                         */
+    ARCH_SEGS = 64,     /* segments of one semicircular arch        */
+    SHAFT_SEGS = 32,    /* segments around a column shaft           */
+    BALUSTER_SEGS = 10, /* segments around a baluster               */
+    DRAPE_COLS = 30,    /* drape grid, across                       */
+    DRAPE_ROWS = 4      /* drape grid, down                         */
 };
 
 /* One storey of the arcade. */
 typedef struct {
-    double y_floor;            /* top of the floor or slab it stands on     */
-    double base_h, base_half;  /* column base box: height, half width       */
-    double cap_h, cap_half;    /* capital box: height, half width           */
-    double shaft_r;            /* nominal shaft radius                      */
-    double y_spring;           /* top of the capitals = springing of arches */
-    double y_top;              /* top of the arcade wall = slab underside   */
-    double slab_top;           /* top of the slab (or roof) above           */
-    double wall_half;          /* half thickness of the arcade wall         */
-    double pillar_half;        /* half width of wall between two openings   */
-    double cornice;            /* slab overhang past the arcade wall        */
+    double y_floor;           /* top of the floor or slab it stands on     */
+    double base_h, base_half; /* column base box: height, half width       */
+    double cap_h, cap_half;   /* capital box: height, half width           */
+    double shaft_r;           /* nominal shaft radius                      */
+    double y_spring;          /* top of the capitals = springing of arches */
+    double y_top;             /* top of the arcade wall = slab underside   */
+    double slab_top;          /* top of the slab (or roof) above           */
+    double wall_half;         /* half thickness of the arcade wall         */
+    double pillar_half;       /* half width of wall between two openings   */
+    double cornice;           /* slab overhang past the arcade wall        */
 } storey;
 
-static const storey GROUND = {
-    .y_floor = 0.0, .base_h = 0.4, .base_half = 0.4, .cap_h = 0.4,
-    .cap_half = 0.375, .shaft_r = 0.28, .y_spring = 5.0, .y_top = 7.0,
-    .slab_top = 7.5, .wall_half = 0.25, .pillar_half = 0.3, .cornice = 0.15
-};
+static const storey GROUND = {.y_floor = 0.0,
+                              .base_h = 0.4,
+                              .base_half = 0.4,
+                              .cap_h = 0.4,
+                              .cap_half = 0.375,
+                              .shaft_r = 0.28,
+                              .y_spring = 5.0,
+                              .y_top = 7.0,
+                              .slab_top = 7.5,
+                              .wall_half = 0.25,
+                              .pillar_half = 0.3,
+                              .cornice = 0.15};
 
-static const storey UPPER = {
-    .y_floor = 7.5, .base_h = 0.3, .base_half = 0.3, .cap_h = 0.3,
-    .cap_half = 0.3, .shaft_r = 0.22, .y_spring = 11.9, .y_top = 14.5,
-    .slab_top = 15.0, .wall_half = 0.2, .pillar_half = 0.25, .cornice = 0.15
-};
+static const storey UPPER = {.y_floor = 7.5,
+                             .base_h = 0.3,
+                             .base_half = 0.3,
+                             .cap_h = 0.3,
+                             .cap_half = 0.3,
+                             .shaft_r = 0.22,
+                             .y_spring = 11.9,
+                             .y_top = 14.5,
+                             .slab_top = 15.0,
+                             .wall_half = 0.2,
+                             .pillar_half = 0.25,
+                             .cornice = 0.15};
 
 /* Upper balustrade. */
 static const double PLINTH_H = 0.15, PLINTH_HALF = 0.15;
 static const double RAIL_H = 0.15, RAIL_HALF = 0.16;
-static const double BALUSTRADE_H = 1.1;    /* plinth bottom to rail top     */
-static const double BALUSTER_PITCH = 0.3;  /* approximate spacing           */
+static const double BALUSTRADE_H = 1.1;   /* plinth bottom to rail top     */
+static const double BALUSTER_PITCH = 0.3; /* approximate spacing           */
 
 /* Drapes in the ground storey. */
-static const double DRAPE_BOTTOM = 2.6;    /* lower hem height              */
-static const double DRAPE_OFFSET = 0.45;   /* centre, from the column line  */
-static const double DRAPE_MARGIN = 0.5;    /* gap to the column centres     */
-static const double DRAPE_T = 0.02;        /* cloth thickness               */
-static const double DRAPE_FOLDS = 5.0;     /* waves across one drape        */
+static const double DRAPE_BOTTOM = 2.6;  /* lower hem height              */
+static const double DRAPE_OFFSET = 0.45; /* centre, from the column line  */
+static const double DRAPE_MARGIN = 0.5;  /* gap to the column centres     */
+static const double DRAPE_T = 0.02;      /* cloth thickness               */
+static const double DRAPE_FOLDS = 5.0;   /* waves across one drape        */
 
 /* Smallest triangle area allowed in the output (m^2). */
 static const double MIN_AREA = 1e-8;
@@ -126,18 +140,21 @@ static const double MIN_AREA = 1e-8;
 /* Small vector helpers                                                     */
 /* ------------------------------------------------------------------------ */
 
-typedef struct { double x, y, z; } vec3;
+typedef struct {
+    double x, y, z;
+} vec3;
 
-static vec3 v3(double x, double y, double z) { vec3 v = {x, y, z}; return v; }
+static vec3 v3(double x, double y, double z)
+{
+    vec3 v = {x, y, z};
+    return v;
+}
 
 static vec3 v_sub(vec3 a, vec3 b) { return v3(a.x - b.x, a.y - b.y, a.z - b.z); }
 
 static double v_dot(vec3 a, vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
 
-static vec3 v_cross(vec3 a, vec3 b)
-{
-    return v3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
-}
+static vec3 v_cross(vec3 a, vec3 b) { return v3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x); }
 
 /* ------------------------------------------------------------------------ */
 /* Mesh store                                                               */
@@ -145,11 +162,24 @@ static vec3 v_cross(vec3 a, vec3 b)
 
 /* Groups, in output order, and the material each one uses. */
 enum group {
-    G_FLOOR, G_OUTER_WALLS, G_COLUMN_BASES, G_COLUMNS, G_CAPITALS, G_ARCADES,
-    G_SLABS, G_BALUSTRADE, G_BALUSTERS, G_ROOF, G_DRAPES, G_SKY, G_COUNT
+    G_FLOOR,
+    G_OUTER_WALLS,
+    G_COLUMN_BASES,
+    G_COLUMNS,
+    G_CAPITALS,
+    G_ARCADES,
+    G_SLABS,
+    G_BALUSTRADE,
+    G_BALUSTERS,
+    G_ROOF,
+    G_DRAPES,
+    G_SKY,
+    G_COUNT
 };
 
-static const struct { const char *name, *material; } GROUPS[G_COUNT] = {
+static const struct {
+    const char *name, *material;
+} GROUPS[G_COUNT] = {
     [G_FLOOR] = {"floor", "floor"},
     [G_OUTER_WALLS] = {"outer_walls", "stone"},
     [G_COLUMN_BASES] = {"column_bases", "stone"},
@@ -164,14 +194,17 @@ static const struct { const char *name, *material; } GROUPS[G_COUNT] = {
     [G_SKY] = {"sky", "sky"},
 };
 
-typedef struct { size_t a, b, c; int group; } triangle;
+typedef struct {
+    size_t a, b, c;
+    int group;
+} triangle;
 
 static struct {
     vec3 *v;
     size_t nv, cap_v;
     triangle *t;
     size_t nt, cap_t;
-    int group;                  /* group of the triangles emitted next */
+    int group; /* group of the triangles emitted next */
 } mesh;
 
 static void die_nomem(void)
@@ -212,8 +245,7 @@ static void emit_tri(size_t a, size_t b, size_t c, vec3 out)
     double area = 0.5 * sqrt(v_dot(n, n));
 
     if (area < MIN_AREA) {
-        fprintf(stderr, PROG ": internal error: degenerate triangle (area %g)\n",
-                area);
+        fprintf(stderr, PROG ": internal error: degenerate triangle (area %g)\n", area);
         exit(1);
     }
     if (v_dot(n, out) < 0.0) {
@@ -238,22 +270,19 @@ static void emit_quad(size_t a, size_t b, size_t c, size_t d, vec3 out)
 /* ------------------------------------------------------------------------ */
 
 /* Face selection for emit_box(). */
-enum {
-    F_NX = 1, F_PX = 2, F_NY = 4, F_PY = 8, F_NZ = 16, F_PZ = 32,
-    F_ALL = 63, F_NO_BOTTOM = F_ALL & ~F_NY
-};
+enum { F_NX = 1, F_PX = 2, F_NY = 4, F_PY = 8, F_NZ = 16, F_PZ = 32, F_ALL = 63, F_NO_BOTTOM = F_ALL & ~F_NY };
 
 /* Emit the selected faces of the box [lo, hi]. */
 static void emit_box(vec3 lo, vec3 hi, unsigned faces)
 {
     /* corner index: bit 0 = x high, bit 1 = y high, bit 2 = z high */
-    static const struct { unsigned flag; int c[4]; double nx, ny, nz; } FACE[6] = {
-        {F_NX, {0, 4, 6, 2}, -1, 0, 0},
-        {F_PX, {1, 3, 7, 5}, 1, 0, 0},
-        {F_NY, {0, 1, 5, 4}, 0, -1, 0},
-        {F_PY, {2, 6, 7, 3}, 0, 1, 0},
-        {F_NZ, {0, 2, 3, 1}, 0, 0, -1},
-        {F_PZ, {4, 5, 7, 6}, 0, 0, 1},
+    static const struct {
+        unsigned flag;
+        int c[4];
+        double nx, ny, nz;
+    } FACE[6] = {
+        {F_NX, {0, 4, 6, 2}, -1, 0, 0}, {F_PX, {1, 3, 7, 5}, 1, 0, 0},  {F_NY, {0, 1, 5, 4}, 0, -1, 0},
+        {F_PY, {2, 6, 7, 3}, 0, 1, 0},  {F_NZ, {0, 2, 3, 1}, 0, 0, -1}, {F_PZ, {4, 5, 7, 6}, 0, 0, 1},
     };
     size_t idx[8];
     int have[8] = {0};
@@ -264,13 +293,12 @@ static void emit_box(vec3 lo, vec3 hi, unsigned faces)
         for (int k = 0; k < 4; k++) {
             int c = FACE[f].c[k];
             if (!have[c]) {
-                idx[c] = add_vertex(v3(c & 1 ? hi.x : lo.x, c & 2 ? hi.y : lo.y,
-                                       c & 4 ? hi.z : lo.z));
+                idx[c] = add_vertex(v3(c & 1 ? hi.x : lo.x, c & 2 ? hi.y : lo.y, c & 4 ? hi.z : lo.z));
                 have[c] = 1;
             }
         }
-        emit_quad(idx[FACE[f].c[0]], idx[FACE[f].c[1]], idx[FACE[f].c[2]],
-                  idx[FACE[f].c[3]], v3(FACE[f].nx, FACE[f].ny, FACE[f].nz));
+        emit_quad(idx[FACE[f].c[0]], idx[FACE[f].c[1]], idx[FACE[f].c[2]], idx[FACE[f].c[3]],
+                  v3(FACE[f].nx, FACE[f].ny, FACE[f].nz));
     }
 }
 
@@ -284,9 +312,9 @@ static void emit_box(vec3 lo, vec3 hi, unsigned faces)
  * centre line.  `out` is the sign of w that points away from the court.
  */
 typedef struct {
-    int along_x;        /* nonzero: u is x and w is z; zero: u is z, w is x */
-    double line;        /* z (or x) of the column centre line               */
-    double out;         /* +1 or -1                                         */
+    int along_x; /* nonzero: u is x and w is z; zero: u is z, w is x */
+    double line; /* z (or x) of the column centre line               */
+    double out;  /* +1 or -1                                         */
 } frame;
 
 static vec3 frame_point(const frame *f, double u, double y, double w)
@@ -303,17 +331,23 @@ static vec3 frame_dir(const frame *f, double du, double dy, double dw)
 enum { FU0 = 1, FU1 = 2, FY0 = 4, FY1 = 8, FW0 = 16, FW1 = 32 };
 
 /* A box given in frame coordinates (u0 < u1, y0 < y1, w0 < w1). */
-static void emit_frame_box(const frame *f, double u0, double u1, double y0,
-                           double y1, double w0, double w1, unsigned faces)
+static void emit_frame_box(const frame *f, double u0, double u1, double y0, double y1, double w0, double w1,
+                           unsigned faces)
 {
     unsigned world = 0;
 
-    if (faces & FY0) world |= F_NY;
-    if (faces & FY1) world |= F_PY;
-    if (faces & FU0) world |= f->along_x ? F_NX : F_NZ;
-    if (faces & FU1) world |= f->along_x ? F_PX : F_PZ;
-    if (faces & FW0) world |= f->along_x ? F_NZ : F_NX;
-    if (faces & FW1) world |= f->along_x ? F_PZ : F_PX;
+    if (faces & FY0)
+        world |= F_NY;
+    if (faces & FY1)
+        world |= F_PY;
+    if (faces & FU0)
+        world |= f->along_x ? F_NX : F_NZ;
+    if (faces & FU1)
+        world |= f->along_x ? F_PX : F_PZ;
+    if (faces & FW0)
+        world |= f->along_x ? F_NZ : F_NX;
+    if (faces & FW1)
+        world |= f->along_x ? F_PZ : F_PX;
     emit_box(frame_point(f, u0, y0, w0), frame_point(f, u1, y1, w1), world);
 }
 
@@ -326,8 +360,7 @@ static void emit_frame_box(const frame *f, double u0, double u1, double y0,
  * {height above y0, radius}, listed bottom to top.  Only the side surface is
  * made: the ends always rest against a base, capital, plinth or rail.
  */
-static void emit_lathe(double cx, double y0, double cz, const double (*profile)[2],
-                       int npoints, int segs)
+static void emit_lathe(double cx, double y0, double cz, const double (*profile)[2], int npoints, int segs)
 {
     size_t first = mesh.nv;
 
@@ -372,22 +405,19 @@ static void emit_shaft(double x, double z, const storey *s)
         {h - 0.3 * r, 0.88 * r},
         {h, 0.88 * r},
     };
-    emit_lathe(x, y0, z, profile, (int)(sizeof profile / sizeof profile[0]),
-               SHAFT_SEGS);
+    emit_lathe(x, y0, z, profile, (int)(sizeof profile / sizeof profile[0]), SHAFT_SEGS);
 }
 
 static void emit_column_base(double x, double z, const storey *s)
 {
     double b = s->base_half;
-    emit_box(v3(x - b, s->y_floor, z - b), v3(x + b, s->y_floor + s->base_h, z + b),
-             F_NO_BOTTOM);
+    emit_box(v3(x - b, s->y_floor, z - b), v3(x + b, s->y_floor + s->base_h, z + b), F_NO_BOTTOM);
 }
 
 static void emit_capital(double x, double z, const storey *s)
 {
     double c = s->cap_half;
-    emit_box(v3(x - c, s->y_spring - s->cap_h, z - c), v3(x + c, s->y_spring, z + c),
-             F_ALL);
+    emit_box(v3(x - c, s->y_spring - s->cap_h, z - c), v3(x + c, s->y_spring, z + c), F_ALL);
 }
 
 /*
@@ -400,8 +430,7 @@ static void emit_capital(double x, double z, const storey *s)
  * is wider and taller than the opening.  The panel bottom rests on the
  * capitals and its top against the slab, so neither is emitted.
  */
-static void emit_arch_bay(const frame *f, double ua, double ub, double m, double r,
-                          double ys, double yt, double half)
+static void emit_arch_bay(const frame *f, double ua, double ub, double m, double r, double ys, double yt, double half)
 {
     size_t arc[2][ARCH_SEGS + 1];
     const int mid = ARCH_SEGS / 2;
@@ -450,8 +479,8 @@ static void emit_arch_bay(const frame *f, double ua, double ub, double m, double
  * butt against the wall of the neighbouring side).  End faces are emitted
  * only if `ends` is set.
  */
-static void emit_arcade_wall(const frame *f, const double *cols, int ncols,
-                             double u_start, double u_end, int ends, const storey *s)
+static void emit_arcade_wall(const frame *f, const double *cols, int ncols, double u_start, double u_end, int ends,
+                             const storey *s)
 {
     double h = s->wall_half;
 
@@ -483,26 +512,18 @@ static void emit_balustrade_bay(const frame *f, double c0, double c1, const stor
     int n = (int)floor(span / BALUSTER_PITCH);
     double hb = y_rail - (y0 + PLINTH_H);
     const double profile[][2] = {
-        {0.0, 0.045},
-        {0.10 * hb, 0.062},
-        {0.33 * hb, 0.075},
-        {0.65 * hb, 0.032},
-        {0.86 * hb, 0.042},
-        {hb, 0.042},
+        {0.0, 0.045}, {0.10 * hb, 0.062}, {0.33 * hb, 0.075}, {0.65 * hb, 0.032}, {0.86 * hb, 0.042}, {hb, 0.042},
     };
 
     set_group(G_BALUSTRADE);
-    emit_frame_box(f, c0 + b, c1 - b, y0, y0 + PLINTH_H, -PLINTH_HALF, PLINTH_HALF,
-                   FY1 | FW0 | FW1);
-    emit_frame_box(f, c0 + e, c1 - e, y_rail, y_rail + RAIL_H, -RAIL_HALF, RAIL_HALF,
-                   FY0 | FY1 | FW0 | FW1);
+    emit_frame_box(f, c0 + b, c1 - b, y0, y0 + PLINTH_H, -PLINTH_HALF, PLINTH_HALF, FY1 | FW0 | FW1);
+    emit_frame_box(f, c0 + e, c1 - e, y_rail, y_rail + RAIL_H, -RAIL_HALF, RAIL_HALF, FY0 | FY1 | FW0 | FW1);
 
     set_group(G_BALUSTERS);
     for (int i = 0; i < n; i++) {
         double u = c0 + b + span * (i + 0.5) / n;
         vec3 p = frame_point(f, u, y0 + PLINTH_H, 0.0);
-        emit_lathe(p.x, p.y, p.z, profile, (int)(sizeof profile / sizeof profile[0]),
-                   BALUSTER_SEGS);
+        emit_lathe(p.x, p.y, p.z, profile, (int)(sizeof profile / sizeof profile[0]), BALUSTER_SEGS);
     }
 }
 
@@ -520,7 +541,7 @@ static void emit_drape(const frame *f, double u0, double u1, double y_top)
     for (int side = 0; side < 2; side++) {
         double dw = (side ? 0.5 : -0.5) * DRAPE_T;
         for (int j = 0; j <= DRAPE_ROWS; j++) {
-            double t = (double)j / DRAPE_ROWS;        /* 0 at top, 1 at hem */
+            double t = (double)j / DRAPE_ROWS; /* 0 at top, 1 at hem */
             double y = y_top - (y_top - DRAPE_BOTTOM) * t;
             double amp = 0.02 + 0.06 * t;
             for (int i = 0; i <= DRAPE_COLS; i++) {
@@ -534,19 +555,15 @@ static void emit_drape(const frame *f, double u0, double u1, double y_top)
         vec3 out = frame_dir(f, 0.0, 0.0, side ? 1.0 : -1.0);
         for (int j = 0; j < DRAPE_ROWS; j++)
             for (int i = 0; i < DRAPE_COLS; i++)
-                emit_quad(grid[side][j][i], grid[side][j][i + 1],
-                          grid[side][j + 1][i + 1], grid[side][j + 1][i], out);
+                emit_quad(grid[side][j][i], grid[side][j][i + 1], grid[side][j + 1][i + 1], grid[side][j + 1][i], out);
     }
-    for (int i = 0; i < DRAPE_COLS; i++)            /* hem */
-        emit_quad(grid[0][DRAPE_ROWS][i], grid[0][DRAPE_ROWS][i + 1],
-                  grid[1][DRAPE_ROWS][i + 1], grid[1][DRAPE_ROWS][i],
-                  v3(0.0, -1.0, 0.0));
-    for (int j = 0; j < DRAPE_ROWS; j++) {          /* side edges */
-        emit_quad(grid[0][j][0], grid[1][j][0], grid[1][j + 1][0], grid[0][j + 1][0],
-                  frame_dir(f, -1.0, 0.0, 0.0));
-        emit_quad(grid[0][j][DRAPE_COLS], grid[1][j][DRAPE_COLS],
-                  grid[1][j + 1][DRAPE_COLS], grid[0][j + 1][DRAPE_COLS],
-                  frame_dir(f, 1.0, 0.0, 0.0));
+    for (int i = 0; i < DRAPE_COLS; i++) /* hem */
+        emit_quad(grid[0][DRAPE_ROWS][i], grid[0][DRAPE_ROWS][i + 1], grid[1][DRAPE_ROWS][i + 1],
+                  grid[1][DRAPE_ROWS][i], v3(0.0, -1.0, 0.0));
+    for (int j = 0; j < DRAPE_ROWS; j++) { /* side edges */
+        emit_quad(grid[0][j][0], grid[1][j][0], grid[1][j + 1][0], grid[0][j + 1][0], frame_dir(f, -1.0, 0.0, 0.0));
+        emit_quad(grid[0][j][DRAPE_COLS], grid[1][j][DRAPE_COLS], grid[1][j + 1][DRAPE_COLS],
+                  grid[0][j + 1][DRAPE_COLS], frame_dir(f, 1.0, 0.0, 0.0));
     }
 }
 
@@ -645,15 +662,12 @@ static void build_atrium(void)
         col_z[k] = -COURT_HZ + 2.0 * COURT_HZ * k / BAYS_Z;
 
     set_group(G_FLOOR);
-    emit_box(v3(-ox - OUTER_T, 0.0, -oz - OUTER_T), v3(ox + OUTER_T, 0.0, oz + OUTER_T),
-             F_PY);
+    emit_box(v3(-ox - OUTER_T, 0.0, -oz - OUTER_T), v3(ox + OUTER_T, 0.0, oz + OUTER_T), F_PY);
 
     /* Outer walls: the long ones run the full length, the short ones between. */
     set_group(G_OUTER_WALLS);
-    emit_box(v3(-ox - OUTER_T, 0.0, -oz - OUTER_T), v3(ox + OUTER_T, top, -oz),
-             F_NO_BOTTOM);
-    emit_box(v3(-ox - OUTER_T, 0.0, oz), v3(ox + OUTER_T, top, oz + OUTER_T),
-             F_NO_BOTTOM);
+    emit_box(v3(-ox - OUTER_T, 0.0, -oz - OUTER_T), v3(ox + OUTER_T, top, -oz), F_NO_BOTTOM);
+    emit_box(v3(-ox - OUTER_T, 0.0, oz), v3(ox + OUTER_T, top, oz + OUTER_T), F_NO_BOTTOM);
     emit_box(v3(-ox - OUTER_T, 0.0, -oz), v3(-ox, top, oz), F_NX | F_PX | F_PY);
     emit_box(v3(ox, 0.0, -oz), v3(ox + OUTER_T, top, oz), F_NX | F_PX | F_PY);
 
@@ -662,12 +676,10 @@ static void build_atrium(void)
 
     /* Floor slab between the storeys, roof over the upper galleries. */
     set_group(G_SLABS);
-    emit_gallery_slab(GROUND.y_top, GROUND.slab_top,
-                      COURT_HX - GROUND.wall_half - GROUND.cornice,
+    emit_gallery_slab(GROUND.y_top, GROUND.slab_top, COURT_HX - GROUND.wall_half - GROUND.cornice,
                       COURT_HZ - GROUND.wall_half - GROUND.cornice);
     set_group(G_ROOF);
-    emit_gallery_slab(UPPER.y_top, UPPER.slab_top,
-                      COURT_HX - UPPER.wall_half - UPPER.cornice,
+    emit_gallery_slab(UPPER.y_top, UPPER.slab_top, COURT_HX - UPPER.wall_half - UPPER.cornice,
                       COURT_HZ - UPPER.wall_half - UPPER.cornice);
 
     /* Balustrade in every bay of the upper storey. */
@@ -684,8 +696,7 @@ static void build_atrium(void)
     for (int side = 0; side < 2; side++) {
         frame f = side_frame(side);
         for (int k = 1; k < BAYS_X; k += 2)
-            emit_drape(&f, col_x[k] + DRAPE_MARGIN, col_x[k + 1] - DRAPE_MARGIN,
-                       GROUND.y_top);
+            emit_drape(&f, col_x[k] + DRAPE_MARGIN, col_x[k + 1] - DRAPE_MARGIN, GROUND.y_top);
     }
 
     /*
@@ -716,13 +727,14 @@ static void build_atrium(void)
 /* A FILE with a sticky error: after the first failure, output is dropped. */
 typedef struct {
     FILE *fp;
-    int err;            /* errno of the first failed write, or 0 */
+    int err; /* errno of the first failed write, or 0 */
 } writer;
 
 #if defined(__GNUC__)
 __attribute__((format(printf, 2, 3)))
 #endif
-static void out(writer *w, const char *fmt, ...);
+static void
+out(writer *w, const char *fmt, ...);
 
 static void out(writer *w, const char *fmt, ...)
 {
@@ -767,26 +779,25 @@ static void write_mtl(writer *w)
 
 static void write_obj(writer *w)
 {
-    out(w, "# atrium.obj -- a Sponza-like atrium, written by " PROG "\n"
-           "#\n"
-           "# A stand-in for the Sponza atrium (which cannot be shipped): an open\n"
-           "# court surrounded by two storeys of arcades, lit through a sky\n"
-           "# opening.  Units: metres.  y is up, the floor is at y = 0.\n"
-           "# Faces are wound counter-clockwise seen from outside.\n"
-           "# %zu vertices, %zu triangles.\n"
-           "\n"
-           "mtllib atrium.mtl\n"
-           "\n",
+    out(w,
+        "# atrium.obj -- a Sponza-like atrium, written by " PROG "\n"
+        "#\n"
+        "# A stand-in for the Sponza atrium (which cannot be shipped): an open\n"
+        "# court surrounded by two storeys of arcades, lit through a sky\n"
+        "# opening.  Units: metres.  y is up, the floor is at y = 0.\n"
+        "# Faces are wound counter-clockwise seen from outside.\n"
+        "# %zu vertices, %zu triangles.\n"
+        "\n"
+        "mtllib atrium.mtl\n"
+        "\n",
         mesh.nv, mesh.nt);
     for (size_t i = 0; i < mesh.nv; i++)
-        out(w, "v %.6f %.6f %.6f\n", clean(mesh.v[i].x), clean(mesh.v[i].y),
-            clean(mesh.v[i].z));
+        out(w, "v %.6f %.6f %.6f\n", clean(mesh.v[i].x), clean(mesh.v[i].y), clean(mesh.v[i].z));
     for (int g = 0; g < G_COUNT; g++) {
         out(w, "\ng %s\nusemtl %s\n", GROUPS[g].name, GROUPS[g].material);
         for (size_t i = 0; i < mesh.nt; i++)
             if (mesh.t[i].group == g)
-                out(w, "f %zu %zu %zu\n", mesh.t[i].a + 1, mesh.t[i].b + 1,
-                    mesh.t[i].c + 1);
+                out(w, "f %zu %zu %zu\n", mesh.t[i].a + 1, mesh.t[i].b + 1, mesh.t[i].c + 1);
     }
 }
 
@@ -834,13 +845,12 @@ static char *join(const char *dir, const char *name)
 
 static void usage(FILE *fp)
 {
-    fprintf(fp,
-            "usage: " PROG " [-o DIR]\n"
-            "Generate a Sponza-like atrium (units: metres, y up) and write it as\n"
-            "DIR/atrium.obj and DIR/atrium.mtl (DIR defaults to \".\").\n"
-            "\n"
-            "  -o DIR   write the files into DIR, which must exist\n"
-            "  --help   show this help and exit\n");
+    fprintf(fp, "usage: " PROG " [-o DIR]\n"
+                "Generate a Sponza-like atrium (units: metres, y up) and write it as\n"
+                "DIR/atrium.obj and DIR/atrium.mtl (DIR defaults to \".\").\n"
+                "\n"
+                "  -o DIR   write the files into DIR, which must exist\n"
+                "  --help   show this help and exit\n");
 }
 
 int main(int argc, char **argv)
@@ -860,9 +870,7 @@ int main(int argc, char **argv)
             }
             dir = argv[++i];
         } else {
-            fprintf(stderr, PROG ": %s '%s'\n",
-                    argv[i][0] == '-' ? "unknown option" : "unexpected argument",
-                    argv[i]);
+            fprintf(stderr, PROG ": %s '%s'\n", argv[i][0] == '-' ? "unknown option" : "unexpected argument", argv[i]);
             usage(stderr);
             return 2;
         }

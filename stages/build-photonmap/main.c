@@ -20,16 +20,19 @@ typedef struct {
     int64_t width_k;   /* 0: no width channel */
     double vvh_radius; /* m; 0: from vvh_k */
     int64_t vvh_k;
-    double width_max;  /* m; 0: no limit */
+    double width_max; /* m; 0: no limit */
 } build_options_t;
 
 static pm_result_t run(pm_stage_t *st, const build_options_t *o)
 {
     const char *in = st->args.args[0];
     pm_table_t ph = {0}, map = {0};
-    pm_map_build_params_t p = {.map = (pm_map_kind_t)o->map, .split = (pm_split_t)o->split,
-                               .vvh_radius = o->vvh_radius, .vvh_k = (uint32_t)o->vvh_k,
-                               .width_k = (uint32_t)o->width_k, .width_max = o->width_max};
+    pm_map_build_params_t p = {.map = (pm_map_kind_t)o->map,
+                               .split = (pm_split_t)o->split,
+                               .vvh_radius = o->vvh_radius,
+                               .vvh_k = (uint32_t)o->vvh_k,
+                               .width_k = (uint32_t)o->width_k,
+                               .width_max = o->width_max};
     pm_map_build_stats_t bs;
     double t0 = pm_time_wall();
     pm_result_t r = pm_table_read(in, &pm_photons_schema, pm_schema_required(&pm_photons_schema), &ph);
@@ -74,7 +77,8 @@ int main(int argc, char **argv)
 {
     pm_stage_t st;
     pm_stage_defaults(&st);
-    build_options_t o = {.map = PM_MAP_GLOBAL, .split = PM_SPLIT_MEDIAN, .width_k = 0, .width_max = 0.0, .vvh_radius = 0.0, .vvh_k = 50};
+    build_options_t o = {
+        .map = PM_MAP_GLOBAL, .split = PM_SPLIT_MEDIAN, .width_k = 0, .width_max = 0.0, .vvh_radius = 0.0, .vvh_k = 50};
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
         {"map", 0, PM_OPT_CHOICE, &o.map, "KIND",
@@ -88,14 +92,17 @@ int main(int argc, char **argv)
         {"vvh-k", 0, PM_OPT_INT, &o.vvh_k, "K", "photons per search the vvh radius is chosen for", 1, 1e6, NULL},
         {"width-k", 0, PM_OPT_INT, &o.width_k, "K",
          "store each photon's kernel width: the radius holding K photons around it (0: none)", 0, 65536, NULL},
-        {"width-max", 0, PM_OPT_DOUBLE, &o.width_max, "M",
-         "largest kernel width, m, for --width-k (0: no limit)", 0, 1e30, NULL},
+        {"width-max", 0, PM_OPT_DOUBLE, &o.width_max, "M", "largest kernel width, m, for --width-k (0: no limit)", 0,
+         1e30, NULL},
         {0},
     };
-    const pm_cli_t cli = {"build-photonmap", "[options] PHOTONS -o MAP",
+    const pm_cli_t cli = {"build-photonmap",
+                          "[options] PHOTONS -o MAP",
                           "Build the photon map KD-tree (one photon per node, 8-byte nodes) from a photons file; "
                           "PHOTONS may be - for stdin.",
-                          options, 1, 1};
+                          options,
+                          1,
+                          1};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

@@ -37,7 +37,7 @@ static pm_result_t run(pm_stage_t *st, const composite_options_t *o)
     int to_exr = strcmp(st->output, "-") != 0;
     if (!to_exr && !o->png && !o->radiance)
         return pm_error_set(PM_ERR_USAGE, "no output: give -o IMAGE.exr (OpenEXR cannot write to a pipe), --png or "
-                            "--radiance");
+                                          "--radiance");
     pm_composite_t *c;
     pm_result_t r = pm_composite_open(&c, st->args.args, st->args.nargs, (pm_composite_only_t)o->only);
     double t0 = pm_time_wall();
@@ -84,22 +84,24 @@ int main(int argc, char **argv)
         PM_STAGE_COMMON_OPTIONS(st),
         {"only", 0, PM_OPT_CHOICE, &o.only, "WHICH",
          "add every buffer (all), or only those whose component is direct or indirect", 1, 0, pm_composite_only_names},
-        {"half", 0, PM_OPT_FLAG, &o.half, NULL, "write the EXR as half floats (16-bit) instead of float (32-bit)", 1,
-         0, NULL},
-        {"compression", 0, PM_OPT_CHOICE, &o.compression, "HOW", "EXR compression: zip (lossless), none or piz", 1,
-         0, compression_names},
+        {"half", 0, PM_OPT_FLAG, &o.half, NULL, "write the EXR as half floats (16-bit) instead of float (32-bit)", 1, 0,
+         NULL},
+        {"compression", 0, PM_OPT_CHOICE, &o.compression, "HOW", "EXR compression: zip (lossless), none or piz", 1, 0,
+         compression_names},
         {"png", 0, PM_OPT_STRING, &o.png, "FILE", "also write an 8-bit sRGB PNG preview here", 1, 0, NULL},
         {"exposure", 0, PM_OPT_DOUBLE, &o.exposure, "EV", "the preview shows radiance times 2^EV", -64, 64, NULL},
         {"tone", 0, PM_OPT_CHOICE, &o.tone, "CURVE",
          "preview tone curve: srgb (clip at 1) or filmic (ACES fit, rolls highlights off)", 1, 0, pm_tone_names},
-        {"radiance", 0, PM_OPT_STRING, &o.radiance, "FILE", "also write the sum as a pmtk radiance buffer", 1, 0,
-         NULL},
+        {"radiance", 0, PM_OPT_STRING, &o.radiance, "FILE", "also write the sum as a pmtk radiance buffer", 1, 0, NULL},
         {0},
     };
-    const pm_cli_t cli = {"composite", "[options] BUFFER[:SCALE]... -o IMAGE.exr [--png PREVIEW.png]",
+    const pm_cli_t cli = {"composite",
+                          "[options] BUFFER[:SCALE]... -o IMAGE.exr [--png PREVIEW.png]",
                           "Add radiance buffers (direct, indirect, shards), each times its SCALE, into an OpenEXR "
                           "image and a PNG preview.",
-                          options, 1, -1};
+                          options,
+                          1,
+                          -1};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

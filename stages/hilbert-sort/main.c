@@ -13,16 +13,16 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "photonmap/hilbert.h"
-#include "photonmap/reorder.h"
 #include "base/memory.h"
 #include "base/stage.h"
 #include "formats/formats.h"
+#include "photonmap/hilbert.h"
+#include "photonmap/reorder.h"
 
 typedef struct {
-    int order;           /* pm_order_t */
-    const char *leaf;    /* "auto" or a count */
-    int64_t cache;       /* bytes of cache --leaf auto assumes; 0 asks the system for L2 */
+    int order;        /* pm_order_t */
+    const char *leaf; /* "auto" or a count */
+    int64_t cache;    /* bytes of cache --leaf auto assumes; 0 asks the system for L2 */
 } sort_options_t;
 
 /* --leaf: a positive count or "auto". */
@@ -64,8 +64,7 @@ static pm_result_t make_header(const pm_stage_t *st, const pm_header_t *in, cons
         if (order == PM_ORDER_NONE)
             r = pm_header_set(h, "order", "none");
         else
-            r = pm_header_set(h, "order", "%s leaf=%" PRIu64 "%s", pm_order_names[order], leaf,
-                              is_auto ? " auto" : "");
+            r = pm_header_set(h, "order", "%s leaf=%" PRIu64 "%s", pm_order_names[order], leaf, is_auto ? " auto" : "");
     }
     if (r == PM_OK)
         r = pm_header_copy_keys(h, in); /* an earlier sort's order key is replaced, not copied */
@@ -172,16 +171,19 @@ int main(int argc, char **argv)
          "hilbert (the curve), morton (Z-order, for comparison) or none (records pass through unchanged)", 1, 0,
          pm_order_names},
         {"leaf", 0, PM_OPT_STRING, &o.leaf, "N|auto",
-         "stop splitting cells of N points or fewer (1 sorts fully); auto picks N from the point count and cache",
-         1, 0, NULL},
-        {"cache", 0, PM_OPT_INT, &o.cache, "BYTES", "cache size --leaf auto assumes; 0 asks the system (L2)", 0,
-         9e18, NULL},
+         "stop splitting cells of N points or fewer (1 sorts fully); auto picks N from the point count and cache", 1, 0,
+         NULL},
+        {"cache", 0, PM_OPT_INT, &o.cache, "BYTES", "cache size --leaf auto assumes; 0 asks the system (L2)", 0, 9e18,
+         NULL},
         {0},
     };
-    const pm_cli_t cli = {"hilbert-sort", "[options] [QUERIES|-] [-o OUT|-]",
+    const pm_cli_t cli = {"hilbert-sort",
+                          "[options] [QUERIES|-] [-o OUT|-]",
                           "Reorder gather points (a queries file) along a 3-D Hilbert curve, so that packets of "
                           "queries are coherent; the records are unchanged, only their order.",
-                          options, 0, 1};
+                          options,
+                          0,
+                          1};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

@@ -10,11 +10,10 @@
 #include <inttypes.h>
 #include <stdlib.h>
 
-#include "photonmap/gather_stage.h"
-#include "photonmap/knn_gather.h"
 #include "base/stage.h"
 #include "base/timer.h"
-
+#include "photonmap/gather_stage.h"
+#include "photonmap/knn_gather.h"
 
 typedef struct {
     int64_t k;
@@ -32,7 +31,9 @@ static pm_result_t run(pm_stage_t *st, const knn_options_t *o)
     if (r != PM_OK)
         goto done;
     uint64_t nq = in.q.n;
-    pm_knn_params_t p = {.k = (uint32_t)o->k, .max_radius = o->max_radius, .kernel = (pm_kernel_t)o->kernel,
+    pm_knn_params_t p = {.k = (uint32_t)o->k,
+                         .max_radius = o->max_radius,
+                         .kernel = (pm_kernel_t)o->kernel,
                          .normal_cos = (float)o->normal_cos};
     pm_knn_stats_t ks;
     double t0 = pm_time_wall();
@@ -72,8 +73,9 @@ static pm_result_t run(pm_stage_t *st, const knn_options_t *o)
     pm_stage_stat_double(st, "gather_s", t_gather);
     pm_stage_stat_double(st, "gather_cpu_s", ks.cpu_s);
     pm_stage_stat_double(st, "write_s", t_write);
-    pm_stage_note(st, "%" PRIu64 " queries, %" PRIu32 " photons, k %" PRId64 ", %.3g photons visited/query, %.2f M queries/s",
-                  nq, in.map.n, o->k, nq ? (double)ks.nodes_visited / nq : 0.0, t_gather > 0 ? nq / t_gather * 1e-6 : 0.0);
+    pm_stage_note(
+        st, "%" PRIu64 " queries, %" PRIu32 " photons, k %" PRId64 ", %.3g photons visited/query, %.2f M queries/s", nq,
+        in.map.n, o->k, nq ? (double)ks.nodes_visited / nq : 0.0, t_gather > 0 ? nq / t_gather * 1e-6 : 0.0);
 done:
     pm_gather_inputs_free(&in);
     pm_table_free(&out);
@@ -97,10 +99,13 @@ int main(int argc, char **argv)
         PM_GATHER_COMMON_OPTIONS(o.normal_cos, o.range),
         {0},
     };
-    const pm_cli_t cli = {"knn-gather", "[options] MAP QUERIES -o RADIANCE",
+    const pm_cli_t cli = {"knn-gather",
+                          "[options] MAP QUERIES -o RADIANCE",
                           "Gather the k nearest photons at every query (traditional photon mapping, a max-heap per "
                           "query, scalar); write the indirect radiance per pixel. QUERIES may be - for stdin.",
-                          options, 2, 2};
+                          options,
+                          2,
+                          2};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

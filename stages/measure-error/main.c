@@ -76,16 +76,19 @@ int main(int argc, char **argv)
         {"epsilon", 0, PM_OPT_DOUBLE, &o.epsilon, "E",
          "added to r^2 in relmse and to |r| in mean_abs_rel, so dark reference pixels do not dominate", 1e-300, 1e300,
          NULL},
-        {"error-image", 0, PM_OPT_STRING, &o.error_path, "FILE", "also write the per-pixel error as a float EXR",
-         1, 0, NULL},
+        {"error-image", 0, PM_OPT_STRING, &o.error_path, "FILE", "also write the per-pixel error as a float EXR", 1, 0,
+         NULL},
         {"error-kind", 0, PM_OPT_CHOICE, &o.error_kind, "KIND",
          "what the error image holds: |t - r| or |t - r| / (|r| + epsilon)", 1, 0, pm_errimg_names},
         {0},
     };
-    const pm_cli_t cli = {"measure-error", "[options] TEST REFERENCE",
+    const pm_cli_t cli = {"measure-error",
+                          "[options] TEST REFERENCE",
                           "Error of an image against a reference (pmtk radiance files or OpenEXR, same size): RMSE, "
                           "relative MSE and mean absolute relative error as JSON.",
-                          options, 2, 2};
+                          options,
+                          2,
+                          2};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

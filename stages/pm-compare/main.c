@@ -102,9 +102,9 @@ static pm_result_t compare(FILE *out, const pm_table_t *a, const pm_table_t *b, 
         }
         double rms = n ? sqrt(sum2 / (double)n) : 0.0;
         int rms_ok = o->rms < 0 || rms <= o->rms;
-        fprintf(out, "%-10s max_abs %.6g max_rel %.6g rms %.6g worst record %" PRIu64 "%s%s\n", c->name, max_abs, max_rel,
-               rms, n ? worst / c->components : 0, mismatches ? " OUT OF TOLERANCE" : "",
-               rms_ok ? "" : " RMS OUT OF TOLERANCE");
+        fprintf(out, "%-10s max_abs %.6g max_rel %.6g rms %.6g worst record %" PRIu64 "%s%s\n", c->name, max_abs,
+                max_rel, rms, n ? worst / c->components : 0, mismatches ? " OUT OF TOLERANCE" : "",
+                rms_ok ? "" : " RMS OUT OF TOLERANCE");
         char key[64];
         snprintf(key, sizeof key, "%s_max_abs", c->name);
         pm_stage_stat_double(st, key, max_abs);
@@ -113,7 +113,8 @@ static pm_result_t compare(FILE *out, const pm_table_t *a, const pm_table_t *b, 
         if ((mismatches || !rms_ok) && verdict == PM_OK) {
             verdict = PM_ERR_INPUT;
             snprintf(first_fault, sizeof first_fault,
-                     "'%s' and '%s' differ in channel '%s': %" PRIu64 " values out of tolerance, max_abs %.6g at record "
+                     "'%s' and '%s' differ in channel '%s': %" PRIu64
+                     " values out of tolerance, max_abs %.6g at record "
                      "%" PRIu64 ", rms %.6g",
                      an, bn, c->name, mismatches, max_abs, worst / c->components, rms);
         }
@@ -168,14 +169,17 @@ int main(int argc, char **argv)
         {"max-rel", 0, PM_OPT_DOUBLE, &o.max_rel, "X", "... or when |a-b| <= X max(|a|,|b|)", 0, 1e300, NULL},
         {"rms", 0, PM_OPT_DOUBLE, &o.rms, "X", "each channel's root-mean-square difference must be <= X; -1: unchecked",
          -1, 1e300, NULL},
-        {"ignore-keys", 0, PM_OPT_STRING, &o.ignore, "K1,K2", "header keys not compared (besides SOFTWARE, COMMAND, INPUT)",
-         1, 0, NULL},
+        {"ignore-keys", 0, PM_OPT_STRING, &o.ignore, "K1,K2",
+         "header keys not compared (besides SOFTWARE, COMMAND, INPUT)", 1, 0, NULL},
         {0},
     };
-    const pm_cli_t cli = {"pm-compare", "[options] A B",
+    const pm_cli_t cli = {"pm-compare",
+                          "[options] A B",
                           "Compare two pmtk files of one format: structure and header keys exactly, values within "
                           "tolerances. Exit 0 when they agree, 1 when they differ.",
-                          options, 2, 2};
+                          options,
+                          2,
+                          2};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

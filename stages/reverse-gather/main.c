@@ -12,11 +12,10 @@
 #include <inttypes.h>
 #include <stdlib.h>
 
-#include "photonmap/gather_stage.h"
-#include "photonmap/reverse_gather.h"
 #include "base/stage.h"
 #include "base/timer.h"
-
+#include "photonmap/gather_stage.h"
+#include "photonmap/reverse_gather.h"
 
 typedef struct {
     double radius;
@@ -54,8 +53,7 @@ static pm_result_t run(pm_stage_t *st, const reverse_options_t *o)
     pm_header_t *h = &out.hdr;
     if ((r = pm_gather_output_init(&out, &in, st->argc, st->argv)) != PM_OK ||
         (r = pm_header_set(h, "kernel", "%s", pm_kernel_names[o->kernel])) != PM_OK ||
-        (r = pm_header_set(h, "widths", "fixed")) != PM_OK ||
-        (r = pm_header_set(h, "radius", "%.9g", radius)) != PM_OK)
+        (r = pm_header_set(h, "widths", "fixed")) != PM_OK || (r = pm_header_set(h, "radius", "%.9g", radius)) != PM_OK)
         goto done;
     t0 = pm_time_wall();
     if ((r = pm_gather_output_write(&out, &in, st->output)) != PM_OK)
@@ -106,11 +104,14 @@ int main(int argc, char **argv)
         PM_GATHER_COMMON_OPTIONS(o.normal_cos, o.range),
         {0},
     };
-    const pm_cli_t cli = {"reverse-gather", "[options] MAP QUERIES -o RADIANCE",
+    const pm_cli_t cli = {"reverse-gather",
+                          "[options] MAP QUERIES -o RADIANCE",
                           "Reverse photon mapping: build a KD-tree over the queries and let every photon search it "
                           "with the fixed kernel width (simd-gather's estimator); write the indirect radiance per "
                           "pixel. QUERIES may be - for stdin.",
-                          options, 2, 2};
+                          options,
+                          2,
+                          2};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

@@ -12,10 +12,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "photonmap/gather.h"
-#include "photonmap/gather_stage.h"
 #include "base/stage.h"
 #include "formats/formats.h"
+#include "photonmap/gather.h"
+#include "photonmap/gather_stage.h"
 
 static const char *const width_names[] = {"fixed", "variable", NULL};
 
@@ -50,8 +50,11 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *o)
         t_radius = pm_time_wall() - t0;
     }
 
-    pm_gather_params_t p = {.radius = radius, .kernel = (pm_kernel_t)o->kernel, .variable = o->widths,
-                            .normal_cos = (float)o->normal_cos, .isa = isa};
+    pm_gather_params_t p = {.radius = radius,
+                            .kernel = (pm_kernel_t)o->kernel,
+                            .variable = o->widths,
+                            .normal_cos = (float)o->normal_cos,
+                            .isa = isa};
     uint64_t nq = in.q.n;
     pm_gather_stats_t gs;
     t0 = pm_time_wall();
@@ -100,7 +103,9 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *o)
     pm_stage_stat_double(st, "gather_s", t_gather);
     pm_stage_stat_double(st, "gather_cpu_s", gs.cpu_s);
     pm_stage_stat_double(st, "write_s", t_write);
-    pm_stage_note(st, "%" PRIu64 " queries, %" PRIu32 " photons, %s, %.3g shader ops/query, %.1f M shader ops/s, %.2f of %d lanes",
+    pm_stage_note(st,
+                  "%" PRIu64 " queries, %" PRIu32
+                  " photons, %s, %.3g shader ops/query, %.1f M shader ops/s, %.2f of %d lanes",
                   nq, np, pm_isa_name(isa), nq ? (double)gs.shader_ops / nq : 0.0,
                   t_gather > 0 ? gs.shader_ops / t_gather * 1e-6 : 0.0,
                   gs.shade_steps ? (double)gs.active_lanes / gs.shade_steps : 0.0, w);
@@ -127,10 +132,13 @@ int main(int argc, char **argv)
         PM_GATHER_COMMON_OPTIONS(o.normal_cos, o.range),
         {0},
     };
-    const pm_cli_t cli = {"simd-gather", "[options] MAP QUERIES -o RADIANCE",
+    const pm_cli_t cli = {"simd-gather",
+                          "[options] MAP QUERIES -o RADIANCE",
                           "Gather photons at every query with SIMD packets and the sample-point estimator; write "
                           "the indirect radiance per pixel. QUERIES may be - for stdin.",
-                          options, 2, 2};
+                          options,
+                          2,
+                          2};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

@@ -36,7 +36,7 @@ typedef struct {
  * image-sized buffer. */
 typedef struct {
     pm_spool_t spool;
-    double *direct;        /* width * height RGB, W/(m^2 sr) */
+    double *direct; /* width * height RGB, W/(m^2 sr) */
     uint32_t width;
 } tgp_sink_t;
 
@@ -138,10 +138,17 @@ static void report(pm_stage_t *st, const tgp_options_t *o, const pm_eye_info_t *
 
 static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t *s, const pm_rt_t *rt, pm_isa_t isa)
 {
-    const pm_eye_options_t eo = {
-        .mode = o->mode, .schedule = o->schedule, .width = (uint32_t)o->width, .height = (uint32_t)o->height,
-        .spp = (uint32_t)o->spp, .primary = (uint32_t)o->primary, .light_samples = (uint32_t)o->light_samples,
-        .seed = (uint64_t)st->seed, .isa = isa, .threads = st->threads_used, .progress = pm_stage_progress(st)};
+    const pm_eye_options_t eo = {.mode = o->mode,
+                                 .schedule = o->schedule,
+                                 .width = (uint32_t)o->width,
+                                 .height = (uint32_t)o->height,
+                                 .spp = (uint32_t)o->spp,
+                                 .primary = (uint32_t)o->primary,
+                                 .light_samples = (uint32_t)o->light_samples,
+                                 .seed = (uint64_t)st->seed,
+                                 .isa = isa,
+                                 .threads = st->threads_used,
+                                 .progress = pm_stage_progress(st)};
     pm_eye_t *e;
     pm_result_t r = pm_eye_create(s, rt, &eo, &e);
     if (r != PM_OK)
@@ -185,8 +192,7 @@ int main(int argc, char **argv)
         {"light-samples", 0, PM_OPT_INT, &o.light_samples, "N", "points sampled on area lights per primary hit", 0,
          65536, NULL},
         {"width", 0, PM_OPT_INT, &o.width, "N", "image width in pixels; 0 takes the scene camera's", 0, 65536, NULL},
-        {"height", 0, PM_OPT_INT, &o.height, "N", "image height in pixels; 0 takes the scene camera's", 0, 65536,
-         NULL},
+        {"height", 0, PM_OPT_INT, &o.height, "N", "image height in pixels; 0 takes the scene camera's", 0, 65536, NULL},
         {"isa", 0, PM_OPT_STRING, &o.isa, "ISA",
          "packet width: auto (widest this cpu and embree run), scalar (single rays), sse4 (4), avx2 (8), avx512 (16)",
          1, 0, NULL},
@@ -198,9 +204,13 @@ int main(int argc, char **argv)
          NULL},
         {0},
     };
-    const pm_cli_t cli = {"trace-gather-points", "[options] SCENE -o QUERIES [--direct RADIANCE]",
-                          "Trace primary and stratified secondary rays as packets; write gather points and direct light.",
-                          options, 1, 1};
+    const pm_cli_t cli = {
+        "trace-gather-points",
+        "[options] SCENE -o QUERIES [--direct RADIANCE]",
+        "Trace primary and stratified secondary rays as packets; write gather points and direct light.",
+        options,
+        1,
+        1};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

@@ -11,13 +11,13 @@
 #include <stdio.h>
 #include <stdlib.h>
 
-#include "render/photontrace.h"
-#include "render/rt.h"
 #include "base/stage.h"
 #include "formats/formats.h"
+#include "render/photontrace.h"
+#include "render/rt.h"
 
 typedef struct {
-    int64_t photons;     /* 0: the scene's render.photons */
+    int64_t photons; /* 0: the scene's render.photons */
     int64_t max_bounces;
     double rr_max;
     int baseline;
@@ -90,7 +90,8 @@ static pm_result_t run(pm_stage_t *st, const trace_options_t *o)
             pm_stage_stat_int(st, "absorbed", (int64_t)tr.absorbed);
             pm_stage_stat_int(st, "capped", (int64_t)tr.capped);
             pm_stage_stat_int(st, "longest_path", (int64_t)tr.longest);
-            pm_stage_stat_double(st, "power_emitted_w", tr.power_emitted[0] + tr.power_emitted[1] + tr.power_emitted[2]);
+            pm_stage_stat_double(st, "power_emitted_w",
+                                 tr.power_emitted[0] + tr.power_emitted[1] + tr.power_emitted[2]);
             pm_stage_stat_double(st, "power_first_hits_w", tr.power_first[0] + tr.power_first[1] + tr.power_first[2]);
             pm_stage_stat_double(st, "trace_s", tr.trace_s);
             pm_stage_stat_double(st, "write_s", t_write);
@@ -123,17 +124,22 @@ int main(int argc, char **argv)
          (double)((int64_t)1 << 40), NULL},
         {"max-bounces", 0, PM_OPT_INT, &o.max_bounces, "N",
          "cut a path after N bounces (a safety net; Russian roulette ends paths long before: at albedo 0.999 one "
-         "path in 1e7 reaches the default)", 1, 1e6, NULL},
+         "path in 1e7 reaches the default)",
+         1, 1e6, NULL},
         {"rr-max", 0, PM_OPT_DOUBLE, &o.rr_max, "Q",
          "highest Russian-roulette survival probability; below albedo^2 the photons' powers grow from bounce to "
-         "bounce and the total's variance is unbounded (1: survival is the albedo, powers stay equal)", 0.01, 1.0,
-         NULL},
+         "bounce and the total's variance is unbounded (1: survival is the albedo, powers stay equal)",
+         0.01, 1.0, NULL},
         {"baseline", 0, PM_OPT_FLAG, &o.baseline, NULL,
          "also re-trace every ray with bare rtcIntersect1 and report Embree's rate (for benchmarks)", 1, 0, NULL},
         {0},
     };
-    const pm_cli_t cli = {"trace-photons", "[options] SCENE -o PHOTONS",
-                          "Trace photons from the scene's lights and write where they land (watts).", options, 1, 1};
+    const pm_cli_t cli = {"trace-photons",
+                          "[options] SCENE -o PHOTONS",
+                          "Trace photons from the scene's lights and write where they land (watts).",
+                          options,
+                          1,
+                          1};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

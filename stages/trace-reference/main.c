@@ -16,11 +16,11 @@
 #include "render/scene.h"
 
 typedef struct {
-    int64_t spp;          /* samples per pixel in all, resumed ones included */
-    int64_t pass;         /* samples per pixel per pass */
-    double time_s;        /* stop after this many seconds (at a pass boundary); 0: no limit */
-    int64_t max_bounces;  /* safety net: a path is cut after this many bounces */
-    int64_t rr_start;     /* bounces before Russian roulette starts */
+    int64_t spp;         /* samples per pixel in all, resumed ones included */
+    int64_t pass;        /* samples per pixel per pass */
+    double time_s;       /* stop after this many seconds (at a pass boundary); 0: no limit */
+    int64_t max_bounces; /* safety net: a path is cut after this many bounces */
+    int64_t rr_start;    /* bounces before Russian roulette starts */
     int64_t width, height;
     int pixel, component;
     const char *radiance; /* --radiance FILE: f64 mean and variance per pixel */
@@ -55,7 +55,8 @@ static void report(pm_stage_t *st, const pm_pathtracer_t *pt, const pm_pathtrace
     pm_stage_stat_double(st, "stderr_rms", rmse);
     pm_stage_stat_double(st, "stderr_rel", rel);
     st->items = sum.paths;
-    pm_stage_note(st, "%" PRIu64 " samples per pixel (%d passes, %.3f s, %.2f Mrays/s); standard error %.3g W/(m^2 sr) "
+    pm_stage_note(st,
+                  "%" PRIu64 " samples per pixel (%d passes, %.3f s, %.2f Mrays/s); standard error %.3g W/(m^2 sr) "
                   "RMS, %.3g%% of the mean%s",
                   pt->n, run->passes, t, t > 0 ? 1e-6 * (double)rays / t : 0.0, rmse, 100.0 * rel,
                   run->timed_out ? " (stopped by --time)" : "");
@@ -71,8 +72,12 @@ static pm_result_t run(pm_stage_t *st, const ref_options_t *o, const pm_scene_t 
     pm_pathtrace_settings_t set = {
         .width = o->width ? (uint32_t)o->width : s->camera.width,
         .height = o->height ? (uint32_t)o->height : s->camera.height,
-        .seed = (uint64_t)st->seed, .max_bounces = (unsigned)o->max_bounces, .rr_start = (unsigned)o->rr_start,
-        .pixel = o->pixel, .component = o->component, .threads = st->threads_used > 0 ? st->threads_used : 1,
+        .seed = (uint64_t)st->seed,
+        .max_bounces = (unsigned)o->max_bounces,
+        .rr_start = (unsigned)o->rr_start,
+        .pixel = o->pixel,
+        .component = o->component,
+        .threads = st->threads_used > 0 ? st->threads_used : 1,
     };
     char cmd[4096];
     pm_stage_command_line(st, cmd, sizeof cmd);
@@ -101,8 +106,8 @@ int main(int argc, char **argv)
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
         {"spp", 0, PM_OPT_INT, &o.spp, "N", "samples (paths) per pixel in all, resumed ones included", 1, 4e9, NULL},
-        {"pass", 0, PM_OPT_INT, &o.pass, "N", "samples per pixel per pass; the outputs are rewritten after each", 1, 4e9,
-         NULL},
+        {"pass", 0, PM_OPT_INT, &o.pass, "N", "samples per pixel per pass; the outputs are rewritten after each", 1,
+         4e9, NULL},
         {"time", 0, PM_OPT_DOUBLE, &o.time_s, "S",
          "stop after S seconds, at the end of a pass (at least one pass runs); 0: no limit", 0, 1e9, NULL},
         {"radiance", 0, PM_OPT_STRING, &o.radiance, "FILE",
@@ -114,7 +119,8 @@ int main(int argc, char **argv)
          pm_pt_pixel_names},
         {"component", 0, PM_OPT_CHOICE, &o.component, "WHICH",
          "total, or only direct (emission seen and direct light: trace-gather-points --direct) or indirect "
-         "(simd-gather's part)", 1, 0, pm_pt_component_names},
+         "(simd-gather's part)",
+         1, 0, pm_pt_component_names},
         {"width", 0, PM_OPT_INT, &o.width, "N", "image width in pixels; 0 takes the scene camera's", 0, 65536, NULL},
         {"height", 0, PM_OPT_INT, &o.height, "N", "image height in pixels; 0 takes the scene camera's", 0, 65536, NULL},
         {"max-bounces", 0, PM_OPT_INT, &o.max_bounces, "N",
@@ -123,16 +129,20 @@ int main(int argc, char **argv)
         {"rr-start", 0, PM_OPT_INT, &o.rr_start, "N", "bounces before Russian roulette may end a path", 0, 1e9, NULL},
         {0},
     };
-    const pm_cli_t cli = {"trace-reference", "[options] SCENE [-o] OUT.exr",
+    const pm_cli_t cli = {"trace-reference",
+                          "[options] SCENE [-o] OUT.exr",
                           "Render a reference image with an unbiased path tracer (next-event estimation, MIS, "
                           "Russian roulette) over the photon stages' scene model; progressive.",
-                          options, 1, 2};
+                          options,
+                          1,
+                          2};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;
     if (st.args.nargs == 2) {
         if (strcmp(st.output, "-"))
-            return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "give the output once: as -o or as the second argument"));
+            return pm_stage_end(&st,
+                                pm_error_set(PM_ERR_USAGE, "give the output once: as -o or as the second argument"));
         st.output = st.args.args[1];
     }
     if (!strcmp(st.output, "-"))
@@ -147,8 +157,10 @@ int main(int argc, char **argv)
     double power[3];
     pm_scene_power(&s, power);
     if (!(power[0] + power[1] + power[2] > 0.0)) {
-        r = pm_error_set(PM_ERR_INPUT, "scene '%s' has no lights (%zu point lights and %zu emissive triangles emit 0 W): "
-                         "its reference image is black", s.path, s.nlights, s.nemissive);
+        r = pm_error_set(PM_ERR_INPUT,
+                         "scene '%s' has no lights (%zu point lights and %zu emissive triangles emit 0 W): "
+                         "its reference image is black",
+                         s.path, s.nlights, s.nemissive);
         pm_scene_free(&s);
         return pm_stage_end(&st, r);
     }

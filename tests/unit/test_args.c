@@ -32,8 +32,8 @@ static void test_args_types(void **state)
 {
     opts_t o = {0};
     pm_args_t a;
-    char *argv[] = {"t", "-f", "--count=5e2", "--radius", "0.25", "pos1", "--name", "x", "--order", "hilbert", "-", "--",
-                    "--count"};
+    char *argv[] = {"t", "-f",      "--count=5e2", "--radius", "0.25", "pos1",   "--name",
+                    "x", "--order", "hilbert",     "-",        "--",   "--count"};
     assert_int_equal(parse(&o, &a, 13, argv), PM_OK);
     assert_int_equal(o.flag, 1);
     assert_int_equal(o.n, 500);

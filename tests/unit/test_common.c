@@ -60,7 +60,8 @@ static void test_common_error_slot(void **state)
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 1)
         for (int t = 0; t < 64; t++) {
             if (t % 7 == 5)
-                pm_error_slot_record(&slot, (uint64_t)t, pm_error_set(t < 20 ? PM_ERR_IO : PM_ERR_INPUT, "task %d failed", t));
+                pm_error_slot_record(&slot, (uint64_t)t,
+                                     pm_error_set(t < 20 ? PM_ERR_IO : PM_ERR_INPUT, "task %d failed", t));
             else
                 pm_error_slot_record(&slot, (uint64_t)t, PM_OK);
         }

@@ -16,7 +16,7 @@
 #define CLOSED_BOX "tests/scenes/closed-box/scene.json"
 
 typedef struct {
-    unsigned char *q;      /* every query record received */
+    unsigned char *q; /* every query record received */
     size_t qn, qcap;
     double direct[8 * 8 * 3];
     int rows_seen[8];
@@ -58,14 +58,19 @@ static pm_result_t got_direct(void *user, uint32_t y0, uint32_t rows, const doub
 
 static void trace(const pm_scene_t *s, const pm_rt_t *rt, int threads, int schedule, sink_t *k, pm_eye_stats_t *x)
 {
-    pm_eye_options_t o = {.mode = PM_EYE_GATHER, .schedule = schedule, .primary = 1, .light_samples = 4,
-                          .seed = 1, .isa = pm_cpu_best_isa(), .threads = threads};
+    pm_eye_options_t o = {.mode = PM_EYE_GATHER,
+                          .schedule = schedule,
+                          .primary = 1,
+                          .light_samples = 4,
+                          .seed = 1,
+                          .isa = pm_cpu_best_isa(),
+                          .threads = threads};
     pm_eye_t *e;
     if (pm_eye_create(s, rt, &o, &e) != PM_OK)
         fail_msg("%s", pm_error_message());
     const pm_eye_info_t *in = pm_eye_info(e);
     assert_int_equal(in->width, 8);
-    assert_int_equal(in->spp, 16); /* the scene's render.spp */
+    assert_int_equal(in->spp, 16);                                          /* the scene's render.spp */
     assert_int_equal(in->channels, pm_schema_required(&pm_queries_schema)); /* Lambertian: no material, no direction */
     assert_int_equal(in->record_size, 40);
     memset(k, 0, sizeof *k);

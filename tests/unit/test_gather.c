@@ -8,11 +8,11 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "math/rng.h"
 #include "photonmap/gather.h"
 #include "photonmap/kdtree.h"
 #include "photonmap/knn_gather.h"
 #include "photonmap/reverse_gather.h"
-#include "math/rng.h"
 #include "unit.h"
 
 typedef struct {
@@ -73,8 +73,8 @@ static const pm_material_t lambert = {.name = "folded", .kd = {1, 1, 1}};
 
 static pm_gather_queries_t queries(uint64_t n, const float *pos, const float *normal, const float *weight)
 {
-    pm_gather_queries_t q = {.n = n, .pos = pos, .normal = normal, .weight = weight, .materials = &lambert,
-                             .nmaterials = 1};
+    pm_gather_queries_t q = {
+        .n = n, .pos = pos, .normal = normal, .weight = weight, .materials = &lambert, .nmaterials = 1};
     return q;
 }
 
@@ -138,8 +138,8 @@ static void test_gather_matches_brute_force_for_every_isa(void **state)
         test_map_t t;
         map_make(&t, n, pos, pow, nor, NULL, variable ? wid : NULL);
         for (int kernel = 0; kernel <= 1; kernel++) {
-            pm_gather_params_t p = {.radius = 0.07, .kernel = (pm_kernel_t)kernel, .variable = variable,
-                                    .normal_cos = 0.5f};
+            pm_gather_params_t p = {
+                .radius = 0.07, .kernel = (pm_kernel_t)kernel, .variable = variable, .normal_cos = 0.5f};
             pm_gather_brute(&t.map, &q, 0, nq, &p, want);
             double sum = 0;
             for (uint64_t i = 0; i < 3 * nq; i++)
@@ -192,8 +192,14 @@ static void test_gather_glossy_matches_brute_force(void **state)
     pm_material_t mats[3] = {{.name = "folded", .kd = {1, 1, 1}},
                              {.name = "gloss", .kd = {0.2f, 0.3f, 0.4f}, .ks = {0.5f, 0.4f, 0.3f}, .ns = 15},
                              {.name = "mirrorish", .kd = {0.05f, 0.05f, 0.05f}, .ks = {0.9f, 0.9f, 0.9f}, .ns = 800}};
-    pm_gather_queries_t q = {.n = nq, .pos = qpos, .normal = qnor, .weight = qw, .material = qmat, .dir = qdir,
-                             .materials = mats, .nmaterials = 3};
+    pm_gather_queries_t q = {.n = nq,
+                             .pos = qpos,
+                             .normal = qnor,
+                             .weight = qw,
+                             .material = qmat,
+                             .dir = qdir,
+                             .materials = mats,
+                             .nmaterials = 3};
     test_map_t t;
     map_make(&t, n, pos, pow, nor, dir, NULL);
     double *got = malloc(nq * 24), *want = malloc(nq * 24);
@@ -246,8 +252,8 @@ static void test_gather_uniform_density_gives_exact_irradiance(void **state)
     pm_gather_queries_t q = queries(nq, qpos, qnor, qw);
     double out[nq * 3], E = P / ((double)s * s);
     for (int kernel = 0; kernel <= 1; kernel++) {
-        pm_gather_params_t p = {.radius = 0.4, .kernel = (pm_kernel_t)kernel, .normal_cos = 0.5f,
-                                .isa = pm_cpu_best_isa()};
+        pm_gather_params_t p = {
+            .radius = 0.4, .kernel = (pm_kernel_t)kernel, .normal_cos = 0.5f, .isa = pm_cpu_best_isa()};
         pm_gather_stats_t st;
         assert_int_equal(pm_gather_run(&t.map, &q, 0, nq, &p, out, &st), PM_OK);
         for (uint64_t j = 0; j < nq; j++)
@@ -326,8 +332,8 @@ static void test_gather_same_result_for_any_thread_count(void **state)
     map_make(&t, n, pos, pow, nor, NULL, NULL);
     pm_gather_queries_t q = queries(nq, qpos, qnor, qw);
     double *a = malloc(nq * 24), *b = malloc(nq * 24);
-    pm_gather_params_t p = {.radius = 0.05, .kernel = PM_KERNEL_EPANECHNIKOV, .normal_cos = 0.5f,
-                            .isa = pm_cpu_best_isa()};
+    pm_gather_params_t p = {
+        .radius = 0.05, .kernel = PM_KERNEL_EPANECHNIKOV, .normal_cos = 0.5f, .isa = pm_cpu_best_isa()};
     pm_gather_stats_t st;
     int saved = omp_get_max_threads();
     omp_set_num_threads(1);
@@ -376,8 +382,8 @@ static void test_gather_millions_of_photons_in_one_query(void **state)
         assert_int_equal(st.shader_ops, n);
         for (int k = 0; k < 3; k++)
             if (!(fabs(out[k] / want - 1.0) < 1e-6))
-                fail_msg("isa %d channel %d: %.9g W/m^2 from %u photons, expected %.9g (relative error %.2g)", isa,
-                         k, out[k], n, want, out[k] / want - 1.0);
+                fail_msg("isa %d channel %d: %.9g W/m^2 from %u photons, expected %.9g (relative error %.2g)", isa, k,
+                         out[k], n, want, out[k] / want - 1.0);
     }
     map_free(&t);
     free(pos), free(pow), free(nor);
@@ -438,8 +444,14 @@ static void glossy_scene_make(glossy_scene_t *g, uint32_t n, uint64_t nq, uint64
     random_dirs(nq, g->qnor, g->qdir, seed + 2);
     for (uint64_t i = 0; i < nq; i++)
         g->qmat[i] = (uint16_t)(i % 3);
-    g->q = (pm_gather_queries_t){.n = nq, .pos = g->qpos, .normal = g->qnor, .weight = g->qw, .material = g->qmat,
-                                 .dir = g->qdir, .materials = baseline_mats, .nmaterials = 3};
+    g->q = (pm_gather_queries_t){.n = nq,
+                                 .pos = g->qpos,
+                                 .normal = g->qnor,
+                                 .weight = g->qw,
+                                 .material = g->qmat,
+                                 .dir = g->qdir,
+                                 .materials = baseline_mats,
+                                 .nmaterials = 3};
     map_make(&g->t, n, g->pos, g->pow, g->nor, g->dir, NULL);
 }
 
@@ -511,8 +523,8 @@ static void test_knn_gather_matches_brute_force(void **state)
     for (int kernel = 0; kernel <= 1; kernel++)
         for (size_t a = 0; a < sizeof ks / sizeof ks[0]; a++)
             for (size_t b = 0; b < 2; b++) {
-                pm_knn_params_t p = {.k = ks[a], .max_radius = maxr[b], .kernel = (pm_kernel_t)kernel,
-                                     .normal_cos = 0.5f};
+                pm_knn_params_t p = {
+                    .k = ks[a], .max_radius = maxr[b], .kernel = (pm_kernel_t)kernel, .normal_cos = 0.5f};
                 pm_knn_stats_t st;
                 memset(got, 0xff, nq * 24);
                 assert_int_equal(pm_knn_gather(&t.map, &q, 0, nq, &p, got, &st), PM_OK);
@@ -558,8 +570,8 @@ static void test_reverse_gather_matches_brute_force(void **state)
     const test_map_t t = g.t;
     double *got = malloc(nq * 24), *want = malloc(nq * 24), *again = malloc(nq * 24);
     for (int kernel = 0; kernel <= 1; kernel++) {
-        pm_gather_params_t gp = {.radius = 0.06, .kernel = (pm_kernel_t)kernel, .normal_cos = 0.5f,
-                                 .isa = pm_cpu_best_isa()};
+        pm_gather_params_t gp = {
+            .radius = 0.06, .kernel = (pm_kernel_t)kernel, .normal_cos = 0.5f, .isa = pm_cpu_best_isa()};
         pm_reverse_params_t p = {.radius = gp.radius, .kernel = gp.kernel, .normal_cos = gp.normal_cos};
         pm_gather_brute(&t.map, &q, 0, nq, &gp, want);
         pm_reverse_stats_t st;

@@ -11,8 +11,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "photonmap/hilbert.h"
 #include "math/rng.h"
+#include "photonmap/hilbert.h"
 #include "unit.h"
 
 #define S PM_HILBERT_STATES
@@ -50,8 +50,8 @@ static void walk(unsigned s, unsigned levels, uint32_t x, uint32_t y, uint32_t z
     uint32_t h = 1u << (levels - 1);
     for (unsigned r = 0; r < 8; r++) {
         unsigned o = pm_hilbert_order[s][r];
-        walk(pm_hilbert_child[s][r], levels - 1, x + (o & 1) * h, y + ((o >> 1) & 1) * h, z + ((o >> 2) & 1) * h,
-             out, n);
+        walk(pm_hilbert_child[s][r], levels - 1, x + (o & 1) * h, y + ((o >> 1) & 1) * h, z + ((o >> 2) & 1) * h, out,
+             n);
     }
 }
 
@@ -277,9 +277,7 @@ static void point_set(int set, size_t n, float *p)
     for (size_t i = 0; i < n; i++) {
         float *q = p + 3 * i, u = pm_rng_float(&r), v = pm_rng_float(&r), w = pm_rng_float(&r);
         switch (set) {
-        case SET_UNIFORM:
-            q[0] = u, q[1] = v, q[2] = w;
-            break;
+        case SET_UNIFORM: q[0] = u, q[1] = v, q[2] = w; break;
         case SET_SKEWED: /* sparse points around dense clusters within clusters: cells at every
                           * scale, so that leaves fall inside multi-level passes, top and below */
             if (i % 40 == 0)
@@ -292,15 +290,9 @@ static void point_set(int set, size_t n, float *p)
         case SET_CLUSTERS: /* a few tight clusters far apart: deep, unbalanced octrees */
             q[0] = (float)(i % 5) * 100.0f + u * 1e-3f, q[1] = v * 1e-3f, q[2] = (float)(i % 3) + w * 1e-4f;
             break;
-        case SET_PLANE:
-            q[0] = u, q[1] = 2.0f, q[2] = w;
-            break;
-        case SET_LINE:
-            q[0] = q[1] = q[2] = u;
-            break;
-        case SET_EQUAL:
-            q[0] = 1.5f, q[1] = -2.0f, q[2] = 3.0f;
-            break;
+        case SET_PLANE: q[0] = u, q[1] = 2.0f, q[2] = w; break;
+        case SET_LINE: q[0] = q[1] = q[2] = u; break;
+        case SET_EQUAL: q[0] = 1.5f, q[1] = -2.0f, q[2] = 3.0f; break;
         case SET_HUGE: /* extent 2e30: must not overflow anything */
             q[0] = (u - 0.5f) * 2e30f, q[1] = v < 0.5f ? -1e30f : 1e30f, q[2] = w;
             break;
@@ -328,12 +320,11 @@ static void test_hilbert_reorder_matches_reference(void **state)
                     omp_set_num_threads(threads);
                     pm_reorder_info_t info;
                     memset(got, 0xff, n * sizeof *got);
-                    assert_int_equal(pm_reorder_points(p, 3 * sizeof(float), n, (pm_order_t)order, leaves[li], got,
-                                                       &info),
-                                     PM_OK);
+                    assert_int_equal(
+                        pm_reorder_points(p, 3 * sizeof(float), n, (pm_order_t)order, leaves[li], got, &info), PM_OK);
                     if (memcmp(want, got, n * sizeof *got) != 0)
-                        fail_msg("set %d order %d leaf %llu threads %d: order differs from the reference", set,
-                                 order, (unsigned long long)leaves[li], threads);
+                        fail_msg("set %d order %d leaf %llu threads %d: order differs from the reference", set, order,
+                                 (unsigned long long)leaves[li], threads);
                     if (order != PM_ORDER_NONE && info.depth != want_depth)
                         fail_msg("set %d leaf %llu: depth %u, reference %u", set, (unsigned long long)leaves[li],
                                  info.depth, want_depth);

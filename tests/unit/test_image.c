@@ -16,7 +16,10 @@
 #include "image/tone.h"
 #include "unit.h"
 
-static void tmp_path(char *out, size_t cap, const char *name) { snprintf(out, cap, "%s/image-%s", unit_tmpdir(), name); }
+static void tmp_path(char *out, size_t cap, const char *name)
+{
+    snprintf(out, cap, "%s/image-%s", unit_tmpdir(), name);
+}
 
 /* A w x h radiance buffer whose value i (of 3 w h) is base + i / 8, with a variance of
  * var_scale * value when var_scale > 0. */
@@ -68,7 +71,7 @@ static void test_tone_preview(void **state)
     assert_true(out[1] > 0 && out[1] < out[2] && out[2] < 255);
     uint8_t brighter[6];
     assert_int_equal(pm_tone_rgb8(rgb, 2, 1.0, PM_TONE_SRGB, brighter), 3); /* 2^1: 0.5 reaches 1 */
-    assert_int_equal(brighter[1], out[2]);                                   /* 0.25 x 2 is 0.5 */
+    assert_int_equal(brighter[1], out[2]);                                  /* 0.25 x 2 is 0.5 */
     assert_int_equal(pm_tone_rgb8(rgb, 2, 0.0, PM_TONE_FILMIC, out), 0);    /* the shoulder: nothing clips */
     assert_true(out[4] < 255 && out[3] < out[4]);
 }

@@ -11,14 +11,14 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "photonmap/kdtree.h"
 #include "math/rng.h"
+#include "photonmap/kdtree.h"
 #include "unit.h"
 
 typedef struct {
     pm_kdnode_t *node;
     uint32_t *perm;
-    float *pos; /* input order */
+    float *pos;      /* input order */
     float *tree_pos; /* node order */
     uint32_t n;
 } tree_t;
@@ -319,7 +319,8 @@ static void test_kd_reader_refuses_too_deep_trees(void **state)
 {
     for (uint32_t n = PM_KD_MAX_DEPTH; n <= PM_KD_MAX_DEPTH + 1; n++) {
         pm_table_t map;
-        assert_int_equal(pm_table_alloc(&map, &pm_photonmap_schema, pm_schema_required(&pm_photonmap_schema), n), PM_OK);
+        assert_int_equal(pm_table_alloc(&map, &pm_photonmap_schema, pm_schema_required(&pm_photonmap_schema), n),
+                         PM_OK);
         pm_kdnode_t *node = map.col[PM_MAP_NODE];
         float *p = map.col[PM_MAP_POSITION];
         for (uint32_t i = 0; i < n; i++) {

@@ -7,8 +7,8 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "math/rng.h"
 #include "formats/formats.h"
+#include "math/rng.h"
 #include "photonmap/kdtree.h"
 #include "unit.h"
 
@@ -162,7 +162,7 @@ static void test_pmfile_writer_all_or_nothing(void **state)
     float up = 1.0f;
     memcpy(rec + 32, &up, 4); /* normal (0, 0, 1): the writer checks values too */
     assert_int_equal(pm_writer_write(w, rec, 1), PM_OK);
-    assert_int_not_equal(access(path, F_OK), 0); /* nothing at the final path while writing */
+    assert_int_not_equal(access(path, F_OK), 0);            /* nothing at the final path while writing */
     assert_int_equal(pm_writer_commit(w), PM_ERR_INTERNAL); /* 1 of 10 records */
     assert_int_not_equal(access(path, F_OK), 0);
     assert_int_equal(pm_writer_open(path, &h, &w), PM_OK);
@@ -172,7 +172,8 @@ static void test_pmfile_writer_all_or_nothing(void **state)
     char cmd[300];
     snprintf(cmd, sizeof cmd, "ls -A %s | grep -q '^\\.'", unit_tmpdir());
     assert_int_not_equal(system(cmd), 0);
-    assert_int_equal(pm_writer_open("/nonexistent-dir/x.pm", &h, &w), PM_ERR_INPUT); /* a bad path, not a failing disk */
+    assert_int_equal(pm_writer_open("/nonexistent-dir/x.pm", &h, &w),
+                     PM_ERR_INPUT); /* a bad path, not a failing disk */
     assert_non_null(strstr(pm_error_message(), "/nonexistent-dir/x.pm"));
     pm_header_free(&h);
 }
@@ -356,7 +357,8 @@ static void test_pmfile_value_checks_match_reference(void **state)
      * as the check of the whole write names it. */
     for (size_t i = 0; i < n; i++) {
         unsigned char *p = rec + i * rs;
-        float pos[3] = {1, 2, 3}, pw[3] = {0.0f, -0.0f, 1e-30f}, nrm[3] = {0, 0, 1}, dir[3] = {0.6f, 0.8f, 0}, wd = 1e-3f;
+        float pos[3] = {1, 2, 3}, pw[3] = {0.0f, -0.0f, 1e-30f}, nrm[3] = {0, 0, 1}, dir[3] = {0.6f, 0.8f, 0},
+              wd = 1e-3f;
         memcpy(p + 8, pos, 12), memcpy(p + 20, pw, 12), memcpy(p + 32, nrm, 12), memcpy(p + 44, dir, 12);
         memcpy(p + 56, &wd, 4);
     }
@@ -376,8 +378,8 @@ static void test_pmfile_value_checks_match_reference(void **state)
     /* Two bad values in one write: the first channel wins, as it did when a write was
      * checked channel by channel, though the chunks are checked one at a time. */
     float nan = NAN, two = 2.0f;
-    memcpy(rec + 100 * rs + 32, &two, 4);  /* normal of record 100 */
-    memcpy(rec + 2900 * rs + 8, &nan, 4);  /* position of record 2900, another chunk */
+    memcpy(rec + 100 * rs + 32, &two, 4); /* normal of record 100 */
+    memcpy(rec + 2900 * rs + 8, &nan, 4); /* position of record 2900, another chunk */
     assert_int_equal(pm_writer_write(w, rec, n), PM_ERR_INTERNAL);
     char want[96];
     snprintf(want, sizeof want, "record %zu channel 'position'[0] is nan (not finite)", accepted + n + 2900);
@@ -562,8 +564,10 @@ static void test_pmfile_version1_read_and_rewritten(void **state)
 static pm_result_t open_text(const char *header)
 {
     char buf[1024];
-    int n = snprintf(buf, sizeof buf, "#?PMTK\nFORMAT=radiance\n%sBYTE_ORDER=little-endian\nCOUNT=1\n"
-                     "BOUNDS=0 0 0 1 1 1\nwidth=1\nheight=1\ncomponent=direct\n\n\x04\x03\x02\x01", header);
+    int n = snprintf(buf, sizeof buf,
+                     "#?PMTK\nFORMAT=radiance\n%sBYTE_ORDER=little-endian\nCOUNT=1\n"
+                     "BOUNDS=0 0 0 1 1 1\nwidth=1\nheight=1\ncomponent=direct\n\n\x04\x03\x02\x01",
+                     header);
     FILE *f = fmemopen(buf, (size_t)n, "rb");
     assert_non_null(f);
     pm_reader_t *r;

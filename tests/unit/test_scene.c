@@ -41,9 +41,9 @@ static void test_scene_cornell_box(void **state)
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     /* straight down from 0.5 m above the floor, away from the blocks */
-    struct RTCRayHit rh = {.ray = {.org_x = 0.1f, .org_y = 0.5f, .org_z = 0.1f, .dir_y = -1.0f, .tfar = INFINITY,
-                                   .mask = 0xffffffffu},
-                           .hit = {.geomID = RTC_INVALID_GEOMETRY_ID}};
+    struct RTCRayHit rh = {
+        .ray = {.org_x = 0.1f, .org_y = 0.5f, .org_z = 0.1f, .dir_y = -1.0f, .tfar = INFINITY, .mask = 0xffffffffu},
+        .hit = {.geomID = RTC_INVALID_GEOMETRY_ID}};
     rtcIntersect1(rt.scene, &ctx, &rh);
     assert_int_equal(rh.hit.geomID, 0);
     assert_true(fabsf(rh.ray.tfar - 0.5f) < 1e-5f);
@@ -102,9 +102,11 @@ static void test_scene_mesh_faults(void **state)
     write_file("badmtl.obj", "mtllib a.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl nosuch\nf 1 2 3\n", p, sizeof p);
     write_file("gonemtl.obj", "mtllib gone.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n", p, sizeof p);
     write_file("badidx.obj", "v 0 0 0\nv 1 0 0\nf 1 2 9\n", p, sizeof p);
-    write_file("tri.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+    write_file("tri.ply",
+               "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
                "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
-               "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", p, sizeof p);
+               "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+               p, sizeof p);
     static const char *const cases[][2] = {
         {"nomtl.obj", "1 faces of 'defaultobject' have no material"},
         {"badmtl.obj", "failed to locate material nosuch"},
@@ -127,8 +129,8 @@ static void test_scene_mesh_faults(void **state)
     }
     /* a PLY names no material: a grey Lambertian default, not assimp's Ks = 1 */
     char path[256];
-    write_file("ply.json", "{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"tri.ply\"}], " CAM "}",
-               path, sizeof path);
+    write_file("ply.json", "{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"tri.ply\"}], " CAM "}", path,
+               sizeof path);
     pm_scene_t s;
     pm_result_t r = pm_scene_load(path, &s);
     if (r != PM_OK)
@@ -146,8 +148,9 @@ static void test_scene_degenerate_triangles(void **state)
     write_file("d.mtl", "newmtl grey\nKd 0.5 0.5 0.5\n", mesh, sizeof mesh);
     write_file("d.obj", "mtllib d.mtl\nusemtl grey\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 1 2\nf 1 2 4\n",
                mesh, sizeof mesh);
-    write_file("d.json", "{\"pmtk_scene\": 1, \"name\": \"d\", \"meshes\": [{\"file\": \"d.obj\", \"scale\": 1e-4}], " CAM
-               "}", path, sizeof path);
+    write_file("d.json",
+               "{\"pmtk_scene\": 1, \"name\": \"d\", \"meshes\": [{\"file\": \"d.obj\", \"scale\": 1e-4}], " CAM "}",
+               path, sizeof path);
     pm_scene_t s;
     pm_result_t r = pm_scene_load(path, &s);
     if (r != PM_OK)

@@ -16,7 +16,7 @@ typedef struct {
     unsigned char *p;
     size_t n, cap, calls;
     size_t record_size;
-    int fail_at;           /* call number that fails (1-based), 0 for none */
+    int fail_at; /* call number that fails (1-based), 0 for none */
 } collect_t;
 
 static pm_result_t collect(void *user, const void *records, uint64_t count)
@@ -74,16 +74,16 @@ static void round_trip(size_t rs, size_t count, size_t mem_max, int expect_spill
 
 static void test_spool_memory(void **state)
 {
-    round_trip(3, 0, 1 << 20, 0);             /* nothing added: nothing replayed */
-    round_trip(40, 1000, 1 << 20, 0);         /* one chunk */
+    round_trip(3, 0, 1 << 20, 0);              /* nothing added: nothing replayed */
+    round_trip(40, 1000, 1 << 20, 0);          /* one chunk */
     round_trip(3, 300000, (size_t)1 << 30, 0); /* 3-byte records over three chunks of 2^17 */
 }
 
 static void test_spool_spill(void **state)
 {
-    round_trip(40, 1000, 0, 1);               /* --spool-mem 0: the first record spills */
-    round_trip(12, 5000, 12 * 1000, 1);       /* memory first, then the file */
-    round_trip(3, 300000, 3 * 200000, 1);     /* spills with two chunks held */
+    round_trip(40, 1000, 0, 1);           /* --spool-mem 0: the first record spills */
+    round_trip(12, 5000, 12 * 1000, 1);   /* memory first, then the file */
+    round_trip(3, 300000, 3 * 200000, 1); /* spills with two chunks held */
 }
 
 static void test_spool_failures(void **state)

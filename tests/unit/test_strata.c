@@ -8,8 +8,8 @@
 
 static void test_strata_grid_shapes(void **state)
 {
-    static const unsigned cases[][3] = {{1, 1, 1}, {2, 2, 1}, {4, 2, 2}, {16, 4, 4}, {25, 5, 5},
-                                        {12, 4, 3}, {7, 7, 1},  {144, 12, 12}, {18, 6, 3}};
+    static const unsigned cases[][3] = {{1, 1, 1},  {2, 2, 1}, {4, 2, 2},     {16, 4, 4}, {25, 5, 5},
+                                        {12, 4, 3}, {7, 7, 1}, {144, 12, 12}, {18, 6, 3}};
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         unsigned nx, ny;
         pm_strata_grid(cases[i][0], &nx, &ny);

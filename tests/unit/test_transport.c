@@ -89,7 +89,7 @@ typedef struct {
 } tcase_t;
 
 static const tcase_t cases[] = {
-    {"lambert", 0.8f, 0.0f, 0.0f, 30.0f},  {"phong ns 1", 0.0f, 0.9f, 1.0f, 30.0f},
+    {"lambert", 0.8f, 0.0f, 0.0f, 30.0f},      {"phong ns 1", 0.0f, 0.9f, 1.0f, 30.0f},
     {"phong ns 10", 0.0f, 0.9f, 10.0f, 30.0f}, {"phong ns 200", 0.0f, 0.9f, 200.0f, 30.0f},
     {"mixed ns 20", 0.4f, 0.5f, 20.0f, 40.0f}, {"grazing ns 200", 0.2f, 0.7f, 200.0f, 85.0f},
 };
@@ -146,8 +146,8 @@ static void test_transport_pdf_integrates_to_one(void **state)
  * with its degrees of freedom in *dof; fails at once on a sample in a bin expecting none. */
 enum { KW = 16, KPHI = 8, NB = KW * KPHI + 2, SUBW = 32, SUBPHI = 64 };
 
-static double histogram_chi2(const char *name, kind_t kind, const pm_material_t *m, const float wo[3],
-                             const frame_t *f, double q, int n, uint64_t seed, int *dof)
+static double histogram_chi2(const char *name, kind_t kind, const pm_material_t *m, const float wo[3], const frame_t *f,
+                             double q, int n, uint64_t seed, int *dof)
 {
     static double obs[NB], expect[NB];
     memset(obs, 0, sizeof obs);
@@ -251,8 +251,8 @@ static void test_transport_sampler_matches_pdf(void **state)
             check_chi2(cases[c].name, "diffuse lobe", chi2, dof);
         }
         if (cases[c].ks > 0.0f) {
-            chi2 = histogram_chi2(cases[c].name, KIND_GLOSSY, &m, wo, &fr, cases[c].ns + 1.0, n, 21 + (uint64_t)c,
-                                  &dof);
+            chi2 =
+                histogram_chi2(cases[c].name, KIND_GLOSSY, &m, wo, &fr, cases[c].ns + 1.0, n, 21 + (uint64_t)c, &dof);
             check_chi2(cases[c].name, "glossy lobe", chi2, dof);
         }
         chi2 = histogram_chi2(cases[c].name, KIND_MIXTURE, &m, wo, &fn, 1.0, n, 31 + (uint64_t)c, &dof);
@@ -306,7 +306,7 @@ typedef struct {
 static void light_scene(light_scene_t *ls, int square)
 {
     memset(ls, 0, sizeof *ls);
-    static const float two[] = {0, 0, 1, 0, 1, 1, 1, 0, 1, /* triangle 0: right angle at (0, 0) */
+    static const float two[] = {0, 0, 1, 0, 1, 1, 1, 0, 1,  /* triangle 0: right angle at (0, 0) */
                                 2, 0, 1, 2, 3, 1, 3, 0, 1}; /* triangle 1: right angle at (2, 0) */
     static const float sq[] = {-1, -1, 1, -1, 1, 1, 1, 1, 1, 1, -1, 1};
     ls->lamp.ke[0] = ls->lamp.ke[1] = ls->lamp.ke[2] = 1.0f;
@@ -356,7 +356,8 @@ static void test_transport_area_light_uniform(void **state)
             y[k] = p[k] + s.wi[k] * s.r;
         assert_true(fabsf(y[2] - 1.0f) < 1e-5f);
         assert_true(fabsf(s.r2 - s.r * s.r) <= 1e-6f * s.r2);
-        assert_true(fabsf(s.cosx - s.wi[2]) < 1e-6f && fabsf(s.cosy - s.wi[2]) < 1e-6f); /* both faces face each other */
+        assert_true(fabsf(s.cosx - s.wi[2]) < 1e-6f &&
+                    fabsf(s.cosy - s.wi[2]) < 1e-6f); /* both faces face each other */
         /* legs: triangle 0 spans x in [0, 1], y in [0, 1]; triangle 1 x in [2, 3], y in [0, 3] */
         double u = s.tri == 0 ? y[0] : y[0] - 2.0, v = s.tri == 0 ? y[1] : y[1] / 3.0;
         int cu = (int)(u * K), cv = (int)(v * K);
@@ -423,7 +424,7 @@ static void test_transport_point_light(void **state)
     assert_true(fabsf(s.wi[0] - 1.0f / 3) < 1e-6f && fabsf(s.wi[1] - 2.0f / 3) < 1e-6f &&
                 fabsf(s.wi[2] - 2.0f / 3) < 1e-6f);
     assert_true(fabsf(s.cosx - 2.0f / 3) < 1e-6f && s.cosy == 1.0f && s.tri == UINT32_MAX);
-    assert_int_equal(pm_point_light_toward(&l, p, down, &s), 0); /* behind the surface */
+    assert_int_equal(pm_point_light_toward(&l, p, down, &s), 0);        /* behind the surface */
     assert_int_equal(pm_point_light_toward(&l, l.position, up, &s), 0); /* at the point */
 }
 
@@ -466,12 +467,9 @@ static void test_transport_rt_single_rays(void **state)
 }
 
 static const struct CMUnitTest tests[] = {
-    cmocka_unit_test(test_transport_pdf_integrates_to_one),
-    cmocka_unit_test(test_transport_sampler_matches_pdf),
-    cmocka_unit_test(test_transport_brdf_reciprocal),
-    cmocka_unit_test(test_transport_area_light_uniform),
-    cmocka_unit_test(test_transport_area_light_pdf),
-    cmocka_unit_test(test_transport_point_light),
+    cmocka_unit_test(test_transport_pdf_integrates_to_one), cmocka_unit_test(test_transport_sampler_matches_pdf),
+    cmocka_unit_test(test_transport_brdf_reciprocal),       cmocka_unit_test(test_transport_area_light_uniform),
+    cmocka_unit_test(test_transport_area_light_pdf),        cmocka_unit_test(test_transport_point_light),
     cmocka_unit_test(test_transport_rt_single_rays),
 };
 UNIT_GROUP(transport_group, "transport", tests)

@@ -6,6 +6,8 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+
+/* After the four above: cmocka.h uses them without including them. */
 #include <cmocka.h>
 
 typedef struct {
@@ -22,8 +24,8 @@ void unit_register(const unit_group_t *group);
 /* A fresh temporary directory for the test run (created once). */
 const char *unit_tmpdir(void);
 /* Path of a file in the source tree (tests run from the repository root). */
-#define UNIT_GROUP(var, label, arr)                                              \
-    static const unit_group_t var = {label, arr, sizeof arr / sizeof arr[0]};   \
+#define UNIT_GROUP(var, label, arr)                                                                                    \
+    static const unit_group_t var = {label, arr, sizeof arr / sizeof arr[0]};                                          \
     __attribute__((constructor)) static void var##_register(void) { unit_register(&var); }
 
 #endif

@@ -2,7 +2,8 @@
  * with --json, the header as one JSON object per file, for scripts (pipelines/render).
  *
  * Reads every byte and checks it (header, values, tree shape, checksum) before it
- * says "ok", so `pm-info FILE` is also the way to validate a cached intermediate. */
+ * says "ok", so `pm-info FILE` is also the way to validate a cached intermediate. The work is
+ * formats/describe.c's; this main parses options and hands it each file. */
 #include <stdio.h>
 
 #include "base/stage.h"

@@ -3,7 +3,8 @@
  * channels and stages the scene needs, as text or (--json) as one JSON object that
  * pipelines/render reads. With --probe it casts one primary ray per pixel as a check that
  * the camera sees the geometry. The first stage of every pipeline in spirit: if
- * scene-info is happy, the stages can load the scene. */
+ * scene-info is happy, the stages can load the scene. common/render/summary.c does the work;
+ * this main loads the scene, builds its BVH and keeps the counters. */
 #include <stdio.h>
 #include <string.h>
 

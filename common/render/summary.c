@@ -1,0 +1,222 @@
+/* summary.c: a loaded scene summarized as text or JSON, its camera probed with one ray per
+ * pixel, and the eye-light preview of what those rays hit (summary.h); the engine of
+ * scene-info, which reads a scene file and writes only to stdout (and the preview PNG). */
+#include "render/summary.h"
+
+#include <inttypes.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/image.h"
+#include "base/progress.h"
+#include "base/timer.h"
+#include "formats/describe.h"
+#include "math/vec.h"
+#include "render/shade.h"
+
+pm_scene_needs_t pm_scene_needs(const pm_scene_t *s)
+{
+    return (pm_scene_needs_t){s->any_glossy, s->any_glossy && s->nmaterials > 1, s->nemissive > 0};
+}
+
+/* ------------------------------------------------------------------ the probe */
+
+/* Eye-light shading of colour component k of a primary ray d that hit triangle tri with
+ * geometric normal ng (neither need be unit): the albedo (kd + ks) times 0.2 + 0.8 |cos|, so
+ * that surfaces seen edge-on stay visible; an emitter in its emission colour scaled to a
+ * maximum of 1; a miss black. */
+static float preview_shade(const pm_scene_t *s, uint32_t tri, const float ng[3], const float d[3], int k)
+{
+    if (tri == PM_RAY_MISS)
+        return 0.0f;
+    const pm_material_t *m = &s->materials[s->tri_material[tri]];
+    if (pm_material_is_emissive(m)) {
+        float mx = fmaxf(m->ke[0], fmaxf(m->ke[1], m->ke[2]));
+        return m->ke[k] / mx;
+    }
+    float nn = sqrtf(pm_dot3(ng, ng)), dd = sqrtf(pm_dot3(d, d));
+    float c = fabsf(pm_dot3(ng, d)) / (nn * dd);
+    return (m->kd[k] + m->ks[k]) * (0.2f + 0.8f * c);
+}
+
+pm_result_t pm_scene_probe(const pm_scene_t *s, const pm_rt_t *rt, int progress, uint8_t *preview_rgb,
+                           pm_probe_t *probe_out)
+{
+    const pm_camera_t *cam = &s->camera;
+    pm_camera_rays_t c;
+    pm_camera_setup(cam, cam->width, cam->height, &c);
+    uint64_t n = (uint64_t)cam->width * cam->height, hits = 0;
+    /* An Embree failure on a worker is kept here with its row; the lowest row's is reported. */
+    pm_error_slot_t err;
+    pm_error_slot_init(&err);
+    pm_progress_t prog;
+    pm_progress_begin(&prog, "probe", n, progress);
+    double t0 = pm_time_wall();
+#pragma omp parallel for schedule(dynamic, 1) reduction(+ : hits)
+    for (uint32_t y = 0; y < cam->height; y++) {
+        struct RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        for (uint32_t x = 0; x < cam->width; x++) {
+            float d[3], ng[3], t;
+            pm_camera_dir(&c, (float)x + 0.5f, (float)y + 0.5f, d);
+            uint32_t tri = pm_rt_intersect1(rt, &ctx, cam->eye, d, 0.0f, INFINITY, &t, ng);
+            hits += tri != PM_RAY_MISS;
+            if (preview_rgb)
+                for (int k = 0; k < 3; k++)
+                    preview_rgb[3 * ((size_t)y * cam->width + x) + (size_t)k] =
+                        pm_srgb8(preview_shade(s, tri, ng, d, k));
+        }
+        pm_result_t r = pm_rt_thread_error(rt, "probing row %" PRIu32 " of scene '%s'", y, s->path);
+        if (r != PM_OK)
+            pm_error_slot_record(&err, y, r);
+        pm_progress_add(&prog, cam->width);
+    }
+    double dt = pm_time_wall() - t0;
+    pm_progress_end(&prog);
+    pm_result_t r = pm_error_slot_raise(&err);
+    if (r != PM_OK)
+        return r;
+    *probe_out = (pm_probe_t){n, hits, dt > 0 ? (double)n / dt : 0.0};
+    return PM_OK;
+}
+
+/* ------------------------------------------------------------------ text */
+
+static void print_text(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, double load_s, double bvh_s)
+{
+    double p[3];
+    pm_scene_power(s, p);
+    char id[200];
+    pm_scene_id(s, id, sizeof id);
+    pm_scene_needs_t need = pm_scene_needs(s);
+    fprintf(out, "scene: %s\n", id);
+    fprintf(out, "file: %s\n", s->path);
+    fprintf(out, "triangles: %zu (%zu degenerate left out)\n", s->ntris, s->ndropped);
+    fprintf(out, "vertices: %zu\n", s->nverts);
+    fprintf(out, "materials: %zu%s\n", s->nmaterials, s->any_glossy ? " (some glossy)" : " (all Lambertian)");
+    for (size_t i = 0; i < s->nmaterials; i++) {
+        const pm_material_t *m = &s->materials[i];
+        fprintf(out, "  %zu %s kd %.4g %.4g %.4g ks %.4g %.4g %.4g ns %.4g ke %.4g %.4g %.4g\n", i, m->name, m->kd[0],
+                m->kd[1], m->kd[2], m->ks[0], m->ks[1], m->ks[2], m->ns, m->ke[0], m->ke[1], m->ke[2]);
+    }
+    fprintf(out, "point lights: %zu\n", s->nlights);
+    fprintf(out, "emissive triangles: %zu\n", s->nemissive);
+    fprintf(out, "emitted power: %.6g %.6g %.6g W\n", p[0], p[1], p[2]);
+    fprintf(out, "bounds: %.9g %.9g %.9g  %.9g %.9g %.9g m\n", s->bounds[0], s->bounds[1], s->bounds[2], s->bounds[3],
+            s->bounds[4], s->bounds[5]);
+    fprintf(out, "camera: eye %.6g %.6g %.6g look_at %.6g %.6g %.6g fov_y %.6g deg %ux%u\n", s->camera.eye[0],
+            s->camera.eye[1], s->camera.eye[2], s->camera.look_at[0], s->camera.look_at[1], s->camera.look_at[2],
+            s->camera.fov_y, s->camera.width, s->camera.height);
+    fprintf(out, "needs: direction channels %s, material ids %s, area-light sampling %s\n",
+            need.directions ? "yes" : "no", need.material_ids ? "yes" : "no", need.area_lights ? "yes" : "no");
+    fprintf(out, "ray epsilon: %.3g m\n", rt->epsilon);
+    fprintf(out, "time: load %.3f s, bvh %.3f s\n", load_s, bvh_s);
+}
+
+/* ------------------------------------------------------------------ JSON */
+
+static json_t *floats_json(const float *v, size_t n)
+{
+    json_t *a = json_array();
+    for (size_t i = 0; i < n; i++)
+        json_array_append_new(a, json_real(v[i]));
+    return a;
+}
+
+static json_t *jstr(pm_json_strings_t *js, const char *what, const char *s)
+{
+    return pm_json_stringn(js, what, s, strlen(s));
+}
+
+pm_result_t pm_summary_json(const pm_scene_t *s, const pm_rt_t *rt, const pm_summary_options_t *o,
+                            const pm_probe_t *probe, json_t **j_out)
+{
+    pm_json_strings_t js = {0};
+    double p[3];
+    pm_scene_power(s, p);
+    char id[200];
+    pm_scene_id(s, id, sizeof id);
+    pm_scene_needs_t need = pm_scene_needs(s);
+    json_t *j = json_object(), *mats = json_array(), *power = json_array(), *cam = json_object(),
+           *needs = json_object();
+    json_object_set_new(j, "scene", jstr(&js, "the scene's name", id));
+    json_object_set_new(j, "name", jstr(&js, "the scene's name", s->name));
+    json_object_set_new(j, "file", jstr(&js, "the scene's path", s->path));
+    json_object_set_new(j, "triangles", json_integer((json_int_t)s->ntris));
+    json_object_set_new(j, "degenerate_triangles", json_integer((json_int_t)s->ndropped));
+    json_object_set_new(j, "vertices", json_integer((json_int_t)s->nverts));
+    json_object_set_new(j, "glossy", json_boolean(s->any_glossy));
+    for (size_t i = 0; i < s->nmaterials; i++) {
+        const pm_material_t *m = &s->materials[i];
+        json_t *mj = json_object();
+        json_object_set_new(mj, "name", jstr(&js, "a material's name", m->name));
+        json_object_set_new(mj, "kd", floats_json(m->kd, 3));
+        json_object_set_new(mj, "ks", floats_json(m->ks, 3));
+        json_object_set_new(mj, "ns", json_real(m->ns));
+        json_object_set_new(mj, "ke", floats_json(m->ke, 3));
+        json_array_append_new(mats, mj);
+    }
+    json_object_set_new(j, "materials", mats);
+    json_object_set_new(j, "point_lights", json_integer((json_int_t)s->nlights));
+    json_object_set_new(j, "emissive_triangles", json_integer((json_int_t)s->nemissive));
+    for (int k = 0; k < 3; k++)
+        json_array_append_new(power, json_real(p[k]));
+    json_object_set_new(j, "power_w", power);
+    json_object_set_new(j, "bounds_m", floats_json(s->bounds, 6));
+    json_object_set_new(cam, "eye", floats_json(s->camera.eye, 3));
+    json_object_set_new(cam, "look_at", floats_json(s->camera.look_at, 3));
+    json_object_set_new(cam, "up", floats_json(s->camera.up, 3));
+    json_object_set_new(cam, "fov_y_deg", json_real(s->camera.fov_y));
+    json_object_set_new(cam, "width", json_integer(s->camera.width));
+    json_object_set_new(cam, "height", json_integer(s->camera.height));
+    json_object_set_new(j, "camera", cam);
+    json_object_set_new(needs, "direction_channels", json_boolean(need.directions));
+    json_object_set_new(needs, "material_ids", json_boolean(need.material_ids));
+    json_object_set_new(needs, "area_light_sampling", json_boolean(need.area_lights));
+    json_object_set_new(j, "needs", needs);
+    json_object_set_new(j, "ray_epsilon_m", json_real(rt->epsilon));
+    json_object_set_new(j, "load_s", json_real(o->load_s));
+    json_object_set_new(j, "bvh_s", json_real(o->bvh_s));
+    if (probe)
+        json_object_set_new(j, "probe",
+                            json_pack("{s:I, s:I, s:f, s:f}", "rays", (json_int_t)probe->rays, "hits",
+                                      (json_int_t)probe->hits, "hit_fraction",
+                                      probe->rays ? (double)probe->hits / (double)probe->rays : 0.0, "rays_per_s",
+                                      probe->rays_per_s));
+    return pm_json_strings_finish(&js, j, j_out, "scene '%s'", s->path);
+}
+
+/* ------------------------------------------------------------------ the whole summary */
+
+pm_result_t pm_summary_write(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, const pm_summary_options_t *o,
+                             pm_probe_t *probe_out)
+{
+    *probe_out = (pm_probe_t){0};
+    /* The text goes out before the probe, so that a slow probe follows what is already known. */
+    if (!o->json)
+        print_text(out, s, rt, o->load_s, o->bvh_s);
+    pm_result_t r = PM_OK;
+    int probed = o->probe || o->preview;
+    if (probed) {
+        const pm_camera_t *c = &s->camera;
+        uint8_t *img = o->preview ? calloc((size_t)3 * c->width * c->height, 1) : NULL;
+        if (o->preview && !img)
+            r = pm_error_set(PM_ERR_NOMEM, "out of memory for a %ux%u preview", c->width, c->height);
+        if (r == PM_OK)
+            r = pm_scene_probe(s, rt, o->progress, img, probe_out);
+        if (r == PM_OK && img)
+            r = pm_png_write_rgb8(o->preview, c->width, c->height, img);
+        free(img);
+        if (r == PM_OK && !o->json)
+            fprintf(out, "probe: %" PRIu64 " primary rays, %.1f%% hit geometry, %.2f Mrays/s\n", probe_out->rays,
+                    100.0 * (double)probe_out->hits / (double)probe_out->rays, 1e-6 * probe_out->rays_per_s);
+    }
+    if (r == PM_OK && o->json) {
+        json_t *j = NULL;
+        r = pm_summary_json(s, rt, o, probed ? probe_out : NULL, &j);
+        if (r == PM_OK)
+            r = pm_json_write(out, j, "the summary of scene '%s'", s->path);
+    }
+    return r;
+}

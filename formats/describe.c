@@ -92,8 +92,8 @@ static json_t *input_json(pm_json_strings_t *js, const char *value)
 pm_result_t pm_describe_header_json(const char *name, const pm_header_t *h, const char *text, json_t **j_out)
 {
     pm_json_strings_t js = {0};
-    json_t *j = json_object(), *ch = json_array(), *b = json_array(), *cmds = json_array(),
-           *inputs = json_array(), *keys = json_object();
+    json_t *j = json_object(), *ch = json_array(), *b = json_array(), *cmds = json_array(), *inputs = json_array(),
+           *keys = json_object();
     char version[32];
     snprintf(version, sizeof version, "%u.%u", h->major, h->minor);
     json_object_set_new(j, "file", pm_json_stringn(&js, "the file name", name, strlen(name)));

@@ -11,18 +11,18 @@
 #ifndef PM_DESCRIBE_H
 #define PM_DESCRIBE_H
 
+#include <jansson.h>
 #include <stdint.h>
 #include <stdio.h>
-#include <jansson.h>
 
 #include "base/error.h"
 #include "formats/pmfile.h"
 
 typedef struct {
-    int records;      /* print the records as text after the header */
-    int64_t limit;    /* at most this many records; -1 all */
-    int header_only;  /* do not read or check the payload */
-    int json;         /* the header as a JSON object instead of text (not with records) */
+    int records;     /* print the records as text after the header */
+    int64_t limit;   /* at most this many records; -1 all */
+    int header_only; /* do not read or check the payload */
+    int json;        /* the header as a JSON object instead of text (not with records) */
 } pm_describe_options_t;
 
 /* Describes the file at path ("-" is stdin) on out as o asks. *count_out becomes the number

@@ -8,9 +8,9 @@
 #ifndef PM_SUMMARY_H
 #define PM_SUMMARY_H
 
+#include <jansson.h>
 #include <stdint.h>
 #include <stdio.h>
-#include <jansson.h>
 
 #include "base/error.h"
 #include "render/rt.h"

@@ -29,20 +29,22 @@ int main(int argc, char **argv)
     pm_describe_options_t o = {.limit = -1};
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
-        {"records", 'r', PM_OPT_FLAG, &o.records, NULL, "print every record as a line of text after the header", 1,
-         0, NULL},
-        {"limit", 'n', PM_OPT_INT, &o.limit, "N", "print at most N records; -1 prints all", -1, 9e18, NULL},
-        {"header", 0, PM_OPT_FLAG, &o.header_only, NULL, "print the header only; do not read or check the payload",
-         1, 0, NULL},
-        {"json", 0, PM_OPT_FLAG, &o.json, NULL,
-         "print each file's header as a JSON object (after the check, with its checksum) instead of text", 1, 0,
+        {"records", 'r', PM_OPT_FLAG, &o.records, NULL, "print every record as a line of text after the header", 1, 0,
          NULL},
+        {"limit", 'n', PM_OPT_INT, &o.limit, "N", "print at most N records; -1 prints all", -1, 9e18, NULL},
+        {"header", 0, PM_OPT_FLAG, &o.header_only, NULL, "print the header only; do not read or check the payload", 1,
+         0, NULL},
+        {"json", 0, PM_OPT_FLAG, &o.json, NULL,
+         "print each file's header as a JSON object (after the check, with its checksum) instead of text", 1, 0, NULL},
         {0},
     };
-    const pm_cli_t cli = {"pm-info", "[options] FILE...",
+    const pm_cli_t cli = {"pm-info",
+                          "[options] FILE...",
                           "Print the header of pmtk files (photons, photonmap, queries, radiance), check every byte, "
                           "and optionally print the records.",
-                          options, 0, -1};
+                          options,
+                          0,
+                          -1};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

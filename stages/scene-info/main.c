@@ -71,15 +71,18 @@ int main(int argc, char **argv)
     scene_info_options_t o = {0};
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
-        {"probe", 0, PM_OPT_FLAG, &o.probe, NULL, "cast one primary ray per pixel and report the hit rate", 1, 0,
-         NULL},
+        {"probe", 0, PM_OPT_FLAG, &o.probe, NULL, "cast one primary ray per pixel and report the hit rate", 1, 0, NULL},
         {"preview", 0, PM_OPT_STRING, &o.preview, "PNG",
          "also write an eye-light preview (albedo times cosine) of the camera's view", 1, 0, NULL},
         {"json", 0, PM_OPT_FLAG, &o.json, NULL, "print the summary as one JSON object instead of text", 1, 0, NULL},
         {0},
     };
-    const pm_cli_t cli = {"scene-info", "[options] SCENE",
-                          "Load a scene file, build its ray-tracing structure and summarize it.", options, 1, 1};
+    const pm_cli_t cli = {"scene-info",
+                          "[options] SCENE",
+                          "Load a scene file, build its ray-tracing structure and summarize it.",
+                          options,
+                          1,
+                          1};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

@@ -23,9 +23,9 @@ static void test_summary_needs(void **state)
         const char *path;
         int directions, material_ids, area_lights;
     } cases[] = {
-        {"tests/scenes/glossy-box/scene.json", 1, 1, 0},  /* two materials, one glossy */
-        {"tests/scenes/lit-floor/scene.json", 0, 0, 0},   /* Lambertian, a point light */
-        {"scenes/cornell-box/scene.json", 0, 0, 1},       /* Lambertian, an emitting quad */
+        {"tests/scenes/glossy-box/scene.json", 1, 1, 0}, /* two materials, one glossy */
+        {"tests/scenes/lit-floor/scene.json", 0, 0, 0},  /* Lambertian, a point light */
+        {"scenes/cornell-box/scene.json", 0, 0, 1},      /* Lambertian, an emitting quad */
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         pm_scene_t s;

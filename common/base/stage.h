@@ -46,26 +46,20 @@ typedef struct {
     pm_atomic_t out;   /* the -o output of a text-writing program, once opened */
 } pm_stage_t;
 
+/* A table, one option a line, as in the stages' own tables; clang-format would set each field on a line of its own. */
+/* clang-format off */
 #define PM_STAGE_COMMON_OPTIONS(st)                                                                                    \
     {"output", 'o', PM_OPT_STRING, &(st).output, "FILE", "write the output here; - is stdout", 1, 0, NULL},            \
         {"threads", 0, PM_OPT_INT, &(st).threads, "N", "worker threads; 0 uses every core", 0, 4096, NULL},            \
         {"seed", 0, PM_OPT_INT, &(st).seed, "N", "seed of the counter-based random numbers", 0, 9.2e18, NULL},         \
         {"stats", 0, PM_OPT_STRING, &(st).stats_path, "FILE", "write counters and timings as JSON; - is stderr",       \
-         1,       0, NULL},                                                                                            \
+         1, 0, NULL},                                                                                                  \
         {"quiet", 'q', PM_OPT_FLAG, &(st).quiet, NULL, "no progress bar and no notes on stderr", 1, 0, NULL},          \
-        {"print-settings",                                                                                             \
-         0,                                                                                                            \
-         PM_OPT_FLAG,                                                                                                  \
-         &(st).print_settings,                                                                                         \
-         NULL,                                                                                                         \
-         "print the effective settings (readable back as @FILE) and exit",                                             \
-         1,                                                                                                            \
-         0,                                                                                                            \
-         NULL},                                                                                                        \
+        {"print-settings", 0, PM_OPT_FLAG, &(st).print_settings, NULL,                                                 \
+         "print the effective settings (readable back as @FILE) and exit", 1, 0, NULL},                                \
         {"help", 'h', PM_OPT_FLAG, &(st).help, NULL, "print this help and exit", 1, 0, NULL},                          \
-    {                                                                                                                  \
-        "version", 0, PM_OPT_FLAG, &(st).version, NULL, "print the version and exit", 1, 0, NULL                       \
-    }
+        {"version", 0, PM_OPT_FLAG, &(st).version, NULL, "print the version and exit", 1, 0, NULL}
+/* clang-format on */
 
 /* Call before the option table is built: sets common defaults (output "-", seed 1). */
 void pm_stage_defaults(pm_stage_t *st);

@@ -17,20 +17,14 @@ extern const char *const pm_kernel_names[];
 
 /* The options every gather stage has, with the same meaning and help: --normal-cos C (a
  * double) and --range B:E (a string). */
+/* A table, one option a line, as in the stages' own tables; clang-format would set each field on a line of its own. */
+/* clang-format off */
 #define PM_GATHER_COMMON_OPTIONS(normal_cos, range)                                                                    \
-    {"normal-cos",                                                                                                     \
-     0,                                                                                                                \
-     PM_OPT_DOUBLE,                                                                                                    \
-     &(normal_cos),                                                                                                    \
-     "C",                                                                                                              \
-     "a photon counts when the cosine between its normal and the query's is at least C",                               \
-     -1,                                                                                                               \
-     1,                                                                                                                \
-     NULL},                                                                                                            \
-    {                                                                                                                  \
-        "range", 0, PM_OPT_STRING, &(range), "B:E", "gather only queries [B, E) (shards; composite adds them)", 1, 0,  \
-            NULL                                                                                                       \
-    }
+    {"normal-cos", 0, PM_OPT_DOUBLE, &(normal_cos), "C",                                                               \
+     "a photon counts when the cosine between its normal and the query's is at least C", -1, 1, NULL},                 \
+        {"range", 0, PM_OPT_STRING, &(range), "B:E", "gather only queries [B, E) (shards; composite adds them)",       \
+         1, 0, NULL}
+/* clang-format on */
 
 /* A photon map and a queries file (or the range [begin, end) of one), as the gathers read
  * them. Row i of `q` is query begin + i of the file. */

@@ -96,13 +96,9 @@ int main(int argc, char **argv)
          1e30, NULL},
         {0},
     };
-    const pm_cli_t cli = {"build-photonmap",
-                          "[options] PHOTONS -o MAP",
-                          "Build the photon map KD-tree (one photon per node, 8-byte nodes) from a photons file; "
-                          "PHOTONS may be - for stdin.",
-                          options,
-                          1,
-                          1};
+    static const char about[] = "Build the photon map KD-tree (one photon per node, 8-byte nodes) from a photons file; "
+                                "PHOTONS may be - for stdin.";
+    const pm_cli_t cli = {"build-photonmap", "[options] PHOTONS -o MAP", about, options, 1, 1};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

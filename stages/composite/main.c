@@ -95,13 +95,11 @@ int main(int argc, char **argv)
         {"radiance", 0, PM_OPT_STRING, &o.radiance, "FILE", "also write the sum as a pmtk radiance buffer", 1, 0, NULL},
         {0},
     };
-    const pm_cli_t cli = {"composite",
-                          "[options] BUFFER[:SCALE]... -o IMAGE.exr [--png PREVIEW.png]",
-                          "Add radiance buffers (direct, indirect, shards), each times its SCALE, into an OpenEXR "
-                          "image and a PNG preview.",
-                          options,
-                          1,
-                          -1};
+    static const char about[] =
+        "Add radiance buffers (direct, indirect, shards), each times its SCALE, into an OpenEXR "
+        "image and a PNG preview.";
+    const pm_cli_t cli = {
+        "composite", "[options] BUFFER[:SCALE]... -o IMAGE.exr [--png PREVIEW.png]", about, options, 1, -1};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

@@ -99,13 +99,10 @@ int main(int argc, char **argv)
         PM_GATHER_COMMON_OPTIONS(o.normal_cos, o.range),
         {0},
     };
-    const pm_cli_t cli = {"knn-gather",
-                          "[options] MAP QUERIES -o RADIANCE",
-                          "Gather the k nearest photons at every query (traditional photon mapping, a max-heap per "
-                          "query, scalar); write the indirect radiance per pixel. QUERIES may be - for stdin.",
-                          options,
-                          2,
-                          2};
+    static const char about[] =
+        "Gather the k nearest photons at every query (traditional photon mapping, a max-heap per "
+        "query, scalar); write the indirect radiance per pixel. QUERIES may be - for stdin.";
+    const pm_cli_t cli = {"knn-gather", "[options] MAP QUERIES -o RADIANCE", about, options, 2, 2};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

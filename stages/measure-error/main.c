@@ -82,13 +82,10 @@ int main(int argc, char **argv)
          "what the error image holds: |t - r| or |t - r| / (|r| + epsilon)", 1, 0, pm_errimg_names},
         {0},
     };
-    const pm_cli_t cli = {"measure-error",
-                          "[options] TEST REFERENCE",
-                          "Error of an image against a reference (pmtk radiance files or OpenEXR, same size): RMSE, "
-                          "relative MSE and mean absolute relative error as JSON.",
-                          options,
-                          2,
-                          2};
+    static const char about[] =
+        "Error of an image against a reference (pmtk radiance files or OpenEXR, same size): RMSE, "
+        "relative MSE and mean absolute relative error as JSON.";
+    const pm_cli_t cli = {"measure-error", "[options] TEST REFERENCE", about, options, 2, 2};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

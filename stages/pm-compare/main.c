@@ -173,13 +173,10 @@ int main(int argc, char **argv)
          "header keys not compared (besides SOFTWARE, COMMAND, INPUT)", 1, 0, NULL},
         {0},
     };
-    const pm_cli_t cli = {"pm-compare",
-                          "[options] A B",
-                          "Compare two pmtk files of one format: structure and header keys exactly, values within "
-                          "tolerances. Exit 0 when they agree, 1 when they differ.",
-                          options,
-                          2,
-                          2};
+    static const char about[] =
+        "Compare two pmtk files of one format: structure and header keys exactly, values within "
+        "tolerances. Exit 0 when they agree, 1 when they differ.";
+    const pm_cli_t cli = {"pm-compare", "[options] A B", about, options, 2, 2};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

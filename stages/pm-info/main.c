@@ -38,13 +38,10 @@ int main(int argc, char **argv)
          "print each file's header as a JSON object (after the check, with its checksum) instead of text", 1, 0, NULL},
         {0},
     };
-    const pm_cli_t cli = {"pm-info",
-                          "[options] FILE...",
-                          "Print the header of pmtk files (photons, photonmap, queries, radiance), check every byte, "
-                          "and optionally print the records.",
-                          options,
-                          0,
-                          -1};
+    static const char about[] =
+        "Print the header of pmtk files (photons, photonmap, queries, radiance), check every byte, "
+        "and optionally print the records.";
+    const pm_cli_t cli = {"pm-info", "[options] FILE...", about, options, 0, -1};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

@@ -104,14 +104,11 @@ int main(int argc, char **argv)
         PM_GATHER_COMMON_OPTIONS(o.normal_cos, o.range),
         {0},
     };
-    const pm_cli_t cli = {"reverse-gather",
-                          "[options] MAP QUERIES -o RADIANCE",
-                          "Reverse photon mapping: build a KD-tree over the queries and let every photon search it "
-                          "with the fixed kernel width (simd-gather's estimator); write the indirect radiance per "
-                          "pixel. QUERIES may be - for stdin.",
-                          options,
-                          2,
-                          2};
+    static const char about[] =
+        "Reverse photon mapping: build a KD-tree over the queries and let every photon search it "
+        "with the fixed kernel width (simd-gather's estimator); write the indirect radiance per "
+        "pixel. QUERIES may be - for stdin.";
+    const pm_cli_t cli = {"reverse-gather", "[options] MAP QUERIES -o RADIANCE", about, options, 2, 2};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

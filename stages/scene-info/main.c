@@ -77,12 +77,8 @@ int main(int argc, char **argv)
         {"json", 0, PM_OPT_FLAG, &o.json, NULL, "print the summary as one JSON object instead of text", 1, 0, NULL},
         {0},
     };
-    const pm_cli_t cli = {"scene-info",
-                          "[options] SCENE",
-                          "Load a scene file, build its ray-tracing structure and summarize it.",
-                          options,
-                          1,
-                          1};
+    static const char about[] = "Load a scene file, build its ray-tracing structure and summarize it.";
+    const pm_cli_t cli = {"scene-info", "[options] SCENE", about, options, 1, 1};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

@@ -132,13 +132,9 @@ int main(int argc, char **argv)
         PM_GATHER_COMMON_OPTIONS(o.normal_cos, o.range),
         {0},
     };
-    const pm_cli_t cli = {"simd-gather",
-                          "[options] MAP QUERIES -o RADIANCE",
-                          "Gather photons at every query with SIMD packets and the sample-point estimator; write "
-                          "the indirect radiance per pixel. QUERIES may be - for stdin.",
-                          options,
-                          2,
-                          2};
+    static const char about[] = "Gather photons at every query with SIMD packets and the sample-point estimator; write "
+                                "the indirect radiance per pixel. QUERIES may be - for stdin.";
+    const pm_cli_t cli = {"simd-gather", "[options] MAP QUERIES -o RADIANCE", about, options, 2, 2};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

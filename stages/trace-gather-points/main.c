@@ -204,13 +204,10 @@ int main(int argc, char **argv)
          NULL},
         {0},
     };
+    static const char about[] =
+        "Trace primary and stratified secondary rays as packets; write gather points and direct light.";
     const pm_cli_t cli = {
-        "trace-gather-points",
-        "[options] SCENE -o QUERIES [--direct RADIANCE]",
-        "Trace primary and stratified secondary rays as packets; write gather points and direct light.",
-        options,
-        1,
-        1};
+        "trace-gather-points", "[options] SCENE -o QUERIES [--direct RADIANCE]", about, options, 1, 1};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

@@ -134,12 +134,8 @@ int main(int argc, char **argv)
          "also re-trace every ray with bare rtcIntersect1 and report Embree's rate (for benchmarks)", 1, 0, NULL},
         {0},
     };
-    const pm_cli_t cli = {"trace-photons",
-                          "[options] SCENE -o PHOTONS",
-                          "Trace photons from the scene's lights and write where they land (watts).",
-                          options,
-                          1,
-                          1};
+    static const char about[] = "Trace photons from the scene's lights and write where they land (watts).";
+    const pm_cli_t cli = {"trace-photons", "[options] SCENE -o PHOTONS", about, options, 1, 1};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

@@ -129,13 +129,9 @@ int main(int argc, char **argv)
         {"rr-start", 0, PM_OPT_INT, &o.rr_start, "N", "bounces before Russian roulette may end a path", 0, 1e9, NULL},
         {0},
     };
-    const pm_cli_t cli = {"trace-reference",
-                          "[options] SCENE [-o] OUT.exr",
-                          "Render a reference image with an unbiased path tracer (next-event estimation, MIS, "
-                          "Russian roulette) over the photon stages' scene model; progressive.",
-                          options,
-                          1,
-                          2};
+    static const char about[] = "Render a reference image with an unbiased path tracer (next-event estimation, MIS, "
+                                "Russian roulette) over the photon stages' scene model; progressive.";
+    const pm_cli_t cli = {"trace-reference", "[options] SCENE [-o] OUT.exr", about, options, 1, 2};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

@@ -186,7 +186,8 @@ pm_result_t pm_gather_inputs_radius_for_k(const pm_gather_inputs_t *in, double k
     return PM_OK;
 }
 
-pm_result_t pm_gather_output_init(pm_table_t *out, const pm_gather_inputs_t *in, int argc, char **argv)
+pm_result_t pm_gather_output_init(pm_table_t *out, const pm_gather_inputs_t *in, int argc, char **argv, int kernel,
+                                  const char *widths)
 {
     const double *per_query = in->per_query;
     pm_result_t r = pm_table_alloc(out, &pm_radiance_schema, pm_schema_required(&pm_radiance_schema),
@@ -208,9 +209,11 @@ pm_result_t pm_gather_output_init(pm_table_t *out, const pm_gather_inputs_t *in,
         (r = pm_header_add_input(h, in->q_path, in->q_table.checksum)) != PM_OK ||
         (r = pm_header_add_command(h, argc, argv)) != PM_OK ||
         (r = pm_header_set(h, "width", "%" PRIu32, in->width)) != PM_OK ||
-        (r = pm_header_set(h, "height", "%" PRIu32, in->height)) != PM_OK)
+        (r = pm_header_set(h, "height", "%" PRIu32, in->height)) != PM_OK ||
+        (r = pm_header_set(h, "component", "indirect")) != PM_OK ||
+        (r = pm_header_set(h, "kernel", "%s", pm_kernel_names[kernel])) != PM_OK)
         return r;
-    return pm_header_set(h, "component", "indirect");
+    return pm_header_set(h, "widths", "%s", widths);
 }
 
 pm_result_t pm_gather_output_write(pm_table_t *out, const pm_gather_inputs_t *in, const char *path)
@@ -229,4 +232,21 @@ pm_result_t pm_gather_check_finite(const pm_gather_inputs_t *in, const char *wha
             return pm_error_set(PM_ERR_INPUT, "query %" PRIu64 " of '%s': %s gives a non-finite radiance (%g)",
                                 in->begin + i / 3, in->q_path, what, per_query[i]);
     return PM_OK;
+}
+
+void pm_gather_stage_stats(pm_stage_t *st, const pm_gather_inputs_t *in, int kernel, uint64_t shader_ops,
+                           double gather_s, double cpu_s, double write_s)
+{
+    uint64_t nq = in->q.n;
+    st->items = nq;
+    pm_stage_stat_int(st, "queries", (int64_t)nq);
+    pm_stage_stat_int(st, "photons", in->map.n);
+    pm_stage_stat_string(st, "kernel", pm_kernel_names[kernel]);
+    pm_stage_stat_int(st, "shader_ops", (int64_t)shader_ops);
+    pm_stage_stat_double(st, "shader_ops_per_query", nq ? (double)shader_ops / (double)nq : 0.0);
+    pm_stage_stat_double(st, "shader_ops_per_s", gather_s > 0 ? (double)shader_ops / gather_s : 0.0);
+    pm_stage_stat_double(st, "shader_ops_per_cpu_s", cpu_s > 0 ? (double)shader_ops / cpu_s : 0.0);
+    pm_stage_stat_double(st, "read_s", in->read_s);
+    pm_stage_stat_double(st, "gather_s", gather_s);
+    pm_stage_stat_double(st, "write_s", write_s);
 }

@@ -9,6 +9,7 @@
 
 #include "base/args.h"
 #include "base/error.h"
+#include "base/stage.h"
 #include "formats/formats.h"
 #include "photonmap/gather.h"
 
@@ -54,15 +55,23 @@ void pm_gather_inputs_free(pm_gather_inputs_t *in);
  * order of the queries; a shard samples the whole file (which must then not be stdin). */
 pm_result_t pm_gather_inputs_radius_for_k(const pm_gather_inputs_t *in, double k, float normal_cos, double *radius_out);
 
-/* The radiance buffer of in->per_query: each
- * query added to its pixel in file order, so the buffer does not depend on how the sums
- * were computed in parallel. The header inherits both inputs, names them, adds the command
- * line, width, height and component=indirect; the caller adds its own keys and then calls
- * pm_gather_output_write. */
-pm_result_t pm_gather_output_init(pm_table_t *out, const pm_gather_inputs_t *in, int argc, char **argv);
+/* The radiance buffer of in->per_query: each query added to its pixel in file order, so the
+ * buffer does not depend on how the sums were computed in parallel. The header inherits both
+ * inputs, names them, adds the command line, width, height, component=indirect, the kernel
+ * (pm_kernel_names[kernel]) and widths (fixed, variable, knn); the caller adds its own keys
+ * and then calls pm_gather_output_write. */
+pm_result_t pm_gather_output_init(pm_table_t *out, const pm_gather_inputs_t *in, int argc, char **argv, int kernel,
+                                  const char *widths);
 
 /* Adds range=B:E for a shard and writes `out` to path atomically. */
 pm_result_t pm_gather_output_write(pm_table_t *out, const pm_gather_inputs_t *in, const char *path);
+
+/* The counters every gather stage reports in --stats under the same names, so that the
+ * three can be compared key for key: queries (also st->items), photons, kernel, shader_ops
+ * and its rates per query, per second of the gather (gather_s, wall) and per CPU second of
+ * its workers (cpu_s), read_s, gather_s and write_s. */
+void pm_gather_stage_stats(pm_stage_t *st, const pm_gather_inputs_t *in, int kernel, uint64_t shader_ops,
+                           double gather_s, double cpu_s, double write_s);
 
 /* The same check of in->per_query every estimator needs: no NaN or Inf reaches a file.
  * Names the first bad query (its index in the file) and `what` computed it. */

@@ -43,9 +43,8 @@ static pm_result_t run(pm_stage_t *st, const knn_options_t *o)
         goto done;
 
     pm_header_t *h = &out.hdr;
-    if ((r = pm_gather_output_init(&out, &in, st->argc, st->argv)) != PM_OK ||
-        (r = pm_header_set(h, "kernel", "%s", pm_kernel_names[o->kernel])) != PM_OK ||
-        (r = pm_header_set(h, "widths", "knn")) != PM_OK || (r = pm_header_set(h, "k", "%" PRId64, o->k)) != PM_OK)
+    if ((r = pm_gather_output_init(&out, &in, st->argc, st->argv, o->kernel, "knn")) != PM_OK ||
+        (r = pm_header_set(h, "k", "%" PRId64, o->k)) != PM_OK)
         goto done;
     if (o->max_radius > 0.0 && (r = pm_header_set(h, "max_radius", "%.9g", o->max_radius)) != PM_OK)
         goto done;
@@ -54,25 +53,15 @@ static pm_result_t run(pm_stage_t *st, const knn_options_t *o)
         goto done;
     double t_write = pm_time_wall() - t0;
 
-    st->items = nq;
-    pm_stage_stat_int(st, "queries", (int64_t)nq);
-    pm_stage_stat_int(st, "photons", in.map.n);
+    pm_gather_stage_stats(st, &in, o->kernel, ks.shader_ops, t_gather, ks.cpu_s, t_write);
     pm_stage_stat_int(st, "k", o->k);
-    pm_stage_stat_string(st, "kernel", pm_kernel_names[o->kernel]);
-    pm_stage_stat_int(st, "shader_ops", (int64_t)ks.shader_ops);
-    pm_stage_stat_double(st, "shader_ops_per_query", nq ? (double)ks.shader_ops / nq : 0.0);
-    pm_stage_stat_double(st, "shader_ops_per_s", t_gather > 0 ? (double)ks.shader_ops / t_gather : 0.0);
-    pm_stage_stat_double(st, "shader_ops_per_cpu_s", ks.cpu_s > 0 ? (double)ks.shader_ops / ks.cpu_s : 0.0);
     pm_stage_stat_double(st, "queries_per_s", t_gather > 0 ? (double)nq / t_gather : 0.0);
     pm_stage_stat_double(st, "queries_per_cpu_s", ks.cpu_s > 0 ? (double)nq / ks.cpu_s : 0.0);
     pm_stage_stat_int(st, "photons_visited", (int64_t)ks.nodes_visited);
     pm_stage_stat_double(st, "photons_visited_per_query", nq ? (double)ks.nodes_visited / nq : 0.0);
     pm_stage_stat_int(st, "heap_pushes", (int64_t)ks.heap_pushes);
     pm_stage_stat_int(st, "short_queries", (int64_t)ks.short_queries);
-    pm_stage_stat_double(st, "read_s", in.read_s);
-    pm_stage_stat_double(st, "gather_s", t_gather);
     pm_stage_stat_double(st, "gather_cpu_s", ks.cpu_s);
-    pm_stage_stat_double(st, "write_s", t_write);
     pm_stage_note(
         st, "%" PRIu64 " queries, %" PRIu32 " photons, k %" PRId64 ", %.3g photons visited/query, %.2f M queries/s", nq,
         in.map.n, o->k, nq ? (double)ks.nodes_visited / nq : 0.0, t_gather > 0 ? nq / t_gather * 1e-6 : 0.0);

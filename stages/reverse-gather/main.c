@@ -51,37 +51,26 @@ static pm_result_t run(pm_stage_t *st, const reverse_options_t *o)
         goto done;
 
     pm_header_t *h = &out.hdr;
-    if ((r = pm_gather_output_init(&out, &in, st->argc, st->argv)) != PM_OK ||
-        (r = pm_header_set(h, "kernel", "%s", pm_kernel_names[o->kernel])) != PM_OK ||
-        (r = pm_header_set(h, "widths", "fixed")) != PM_OK || (r = pm_header_set(h, "radius", "%.9g", radius)) != PM_OK)
+    if ((r = pm_gather_output_init(&out, &in, st->argc, st->argv, o->kernel, "fixed")) != PM_OK ||
+        (r = pm_header_set(h, "radius", "%.9g", radius)) != PM_OK)
         goto done;
     t0 = pm_time_wall();
     if ((r = pm_gather_output_write(&out, &in, st->output)) != PM_OK)
         goto done;
     double t_write = pm_time_wall() - t0;
 
-    st->items = nq;
-    pm_stage_stat_int(st, "queries", (int64_t)nq);
-    pm_stage_stat_int(st, "photons", in.map.n);
+    pm_gather_stage_stats(st, &in, o->kernel, rs.shader_ops, t_gather, rs.cpu_s, t_write);
     pm_stage_stat_double(st, "radius_m", radius);
-    pm_stage_stat_string(st, "kernel", pm_kernel_names[o->kernel]);
-    pm_stage_stat_int(st, "shader_ops", (int64_t)rs.shader_ops);
-    pm_stage_stat_double(st, "shader_ops_per_query", nq ? (double)rs.shader_ops / nq : 0.0);
-    pm_stage_stat_double(st, "shader_ops_per_s", t_gather > 0 ? (double)rs.shader_ops / t_gather : 0.0);
     pm_stage_stat_double(st, "shader_ops_per_s_search", rs.search_s > 0 ? (double)rs.shader_ops / rs.search_s : 0.0);
-    pm_stage_stat_double(st, "shader_ops_per_cpu_s", rs.cpu_s > 0 ? (double)rs.shader_ops / rs.cpu_s : 0.0);
     pm_stage_stat_int(st, "queries_visited", (int64_t)rs.nodes_visited);
     pm_stage_stat_int(st, "subtree_searches", (int64_t)rs.searches);
     pm_stage_stat_int(st, "box_tests", (int64_t)rs.box_tests);
     pm_stage_stat_int(st, "subtrees", rs.subtrees);
     pm_stage_stat_int(st, "query_tree_depth", rs.tree_depth);
-    pm_stage_stat_double(st, "read_s", in.read_s);
     pm_stage_stat_double(st, "radius_s", t_radius);
     pm_stage_stat_double(st, "build_s", rs.build_s);
     pm_stage_stat_double(st, "search_s", rs.search_s);
     pm_stage_stat_double(st, "search_cpu_s", rs.cpu_s);
-    pm_stage_stat_double(st, "gather_s", t_gather);
-    pm_stage_stat_double(st, "write_s", t_write);
     pm_stage_note(st, "%" PRIu64 " queries, %" PRIu32 " photons, query tree %.3f s, search %.3f s, %.1f M shader ops/s",
                   nq, in.map.n, rs.build_s, rs.search_s, t_gather > 0 ? rs.shader_ops / t_gather * 1e-6 : 0.0);
 done:

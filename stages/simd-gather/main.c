@@ -64,9 +64,7 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *o)
         goto done;
 
     pm_header_t *h = &out.hdr;
-    if ((r = pm_gather_output_init(&out, &in, st->argc, st->argv)) != PM_OK ||
-        (r = pm_header_set(h, "kernel", "%s", pm_kernel_names[o->kernel])) != PM_OK ||
-        (r = pm_header_set(h, "widths", "%s", width_names[o->widths])) != PM_OK)
+    if ((r = pm_gather_output_init(&out, &in, st->argc, st->argv, o->kernel, width_names[o->widths])) != PM_OK)
         goto done;
     if (!o->widths && (r = pm_header_set(h, "radius", "%.9g", radius)) != PM_OK)
         goto done;
@@ -77,20 +75,13 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *o)
 
     int w = pm_isa_width(isa);
     uint32_t np = in.map.n;
-    st->items = nq;
+    pm_gather_stage_stats(st, &in, o->kernel, gs.shader_ops, t_gather, gs.cpu_s, t_write);
     pm_stage_stat_string(st, "isa", pm_isa_name(isa));
     pm_stage_stat_int(st, "packet_width", w);
-    pm_stage_stat_int(st, "queries", (int64_t)nq);
-    pm_stage_stat_int(st, "photons", np);
     if (!o->widths)
         pm_stage_stat_double(st, "radius_m", radius);
-    pm_stage_stat_string(st, "kernel", pm_kernel_names[o->kernel]);
-    pm_stage_stat_int(st, "shader_ops", (int64_t)gs.shader_ops);
-    pm_stage_stat_double(st, "shader_ops_per_s", t_gather > 0 ? (double)gs.shader_ops / t_gather : 0.0);
     pm_stage_stat_double(st, "shader_ops_per_s_per_thread",
                          t_gather > 0 ? (double)gs.shader_ops / t_gather / st->threads_used : 0.0);
-    pm_stage_stat_double(st, "shader_ops_per_cpu_s", gs.cpu_s > 0 ? (double)gs.shader_ops / gs.cpu_s : 0.0);
-    pm_stage_stat_double(st, "shader_ops_per_query", nq ? (double)gs.shader_ops / nq : 0.0);
     pm_stage_stat_int(st, "photons_visited", (int64_t)gs.nodes_visited);
     pm_stage_stat_int(st, "shade_steps", (int64_t)gs.shade_steps);
     pm_stage_stat_double(st, "active_lanes", gs.shade_steps ? (double)gs.active_lanes / gs.shade_steps : 0.0);
@@ -98,11 +89,8 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *o)
                          gs.shade_steps ? (double)gs.active_lanes / gs.shade_steps / w : 0.0);
     pm_stage_stat_double(st, "straddling_lanes", gs.shade_steps ? (double)gs.straddling_lanes / gs.shade_steps : 0.0);
     pm_stage_stat_double(st, "useful_lanes", gs.shade_steps ? (double)gs.shader_ops / gs.shade_steps : 0.0);
-    pm_stage_stat_double(st, "read_s", in.read_s);
     pm_stage_stat_double(st, "radius_s", t_radius);
-    pm_stage_stat_double(st, "gather_s", t_gather);
     pm_stage_stat_double(st, "gather_cpu_s", gs.cpu_s);
-    pm_stage_stat_double(st, "write_s", t_write);
     pm_stage_note(st,
                   "%" PRIu64 " queries, %" PRIu32
                   " photons, %s, %.3g shader ops/query, %.1f M shader ops/s, %.2f of %d lanes",

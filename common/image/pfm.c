@@ -19,10 +19,7 @@ int pm_pfm_magic(const unsigned char *head, size_t n)
            (head[2] == ' ' || head[2] == '\t' || head[2] == '\n' || head[2] == '\r');
 }
 
-static int is_space(int c)
-{
-    return c == ' ' || c == '\t' || c == '\n' || c == '\r';
-}
+static int is_space(int c) { return c == ' ' || c == '\t' || c == '\n' || c == '\r'; }
 
 /* The next header token (at most cap - 1 bytes) after any whitespace; the one whitespace
  * character that ends it is consumed, so that after the scale the pixels come next. 0 when
@@ -79,8 +76,9 @@ static pm_result_t read_pixels(FILE *f, const char *path, uint32_t w, uint32_t h
         for (uint32_t x = 0; x < w && r == PM_OK; x++)
             for (int c = 0; c < nc; c++) {
                 const unsigned char *b = row + 4 * ((size_t)x * (size_t)nc + (size_t)c);
-                uint32_t u = little ? (uint32_t)b[0] | (uint32_t)b[1] << 8 | (uint32_t)b[2] << 16 | (uint32_t)b[3] << 24
-                                    : (uint32_t)b[3] | (uint32_t)b[2] << 8 | (uint32_t)b[1] << 16 | (uint32_t)b[0] << 24;
+                uint32_t u = little
+                                 ? (uint32_t)b[0] | (uint32_t)b[1] << 8 | (uint32_t)b[2] << 16 | (uint32_t)b[3] << 24
+                                 : (uint32_t)b[3] | (uint32_t)b[2] << 8 | (uint32_t)b[1] << 16 | (uint32_t)b[0] << 24;
                 float v;
                 memcpy(&v, &u, sizeof v);
                 double d = (double)v * mag;
@@ -123,14 +121,15 @@ pm_result_t pm_pfm_read(const char *path, uint32_t *w_out, uint32_t *h_out, int 
     int nc = magic[1] == 'F' ? 3 : 1;
     /* The magic's whitespace is read; the header's three tokens follow. */
     if (!read_token(f, tw, sizeof tw) || !read_token(f, th, sizeof th) || !read_token(f, ts, sizeof ts)) {
-        r = pm_error_set(PM_ERR_INPUT, "PFM image '%s': the header ends early or holds an overlong word: expected "
-                                       "'%s', width, height and scale, each followed by whitespace", path,
-                         nc == 3 ? "PF" : "Pf");
+        r = pm_error_set(PM_ERR_INPUT,
+                         "PFM image '%s': the header ends early or holds an overlong word: expected "
+                         "'%s', width, height and scale, each followed by whitespace",
+                         path, nc == 3 ? "PF" : "Pf");
         goto done;
     }
     if (!parse_side(tw, &w) || !parse_side(th, &h)) {
-        r = pm_error_set(PM_ERR_INPUT, "PFM image '%s': bad size '%s' x '%s': expected whole numbers from 1 to %u", path,
-                         tw, th, PM_PFM_MAX_SIDE);
+        r = pm_error_set(PM_ERR_INPUT, "PFM image '%s': bad size '%s' x '%s': expected whole numbers from 1 to %u",
+                         path, tw, th, PM_PFM_MAX_SIDE);
         goto done;
     }
     char *end;

@@ -34,8 +34,8 @@ typedef struct {
     exr_lineorder_t order;
     int tile_w, tile_h; /* tiled only */
     exr_tile_level_mode_t levels;
-    int x0, y0, w, h;   /* data window */
-    int sampling;       /* x and y sampling of every channel (0 is 1) */
+    int x0, y0, w, h; /* data window */
+    int sampling;     /* x and y sampling of every channel (0 is 1) */
 } layout_t;
 
 /* The value written at pixel (x, y) of level (lx, ly) in channel k (its place in `channels`),
@@ -135,9 +135,9 @@ static void write_layout(const char *path, const layout_t *L)
          * line per chunk, uncompressed) */
         int32_t *counts = calloc((size_t)L->w, sizeof *counts);
         for (int y = L->y0; y < L->y0 + L->h; y++)
-            assert_int_equal(exr_write_deep_scanline_chunk(ctx, part, y, NULL, 0, 0, counts,
-                                                           (uint64_t)L->w * sizeof *counts),
-                             EXR_ERR_SUCCESS);
+            assert_int_equal(
+                exr_write_deep_scanline_chunk(ctx, part, y, NULL, 0, 0, counts, (uint64_t)L->w * sizeof *counts),
+                EXR_ERR_SUCCESS);
         free(counts);
     } else if (L->storage == EXR_STORAGE_SCANLINE) {
         int32_t lines;
@@ -200,8 +200,7 @@ static void check_layout(const char *name, const layout_t *L)
                 float want = as_read(value(L->x0 + x, L->y0 + y, idx[c], 0, 0), L->type);
                 float got = rgb[3 * ((size_t)y * w + (size_t)x) + (size_t)c];
                 if (got != want)
-                    fail_msg("%s: pixel (%d, %d) channel %d is %g, wrote %g", name, x, y, c, (double)got,
-                             (double)want);
+                    fail_msg("%s: pixel (%d, %d) channel %d is %g, wrote %g", name, x, y, c, (double)got, (double)want);
             }
     free(rgb);
     pm_rgb_image_t im;
@@ -299,19 +298,16 @@ typedef struct {
     const char *header; /* the whole header text; NULL: made from the fields below */
     int grey;
     uint32_t w, h;
-    double scale;      /* its sign: the byte order of the values */
-    long cut;          /* bytes dropped from the end */
-    long extra;        /* bytes added at the end */
-    int bad_at;        /* value index (file order) replaced by bad, or -1 */
+    double scale; /* its sign: the byte order of the values */
+    long cut;     /* bytes dropped from the end */
+    long extra;   /* bytes added at the end */
+    int bad_at;   /* value index (file order) replaced by bad, or -1 */
     float bad;
 } pfm_t;
 
 /* The value of image pixel (x, y) from the top, channel c: the row from the top is in it, so
  * that reading the rows in file order (bottom first) without flipping them is seen. */
-static float pfm_value(uint32_t x, uint32_t y, int c)
-{
-    return (float)(x + 100 * y) + 0.25f * (float)c;
-}
+static float pfm_value(uint32_t x, uint32_t y, int c) { return (float)(x + 100 * y) + 0.25f * (float)c; }
 
 static void write_pfm(const char *path, const pfm_t *p)
 {
@@ -342,11 +338,11 @@ static void test_pfm_read(void **state)
     (void)state;
     char path[600];
     const pfm_t cases[] = {
-        {.w = 5, .h = 3, .scale = -1, .bad_at = -1},               /* little-endian colour */
-        {.w = 5, .h = 3, .scale = 1, .bad_at = -1},                /* big-endian colour */
-        {.w = 4, .h = 6, .scale = -1, .grey = 1, .bad_at = -1},    /* little-endian grey */
-        {.w = 1, .h = 2, .scale = 1.0, .grey = 1, .bad_at = -1},   /* big-endian grey */
-        {.w = 3, .h = 2, .scale = -2.0, .bad_at = -1},             /* the scale's magnitude multiplies */
+        {.w = 5, .h = 3, .scale = -1, .bad_at = -1},                            /* little-endian colour */
+        {.w = 5, .h = 3, .scale = 1, .bad_at = -1},                             /* big-endian colour */
+        {.w = 4, .h = 6, .scale = -1, .grey = 1, .bad_at = -1},                 /* little-endian grey */
+        {.w = 1, .h = 2, .scale = 1.0, .grey = 1, .bad_at = -1},                /* big-endian grey */
+        {.w = 3, .h = 2, .scale = -2.0, .bad_at = -1},                          /* the scale's magnitude multiplies */
         {.header = "PF 3 2 -1.0\n", .w = 3, .h = 2, .scale = -1, .bad_at = -1}, /* one line, spaces */
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
@@ -373,7 +369,8 @@ static void test_pfm_read(void **state)
         pm_rgb_image_t im;
         assert_int_equal(pm_rgb_image_read(path, &im), PM_OK);
         assert_string_equal(im.kind, "pfm");
-        assert_true(im.w == p->w && im.h == p->h && im.rgb[3 * (size_t)im.w] == (double)pfm_value(0, 1, 0) * fabs(p->scale));
+        assert_true(im.w == p->w && im.h == p->h &&
+                    im.rgb[3 * (size_t)im.w] == (double)pfm_value(0, 1, 0) * fabs(p->scale));
         pm_rgb_image_free(&im);
     }
 }

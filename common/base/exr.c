@@ -1,9 +1,12 @@
-/* exr.c: OpenEXR output and read-back through the OpenEXR 3 C API (see exr.h).
+/* exr.c: OpenEXR output and reading through the OpenEXR 3 C API (see exr.h).
  *
  * Writing follows the Core API's steps: start a write context on a temporary path, define
  * one scanline part (required attributes, channels, string attributes), write the header,
  * then encode chunk after chunk (16 scanlines for ZIP, 32 for PIZ, 1 uncompressed) from the
- * caller's interleaved buffer through strides, and finish. OpenEXR's own messages go through
+ * caller's interleaved buffer through strides, and finish. Reading walks the chunks of the
+ * first part (bands of scanlines, or the tiles of level 0), decodes the chosen channels in
+ * the file's own pixel type into planes and converts them to float while placing each chunk
+ * at its position in the data window. OpenEXR's own messages go through
  * an error handler into a thread-local buffer, so a failure is one pmtk message naming the
  * file and OpenEXR's words. */
 #include "base/exr.h"
@@ -165,6 +168,86 @@ done:
     return r;
 }
 
+/* The channels an image is read from: R G B, or Y alone (grey, copied to all three). */
+typedef struct {
+    const char *name[3]; /* the channel feeding R, G, B (the context's strings) */
+    int grey;            /* 1: all three are one Y channel */
+    int32_t chunk_px;    /* pixels in the largest chunk */
+} exr_layout_t;
+
+static const char *storage_name(exr_storage_t s)
+{
+    return s == EXR_STORAGE_DEEP_SCANLINE ? "deep scanline" : s == EXR_STORAGE_DEEP_TILED ? "deep tiled" : "unknown";
+}
+
+/* Picks the channels to read from the first part's channel list, or names why none fit. */
+static pm_result_t choose_channels(exr_const_context_t ctx, const char *path, exr_layout_t *lay)
+{
+    const exr_attr_chlist_t *cl = NULL;
+    exr_result_t rv = exr_get_channels(ctx, 0, &cl);
+    if (rv != EXR_ERR_SUCCESS)
+        return exr_fail(rv, "read", path);
+    int at[6] = {-1, -1, -1, -1, -1, -1}; /* R G B Y RY BY */
+    static const char *const wanted[6] = {"R", "G", "B", "Y", "RY", "BY"};
+    char found[256] = "";
+    size_t fl = 0;
+    for (int i = 0; i < cl->num_channels; i++) {
+        const char *n = cl->entries[i].name.str;
+        for (int k = 0; k < 6; k++)
+            if (!strcmp(n, wanted[k]))
+                at[k] = i;
+        if (fl < sizeof found - 1)
+            fl += (size_t)snprintf(found + fl, sizeof found - fl, "%s%s", fl ? " " : "", n);
+    }
+    if (fl >= sizeof found - 1)
+        memcpy(found + sizeof found - 4, "...", 4);
+    if (at[0] >= 0 && at[1] >= 0 && at[2] >= 0) {
+        lay->grey = 0;
+        for (int c = 0; c < 3; c++)
+            lay->name[c] = cl->entries[at[c]].name.str;
+    } else if (at[3] >= 0 && at[4] < 0 && at[5] < 0 && at[0] < 0 && at[1] < 0 && at[2] < 0) {
+        lay->grey = 1;
+        lay->name[0] = lay->name[1] = lay->name[2] = cl->entries[at[3]].name.str;
+    } else if (at[4] >= 0 || at[5] >= 0) {
+        return pm_error_set(PM_ERR_INPUT,
+                            "OpenEXR image '%s' is luminance-chroma (channels %s); pmtk reads R G B (A ignored) or Y "
+                            "alone: write the image as RGB",
+                            path, found);
+    } else {
+        return pm_error_set(PM_ERR_INPUT,
+                            "OpenEXR image '%s' has no channels R, G and B (channels %s); pmtk reads R G B (A "
+                            "ignored) or Y alone",
+                            path, cl->num_channels ? found : "none");
+    }
+    for (int c = 0; c < 3; c++) {
+        const exr_attr_chlist_entry_t *e = &cl->entries[at[lay->grey ? 3 : c]];
+        if (e->x_sampling != 1 || e->y_sampling != 1)
+            return pm_error_set(PM_ERR_INPUT,
+                                "OpenEXR image '%s' channel %s is subsampled %dx%d; pmtk reads only channels with "
+                                "a value at every pixel",
+                                path, e->name.str, e->x_sampling, e->y_sampling);
+    }
+    return PM_OK;
+}
+
+/* One decoded value of pixel type t at p as float (uint as its nearest float). */
+static float value_at(const uint8_t *p, uint16_t t)
+{
+    if (t == EXR_PIXEL_HALF) {
+        _Float16 h;
+        memcpy(&h, p, 2);
+        return (float)h;
+    }
+    if (t == EXR_PIXEL_UINT) {
+        uint32_t u;
+        memcpy(&u, p, 4);
+        return (float)u;
+    }
+    float f;
+    memcpy(&f, p, 4);
+    return f;
+}
+
 pm_result_t pm_exr_read_rgb(const char *path, uint32_t *w_out, uint32_t *h_out, float **rgb_out)
 {
     *rgb_out = NULL;
@@ -173,24 +256,25 @@ pm_result_t pm_exr_read_rgb(const char *path, uint32_t *w_out, uint32_t *h_out, 
     exr_context_t ctx = NULL;
     exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
     int dec_live = 0;
-    float *rgb = NULL, *planes[3] = {NULL, NULL, NULL};
+    float *rgb = NULL;
+    uint8_t *planes[3] = {NULL, NULL, NULL};
     pm_result_t r = PM_OK;
     exr_attr_box2i_t dw;
     exr_storage_t storage;
-    int32_t lines = 1;
+    exr_layout_t lay = {{NULL, NULL, NULL}, 0, 0};
+    int32_t lines = 1, tw = 0, th = 0, nx = 1, ny = 0;
     exr_result_t rv = exr_start_read(&ctx, path, &init);
     if (rv == EXR_ERR_SUCCESS)
         rv = exr_get_storage(ctx, 0, &storage);
-    if (rv == EXR_ERR_SUCCESS && storage != EXR_STORAGE_SCANLINE) {
-        r = pm_error_set(PM_ERR_INPUT, "OpenEXR image '%s' is not a scanline image; pmtk reads only those", path);
-        goto done;
-    }
     if (rv == EXR_ERR_SUCCESS)
         rv = exr_get_data_window(ctx, 0, &dw);
-    if (rv == EXR_ERR_SUCCESS)
-        rv = exr_get_scanlines_per_chunk(ctx, 0, &lines);
     if (rv != EXR_ERR_SUCCESS) {
         r = exr_fail(rv, "read", path);
+        goto done;
+    }
+    if (storage != EXR_STORAGE_SCANLINE && storage != EXR_STORAGE_TILED) {
+        r = pm_error_set(PM_ERR_INPUT, "OpenEXR image '%s' is a %s image; pmtk reads flat scanline or tiled images",
+                         path, storage_name(storage));
         goto done;
     }
     int64_t w = (int64_t)dw.max.x - dw.min.x + 1, h = (int64_t)dw.max.y - dw.min.y + 1;
@@ -199,53 +283,92 @@ pm_result_t pm_exr_read_rgb(const char *path, uint32_t *w_out, uint32_t *h_out, 
                          (long long)h);
         goto done;
     }
+    if ((r = choose_channels(ctx, path, &lay)) != PM_OK)
+        goto done;
+    /* Chunks: bands of `lines` scanlines, or the tiles of level (0, 0), the full-resolution
+     * level of a mipmapped or ripmapped file. */
+    if (storage == EXR_STORAGE_SCANLINE) {
+        rv = exr_get_scanlines_per_chunk(ctx, 0, &lines);
+        ny = (int32_t)((h + lines - 1) / lines);
+        lay.chunk_px = (int32_t)w * lines;
+    } else {
+        int32_t lw = 0, lh = 0;
+        rv = exr_get_tile_sizes(ctx, 0, 0, 0, &tw, &th);
+        if (rv == EXR_ERR_SUCCESS)
+            rv = exr_get_level_sizes(ctx, 0, 0, 0, &lw, &lh);
+        if (rv == EXR_ERR_SUCCESS && (tw < 1 || th < 1 || lw != w || lh != h || (int64_t)tw * th > (int64_t)1 << 28)) {
+            r = pm_error_set(PM_ERR_INPUT, "OpenEXR image '%s': tiles of %dx%d over a level of %dx%d pixels", path, tw,
+                             th, lw, lh);
+            goto done;
+        }
+        nx = (lw + tw - 1) / tw, ny = (lh + th - 1) / th;
+        lay.chunk_px = tw * th;
+    }
+    if (rv != EXR_ERR_SUCCESS) {
+        r = exr_fail(rv, "read", path);
+        goto done;
+    }
     rgb = malloc((size_t)(3 * w * h) * sizeof *rgb);
     for (int c = 0; c < 3; c++)
-        planes[c] = malloc((size_t)(w * lines) * sizeof(float));
+        planes[c] = malloc((size_t)lay.chunk_px * 4);
     if (!rgb || !planes[0] || !planes[1] || !planes[2]) {
         r = pm_error_set(PM_ERR_NOMEM, "out of memory reading OpenEXR image '%s'", path);
         goto done;
     }
-    for (int64_t y = dw.min.y; y <= dw.max.y && rv == EXR_ERR_SUCCESS; y += lines) {
-        exr_chunk_info_t ci;
-        rv = exr_read_scanline_chunk_info(ctx, 0, (int)y, &ci);
-        if (rv != EXR_ERR_SUCCESS)
-            break;
-        rv = dec_live ? exr_decoding_update(ctx, 0, &ci, &dec) : exr_decoding_initialize(ctx, 0, &ci, &dec);
-        if (rv != EXR_ERR_SUCCESS)
-            break;
-        dec_live = 1;
-        int found = 0;
-        for (int k = 0; k < dec.channel_count; k++) {
-            exr_coding_channel_info_t *ch = &dec.channels[k];
-            const char *n = ch->channel_name;
-            int c = !strcmp(n, "R") ? 0 : !strcmp(n, "G") ? 1 : !strcmp(n, "B") ? 2 : -1;
-            if (c < 0) {
-                ch->decode_to_ptr = NULL; /* other channels are skipped */
-                continue;
+    for (int32_t cy = 0; cy < ny && rv == EXR_ERR_SUCCESS; cy++)
+        for (int32_t cx = 0; cx < nx && rv == EXR_ERR_SUCCESS; cx++) {
+            exr_chunk_info_t ci;
+            rv = storage == EXR_STORAGE_SCANLINE ? exr_read_scanline_chunk_info(ctx, 0, dw.min.y + cy * lines, &ci)
+                                                 : exr_read_tile_chunk_info(ctx, 0, cx, cy, 0, 0, &ci);
+            if (rv != EXR_ERR_SUCCESS)
+                break;
+            /* The chunk's place in the data window: a band's first scanline is its start_y;
+             * a tile's chunk info holds its tile indices, so its pixels start at index times
+             * tile size. It must fit the window and the planes (a corrupt file may say
+             * otherwise). */
+            int64_t x0 = storage == EXR_STORAGE_SCANLINE ? 0 : (int64_t)cx * tw;
+            int64_t y0 = storage == EXR_STORAGE_SCANLINE ? (int64_t)ci.start_y - dw.min.y : (int64_t)cy * th;
+            if (x0 < 0 || y0 < 0 || ci.width < 1 || ci.height < 1 || x0 + ci.width > w || y0 + ci.height > h ||
+                (int64_t)ci.width * ci.height > lay.chunk_px) {
+                r = pm_error_set(PM_ERR_INPUT,
+                                 "OpenEXR image '%s': chunk of %dx%d pixels at (%d, %d) outside the data window", path,
+                                 ci.width, ci.height, ci.start_x, ci.start_y);
+                goto done;
             }
-            found |= 1 << c;
-            ch->user_bytes_per_element = 4;
-            ch->user_data_type = EXR_PIXEL_FLOAT;
-            ch->user_pixel_stride = 4;
-            ch->user_line_stride = (int32_t)(4 * w);
-            ch->decode_to_ptr = (uint8_t *)planes[c];
-        }
-        if (found != 7) {
-            r = pm_error_set(PM_ERR_INPUT, "OpenEXR image '%s' has no channel %s", path,
-                             !(found & 1)   ? "R"
-                             : !(found & 2) ? "G"
-                                            : "B");
-            goto done;
-        }
-        if (y == dw.min.y)
+            rv = dec_live ? exr_decoding_update(ctx, 0, &ci, &dec) : exr_decoding_initialize(ctx, 0, &ci, &dec);
+            if (rv != EXR_ERR_SUCCESS)
+                break;
+            dec_live = 1;
+            uint16_t type[3] = {0, 0, 0};
+            int8_t size[3] = {4, 4, 4};
+            for (int k = 0; k < dec.channel_count; k++) {
+                exr_coding_channel_info_t *ch = &dec.channels[k];
+                ch->decode_to_ptr = NULL; /* channels not read are skipped */
+                for (int c = 0; c < (lay.grey ? 1 : 3); c++)
+                    if (!strcmp(ch->channel_name, lay.name[c])) {
+                        /* Decoded in the file's own type; converted below. */
+                        type[c] = ch->data_type;
+                        size[c] = ch->bytes_per_element;
+                        ch->user_bytes_per_element = ch->bytes_per_element;
+                        ch->user_data_type = ch->data_type;
+                        ch->user_pixel_stride = ch->bytes_per_element;
+                        ch->user_line_stride = ch->bytes_per_element * ci.width;
+                        ch->decode_to_ptr = planes[c];
+                    }
+            }
             rv = exr_decoding_choose_default_routines(ctx, 0, &dec);
-        if (rv == EXR_ERR_SUCCESS)
-            rv = exr_decoding_run(ctx, 0, &dec);
-        for (int64_t i = 0; rv == EXR_ERR_SUCCESS && i < (int64_t)ci.height * w; i++)
-            for (int c = 0; c < 3; c++)
-                rgb[3 * ((y - dw.min.y) * w + i) + c] = planes[c][i];
-    }
+            if (rv == EXR_ERR_SUCCESS)
+                rv = exr_decoding_run(ctx, 0, &dec);
+            for (int32_t y = 0; rv == EXR_ERR_SUCCESS && y < ci.height; y++)
+                for (int32_t x = 0; x < ci.width; x++) {
+                    size_t i = (size_t)y * (size_t)ci.width + (size_t)x;
+                    float *px = rgb + 3 * ((size_t)(y0 + y) * (size_t)w + (size_t)(x0 + x));
+                    for (int c = 0; c < 3; c++) {
+                        int s = lay.grey ? 0 : c;
+                        px[c] = value_at(planes[s] + i * (size_t)size[s], type[s]);
+                    }
+                }
+        }
     if (rv != EXR_ERR_SUCCESS) {
         r = exr_fail(rv, "read", path);
         goto done;

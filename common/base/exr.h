@@ -1,5 +1,5 @@
 /* exr.h: OpenEXR images through the OpenEXR 3 C API (OpenEXRCore), for composite's HDR
- * output and for the tests that read it back.
+ * output, the tests that read it back, and reference images from other renderers.
  *
  * One scanline part, channels R G B (stored B G R, the order OpenEXR sorts them in), ZIP
  * compression by default, float or half. String attributes carry provenance. Writes go
@@ -31,9 +31,15 @@ typedef struct {
 pm_result_t pm_exr_write_rgb(const char *path, uint32_t w, uint32_t h, const float *rgb, pm_exr_pixel_t type,
                              pm_exr_compression_t comp, const pm_exr_attr_t *attrs, size_t nattrs);
 
-/* Reads the R G B channels of a scanline EXR's first part (any pixel type, converted to float)
- * into a malloc'd interleaved array *rgb_out of *w_out x *h_out pixels. A missing channel
- * is an error naming it. */
+/* Reads the first part of an OpenEXR file, as composite, pbrt-v4 and Mitsuba 3 write it,
+ * into a malloc'd interleaved array *rgb_out of *w_out x *h_out pixels (the data window, rows
+ * from the top whatever the file's line order). Read: scanline or tiled storage (of a
+ * mipmapped or ripmapped file, the full-resolution level), any compression OpenEXR decodes,
+ * channels R G B of type half, float or uint (uint converted to the nearest float), other
+ * channels (A, AOV layers) ignored, or a Y channel alone (grey, copied to R G and B).
+ * Refused with PM_ERR_INPUT and a message naming the file and what it holds: deep images,
+ * luminance-chroma (Y RY BY), no R G B or Y channel, subsampled channels. *rgb_out is NULL
+ * after a failure. */
 pm_result_t pm_exr_read_rgb(const char *path, uint32_t *w_out, uint32_t *h_out, float **rgb_out);
 
 /* The value of string attribute name of the first part, malloc'd into *value_out, or

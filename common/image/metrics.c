@@ -17,8 +17,10 @@ pm_result_t pm_image_errors(const pm_rgb_image_t *t, const pm_rgb_image_t *r, do
     float *err = NULL;
     if (err_out)
         *err_out = NULL;
+    /* Two images of different sizes are the wrong pair of files to compare: the command line
+     * is at fault (exit 2), not either file. */
     if (t->w != r->w || t->h != r->h)
-        return pm_error_set(PM_ERR_INPUT, "'%s' is %" PRIu32 "x%" PRIu32 " but '%s' is %" PRIu32 "x%" PRIu32, t->path,
+        return pm_error_set(PM_ERR_USAGE, "'%s' is %" PRIu32 "x%" PRIu32 " but '%s' is %" PRIu32 "x%" PRIu32, t->path,
                             t->w, t->h, r->path, r->w, r->h);
     if (err_out && !(*err_out = err = malloc((size_t)t->w * t->h * 3 * sizeof *err)))
         return pm_error_set(PM_ERR_NOMEM, "out of memory for the error image: %" PRIu32 "x%" PRIu32, t->w, t->h);

@@ -38,7 +38,7 @@ typedef struct {
     double ref_rmse, ref_relmse;
 } pm_image_errors_t;
 
-/* The metrics of t against r, which must be of one size (PM_ERR_INPUT naming both otherwise),
+/* The metrics of t against r, which must be of one size (PM_ERR_USAGE naming both otherwise),
  * and, when err_out is not NULL, the error image of the given kind: 3 w h floats, malloc'd
  * into *err_out (NULL after a failure). */
 pm_result_t pm_image_errors(const pm_rgb_image_t *t, const pm_rgb_image_t *r, double epsilon, pm_errimg_t kind,

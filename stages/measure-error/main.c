@@ -1,15 +1,16 @@
 /* measure-error: how far a rendered image is from a reference, as numbers an error-against-
  * run-time sweep can plot. Reads two images of the same size, each a pmtk radiance file
- * (simd-gather, composite --radiance) or an OpenEXR image (composite, trace-reference), and
- * writes one JSON object: RMSE, relative MSE and mean absolute relative error over every pixel
- * and channel, optionally an error image.
+ * (simd-gather, composite --radiance), an OpenEXR image (composite, trace-reference, or
+ * another renderer: pbrt-v4, Mitsuba 3) or a PFM, and writes one JSON object: RMSE, relative
+ * MSE and mean absolute relative error over every pixel and channel, optionally an error image.
  *
- *   composite ... -o test.exr ──┐
- *   reference.exr ──────────────┴─> measure-error -> JSON on stdout [, error.exr]
+ *   composite ... -o test.exr ──────────┐
+ *   reference.exr or reference.pfm ─────┴─> measure-error -> JSON on stdout [, error.exr]
  *
  * The images are read by common/image/rgb.c and compared by common/image/metrics.c, whose
- * header gives the formulas (eps is --epsilon). A NaN or Inf in either image is an error
- * naming the pixel: no error number means anything then. */
+ * header gives the formulas (eps is --epsilon). A NaN or Inf in either image, or a negative
+ * value in an EXR or PFM, is an error naming the pixel: no error number means anything then.
+ * Images of two sizes are a usage error (exit 2): the wrong pair of files was given. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -83,7 +84,7 @@ int main(int argc, char **argv)
         {0},
     };
     static const char about[] =
-        "Error of an image against a reference (pmtk radiance files or OpenEXR, same size): RMSE, "
+        "Error of an image against a reference (pmtk radiance files, OpenEXR or PFM, same size): RMSE, "
         "relative MSE and mean absolute relative error as JSON.";
     const pm_cli_t cli = {"measure-error", "[options] TEST REFERENCE", about, options, 2, 2};
     int rc = pm_stage_begin(&st, &cli, argc, argv);

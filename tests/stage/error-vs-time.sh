@@ -1,15 +1,17 @@
-# error-vs-time.sh: pipelines/error-vs-time renders every combination it is asked for, times
-# each from its stages, measures each against the reference, and keeps the best per budget.
+# error-vs-time.sh: pipelines/error-vs-time renders every combination it is asked for (primary
+# rays among them), times each from its stages, measures each against the reference (an EXR
+# written by composite, a PFM, or trace-reference's own with area pixels), keeps the best per
+# budget, and refuses a reference of another size before writing anything.
 E=pipelines/error-vs-time
 CORNELL=scenes/cornell-box/scene.json
 SIZE="WIDTH=16 HEIGHT=16"
 
 # The reference is a render with exactly one of the sweep's settings (and the same seed), so
 # that row must measure zero error and every other row more than zero.
-pipelines/render "$CORNELL" "$TMP/ref" PHOTONS=20000 SPP=4 K=40 LEAF=16 $SIZE >/dev/null 2>&1 ||
+pipelines/render "$CORNELL" "$TMP/ref" PHOTONS=20000 PRIMARY=1 SPP=4 K=40 LEAF=16 $SIZE >/dev/null 2>&1 ||
     fail "error-vs-time reference render" "pipelines/render failed"
 out=$TMP/sweep
-$E "$CORNELL" "$out" PHOTONS=10000,20000 SPP=4 K="10 40" LEAF=16 $SIZE PT_SPP= \
+$E "$CORNELL" "$out" PHOTONS=10000,20000 PRIMARY="1 4" SPP=4 K="10 40" LEAF=16 $SIZE PT_SPP= \
     REFERENCE="$TMP/ref/image.exr" >"$TMP/evt.log" 2>&1
 status=$?
 csv=$out/results.csv
@@ -18,43 +20,88 @@ if [ $status = 0 ] && [ -s "$csv" ] && [ -s "$out/pareto.csv" ] && [ -s "$out/su
 else
     fail "error-vs-time run" "exit $status: $(tail -3 "$TMP/evt.log")"
 fi
-if [ "$(head -c 8 "$out/error-vs-time.png" 2>/dev/null | od -An -tx1 | tr -d ' \n')" = 89504e470d0a1a0a ]; then
-    pass "error-vs-time draws a PNG plot"
+if [ "$(head -c 8 "$out/error-vs-time.png" 2>/dev/null | od -An -tx1 | tr -d ' \n')" = 89504e470d0a1a0a ] &&
+    grep -q "^set title \"cornell-box: error against run time" "$out/error-vs-time.gp"; then
+    pass "error-vs-time draws a PNG plot titled with the scene's name"
 else
-    fail "error-vs-time plot" "no PNG at $out/error-vs-time.png: $(cat "$out/gnuplot.log" 2>/dev/null | head -3)"
+    fail "error-vs-time plot" "no PNG at $out/error-vs-time.png or no title: $(cat "$out/gnuplot.log" 2>/dev/null | head -3)"
 fi
+# column NAME: the column of NAME in results.csv
+column() { head -1 "$csv" | tr , '\n' | grep -nx "$1" | cut -d: -f1; }
+ct=$(column total_s) ce=$(column relmse) cp=$(column primary)
 rows=$(tail -n +2 "$csv" | wc -l)
-[ "$rows" = 4 ] && pass "one row per combination (2 photon counts x 2 K)" || fail "error-vs-time rows" "$rows rows, expected 4"
+primaries=$(tail -n +2 "$csv" | cut -d, -f"$cp" | sort -u | tr '\n' ' ')
+[ "$rows" = 8 ] && [ "$primaries" = "1 4 " ] && pass "one row per combination (2 photon counts x 2 primary x 2 K)" ||
+    fail "error-vs-time rows" "$rows rows (primary: $primaries), expected 8"
 # The row rendered exactly as the reference measures zero; every other one more than zero.
-zero=$(awk -F, 'NR > 1 && $2 == 20000 && $5 == 40 { print $16 }' "$csv")
-others=$(awk -F, 'NR > 1 && !($2 == 20000 && $5 == 40) && $16 > 0 { n++ } END { print n + 0 }' "$csv")
-if [ "$zero" = 0 ] && [ "$others" = 3 ]; then
+zero=$(awk -F, -v c="$ce" -v p="$cp" 'NR > 1 && $2 == 20000 && $p == 1 && $6 == 40 { print $c }' "$csv")
+others=$(awk -F, -v c="$ce" -v p="$cp" 'NR > 1 && !($2 == 20000 && $p == 1 && $6 == 40) && $c > 0 { n++ } END { print n + 0 }' "$csv")
+if [ "$zero" = 0 ] && [ "$others" = 7 ]; then
     pass "the reference's own settings measure zero error, the others more"
 else
-    fail "error-vs-time errors" "same-settings relmse '$zero', $others of 3 others above zero"
+    fail "error-vs-time errors" "same-settings relmse '$zero', $others of 7 others above zero"
 fi
-# Every number is finite and the total is the sum of the stages.
-if awk -F, 'NR > 1 {
-        for (i = 6; i <= NF; i++) if ($i !~ /^[0-9.eE+-]+$/) { print "column " i ": " $i; bad = 1 }
-        s = $9 + $10 + $11 + $12 + $13 + $14
-        if (s - $7 > 1e-6 || $7 - s > 1e-6) { print "total " $7 " != sum " s; bad = 1 }
+# Every number is finite, printed with a sensible number of digits (no float noise such as
+# 2.1297200000000003), and the total is the sum of the stages to their rounding (1 ms each).
+if awk -F, -v ct="$ct" 'NR > 1 {
+        for (i = 7; i <= NF; i++) if ($i !~ /^[0-9.eE+-]+$/ || $i ~ /[0-9]{8}/) { print "column " i ": " $i; bad = 1 }
+        s = 0; for (i = ct + 2; i <= ct + 7; i++) s += $i
+        if ((s - $ct) ^ 2 > 0.0035 ^ 2) { print "total " $ct " != sum " s; bad = 1 }
     } END { exit bad }' "$csv" >"$TMP/evt.bad"; then
-    pass "every figure is a finite number and the total is the sum of the stages"
+    pass "every figure is a short finite number and the total is the sum of the stages"
 else
     fail "error-vs-time figures" "$(head -3 "$TMP/evt.bad")"
 fi
+if grep -qE '[0-9]{8}' "$TMP/evt.log"; then
+    fail "error-vs-time log" "a number with float noise: $(grep -E '[0-9]{8}' "$TMP/evt.log" | head -2)"
+else
+    pass "the log prints its numbers to a few digits"
+fi
 # The front is in increasing time with strictly decreasing error, and holds the best row.
-if awk -F, 'NR > 2 && !($7 >= t && $16 < e) { bad = 1 } NR > 1 { t = $7; e = $16 } END { exit bad }' "$out/pareto.csv" &&
-    [ "$(tail -n 1 "$out/pareto.csv" | cut -d, -f16)" = 0 ]; then
+if awk -F, -v ct="$ct" -v ce="$ce" 'NR > 2 && !($ct >= t && $ce < e) { bad = 1 } NR > 1 { t = $ct; e = $ce } END { exit bad }' "$out/pareto.csv" &&
+    [ "$(tail -n 1 "$out/pareto.csv" | cut -d, -f"$ce")" = 0 ]; then
     pass "pareto.csv runs faster to slower with falling error and ends at the best"
 else
     fail "error-vs-time front" "$(cat "$out/pareto.csv")"
 fi
-grep -q '^| [0-9.e+-]* s | simd-gather, 20000 photons, 4 spp, leaf 16, K 40 |' "$out/summary.md" &&
+grep -q '^| [0-9.e+-]* s | simd-gather, 20000 photons, 1 primary, 4 spp, leaf 16, K 40 |' "$out/summary.md" &&
     pass "summary.md names the best setting at a budget" || fail "error-vs-time summary" "$(cat "$out/summary.md")"
+
+# A PFM reference (the same image, rows bottom first, little-endian; perl packs it): the
+# renders take its size, and the reference's own settings measure zero against it. MAX_RAYS
+# skips PRIMARY 4 x SPP 4.
+"$BUILD/tests/pm-exrdump" "$TMP/ref/image.exr" | perl -e '
+    my ($w, $h, @px); while (<STDIN>) { my @f = split; if ($f[0] eq "size") { ($w, $h) = @f[1, 2]; next }
+        $px[$f[1] * $w + $f[0]] = [@f[2 .. 4]] }
+    binmode STDOUT; printf "PF\n%d %d\n-1.0\n", $w, $h;
+    for (my $y = $h - 1; $y >= 0; $y--) { print pack("f<" x 3, @{$px[$y * $w + $_]}) for 0 .. $w - 1 }' >"$TMP/ref.pfm"
+out=$TMP/pfm
+$E "$CORNELL" "$out" PHOTONS=20000 PRIMARY="1 4" SPP=4 MAX_RAYS=4 K=40 LEAF=16 PT_SPP= PLOT=0 \
+    REFERENCE="$TMP/ref.pfm" >"$TMP/pfm.log" 2>&1
+status=$?
+row=$(tail -n +2 "$out/results.csv" 2>/dev/null)
+if [ $status = 0 ] && [ "$(echo "$row" | wc -l)" = 1 ] && [ "$(echo "$row" | cut -d, -f"$ce")" = 0 ] &&
+    [ "$("$BUILD/tests/pm-exrdump" "$out/runs/p20000-r1-s4/image.exr" | head -1)" = "size 16 16" ] &&
+    grep -q 'skipped, more than MAX_RAYS=4 secondary rays per pixel: PRIMARY=4 SPP=4' "$TMP/pfm.log" &&
+    grep -q "Reference: '.*ref.pfm' (16x16)" "$out/summary.md"; then
+    pass "a PFM reference: renders at its size, the same image measures zero, MAX_RAYS skips"
+else
+    fail "error-vs-time PFM reference" "exit $status, row '$row': $(tail -3 "$TMP/pfm.log")"
+fi
+# A reference of another size than WIDTH x HEIGHT: one line, exit 2, nothing written.
+$E "$CORNELL" "$TMP/wrong" PHOTONS=20000 SPP=4 K=40 WIDTH=32 HEIGHT=16 PT_SPP= PLOT=0 \
+    REFERENCE="$TMP/ref.pfm" >"$TMP/wrong.out" 2>"$TMP/wrong.err"
+status=$?
+if [ $status = 2 ] && [ "$(wc -l <"$TMP/wrong.err")" = 1 ] && [ ! -e "$TMP/wrong" ] && [ ! -s "$TMP/wrong.out" ] &&
+    grep -q "reference '.*ref.pfm' is 16x16 but the renders are 32x16" "$TMP/wrong.err"; then
+    pass "a reference of another size: one line, exit 2, nothing written"
+else
+    fail "error-vs-time reference size" "exit $status: $(cat "$TMP/wrong.err")"
+fi
 
 expect_exit "error-vs-time: unknown parameter" 2 $E "$CORNELL" "$TMP/x" NOPE=1
 expect_exit "error-vs-time: a list with a word that is not a number" 2 $E "$CORNELL" "$TMP/x" K="10 ten"
+expect_exit "error-vs-time: a bad PIXEL" 2 $E "$CORNELL" "$TMP/x" PIXEL=corner
 expect_exit "error-vs-time: missing scene" 1 $E "$TMP/missing.json" "$TMP/x"
 expect_exit "error-vs-time: unreadable reference" 1 $E "$CORNELL" "$TMP/x" REFERENCE="$TMP/none.exr" PT_SPP= PLOT=0 $SIZE
 
@@ -62,11 +109,13 @@ expect_exit "error-vs-time: unreadable reference" 1 $E "$CORNELL" "$TMP/x" REFER
 out=$TMP/pt
 $E "$CORNELL" "$out" PHOTONS=10000 SPP=4 K=20 PT_SPP="1 16" REF_SPP=64 $SIZE PLOT=0 >"$TMP/pt.log" 2>&1
 status=$?
-pt1=$(awk -F, '$1 == "trace-reference" && $3 == 1 { print $16 }' "$out/results.csv" 2>/dev/null)
-pt16=$(awk -F, '$1 == "trace-reference" && $3 == 16 { print $16 }' "$out/results.csv" 2>/dev/null)
+pt1=$(awk -F, -v c="$ce" '$1 == "trace-reference" && $4 == 1 { print $c }' "$out/results.csv" 2>/dev/null)
+pt16=$(awk -F, -v c="$ce" '$1 == "trace-reference" && $4 == 16 { print $c }' "$out/results.csv" 2>/dev/null)
 if [ $status = 0 ] && [ -s "$out/reference.exr" ] && [ -n "$pt1" ] && [ -n "$pt16" ] &&
-    awk -v a="$pt1" -v b="$pt16" 'BEGIN { exit !(b > 0 && b < a / 4) }'; then
-    pass "the path tracer's curve falls with its samples (relmse $pt1 at 1 spp, $pt16 at 16)"
+    awk -v a="$pt1" -v b="$pt16" 'BEGIN { exit !(b > 0 && b < a / 4) }' &&
+    [ "$("$BUILD/tests/pm-exrdump" "$out/reference.exr" pixel)" = box ] &&
+    [ "$("$BUILD/tests/pm-exrdump" "$out/runs/pt-16.exr" pixel)" = box ]; then
+    pass "the reference and the path tracer's curve have area pixels; the curve falls (relmse $pt1 at 1 spp, $pt16 at 16)"
 else
     fail "error-vs-time path tracer curve" "exit $status, relmse '$pt1' and '$pt16': $(tail -3 "$TMP/pt.log")"
 fi

@@ -1,6 +1,7 @@
 # measure-error.sh: measure-error on images whose errors are known: an image against itself,
-# against twice itself (error = the reference), an EXR against its own radiance file, and bad
-# inputs.
+# against twice itself (error = the reference), an EXR against its own radiance file, references
+# as another renderer writes them (PFM in both byte orders, tiled and ripmapped EXR), and bad
+# inputs (a reference of another size, a truncated PFM).
 source tests/scenes/make-analytic.sh
 ME=$BIN/measure-error
 make_lit_plane "$TMP/plane" 1 3.141592653589793 0.5
@@ -60,10 +61,74 @@ else
     fail "--error-kind rel" "no components=error-rel"
 fi
 
+# References from other renderers. A PFM made here from composite's EXR (pm-exrdump's text
+# packed by perl, rows bottom first), in each byte order: the same values, so zero error.
+# to_pfm EXR PFM ORDER: ORDER '<' writes little-endian (scale -1), '>' big-endian (scale 1).
+to_pfm() {
+    "$BUILD/tests/pm-exrdump" "$1" | perl -e '
+        my ($order) = @ARGV; my ($w, $h, @px);
+        while (<STDIN>) { my @f = split; if ($f[0] eq "size") { ($w, $h) = @f[1, 2]; next }
+            $px[$f[1] * $w + $f[0]] = [@f[2 .. 4]] }
+        binmode STDOUT; printf "PF\n%d %d\n%s\n", $w, $h, $order eq "<" ? "-1.0" : "1.0";
+        for (my $y = $h - 1; $y >= 0; $y--) { print pack("f$order" x 3, @{$px[$y * $w + $_]}) for 0 .. $w - 1 }' "$3" >"$2"
+}
+to_pfm "$TMP/a.exr" "$TMP/le.pfm" '<'
+to_pfm "$TMP/a.exr" "$TMP/be.pfm" '>'
+for order in le be; do
+    if "$ME" "$TMP/a.exr" "$TMP/$order.pfm" >"$TMP/pfm.json" && [ "$(field max_abs "$TMP/pfm.json")" = 0 ] &&
+        [ "$(field width "$TMP/pfm.json")" = 8 ] && [ "$(field height "$TMP/pfm.json")" = 6 ]; then
+        pass "a PFM reference ($order): composite's EXR measures zero against it"
+    else
+        fail "PFM reference ($order)" "$(tr -d '\n' <"$TMP/pfm.json")"
+    fi
+done
+# The rows of a PFM run bottom to top: a PFM whose rows were not flipped when written differs.
+"$BUILD/tests/pm-exrdump" "$TMP/a.exr" | perl -e '
+    my ($w, $h, @px); while (<STDIN>) { my @f = split; if ($f[0] eq "size") { ($w, $h) = @f[1, 2]; next }
+        $px[$f[1] * $w + $f[0]] = [@f[2 .. 4]] }
+    binmode STDOUT; printf "PF\n%d %d\n-1.0\n", $w, $h; print pack("f<" x 3, @$_) for @px' >"$TMP/unflipped.pfm"
+if "$ME" "$TMP/a.exr" "$TMP/unflipped.pfm" >"$TMP/unflipped.json" &&
+    awk -v m="$(field max_abs "$TMP/unflipped.json")" 'BEGIN { exit !(m > 0) }'; then
+    pass "a PFM's rows are read bottom to top (an unflipped copy does not measure zero)"
+else
+    fail "PFM row order" "$(tr -d '\n' <"$TMP/unflipped.json")"
+fi
+# The EXR reference as composite writes it, tiled and ripmapped (exrmaketiled, Debian openexr).
+if command -v exrmaketiled >/dev/null; then
+    exrmaketiled -t 4 4 "$TMP/a.exr" "$TMP/tiled.exr" >/dev/null 2>&1
+    exrmaketiled -r -t 4 2 -z piz "$TMP/a.exr" "$TMP/rip.exr" >/dev/null 2>&1
+    if "$ME" "$TMP/a.exr" "$TMP/tiled.exr" >"$TMP/tiled.json" && [ "$(field max_abs "$TMP/tiled.json")" = 0 ] &&
+        "$ME" "$TMP/rip.exr" "$TMP/a.pm" >"$TMP/rip.json" &&
+        awk -v e="$(field mean_abs_rel "$TMP/rip.json")" 'BEGIN { exit !(e < 1e-6) }'; then
+        pass "tiled and ripmapped EXR references are read (level 0, the same values)"
+    else
+        fail "tiled EXR reference" "$(tr -d '\n' <"$TMP/tiled.json") $(tr -d '\n' <"$TMP/rip.json" 2>/dev/null)"
+    fi
+else
+    skip "tiled EXR reference" "no exrmaketiled (Debian package openexr)"
+fi
+
 # Bad inputs: one line on stderr, exit 1 (2 for usage).
 "$BIN/trace-gather-points" "$TMP/plane/scene.json" --mode direct-vis --width 8 --height 8 -q -o - |
     "$BIN/simd-gather" "$TMP/map.pm" - --k 50 -q -o "$TMP/b.pm"
-expect_error "different sizes are an error naming both" "'.*a.pm' is 8x6 but '.*b.pm' is 8x8" "$ME" "$TMP/a.pm" "$TMP/b.pm"
+# A reference of another size: the wrong pair of files, so a usage error (exit 2), one line
+# naming both, and nothing written (neither -o nor --error-image).
+"$BIN/composite" "$TMP/b.pm" -q -o "$TMP/b.exr"
+to_pfm "$TMP/b.exr" "$TMP/b.pfm" '<'
+for ref in b.pm b.exr b.pfm; do
+    "$ME" "$TMP/a.pm" "$TMP/$ref" -o "$TMP/size.json" --error-image "$TMP/size.exr" >/dev/null 2>"$TMP/size.err"
+    status=$?
+    if [ $status = 2 ] && [ "$(wc -l <"$TMP/size.err")" = 1 ] &&
+        grep -qE "'.*a.pm' is 8x6 but '.*$ref' is 8x8 \(usage error\)$" "$TMP/size.err" &&
+        [ ! -e "$TMP/size.json" ] && [ ! -e "$TMP/size.exr" ]; then
+        pass "a reference of another size ($ref): one line naming both, exit 2, nothing written"
+    else
+        fail "reference of another size ($ref)" "exit $status: $(cat "$TMP/size.err")"
+    fi
+done
+head -c 100 "$TMP/le.pfm" >"$TMP/cut.pfm"
+expect_error "a truncated PFM is an error saying how much is there" "truncated PFM image '.*cut.pfm': [0-9]+ of 576 bytes" \
+    "$ME" "$TMP/a.pm" "$TMP/cut.pfm"
 expect_error "a file that is no radiance buffer is an error" "is a photon map, expected a radiance|expected a radiance" \
     "$ME" "$TMP/map.pm" "$TMP/a.pm"
 expect_error "a missing file is an error" "cannot open" "$ME" "$TMP/nope.exr" "$TMP/a.pm"

@@ -272,10 +272,10 @@ static void test_metrics(void **state)
     assert_int_equal(json_array_size(json_object_get(j, "rmse_rgb")), 3);
     json_decref(j);
 
-    /* images of two sizes: an error naming both, no error image */
+    /* images of two sizes: a usage error (the wrong pair of files) naming both, no error image */
     r.w = 1, r.h = 2;
     err = (float *)&e;
-    assert_int_equal(pm_image_errors(&t, &r, eps, PM_ERRIMG_ABS, &e, &err), PM_ERR_INPUT);
+    assert_int_equal(pm_image_errors(&t, &r, eps, PM_ERRIMG_ABS, &e, &err), PM_ERR_USAGE);
     assert_null(err);
     assert_string_equal(pm_error_message(), "'t' is 2x1 but 'r' is 1x2");
 }

@@ -346,8 +346,10 @@ static const char *obj_word(const char *line, char *word, size_t cap)
  * the first usemtl takes whichever material was current (the last one of the .mtl, or
  * assimp's grey default), and an mtllib after a usemtl makes the last material of that
  * library the material of the faces already read. Both are errors naming the line. */
-static pm_result_t check_obj_materials(const char *path)
+static pm_result_t check_obj_materials(const char *path, char *libs_out, size_t libs_cap)
 {
+    size_t libs_len = 0;
+    libs_out[0] = '\0';
     FILE *f = fopen(path, "rb");
     if (!f)
         return pm_error_set(PM_ERR_IO, "cannot open mesh '%s': %s", path, strerror(errno));
@@ -384,7 +386,14 @@ static pm_result_t check_obj_materials(const char *path)
                                  "OBJ face needs a material from the .mtl",
                                  path, faces, lineno, where);
             }
-        } else if (strcmp(word, "mtllib") == 0 && first_usemtl) {
+        } else if (strcmp(word, "mtllib") == 0 && !first_usemtl) {
+            /* assimp takes the rest of the line as one file name; kept one a line */
+            size_t n = strlen(rest);
+            while (n && (rest[n - 1] == ' ' || rest[n - 1] == '\t'))
+                n--;
+            if (n && libs_len + n + 2 <= libs_cap)
+                libs_len += (size_t)snprintf(libs_out + libs_len, libs_cap - libs_len, "%.*s\n", (int)n, rest);
+        } else if (strcmp(word, "mtllib") == 0) {
             r = pm_error_set(PM_ERR_INPUT,
                              "mesh '%s': mtllib on line %" PRIu64 " comes after the usemtl on line %" PRIu64
                              ": assimp would give the faces before it that library's last material; put every "
@@ -470,8 +479,8 @@ static const char *mtl_texture_name(unsigned semantic)
 /* Adds one unsupported property of material index m, unless that material has its key already. */
 static pm_result_t note_unsupported(pm_scene_t *s, uint32_t m, const char *key, int is_file, const char *value)
 {
-    for (size_t i = s->nunsupported; i-- > 0 && s->unsupported[i].material == m;)
-        if (strcmp(s->unsupported[i].key, key) == 0)
+    for (size_t i = 0; i < s->nunsupported; i++)
+        if (s->unsupported[i].material == m && strcmp(s->unsupported[i].key, key) == 0)
             return PM_OK;
     pm_result_t r = grow((void **)&s->unsupported, s->nunsupported + 1, sizeof *s->unsupported);
     if (r != PM_OK)
@@ -581,6 +590,68 @@ static pm_result_t scan_material(pm_scene_t *s, int is_obj, const struct aiMater
     return r;
 }
 
+/* MTL keys assimp 5.2 turns into a material property or texture slot; scan_material sees those.
+ * Any other key (refl, sharpness, Km, ...) assimp drops without a word. */
+static int mtl_key_exposed(const char *word)
+{
+    static const char *const keys[] = {"newmtl", "Ka", "Kd", "Ks", "Ke", "Ns",  "Ni",   "d",    "Tr",   "Tf",
+                                       "illum",  "Pr", "Pm", "Ps", "Pc", "Pcr", "bump", "norm", "disp", NULL};
+    /* assimp takes K and N in either case (kd, ns), map_ only in lower case */
+    char w[64];
+    snprintf(w, sizeof w, "%s", word);
+    if (w[0] == 'k' || w[0] == 'n')
+        w[0] = (char)toupper((unsigned char)w[0]);
+    for (const char *const *k = keys; *k; k++)
+        if (strcmp(*k, w) == 0 || strcmp(*k, word) == 0)
+            return 1;
+    return strncmp(word, "map_", 4) == 0;
+}
+
+/* Reads the .mtl files an OBJ names (libs: one a line, relative to the OBJ) for the keys assimp
+ * drops, and notes each against the material of this mesh (materials mat0 to mat0 + n - 1) its
+ * newmtl names. A file that cannot be opened is left to assimp, which has said so already. */
+static pm_result_t scan_mtl_dropped(pm_scene_t *s, const char *obj, const char *libs, size_t mat0, size_t n)
+{
+    pm_result_t r = PM_OK;
+    for (const char *lib = libs; r == PM_OK && *lib;) {
+        const char *eol = strchr(lib, '\n');
+        char name[1024], path[1200];
+        snprintf(name, sizeof name, "%.*s", (int)(eol - lib), lib);
+        lib = eol + 1;
+        resolve(obj, name, path, sizeof path);
+        FILE *f = fopen(path, "rb");
+        if (!f)
+            continue;
+        char *line = NULL, word[64];
+        size_t cap = 0;
+        uint32_t current = UINT32_MAX; /* the material the lines belong to, none before newmtl */
+        for (ssize_t len; r == PM_OK && (len = getline(&line, &cap, f)) >= 0;) {
+            while (len > 0 && (line[len - 1] == '\n' || line[len - 1] == '\r' || line[len - 1] == ' '))
+                line[--len] = '\0';
+            const char *rest = obj_word(line, word, sizeof word);
+            if (!word[0] || word[0] == '#')
+                continue;
+            if (strcmp(word, "newmtl") == 0) {
+                /* named as load_material names it: spaces and control characters become '_' */
+                char mname[sizeof s->materials[0].name];
+                snprintf(mname, sizeof mname, "%s", rest);
+                for (char *q = mname; *q; q++)
+                    if (*q == ' ' || (unsigned char)*q < 0x20 || *q == 0x7f)
+                        *q = '_';
+                current = UINT32_MAX;
+                for (size_t m = mat0; m < mat0 + n && current == UINT32_MAX; m++)
+                    if (strcmp(s->materials[m].name, mname) == 0)
+                        current = (uint32_t)m;
+            } else if (current != UINT32_MAX && !mtl_key_exposed(word)) {
+                r = note_unsupported(s, current, word, 0, rest);
+            }
+        }
+        free(line);
+        fclose(f);
+    }
+    return r;
+}
+
 static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
 {
     static const char *const keys[] = {"file", "scale", "translate", NULL};
@@ -628,7 +699,8 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
      * wrong. The OBJ's own order of lines tells; the default material is checked after it. */
     size_t ext = strlen(path);
     int is_obj = ext > 4 && strcasecmp(path + ext - 4, ".obj") == 0;
-    if (is_obj && (r = check_obj_materials(path)) != PM_OK) {
+    char libs[4096];
+    if (is_obj && (r = check_obj_materials(path, libs, sizeof libs)) != PM_OK) {
         aiReleaseImport(as);
         return r;
     }
@@ -655,6 +727,8 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
         if (r == PM_OK && strcmp(s->materials[mat0 + i].name, "default") != 0)
             r = scan_material(s, is_obj, as->mMaterials[i], (uint32_t)(mat0 + i));
     }
+    if (r == PM_OK && is_obj)
+        r = scan_mtl_dropped(s, path, libs, mat0, as->mNumMaterials);
     if (r != PM_OK) {
         aiReleaseImport(as);
         return r;

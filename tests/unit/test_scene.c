@@ -173,13 +173,15 @@ static void test_scene_degenerate_triangles(void **state)
 }
 
 /* Properties the loader does not honour are kept once per material and key, for the materials
- * some triangle uses; neutral values (d 1, illum 2) are not reported. */
+ * some triangle uses; neutral values (d 1, illum 2) are not reported; keys assimp drops
+ * (sharpness, refl) are read from the .mtl itself. */
 static void test_scene_unsupported(void **state)
 {
     char p[256];
     write_file("u.mtl",
                "newmtl tex\nKd 0.5 0.5 0.5\nmap_Kd tex.png\nbump b.png\nd 0.5\nTr 0.25\nillum 7\nNi 1.5\n"
-               "Tf 0.9 0.8 0.7\nnewmtl plain\nKd 0.5 0.5 0.5\nd 1\nillum 2\nnewmtl unused\nKd 0.1 0.1 0.1\n"
+               "Tf 0.9 0.8 0.7\nsharpness 60\nrefl -type sphere r.png\nnewmtl plain\nKd 0.5 0.5 0.5\nd 1\nillum "
+               "2\nnewmtl unused\nKd 0.1 0.1 0.1\n"
                "map_Kd u.png\n",
                p, sizeof p);
     write_file("u.obj", "mtllib u.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl tex\nf 1 2 3\nusemtl plain\nf 1 3 2\n", p,
@@ -191,8 +193,9 @@ static void test_scene_unsupported(void **state)
     if (r != PM_OK)
         fail_msg("%s", pm_error_message());
     assert_int_equal(s.nmaterials, 2);
-    static const char *const want[][2] = {{"map_Kd", "tex.png"}, {"bump", "b.png"}, {"d", "0.75"},
-                                          {"illum", "7"},        {"Ni", "1.5"},     {"Tf", "0.9 0.8 0.7"}};
+    static const char *const want[][2] = {
+        {"map_Kd", "tex.png"}, {"bump", "b.png"},     {"d", "0.75"},       {"illum", "7"},
+        {"Ni", "1.5"},         {"Tf", "0.9 0.8 0.7"}, {"sharpness", "60"}, {"refl", "-type sphere r.png"}};
     assert_int_equal(s.nunsupported, sizeof want / sizeof want[0]);
     for (size_t i = 0; i < sizeof want / sizeof want[0]; i++) {
         size_t found = 0;

@@ -580,9 +580,8 @@ static pm_result_t scan_material(pm_scene_t *s, int is_obj, const struct aiMater
         if (kind == KEY_HONOURED || kind == KEY_SKIP)
             continue;
         /* A key pmtk does not know: named without assimp's "$mat." or "$clr." prefix. */
-        snprintf(name, sizeof name, "%s", k ? (is_obj ? k->obj_name : k->other_name) : key + (key[0] ? 5 : 0));
-        if (!k && strlen(key) <= 5)
-            snprintf(name, sizeof name, "%s", key);
+        const char *bare = strlen(key) > 5 && key[4] == '.' ? key + 5 : key;
+        snprintf(name, sizeof name, "%s", k ? (is_obj ? k->obj_name : k->other_name) : bare);
         property_text(p, kind, value, sizeof value, &neutral);
         if (!neutral)
             r = note_unsupported(s, m, name, 0, value);
@@ -724,7 +723,11 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
     }
     for (unsigned i = 0; i < as->mNumMaterials && r == PM_OK; i++) {
         r = load_material(c, path, as->mMaterials[i], &s->materials[mat0 + i]);
-        if (r == PM_OK && strcmp(s->materials[mat0 + i].name, "default") != 0)
+        /* assimp's stand-in material is pmtk's grey default whatever it holds: nothing to report */
+        struct aiString an;
+        int stand_in = aiGetMaterialString(as->mMaterials[i], AI_MATKEY_NAME, &an) != aiReturn_SUCCESS ||
+                       an.length == 0 || strcmp(an.data, AI_DEFAULT_MATERIAL_NAME) == 0;
+        if (r == PM_OK && !stand_in)
             r = scan_material(s, is_obj, as->mMaterials[i], (uint32_t)(mat0 + i));
     }
     if (r == PM_OK && is_obj)

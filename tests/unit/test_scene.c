@@ -220,9 +220,43 @@ static void test_scene_unsupported(void **state)
     pm_scene_free(&s);
 }
 
+/* A glTF material: base colour is Kd; its texture (in assimp's diffuse and base colour slots)
+ * is reported once, roughness 0.5 is reported, metallic 0 and alphaMode OPAQUE are not. */
+static void test_scene_unsupported_gltf(void **state)
+{
+    char p[256];
+    write_file("g.gltf",
+               "{\"asset\": {\"version\": \"2.0\"}, \"scene\": 0, \"scenes\": [{\"nodes\": [0]}], \"nodes\": "
+               "[{\"mesh\": 0}], \"meshes\": [{\"primitives\": [{\"attributes\": {\"POSITION\": 0}, \"indices\": 1, "
+               "\"material\": 0}]}], \"materials\": [{\"name\": \"m\", \"pbrMetallicRoughness\": {\"baseColorFactor\": "
+               "[0.5, 0.4, 0.3, 1], \"metallicFactor\": 0, \"roughnessFactor\": 0.5, \"baseColorTexture\": "
+               "{\"index\": 0}}}], \"textures\": [{\"source\": 0}], \"images\": [{\"uri\": \"tex.png\"}], "
+               "\"buffers\": [{\"byteLength\": 44, \"uri\": \"data:application/octet-stream;base64,"
+               "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAAAAAAIA/AAABAAIAAAA=\"}], \"bufferViews\": [{\"buffer\": 0, "
+               "\"byteOffset\": 0, \"byteLength\": 36}, {\"buffer\": 0, \"byteOffset\": 36, \"byteLength\": 6}], "
+               "\"accessors\": [{\"bufferView\": 0, \"componentType\": 5126, \"count\": 3, \"type\": \"VEC3\", "
+               "\"min\": [0, 0, 0], \"max\": [1, 0, 1]}, {\"bufferView\": 1, \"componentType\": 5123, \"count\": 3, "
+               "\"type\": \"SCALAR\"}]}\n",
+               p, sizeof p);
+    write_file("g.json", "{\"pmtk_scene\": 1, \"name\": \"g\", \"meshes\": [{\"file\": \"g.gltf\"}], " CAM "}", p,
+               sizeof p);
+    pm_scene_t s;
+    pm_result_t r = pm_scene_load(p, &s);
+    if (r != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_int_equal(s.nmaterials, 1);
+    assert_true(fabsf(s.materials[0].kd[1] - 0.4f) < 1e-6f);
+    assert_int_equal(s.nunsupported, 2);
+    assert_string_equal(s.unsupported[0].key, "diffuse texture");
+    assert_string_equal(s.unsupported[0].value, "tex.png");
+    assert_string_equal(s.unsupported[1].key, "roughnessFactor");
+    assert_string_equal(s.unsupported[1].value, "0.5");
+    pm_scene_free(&s);
+}
+
 static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_scene_cornell_box), cmocka_unit_test(test_scene_bad_input),
     cmocka_unit_test(test_scene_mesh_faults), cmocka_unit_test(test_scene_degenerate_triangles),
-    cmocka_unit_test(test_scene_unsupported),
+    cmocka_unit_test(test_scene_unsupported), cmocka_unit_test(test_scene_unsupported_gltf),
 };
 UNIT_GROUP(unit_scene, "scene", tests);

@@ -5,7 +5,9 @@
 #include <assimp/material.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
+#include <ctype.h>
 #include <errno.h>
+#include <inttypes.h>
 #include <jansson.h>
 #include <math.h>
 #include <stdarg.h>
@@ -299,11 +301,23 @@ static pm_result_t grow(void **p, size_t n, size_t size)
  * during an import fails the load. Scenes load on one thread, so one buffer serves. */
 static char ai_first_error[512];
 
+/* Errors assimp 5.2 logs for legal input and then handles right: a usemtl before any
+ * group, object or face (the next face makes the default object, with that material), and
+ * an illum outside 0 to 2 (kept in the material, and reported as unsupported). */
+static const char *const ai_benign_errors[] = {
+    "OBJ: No object detected to attach a new mesh instance",
+    "OBJ: unexpected illumination model",
+    NULL,
+};
+
 static void on_assimp_log(const char *msg, char *user)
 {
     (void)user;
     if (ai_first_error[0] || strncmp(msg, "Error,", 6) != 0)
         return;
+    for (const char *const *b = ai_benign_errors; *b; b++)
+        if (strstr(msg, *b))
+            return;
     const char *colon = strchr(msg, ':'); /* "Error, T0: OBJ: ..." -> "OBJ: ..." */
     snprintf(ai_first_error, sizeof ai_first_error, "%s", colon ? colon + 2 : msg);
     for (char *p = ai_first_error; *p; p++)
@@ -311,6 +325,330 @@ static void on_assimp_log(const char *msg, char *user)
             *p = ' ';
     for (size_t n = strlen(ai_first_error); n && ai_first_error[n - 1] == ' '; n--)
         ai_first_error[n - 1] = '\0';
+}
+
+/* The first word of an OBJ line into word (cut to cap), and where the rest begins. */
+static const char *obj_word(const char *line, char *word, size_t cap)
+{
+    while (*line == ' ' || *line == '\t')
+        line++;
+    size_t n = 0;
+    while (line[n] && line[n] != ' ' && line[n] != '\t' && line[n] != '\r' && line[n] != '\n')
+        n++;
+    snprintf(word, cap, "%.*s", (int)n, line);
+    line += n;
+    while (*line == ' ' || *line == '\t')
+        line++;
+    return line;
+}
+
+/* Reads the OBJ's own lines for the two orders assimp 5.2 gets silently wrong: a face before
+ * the first usemtl takes whichever material was current (the last one of the .mtl, or
+ * assimp's grey default), and an mtllib after a usemtl makes the last material of that
+ * library the material of the faces already read. Both are errors naming the line. */
+static pm_result_t check_obj_materials(const char *path, char *libs_out, size_t libs_cap)
+{
+    size_t libs_len = 0;
+    libs_out[0] = '\0';
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return pm_error_set(PM_ERR_IO, "cannot open mesh '%s': %s", path, strerror(errno));
+    char *line = NULL, word[16], group[128] = "";
+    size_t cap = 0;
+    uint64_t lineno = 0, faces = 0, first_usemtl = 0;
+    int continued = 0; /* the previous line ended in a backslash: this one goes on with it */
+    pm_result_t r = PM_OK;
+    for (ssize_t len; r == PM_OK && (len = getline(&line, &cap, f)) >= 0;) {
+        lineno++;
+        while (len > 0 && (line[len - 1] == '\n' || line[len - 1] == '\r'))
+            line[--len] = '\0';
+        int was_continued = continued;
+        continued = len > 0 && line[len - 1] == '\\';
+        if (was_continued)
+            continue;
+        const char *rest = obj_word(line, word, sizeof word);
+        if (strcmp(word, "g") == 0 || strcmp(word, "o") == 0) {
+            snprintf(group, sizeof group, "%s", rest);
+            for (char *p = group; *p; p++)
+                if ((unsigned char)*p < 0x20 || *p == '\\')
+                    *p = ' ';
+        } else if (strcmp(word, "usemtl") == 0) {
+            if (!first_usemtl)
+                first_usemtl = lineno;
+        } else if (strcmp(word, "f") == 0 || strcmp(word, "fo") == 0) {
+            faces++;
+            if (!first_usemtl) {
+                char where[200] = "";
+                if (group[0])
+                    snprintf(where, sizeof where, ", group '%s'", group);
+                r = pm_error_set(PM_ERR_INPUT,
+                                 "mesh '%s': face %" PRIu64 " (line %" PRIu64 "%s) comes before any usemtl: every "
+                                 "OBJ face needs a material from the .mtl",
+                                 path, faces, lineno, where);
+            }
+        } else if (strcmp(word, "mtllib") == 0 && !first_usemtl) {
+            /* assimp takes the rest of the line as one file name; kept one a line */
+            size_t n = strlen(rest);
+            while (n && (rest[n - 1] == ' ' || rest[n - 1] == '\t'))
+                n--;
+            if (n && libs_len + n + 2 <= libs_cap)
+                libs_len += (size_t)snprintf(libs_out + libs_len, libs_cap - libs_len, "%.*s\n", (int)n, rest);
+        } else if (strcmp(word, "mtllib") == 0) {
+            r = pm_error_set(PM_ERR_INPUT,
+                             "mesh '%s': mtllib on line %" PRIu64 " comes after the usemtl on line %" PRIu64
+                             ": assimp would give the faces before it that library's last material; put every "
+                             "mtllib before the first usemtl",
+                             path, lineno, first_usemtl);
+        }
+    }
+    if (r == PM_OK && ferror(f))
+        r = pm_error_set(PM_ERR_IO, "cannot read mesh '%s': %s", path, strerror(errno));
+    free(line);
+    fclose(f);
+    return r;
+}
+
+/* How the loader treats an assimp material key (the table below). */
+enum {
+    KEY_HONOURED,  /* read into pm_material_t */
+    KEY_SKIP,      /* bookkeeping, or a no-op for pmtk (assimp derives shadingm from illum; both
+                    * sides of every triangle reflect, so twosided changes nothing) */
+    KEY_ZERO,      /* ignored; reported unless every component is 0 (what pmtk does anyway) */
+    KEY_ONE,       /* ignored; reported unless every component is 1 */
+    KEY_ANY,       /* ignored; always reported */
+    KEY_ILLUM,     /* reported unless 1 or 2 (diffuse; diffuse and Phong highlight) */
+    KEY_ALPHAMODE, /* reported unless OPAQUE */
+};
+
+typedef struct {
+    const char *ai_key;                /* assimp's key, AI_MATKEY_* */
+    const char *obj_name, *other_name; /* as MTL names it; as glTF and other formats name it */
+    int obj_kind, other_kind;
+} material_key_t;
+
+static const material_key_t material_keys[] = {
+    {"?mat.name", "newmtl", "name", KEY_HONOURED, KEY_HONOURED},
+    {"$clr.diffuse", "Kd", "baseColorFactor", KEY_HONOURED, KEY_HONOURED},
+    {"$clr.base", "Kd", "baseColorFactor", KEY_HONOURED, KEY_HONOURED},
+    {"$clr.specular", "Ks", "specularColor", KEY_HONOURED, KEY_HONOURED},
+    {"$mat.shininess", "Ns", "shininess", KEY_HONOURED, KEY_HONOURED},
+    {"$clr.emissive", "Ke", "emissiveFactor", KEY_HONOURED, KEY_HONOURED},
+    {"$mat.shadingm", "illum", "shadingModel", KEY_SKIP, KEY_SKIP},
+    {"$mat.twosided", "twosided", "doubleSided", KEY_SKIP, KEY_SKIP},
+    {"$mat.gltf.alphaCutoff", "alphaCutoff", "alphaCutoff", KEY_SKIP, KEY_SKIP},
+    {"$mat.bumpscaling", "-bm", "bumpScaling", KEY_SKIP, KEY_SKIP},
+    {"$mat.illum", "illum", "illum", KEY_ILLUM, KEY_ILLUM},
+    {"$clr.ambient", "Ka", "ambientColor", KEY_ZERO, KEY_ZERO},
+    {"$mat.opacity", "d", "opacity", KEY_ONE, KEY_ONE},
+    {"$clr.transparent", "Tf", "transparentColor", KEY_ONE, KEY_ONE},
+    {"$mat.refracti", "Ni", "ior", KEY_ONE, KEY_ONE},
+    {"$mat.anisotropyFactor", "aniso", "anisotropy", KEY_ZERO, KEY_ZERO},
+    {"$mat.roughnessFactor", "Pr", "roughnessFactor", KEY_ANY, KEY_ONE},
+    {"$mat.metallicFactor", "Pm", "metallicFactor", KEY_ZERO, KEY_ZERO},
+    {"$clr.sheen.factor", "Ps", "sheenColorFactor", KEY_ZERO, KEY_ZERO},
+    {"$mat.clearcoat.factor", "Pc", "clearcoatFactor", KEY_ZERO, KEY_ZERO},
+    {"$mat.clearcoat.roughnessFactor", "Pcr", "clearcoatRoughnessFactor", KEY_ANY, KEY_ANY},
+    {"$mat.gltf.alphaMode", "alphaMode", "alphaMode", KEY_ALPHAMODE, KEY_ALPHAMODE},
+    {"$mat.emissiveIntensity", "emissiveIntensity", "emissiveStrength", KEY_ONE, KEY_ONE},
+    {"$mat.reflectivity", "reflectivity", "reflectivity", KEY_ZERO, KEY_ZERO},
+    {"$clr.reflective", "reflective", "reflectiveColor", KEY_ZERO, KEY_ZERO},
+    {"$mat.transparencyfactor", "transparencyfactor", "transparencyFactor", KEY_ZERO, KEY_ZERO},
+};
+
+/* A texture slot as MTL names it (assimp 5.2's ObjFileMtlImporter mapping), or NULL. */
+static const char *mtl_texture_name(unsigned semantic)
+{
+    switch (semantic) {
+    case aiTextureType_DIFFUSE: return "map_Kd";
+    case aiTextureType_SPECULAR: return "map_Ks";
+    case aiTextureType_AMBIENT: return "map_Ka";
+    case aiTextureType_EMISSIVE: return "map_Ke";
+    case aiTextureType_HEIGHT: return "bump";
+    case aiTextureType_NORMALS: return "norm";
+    case aiTextureType_SHININESS: return "map_Ns";
+    case aiTextureType_OPACITY: return "map_d";
+    case aiTextureType_DISPLACEMENT: return "disp";
+    case aiTextureType_REFLECTION: return "refl";
+    case aiTextureType_METALNESS: return "map_Pm";
+    case aiTextureType_DIFFUSE_ROUGHNESS: return "map_Pr";
+    case aiTextureType_SHEEN: return "map_Ps";
+    default: return NULL;
+    }
+}
+
+/* Adds one unsupported property of material index m, unless that material has its key already. */
+static pm_result_t note_unsupported(pm_scene_t *s, uint32_t m, const char *key, int is_file, const char *value)
+{
+    for (size_t i = 0; i < s->nunsupported; i++)
+        if (s->unsupported[i].material == m && strcmp(s->unsupported[i].key, key) == 0)
+            return PM_OK;
+    pm_result_t r = grow((void **)&s->unsupported, s->nunsupported + 1, sizeof *s->unsupported);
+    if (r != PM_OK)
+        return r;
+    pm_scene_unsupported_t *u = &s->unsupported[s->nunsupported++];
+    memset(u, 0, sizeof *u);
+    u->material = m;
+    u->is_file = is_file;
+    snprintf(u->key, sizeof u->key, "%s", key);
+    snprintf(u->value, sizeof u->value, "%s", value);
+    for (char *p = u->value; *p; p++) /* one line per warning */
+        if ((unsigned char)*p < 0x20 || *p == 0x7f)
+            *p = ' ';
+    return PM_OK;
+}
+
+/* A property's value as text: floats (a colour's first 3), integers, or a string; *neutral_out
+ * tells whether it is what pmtk does anyway for its kind. */
+static void property_text(const struct aiMaterialProperty *p, int kind, char *out, size_t cap, int *neutral_out)
+{
+    size_t len = 0;
+    int all0 = 1, all1 = 1;
+    out[0] = '\0';
+    if (p->mType == aiPTI_Float || p->mType == aiPTI_Double || p->mType == aiPTI_Integer) {
+        size_t size = p->mType == aiPTI_Double ? sizeof(double) : 4, n = p->mDataLength / size;
+        if (n > 3)
+            n = 3; /* RGBA: pmtk's colours are RGB */
+        for (size_t i = 0; i < n && len < cap; i++) {
+            double v;
+            if (p->mType == aiPTI_Float) {
+                float x;
+                memcpy(&x, p->mData + 4 * i, 4);
+                v = x;
+            } else if (p->mType == aiPTI_Double) {
+                memcpy(&v, p->mData + sizeof(double) * i, sizeof(double));
+            } else {
+                int32_t x;
+                memcpy(&x, p->mData + 4 * i, 4);
+                v = x;
+            }
+            all0 &= v == 0.0;
+            all1 &= v == 1.0;
+            len += (size_t)snprintf(out + len, cap - len, "%s%g", i ? " " : "", v);
+        }
+        *neutral_out = (kind == KEY_ZERO && all0) || (kind == KEY_ONE && all1) ||
+                       (kind == KEY_ILLUM && n == 1 && (all1 || strcmp(out, "2") == 0));
+    } else if (p->mType == aiPTI_String && p->mDataLength > 4) {
+        uint32_t n;
+        memcpy(&n, p->mData, 4);
+        if (n > p->mDataLength - 4)
+            n = p->mDataLength - 4;
+        snprintf(out, cap, "%.*s", (int)n, p->mData + 4);
+        *neutral_out = kind == KEY_ALPHAMODE && strcmp(out, "OPAQUE") == 0;
+    } else {
+        snprintf(out, cap, "(set)");
+        *neutral_out = 0;
+    }
+}
+
+/* Every property of assimp material am that pmtk does not honour, noted against material m. */
+static pm_result_t scan_material(pm_scene_t *s, int is_obj, const struct aiMaterial *am, uint32_t m)
+{
+    pm_result_t r = PM_OK;
+    for (unsigned i = 0; i < am->mNumProperties && r == PM_OK; i++) {
+        const struct aiMaterialProperty *p = am->mProperties[i];
+        const char *key = p->mKey.data;
+        char name[64], value[256];
+        int neutral = 0;
+        if (strncmp(key, "$tex.", 5) == 0) {
+            /* A texture is its file; its options ($tex.uvwsrc, $tex.mapmodeu, ...) go with it. */
+            if (strcmp(key, "$tex.file") != 0)
+                continue;
+            unsigned sem = p->mSemantic;
+            /* glTF's base colour, emission and normal textures come in two slots each. */
+            if (!is_obj)
+                sem = sem == aiTextureType_BASE_COLOR       ? aiTextureType_DIFFUSE
+                      : sem == aiTextureType_EMISSION_COLOR ? aiTextureType_EMISSIVE
+                      : sem == aiTextureType_NORMAL_CAMERA  ? aiTextureType_NORMALS
+                                                            : sem;
+            const char *mtl = is_obj ? mtl_texture_name(sem) : NULL;
+            if (mtl)
+                snprintf(name, sizeof name, "%s", mtl);
+            else {
+                snprintf(name, sizeof name, "%s texture", aiTextureTypeToString((enum aiTextureType)sem));
+                for (char *q = name; *q; q++)
+                    *q = (char)tolower((unsigned char)*q);
+            }
+            property_text(p, KEY_ANY, value, sizeof value, &neutral);
+            r = note_unsupported(s, m, name, 1, value);
+            continue;
+        }
+        const material_key_t *k = NULL;
+        for (size_t j = 0; j < sizeof material_keys / sizeof material_keys[0] && !k; j++)
+            if (strcmp(material_keys[j].ai_key, key) == 0)
+                k = &material_keys[j];
+        int kind = k ? (is_obj ? k->obj_kind : k->other_kind) : KEY_ANY;
+        if (kind == KEY_HONOURED || kind == KEY_SKIP)
+            continue;
+        /* A key pmtk does not know: named without assimp's "$mat." or "$clr." prefix. */
+        const char *bare = strlen(key) > 5 && key[4] == '.' ? key + 5 : key;
+        snprintf(name, sizeof name, "%s", k ? (is_obj ? k->obj_name : k->other_name) : bare);
+        property_text(p, kind, value, sizeof value, &neutral);
+        if (!neutral)
+            r = note_unsupported(s, m, name, 0, value);
+    }
+    return r;
+}
+
+/* MTL keys assimp 5.2 turns into a material property or texture slot; scan_material sees those.
+ * Any other key (refl, sharpness, Km, ...) assimp drops without a word. */
+static int mtl_key_exposed(const char *word)
+{
+    static const char *const keys[] = {"newmtl", "Ka", "Kd", "Ks", "Ke", "Ns",  "Ni",   "d",    "Tr",   "Tf",
+                                       "illum",  "Pr", "Pm", "Ps", "Pc", "Pcr", "bump", "norm", "disp", NULL};
+    /* assimp takes K and N in either case (kd, ns), map_ only in lower case */
+    char w[64];
+    snprintf(w, sizeof w, "%s", word);
+    if (w[0] == 'k' || w[0] == 'n')
+        w[0] = (char)toupper((unsigned char)w[0]);
+    for (const char *const *k = keys; *k; k++)
+        if (strcmp(*k, w) == 0 || strcmp(*k, word) == 0)
+            return 1;
+    return strncmp(word, "map_", 4) == 0;
+}
+
+/* Reads the .mtl files an OBJ names (libs: one a line, relative to the OBJ) for the keys assimp
+ * drops, and notes each against the material of this mesh (materials mat0 to mat0 + n - 1) its
+ * newmtl names. A file that cannot be opened is left to assimp, which has said so already. */
+static pm_result_t scan_mtl_dropped(pm_scene_t *s, const char *obj, const char *libs, size_t mat0, size_t n)
+{
+    pm_result_t r = PM_OK;
+    for (const char *lib = libs; r == PM_OK && *lib;) {
+        const char *eol = strchr(lib, '\n');
+        char name[1024], path[1200];
+        snprintf(name, sizeof name, "%.*s", (int)(eol - lib), lib);
+        lib = eol + 1;
+        resolve(obj, name, path, sizeof path);
+        FILE *f = fopen(path, "rb");
+        if (!f)
+            continue;
+        char *line = NULL, word[64];
+        size_t cap = 0;
+        uint32_t current = UINT32_MAX; /* the material the lines belong to, none before newmtl */
+        for (ssize_t len; r == PM_OK && (len = getline(&line, &cap, f)) >= 0;) {
+            while (len > 0 && (line[len - 1] == '\n' || line[len - 1] == '\r' || line[len - 1] == ' '))
+                line[--len] = '\0';
+            const char *rest = obj_word(line, word, sizeof word);
+            if (!word[0] || word[0] == '#')
+                continue;
+            if (strcmp(word, "newmtl") == 0) {
+                /* named as load_material names it: spaces and control characters become '_' */
+                char mname[sizeof s->materials[0].name];
+                snprintf(mname, sizeof mname, "%s", rest);
+                for (char *q = mname; *q; q++)
+                    if (*q == ' ' || (unsigned char)*q < 0x20 || *q == 0x7f)
+                        *q = '_';
+                current = UINT32_MAX;
+                for (size_t m = mat0; m < mat0 + n && current == UINT32_MAX; m++)
+                    if (strcmp(s->materials[m].name, mname) == 0)
+                        current = (uint32_t)m;
+            } else if (current != UINT32_MAX && !mtl_key_exposed(word)) {
+                r = note_unsupported(s, current, word, 0, rest);
+            }
+        }
+        free(line);
+        fclose(f);
+    }
+    return r;
 }
 
 static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
@@ -356,9 +694,15 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
         return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, ai_first_error);
     }
     /* An OBJ whose faces name no material (no mtllib, or a usemtl the .mtl lacks) gets
-     * assimp's default material; rendering it grey would be silently wrong. */
+     * assimp's default material, or the .mtl's last one; rendering either would be silently
+     * wrong. The OBJ's own order of lines tells; the default material is checked after it. */
     size_t ext = strlen(path);
     int is_obj = ext > 4 && strcasecmp(path + ext - 4, ".obj") == 0;
+    char libs[4096];
+    if (is_obj && (r = check_obj_materials(path, libs, sizeof libs)) != PM_OK) {
+        aiReleaseImport(as);
+        return r;
+    }
     for (unsigned mi = 0; is_obj && mi < as->mNumMeshes; mi++) {
         const struct aiMesh *m = as->mMeshes[mi];
         struct aiString mname;
@@ -377,8 +721,17 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
         aiReleaseImport(as);
         return r;
     }
-    for (unsigned i = 0; i < as->mNumMaterials && r == PM_OK; i++)
+    for (unsigned i = 0; i < as->mNumMaterials && r == PM_OK; i++) {
         r = load_material(c, path, as->mMaterials[i], &s->materials[mat0 + i]);
+        /* assimp's stand-in material is pmtk's grey default whatever it holds: nothing to report */
+        struct aiString an;
+        int stand_in = aiGetMaterialString(as->mMaterials[i], AI_MATKEY_NAME, &an) != aiReturn_SUCCESS ||
+                       an.length == 0 || strcmp(an.data, AI_DEFAULT_MATERIAL_NAME) == 0;
+        if (r == PM_OK && !stand_in)
+            r = scan_material(s, is_obj, as->mMaterials[i], (uint32_t)(mat0 + i));
+    }
+    if (r == PM_OK && is_obj)
+        r = scan_mtl_dropped(s, path, libs, mat0, as->mNumMaterials);
     if (r != PM_OK) {
         aiReleaseImport(as);
         return r;
@@ -499,6 +852,14 @@ static pm_result_t compact_materials(pm_scene_t *s)
         }
     for (size_t t = 0; t < s->ntris; t++)
         s->tri_material[t] = map[s->tri_material[t]];
+    /* What a dropped material would not honour matters to no triangle. */
+    size_t nu = 0;
+    for (size_t i = 0; i < s->nunsupported; i++)
+        if (map[s->unsupported[i].material] != UINT32_MAX) {
+            s->unsupported[nu] = s->unsupported[i];
+            s->unsupported[nu++].material = map[s->unsupported[i].material];
+        }
+    s->nunsupported = nu;
     s->nmaterials = n;
     free(map);
     return PM_OK;
@@ -605,5 +966,21 @@ void pm_scene_free(pm_scene_t *s)
     free(s->materials);
     free(s->lights);
     free(s->emissive);
+    free(s->unsupported);
     memset(s, 0, sizeof *s);
+}
+
+void pm_scene_unsupported_text(const pm_scene_unsupported_t *u, char *out, size_t cap)
+{
+    snprintf(out, cap, u->is_file ? "%s '%s'" : "%s %s", u->key, u->value);
+}
+
+void pm_scene_warn_unsupported(const pm_scene_t *s, const pm_stage_t *st)
+{
+    for (size_t i = 0; i < s->nunsupported; i++) {
+        char text[300];
+        pm_scene_unsupported_text(&s->unsupported[i], text, sizeof text);
+        pm_stage_note(st, "warning: material '%s': %s is not supported (ignored)",
+                      s->materials[s->unsupported[i].material].name, text);
+    }
 }

@@ -10,6 +10,7 @@
 #include <stdint.h>
 
 #include "base/error.h"
+#include "base/stage.h"
 #include "formats/material.h"
 
 typedef struct {
@@ -33,6 +34,16 @@ typedef struct {
     int64_t seed;
 } pm_render_defaults_t;
 
+/* A material property the mesh file sets and the loader reads but does not honour (a texture,
+ * an opacity, an illumination model other than 1 or 2, ...; docs/scene-format.md lists them):
+ * kept, once per material and key, so that scene-info and the stages can say so. */
+typedef struct {
+    uint32_t material; /* index into pm_scene_t.materials */
+    int is_file;       /* value is a file name (a texture), quoted when printed */
+    char key[32];      /* as the mesh format names it: "map_Kd", "illum", "metallicFactor" */
+    char value[224];   /* as assimp read it: "tex.png", "7", "0.75" */
+} pm_scene_unsupported_t;
+
 typedef struct {
     char name[128];  /* "cornell-box" */
     char path[1024]; /* the scene file */
@@ -50,14 +61,25 @@ typedef struct {
     size_t ndropped; /* degenerate (zero-area) triangles left out at load */
     pm_camera_t camera;
     pm_render_defaults_t defaults;
-    float bounds[6]; /* min xyz, max xyz of all triangles and point lights, m */
-    int any_glossy;  /* 1 when some material has ks > 0: direction channels are needed */
+    float bounds[6];                     /* min xyz, max xyz of all triangles and point lights, m */
+    int any_glossy;                      /* 1 when some material has ks > 0: direction channels are needed */
+    pm_scene_unsupported_t *unsupported; /* of the materials kept, in material order */
+    size_t nunsupported;
 } pm_scene_t;
 
 /* Loads and checks a scene file. Errors name the file and the line (JSON syntax) or the
  * key path ("camera.fov_y") and the offending value. */
 pm_result_t pm_scene_load(const char *path, pm_scene_t *out);
 void pm_scene_free(pm_scene_t *s);
+
+/* Prints each of s->unsupported as a warning on stderr through pm_stage_note (nothing under
+ * --quiet): "NAME: warning: material 'X': map_Kd 'tex.png' is not supported (ignored)". Every
+ * stage that loads a scene calls it once after pm_scene_load. */
+void pm_scene_warn_unsupported(const pm_scene_t *s, const pm_stage_t *st);
+
+/* "map_Kd 'tex.png'" or "illum 7": one unsupported property as the warnings and scene-info
+ * print it. */
+void pm_scene_unsupported_text(const pm_scene_unsupported_t *u, char *out, size_t cap);
 
 /* Total emitted power, W, RGB: point lights (4 pi I) plus area lights (pi Ke area). */
 void pm_scene_power(const pm_scene_t *s, double power_out[3]);

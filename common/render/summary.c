@@ -99,6 +99,17 @@ static void print_text(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, double
         const pm_material_t *m = &s->materials[i];
         fprintf(out, "  %zu %s kd %.4g %.4g %.4g ks %.4g %.4g %.4g ns %.4g ke %.4g %.4g %.4g\n", i, m->name, m->kd[0],
                 m->kd[1], m->kd[2], m->ks[0], m->ks[1], m->ks[2], m->ns, m->ke[0], m->ke[1], m->ke[2]);
+        /* Only for a material that sets something pmtk ignores, so that other summaries keep their lines. */
+        const char *sep = "    unsupported (ignored): ";
+        for (size_t u = 0; u < s->nunsupported; u++)
+            if (s->unsupported[u].material == i) {
+                char text[300];
+                pm_scene_unsupported_text(&s->unsupported[u], text, sizeof text);
+                fprintf(out, "%s%s", sep, text);
+                sep = ", ";
+            }
+        if (sep[0] == ',')
+            fprintf(out, "\n");
     }
     fprintf(out, "point lights: %zu\n", s->nlights);
     fprintf(out, "emissive triangles: %zu\n", s->nemissive);
@@ -155,6 +166,14 @@ pm_result_t pm_summary_json(const pm_scene_t *s, const pm_rt_t *rt, const pm_sum
         json_object_set_new(mj, "ks", floats_json(m->ks, 3));
         json_object_set_new(mj, "ns", json_real(m->ns));
         json_object_set_new(mj, "ke", floats_json(m->ke, 3));
+        json_t *un = json_array();
+        for (size_t u = 0; u < s->nunsupported; u++)
+            if (s->unsupported[u].material == i)
+                json_array_append_new(un, json_pack("{s:o, s:o, s:b}", "key",
+                                                    jstr(&js, "a material key", s->unsupported[u].key), "value",
+                                                    jstr(&js, "a material value", s->unsupported[u].value), "file",
+                                                    s->unsupported[u].is_file));
+        json_object_set_new(mj, "unsupported", un);
         json_array_append_new(mats, mj);
     }
     json_object_set_new(j, "materials", mats);

@@ -1,7 +1,7 @@
 /* summary.h: what a loaded scene holds and needs, the engine of scene-info.
  *
- * The summary (triangles, materials, lights and their power, bounds, camera, what the stages
- * downstream need of the scene, the ray epsilon, load and build times) as text or as one JSON
+ * The summary (triangles, materials and the properties they set that pmtk ignores, lights and their power, bounds,
+ * camera, what the stages downstream need of the scene, the ray epsilon, load and build times) as text or as one JSON
  * object (docs/programs/scene-info.md); the probe, one primary ray through each pixel's
  * centre, as a check that the camera sees the geometry; and the eye-light preview those rays
  * can shade, each pixel its surface's albedo times |cos| to the eye. */

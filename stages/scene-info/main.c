@@ -30,6 +30,7 @@ static pm_result_t run(pm_stage_t *st, const scene_info_options_t *o)
     if (r != PM_OK)
         return r;
     double t_load = pm_time_wall() - t0;
+    pm_scene_warn_unsupported(&s, st);
     t0 = pm_time_wall();
     r = pm_rt_create(&s, 0, st->threads_used, &rt);
     double t_bvh = pm_time_wall() - t0;

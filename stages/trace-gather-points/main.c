@@ -226,6 +226,7 @@ int main(int argc, char **argv)
     pm_scene_t s;
     if ((r = pm_scene_load(st.args.args[0], &s)) != PM_OK)
         return pm_stage_end(&st, r);
+    pm_scene_warn_unsupported(&s, &st);
     pm_rt_t rt;
     r = pm_rt_create(&s, 1, st.threads_used, &rt);
     if (r == PM_OK)

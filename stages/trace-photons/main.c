@@ -57,6 +57,7 @@ static pm_result_t run(pm_stage_t *st, const trace_options_t *o)
     pm_result_t r = pm_scene_load(st->args.args[0], &s);
     if (r != PM_OK)
         return r;
+    pm_scene_warn_unsupported(&s, st);
     r = pm_rt_create(&s, 1, st->threads_used, &rt);
     if (r != PM_OK) {
         pm_scene_free(&s);

@@ -150,6 +150,7 @@ int main(int argc, char **argv)
     pm_result_t r = pm_scene_load(st.args.args[0], &s);
     if (r != PM_OK)
         return pm_stage_end(&st, r);
+    pm_scene_warn_unsupported(&s, &st);
     double power[3];
     pm_scene_power(&s, power);
     if (!(power[0] + power[1] + power[2] > 0.0)) {

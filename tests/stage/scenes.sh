@@ -36,3 +36,70 @@ expect_same "scene-info --preview is identical on 1 and 2 threads" "$TMP/p1.png"
 grep -v -E '^(time|probe):' "$TMP/s1.txt" >"$TMP/s1.cut"
 grep -v -E '^(time|probe):' "$TMP/s2.txt" >"$TMP/s2.cut"
 expect_same "scene-info's summary is identical on 1 and 2 threads" "$TMP/s1.cut" "$TMP/s2.cut"
+
+# ---- issue 17, item 3: faces before the first usemtl are an error, not the .mtl's last material ----
+S=tests/scenes/no-usemtl/scene.json
+expect_error "faces before any usemtl: scene-info names the OBJ and the face" \
+    "scene '.*no-usemtl/scene.json': meshes\[0\]: mesh '.*no-usemtl/a.obj': face 1 \(line 5\) comes before any usemtl" \
+    "$BIN/scene-info" "$S"
+[ ! -s "$TMP/out" ] && pass "... and prints no summary" || fail "no-usemtl summary" "$(head -c 200 "$TMP/out")"
+rm -f "$TMP/nu.pm"
+expect_error "faces before any usemtl: trace-photons fails with one line" "a.obj': face 1 \(line 5\) comes before any usemtl" \
+    "$BIN/trace-photons" "$S" -o "$TMP/nu.pm"
+[ ! -e "$TMP/nu.pm" ] && pass "... and writes nothing" || fail "no-usemtl output" "$TMP/nu.pm exists"
+mkdir -p "$TMP/late"
+printf 'newmtl a\nKd 0.5 0.5 0.5\nnewmtl b\nKd 0.2 0.2 0.2\n' >"$TMP/late/a.mtl"
+printf 'newmtl hot\nKd 0 0 0\nKe 9 9 9\n' >"$TMP/late/b.mtl"
+printf 'mtllib a.mtl\nv 0 0 0\nv 1 0 0\nv 0 0 1\nusemtl a\nf 1 2 3\nmtllib b.mtl\nf 1 3 2\n' >"$TMP/late/m.obj"
+sed 's/"a.obj"/"m.obj"/' "$S" >"$TMP/late/scene.json"
+expect_error "an mtllib after a usemtl is an error (assimp would give the faces before it the library's last material)" \
+    "m.obj': mtllib on line 7 comes after the usemtl on line 5" "$BIN/scene-info" "$TMP/late/scene.json"
+# a usemtl before any group or face, with a second material after it in the .mtl: legal, and loads
+printf 'mtllib a.mtl\nv 0 0 0\nv 1 0 0\nv 0 0 1\nusemtl a\nf 1 2 3\n' >"$TMP/late/m.obj"
+if "$BIN/scene-info" -q "$TMP/late/scene.json" >"$TMP/out" 2>"$TMP/err" && grep -q '^  0 a kd 0.5 0.5 0.5 ' "$TMP/out"; then
+    pass "a usemtl before any group loads, with that material"
+else
+    fail "usemtl before any group" "$(head -c 300 "$TMP/err")"
+fi
+
+# ---- issue 17, item 4: MTL keys pmtk does not honour are reported once per material ----
+S=tests/scenes/unsupported-mtl/scene.json
+want="material 'textured': bump 'bump.png'
+material 'textured': d 0.8
+material 'textured': illum 7
+material 'textured': map_Kd 'tex.png'
+material 'textured': Ni 1.5
+material 'textured': Tf 0.9 0.8 0.7"
+unsupported_warnings() { sed -n 's/^[a-z-]*: warning: \(material .*\) is not supported (ignored)$/\1/p' "$1" | LC_ALL=C sort -f; }
+"$BIN/scene-info" "$S" >"$TMP/out" 2>"$TMP/err"
+if [ "$(unsupported_warnings "$TMP/err")" = "$want" ]; then
+    pass "scene-info warns once for each of map_Kd, bump, d/Tr, illum 7, Ni, Tf"
+else
+    fail "scene-info unsupported warnings" "$(head -c 600 "$TMP/err")"
+fi
+grep -q "^scene-info: warning: material 'unused'" "$TMP/err" && fail "a material no face uses" "is reported" ||
+    pass "a material no face uses is not reported"
+if [ "$(grep -c '^    unsupported' "$TMP/out")" = 1 ] &&
+    grep -qx "    unsupported (ignored): illum 7, d 0.8, Tf 0.9 0.8 0.7, Ni 1.5, map_Kd 'tex.png', bump 'bump.png'" "$TMP/out"; then
+    pass "scene-info's text lists them under their material"
+else
+    fail "scene-info text unsupported" "$(grep -A1 '^  0 ' "$TMP/out")"
+fi
+"$BIN/scene-info" -q --json "$S" >"$TMP/out" 2>"$TMP/err"
+got=$(jq -r '.materials[] | .name as $m | .unsupported[] | "material '"'"'\($m)'"'"': \(.key) \(if .file then "'"'"'\(.value)'"'"'" else .value end)"' "$TMP/out" | LC_ALL=C sort -f)
+if [ "$got" = "$want" ] && [ "$(jq -c '.materials[1].unsupported' "$TMP/out")" = "[]" ] && [ ! -s "$TMP/err" ]; then
+    pass "scene-info --json: an unsupported list per material, and -q prints no warning"
+else
+    fail "scene-info --json unsupported" "$got $(head -c 300 "$TMP/err")"
+fi
+"$BIN/trace-photons" "$S" -o "$TMP/u.pm" 2>"$TMP/err" >/dev/null
+if [ "$(unsupported_warnings "$TMP/err")" = "$want" ] && [ -s "$TMP/u.pm" ]; then
+    pass "trace-photons warns once for each, and renders"
+else
+    fail "trace-photons unsupported warnings" "$(head -c 600 "$TMP/err")"
+fi
+"$BIN/trace-gather-points" "$S" -o "$TMP/uq.pm" --direct "$TMP/ud.pm" 2>"$TMP/err" >/dev/null
+[ "$(unsupported_warnings "$TMP/err")" = "$want" ] && pass "trace-gather-points warns once for each" ||
+    fail "trace-gather-points unsupported warnings" "$(head -c 600 "$TMP/err")"
+"$BIN/trace-reference" -q "$S" -o "$TMP/ur.exr" --spp 1 2>"$TMP/err" >/dev/null
+[ ! -s "$TMP/err" ] && pass "trace-reference -q prints no warning" || fail "trace-reference -q" "$(head -c 300 "$TMP/err")"

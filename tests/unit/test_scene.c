@@ -101,6 +101,11 @@ static void test_scene_mesh_faults(void **state)
     write_file("nomtl.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", p, sizeof p);
     write_file("badmtl.obj", "mtllib a.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl nosuch\nf 1 2 3\n", p, sizeof p);
     write_file("gonemtl.obj", "mtllib gone.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n", p, sizeof p);
+    /* assimp gives faces before the first usemtl the last material of the .mtl */
+    write_file("two.mtl", "newmtl floor\nKd 0.5 0.5 0.5\nnewmtl lamp\nKd 0 0 0\nKe 10 10 10\n", p, sizeof p);
+    write_file("lastmtl.obj", "mtllib two.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\ng floor\nf 1 2 3\n", p, sizeof p);
+    write_file("latelib.obj", "mtllib a.mtl\nv 0 0 0\nv 1 0 0\nusemtl a\nmtllib two.mtl\nv 0 1 0\nf 1 2 3\n", p,
+               sizeof p);
     write_file("badidx.obj", "v 0 0 0\nv 1 0 0\nf 1 2 9\n", p, sizeof p);
     write_file("tri.ply",
                "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
@@ -108,7 +113,9 @@ static void test_scene_mesh_faults(void **state)
                "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
                p, sizeof p);
     static const char *const cases[][2] = {
-        {"nomtl.obj", "1 faces of 'defaultobject' have no material"},
+        {"nomtl.obj", "face 1 (line 4) comes before any usemtl"},
+        {"lastmtl.obj", "face 1 (line 6, group 'floor') comes before any usemtl"},
+        {"latelib.obj", "mtllib on line 5 comes after the usemtl on line 4"},
         {"badmtl.obj", "failed to locate material nosuch"},
         {"gonemtl.obj", "Unable to locate material file gone.mtl"},
         {"badidx.obj", "vertex index out of range"},
@@ -165,10 +172,91 @@ static void test_scene_degenerate_triangles(void **state)
     pm_scene_free(&s);
 }
 
+/* Properties the loader does not honour are kept once per material and key, for the materials
+ * some triangle uses; neutral values (d 1, illum 2) are not reported; keys assimp drops
+ * (sharpness, refl) are read from the .mtl itself. */
+static void test_scene_unsupported(void **state)
+{
+    char p[256];
+    write_file("u.mtl",
+               "newmtl tex\nKd 0.5 0.5 0.5\nmap_Kd tex.png\nbump b.png\nd 0.5\nTr 0.25\nillum 7\nNi 1.5\n"
+               "Tf 0.9 0.8 0.7\nsharpness 60\nrefl -type sphere r.png\nnewmtl plain\nKd 0.5 0.5 0.5\nd 1\nillum "
+               "2\nnewmtl unused\nKd 0.1 0.1 0.1\n"
+               "map_Kd u.png\n",
+               p, sizeof p);
+    write_file("u.obj", "mtllib u.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl tex\nf 1 2 3\nusemtl plain\nf 1 3 2\n", p,
+               sizeof p);
+    write_file("u.json", "{\"pmtk_scene\": 1, \"name\": \"u\", \"meshes\": [{\"file\": \"u.obj\"}], " CAM "}", p,
+               sizeof p);
+    pm_scene_t s;
+    pm_result_t r = pm_scene_load(p, &s);
+    if (r != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_int_equal(s.nmaterials, 2);
+    static const char *const want[][2] = {
+        {"map_Kd", "tex.png"}, {"bump", "b.png"},     {"d", "0.75"},       {"illum", "7"},
+        {"Ni", "1.5"},         {"Tf", "0.9 0.8 0.7"}, {"sharpness", "60"}, {"refl", "-type sphere r.png"}};
+    assert_int_equal(s.nunsupported, sizeof want / sizeof want[0]);
+    for (size_t i = 0; i < sizeof want / sizeof want[0]; i++) {
+        size_t found = 0;
+        for (size_t u = 0; u < s.nunsupported; u++)
+            if (strcmp(s.unsupported[u].key, want[i][0]) == 0) {
+                found++;
+                assert_string_equal(s.unsupported[u].value, want[i][1]);
+                assert_string_equal(s.materials[s.unsupported[u].material].name, "tex");
+            }
+        if (found != 1)
+            fail_msg("%s reported %zu times", want[i][0], found);
+    }
+    /* as the warnings print them: a texture's file quoted, a number as it is */
+    char text[300];
+    for (size_t u = 0; u < s.nunsupported; u++) {
+        pm_scene_unsupported_text(&s.unsupported[u], text, sizeof text);
+        if (strcmp(s.unsupported[u].key, "map_Kd") == 0)
+            assert_string_equal(text, "map_Kd 'tex.png'");
+        if (strcmp(s.unsupported[u].key, "illum") == 0)
+            assert_string_equal(text, "illum 7");
+    }
+    pm_scene_free(&s);
+}
+
+/* A glTF material: base colour is Kd; its texture (in assimp's diffuse and base colour slots)
+ * is reported once, roughness 0.5 is reported, metallic 0 and alphaMode OPAQUE are not. */
+static void test_scene_unsupported_gltf(void **state)
+{
+    char p[256];
+    write_file("g.gltf",
+               "{\"asset\": {\"version\": \"2.0\"}, \"scene\": 0, \"scenes\": [{\"nodes\": [0]}], \"nodes\": "
+               "[{\"mesh\": 0}], \"meshes\": [{\"primitives\": [{\"attributes\": {\"POSITION\": 0}, \"indices\": 1, "
+               "\"material\": 0}]}], \"materials\": [{\"name\": \"m\", \"pbrMetallicRoughness\": {\"baseColorFactor\": "
+               "[0.5, 0.4, 0.3, 1], \"metallicFactor\": 0, \"roughnessFactor\": 0.5, \"baseColorTexture\": "
+               "{\"index\": 0}}}], \"textures\": [{\"source\": 0}], \"images\": [{\"uri\": \"tex.png\"}], "
+               "\"buffers\": [{\"byteLength\": 44, \"uri\": \"data:application/octet-stream;base64,"
+               "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAAAAAAIA/AAABAAIAAAA=\"}], \"bufferViews\": [{\"buffer\": 0, "
+               "\"byteOffset\": 0, \"byteLength\": 36}, {\"buffer\": 0, \"byteOffset\": 36, \"byteLength\": 6}], "
+               "\"accessors\": [{\"bufferView\": 0, \"componentType\": 5126, \"count\": 3, \"type\": \"VEC3\", "
+               "\"min\": [0, 0, 0], \"max\": [1, 0, 1]}, {\"bufferView\": 1, \"componentType\": 5123, \"count\": 3, "
+               "\"type\": \"SCALAR\"}]}\n",
+               p, sizeof p);
+    write_file("g.json", "{\"pmtk_scene\": 1, \"name\": \"g\", \"meshes\": [{\"file\": \"g.gltf\"}], " CAM "}", p,
+               sizeof p);
+    pm_scene_t s;
+    pm_result_t r = pm_scene_load(p, &s);
+    if (r != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_int_equal(s.nmaterials, 1);
+    assert_true(fabsf(s.materials[0].kd[1] - 0.4f) < 1e-6f);
+    assert_int_equal(s.nunsupported, 2);
+    assert_string_equal(s.unsupported[0].key, "diffuse texture");
+    assert_string_equal(s.unsupported[0].value, "tex.png");
+    assert_string_equal(s.unsupported[1].key, "roughnessFactor");
+    assert_string_equal(s.unsupported[1].value, "0.5");
+    pm_scene_free(&s);
+}
+
 static const struct CMUnitTest tests[] = {
-    cmocka_unit_test(test_scene_cornell_box),
-    cmocka_unit_test(test_scene_bad_input),
-    cmocka_unit_test(test_scene_mesh_faults),
-    cmocka_unit_test(test_scene_degenerate_triangles),
+    cmocka_unit_test(test_scene_cornell_box), cmocka_unit_test(test_scene_bad_input),
+    cmocka_unit_test(test_scene_mesh_faults), cmocka_unit_test(test_scene_degenerate_triangles),
+    cmocka_unit_test(test_scene_unsupported), cmocka_unit_test(test_scene_unsupported_gltf),
 };
 UNIT_GROUP(unit_scene, "scene", tests);

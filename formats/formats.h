@@ -101,7 +101,18 @@ enum {
 };
 extern const pm_schema_t pm_radiance_schema;
 
-/* Width and height (header keys width, height) of a queries or radiance header. */
+/* The largest image pmtk makes or reads: at most PM_IMAGE_SIDE_MAX pixels a side and
+ * PM_IMAGE_PIXELS_MAX in all (8192 x 8192; its radiance buffer is 1.5 GiB of f64 RGB), so
+ * that a header cannot make a reader allocate what its records never fill. */
+#define PM_IMAGE_SIDE_MAX 65536u
+#define PM_IMAGE_PIXELS_MAX (1u << 26)
+
+/* Fails (PM_ERR_INPUT) unless w x h is an image size within the limits above: "image size
+ * WxH outside ...". */
+pm_result_t pm_image_size_check(uint64_t w, uint64_t h);
+
+/* Width and height (header keys width, height) of a queries or radiance header, within the
+ * limits above. */
 pm_result_t pm_header_get_image_size(const pm_header_t *h, const char *path, uint32_t *w_out, uint32_t *h_out);
 
 #endif

@@ -17,7 +17,14 @@ static const pm_channel_t query_channels[] = {
     {"direction", PM_TYPE_F32, 3, PM_CH_UNIT, "1", "unit outgoing direction at the query (glossy scenes)"},
 };
 
-#define PM_IMAGE_SIDE_MAX 65536u /* pixels per side */
+pm_result_t pm_image_size_check(uint64_t w, uint64_t h)
+{
+    if (w < 1 || h < 1 || w > PM_IMAGE_SIDE_MAX || h > PM_IMAGE_SIDE_MAX || w * h > PM_IMAGE_PIXELS_MAX)
+        return pm_error_set(PM_ERR_INPUT,
+                            "image size %" PRIu64 "x%" PRIu64 " outside 1..%u per side and %u pixels in all", w, h,
+                            PM_IMAGE_SIDE_MAX, PM_IMAGE_PIXELS_MAX);
+    return PM_OK;
+}
 
 pm_result_t pm_header_get_image_size(const pm_header_t *h, const char *path, uint32_t *w_out, uint32_t *h_out)
 {
@@ -27,9 +34,10 @@ pm_result_t pm_header_get_image_size(const pm_header_t *h, const char *path, uin
         r = pm_header_get_u64(h, path, "height", &ht);
     if (r != PM_OK)
         return r;
-    if (w < 1 || ht < 1 || w > PM_IMAGE_SIDE_MAX || ht > PM_IMAGE_SIDE_MAX)
-        return pm_error_set(PM_ERR_INPUT, "%s '%s': image size %" PRIu64 "x%" PRIu64 " outside 1..%u per side",
-                            h->schema->title, path, w, ht, PM_IMAGE_SIDE_MAX);
+    if ((r = pm_image_size_check(w, ht)) != PM_OK) {
+        pm_error_prefix("%s '%s'", h->schema->title, path);
+        return r;
+    }
     *w_out = (uint32_t)w;
     *h_out = (uint32_t)ht;
     return PM_OK;

@@ -22,6 +22,10 @@ static pm_result_t read_header_text(pm_reader_t *r, char **text_out, size_t *len
 {
     unsigned char magic[sizeof PM_MAGIC]; /* "#?PMTK\n" */
     size_t got = fread(magic, 1, sizeof magic, r->f);
+    /* A short read is an empty or foreign file only when the stream says so: a directory,
+     * an I/O error or a closed descriptor also read nothing, and errno says which. */
+    if (got < sizeof magic && ferror(r->f))
+        return pm_error_set(PM_ERR_IO, "cannot read '%s': %s", r->path, strerror(errno));
     if (got < sizeof magic || memcmp(magic, PM_MAGIC "\n", sizeof magic) != 0) {
         if (got == 0)
             return pm_error_set(PM_ERR_INPUT, "empty input '%s': expected a pmtk file", r->path);
@@ -39,6 +43,8 @@ static pm_result_t read_header_text(pm_reader_t *r, char **text_out, size_t *len
         int c = getc_unlocked(r->f);
         if (c == EOF) {
             free(t);
+            if (ferror(r->f))
+                return pm_error_set(PM_ERR_IO, "cannot read the header of '%s': %s", r->path, strerror(errno));
             return pm_error_set(PM_ERR_INPUT, "truncated header in '%s': no blank line ends it", r->path);
         }
         if (n >= PM_HEADER_MAX) {
@@ -143,7 +149,9 @@ static pm_result_t reader_start(pm_reader_t *r, const pm_schema_t *schema, uint3
     if (res == PM_OK) {
         unsigned char bom[4];
         size_t got = fread(bom, 1, 4, r->f);
-        if (got < 4)
+        if (got < 4 && ferror(r->f))
+            res = pm_error_set(PM_ERR_IO, "cannot read %s '%s': %s", reader_title(r), r->path, strerror(errno));
+        else if (got < 4)
             res = pm_error_set(PM_ERR_INPUT, "truncated %s '%s': no byte-order marker after the header",
                                reader_title(r), r->path);
         else if (bom[0] == 0x01 && bom[1] == 0x02 && bom[2] == 0x03 && bom[3] == 0x04)

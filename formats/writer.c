@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "base/atomic.h"
 #include "formats/pmfile_impl.h"
@@ -33,6 +34,12 @@ static void writer_free(pm_writer_t *w)
 pm_result_t pm_writer_open(const char *path, const pm_header_t *h, pm_writer_t **out)
 {
     *out = NULL;
+    /* Binary records on a terminal are garbage on the screen and can set the terminal's
+     * modes: refuse, as gzip does, before a byte is written. */
+    if (strcmp(path, "-") == 0 && isatty(STDOUT_FILENO))
+        return pm_error_set(PM_ERR_USAGE,
+                            "refusing to write a binary %s file to a terminal (stdout): give -o FILE or pipe it",
+                            h->schema ? h->schema->name : "pmtk");
     char *text = NULL;
     size_t len = 0;
     pm_result_t res = pm_header_format(h, &text, &len);

@@ -5,6 +5,11 @@
  *
  *   pm-testgen FORMAT N OUT [--all] [--poison nan|inf|negative|tree|pixel|unit]
  *              [--shape equal|line|plane|huge]
+ *   pm-testgen reseal IN OUT
+ *
+ * reseal copies IN to OUT with its last 8 bytes replaced by the XXH3-64 of all before them:
+ * a header edited by a test (a value no writer would write) then reaches the reader's
+ * value checks instead of stopping at the checksum.
  *
  * The photon map it writes is a median-split KD-tree of its photons, which the reader
  * checks in full (shape, order, planes). */
@@ -190,8 +195,38 @@ static int poison(const char *path, size_t off, const void *bytes, size_t len)
     return bad;
 }
 
+static int reseal(const char *in, const char *out)
+{
+    FILE *f = fopen(in, "rb");
+    unsigned char *b = NULL;
+    long n = -1;
+    if (f && fseek(f, 0, SEEK_END) == 0 && (n = ftell(f)) >= 8 && fseek(f, 0, SEEK_SET) == 0 &&
+        (b = malloc((size_t)n)) && fread(b, 1, (size_t)n, f) == (size_t)n) {
+        uint64_t h = XXH3_64bits(b, (size_t)n - 8);
+        for (int i = 0; i < 8; i++)
+            b[n - 8 + i] = (unsigned char)(h >> (8 * i));
+        FILE *o = fopen(out, "wb");
+        int ok = o && fwrite(b, 1, (size_t)n, o) == (size_t)n;
+        if (o && fclose(o) != 0)
+            ok = 0;
+        fclose(f);
+        free(b);
+        if (ok)
+            return 0;
+        fprintf(stderr, "pm-testgen: cannot write '%s'\n", out);
+        return 1;
+    }
+    if (f)
+        fclose(f);
+    free(b);
+    fprintf(stderr, "pm-testgen: cannot read '%s' (at least 8 bytes)\n", in);
+    return 1;
+}
+
 int main(int argc, char **argv)
 {
+    if (argc == 4 && !strcmp(argv[1], "reseal"))
+        return reseal(argv[2], argv[3]);
     if (argc < 4) {
         fprintf(stderr, "usage: pm-testgen FORMAT N OUT [--all] [--set KEY=VALUE] [--shape equal|line|plane|huge] "
                         "[--poison nan|inf|negative|unit|tree|order|pixel|nudge]\n");

@@ -182,6 +182,13 @@ pm_result_t pm_gather_inputs_radius_for_k(const pm_gather_inputs_t *in, double k
         return r;
     if (!(radius > 0.0) && in->map.n && in->q.n)
         return pm_error_set(PM_ERR_INPUT, "no radius gives %g photons per query", k);
+    /* A radius measured on the data (photons spread to near the float range give inf) is
+     * a fault of the input, not of the command line: an input error, exit 1. */
+    if (radius > 0.0 && !(isfinite((float)(radius * radius))))
+        return pm_error_set(PM_ERR_INPUT,
+                            "kernel radius %g m for --k %g from the photons of '%s' and the queries of '%s': its "
+                            "square does not fit a float (photons or queries spread beyond the float range)",
+                            radius, k, in->map_path, in->q_path);
     *radius_out = radius > 0.0 ? radius : 1.0; /* nothing to gather: any width gives zero */
     return PM_OK;
 }

@@ -17,10 +17,21 @@
 #include <strings.h>
 
 #include "base/hash.h"
+#include "formats/formats.h"
 
 #define PM_SCENE_MAX_TRIS (1u << 30) /* triangles: 32-bit indices with room to spare */
 #define PM_SCENE_MAX_LIGHTS 65536
-#define PM_SCENE_COORD_MAX 1e30 /* m: beyond this, float products overflow */
+/* m: Embree refuses (aborts on) a ray whose origin lies beyond 1.844e18 m, and camera and
+ * photon rays start at the eye, the lights and on the geometry. */
+#define PM_SCENE_COORD_MAX 1e18
+/* m^2: a triangle's normal is its edges' cross product, whose squared length must be a
+ * normal float (4 A^2 within [1.2e-38, 3.4e38]); these keep a margin of 50 below and 9
+ * above. Smaller triangles are left out as degenerate, larger ones refused. */
+#define PM_SCENE_AREA_MIN 1e-18
+#define PM_SCENE_AREA_MAX 1e18
+/* m: the smallest geometry pmtk renders (its bounding box's longest side); every triangle of
+ * a scene much smaller would be left out by PM_SCENE_AREA_MIN, and the image silently black. */
+#define PM_SCENE_SIZE_MIN 1e-8
 
 typedef struct {
     const char *file; /* the scene file, for messages */
@@ -143,6 +154,8 @@ static pm_result_t load_camera(const ctx_t *c, json_t *cam)
         r = get_int(c, cam, "width", "camera.width", 1, 1, 65536, &w);
     if (r == PM_OK)
         r = get_int(c, cam, "height", "camera.height", 1, 1, 65536, &h);
+    if (r == PM_OK && (r = pm_image_size_check((uint64_t)w, (uint64_t)h)) != PM_OK)
+        pm_error_prefix("scene '%s': camera", c->file);
     if (r != PM_OK)
         return r;
     k->fov_y = (float)fov;
@@ -670,7 +683,7 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
     char p1[80], p2[80];
     snprintf(p1, sizeof p1, "%s.scale", where);
     snprintf(p2, sizeof p2, "%s.translate", where);
-    if ((r = get_number(c, mj, "scale", p1, 0, 1e-30, 1e30, &scale)) != PM_OK ||
+    if ((r = get_number(c, mj, "scale", p1, 0, 1e-30, PM_SCENE_COORD_MAX, &scale)) != PM_OK ||
         (r = get_vec3(c, mj, "translate", p2, 0, -PM_SCENE_COORD_MAX, PM_SCENE_COORD_MAX, tr)) != PM_OK)
         return r;
     resolve(c->file, file, path, sizeof path);
@@ -760,9 +773,8 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
             for (int k = 0; k < 3; k++) {
                 double x = p[k] * scale + tr[k];
                 if (!isfinite(x) || fabs(x) > PM_SCENE_COORD_MAX) {
-                    r = pm_error_set(PM_ERR_INPUT,
-                                     "mesh '%s': vertex %u coordinate %c = %g is not finite or beyond 1e30", path, v,
-                                     "xyz"[k], x);
+                    r = pm_error_set(PM_ERR_INPUT, "mesh '%s': vertex %u coordinate %c = %g is not finite or beyond %g",
+                                     path, v, "xyz"[k], x, PM_SCENE_COORD_MAX);
                     break;
                 }
                 s->verts[3 * (v0 + v) + k] = (float)x;
@@ -788,8 +800,18 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
                 break;
             s->tri_material[s->ntris] = (uint32_t)(mat0 + m->mMaterialIndex);
             s->ntris++;
-            /* Zero-area triangles scatter nothing and have no normal: leave them out. */
-            if (!(pm_scene_triangle_area(s, s->ntris - 1) > 0.0)) {
+            /* Zero-area triangles scatter nothing and have no normal: leave them out, and
+             * those too small for a float normal with them. One too large for a float normal
+             * cannot be left out without changing the scene: refuse it. */
+            double area = pm_scene_triangle_area(s, s->ntris - 1);
+            if (area > PM_SCENE_AREA_MAX) {
+                r = pm_error_set(PM_ERR_INPUT,
+                                 "mesh '%s': face %u has an area of %g m^2, beyond %g m^2 (its normal overflows a "
+                                 "float): scale the scene down",
+                                 path, f, area, PM_SCENE_AREA_MAX);
+                break;
+            }
+            if (!(area >= PM_SCENE_AREA_MIN)) {
                 s->ntris--;
                 s->ndropped++;
             }
@@ -888,6 +910,30 @@ static void finish(pm_scene_t *s)
         s->any_glossy |= pm_material_is_glossy(&s->materials[m]);
 }
 
+/* Refuses geometry too small to render: the longest side of the box around every vertex
+ * loaded (those of left-out triangles too), so that a scene scaled below the limit is named
+ * and refused rather than rendered black with every triangle left out. */
+static pm_result_t check_size(const ctx_t *c)
+{
+    const pm_scene_t *s = c->s;
+    if (!s->nverts)
+        return PM_OK;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, size = 0.0;
+    for (size_t v = 0; v < s->nverts; v++)
+        for (int k = 0; k < 3; k++) {
+            lo[k] = fmin(lo[k], s->verts[3 * v + k]);
+            hi[k] = fmax(hi[k], s->verts[3 * v + k]);
+        }
+    for (int k = 0; k < 3; k++)
+        size = fmax(size, hi[k] - lo[k]);
+    if (size < PM_SCENE_SIZE_MIN)
+        return bad(c, "meshes",
+                   "the geometry spans %g m, below the smallest scene pmtk renders, %g m (float normals "
+                   "and ray hits fail below it): scale it up with meshes[].scale",
+                   size, PM_SCENE_SIZE_MIN);
+    return PM_OK;
+}
+
 pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
 {
     memset(s, 0, sizeof *s);
@@ -922,6 +968,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         if (r == PM_ERR_INPUT && strncmp(pm_error_message(), "scene '", 7) != 0)
             pm_error_prefix("scene '%s': meshes[%zu]", path, i);
     }
+    if (r == PM_OK)
+        r = check_size(&c);
     if (r == PM_OK)
         r = load_camera(&c, json_object_get(root, "camera"));
     if (r == PM_OK)

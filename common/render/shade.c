@@ -10,17 +10,34 @@
 #include "math/sampling.h"
 #include "math/vec.h"
 
+/* a times the power of two that brings its largest component into [0.5, 1), when that
+ * component lies outside [2^-60, 2^60]: there the squares of a float normalization would
+ * underflow or overflow (an eye 1e-25 m from look_at, an up of 1e-30). Scaling by a power of
+ * two is exact, so the direction is a's own; vectors inside the range are returned as they
+ * are, so that ordinary cameras give the same bits as before. A zero vector stays zero. */
+static pm_vec3_t exact_rescale(pm_vec3_t a)
+{
+    float big = fmaxf(fabsf(a.x), fmaxf(fabsf(a.y), fabsf(a.z)));
+    if (!(big > 0.0f) || !isfinite(big) || (big >= 0x1p-60f && big <= 0x1p60f))
+        return a;
+    int e;
+    frexpf(big, &e);
+    return pm_v3(ldexpf(a.x, -e), ldexpf(a.y, -e), ldexpf(a.z, -e));
+}
+
 void pm_camera_setup(const pm_camera_t *cam, uint32_t w, uint32_t h, pm_camera_rays_t *c)
 {
     float len = 0.0f;
+    pm_vec3_t f = exact_rescale(pm_v3_sub(pm_v3_load(cam->look_at), pm_v3_load(cam->eye)));
+    pm_v3_store(c->fwd, f);
     for (int k = 0; k < 3; k++) {
         c->eye[k] = cam->eye[k];
-        c->fwd[k] = cam->look_at[k] - cam->eye[k];
         len += c->fwd[k] * c->fwd[k];
     }
     for (int k = 0; k < 3; k++)
         c->fwd[k] /= sqrtf(len);
-    pm_vec3_t f = pm_v3_load(c->fwd), r = pm_v3_normalize(pm_v3_cross(f, pm_v3_load(cam->up)));
+    f = pm_v3_load(c->fwd);
+    pm_vec3_t r = pm_v3_normalize(exact_rescale(pm_v3_cross(f, exact_rescale(pm_v3_load(cam->up)))));
     pm_v3_store(c->right, r);
     pm_v3_store(c->up, pm_v3_cross(r, f));
     c->tan_half = tanf(0.5f * cam->fov_y * PM_PI / 180.0f);

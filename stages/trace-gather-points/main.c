@@ -11,6 +11,7 @@
  * into the output when tracing ends; the direct buffer is kept whole. Both outputs are
  * committed only when both are complete. */
 #include <inttypes.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -149,6 +150,15 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
                                  .isa = isa,
                                  .threads = st->threads_used,
                                  .progress = pm_stage_progress(st)};
+    /* The scene's own camera is within the image limits (scene.c): only --width or --height
+     * can take it beyond them, a usage error. */
+    if (pm_image_size_check(o->width ? (uint64_t)o->width : s->camera.width,
+                            o->height ? (uint64_t)o->height : s->camera.height) != PM_OK) {
+        char why[PM_ERROR_MAX];
+        snprintf(why, sizeof why, "%s", pm_error_message());
+        return pm_error_set(PM_ERR_USAGE, "--width %" PRId64 " --height %" PRId64 " (0: the camera's): %s", o->width,
+                            o->height, why);
+    }
     pm_eye_t *e;
     pm_result_t r = pm_eye_create(s, rt, &eo, &e);
     if (r != PM_OK)

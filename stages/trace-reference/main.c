@@ -8,9 +8,11 @@
  * outputs are rewritten after every pass, so a run can be stopped and continued with
  * --resume. The same settings give the same bits for any --threads. */
 #include <inttypes.h>
+#include <stdio.h>
 #include <string.h>
 
 #include "base/stage.h"
+#include "formats/formats.h"
 #include "render/pathtrace.h"
 #include "render/rt.h"
 #include "render/scene.h"
@@ -79,6 +81,14 @@ static pm_result_t run(pm_stage_t *st, const ref_options_t *o, const pm_scene_t 
         .component = o->component,
         .threads = st->threads_used > 0 ? st->threads_used : 1,
     };
+    /* The scene's own camera is within the image limits (scene.c): only --width or --height
+     * can take it beyond them, a usage error. */
+    if (pm_image_size_check(set.width, set.height) != PM_OK) {
+        char why[PM_ERROR_MAX];
+        snprintf(why, sizeof why, "%s", pm_error_message());
+        return pm_error_set(PM_ERR_USAGE, "--width %" PRId64 " --height %" PRId64 " (0: the camera's): %s", o->width,
+                            o->height, why);
+    }
     char cmd[4096];
     pm_stage_command_line(st, cmd, sizeof cmd);
     const pm_pathtrace_output_t out = {st->output, o->radiance, st->argc, st->argv, cmd};

@@ -339,3 +339,95 @@ for s in 1 1e-4 1e5; do
         fail "closed room at scale $s: camera rays" "$nq of 256 hit"
     fi
 done
+
+# ---- 8. Scene size, coordinate and camera limits (issue 17, item 9) ----------------------
+# Before: a camera eye 1e-25 m from look_at and scenes scaled to 1e-23 aborted inside Embree
+# (exit 134), and scales 1e-10 to 1e-21 made trace-photons refuse its own output (a float
+# normal of length 4e-20). Now the camera's frame is normalized after an exact power-of-two
+# rescale (bit-identical for ordinary cameras), and scenes beyond what float normals and
+# Embree hold are refused up front in one line naming the value and the limit
+# (docs/extreme-cases.md): geometry spanning less than 1e-8 m, a triangle over 1e18 m^2, a
+# coordinate beyond 1e18 m. Nothing may exit 134: a clean render or a one-line refusal.
+#
+# The camera 1e-25 m from its look_at sees exactly what the camera 1 m from it in the same
+# direction sees: the same direct buffer and reference image, record for record; and an up
+# vector of 1e-30 or 1e18 is the same as (0, 1, 0).
+records() { "$BIN/pm-info" -r "$1" | grep -E '^ *[0-9]+ '; }
+make_box "$TMP/eye" 0.5 "$LIGHT"
+for v in "near -1e-25 [0,1,0]" "far -1 [0,1,0]" "tinyup -1e-25 [0,1e-30,0]" "hugeup -1 [0,1e18,0]"; do
+    set -- $v
+    jq ".camera.eye = [0.0123, 0.0071, 0] | .camera.look_at = [0.0123, 0.0071, $2] | .camera.up = $3" \
+        "$TMP/eye/scene.json" >"$TMP/eye/$1.json"
+    expect_exit "camera $1 (look_at $2 m along z from the eye, up $3): trace-gather-points renders" 0 \
+        "$BIN/trace-gather-points" "$TMP/eye/$1.json" -q -o "$TMP/eye-$1.q.pm" --direct "$TMP/eye-$1.d.pm"
+    expect_exit "camera $1: trace-reference renders" 0 \
+        "$BIN/trace-reference" "$TMP/eye/$1.json" --spp 4 -q -o "$TMP/eye-$1.exr" --radiance "$TMP/eye-$1.r.pm"
+    expect_exit "camera $1: scene-info --probe runs" 0 "$BIN/scene-info" --probe "$TMP/eye/$1.json"
+done
+for v in near tinyup hugeup; do
+    if cmp -s <(records "$TMP/eye-$v.d.pm") <(records "$TMP/eye-far.d.pm") &&
+        cmp -s <(records "$TMP/eye-$v.r.pm") <(records "$TMP/eye-far.r.pm") &&
+        [ -n "$(records "$TMP/eye-far.d.pm")" ]; then
+        pass "camera $v: its direct buffer and reference image equal the ordinary camera's, record for record"
+    else
+        fail "camera $v" "its images differ from the ordinary camera's"
+    fi
+done
+# Scenes too small (1e-9: geometry 2e-9 m; 1e-12 and 1e-23, which failed or aborted) or with
+# triangles too large (1e9: 2e18 m^2; 1e15): every stage that loads the scene refuses, one
+# line, exit 1.
+for s in 1e-9 1e-12 1e-23 1e9 1e15; do
+    make_box "$TMP/lim$s" 0.5 "$LIGHT"
+    scale_scene "$TMP/lim$s" "$s"
+    case $s in
+    *e-*) want="the geometry spans [0-9.e+-]+ m, below the smallest scene pmtk renders, 1e-08 m" ;;
+    *) want="face 0 has an area of [0-9.e+]+ m\^2, beyond 1e\+18 m\^2" ;;
+    esac
+    expect_error "scale $s: trace-photons refuses the scene in one line" "$want" \
+        "$BIN/trace-photons" "$TMP/lim$s/scene.json" -n 1000 -q -o "$TMP/lim.ph.pm"
+    expect_error "scale $s: trace-gather-points refuses the scene in one line" "$want" \
+        "$BIN/trace-gather-points" "$TMP/lim$s/scene.json" -q -o "$TMP/lim.q.pm"
+    expect_error "scale $s: trace-reference refuses the scene in one line" "$want" \
+        "$BIN/trace-reference" "$TMP/lim$s/scene.json" --spp 4 -q -o "$TMP/lim.exr"
+    expect_error "scale $s: scene-info --probe refuses the scene in one line" "$want" \
+        "$BIN/scene-info" --probe "$TMP/lim$s/scene.json"
+done
+# Within the limits, at both ends (geometry 2e-8 m and triangles of 2e16 m^2): the whole
+# chain renders the unscaled box's image (case 3's s1) within rounding.
+for s in 1e-8 1e8; do
+    make_box "$TMP/in$s" 0.5 "$LIGHT"
+    offaxis "$TMP/in$s"
+    scale_scene "$TMP/in$s" "$s"
+    if chain "$TMP/in$s/scene.json" "in$s" -n 20000 && "$BIN/measure-error" "$TMP/in$s.exr" "$TMP/s1.exr" -q -o "$TMP/in$s.json" &&
+        awk -v r="$(stat "$TMP/in$s.json" relmse)" 'BEGIN { exit !(r < 1e-6) }'; then
+        pass "scale $s, inside the limits: the image equals the unscaled box's (relative MSE $(stat "$TMP/in$s.json" relmse))"
+    else
+        fail "scale $s, inside the limits" "$(head -c 300 "$TMP/in$s.err") relmse $(stat "$TMP/in$s.json" relmse 2>/dev/null)"
+    fi
+done
+# A camera or light beyond 1e18 m (Embree aborts on a ray starting there): refused.
+make_box "$TMP/far" 0.5 "$LIGHT"
+jq '.camera.eye = [0, 0, 1e20]' "$TMP/far/scene.json" >"$TMP/far/eye.json"
+expect_error "camera eye at 1e20 m: refused in one line" "camera.eye: element 2 = 1e\+20 is outside \[-1e\+18, 1e\+18\]" \
+    "$BIN/trace-gather-points" "$TMP/far/eye.json" -q -o "$TMP/far.q.pm"
+# A triangle below 1e-18 m^2 in an ordinary room (its float normal underflows) is left out and
+# counted like a zero-area one; the rest renders.
+make_box "$TMP/speck" 0.5 "$LIGHT"
+printf 'v 0 0 0\nv 1e-10 0 0\nv 0 1e-9 0\nf 9 10 11\n' >>"$TMP/speck/box.obj"
+if "$BIN/scene-info" "$TMP/speck/scene.json" | grep -q '^triangles: 12 (1 degenerate left out)$' &&
+    "$BIN/trace-photons" "$TMP/speck/scene.json" -n 2000 -q -o "$TMP/speck.ph.pm"; then
+    pass "a triangle of 5e-20 m^2 is left out and counted; trace-photons runs"
+else
+    fail "a triangle of 5e-20 m^2" "$("$BIN/scene-info" "$TMP/speck/scene.json" 2>&1 | head -2 | tr '\n' ' ')"
+fi
+
+# ---- 9. A kernel radius the data makes infinite (issue 17, item 12) -----------------------
+# Queries spread to 3e38 m: the radius --k finds is inf. The data is at fault, not the
+# command line: an input error, exit 1 (it was a usage error, exit 2).
+"$BUILD/tests/pm-testgen" photons 100 "$TMP/inf.ph.pm" && "$BIN/build-photonmap" -q "$TMP/inf.ph.pm" -o "$TMP/inf.map.pm"
+"$BUILD/tests/pm-testgen" queries 10 "$TMP/inf.q.pm" --shape huge --set weights=lambertian-brdf-folded
+for g in simd-gather reverse-gather; do
+    expect_error "$g --k on queries near 3e38 m: an input error, exit 1" \
+        "kernel radius inf m for --k 5 from the photons of .* \(input error\)$" \
+        "$BIN/$g" "$TMP/inf.map.pm" "$TMP/inf.q.pm" --k 5 -q -o "$TMP/inf.out.pm"
+done

@@ -159,3 +159,62 @@ mkdir -p "$TMP/full"
 expect_error "a write that fails (file size limit)" "cannot write '.*full/big.pm': File too large" \
     bash -c "trap '' XFSZ; ulimit -f 64; '$TG' photons 100000 '$TMP/full/big.pm'"
 if [ -z "$(ls -A "$TMP/full")" ]; then pass "a failed write leaves nothing behind"; else fail "a failed write leaves nothing behind" "$(ls -A "$TMP/full")"; fi
+
+# ---- the image-size cap (issue 17, item 10) ----------------------------------------------
+# A queries header may declare at most 65536 pixels a side and 2^26 in all (docs/formats.md):
+# 65536 x 2048 in a 4 KB file made simd-gather write a 3.2 GB buffer. The header is edited
+# past the cap and the checksum resealed (no writer writes it), so the readers' own check
+# refuses it: pm-info and simd-gather with one line, exit 1, before any buffer is made.
+"$TG" queries 100 "$TMP/cap0.pm" --set width=65536
+sed 's/^height=4$/height=2048/; s/^COMMAND=.*/&\nweights=lambertian-brdf-folded/' "$TMP/cap0.pm" >"$TMP/cap1.pm"
+"$TG" reseal "$TMP/cap1.pm" "$TMP/cap.pm"
+expect_error "a queries header of 65536 x 2048 pixels is refused by the reader" \
+    "queries '.*cap.pm': image size 65536x2048 outside 1..65536 per side and 67108864 pixels in all \(input error\)$" \
+    "$BIN/pm-info" "$TMP/cap.pm"
+"$TG" photons 100 "$TMP/cap-ph.pm" && "$BIN/build-photonmap" -q "$TMP/cap-ph.pm" -o "$TMP/cap-map.pm"
+expect_error "simd-gather refuses a 65536 x 2048 queries header and writes no buffer" "image size 65536x2048 outside" \
+    "$BIN/simd-gather" -q "$TMP/cap-map.pm" "$TMP/cap.pm" --radius 0.1 -o "$TMP/cap-out.pm"
+[ -e "$TMP/cap-out.pm" ] && fail "simd-gather past the cap: no output" "cap-out.pm exists" ||
+    pass "simd-gather past the cap: no output"
+# 8192 x 8192 is the largest square: the header reads (the records need not fill it)
+sed 's/^height=4$/height=1024/' "$TMP/cap0.pm" >"$TMP/cap2.pm"
+"$TG" reseal "$TMP/cap2.pm" "$TMP/cap-max.pm"
+expect_exit "a queries header of 65536 x 1024 pixels (2^26, the cap) reads" 0 "$BIN/pm-info" -q "$TMP/cap-max.pm"
+# the stages that take --width/--height refuse beyond the cap, a usage error (exit 2)
+for s in trace-gather-points trace-reference; do
+    expect_exit "$s --width 65536 --height 2048: refused, exit 2" 2 \
+        "$BIN/$s" scenes/cornell-box/scene.json --width 65536 --height 2048 -q -o "$TMP/cap-$s.out"
+    grep -q "image size 65536x2048 outside .* (usage error)$" "$TMP/err" && [ "$(wc -l <"$TMP/err")" = 1 ] &&
+        pass "$s: one line naming the size and the limits" || fail "$s past the cap" "$(cat "$TMP/err")"
+done
+
+# ---- a read error is reported as one (issue 17, item 12) ---------------------------------
+# A stream that cannot be read (here stdin closed) is not an "empty input": the line says
+# what the system said, an io error.
+expect_error "closed stdin: the read error and errno, not 'empty input'" \
+    "^pm-info: cannot read 'stdin': Bad file descriptor \(io error\)$" bash -c "exec <&-; '$BIN/pm-info' -"
+expect_error "an empty file is still an empty input" "empty input '.*empty.pm'" \
+    bash -c ": >'$TMP/empty.pm'; '$BIN/pm-info' '$TMP/empty.pm'"
+
+# ---- binary output to a terminal (issue 17, item 13) -------------------------------------
+# With no -o and stdout a terminal, a stage refuses as gzip does: one line, usage (exit 2),
+# nothing written to the terminal. script(1) (util-linux) gives the program a terminal.
+if command -v script >/dev/null; then
+    script -qec "'$BIN/trace-photons' scenes/cornell-box/scene.json -n 100 -q" /dev/null >"$TMP/tty.out" 2>&1
+    got=$?
+    if [ "$got" = 2 ] && grep -q "trace-photons: refusing to write a binary photons file to a terminal (stdout): give -o FILE or pipe it (usage error)" "$TMP/tty.out" &&
+        ! grep -aq 'PMTK' "$TMP/tty.out"; then
+        pass "trace-photons with stdout on a terminal refuses in one line, exit 2, no bytes of the file"
+    else
+        fail "trace-photons to a terminal" "exit $got: $(head -c 200 "$TMP/tty.out" | tr -c '[:print:]' '?')"
+    fi
+    script -qec "'$BIN/hilbert-sort' '$G/queries-all.pm' -q -o -" /dev/null >"$TMP/tty.out" 2>&1
+    got=$?
+    [ "$got" = 2 ] && grep -q "refusing to write a binary queries file to a terminal" "$TMP/tty.out" &&
+        pass "hilbert-sort -o - onto a terminal refuses too" || fail "hilbert-sort to a terminal" "exit $got"
+    # a pipe is not a terminal: the same command writes
+    "$BIN/trace-photons" scenes/cornell-box/scene.json -n 100 -q | "$BIN/pm-info" -q - >/dev/null 2>"$TMP/err" &&
+        pass "trace-photons into a pipe still writes" || fail "trace-photons into a pipe" "$(cat "$TMP/err")"
+else
+    skip "binary output to a terminal" "script (util-linux) is not installed"
+fi

@@ -87,12 +87,24 @@ static size_t dir_len(const char *path)
     return slash ? (size_t)(slash - path + 1) : 0;
 }
 
+/* Whether p names a file descriptor of this process (/dev/fd/N, /dev/stdout's /proc/self/fd/1):
+ * a link the kernel resolves to whatever the descriptor holds, not a name to replace. */
+static int fd_alias(const char *p)
+{
+    return strncmp(p, "/dev/fd/", 8) == 0 || (strncmp(p, "/proc/", 6) == 0 && strstr(p, "/fd/"));
+}
+
 /* The file a write to path lands on: path itself, or the end of its chain of symbolic links
- * (which need not exist: a dangling link names the file to create). *out is malloc'd. */
-static pm_result_t resolve_links(const char *path, char **out)
+ * (which need not exist: a dangling link names the file to create). *out is malloc'd;
+ * *via_fd_out (may be NULL): whether the chain passed through a file descriptor's name. */
+static pm_result_t resolve_links(const char *path, char **out, int *via_fd_out)
 {
     char *cur = strdup(path);
+    if (via_fd_out)
+        *via_fd_out = 0;
     for (int hops = 0; cur; hops++) {
+        if (via_fd_out && fd_alias(cur))
+            *via_fd_out = 1;
         struct stat sb;
         if (lstat(cur, &sb) != 0 || !S_ISLNK(sb.st_mode)) {
             *out = cur;
@@ -134,7 +146,16 @@ static pm_result_t classify(const char *path, pm_atomic_t *out)
         return pm_error_set(PM_ERR_NOMEM, "out of memory opening '%s'", path);
     if (out->special)
         return PM_OK;
-    pm_result_t r = resolve_links(path, &out->target);
+    int via_fd;
+    pm_result_t r = resolve_links(path, &out->target, &via_fd);
+    /* /dev/stdout or /dev/fd/N on a regular file: write to what the descriptor holds, as the
+     * caller's shell opened it, rather than replace the file behind it. */
+    if (r == PM_OK && via_fd) {
+        free(out->target);
+        out->target = NULL;
+        out->special = 2;
+        return PM_OK;
+    }
     if (r == PM_OK && !out->target[dir_len(out->target)])
         r = pm_error_set(PM_ERR_USAGE, "output '%s' names a directory, not a file", path);
     if (r != PM_OK)
@@ -184,8 +205,13 @@ static pm_result_t make_temp(pm_atomic_t *out, int *fd_out)
 }
 
 /* Opens a special file for writing through: no creation, no truncation (a device or a FIFO
- * has nothing to truncate). A FIFO's open waits for its reader, as a shell's '>' does. */
-static int open_special(const char *path) { return open(path, O_WRONLY | O_NOCTTY | O_CLOEXEC); }
+ * has nothing to truncate). A FIFO's open waits for its reader, as a shell's '>' does. A
+ * regular file reached through a descriptor's name (special 2) is appended to: the shell
+ * truncated it for '>' and did not for '>>'. */
+static int open_special(const char *path, int special)
+{
+    return open(path, O_WRONLY | O_NOCTTY | O_CLOEXEC | (special == 2 ? O_APPEND : 0));
+}
 
 pm_result_t pm_atomic_reserve(const char *path, pm_atomic_t *out)
 {
@@ -214,7 +240,7 @@ pm_result_t pm_atomic_open(const char *path, pm_atomic_t *out)
         return r;
     int fd = -1;
     if (out->special) {
-        if ((fd = open_special(path)) < 0) {
+        if ((fd = open_special(path, out->special)) < 0) {
             int e = errno;
             release(out);
             return pm_error_set(PM_ERR_IO, "cannot open output '%s': %s", path, strerror(e));
@@ -281,7 +307,7 @@ static pm_result_t prepare(pm_atomic_t *a)
 /* Copies a reserved temporary file into the special file it stands for. */
 static pm_result_t copy_to_special(const pm_atomic_t *a)
 {
-    int in = open(a->tmp_path, O_RDONLY | O_CLOEXEC), out = in >= 0 ? open_special(a->path) : -1, e = 0;
+    int in = open(a->tmp_path, O_RDONLY | O_CLOEXEC), out = in >= 0 ? open_special(a->path, a->special) : -1, e = 0;
     if (in < 0 || out < 0)
         e = errno;
     char buf[65536];
@@ -485,7 +511,7 @@ pm_result_t pm_atomic_set_end(pm_atomic_set_t *s, pm_result_t result)
 static char *canonical(const char *path)
 {
     char *t = NULL, dir[PATH_MAX];
-    if (resolve_links(path, &t) != PM_OK)
+    if (resolve_links(path, &t, NULL) != PM_OK)
         return NULL;
     size_t d = dir_len(t);
     char *parent = d ? strndup(t, d) : strdup(".");

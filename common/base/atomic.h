@@ -10,6 +10,8 @@
  *   "-"                   stdout, written directly
  *   a FIFO, a device, a socket (also /dev/null, /dev/stdout on a pipe or a terminal)
  *                         opened and written directly: no temporary file, no rename
+ *   /dev/stdout, /dev/fd/N on a regular file
+ *                         appended to directly: the file the descriptor holds is kept
  *   a symbolic link       followed to the end of its chain; the file it points to (which may
  *                         not exist yet) is replaced as above, and the link stays a link
  *   a directory           refused
@@ -34,7 +36,8 @@ typedef struct {
     char *target;   /* what the rename replaces: path, or the end of its symbolic links */
     char *tmp_path; /* the temporary path; NULL for stdout and for a special file */
     int slot;       /* index in the cleanup registry, -1 when none */
-    int special;    /* 1: path is a FIFO or device, written through (a reserved name is copied to it) */
+    int special;    /* 1: a FIFO or device, 2: a regular file behind /dev/fd/N; written through (a
+                     * reserved name is copied to it) */
 } pm_atomic_t;
 
 /* Outputs prepared while the set is open, renamed into place together. */

@@ -125,7 +125,8 @@ static pm_result_t set_value(const pm_option_t *o, const char *v)
         *(double *)o->dest = x;
         return PM_OK;
     }
-    case PM_OPT_STRING: *(const char **)o->dest = v; return PM_OK;
+    case PM_OPT_STRING:
+    case PM_OPT_OUTPUT: *(const char **)o->dest = v; return PM_OK;
     case PM_OPT_CHOICE:
         for (int i = 0; o->choices[i]; i++)
             if (strcmp(o->choices[i], v) == 0) {
@@ -264,6 +265,7 @@ void pm_args_free(pm_args_t *a)
     free(a->owned);
     free(a->argv);
     free(a->args);
+    free(a->given);
     memset(a, 0, sizeof *a);
 }
 
@@ -272,6 +274,11 @@ pm_result_t pm_args_parse(const pm_cli_t *cli, int argc, char **argv, pm_args_t 
     memset(out, 0, sizeof *out);
     words_t w = {0}, owned = {0}, pos = {0};
     pm_result_t r = PM_OK;
+    size_t nopts = 0;
+    while (cli->options[nopts].name)
+        nopts++;
+    if (!(out->given = calloc(nopts ? nopts : 1, 1)))
+        return pm_error_set(PM_ERR_NOMEM, "out of memory parsing arguments");
     for (int i = 1; i < argc && r == PM_OK; i++)
         r = words_push(&w, argv[i]);
     int only_positional = 0, expansions = 0;
@@ -333,7 +340,8 @@ pm_result_t pm_args_parse(const pm_cli_t *cli, int argc, char **argv, pm_args_t 
             }
             value = w.v[++i];
         }
-        r = set_value(o, value);
+        if ((r = set_value(o, value)) == PM_OK)
+            out->given[o - cli->options] = 1;
     }
     out->argv = w.v;
     out->owned = owned.v;
@@ -367,7 +375,8 @@ static void print_value(const pm_option_t *o, FILE *f)
     case PM_OPT_FLAG: fputs(*(int *)o->dest ? "on" : "off", f); break;
     case PM_OPT_INT: fprintf(f, "%" PRId64, *(int64_t *)o->dest); break;
     case PM_OPT_DOUBLE: fprintf(f, "%.9g", *(double *)o->dest); break;
-    case PM_OPT_STRING: {
+    case PM_OPT_STRING:
+    case PM_OPT_OUTPUT: {
         const char *s = *(const char **)o->dest;
         fputs(s ? s : "none", f);
         break;
@@ -411,10 +420,11 @@ void pm_args_print_settings(const pm_cli_t *cli, FILE *f)
                 fprintf(f, "--%s\n", o->name);
             continue;
         }
-        if (o->kind == PM_OPT_STRING && !*(const char **)o->dest)
+        int text = o->kind == PM_OPT_STRING || o->kind == PM_OPT_OUTPUT;
+        if (text && !*(const char **)o->dest)
             continue;
         fprintf(f, "--%s ", o->name);
-        if (o->kind == PM_OPT_STRING)
+        if (text)
             print_word(*(const char **)o->dest, f);
         else
             print_value(o, f);

@@ -19,7 +19,8 @@ typedef enum {
     PM_OPT_INT,    /* dest is int64_t*; accepts 500000, 5e5 (an exact integer) */
     PM_OPT_DOUBLE, /* dest is double*; finite values only */
     PM_OPT_STRING, /* dest is const char** (points into argv or the @file words) */
-    PM_OPT_CHOICE  /* dest is int*, the index of the word in choices */
+    PM_OPT_CHOICE, /* dest is int*, the index of the word in choices */
+    PM_OPT_OUTPUT  /* as STRING, a path the program writes: pm_stage_begin refuses two that name one file */
 } pm_opt_kind_t;
 
 typedef struct {
@@ -47,7 +48,8 @@ typedef struct {
     int nargs;
     char **owned; /* words read from @files, freed by pm_args_free */
     size_t nowned;
-    char **argv; /* the expanded argument vector */
+    char **argv;          /* the expanded argument vector */
+    unsigned char *given; /* one per option of the table: 1 when the command line set it */
 } pm_args_t;
 
 /* Parses argv[1..] into the table's destinations and the positional arguments.

@@ -53,6 +53,29 @@ static int begin_fail(pm_stage_t *st, pm_result_t code, int stats_known)
     return pm_result_exit_code(code);
 }
 
+/* Refuses two outputs of this command that name one file (pm_atomic_same_file): the second
+ * would replace the first, or both would interleave in one stream. Only options the command
+ * line gave count: a default "-" means different things to different programs. */
+static pm_result_t check_outputs(const pm_stage_t *st)
+{
+    const pm_option_t *o = st->cli->options;
+    for (size_t i = 0; o[i].name; i++) {
+        const char *a = o[i].kind == PM_OPT_OUTPUT && st->args.given[i] ? *(const char **)o[i].dest : NULL;
+        /* --stats - is stderr, which no other output names. */
+        if (!a || (o[i].dest == &st->stats_path && !strcmp(a, "-")))
+            continue;
+        for (size_t j = 0; j < i; j++) {
+            const char *b = o[j].kind == PM_OPT_OUTPUT && st->args.given[j] ? *(const char **)o[j].dest : NULL;
+            if (!b || (o[j].dest == &st->stats_path && !strcmp(b, "-")))
+                continue;
+            if (pm_atomic_same_file(a, b))
+                return pm_error_set(PM_ERR_USAGE, "two outputs to one file '%s': --%s and --%s",
+                                    strcmp(b, "-") ? b : "stdout", o[j].name, o[i].name);
+        }
+    }
+    return PM_OK;
+}
+
 int pm_stage_begin(pm_stage_t *st, const pm_cli_t *cli, int argc, char **argv)
 {
     st->name = cli->program;
@@ -95,6 +118,9 @@ int pm_stage_begin(pm_stage_t *st, const pm_cli_t *cli, int argc, char **argv)
             pm_error_set(PM_ERR_USAGE, "expected %d to %d arguments, got %d", cli->min_args, cli->max_args, n);
         return begin_fail(st, PM_ERR_USAGE, 1);
     }
+    /* No stats for a clash: the --stats file may be one of the two. */
+    if (check_outputs(st) != PM_OK)
+        return begin_fail(st, PM_ERR_USAGE, 0);
     if (st->stats_path) {
         st->stats = calloc(1, sizeof *st->stats);
         if (st->stats)
@@ -201,10 +227,19 @@ pm_result_t pm_stage_open_output(pm_stage_t *st, FILE **f_out)
     return r;
 }
 
+void pm_stage_output_set(pm_stage_t *st)
+{
+    if (!st->outputs.open)
+        pm_atomic_set_begin(&st->outputs);
+}
+
 int pm_stage_end(pm_stage_t *st, pm_result_t result)
 {
     if (st->out.f)
         result = result == PM_OK ? pm_atomic_commit(&st->out) : (pm_atomic_abort(&st->out), result);
+    /* The set before the stats: the stats say whether its renames succeeded. */
+    if (st->outputs.open)
+        result = pm_atomic_set_end(&st->outputs, result);
     int stats_failed = 0;
     if (result == PM_OK && st->stats_path) {
         result = write_stats(st, PM_OK, NULL);

@@ -41,18 +41,19 @@ typedef struct {
     int quiet, help, version, print_settings;
     int threads_used;
     pm_timer_t timer;
-    pm_stats_t *stats; /* the stage's counters, written by pm_stage_end */
-    uint64_t items;    /* what items_per_s counts (photons, queries, ...) */
-    pm_atomic_t out;   /* the -o output of a text-writing program, once opened */
+    pm_stats_t *stats;       /* the stage's counters, written by pm_stage_end */
+    uint64_t items;          /* what items_per_s counts (photons, queries, ...) */
+    pm_atomic_t out;         /* the -o output of a text-writing program, once opened */
+    pm_atomic_set_t outputs; /* with pm_stage_output_set: every output, renamed at pm_stage_end */
 } pm_stage_t;
 
 /* A table, one option a line, as in the stages' own tables; clang-format would set each field on a line of its own. */
 /* clang-format off */
 #define PM_STAGE_COMMON_OPTIONS(st)                                                                                    \
-    {"output", 'o', PM_OPT_STRING, &(st).output, "FILE", "write the output here; - is stdout", 1, 0, NULL},            \
+    {"output", 'o', PM_OPT_OUTPUT, &(st).output, "FILE", "write the output here; - is stdout", 1, 0, NULL},            \
         {"threads", 0, PM_OPT_INT, &(st).threads, "N", "worker threads; 0 uses every core", 0, 4096, NULL},            \
         {"seed", 0, PM_OPT_INT, &(st).seed, "N", "seed of the counter-based random numbers", 0, 9.2e18, NULL},         \
-        {"stats", 0, PM_OPT_STRING, &(st).stats_path, "FILE", "write counters and timings as JSON; - is stderr",       \
+        {"stats", 0, PM_OPT_OUTPUT, &(st).stats_path, "FILE", "write counters and timings as JSON; - is stderr",       \
          1, 0, NULL},                                                                                                  \
         {"quiet", 'q', PM_OPT_FLAG, &(st).quiet, NULL, "no progress bar and no notes on stderr", 1, 0, NULL},          \
         {"print-settings", 0, PM_OPT_FLAG, &(st).print_settings, NULL,                                                 \
@@ -64,13 +65,21 @@ typedef struct {
 /* Call before the option table is built: sets common defaults (output "-", seed 1). */
 void pm_stage_defaults(pm_stage_t *st);
 
-/* Parses options and handles --help, --version, --print-settings, positional counts.
+/* Parses options and handles --help, --version, --print-settings, positional counts, and
+ * refuses (usage error, before any work) two PM_OPT_OUTPUT options given one file
+ * (pm_atomic_same_file; "-" twice is stdout twice, except --stats -, which is stderr).
  * Returns -1 to go on, or the exit status to return now. */
 int pm_stage_begin(pm_stage_t *st, const pm_cli_t *cli, int argc, char **argv);
 
 /* Opens -o (stdout for "-") for a program whose output is text; pm_stage_end commits it
  * on success and removes it on failure. Stages writing pmtk files use pm_writer instead. */
 pm_result_t pm_stage_open_output(pm_stage_t *st, FILE **f_out);
+
+/* Makes every output this program commits from now on part of one set (base/atomic.h),
+ * renamed into place by pm_stage_end when the run succeeds and removed when it fails, so that
+ * a program of several outputs leaves all of them or none. --stats is not in the set: it is
+ * written on failure too. */
+void pm_stage_output_set(pm_stage_t *st);
 
 /* Progress bar wish: not quiet. */
 static inline int pm_stage_progress(const pm_stage_t *st) { return !st->quiet; }

@@ -14,6 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/atomic.h"
 #include "base/cpu.h"
 #include "base/exr.h"
 #include "base/progress.h"
@@ -273,6 +274,8 @@ pm_result_t pm_pathtrace_write(const pm_pathtracer_t *pt, const pm_pathtrace_out
     float *rgb = malloc(np * 3 * sizeof(float));
     if (!rgb)
         return pm_error_set(PM_ERR_NOMEM, "out of memory for a %" PRIu32 "x%" PRIu32 " image", c->width, c->height);
+    pm_atomic_set_t set; /* the EXR and the radiance buffer of a pass appear together, or neither */
+    pm_atomic_set_begin(&set);
     pm_result_t r = PM_OK;
     for (size_t i = 0; i < 3 * np && r == PM_OK; i++) {
         if (!(pt->mean[i] <= FLT_MAX))
@@ -303,7 +306,7 @@ pm_result_t pm_pathtrace_write(const pm_pathtracer_t *pt, const pm_pathtrace_out
                              sizeof attrs / sizeof attrs[0]);
     free(rgb);
     if (r != PM_OK || !out->radiance)
-        return r;
+        return pm_atomic_set_end(&set, r);
 
     pm_table_t t = {0};
     r = pm_table_alloc(&t, &pm_radiance_schema, (1u << PM_RADIANCE_RGB) | (1u << PM_RADIANCE_VARIANCE), np);
@@ -317,7 +320,7 @@ pm_result_t pm_pathtrace_write(const pm_pathtracer_t *pt, const pm_pathtrace_out
         r = pm_table_write(&t, out->radiance);
     }
     pm_table_free(&t);
-    return r;
+    return pm_atomic_set_end(&set, r);
 }
 
 pm_result_t pm_pathtrace_resume(pm_pathtracer_t *pt, const char *path)

@@ -38,6 +38,7 @@ static pm_result_t run(pm_stage_t *st, const composite_options_t *o)
     if (!to_exr && !o->png && !o->radiance)
         return pm_error_set(PM_ERR_USAGE, "no output: give -o IMAGE.exr (OpenEXR cannot write to a pipe), --png or "
                                           "--radiance");
+    pm_stage_output_set(st); /* the EXR, the PNG and the radiance buffer appear together, or none */
     pm_composite_t *c;
     pm_result_t r = pm_composite_open(&c, st->args.args, st->args.nargs, (pm_composite_only_t)o->only);
     double t0 = pm_time_wall();
@@ -88,11 +89,11 @@ int main(int argc, char **argv)
          NULL},
         {"compression", 0, PM_OPT_CHOICE, &o.compression, "HOW", "EXR compression: zip (lossless), none or piz", 1, 0,
          compression_names},
-        {"png", 0, PM_OPT_STRING, &o.png, "FILE", "also write an 8-bit sRGB PNG preview here", 1, 0, NULL},
+        {"png", 0, PM_OPT_OUTPUT, &o.png, "FILE", "also write an 8-bit sRGB PNG preview here", 1, 0, NULL},
         {"exposure", 0, PM_OPT_DOUBLE, &o.exposure, "EV", "the preview shows radiance times 2^EV", -64, 64, NULL},
         {"tone", 0, PM_OPT_CHOICE, &o.tone, "CURVE",
          "preview tone curve: srgb (clip at 1) or filmic (ACES fit, rolls highlights off)", 1, 0, pm_tone_names},
-        {"radiance", 0, PM_OPT_STRING, &o.radiance, "FILE", "also write the sum as a pmtk radiance buffer", 1, 0, NULL},
+        {"radiance", 0, PM_OPT_OUTPUT, &o.radiance, "FILE", "also write the sum as a pmtk radiance buffer", 1, 0, NULL},
         {0},
     };
     static const char about[] =

@@ -28,6 +28,7 @@ typedef struct {
 
 static pm_result_t run(pm_stage_t *st, const measure_options_t *o)
 {
+    pm_stage_output_set(st); /* the JSON and the error image appear together, or neither */
     pm_rgb_image_t t, r;
     const char *tn = st->args.args[0], *rn = st->args.args[1];
     if (!strcmp(tn, "-") && !strcmp(rn, "-"))
@@ -77,7 +78,7 @@ int main(int argc, char **argv)
         {"epsilon", 0, PM_OPT_DOUBLE, &o.epsilon, "E",
          "added to r^2 in relmse and to |r| in mean_abs_rel, so dark reference pixels do not dominate", 1e-300, 1e300,
          NULL},
-        {"error-image", 0, PM_OPT_STRING, &o.error_path, "FILE", "also write the per-pixel error as a float EXR", 1, 0,
+        {"error-image", 0, PM_OPT_OUTPUT, &o.error_path, "FILE", "also write the per-pixel error as a float EXR", 1, 0,
          NULL},
         {"error-kind", 0, PM_OPT_CHOICE, &o.error_kind, "KIND",
          "what the error image holds: |t - r| or |t - r| / (|r| + epsilon)", 1, 0, pm_errimg_names},

@@ -22,6 +22,7 @@ static pm_result_t run(pm_stage_t *st, const scene_info_options_t *o)
 {
     if (o->preview && strcmp(o->preview, "-") == 0)
         return pm_error_set(PM_ERR_USAGE, "--preview needs a file: stdout carries the summary");
+    pm_stage_output_set(st); /* the summary and the preview appear together, or neither */
     pm_scene_t s;
     pm_rt_t rt;
     FILE *out;
@@ -73,7 +74,7 @@ int main(int argc, char **argv)
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
         {"probe", 0, PM_OPT_FLAG, &o.probe, NULL, "cast one primary ray per pixel and report the hit rate", 1, 0, NULL},
-        {"preview", 0, PM_OPT_STRING, &o.preview, "PNG",
+        {"preview", 0, PM_OPT_OUTPUT, &o.preview, "PNG",
          "also write an eye-light preview (albedo times cosine) of the camera's view", 1, 0, NULL},
         {"json", 0, PM_OPT_FLAG, &o.json, NULL, "print the summary as one JSON object instead of text", 1, 0, NULL},
         {0},

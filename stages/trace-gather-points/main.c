@@ -59,20 +59,12 @@ static pm_result_t write_records(void *writer, const void *records, uint64_t cou
 }
 
 /* A writable output path is checked before minutes of tracing, not after. */
-static pm_result_t check_writable(const char *path)
-{
-    if (!path || strcmp(path, "-") == 0)
-        return PM_OK;
-    pm_atomic_t a;
-    pm_result_t r = pm_atomic_open(path, &a);
-    if (r == PM_OK)
-        pm_atomic_abort(&a);
-    return r;
-}
+static pm_result_t check_writable(const char *path) { return path ? pm_atomic_check(path) : PM_OK; }
 
-/* Both outputs: headers, then records; the queries file is committed first. */
-static pm_result_t write_outputs(const pm_stage_t *st, const tgp_options_t *o, const pm_eye_t *e, tgp_sink_t *k)
+/* Both outputs: headers, then records; both renamed into place together by pm_stage_end. */
+static pm_result_t write_outputs(pm_stage_t *st, const tgp_options_t *o, const pm_eye_t *e, tgp_sink_t *k)
 {
+    pm_stage_output_set(st);
     pm_header_t qh, dh;
     pm_writer_t *qw = NULL, *dw = NULL;
     pm_result_t r = pm_eye_queries_header(e, st->argc, st->argv, k->spool.count, &qh);
@@ -192,7 +184,7 @@ int main(int argc, char **argv)
     tgp_options_t o = {.primary = 1, .light_samples = 4, .isa = "auto", .spool_mb = 256};
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
-        {"direct", 0, PM_OPT_STRING, &o.direct, "FILE",
+        {"direct", 0, PM_OPT_OUTPUT, &o.direct, "FILE",
          "also write the direct radiance buffer (emission seen directly plus direct light) here", 1, 0, NULL},
         {"mode", 0, PM_OPT_CHOICE, &o.mode, "MODE",
          "gather: queries at secondary hits; direct-vis: the primary hits are the queries", 1, 0, pm_eye_mode_names},

@@ -120,7 +120,7 @@ int main(int argc, char **argv)
          4e9, NULL},
         {"time", 0, PM_OPT_DOUBLE, &o.time_s, "S",
          "stop after S seconds, at the end of a pass (at least one pass runs); 0: no limit", 0, 1e9, NULL},
-        {"radiance", 0, PM_OPT_STRING, &o.radiance, "FILE",
+        {"radiance", 0, PM_OPT_OUTPUT, &o.radiance, "FILE",
          "also write the f64 radiance buffer with each pixel's variance (for measure-error and --resume)", 1, 0, NULL},
         {"resume", 0, PM_OPT_STRING, &o.resume, "FILE",
          "continue the samples of an earlier --radiance FILE of the same scene, size, seed and pixel", 1, 0, NULL},
@@ -154,7 +154,7 @@ int main(int argc, char **argv)
     if (!strcmp(st.output, "-"))
         return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "an OpenEXR output needs a file name (OpenEXR cannot "
                                                             "write to a pipe): -o OUT.exr"));
-    if (o.radiance && (!strcmp(o.radiance, "-") || !strcmp(o.radiance, st.output)))
+    if (o.radiance && (!strcmp(o.radiance, "-") || pm_atomic_same_file(o.radiance, st.output)))
         return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "--radiance needs a file of its own"));
     pm_scene_t s;
     pm_result_t r = pm_scene_load(st.args.args[0], &s);

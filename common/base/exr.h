@@ -3,8 +3,9 @@
  *
  * One scanline part, channels R G B (stored B G R, the order OpenEXR sorts them in), ZIP
  * compression by default, float or half. String attributes carry provenance. Writes go
- * through a temporary file renamed into place (common/base/atomic.h): OpenEXR needs a seekable
- * file, so there is no stdout variant. */
+ * through a temporary file renamed into place (common/base/atomic.h); OpenEXR needs a seekable
+ * file, so there is no stdout variant, and an EXR for a FIFO or device is written to a
+ * temporary file first and copied in when complete. */
 #ifndef PM_EXR_H
 #define PM_EXR_H
 

@@ -7,6 +7,7 @@
 #include <fcntl.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "base/memory.h"
@@ -139,7 +140,10 @@ void pm_spool_dir_for(const char *path, char *dir, size_t cap)
 {
     if (!cap)
         return;
-    if (!path || strcmp(path, "-") == 0) {
+    /* stdout, or an output that is not a regular file (a FIFO, /dev/null): its folder is no
+     * place for a spill file, so the system's temporary folder takes it. */
+    struct stat sb;
+    if (!path || strcmp(path, "-") == 0 || (stat(path, &sb) == 0 && !S_ISREG(sb.st_mode))) {
         const char *tmp = getenv("TMPDIR");
         snprintf(dir, cap, "%s", tmp && *tmp ? tmp : "/tmp");
         return;

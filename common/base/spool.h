@@ -49,7 +49,8 @@ static inline int pm_spool_spilled(const pm_spool_t *sp) { return sp->f != NULL;
 void pm_spool_free(pm_spool_t *sp);
 
 /* The directory a spool for output path belongs in, into dir (cap bytes): the folder of path,
- * so that the spill lands on the disk the output goes to, or $TMPDIR (else /tmp) for "-". */
+ * so that the spill lands on the disk the output goes to, or $TMPDIR (else /tmp) for "-" and for an
+ * output that exists and is not a regular file (a FIFO, /dev/null). */
 void pm_spool_dir_for(const char *path, char *dir, size_t cap);
 
 #endif

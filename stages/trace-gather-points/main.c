@@ -20,6 +20,7 @@
 #include "render/eyetrace.h"
 #include "render/rt.h"
 #include "render/scene.h"
+#include "render/shade.h"
 
 typedef struct {
     const char *direct;    /* --direct FILE, NULL for none */
@@ -29,6 +30,7 @@ typedef struct {
     int64_t width, height; /* image size; 0: the scene camera's */
     int64_t spool_mb;      /* MiB of records held in memory before they spill to a temporary file */
     int mode, schedule;
+    int pixel; /* PM_PIXEL_BOX or PM_PIXEL_CENTER */
     const char *isa;
 } tgp_options_t;
 
@@ -144,6 +146,7 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
                                  .height = (uint32_t)o->height,
                                  .spp = (uint32_t)o->spp,
                                  .primary = (uint32_t)o->primary,
+                                 .pixel = o->pixel,
                                  .light_samples = (uint32_t)o->light_samples,
                                  .seed = (uint64_t)st->seed,
                                  .isa = isa,
@@ -179,7 +182,7 @@ int main(int argc, char **argv)
 {
     pm_stage_t st;
     pm_stage_defaults(&st);
-    tgp_options_t o = {.primary = 1, .light_samples = 4, .isa = "auto", .spool_mb = 256};
+    tgp_options_t o = {.primary = 1, .pixel = PM_PIXEL_BOX, .light_samples = 4, .isa = "auto", .spool_mb = 256};
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
         {"direct", 0, PM_OPT_STRING, &o.direct, "FILE",
@@ -188,7 +191,11 @@ int main(int argc, char **argv)
          "gather: queries at secondary hits; direct-vis: the primary hits are the queries", 1, 0, pm_eye_mode_names},
         {"spp", 0, PM_OPT_INT, &o.spp, "N",
          "secondary rays per primary hit, a multiple of 4; 0 takes the scene's render.spp", 0, 65536, NULL},
-        {"primary", 0, PM_OPT_INT, &o.primary, "N", "primary rays per pixel; more than 1 are jittered", 1, 4096, NULL},
+        {"primary", 0, PM_OPT_INT, &o.primary, "N", "primary rays per pixel, each weighted 1/N", 1, 4096, NULL},
+        {"pixel", 0, PM_OPT_CHOICE, &o.pixel, "HOW",
+         "box: rays stratified and jittered over the pixel, which is the mean over its area; center: every ray "
+         "through the pixel's centre",
+         1, 0, pm_pixel_names},
         {"light-samples", 0, PM_OPT_INT, &o.light_samples, "N", "points sampled on area lights per primary hit", 0,
          65536, NULL},
         {"width", 0, PM_OPT_INT, &o.width, "N", "image width in pixels; 0 takes the scene camera's", 0, 65536, NULL},

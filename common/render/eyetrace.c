@@ -627,6 +627,14 @@ pm_result_t pm_eye_queries_header(const pm_eye_t *c, int argc, char **argv, uint
     }
     if (r == PM_OK)
         r = pm_header_set(h, "weights", "lambertian-brdf-folded");
+    /* The scene's suggestions for the stages that read this file and not the scene: the
+     * gathers' kernel width and hilbert-sort's leaf (docs/formats.md 3.3). */
+    if (r == PM_OK)
+        r = pm_header_set(h, "render.k", "%" PRId64, s->defaults.k);
+    if (r == PM_OK)
+        r = pm_header_set(h, "render.radius", "%.9g", s->defaults.radius);
+    if (r == PM_OK)
+        r = pm_header_set(h, "render.leaf", "%" PRId64, s->defaults.leaf);
     return r;
 }
 

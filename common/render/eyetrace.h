@@ -97,7 +97,8 @@ pm_result_t pm_eye_trace(pm_eye_t *e, const pm_eye_sink_t *sink, pm_eye_stats_t 
 
 /* The headers of the two outputs, initialized here (free with pm_header_free): provenance
  * (argc, argv: this command), SCENE, sizes, mode, spp, primary, pixel, seed; the queries header also
- * its channels, the material table and the weight contract, with COUNT count; the direct one
+ * its channels, the material table, the weight contract and the scene's render.k, render.radius
+ * and render.leaf for the stages downstream, with COUNT count; the direct one
  * component=direct and light_samples, with COUNT width * height. */
 pm_result_t pm_eye_queries_header(const pm_eye_t *e, int argc, char **argv, uint64_t count, pm_header_t *h);
 pm_result_t pm_eye_direct_header(const pm_eye_t *e, int argc, char **argv, pm_header_t *h);

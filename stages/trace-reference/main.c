@@ -72,7 +72,7 @@ static pm_result_t run(pm_stage_t *st, const ref_options_t *o, const pm_scene_t 
     pm_pathtrace_settings_t set = {
         .width = o->width ? (uint32_t)o->width : s->camera.width,
         .height = o->height ? (uint32_t)o->height : s->camera.height,
-        .seed = (uint64_t)st->seed,
+        .seed = (uint64_t)(pm_args_given(&st->args, "seed") ? st->seed : s->defaults.seed),
         .max_bounces = (unsigned)o->max_bounces,
         .rr_start = (unsigned)o->rr_start,
         .pixel = o->pixel,

@@ -269,16 +269,25 @@ void pm_args_free(pm_args_t *a)
     memset(a, 0, sizeof *a);
 }
 
+int pm_args_given(const pm_args_t *a, const char *name)
+{
+    for (size_t i = 0; a->options && a->given && a->options[i].name; i++)
+        if (strcmp(a->options[i].name, name) == 0)
+            return a->given[i];
+    return 0;
+}
+
 pm_result_t pm_args_parse(const pm_cli_t *cli, int argc, char **argv, pm_args_t *out)
 {
     memset(out, 0, sizeof *out);
     words_t w = {0}, owned = {0}, pos = {0};
     pm_result_t r = PM_OK;
-    size_t nopts = 0;
-    while (cli->options[nopts].name)
-        nopts++;
-    if (!(out->given = calloc(nopts ? nopts : 1, 1)))
-        return pm_error_set(PM_ERR_NOMEM, "out of memory parsing arguments");
+    size_t nopt = 0;
+    while (cli->options[nopt].name)
+        nopt++;
+    out->options = cli->options;
+    if (!(out->given = calloc(nopt ? nopt : 1, 1)))
+        r = pm_error_set(PM_ERR_NOMEM, "out of memory for %zu options", nopt);
     for (int i = 1; i < argc && r == PM_OK; i++)
         r = words_push(&w, argv[i]);
     int only_positional = 0, expansions = 0;

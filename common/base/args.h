@@ -48,8 +48,9 @@ typedef struct {
     int nargs;
     char **owned; /* words read from @files, freed by pm_args_free */
     size_t nowned;
-    char **argv;          /* the expanded argument vector */
-    unsigned char *given; /* one per option of the table: 1 when the command line set it */
+    char **argv;                /* the expanded argument vector */
+    const pm_option_t *options; /* the table parsed */
+    unsigned char *given;       /* per option of the table: 1 when the words (argv or an @file) set it */
 } pm_args_t;
 
 /* Parses argv[1..] into the table's destinations and the positional arguments.
@@ -58,6 +59,11 @@ typedef struct {
  * a message naming the option and the offending word. */
 pm_result_t pm_args_parse(const pm_cli_t *cli, int argc, char **argv, pm_args_t *out);
 void pm_args_free(pm_args_t *a);
+
+/* Whether option `name` (long name, no "--") was given, so that a default from elsewhere (a
+ * scene's render block, an input's header) applies only when it was not: the command line
+ * wins. 0 for a name the table does not have. */
+int pm_args_given(const pm_args_t *a, const char *name);
 
 /* Usage: synopsis, summary and every option with its help and current (default) value. */
 void pm_args_usage(const pm_cli_t *cli, FILE *f);

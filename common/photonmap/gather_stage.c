@@ -64,6 +64,47 @@ pm_result_t pm_gather_inputs_read(pm_gather_inputs_t *in, const char *map_path, 
     return PM_OK;
 }
 
+/* A header key that holds a number in [lo, hi]: 1 when present (its value in *v), 0 when absent. */
+static pm_result_t header_number(const pm_gather_inputs_t *in, const char *key, double lo, double hi, double *v,
+                                 int *present)
+{
+    const char *s = pm_header_get(&in->q_table.hdr, key);
+    *present = s != NULL;
+    if (!s)
+        return PM_OK;
+    if (pm_parse_double(s, v) != PM_OK || !(*v >= lo && *v <= hi))
+        return pm_error_set(PM_ERR_INPUT, "queries '%s': header key %s '%s' is not a number in [%g, %g]", in->q_path,
+                            key, s, lo, hi);
+    return PM_OK;
+}
+
+pm_result_t pm_gather_inputs_scene_kernel(const pm_gather_inputs_t *in, const pm_args_t *args, double *radius,
+                                          double *k, const char **from_out)
+{
+    int radius_given = radius && pm_args_given(args, "radius"), k_given = pm_args_given(args, "k");
+    double sr = 0.0, sk = 0.0;
+    int has_r = 0, has_k = 0;
+    pm_result_t r = PM_OK;
+    if (radius && (r = header_number(in, "render.radius", 0.0, 1e18, &sr, &has_r)) != PM_OK)
+        return r;
+    if ((r = header_number(in, "render.k", 1.0, 1e7, &sk, &has_k)) != PM_OK)
+        return r;
+    if (radius_given && *radius > 0.0)
+        *from_out = "--radius";
+    else if (k_given)
+        *from_out = "--k";
+    else if (!radius_given && has_r && sr > 0.0)
+        *radius = sr, *from_out = "render.radius";
+    else if (has_k)
+        *k = sk, *from_out = "render.k";
+    else
+        *from_out = "default k";
+    /* The scene's k also stands behind a width the scene fixed, for the stats. */
+    if (!k_given && has_k)
+        *k = sk;
+    return PM_OK;
+}
+
 void pm_gather_inputs_free(pm_gather_inputs_t *in)
 {
     pm_free_aligned(in->per_query);

@@ -50,6 +50,16 @@ pm_result_t pm_gather_inputs_read(pm_gather_inputs_t *in, const char *map_path, 
                                   int variable);
 void pm_gather_inputs_free(pm_gather_inputs_t *in);
 
+/* The kernel width options after the scene's suggestions. An option given on the command line
+ * wins (a given --k alone also sets the width from k, leaving the scene's radius aside);
+ * otherwise the queries header's render.radius (when > 0) and render.k, which
+ * trace-gather-points copies from the scene's render block (docs/formats.md 3.3); a file without
+ * them keeps the options' defaults. radius is NULL for a stage without --radius (knn-gather).
+ * from_out names what set the width: "--radius", "--k", "render.radius", "render.k" or
+ * "default k". Fails with PM_ERR_INPUT on a header value that is not a number in range. */
+pm_result_t pm_gather_inputs_scene_kernel(const pm_gather_inputs_t *in, const pm_args_t *args, double *radius,
+                                          double *k, const char **from_out);
+
 /* The kernel width at which about k photons contribute to a query (pm_gather_radius_for_k),
  * measured on the queries of the pixels a hash picks, so that it does not depend on the
  * order of the queries; a shard samples the whole file (which must then not be stdin). */

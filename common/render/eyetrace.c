@@ -70,6 +70,7 @@ struct pm_eye {
     float *fold;          /* per material: kd/pi when Lambertian, 1 1 1 when glossy (the weight contract) */
     uint32_t w, h;
     unsigned spp, primary, light_samples, nx, ny;
+    int pixel; /* PM_PIXEL_BOX or PM_PIXEL_CENTER */
     int mode, schedule, width, threads, progress, has_mat, has_dir;
     uint32_t record_size, off_pos, off_nor, off_w, off_pix, off_mat, off_dir; /* bytes */
     uint64_t seed;
@@ -321,10 +322,11 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
         uint64_t pixel = (uint64_t)y * c->w + x;
         pm_rng_t jr;
         pm_rng_init(&jr, c->seed, 4 * pixel + STREAM_JITTER);
+        uint32_t sx = pm_rng_u32(&jr), sy = pm_rng_u32(&jr); /* the pixel's scramble */
         for (unsigned j = 0; j < c->primary; j++) {
             float jx = 0.5f, jy = 0.5f, d[3];
-            if (c->primary > 1)
-                jx = pm_rng_float(&jr), jy = pm_rng_float(&jr);
+            if (c->pixel == PM_PIXEL_BOX)
+                pm_pixel_offset(j, sx, sy, &jx, &jy);
             pm_camera_dir(&c->cam, (float)x + jx, (float)y + jy, d);
             pm_rays_push(&sc->prim, c->cam.eye, d, 0.0f, INFINITY);
         }
@@ -428,6 +430,7 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
     c->mode = o->mode;
     c->schedule = o->schedule;
     c->primary = o->primary ? o->primary : 1;
+    c->pixel = o->pixel == PM_PIXEL_CENTER ? PM_PIXEL_CENTER : PM_PIXEL_BOX;
     c->light_samples = o->light_samples;
     c->seed = o->seed;
     c->threads = o->threads > 0 ? o->threads : 1;
@@ -481,6 +484,7 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
                               .spp = c->spp,
                               .primary = c->primary,
                               .light_samples = c->light_samples,
+                              .pixel = c->pixel,
                               .seed = c->seed,
                               .packet_width = c->width,
                               .channels = mask,
@@ -601,6 +605,8 @@ static pm_result_t header_common(const pm_eye_t *c, int argc, char **argv, pm_he
     if (r == PM_OK)
         r = pm_header_set(h, "primary", "%u", c->primary);
     if (r == PM_OK)
+        r = pm_header_set(h, "pixel", "%s", pm_pixel_names[c->pixel]);
+    if (r == PM_OK)
         r = pm_header_set(h, "seed", "%" PRIu64, c->seed);
     return r;
 }
@@ -621,6 +627,14 @@ pm_result_t pm_eye_queries_header(const pm_eye_t *c, int argc, char **argv, uint
     }
     if (r == PM_OK)
         r = pm_header_set(h, "weights", "lambertian-brdf-folded");
+    /* The scene's suggestions for the stages that read this file and not the scene: the
+     * gathers' kernel width and hilbert-sort's leaf (docs/formats.md 3.3). */
+    if (r == PM_OK)
+        r = pm_header_set(h, "render.k", "%" PRId64, s->defaults.k);
+    if (r == PM_OK)
+        r = pm_header_set(h, "render.radius", "%.9g", s->defaults.radius);
+    if (r == PM_OK)
+        r = pm_header_set(h, "render.leaf", "%" PRId64, s->defaults.leaf);
     return r;
 }
 

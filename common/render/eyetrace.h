@@ -1,7 +1,9 @@
 /* eyetrace.h: the eye side of the final gather (the paper, sections 5.1 and 6.1), the engine of
  * trace-gather-points.
  *
- * Casts one primary ray per pixel (or `primary` jittered ones) as Embree packets; at each
+ * Casts `primary` rays per pixel as Embree packets: by default at stratified, jittered points
+ * over the pixel's area (pm_pixel_offset), so that the pixel is the mean over its area (a box
+ * filter), or all through its centre (PM_PIXEL_CENTER). At each
  * primary hit adds emission seen directly and direct light (shadow rays to point lights and to
  * sampled points of emissive triangles) into the direct radiance buffer; and spawns `spp`
  * cosine-weighted secondary rays, stratified with PM_EYE_PER_CELL samples per cell so that
@@ -38,7 +40,8 @@ typedef struct {
     int schedule;           /* PM_EYE_INTERLEAVE, PM_EYE_TILES or PM_EYE_DYNAMIC */
     uint32_t width, height; /* pixels; 0 takes the scene camera's */
     uint32_t spp;           /* secondary rays per primary hit (gather mode); 0 takes the scene's render.spp */
-    uint32_t primary;       /* primary rays per pixel, >= 1; more than 1 are jittered */
+    uint32_t primary;       /* primary rays per pixel, >= 1 */
+    int pixel;              /* PM_PIXEL_BOX (the default: rays stratified over the pixel) or PM_PIXEL_CENTER */
     uint32_t light_samples; /* area-light samples per primary hit */
     uint64_t seed;
     pm_isa_t isa; /* packet width (narrowed to what Embree runs natively) */
@@ -52,6 +55,7 @@ typedef struct {
     uint32_t width, height;
     uint32_t spp; /* 0 in direct-vis mode */
     uint32_t primary, light_samples;
+    int pixel; /* PM_PIXEL_BOX or PM_PIXEL_CENTER */
     uint64_t seed;
     int packet_width;     /* lanes: 1, 4, 8 or 16 */
     uint32_t channels;    /* mask of the queries channels written (direction, material only when needed) */
@@ -92,8 +96,9 @@ const pm_eye_info_t *pm_eye_info(const pm_eye_t *e);
 pm_result_t pm_eye_trace(pm_eye_t *e, const pm_eye_sink_t *sink, pm_eye_stats_t *stats_out);
 
 /* The headers of the two outputs, initialized here (free with pm_header_free): provenance
- * (argc, argv: this command), SCENE, sizes, mode, spp, primary, seed; the queries header also
- * its channels, the material table and the weight contract, with COUNT count; the direct one
+ * (argc, argv: this command), SCENE, sizes, mode, spp, primary, pixel, seed; the queries header also
+ * its channels, the material table, the weight contract and the scene's render.k, render.radius
+ * and render.leaf for the stages downstream, with COUNT count; the direct one
  * component=direct and light_samples, with COUNT width * height. */
 pm_result_t pm_eye_queries_header(const pm_eye_t *e, int argc, char **argv, uint64_t count, pm_header_t *h);
 pm_result_t pm_eye_direct_header(const pm_eye_t *e, int argc, char **argv, pm_header_t *h);

@@ -24,7 +24,6 @@
 #include "math/rng.h"
 #include "math/vec.h"
 
-const char *const pm_pt_pixel_names[] = {"center", "box", NULL};
 const char *const pm_pt_component_names[] = {"total", "direct", "indirect", NULL};
 
 /* Whether a contribution that reflected b times belongs to the component asked for. */
@@ -71,11 +70,17 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
     const pm_scene_t *s = pt->s;
     const pm_shade_geom_t *g = &pt->geom;
     const float eps = pt->rt->epsilon;
+    uint64_t pixel = (uint64_t)(y * pt->set.width + x) << 32;
     pm_rng_t rng;
-    pm_rng_init(&rng, pt->set.seed, ((uint64_t)(y * pt->set.width + x) << 32) | k);
     float jx = 0.5f, jy = 0.5f;
-    if (pt->set.pixel == PM_PT_PIXEL_BOX)
-        jx = pm_rng_float(&rng), jy = pm_rng_float(&rng);
+    if (pt->set.pixel == PM_PIXEL_BOX) {
+        /* The pixel's scramble comes from a stream no sample uses (k < 4e9 < 2^32 - 1), so the
+         * samples of a pixel stay stratified across passes and resumes. */
+        pm_rng_init(&rng, pt->set.seed, pixel | UINT32_MAX);
+        uint32_t sx = pm_rng_u32(&rng), sy = pm_rng_u32(&rng);
+        pm_pixel_offset(k, sx, sy, &jx, &jy);
+    }
+    pm_rng_init(&rng, pt->set.seed, pixel | k);
     float o[3] = {pt->cam.eye[0], pt->cam.eye[1], pt->cam.eye[2]}, d[3], t = 0.0f;
     pm_camera_dir(&pt->cam, (float)x + jx, (float)y + jy, d);
     L[0] = L[1] = L[2] = 0.0;
@@ -259,7 +264,7 @@ static pm_result_t header_common(pm_header_t *h, const pm_pathtracer_t *pt, cons
     if (r == PM_OK)
         r = pm_header_set(h, "seed", "%" PRIu64, c->seed);
     if (r == PM_OK)
-        r = pm_header_set(h, "pixel", "%s", pm_pt_pixel_names[c->pixel]);
+        r = pm_header_set(h, "pixel", "%s", pm_pixel_names[c->pixel]);
     if (r == PM_OK)
         r = pm_header_set(h, "max_bounces", "%u", c->max_bounces);
     if (r == PM_OK)
@@ -298,7 +303,7 @@ pm_result_t pm_pathtrace_write(const pm_pathtracer_t *pt, const pm_pathtrace_out
         {"estimator", "path-tracer"},
         {"samples", samples},
         {"seed", seed},
-        {"pixel", pm_pt_pixel_names[c->pixel]},
+        {"pixel", pm_pixel_names[c->pixel]},
         {"stderr_rms", rmse_s},
     };
     if (r == PM_OK)
@@ -337,7 +342,7 @@ pm_result_t pm_pathtrace_resume(pm_pathtracer_t *pt, const char *path)
     pm_scene_id(pt->s, id, sizeof id);
     const char *est = pm_header_get(&t.hdr, "estimator"), *scene = pm_header_get(&t.hdr, "SCENE"),
                *pix = pm_header_get(&t.hdr, "pixel"), *comp = pm_header_get(&t.hdr, "component");
-    const char *want_pix = pm_pt_pixel_names[c->pixel], *want_comp = pm_pt_component_names[c->component];
+    const char *want_pix = pm_pixel_names[c->pixel], *want_comp = pm_pt_component_names[c->component];
     if ((r = pm_header_get_image_size(&t.hdr, path, &w, &h)) != PM_OK ||
         (r = pm_header_get_u64(&t.hdr, path, "samples", &n)) != PM_OK ||
         (r = pm_header_get_u64(&t.hdr, path, "seed", &seed)) != PM_OK)

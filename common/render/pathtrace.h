@@ -14,8 +14,9 @@
  * (an OpenEXR image and optionally the f64 radiance buffer with each pixel's variance) after
  * every pass, so a long run can be stopped at any time and continued from that buffer
  * (pm_pathtrace_resume). Sample k of pixel p draws from the Philox stream (seed, p << 32 | k)
- * whatever the thread, pass or resume, and pixels are summed sample by sample in order: the
- * same settings give the same bits for any thread count.
+ * whatever the thread, pass or resume, and starts at point k of the pixel's scrambled
+ * (0,2)-sequence (pm_pixel_offset, scramble from stream p << 32 | 2^32 - 1), and pixels are summed sample by sample in
+ * order: the same settings give the same bits for any thread count.
  *
  * Units: radiance W/(m^2 sr). */
 #ifndef PM_PATHTRACE_H
@@ -28,10 +29,6 @@
 #include "render/scene.h"
 #include "render/shade.h"
 
-/* Where in the pixel a path starts: its centre (as trace-gather-points with --primary 1) or
- * uniform over it. */
-enum { PM_PT_PIXEL_CENTER = 0, PM_PT_PIXEL_BOX = 1 };
-extern const char *const pm_pt_pixel_names[]; /* "center", "box", NULL */
 /* Which light: a contribution that reflected b times on its way to the camera (emission seen
  * directly b = 0, direct light b = 1) is direct for b <= 1 and indirect beyond, as
  * trace-gather-points' direct buffer and simd-gather's indirect one split it. */
@@ -43,7 +40,7 @@ typedef struct {
     uint64_t seed;
     unsigned max_bounces; /* a path is cut after this many bounces (counted in capped) */
     unsigned rr_start;    /* bounces before Russian roulette may end a path */
-    int pixel;            /* PM_PT_PIXEL_* */
+    int pixel;            /* PM_PIXEL_BOX (sample k at pm_pixel_offset k) or PM_PIXEL_CENTER */
     int component;        /* PM_PT_* */
     int threads;          /* OpenMP threads of a pass, >= 1 */
 } pm_pathtrace_settings_t;

@@ -214,10 +214,13 @@ static pm_result_t load_lights(const ctx_t *c, json_t *lights)
 
 static pm_result_t load_defaults(const ctx_t *c, json_t *d)
 {
-    static const char *const keys[] = {"photons", "spp", "radius", "k", "leaf", "seed", NULL};
+    static const char *const keys[] = {"photons", "spp",  "primary", "light_samples", "radius", "k",
+                                       "leaf",    "seed", NULL};
     pm_render_defaults_t *o = &c->s->defaults;
     o->photons = 200000;
     o->spp = 16;
+    o->primary = 1;
+    o->light_samples = 4;
     o->radius = 0.0;
     o->k = 50;
     o->leaf = 16;
@@ -231,6 +234,10 @@ static pm_result_t load_defaults(const ctx_t *c, json_t *d)
         r = get_int(c, d, "photons", "render.photons", 0, 0, (int64_t)1 << 40, &o->photons);
     if (r == PM_OK)
         r = get_int(c, d, "spp", "render.spp", 0, 1, 1 << 20, &o->spp);
+    if (r == PM_OK)
+        r = get_int(c, d, "primary", "render.primary", 0, 1, 4096, &o->primary);
+    if (r == PM_OK)
+        r = get_int(c, d, "light_samples", "render.light_samples", 0, 0, 65536, &o->light_samples);
     if (r == PM_OK)
         r = get_number(c, d, "radius", "render.radius", 0, 0.0, PM_SCENE_COORD_MAX, &o->radius);
     if (r == PM_OK)

@@ -26,11 +26,13 @@ typedef struct {
 
 /* Render defaults a scene suggests; stages use them when their option is not given. */
 typedef struct {
-    int64_t photons; /* photons emitted */
-    int64_t spp;     /* secondary rays per pixel */
-    double radius;   /* m, fixed kernel width; 0 = choose from k */
-    int64_t k;       /* photons per query the radius aims at */
-    int64_t leaf;    /* hilbert-sort leaf size */
+    int64_t photons;       /* photons emitted */
+    int64_t spp;           /* secondary rays per pixel */
+    int64_t primary;       /* primary rays per pixel */
+    int64_t light_samples; /* area-light samples per primary hit */
+    double radius;         /* m, fixed kernel width; 0 = choose from k */
+    int64_t k;             /* photons per query the radius aims at */
+    int64_t leaf;          /* hilbert-sort leaf size */
     int64_t seed;
 } pm_render_defaults_t;
 

@@ -59,6 +59,22 @@ void pm_camera_dir(const pm_camera_rays_t *c, float px, float py, float d_out[3]
         d_out[k] = d[k] * len;
 }
 
+const char *const pm_pixel_names[] = {"box", "center", NULL};
+
+void pm_pixel_offset(uint32_t k, uint32_t sx, uint32_t sy, float *jx_out, float *jy_out)
+{
+    /* Bit i of k adds the generator column v_i: 2^-(i+1) for the radical inverse; for Sobol's
+     * second dimension (primitive polynomial x + 1) v_i = v_{i-1} xor v_{i-1} / 2. */
+    uint32_t x = 0, y = 0;
+    for (uint32_t vx = 1u << 31, vy = 1u << 31; k; k >>= 1, vx >>= 1, vy ^= vy >> 1)
+        if (k & 1u)
+            x ^= vx, y ^= vy;
+    x ^= sx, y ^= sy;
+    /* The top 24 bits: a float in [0, 1) that never rounds up to 1. */
+    *jx_out = (float)(x >> 8) * 0x1p-24f;
+    *jy_out = (float)(y >> 8) * 0x1p-24f;
+}
+
 pm_result_t pm_image_header_begin(pm_header_t *h, int argc, char **argv, const pm_scene_t *s, uint32_t w, uint32_t ht)
 {
     char id[200];

@@ -87,6 +87,13 @@ static pm_result_t run(pm_stage_t *st, const sort_options_t *o)
     if ((res = pm_reader_open(path, &pm_queries_schema, 0, &rd)) != PM_OK)
         return res;
     const pm_header_t *in = pm_reader_header(rd);
+    /* Without --leaf, the scene's render.leaf, which trace-gather-points copies into the header. */
+    const char *scene_leaf = pm_args_given(&st->args, "leaf") ? NULL : pm_header_get(in, "render.leaf");
+    if (scene_leaf && (res = parse_leaf(scene_leaf, &leaf, &is_auto)) != PM_OK) {
+        pm_reader_close(rd);
+        return pm_error_set(PM_ERR_INPUT, "queries '%s': header key render.leaf '%s' is not a count of at least 1",
+                            in_name, scene_leaf);
+    }
     uint64_t n = in->count;
     size_t rs = in->record_size;
     if (n > UINT32_MAX) {
@@ -139,6 +146,10 @@ static pm_result_t run(pm_stage_t *st, const sort_options_t *o)
         pm_stage_stat_string(st, "order", pm_order_names[order]);
         pm_stage_stat_int(st, "leaf", (int64_t)leaf);
         pm_stage_stat_string(st, "leaf_rule", is_auto ? "auto" : "fixed");
+        pm_stage_stat_string(st, "leaf_from",
+                             scene_leaf                         ? "render.leaf"
+                             : pm_args_given(&st->args, "leaf") ? "--leaf"
+                                                                : "default");
         pm_stage_stat_int(st, "octree_depth", info.depth);
         pm_stage_stat_int(st, "leaves", (int64_t)info.leaves);
         pm_stage_stat_int(st, "record_bytes", (int64_t)rs);

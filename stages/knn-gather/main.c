@@ -8,6 +8,7 @@
  * are independent and added to pixels in file order: the buffer is the same for any
  * thread count. common/photonmap/knn_gather.c does the work. */
 #include <inttypes.h>
+#include <math.h>
 #include <stdlib.h>
 
 #include "base/stage.h"
@@ -23,13 +24,22 @@ typedef struct {
     const char *range;
 } knn_options_t;
 
-static pm_result_t run(pm_stage_t *st, const knn_options_t *o)
+static pm_result_t run(pm_stage_t *st, const knn_options_t *opt)
 {
+    knn_options_t oo = *opt, *o = &oo; /* k may come from the queries header */
+    const char *k_from = NULL;
     pm_gather_inputs_t in;
     pm_table_t out = {0};
+    double k = (double)o->k;
     pm_result_t r = pm_gather_inputs_read(&in, st->args.args[0], st->args.args[1], o->range, 0);
-    if (r != PM_OK)
+    if (r != PM_OK || (r = pm_gather_inputs_scene_kernel(&in, &st->args, NULL, &k, &k_from)) != PM_OK)
         goto done;
+    if (k != floor(k) || k > 1e6) {
+        r = pm_error_set(PM_ERR_INPUT, "queries '%s': render.k %g is not a whole number up to 1000000 (knn-gather)",
+                         in.q_path, k);
+        goto done;
+    }
+    o->k = (int64_t)k;
     uint64_t nq = in.q.n;
     pm_knn_params_t p = {.k = (uint32_t)o->k,
                          .max_radius = o->max_radius,
@@ -55,6 +65,7 @@ static pm_result_t run(pm_stage_t *st, const knn_options_t *o)
 
     pm_gather_stage_stats(st, &in, o->kernel, ks.shader_ops, t_gather, ks.cpu_s, t_write);
     pm_stage_stat_int(st, "k", o->k);
+    pm_stage_stat_string(st, "k_from", k_from);
     pm_stage_stat_double(st, "queries_per_s", t_gather > 0 ? (double)nq / t_gather : 0.0);
     pm_stage_stat_double(st, "queries_per_cpu_s", ks.cpu_s > 0 ? (double)nq / ks.cpu_s : 0.0);
     pm_stage_stat_int(st, "photons_visited", (int64_t)ks.nodes_visited);

@@ -25,14 +25,16 @@ typedef struct {
     const char *range;
 } reverse_options_t;
 
-static pm_result_t run(pm_stage_t *st, const reverse_options_t *o)
+static pm_result_t run(pm_stage_t *st, const reverse_options_t *opt)
 {
+    reverse_options_t oo = *opt, *o = &oo; /* the kernel width may come from the queries header */
+    const char *width_from = NULL;
     pm_gather_inputs_t in;
     pm_table_t out = {0};
     if (o->radius == 0.0 && o->k <= 0.0)
         return pm_error_set(PM_ERR_USAGE, "give --radius R or --k K (photons per query) for the kernel width");
     pm_result_t r = pm_gather_inputs_read(&in, st->args.args[0], st->args.args[1], o->range, 0);
-    if (r != PM_OK)
+    if (r != PM_OK || (r = pm_gather_inputs_scene_kernel(&in, &st->args, &o->radius, &o->k, &width_from)) != PM_OK)
         goto done;
     double radius = o->radius, t_radius = 0.0, t0;
     if (radius == 0.0) {
@@ -61,6 +63,9 @@ static pm_result_t run(pm_stage_t *st, const reverse_options_t *o)
 
     pm_gather_stage_stats(st, &in, o->kernel, rs.shader_ops, t_gather, rs.cpu_s, t_write);
     pm_stage_stat_double(st, "radius_m", radius);
+    pm_stage_stat_string(st, "radius_from", width_from);
+    if (o->radius == 0.0)
+        pm_stage_stat_double(st, "k", o->k);
     pm_stage_stat_double(st, "shader_ops_per_s_search", rs.search_s > 0 ? (double)rs.shader_ops / rs.search_s : 0.0);
     pm_stage_stat_int(st, "queries_visited", (int64_t)rs.nodes_visited);
     pm_stage_stat_int(st, "subtree_searches", (int64_t)rs.searches);

@@ -28,8 +28,10 @@ typedef struct {
     const char *range;
 } gather_options_t;
 
-static pm_result_t run(pm_stage_t *st, const gather_options_t *o)
+static pm_result_t run(pm_stage_t *st, const gather_options_t *opt)
 {
+    gather_options_t oo = *opt, *o = &oo; /* the kernel width may come from the queries header */
+    const char *width_from = "--widths";
     pm_gather_inputs_t in;
     pm_table_t out = {0};
     pm_isa_t isa;
@@ -39,6 +41,8 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *o)
     if (o->radius == 0.0 && o->k <= 0.0 && !o->widths)
         return pm_error_set(PM_ERR_USAGE, "give --radius R or --k K (photons per query) for a fixed kernel width");
     if ((r = pm_gather_inputs_read(&in, st->args.args[0], st->args.args[1], o->range, o->widths)) != PM_OK)
+        goto done;
+    if (!o->widths && (r = pm_gather_inputs_scene_kernel(&in, &st->args, &o->radius, &o->k, &width_from)) != PM_OK)
         goto done;
 
     /* The kernel width. */
@@ -80,6 +84,9 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *o)
     pm_stage_stat_int(st, "packet_width", w);
     if (!o->widths)
         pm_stage_stat_double(st, "radius_m", radius);
+    pm_stage_stat_string(st, "radius_from", width_from);
+    if (!o->widths && o->radius == 0.0)
+        pm_stage_stat_double(st, "k", o->k);
     pm_stage_stat_double(st, "shader_ops_per_s_per_thread",
                          t_gather > 0 ? (double)gs.shader_ops / t_gather / st->threads_used : 0.0);
     pm_stage_stat_int(st, "photons_visited", (int64_t)gs.nodes_visited);

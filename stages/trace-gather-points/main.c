@@ -21,6 +21,7 @@
 #include "render/eyetrace.h"
 #include "render/rt.h"
 #include "render/scene.h"
+#include "render/shade.h"
 
 typedef struct {
     const char *direct;    /* --direct FILE, NULL for none */
@@ -30,6 +31,7 @@ typedef struct {
     int64_t width, height; /* image size; 0: the scene camera's */
     int64_t spool_mb;      /* MiB of records held in memory before they spill to a temporary file */
     int mode, schedule;
+    int pixel; /* PM_PIXEL_BOX or PM_PIXEL_CENTER */
     const char *isa;
 } tgp_options_t;
 
@@ -108,6 +110,10 @@ static void report(pm_stage_t *st, const tgp_options_t *o, const pm_eye_info_t *
     pm_stage_stat_int(st, "width", in->width);
     pm_stage_stat_int(st, "height", in->height);
     pm_stage_stat_int(st, "spp", in->spp);
+    pm_stage_stat_int(st, "primary", in->primary);
+    pm_stage_stat_string(st, "pixel", pm_pixel_names[in->pixel]);
+    pm_stage_stat_int(st, "light_samples", in->light_samples);
+    pm_stage_stat_int(st, "seed", (int64_t)in->seed);
     pm_stage_stat_int(st, "primary_rays", (int64_t)x->primary_rays);
     pm_stage_stat_int(st, "secondary_rays", (int64_t)x->secondary_rays);
     pm_stage_stat_int(st, "shadow_rays", (int64_t)x->shadow_rays);
@@ -131,17 +137,21 @@ static void report(pm_stage_t *st, const tgp_options_t *o, const pm_eye_info_t *
 
 static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t *s, const pm_rt_t *rt, pm_isa_t isa)
 {
-    const pm_eye_options_t eo = {.mode = o->mode,
-                                 .schedule = o->schedule,
-                                 .width = (uint32_t)o->width,
-                                 .height = (uint32_t)o->height,
-                                 .spp = (uint32_t)o->spp,
-                                 .primary = (uint32_t)o->primary,
-                                 .light_samples = (uint32_t)o->light_samples,
-                                 .seed = (uint64_t)st->seed,
-                                 .isa = isa,
-                                 .threads = st->threads_used,
-                                 .progress = pm_stage_progress(st)};
+    /* The scene's render block stands in for an option not given: the command line wins. */
+    const pm_args_t *a = &st->args;
+    const pm_eye_options_t eo = {
+        .mode = o->mode,
+        .schedule = o->schedule,
+        .width = (uint32_t)o->width,
+        .height = (uint32_t)o->height,
+        .spp = (uint32_t)o->spp,
+        .primary = (uint32_t)(pm_args_given(a, "primary") ? o->primary : s->defaults.primary),
+        .pixel = o->pixel,
+        .light_samples = (uint32_t)(pm_args_given(a, "light-samples") ? o->light_samples : s->defaults.light_samples),
+        .seed = (uint64_t)(pm_args_given(a, "seed") ? st->seed : s->defaults.seed),
+        .isa = isa,
+        .threads = st->threads_used,
+        .progress = pm_stage_progress(st)};
     /* The scene's own camera is within the image limits (scene.c): only --width or --height
      * can take it beyond them, a usage error. */
     if (pm_image_size_check(o->width ? (uint64_t)o->width : s->camera.width,
@@ -181,7 +191,7 @@ int main(int argc, char **argv)
 {
     pm_stage_t st;
     pm_stage_defaults(&st);
-    tgp_options_t o = {.primary = 1, .light_samples = 4, .isa = "auto", .spool_mb = 256};
+    tgp_options_t o = {.primary = 1, .pixel = PM_PIXEL_BOX, .light_samples = 4, .isa = "auto", .spool_mb = 256};
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
         {"direct", 0, PM_OPT_OUTPUT, &o.direct, "FILE",
@@ -190,9 +200,14 @@ int main(int argc, char **argv)
          "gather: queries at secondary hits; direct-vis: the primary hits are the queries", 1, 0, pm_eye_mode_names},
         {"spp", 0, PM_OPT_INT, &o.spp, "N",
          "secondary rays per primary hit, a multiple of 4; 0 takes the scene's render.spp", 0, 65536, NULL},
-        {"primary", 0, PM_OPT_INT, &o.primary, "N", "primary rays per pixel; more than 1 are jittered", 1, 4096, NULL},
-        {"light-samples", 0, PM_OPT_INT, &o.light_samples, "N", "points sampled on area lights per primary hit", 0,
-         65536, NULL},
+        {"primary", 0, PM_OPT_INT, &o.primary, "N",
+         "primary rays per pixel, each weighted 1/N; not given: the scene's render.primary", 1, 4096, NULL},
+        {"pixel", 0, PM_OPT_CHOICE, &o.pixel, "HOW",
+         "box: rays stratified and jittered over the pixel, which is the mean over its area; center: every ray "
+         "through the pixel's centre",
+         1, 0, pm_pixel_names},
+        {"light-samples", 0, PM_OPT_INT, &o.light_samples, "N",
+         "points sampled on area lights per primary hit; not given: the scene's render.light_samples", 0, 65536, NULL},
         {"width", 0, PM_OPT_INT, &o.width, "N", "image width in pixels; 0 takes the scene camera's", 0, 65536, NULL},
         {"height", 0, PM_OPT_INT, &o.height, "N", "image height in pixels; 0 takes the scene camera's", 0, 65536, NULL},
         {"isa", 0, PM_OPT_STRING, &o.isa, "ISA",

@@ -65,7 +65,7 @@ static pm_result_t run(pm_stage_t *st, const trace_options_t *o)
     }
     pm_trace_options_t to = {
         .photons = (uint64_t)(o->photons > 0 ? o->photons : s.defaults.photons),
-        .seed = (uint64_t)st->seed,
+        .seed = (uint64_t)(pm_args_given(&st->args, "seed") ? st->seed : s.defaults.seed),
         .max_bounces = (uint32_t)o->max_bounces,
         .rr_max = o->rr_max,
         .direction = s.any_glossy,

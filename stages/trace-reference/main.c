@@ -74,7 +74,7 @@ static pm_result_t run(pm_stage_t *st, const ref_options_t *o, const pm_scene_t 
     pm_pathtrace_settings_t set = {
         .width = o->width ? (uint32_t)o->width : s->camera.width,
         .height = o->height ? (uint32_t)o->height : s->camera.height,
-        .seed = (uint64_t)st->seed,
+        .seed = (uint64_t)(pm_args_given(&st->args, "seed") ? st->seed : s->defaults.seed),
         .max_bounces = (unsigned)o->max_bounces,
         .rr_start = (unsigned)o->rr_start,
         .pixel = o->pixel,
@@ -112,7 +112,7 @@ int main(int argc, char **argv)
 {
     pm_stage_t st;
     pm_stage_defaults(&st);
-    ref_options_t o = {.spp = 64, .pass = 16, .max_bounces = 1 << 20, .rr_start = 3};
+    ref_options_t o = {.pixel = PM_PIXEL_BOX, .spp = 64, .pass = 16, .max_bounces = 1 << 20, .rr_start = 3};
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
         {"spp", 0, PM_OPT_INT, &o.spp, "N", "samples (paths) per pixel in all, resumed ones included", 1, 4e9, NULL},
@@ -125,8 +125,9 @@ int main(int argc, char **argv)
         {"resume", 0, PM_OPT_STRING, &o.resume, "FILE",
          "continue the samples of an earlier --radiance FILE of the same scene, size, seed and pixel", 1, 0, NULL},
         {"pixel", 0, PM_OPT_CHOICE, &o.pixel, "HOW",
-         "center: through pixel centres, as trace-gather-points with --primary 1; box: uniform over the pixel", 1, 0,
-         pm_pt_pixel_names},
+         "box: the pixel's mean over its area (stratified over the samples); center: through pixel centres, as "
+         "trace-gather-points --pixel center",
+         1, 0, pm_pixel_names},
         {"component", 0, PM_OPT_CHOICE, &o.component, "WHICH",
          "total, or only direct (emission seen and direct light: trace-gather-points --direct) or indirect "
          "(simd-gather's part)",

@@ -105,17 +105,19 @@ expect_exit "error-vs-time: a bad PIXEL" 2 $E "$CORNELL" "$TMP/x" PIXEL=corner
 expect_exit "error-vs-time: missing scene" 1 $E "$TMP/missing.json" "$TMP/x"
 expect_exit "error-vs-time: unreadable reference" 1 $E "$CORNELL" "$TMP/x" REFERENCE="$TMP/none.exr" PT_SPP= PLOT=0 $SIZE
 
-# With trace-reference: its own curve, made against a reference it made itself and kept.
+# With trace-reference: its own curve, made against a reference it made itself and kept. 1 and
+# 64 samples: with area pixels a pixel that holds a sliver of the light is heavy-tailed in
+# relative error at a few samples (one hit of the light in 16 samples is 16 times its mean).
 out=$TMP/pt
-$E "$CORNELL" "$out" PHOTONS=10000 SPP=4 K=20 PT_SPP="1 16" REF_SPP=64 $SIZE PLOT=0 >"$TMP/pt.log" 2>&1
+$E "$CORNELL" "$out" PHOTONS=10000 SPP=4 K=20 PT_SPP="1 64" REF_SPP=64 $SIZE PLOT=0 >"$TMP/pt.log" 2>&1
 status=$?
 pt1=$(awk -F, -v c="$ce" '$1 == "trace-reference" && $4 == 1 { print $c }' "$out/results.csv" 2>/dev/null)
-pt16=$(awk -F, -v c="$ce" '$1 == "trace-reference" && $4 == 16 { print $c }' "$out/results.csv" 2>/dev/null)
+pt16=$(awk -F, -v c="$ce" '$1 == "trace-reference" && $4 == 64 { print $c }' "$out/results.csv" 2>/dev/null)
 if [ $status = 0 ] && [ -s "$out/reference.exr" ] && [ -n "$pt1" ] && [ -n "$pt16" ] &&
     awk -v a="$pt1" -v b="$pt16" 'BEGIN { exit !(b > 0 && b < a / 4) }' &&
     [ "$("$BUILD/tests/pm-exrdump" "$out/reference.exr" pixel)" = box ] &&
-    [ "$("$BUILD/tests/pm-exrdump" "$out/runs/pt-16.exr" pixel)" = box ]; then
-    pass "the reference and the path tracer's curve have area pixels; the curve falls (relmse $pt1 at 1 spp, $pt16 at 16)"
+    [ "$("$BUILD/tests/pm-exrdump" "$out/runs/pt-64.exr" pixel)" = box ]; then
+    pass "the reference and the path tracer's curve have area pixels; the curve falls (relmse $pt1 at 1 spp, $pt16 at 64)"
 else
     fail "error-vs-time path tracer curve" "exit $status, relmse '$pt1' and '$pt16': $(tail -3 "$TMP/pt.log")"
 fi

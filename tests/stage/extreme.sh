@@ -36,13 +36,15 @@ finite() {
 # queries sorted along the Hilbert curve, the gather ($GATHER, default k 50), composite to
 # EXR and PNG.
 # Fails (returns non-zero) when any stage does; NAME.err holds the stages' stderr.
+# Pixel centres (--pixel center): the checks hold pixels against values at the pixel's centre
+# (the lamp's pixel is Ke only where its centre sees the 0.1 mm lamp).
 chain() {
     local scene=$1 n=$2; shift 2
     local o=$TMP/$n
     {
         "$BIN/trace-photons" "$scene" -q --stats "$o.tp.json" "$@" -o "$o.ph.pm" &&
             "$BIN/build-photonmap" "$o.ph.pm" --map indirect -q -o "$o.map.pm" &&
-            "$BIN/trace-gather-points" "$scene" --spp 8 -q -o "$o.q.pm" --direct "$o.d.pm" &&
+            "$BIN/trace-gather-points" "$scene" --spp 8 --pixel center -q -o "$o.q.pm" --direct "$o.d.pm" &&
             "$BIN/hilbert-sort" "$o.q.pm" -q -o "$o.s.pm" &&
             "$BIN/simd-gather" "$o.map.pm" "$o.s.pm" ${GATHER:---k 50} -q -o "$o.i.pm" &&
             "$BIN/composite" "$o.d.pm" "$o.i.pm" -q -o "$o.exr" --png "$o.png" &&

@@ -36,12 +36,12 @@ done
 
 # Known values of one golden file, written out: a gather's radiance buffer with two inputs.
 "$PI" --json "$G/simd-gather-cornell.pm" >"$TMP/sg.json"
-jq -e '.format == "radiance" and .version == "1.0" and .count == 256 and .record_size == 24 and
+jq -e '.format == "radiance" and .version == "2.0" and .count == 256 and .record_size == 24 and
     .channels == ["rgb"] and (has("channel_mask") | not) and (.commands | length) == 4 and
     ([.inputs[].path] == ["tests/golden/build-photonmap-cornell.pm", "tests/golden/gather-cornell-16x16-spp8.pm"]) and
     (.inputs[0].hash | test("^xxh3:[0-9a-f]{16}$")) and .keys.component == "indirect" and .keys.radius == "0.05" and
     (.keys.SCENE | startswith("cornell-box xxh3:")) and (.checksum | test("^xxh3:[0-9a-f]{16}$"))' "$TMP/sg.json" >/dev/null &&
-    pass "pm-info --json of simd-gather-cornell.pm: radiance 1.0, 256 records of 24 bytes, rgb, 4 commands, 2 inputs" ||
+    pass "pm-info --json of simd-gather-cornell.pm: radiance 2.0, 256 records of 24 bytes, rgb, 4 commands, 2 inputs" ||
     fail "pm-info --json values" "$(head -c 600 "$TMP/sg.json")"
 
 "$PI" --json --header "$G/photonmap-all.pm" >"$TMP/h.json"

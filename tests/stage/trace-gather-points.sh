@@ -120,7 +120,7 @@ else
 fi
 
 # ---- analytic direct light: kd/pi * I / r^2 with I = pi W/sr at r = 1 m is kd ----
-"$T" -q "$TS/lit-floor/scene.json" -o "$TMP/lf.pm" --direct "$TMP/lfd.pm"
+"$T" -q "$TS/lit-floor/scene.json" --pixel center -o "$TMP/lf.pm" --direct "$TMP/lfd.pm"
 v=$(records "$TMP/lfd.pm" | awk '{ printf "%.6f %.6f %.6f", $2, $3, $4 }')
 if [ "$v" = "0.500000 0.250000 0.125000" ]; then pass "a point light of pi W/sr at 1 m gives direct radiance kd"; else fail "analytic point light" "got '$v', expected 0.5 0.25 0.125"; fi
 

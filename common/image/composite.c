@@ -9,6 +9,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "base/args.h"
 #include "base/memory.h"
@@ -33,10 +34,12 @@ struct pm_composite {
     pm_composite_info_t info;
     input_t *in;
     int nin;
-    int first;       /* the buffer whose resolution, scene and bounds the others must share */
-    pm_header_t hdr; /* the outputs' provenance, from pm_composite_sum */
-    double *acc;     /* 3 per pixel, the sum */
-    float *pix;      /* 3 per pixel, the EXR's values, from pm_composite_finish */
+    int first;                   /* the buffer whose resolution, scene and bounds the others must share */
+    pm_header_t hdr;             /* the outputs' provenance, from pm_composite_sum */
+    double *acc;                 /* 3 per pixel, the sum; after pm_composite_accumulate the mean of the passes */
+    double *var;                 /* 3 per pixel after pm_composite_accumulate: squared standard error of the mean */
+    char alpha[40], radius1[40]; /* the schedule's words, as the gather wrote them ("" when not given) */
+    float *pix;                  /* 3 per pixel, the EXR's values, from pm_composite_finish */
     int half;
 };
 
@@ -186,6 +189,105 @@ pm_result_t pm_composite_sum(pm_composite_t *c, int argc, char **argv, pm_compos
     return r;
 }
 
+/* The schedule's key `key` of the pass (the first kept buffer that has it) into out: empty when
+ * no buffer has it; two buffers that disagree are an error. */
+static pm_result_t pass_key(const pm_composite_t *c, const char *key, char *out, size_t size)
+{
+    out[0] = 0;
+    const char *first = NULL;
+    for (int i = 0; i < c->nin; i++) {
+        const char *v = c->in[i].used ? pm_header_get(pm_reader_header(c->in[i].rd), key) : NULL;
+        if (!v)
+            continue;
+        if (first && strcmp(v, out))
+            return pm_error_set(PM_ERR_INPUT, "buffers of one pass disagree on %s: '%s' says %s, '%s' says %s", key,
+                                first, out, c->in[i].path, v);
+        if (!first)
+            snprintf(out, size, "%s", v), first = c->in[i].path;
+    }
+    return PM_OK;
+}
+
+/* The state's key must equal the pass's, when both have it. */
+static pm_result_t same_key(const char *state, const pm_header_t *sh, const char *key, char *pass_value, size_t size,
+                            uint64_t pass)
+{
+    const char *v = pm_header_get(sh, key);
+    if (!v)
+        return PM_OK;
+    if (!pass_value[0]) {
+        snprintf(pass_value, size, "%s", v);
+        return PM_OK;
+    }
+    if (strcmp(v, pass_value))
+        return pm_error_set(PM_ERR_INPUT,
+                            "pass %" PRIu64 " has %s=%s but the running image '%s' has %s=%s: one schedule per "
+                            "running image",
+                            pass, key, pass_value, state, key, v);
+    return PM_OK;
+}
+
+pm_result_t pm_composite_accumulate(pm_composite_t *c, const char *state, uint64_t pass)
+{
+    uint64_t n = c->info.pixels, n0 = 0;
+    pm_result_t r;
+    if ((r = pass_key(c, "alpha", c->alpha, sizeof c->alpha)) != PM_OK ||
+        (r = pass_key(c, "radius1", c->radius1, sizeof c->radius1)) != PM_OK)
+        return r;
+    if (!(c->var = pm_alloc_aligned(3 * (n ? n : 1) * sizeof *c->var)))
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for the variance of a %" PRIu32 "x%" PRIu32 " image",
+                            c->info.width, c->info.height);
+    pm_table_t t = {0};
+    const double *mean0 = NULL, *var0 = NULL;
+    if (access(state, F_OK) == 0) {
+        const uint32_t need = 1u << PM_RADIANCE_RGB | 1u << PM_RADIANCE_VARIANCE;
+        if ((r = pm_table_read(state, &pm_radiance_schema, need, &t)) != PM_OK)
+            return r;
+        const input_t *f = &c->in[c->first];
+        if ((r = check_same(f->path, pm_reader_header(f->rd), state, &t.hdr)) != PM_OK ||
+            (r = pm_header_get_u64(&t.hdr, state, "passes", &n0)) != PM_OK)
+            goto done;
+        if (n0 == 0) {
+            r = pm_error_set(PM_ERR_INPUT, "running image '%s' says passes=0", state);
+            goto done;
+        }
+        mean0 = t.col[PM_RADIANCE_RGB];
+        var0 = t.col[PM_RADIANCE_VARIANCE];
+        uint64_t p = pass ? pass : n0 + 1;
+        if ((r = same_key(state, &t.hdr, "alpha", c->alpha, sizeof c->alpha, p)) != PM_OK ||
+            (r = same_key(state, &t.hdr, "radius1", c->radius1, sizeof c->radius1, p)) != PM_OK ||
+            (r = pm_header_add_input(&c->hdr, state, t.checksum)) != PM_OK)
+            goto done;
+    }
+    if (pass && pass != n0 + 1) {
+        r = pm_error_set(PM_ERR_INPUT,
+                         pass <= n0 ? "running image '%s' holds %" PRIu64 " passes: pass %" PRIu64 " is in it already"
+                                    : "running image '%s' holds %" PRIu64 " passes: pass %" PRIu64
+                                      " would leave a gap (add the passes in order)",
+                         state, n0, pass);
+        goto done;
+    }
+    uint64_t k = n0 + 1;
+    double *x = c->acc, *v = c->var, sq = 0.0;
+    uint64_t counted = 0;
+    for (uint64_t i = 0; i < 3 * n; i++) {
+        double m0 = mean0 ? mean0[i] : 0.0;
+        /* M2 of the earlier passes from their stored squared standard error: var = M2 / (n (n - 1)). */
+        double m2 = n0 >= 2 ? var0[i] * (double)n0 * (double)(n0 - 1) : 0.0;
+        double d = x[i] - m0, m = m0 + d / (double)k;
+        m2 += d * (x[i] - m);
+        x[i] = m;
+        v[i] = k >= 2 ? m2 / ((double)k * (double)(k - 1)) : 0.0;
+        if (m > 0.0)
+            sq += v[i] / (m * m), counted++;
+    }
+    c->info.passes = k;
+    c->info.relative_error = k >= 2 && counted ? sqrt(sq / (double)counted) : (k >= 2 ? 0.0 : NAN);
+done:
+    pm_table_free(&t);
+    return r;
+}
+
 pm_result_t pm_composite_finish(pm_composite_t *c, int half)
 {
     uint64_t n = c->info.pixels;
@@ -215,15 +317,18 @@ pm_result_t pm_composite_finish(pm_composite_t *c, int half)
     return PM_OK;
 }
 
-/* The EXR's string attributes: the provenance in the pmtk header's words. names_out holds
- * the names made here, NULL-terminated. */
-static pm_result_t exr_attrs(const pm_header_t *h, const char *components, pm_exr_attr_t **attrs_out, size_t *n_out,
-                             char ***names_out)
+/* The EXR's string attributes: the provenance in the pmtk header's words, and a running
+ * image's passes and schedule (passes: room for the count's text). names_out holds the names
+ * made here, NULL-terminated. */
+static pm_result_t exr_attrs(const pm_composite_t *c, pm_exr_attr_t **attrs_out, size_t *n_out, char ***names_out,
+                             char *passes, size_t passes_size)
 {
+    const pm_header_t *h = &c->hdr;
+    const char *components = c->info.components;
     size_t ninput = 0;
     for (size_t i = 0; i < h->nkeys; i++)
         ninput += !strcmp(h->keys[i].key, "INPUT");
-    size_t cap = 4 + h->ncommands + ninput, n = 0;
+    size_t cap = 7 + h->ncommands + ninput, n = 0;
     pm_exr_attr_t *a = calloc(cap, sizeof *a);
     char **names = calloc(cap + 1, sizeof *names);
     if (!a || !names) {
@@ -236,6 +341,14 @@ static pm_result_t exr_attrs(const pm_header_t *h, const char *components, pm_ex
     if (scene)
         a[n++] = (pm_exr_attr_t){"SCENE", scene};
     a[n++] = (pm_exr_attr_t){"components", components};
+    if (c->info.passes) {
+        snprintf(passes, passes_size, "%" PRIu64, c->info.passes);
+        a[n++] = (pm_exr_attr_t){"passes", passes};
+        if (c->alpha[0])
+            a[n++] = (pm_exr_attr_t){"alpha", c->alpha};
+        if (c->radius1[0])
+            a[n++] = (pm_exr_attr_t){"radius1", c->radius1};
+    }
     size_t nn = 0, ki = 0;
     for (size_t i = 0; i < h->ncommands; i++) {
         char buf[32];
@@ -268,7 +381,8 @@ pm_result_t pm_composite_write_exr(const pm_composite_t *c, const char *path, pm
     pm_exr_attr_t *attrs = NULL;
     char **names = NULL;
     size_t nattrs = 0;
-    pm_result_t r = exr_attrs(&c->hdr, c->info.components, &attrs, &nattrs, &names);
+    char passes[24];
+    pm_result_t r = exr_attrs(c, &attrs, &nattrs, &names, passes, sizeof passes);
     if (r != PM_OK)
         return r;
     r = pm_exr_write_rgb(path, c->info.width, c->info.height, c->pix, c->half ? PM_EXR_HALF : PM_EXR_FLOAT, comp, attrs,
@@ -291,7 +405,8 @@ pm_result_t pm_composite_write_radiance(const pm_composite_t *c, const char *pat
     const pm_header_t *h = &c->hdr, *h0 = pm_reader_header(c->in[c->first].rd);
     uint64_t n = c->info.pixels;
     pm_table_t t;
-    pm_result_t r = pm_table_alloc(&t, &pm_radiance_schema, 1u << PM_RADIANCE_RGB, n);
+    uint32_t channels = 1u << PM_RADIANCE_RGB | (c->var ? 1u << PM_RADIANCE_VARIANCE : 0);
+    pm_result_t r = pm_table_alloc(&t, &pm_radiance_schema, channels, n);
     if (r != PM_OK)
         return r;
     memcpy(t.hdr.bounds, h0->bounds, sizeof t.hdr.bounds);
@@ -305,6 +420,17 @@ pm_result_t pm_composite_write_radiance(const pm_composite_t *c, const char *pat
         r = pm_header_set(&t.hdr, "height", "%" PRIu32, c->info.height);
     if (r == PM_OK)
         r = pm_header_set(&t.hdr, "component", "%s", c->info.components);
+    if (r == PM_OK && c->var) {
+        r = pm_header_set(&t.hdr, "passes", "%" PRIu64, c->info.passes);
+        if (r == PM_OK && c->alpha[0])
+            r = pm_header_set(&t.hdr, "alpha", "%s", c->alpha);
+        if (r == PM_OK && c->radius1[0])
+            r = pm_header_set(&t.hdr, "radius1", "%s", c->radius1);
+        if (r == PM_OK && isfinite(c->info.relative_error))
+            r = pm_header_set(&t.hdr, "relative_error", "%.6g", c->info.relative_error);
+        if (r == PM_OK)
+            memcpy(t.col[PM_RADIANCE_VARIANCE], c->var, 3 * n * sizeof *c->var);
+    }
     if (r == PM_OK) {
         memcpy(t.col[PM_RADIANCE_RGB], c->acc, 3 * n * sizeof *c->acc);
         r = pm_table_write(&t, path);
@@ -321,6 +447,7 @@ void pm_composite_free(pm_composite_t *c)
         return;
     pm_free_aligned(c->pix);
     pm_free_aligned(c->acc);
+    pm_free_aligned(c->var);
     pm_header_free(&c->hdr);
     for (int i = 0; c->in && i < c->nin; i++) {
         pm_reader_close(c->in[i].rd);

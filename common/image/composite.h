@@ -5,6 +5,8 @@
  *
  *   pm_composite_open      every header first: resolution, scene and component checked
  *   pm_composite_sum       every buffer read in chunks and added, in the order given
+ *   pm_composite_accumulate  optional: the sum is one progressive pass, averaged into a running
+ *                          image (a state file) with its variance
  *   pm_composite_finish    the f32 pixels of the EXR, each value checked, luminance statistics
  *   pm_composite_write_*   the outputs, any of them
  *   pm_composite_free
@@ -40,6 +42,8 @@ typedef struct {
     int buffers;            /* buffers added: those --only keeps */
     const char *components; /* "direct", "indirect" or "total" (direct and indirect, or a total buffer) */
     double luminance_min, luminance_max, luminance_mean; /* Rec. 709 weights */
+    uint64_t passes;       /* after pm_composite_accumulate: passes in the running image; else 0 */
+    double relative_error; /* after it: RMS over pixels and channels of standard error / mean (NAN: one pass) */
 } pm_composite_info_t;
 
 /* Splits an argument "FILE:SCALE" when what follows the last ':' is a whole number, which must
@@ -61,13 +65,25 @@ typedef void (*pm_composite_note_fn)(void *ctx, const char *path, const char *sa
  * command (argc, argv) and one INPUT per buffer read. note (may be NULL) hears of repeats. */
 pm_result_t pm_composite_sum(pm_composite_t *c, int argc, char **argv, pm_composite_note_fn note, void *note_ctx);
 
+/* Takes the sum as the image of one progressive pass and averages it into the running image
+ * of the earlier passes, held in the radiance buffer `state` (rgb: the mean of the passes,
+ * variance: the squared standard error of that mean; header passes=N, alpha, radius1). A
+ * missing state file is no pass yet. Welford's update, so that nothing but the state is read:
+ * with n passes, mean += (x - mean) / n and the sum of squared deviations M2 (stored as
+ * variance n (n - 1)) += (x - mean_old) (x - mean_new). pass (0: any) must be the state's
+ * passes + 1, and the pass's alpha and radius1 (from its gather's header) the state's, so a
+ * pass is neither added twice nor mixed with another schedule. From here on the outputs are
+ * the mean, and pm_composite_write_radiance writes the new state. */
+pm_result_t pm_composite_accumulate(pm_composite_t *c, const char *state, uint64_t pass);
+
 /* Converts the sum to the f32 pixels of the EXR and takes the luminance statistics. A value
  * beyond half (half != 0) or float, or not finite, is an error naming the pixel: a scale
  * can overflow even though every input is finite. */
 pm_result_t pm_composite_finish(pm_composite_t *c, int half);
 
 /* After pm_composite_finish: the OpenEXR image (R G B, half or float as finished), with the
- * provenance as string attributes SOFTWARE, SCENE, components, COMMAND.i and INPUT.i. */
+ * provenance as string attributes SOFTWARE, SCENE, components, COMMAND.i and INPUT.i; after
+ * pm_composite_accumulate also passes, alpha and radius1 (the schedule). */
 pm_result_t pm_composite_write_exr(const pm_composite_t *c, const char *path, pm_exr_compression_t comp);
 
 /* The 8-bit sRGB preview (pm_tone_write_png) of the f64 sum. */
@@ -75,7 +91,9 @@ pm_result_t pm_composite_write_png(const pm_composite_t *c, const char *path, do
                                    double *clipped_out);
 
 /* The f64 sum as a pmtk radiance buffer (RGB channel only), with the first buffer's bounds,
- * the provenance, width, height and component. */
+ * the provenance, width, height and component; after pm_composite_accumulate the running
+ * image: the mean, the variance channel and the keys passes, alpha, radius1 and
+ * relative_error. */
 pm_result_t pm_composite_write_radiance(const pm_composite_t *c, const char *path);
 
 const pm_composite_info_t *pm_composite_info(const pm_composite_t *c);

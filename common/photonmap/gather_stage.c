@@ -298,3 +298,27 @@ void pm_gather_stage_stats(pm_stage_t *st, const pm_gather_inputs_t *in, int ker
     pm_stage_stat_double(st, "gather_s", gather_s);
     pm_stage_stat_double(st, "write_s", write_s);
 }
+
+/* ---- the progressive schedule ---- */
+
+double pm_gather_pass_radius(double r1, uint64_t pass, double alpha)
+{
+    /* The product of the area ratios, in double: after 1e6 passes at alpha 2/3 it is about
+     * 1e-2, far from underflow, and each factor is exact to an ulp. */
+    double area = 1.0;
+    for (uint64_t i = 1; i < pass; i++)
+        area *= ((double)i + alpha) / ((double)i + 1.0);
+    return r1 * sqrt(area);
+}
+
+pm_result_t pm_gather_pass_header(pm_header_t *h, uint64_t pass, double alpha, double r1)
+{
+    if (pass == 0)
+        return PM_OK;
+    pm_result_t r = pm_header_set(h, "pass", "%" PRIu64, pass);
+    if (r == PM_OK)
+        r = pm_header_set(h, "alpha", "%.9g", alpha);
+    if (r == PM_OK)
+        r = pm_header_set(h, "radius1", "%.9g", r1);
+    return r;
+}

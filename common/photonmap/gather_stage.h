@@ -27,6 +27,31 @@ extern const char *const pm_kernel_names[];
          1, 0, NULL}
 /* clang-format on */
 
+/* The progressive passes' options (Knaus and Zwicker 2011): --pass N (1-based; 0: none) and
+ * --alpha A, the schedule's parameter in (0, 1). */
+/* clang-format off */
+#define PM_GATHER_PASS_OPTIONS(pass, alpha)                                                                            \
+    {"pass", 0, PM_OPT_INT, &(pass), "N",                                                                              \
+     "progressive pass N (1-based): gather with r_N of the schedule r_(i+1)^2 = r_i^2 (i + A) / (i + 1), r_1 being "   \
+     "--radius or the width --k measures; 0: no pass, the width as given",                                           \
+     0, (double)((int64_t)1 << 40), NULL},                                                                             \
+        {"alpha", 0, PM_OPT_DOUBLE, &(alpha), "A",                                                                     \
+         "the schedule's alpha with --pass, in (0, 1): smaller shrinks the width faster (less bias, more noise)",       \
+         1e-9, 1 - 1e-9, NULL}
+/* clang-format on */
+
+/* The default alpha of the schedule, the value Knaus and Zwicker recommend. */
+#define PM_PASS_ALPHA_DEFAULT (2.0 / 3.0)
+
+/* r_pass of the progressive schedule r_(i+1)^2 = r_i^2 (i + alpha) / (i + 1) from r_1 (m):
+ * the area of the kernel shrinks by (i + alpha) / (i + 1) from pass i to pass i + 1, so that
+ * the average of the passes loses its bias and its noise together. pass 0 and 1 give r1. */
+double pm_gather_pass_radius(double r1, uint64_t pass, double alpha);
+
+/* The keys a pass's gather output carries: pass, alpha and radius1 (r_1; the caller's own
+ * `radius` key is r_pass). Nothing when pass is 0. */
+pm_result_t pm_gather_pass_header(pm_header_t *h, uint64_t pass, double alpha, double r1);
+
 /* A photon map and a queries file (or the range [begin, end) of one), as the gathers read
  * them. Row i of `q` is query begin + i of the file. */
 typedef struct {

@@ -19,6 +19,7 @@
 #include <stdint.h>
 
 #include "base/error.h"
+#include "math/rng.h"
 #include "render/rt.h"
 #include "render/scene.h"
 
@@ -31,6 +32,22 @@ typedef struct {
     int record_rays;      /* keep every ray for pm_trace_replay (benchmark baseline) */
     int progress;         /* progress bar on a terminal */
 } pm_trace_options_t;
+
+/* The seed of progressive pass `pass` (1-based; 0: no pass, the seed itself) of a run seeded
+ * `seed`: one Philox block of the pass number under the seed, so that every pass draws numbers
+ * independent of every other pass's and of the seeds' order. trace-photons and
+ * trace-gather-points both key their streams with it, so one --pass changes photons and eye
+ * rays together. */
+static inline uint64_t pm_trace_pass_seed(uint64_t seed, uint64_t pass)
+{
+    if (pass == 0)
+        return seed;
+    const uint32_t ctr[4] = {(uint32_t)pass, (uint32_t)(pass >> 32), 0x70617373u /* "pass" */, 0};
+    const uint32_t key[2] = {(uint32_t)seed, (uint32_t)(seed >> 32)};
+    uint32_t out[4];
+    pm_philox4x32_10(ctr, key, out);
+    return (uint64_t)out[0] | (uint64_t)out[1] << 32;
+}
 
 typedef struct pm_trace_arena pm_trace_arena_t;
 

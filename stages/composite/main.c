@@ -8,7 +8,12 @@
  *
  * Buffers are read one after the other in chunks and added in f64 in the order given, so
  * memory is one f64 RGB accumulator per pixel and the sum does not depend on anything but
- * the arguments. Every buffer must have the resolution and the SCENE of the first. */
+ * the arguments. Every buffer must have the resolution and the SCENE of the first.
+ *
+ * With --accumulate STATE the sum is one progressive pass: it is averaged into the running
+ * image held in STATE (mean and variance of the passes so far), the outputs show the new
+ * mean, and STATE is rewritten last, so that a failure anywhere leaves the earlier passes'
+ * image and state as they were. */
 #include <inttypes.h>
 #include <string.h>
 
@@ -23,6 +28,8 @@ typedef struct {
     const char *png;      /* --png FILE, NULL for none */
     const char *radiance; /* --radiance FILE: the sum as a pmtk radiance buffer */
     double exposure;      /* EV: the PNG shows radiance x 2^EV */
+    const char *state;    /* --accumulate FILE: the running image of progressive passes */
+    int64_t pass;         /* --pass N: the pass the sum is (0: the next one) */
 } composite_options_t;
 
 /* The same content twice is most likely a slip: say so, and add both. */
@@ -35,15 +42,19 @@ static void note_repeat(void *ctx, const char *path, const char *same_as, uint64
 static pm_result_t run(pm_stage_t *st, const composite_options_t *o)
 {
     int to_exr = strcmp(st->output, "-") != 0;
-    if (!to_exr && !o->png && !o->radiance)
-        return pm_error_set(PM_ERR_USAGE, "no output: give -o IMAGE.exr (OpenEXR cannot write to a pipe), --png or "
-                                          "--radiance");
-    pm_stage_output_set(st); /* the EXR, the PNG and the radiance buffer appear together, or none */
+    if (!to_exr && !o->png && !o->radiance && !o->state)
+        return pm_error_set(PM_ERR_USAGE, "no output: give -o IMAGE.exr (OpenEXR cannot write to a pipe), --png, "
+                                          "--radiance or --accumulate");
+    if (o->pass && !o->state)
+        return pm_error_set(PM_ERR_USAGE, "--pass %" PRId64 " needs --accumulate STATE (the running image)", o->pass);
+    pm_stage_output_set(st); /* the EXR, the PNG, the radiance buffer and the running image appear together, or none */
     pm_composite_t *c;
     pm_result_t r = pm_composite_open(&c, st->args.args, st->args.nargs, (pm_composite_only_t)o->only);
     double t0 = pm_time_wall();
     if (r == PM_OK)
         r = pm_composite_sum(c, st->argc, st->argv, note_repeat, st);
+    if (r == PM_OK && o->state)
+        r = pm_composite_accumulate(c, o->state, (uint64_t)o->pass);
     double t1 = pm_time_wall(), clipped = 0.0;
     if (r == PM_OK)
         r = pm_composite_finish(c, o->half);
@@ -53,6 +64,8 @@ static pm_result_t run(pm_stage_t *st, const composite_options_t *o)
         r = pm_composite_write_png(c, o->png, o->exposure, (pm_tone_t)o->tone, &clipped);
     if (r == PM_OK && o->radiance)
         r = pm_composite_write_radiance(c, o->radiance);
+    if (r == PM_OK && o->state)
+        r = pm_composite_write_radiance(c, o->state);
     double t2 = pm_time_wall();
 
     if (r == PM_OK) {
@@ -69,6 +82,10 @@ static pm_result_t run(pm_stage_t *st, const composite_options_t *o)
         pm_stage_stat_string(st, "exr_pixel", o->half ? "half" : "float");
         if (o->png)
             pm_stage_stat_double(st, "png_clipped_fraction", clipped);
+        if (o->state) {
+            pm_stage_stat_int(st, "passes", (int64_t)in->passes);
+            pm_stage_stat_double(st, "relative_error", in->relative_error); /* null after one pass */
+        }
         pm_stage_stat_double(st, "read_add_s", t1 - t0);
         pm_stage_stat_double(st, "write_s", t2 - t1);
     }
@@ -94,6 +111,13 @@ int main(int argc, char **argv)
         {"tone", 0, PM_OPT_CHOICE, &o.tone, "CURVE",
          "preview tone curve: srgb (clip at 1) or filmic (ACES fit, rolls highlights off)", 1, 0, pm_tone_names},
         {"radiance", 0, PM_OPT_OUTPUT, &o.radiance, "FILE", "also write the sum as a pmtk radiance buffer", 1, 0, NULL},
+        {"accumulate", 0, PM_OPT_OUTPUT, &o.state, "STATE",
+         "the sum is one progressive pass: average it into the running image STATE (a radiance buffer with the "
+         "mean and variance of the passes; created when missing, rewritten last); the outputs show the mean",
+         1, 0, NULL},
+        {"pass", 0, PM_OPT_INT, &o.pass, "N",
+         "with --accumulate: the sum is pass N, which must be STATE's passes + 1 (0: the next, unchecked)", 0,
+         (double)((int64_t)1 << 40), NULL},
         {0},
     };
     static const char about[] =

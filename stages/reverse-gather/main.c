@@ -23,6 +23,8 @@ typedef struct {
     int kernel;
     double normal_cos;
     const char *range;
+    int64_t pass; /* progressive pass, 1-based; 0: none */
+    double alpha; /* the schedule's alpha with pass */
 } reverse_options_t;
 
 static pm_result_t run(pm_stage_t *st, const reverse_options_t *opt)
@@ -43,6 +45,9 @@ static pm_result_t run(pm_stage_t *st, const reverse_options_t *opt)
             goto done;
         t_radius = pm_time_wall() - t0;
     }
+    double radius1 = radius;
+    if (o->pass)
+        radius = pm_gather_pass_radius(radius1, (uint64_t)o->pass, o->alpha);
     uint64_t nq = in.q.n;
     pm_reverse_params_t p = {.radius = radius, .kernel = (pm_kernel_t)o->kernel, .normal_cos = (float)o->normal_cos};
     pm_reverse_stats_t rs;
@@ -54,7 +59,8 @@ static pm_result_t run(pm_stage_t *st, const reverse_options_t *opt)
 
     pm_header_t *h = &out.hdr;
     if ((r = pm_gather_output_init(&out, &in, st->argc, st->argv, o->kernel, "fixed")) != PM_OK ||
-        (r = pm_header_set(h, "radius", "%.9g", radius)) != PM_OK)
+        (r = pm_header_set(h, "radius", "%.9g", radius)) != PM_OK ||
+        (r = pm_gather_pass_header(h, (uint64_t)o->pass, o->alpha, radius1)) != PM_OK)
         goto done;
     t0 = pm_time_wall();
     if ((r = pm_gather_output_write(&out, &in, st->output)) != PM_OK)
@@ -73,6 +79,10 @@ static pm_result_t run(pm_stage_t *st, const reverse_options_t *opt)
     pm_stage_stat_int(st, "subtrees", rs.subtrees);
     pm_stage_stat_int(st, "query_tree_depth", rs.tree_depth);
     pm_stage_stat_double(st, "radius_s", t_radius);
+    if (o->pass) {
+        pm_stage_stat_int(st, "pass", o->pass);
+        pm_stage_stat_double(st, "radius1_m", radius1);
+    }
     pm_stage_stat_double(st, "build_s", rs.build_s);
     pm_stage_stat_double(st, "search_s", rs.search_s);
     pm_stage_stat_double(st, "search_cpu_s", rs.cpu_s);
@@ -88,7 +98,7 @@ int main(int argc, char **argv)
 {
     pm_stage_t st;
     pm_stage_defaults(&st);
-    reverse_options_t o = {.radius = 0.0, .k = 50.0, .kernel = 1, .normal_cos = 0.5};
+    reverse_options_t o = {.radius = 0.0, .k = 50.0, .kernel = 1, .normal_cos = 0.5, .alpha = PM_PASS_ALPHA_DEFAULT};
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
         {"radius", 'r', PM_OPT_DOUBLE, &o.radius, "R", "kernel width h, m (0: from --k)", 0, 1e18, NULL},
@@ -96,6 +106,7 @@ int main(int argc, char **argv)
          "choose h so that about K photons fall in a query's kernel on average (as simd-gather does)", 0, 1e7, NULL},
         {"kernel", 0, PM_OPT_CHOICE, &o.kernel, "K", "kernel shape, normalized over the plane", 0, 0, pm_kernel_names},
         PM_GATHER_COMMON_OPTIONS(o.normal_cos, o.range),
+        PM_GATHER_PASS_OPTIONS(o.pass, o.alpha),
         {0},
     };
     static const char about[] =

@@ -26,6 +26,8 @@ typedef struct {
     double normal_cos;
     const char *isa;
     const char *range;
+    int64_t pass; /* progressive pass, 1-based; 0: none */
+    double alpha; /* the schedule's alpha with pass */
 } gather_options_t;
 
 static pm_result_t run(pm_stage_t *st, const gather_options_t *opt)
@@ -40,6 +42,9 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *opt)
         return r;
     if (o->radius == 0.0 && o->k <= 0.0 && !o->widths)
         return pm_error_set(PM_ERR_USAGE, "give --radius R or --k K (photons per query) for a fixed kernel width");
+    if (o->pass && o->widths)
+        return pm_error_set(PM_ERR_USAGE, "--pass %" PRId64 " needs fixed widths: the schedule shrinks one width",
+                            o->pass);
     if ((r = pm_gather_inputs_read(&in, st->args.args[0], st->args.args[1], o->range, o->widths)) != PM_OK)
         goto done;
     if (!o->widths && (r = pm_gather_inputs_scene_kernel(&in, &st->args, &o->radius, &o->k, &width_from)) != PM_OK)
@@ -53,6 +58,9 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *opt)
             goto done;
         t_radius = pm_time_wall() - t0;
     }
+    double radius1 = radius;
+    if (o->pass)
+        radius = pm_gather_pass_radius(radius1, (uint64_t)o->pass, o->alpha);
 
     pm_gather_params_t p = {.radius = radius,
                             .kernel = (pm_kernel_t)o->kernel,
@@ -71,6 +79,8 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *opt)
     if ((r = pm_gather_output_init(&out, &in, st->argc, st->argv, o->kernel, width_names[o->widths])) != PM_OK)
         goto done;
     if (!o->widths && (r = pm_header_set(h, "radius", "%.9g", radius)) != PM_OK)
+        goto done;
+    if ((r = pm_gather_pass_header(h, (uint64_t)o->pass, o->alpha, radius1)) != PM_OK)
         goto done;
     t0 = pm_time_wall();
     if ((r = pm_gather_output_write(&out, &in, st->output)) != PM_OK)
@@ -97,6 +107,10 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *opt)
     pm_stage_stat_double(st, "straddling_lanes", gs.shade_steps ? (double)gs.straddling_lanes / gs.shade_steps : 0.0);
     pm_stage_stat_double(st, "useful_lanes", gs.shade_steps ? (double)gs.shader_ops / gs.shade_steps : 0.0);
     pm_stage_stat_double(st, "radius_s", t_radius);
+    if (o->pass) {
+        pm_stage_stat_int(st, "pass", o->pass);
+        pm_stage_stat_double(st, "radius1_m", radius1);
+    }
     pm_stage_stat_double(st, "gather_cpu_s", gs.cpu_s);
     pm_stage_note(st,
                   "%" PRIu64 " queries, %" PRIu32
@@ -114,7 +128,13 @@ int main(int argc, char **argv)
 {
     pm_stage_t st;
     pm_stage_defaults(&st);
-    gather_options_t o = {.radius = 0.0, .k = 50.0, .kernel = 1, .widths = 0, .normal_cos = 0.5, .isa = "auto"};
+    gather_options_t o = {.radius = 0.0,
+                          .k = 50.0,
+                          .kernel = 1,
+                          .widths = 0,
+                          .normal_cos = 0.5,
+                          .isa = "auto",
+                          .alpha = PM_PASS_ALPHA_DEFAULT};
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
         {"radius", 'r', PM_OPT_DOUBLE, &o.radius, "R", "kernel width h, m (0: from --k)", 0, 1e18, NULL},
@@ -125,6 +145,7 @@ int main(int argc, char **argv)
          "fixed: one h for all; variable: each photon's own h (a map built with --width-k)", 0, 0, width_names},
         {"isa", 0, PM_OPT_STRING, &o.isa, "ISA", "auto, scalar, sse4 (4 lanes), avx2 (8) or avx512 (16)", 1, 0, NULL},
         PM_GATHER_COMMON_OPTIONS(o.normal_cos, o.range),
+        PM_GATHER_PASS_OPTIONS(o.pass, o.alpha),
         {0},
     };
     static const char about[] = "Gather photons at every query with SIMD packets and the sample-point estimator; write "

@@ -19,6 +19,7 @@
 #include "base/stage.h"
 #include "formats/formats.h"
 #include "render/eyetrace.h"
+#include "render/photontrace.h"
 #include "render/rt.h"
 #include "render/scene.h"
 #include "render/shade.h"
@@ -30,6 +31,7 @@ typedef struct {
     int64_t light_samples; /* area-light samples per primary hit */
     int64_t width, height; /* image size; 0: the scene camera's */
     int64_t spool_mb;      /* MiB of records held in memory before they spill to a temporary file */
+    int64_t pass;          /* progressive pass, 1-based; 0: none */
     int mode, schedule;
     int pixel; /* PM_PIXEL_BOX or PM_PIXEL_CENTER */
     const char *isa;
@@ -75,6 +77,10 @@ static pm_result_t write_outputs(pm_stage_t *st, const tgp_options_t *o, const p
         pm_header_free(&dh);
         r = pm_eye_direct_header(e, st->argc, st->argv, &dh);
     }
+    if (r == PM_OK && o->pass)
+        r = pm_header_set(&qh, "pass", "%" PRId64, o->pass);
+    if (r == PM_OK && o->pass && o->direct)
+        r = pm_header_set(&dh, "pass", "%" PRId64, o->pass);
     if (r == PM_OK)
         r = pm_writer_open(st->output, &qh, &qw);
     if (r == PM_OK && o->direct)
@@ -148,7 +154,8 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
         .primary = (uint32_t)(pm_args_given(a, "primary") ? o->primary : s->defaults.primary),
         .pixel = o->pixel,
         .light_samples = (uint32_t)(pm_args_given(a, "light-samples") ? o->light_samples : s->defaults.light_samples),
-        .seed = (uint64_t)(pm_args_given(a, "seed") ? st->seed : s->defaults.seed),
+        .seed = pm_trace_pass_seed((uint64_t)(pm_args_given(a, "seed") ? st->seed : s->defaults.seed),
+                                   (uint64_t)o->pass),
         .isa = isa,
         .threads = st->threads_used,
         .progress = pm_stage_progress(st)};
@@ -219,6 +226,9 @@ int main(int argc, char **argv)
         {"spool-mem", 0, PM_OPT_INT, &o.spool_mb, "MIB",
          "MiB of query records held in memory; past that they go to a temporary file beside the output", 0, 1 << 20,
          NULL},
+        {"pass", 0, PM_OPT_INT, &o.pass, "N",
+         "progressive pass N (1-based): eye rays from streams of their own, independent of other passes'; 0: none", 0,
+         (double)((int64_t)1 << 40), NULL},
         {0},
     };
     static const char about[] =

@@ -21,9 +21,11 @@ typedef struct {
     int64_t max_bounces;
     double rr_max;
     int baseline;
+    int64_t pass; /* progressive pass, 1-based; 0: none */
 } trace_options_t;
 
-static pm_result_t write_photons(pm_stage_t *st, const pm_scene_t *s, const pm_trace_result_t *tr)
+static pm_result_t write_photons(pm_stage_t *st, const trace_options_t *o, const pm_scene_t *s,
+                                 const pm_trace_result_t *tr)
 {
     pm_header_t h;
     pm_header_init(&h, &pm_photons_schema);
@@ -38,6 +40,7 @@ static pm_result_t write_photons(pm_stage_t *st, const pm_scene_t *s, const pm_t
     if ((r = pm_header_add_command(&h, st->argc, st->argv)) == PM_OK &&
         (r = pm_header_set(&h, "SCENE", "%s", id)) == PM_OK &&
         (r = pm_header_set(&h, "emitted", "%" PRIu64, tr->emitted)) == PM_OK &&
+        (!o->pass || (r = pm_header_set(&h, "pass", "%" PRId64, o->pass)) == PM_OK) &&
         (r = pm_writer_open(st->output, &h, &w)) == PM_OK) {
         for (uint64_t c = 0; c < tr->nchunks && r == PM_OK; c++)
             r = pm_writer_write(w, tr->chunk_data[c], tr->chunk_count[c]);
@@ -65,7 +68,8 @@ static pm_result_t run(pm_stage_t *st, const trace_options_t *o)
     }
     pm_trace_options_t to = {
         .photons = (uint64_t)(o->photons > 0 ? o->photons : s.defaults.photons),
-        .seed = (uint64_t)(pm_args_given(&st->args, "seed") ? st->seed : s.defaults.seed),
+        .seed = pm_trace_pass_seed((uint64_t)(pm_args_given(&st->args, "seed") ? st->seed : s.defaults.seed),
+                                   (uint64_t)o->pass),
         .max_bounces = (uint32_t)o->max_bounces,
         .rr_max = o->rr_max,
         .direction = s.any_glossy,
@@ -76,7 +80,7 @@ static pm_result_t run(pm_stage_t *st, const trace_options_t *o)
     r = pm_trace_photons(&s, &rt, &to, &tr);
     if (r == PM_OK) {
         double t0 = pm_time_wall();
-        r = write_photons(st, &s, &tr);
+        r = write_photons(st, o, &s, &tr);
         double t_write = pm_time_wall() - t0;
         if (r == PM_OK) {
             double rays_s = tr.trace_s > 0 ? (double)tr.rays / tr.trace_s : 0.0;
@@ -94,6 +98,8 @@ static pm_result_t run(pm_stage_t *st, const trace_options_t *o)
             pm_stage_stat_double(st, "power_emitted_w",
                                  tr.power_emitted[0] + tr.power_emitted[1] + tr.power_emitted[2]);
             pm_stage_stat_double(st, "power_first_hits_w", tr.power_first[0] + tr.power_first[1] + tr.power_first[2]);
+            if (o->pass)
+                pm_stage_stat_int(st, "pass", o->pass);
             pm_stage_stat_double(st, "trace_s", tr.trace_s);
             pm_stage_stat_double(st, "write_s", t_write);
             if (o->baseline) {
@@ -118,7 +124,7 @@ int main(int argc, char **argv)
 {
     pm_stage_t st;
     pm_stage_defaults(&st);
-    trace_options_t o = {.photons = 0, .max_bounces = 16384, .rr_max = 1.0, .baseline = 0};
+    trace_options_t o = {.photons = 0, .max_bounces = 16384, .rr_max = 1.0, .baseline = 0, .pass = 0};
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
         {"photons", 'n', PM_OPT_INT, &o.photons, "N", "photon paths to emit; 0: the scene's render.photons", 0,
@@ -133,6 +139,10 @@ int main(int argc, char **argv)
          0.01, 1.0, NULL},
         {"baseline", 0, PM_OPT_FLAG, &o.baseline, NULL,
          "also re-trace every ray with bare rtcIntersect1 and report Embree's rate (for benchmarks)", 1, 0, NULL},
+        {"pass", 0, PM_OPT_INT, &o.pass, "N",
+         "progressive pass N (1-based): photons drawn from streams of their own, independent of other passes'; "
+         "0: none",
+         0, (double)((int64_t)1 << 40), NULL},
         {0},
     };
     static const char about[] = "Trace photons from the scene's lights and write where they land (watts).";

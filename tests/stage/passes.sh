@@ -1,0 +1,234 @@
+# passes.sh: progressive passes (Knaus and Zwicker 2011) in the staged design: --pass on the
+# tracers and the gathers (independent streams, the radius schedule, the header keys),
+# composite --accumulate (the running average and its variance against a hand computation on
+# tiny buffers, the pass checks) and pipelines/render PASSES/TIME/TARGET_ERROR/ALPHA (pass
+# directories, reuse of finished passes, a pass that fails, an interrupted run, bad input).
+# The closed-form check of convergence is in analytic.sh.
+R=pipelines/render
+CORNELL=scenes/cornell-box/scene.json
+SMALL="PHOTONS=20000 SPP=4 WIDTH=32 HEIGHT=24"
+hdr() { "$BIN/pm-info" "$1" | sed -n "s/^$2=//p"; } # hdr FILE KEY: the header key's value
+records() { "$BIN/pm-info" -r "$1" | grep -E '^[0-9]'; }
+
+# ---- the stages: --pass keys the streams, says pass=N, and the gather follows the schedule
+TP="$BIN/trace-photons $CORNELL --photons 5000 -q"
+$TP -o "$TMP/p0.pm" && $TP --pass 0 -o "$TMP/p00.pm" && $TP --pass 1 -o "$TMP/p1.pm" &&
+    $TP --pass 1 -o "$TMP/p1b.pm" && $TP --pass 2 -o "$TMP/p2.pm" || fail "trace-photons --pass" "a run failed"
+# (the headers differ by the command line; the photons are compared)
+cmp -s <(records "$TMP/p0.pm") <(records "$TMP/p00.pm") && pass "trace-photons: --pass 0 is no pass (same photons)" ||
+    fail "trace-photons --pass 0" "photons differ"
+cmp -s <(records "$TMP/p1.pm") <(records "$TMP/p1b.pm") && pass "trace-photons: the same --pass twice, the same photons" ||
+    fail "trace-photons --pass 1 twice" "photons differ"
+if ! cmp -s <(records "$TMP/p1.pm") <(records "$TMP/p2.pm") && ! cmp -s <(records "$TMP/p0.pm") <(records "$TMP/p1.pm"); then
+    pass "trace-photons: passes 1 and 2 and no pass draw different photons"
+else
+    fail "trace-photons: passes draw different photons" "records agree"
+fi
+[ "$(hdr "$TMP/p2.pm" pass)" = 2 ] && [ -z "$(hdr "$TMP/p0.pm" pass)" ] &&
+    pass "trace-photons: pass=2 in the header, no pass key without --pass" ||
+    fail "trace-photons pass key" "pass='$(hdr "$TMP/p2.pm" pass)' and '$(hdr "$TMP/p0.pm" pass)'"
+
+TG="$BIN/trace-gather-points $CORNELL --width 16 --height 12 --spp 4 -q"
+$TG -o "$TMP/q0.pm" --direct "$TMP/d0.pm" && $TG --pass 3 -o "$TMP/q3.pm" --direct "$TMP/d3.pm" ||
+    fail "trace-gather-points --pass" "a run failed"
+[ "$(hdr "$TMP/q3.pm" pass)" = 3 ] && [ "$(hdr "$TMP/d3.pm" pass)" = 3 ] && [ -z "$(hdr "$TMP/q0.pm" pass)" ] &&
+    ! cmp -s <(records "$TMP/q0.pm") <(records "$TMP/q3.pm") &&
+    pass "trace-gather-points: --pass 3 says pass=3 in both outputs and traces other rays" ||
+    fail "trace-gather-points --pass 3" "pass='$(hdr "$TMP/q3.pm" pass)'/'$(hdr "$TMP/d3.pm" pass)', or the same queries"
+
+"$BIN/build-photonmap" -q "$TMP/p1.pm" -o "$TMP/m1.pm"
+SG="$BIN/simd-gather $TMP/m1.pm $TMP/q3.pm -q"
+if $SG --radius 0.02 --pass 3 --alpha 0.5 -o "$TMP/i3.pm" && $SG --radius 0.02 -o "$TMP/i0.pm"; then
+    # r_3 = r_1 sqrt((1 + a) / 2 * (2 + a) / 3)
+    want=$(awk 'BEGIN { printf "%.9g", 0.02 * sqrt(1.5 / 2 * 2.5 / 3) }')
+    got="$(hdr "$TMP/i3.pm" pass) $(hdr "$TMP/i3.pm" alpha) $(hdr "$TMP/i3.pm" radius1) $(hdr "$TMP/i3.pm" radius)"
+    [ "$got" = "3 0.5 0.02 $want" ] && [ -z "$(hdr "$TMP/i0.pm" pass)" ] && [ "$(hdr "$TMP/i0.pm" radius)" = 0.02 ] &&
+        pass "simd-gather --pass 3 --alpha 0.5: radius r_1 sqrt(1.5/2 x 2.5/3) = $want, pass, alpha, radius1" ||
+        fail "simd-gather pass keys" "got '$got', expected '3 0.5 0.02 $want'"
+else
+    fail "simd-gather --pass" "a run failed"
+fi
+if "$BIN/reverse-gather" "$TMP/m1.pm" "$TMP/q3.pm" -q --radius 0.02 --pass 3 --alpha 0.5 -o "$TMP/ri3.pm"; then
+    [ "$(hdr "$TMP/ri3.pm" radius)" = "$want" ] && [ "$(hdr "$TMP/ri3.pm" pass)" = 3 ] &&
+        pass "reverse-gather --pass 3: the same schedule" || fail "reverse-gather --pass" "radius $(hdr "$TMP/ri3.pm" radius)"
+else
+    fail "reverse-gather --pass" "the run failed"
+fi
+# pass 1 is r_1 itself, and the default alpha is 2/3
+$SG --radius 0.02 --pass 1 -o "$TMP/i1.pm" && [ "$(hdr "$TMP/i1.pm" radius)" = 0.02 ] &&
+    [ "$(hdr "$TMP/i1.pm" alpha)" = 0.666666667 ] && pass "simd-gather --pass 1: radius r_1, alpha 2/3" ||
+    fail "simd-gather --pass 1" "radius $(hdr "$TMP/i1.pm" radius) alpha $(hdr "$TMP/i1.pm" alpha)"
+expect_exit "simd-gather --alpha 1 is a usage error" 2 $SG --radius 0.02 --pass 2 --alpha 1 -o "$TMP/x.pm"
+expect_exit "simd-gather --alpha 0 is a usage error" 2 $SG --radius 0.02 --pass 2 --alpha 0 -o "$TMP/x.pm"
+expect_exit "simd-gather --pass with --widths variable is a usage error" 2 $SG --pass 2 --widths variable -o "$TMP/x.pm"
+
+# ---- composite --accumulate: Welford against the hand computation
+# Passes r, 3 r, 0.5 r (r: pm-testgen's 4x3 buffer): mean 1.5 r; sample variance
+# ((-0.5)^2 + 1.5^2 + (-1)^2) / 2 r^2 = 1.75 r^2; squared standard error 1.75 / 3 r^2.
+GEN=$BUILD/tests/pm-testgen
+"$GEN" radiance 1 "$TMP/r.pm"
+C="$BIN/composite -q"
+S=$TMP/state.pm
+rm -f "$S"
+$C "$TMP/r.pm" --accumulate "$S" --pass 1 -o "$TMP/a1.exr" && cp "$S" "$TMP/state1.pm" &&
+    $C "$TMP/r.pm:3" --accumulate "$S" --pass 2 -o "$TMP/a2.exr" &&
+    $C "$TMP/r.pm:0.5" --accumulate "$S" --pass 3 -o "$TMP/a3.exr" --stats "$TMP/a3.json" ||
+    fail "composite --accumulate" "a run failed"
+if paste -d' ' <(records "$TMP/r.pm") <(records "$S") | awk '
+    function off(g, e) { return (g - e > 1e-12 * (e > 0 ? e : -e) + 1e-300 || e - g > 1e-12 * (e > 0 ? e : -e) + 1e-300) }
+    { for (c = 0; c < 3; c++) { r = $(2 + c); if (off($(6 + c), 1.5 * r) || off($(9 + c), 1.75 / 3 * r * r)) bad = 1 } n++ }
+    END { exit bad || n != 12 }'; then
+    pass "running image of r, 3r, 0.5r: mean 1.5 r, variance channel 1.75/3 r^2 (to 1e-12)"
+else
+    fail "running mean and variance" "$(paste -d' ' <(records "$TMP/r.pm") <(records "$S") | head -2)"
+fi
+[ "$(hdr "$S" passes)" = 3 ] && "$BIN/pm-info" "$S" | grep -q '^CHANNELS=rgb variance$' &&
+    pass "the running image says passes=3 and carries rgb and variance" || fail "running image header" "$("$BIN/pm-info" "$S" | head -c 600)"
+# after one pass: the pass itself, variance 0, and no relative error yet
+if paste -d' ' <(records "$TMP/r.pm") <(records "$TMP/state1.pm") | awk '
+    { for (c = 0; c < 3; c++) if ($(6 + c) != $(2 + c) || $(9 + c) != 0) bad = 1 } END { exit bad }' &&
+    [ "$(hdr "$TMP/state1.pm" passes)" = 1 ] && [ -z "$(hdr "$TMP/state1.pm" relative_error)" ]; then
+    pass "one pass: the running image is the pass, variance 0, no relative_error"
+else
+    fail "one pass running image" "$(records "$TMP/state1.pm" | head -2)"
+fi
+# relative error: RMS over pixels and channels of sqrt(var) / mean = sqrt(1.75 / 3) / 1.5
+e=$(jq -r .relative_error "$TMP/a3.json")
+awk -v e="$e" 'BEGIN { w = sqrt(1.75 / 3) / 1.5; exit !(e - w < 1e-6 && w - e < 1e-6) }' &&
+    pass "relative_error $e = sqrt(1.75/3) / 1.5" || fail "relative_error" "$e"
+"$BUILD/tests/pm-exrdump" "$TMP/a3.exr" >"$TMP/a3.txt"
+if paste -d' ' <(records "$TMP/r.pm") <(tail -n +2 "$TMP/a3.txt") | awk '
+    { for (c = 0; c < 3; c++) { e = 1.5 * $(2 + c); g = $(7 + c); if (g - e > 1e-7 * e || e - g > 1e-7 * e) bad = 1 } }
+    END { exit bad }'; then
+    pass "the EXR after 3 passes shows the mean"
+else
+    fail "EXR of the running image" "$(head -3 "$TMP/a3.txt")"
+fi
+if command -v exrheader >/dev/null; then
+    exrheader "$TMP/a3.exr" >"$TMP/a3.hdr" 2>&1
+    grep -q '^passes (type string): "3"' "$TMP/a3.hdr" && pass "the EXR says passes=3" ||
+        fail "EXR passes attribute" "$(head -c 600 "$TMP/a3.hdr")"
+else
+    skip "EXR passes attribute" "exrheader not installed"
+fi
+# the pass checks: a pass already in, a gap, --pass without --accumulate; the state unchanged
+h0=$(sha1sum <"$S")
+expect_error "composite: a pass already in the running image" "holds 3 passes: pass 3 is in it already \(input error\)" \
+    $C "$TMP/r.pm" --accumulate "$S" --pass 3 -o "$TMP/x.exr"
+expect_error "composite: a pass that leaves a gap" "holds 3 passes: pass 5 would leave a gap" \
+    $C "$TMP/r.pm" --accumulate "$S" --pass 5 -o "$TMP/x.exr"
+[ "$(sha1sum <"$S")" = "$h0" ] && pass "a refused pass leaves the running image as it was" ||
+    fail "refused pass" "the running image changed"
+expect_exit "composite --pass without --accumulate is a usage error" 2 $C "$TMP/r.pm" --pass 2 -o "$TMP/x.exr"
+"$GEN" radiance 1 "$TMP/r2.pm" --set 'SCENE=other xxh3:fedcba9876543210'
+expect_error "composite: a pass of another scene" "scene mismatch" $C "$TMP/r2.pm" --accumulate "$S" -o "$TMP/x.exr"
+# the schedule must be one: a pass of another alpha is refused
+"$GEN" radiance 1 "$TMP/ra.pm" --set alpha=0.5 && rm -f "$TMP/sa.pm" && $C "$TMP/ra.pm" --accumulate "$TMP/sa.pm" -o "$TMP/x.exr"
+"$GEN" radiance 1 "$TMP/rb.pm" --set alpha=0.7
+expect_error "composite: a pass of another alpha" "has alpha=0.7 but the running image .* has alpha=0.5" \
+    $C "$TMP/rb.pm" --accumulate "$TMP/sa.pm" -o "$TMP/x.exr"
+
+# ---- pipelines/render: bad input writes nothing
+for bad in PASSES=0 TIME=-1 ALPHA=1 ALPHA=0 ALPHA=1.5 TARGET_ERROR=0 PASSES=x; do
+    rm -rf "$TMP/bad"
+    "$R" "$CORNELL" "$TMP/bad" $bad >"$TMP/out" 2>"$TMP/err"
+    rc=$?
+    if [ $rc = 2 ] && [ ! -e "$TMP/bad" ] && [ "$(wc -l <"$TMP/err")" = 1 ]; then
+        pass "render $bad: one line, exit 2, nothing written ($(cat "$TMP/err"))"
+    else
+        fail "render $bad" "exit $rc, $(wc -l <"$TMP/err") lines, dir $([ -e "$TMP/bad" ] && echo made || echo absent)"
+    fi
+done
+
+# ---- pipelines/render PASSES: pass directories, the schedule, the running image
+O=$TMP/prog
+if "$R" "$CORNELL" "$O" $SMALL PASSES=2 >"$TMP/r1.out" 2>&1; then
+    pass "render PASSES=2 runs"
+else
+    fail "render PASSES=2" "$(tail -3 "$TMP/r1.out")"
+fi
+r1=$(hdr "$O/pass-0001/indirect.pm" radius)
+want=$(awk -v r="$r1" 'BEGIN { printf "%.9g", r * sqrt((1 + 2 / 3) / 2) }')
+[ "$(hdr "$O/pass-0002/indirect.pm" radius)" = "$want" ] && [ "$(hdr "$O/pass-0002/indirect.pm" radius1)" = "$r1" ] &&
+    [ "$(hdr "$O/pass-0002/photons.pm" pass)" = 2 ] && [ "$(hdr "$O/pass-0002/queries.pm" pass)" = 2 ] &&
+    [ "$(hdr "$O/pass-0002/direct.pm" pass)" = 2 ] &&
+    pass "pass 2's files say pass=2; its gather r_2 = r_1 sqrt(5/6) = $want with pass 1's r_1 $r1" ||
+    fail "pass 2 headers" "radius $(hdr "$O/pass-0002/indirect.pm" radius), want $want"
+[ "$(hdr "$O/running.pm" passes)" = 2 ] && [ "$(hdr "$O/running.pm" radius1)" = "$r1" ] && [ -s "$O/image.exr" ] &&
+    [ -s "$O/image.png" ] && [ "$(wc -l <"$O/passes.txt")" = 2 ] && [ "$(jq .total.passes "$O/stats.json")" = 2 ] &&
+    pass "running.pm passes=2 radius1=$r1, image.exr, image.png, passes.txt, stats.json" ||
+    fail "running image after 2 passes" "$(hdr "$O/running.pm" passes) passes"
+# the running image is the mean of the two passes' sums
+"$BIN/composite" -q "$O/pass-0001/direct.pm" "$O/pass-0001/indirect.pm" --radiance "$TMP/s1.pm"
+"$BIN/composite" -q "$O/pass-0002/direct.pm" "$O/pass-0002/indirect.pm" --radiance "$TMP/s2.pm"
+if paste -d' ' <(records "$TMP/s1.pm") <(records "$TMP/s2.pm") <(records "$O/running.pm") | awk '
+    { for (c = 0; c < 3; c++) { e = ($(2 + c) + $(6 + c)) / 2; g = $(10 + c); if (g - e > 1e-12 * e + 1e-300 || e - g > 1e-12 * e + 1e-300) bad = 1 } n++ }
+    END { exit bad || n != 768 }'; then
+    pass "the running image is the mean of the passes' direct + indirect"
+else
+    fail "running image = mean of passes" "$(paste -d' ' <(records "$TMP/s1.pm") <(records "$O/running.pm") | head -2)"
+fi
+# a rerun with more passes reuses the finished ones
+"$R" "$CORNELL" "$O" $SMALL PASSES=3 >"$TMP/r2.out" 2>&1
+[ ! -s "$O/pass-0001/ran.txt" ] && [ ! -s "$O/pass-0002/ran.txt" ] && [ -s "$O/pass-0003/ran.txt" ] &&
+    [ "$(hdr "$O/running.pm" passes)" = 3 ] && grep -q ' 1 .*cached' "$TMP/r2.out" &&
+    pass "PASSES=3 after 2: passes 1 and 2 cached, pass 3 ran, the running image holds 3" ||
+    fail "rerun with more passes" "$(tail -6 "$TMP/r2.out")"
+# and gives the running image a fresh run of 3 passes gives
+"$R" "$CORNELL" "$TMP/fresh" $SMALL PASSES=3 >/dev/null 2>&1
+cmp -s <(records "$O/running.pm") <(records "$TMP/fresh/running.pm") &&
+    pass "2 then 3 passes: the same running image as 3 passes at once" || fail "reuse vs fresh" "records differ"
+# a rerun with nothing changed adds nothing; one with fewer passes shows those alone
+"$R" "$CORNELL" "$O" $SMALL PASSES=3 >"$TMP/r3.out" 2>&1
+h3=$(sha1sum <"$O/running.pm")
+! grep -q added "$TMP/r3.out" && pass "a rerun with nothing changed adds no pass" || fail "rerun adds" "$(tail -5 "$TMP/r3.out")"
+"$R" "$CORNELL" "$O" $SMALL PASSES=1 TARGET_ERROR=100 >/dev/null 2>&1
+[ "$(hdr "$O/running.pm" passes)" = 1 ] && pass "a rerun with fewer passes rebuilds the running image of those" ||
+    fail "fewer passes" "$(hdr "$O/running.pm" passes) passes"
+
+# ---- a pass that fails leaves the earlier passes and the running image as they were
+cat >"$TMP/flaky-gather" <<FLAKY
+#!/usr/bin/env bash
+case " \$* " in *" --pass 3 "*) echo "flaky-gather: failing pass 3 on purpose" >&2; exit 1 ;; esac
+exec "$BIN/simd-gather" "\$@"
+FLAKY
+chmod +x "$TMP/flaky-gather"
+F=$TMP/flaky
+"$R" "$CORNELL" "$F" $SMALL PASSES=2 GATHER="$TMP/flaky-gather" >/dev/null 2>&1
+hs=$(sha1sum <"$F/running.pm") he=$(sha1sum <"$F/image.exr")
+"$R" "$CORNELL" "$F" $SMALL PASSES=4 GATHER="$TMP/flaky-gather" >"$TMP/f.out" 2>&1
+rc=$?
+[ $rc = 1 ] && [ "$(sha1sum <"$F/running.pm")" = "$hs" ] && [ "$(sha1sum <"$F/image.exr")" = "$he" ] &&
+    [ "$(wc -l <"$F/passes.txt")" = 2 ] && [ ! -e "$F/pass-0003/indirect.pm" ] && [ ! -e "$F/pass-0004" ] &&
+    grep -q "pass 3 failed" "$TMP/f.out" &&
+    pass "pass 3 failing: exit 1, running image, EXR and passes.txt as after pass 2, no pass 4" ||
+    fail "a failing pass" "exit $rc: $(tail -3 "$TMP/f.out")"
+
+# ---- an interrupted run keeps every finished pass and an intact running image
+I=$TMP/intr
+setsid "$R" "$CORNELL" "$I" $SMALL PASSES=50 >/dev/null 2>&1 &
+pid=$!
+for _ in $(seq 1 600); do
+    [ -f "$I/passes.txt" ] && [ "$(wc -l <"$I/passes.txt")" -ge 2 ] && break
+    sleep 0.1
+done
+kill -TERM -- -$pid 2>/dev/null # the whole group: render, make and the stage running
+wait $pid 2>/dev/null
+n=$(wc -l <"$I/passes.txt")
+if "$BIN/pm-info" "$I/running.pm" >/dev/null 2>&1 && [ "$(hdr "$I/running.pm" passes)" -ge 2 ] && [ "$n" -ge 2 ] &&
+    [ "$n" -lt 50 ]; then
+    pass "interrupted after $n passes: running.pm intact and holds $(hdr "$I/running.pm" passes)"
+else
+    fail "interrupted run" "passes.txt $n lines, running.pm $(hdr "$I/running.pm" passes)"
+fi
+"$R" "$CORNELL" "$I" $SMALL PASSES=$((n + 1)) >"$TMP/i.out" 2>&1
+[ ! -s "$I/pass-0001/ran.txt" ] && [ "$(hdr "$I/running.pm" passes)" = $((n + 1)) ] &&
+    pass "the rerun reuses the finished passes and completes $((n + 1))" || fail "rerun after interrupt" "$(tail -4 "$TMP/i.out")"
+
+# ---- TIME and TARGET_ERROR
+"$R" "$CORNELL" "$TMP/t0" $SMALL TIME=0 >"$TMP/t.out" 2>&1 && [ "$(hdr "$TMP/t0/running.pm" passes)" = 1 ] &&
+    [ ! -e "$TMP/t0/pass-0002" ] && grep -q "stopped by TIME=0" "$TMP/t.out" &&
+    pass "TIME=0: the first pass runs, and only it" || fail "TIME=0" "$(tail -3 "$TMP/t.out")"
+"$R" "$CORNELL" "$O" $SMALL TARGET_ERROR=10 PASSES=5 >"$TMP/e.out" 2>&1 && [ "$(hdr "$O/running.pm" passes)" = 2 ] &&
+    grep -q "stopped by TARGET_ERROR=10" "$TMP/e.out" &&
+    pass "TARGET_ERROR=10: stops after pass 2, the first with an error estimate" || fail "TARGET_ERROR" "$(tail -4 "$TMP/e.out")"

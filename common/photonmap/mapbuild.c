@@ -228,6 +228,7 @@ pm_result_t pm_map_build_header(pm_table_t *map, const pm_table_t *ph, const cha
 {
     pm_header_t *h = &map->hdr;
     const char *emitted = pm_header_get(&ph->hdr, "emitted");
+    const char *pass = pm_header_get(&ph->hdr, "pass"); /* a progressive pass's map says which */
     pm_result_t r;
     if ((r = pm_header_inherit(h, &ph->hdr)) != PM_OK || (r = pm_header_add_input(h, path, ph->checksum)) != PM_OK ||
         (r = pm_header_add_command(h, argc, argv)) != PM_OK ||
@@ -235,6 +236,7 @@ pm_result_t pm_map_build_header(pm_table_t *map, const pm_table_t *ph, const cha
         (r = pm_header_set(h, "split", "%s", pm_split_names[p->split])) != PM_OK ||
         (p->split == PM_SPLIT_VVH && (r = pm_header_set(h, "vvh_radius", "%.9g", stats->vvh_radius)) != PM_OK) ||
         (emitted && (r = pm_header_set(h, "emitted", "%s", emitted)) != PM_OK) ||
+        (pass && (r = pm_header_set(h, "pass", "%s", pass)) != PM_OK) ||
         (p->width_k > 0 && (r = pm_header_set(h, "width_k", "%" PRIu32, p->width_k)) != PM_OK))
         return r;
     return PM_OK;

@@ -140,6 +140,11 @@ for bad in PASSES=0 TIME=-1 ALPHA=1 ALPHA=0 ALPHA=1.5 TARGET_ERROR=0 PASSES=x; d
     fi
 done
 
+expect_exit "render PASSES=2 with a gather that takes no --pass (knn-gather): exit 2" 2 \
+    "$R" "$CORNELL" "$TMP/knn" $SMALL PASSES=2 GATHER="$BIN/knn-gather"
+grep -q "does not take --pass" "$TMP/err" && [ ! -e "$TMP/knn/pass-0001" ] &&
+    pass "... and says so before any pass" || fail "knn-gather with passes" "$(cat "$TMP/err")"
+
 # ---- pipelines/render PASSES: pass directories, the schedule, the running image
 O=$TMP/prog
 if "$R" "$CORNELL" "$O" $SMALL PASSES=2 >"$TMP/r1.out" 2>&1; then

@@ -10,7 +10,8 @@
 # timers (scene loading, Embree's BVH build, allocation: wall_s less compute and I/O), and what
 # is outside the stages' own wall_s: process start and exit, render's own work (stamps, make,
 # hashing the buffers, pm-info on the running image), less the overlap of the stages that
-# run at once in a pipe.
+# run at once in a pipe (a pass pipes trace-photons into build-photonmap, and
+# trace-gather-points into hilbert-sort into the gather).
 P=500000 size=256
 [ "$QUICK" = 1 ] && P=100000 size=128
 S=scenes/cornell-box/scene.json
@@ -52,6 +53,7 @@ brackets); the goal is below 10%.
 "Stages' untimed work" is scene loading and Embree's BVH build in the two tracers, and the
 rest of each stage outside its compute and I/O timers; "outside the stages" is process start
 and exit, render's own work per pass, less the overlap of the two pipes of a pass
-(trace-photons into build-photonmap, trace-gather-points into hilbert-sort), which run their
-stages at once.
+(trace-photons into build-photonmap, trace-gather-points into hilbert-sort into the gather),
+which run their stages at once. The stages of a pipe also count, in their read_s and
+write_s, the time they wait for each other.
 MD

@@ -263,11 +263,10 @@ fi
 # the Epanechnikov kernel, -12% at the light's foot) and the photon noise of 50,000 paths both
 # weigh. Pass p traces its own photons and eye rays (--pass p), gathers with r_p of the
 # schedule (alpha 2/3: r_16 = 0.66 r_1) and composite --accumulate averages it into the
-# running image. Measured (seed 1):
-# RMS per-pixel deviation from the formula 4.7% after 1 pass, 3.6% after 4, 2.75% after 16;
-# one pass of the same 800,000 paths at r_1: 3.75%. The checks, each with a margin:
-#   - 16 passes within 0.9 times one pass of the same total photons (averaging without
-#     shrinking the width gives 4.1%, keeping only the last pass 4.7%: both fail);
+# running image. The checks, each with a margin:
+#   - 16 passes within 0.9 times the RMS per-pixel deviation of one pass of the same total
+#     photons (800,000 paths) at r_1: it fails when the width does not shrink (the bias of r_1
+#     stays) and when only the last pass is kept (the noise of 50,000 paths stays);
 #   - the error falls with the pass count: after 4 passes below after 1, after 16 below 0.85
 #     times after 4.
 rms_dev() { # rms_dev IMG: the RMS per-pixel deviation of $TMP/IMG.exr from the plane's formula

@@ -12,8 +12,9 @@
  *
  * With --accumulate STATE the sum is one progressive pass: it is averaged into the running
  * image held in STATE (mean and variance of the passes so far), the outputs show the new
- * mean, and STATE is rewritten last, so that a failure anywhere leaves the earlier passes'
- * image and state as they were. */
+ * mean; every output, STATE included, is one output set (renamed into place together at
+ * the end, or none), so that a failure anywhere leaves the earlier passes' image and state
+ * as they were. */
 #include <inttypes.h>
 #include <string.h>
 
@@ -113,7 +114,8 @@ int main(int argc, char **argv)
         {"radiance", 0, PM_OPT_OUTPUT, &o.radiance, "FILE", "also write the sum as a pmtk radiance buffer", 1, 0, NULL},
         {"accumulate", 0, PM_OPT_OUTPUT, &o.state, "STATE",
          "the sum is one progressive pass: average it into the running image STATE (a radiance buffer with the "
-         "mean and variance of the passes; created when missing, rewritten last); the outputs show the mean",
+         "mean and variance of the passes; created when missing, rewritten with the other outputs); the outputs show "
+         "the mean",
          1, 0, NULL},
         {"pass", 0, PM_OPT_INT, &o.pass, "N",
          "with --accumulate: the sum is pass N, which must be STATE's passes + 1 (0: the next, unchecked)", 0,

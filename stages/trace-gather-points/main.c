@@ -154,8 +154,8 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
         .primary = (uint32_t)(pm_args_given(a, "primary") ? o->primary : s->defaults.primary),
         .pixel = o->pixel,
         .light_samples = (uint32_t)(pm_args_given(a, "light-samples") ? o->light_samples : s->defaults.light_samples),
-        .seed = pm_trace_pass_seed((uint64_t)(pm_args_given(a, "seed") ? st->seed : s->defaults.seed),
-                                   (uint64_t)o->pass),
+        .seed =
+            pm_trace_pass_seed((uint64_t)(pm_args_given(a, "seed") ? st->seed : s->defaults.seed), (uint64_t)o->pass),
         .isa = isa,
         .threads = st->threads_used,
         .progress = pm_stage_progress(st)};

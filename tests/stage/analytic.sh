@@ -272,20 +272,25 @@ fi
 rms_dev() { # rms_dev IMG: the RMS per-pixel deviation of $TMP/IMG.exr from the plane's formula
     "$BUILD/tests/pm-exrdump" "$TMP/$1.exr" >"$TMP/$1.txt" &&
         awk -v kind=point -v kd=0.5 -v I=$PI -v lx=0 -v ly=1 -v lz=0 -v tmean=1 -v trms=1 -v tmax=100 \
-            -f tests/scenes/analytic.awk "$TMP/plane.hits.txt" "$TMP/$1.txt" | sed -n 's/.*rms dev \([0-9.]*\).*/\1/p'
+            -f tests/scenes/analytic.awk "$TMP/prog.hits.txt" "$TMP/$1.txt" | sed -n 's/.*rms dev \([0-9.]*\).*/\1/p'
 }
+# Pixel centres, so that every pass's query sits at the hit the formula is evaluated at.
 prog_ok=1
 rm -f "$TMP/prog.state.pm"
+"$BIN/trace-gather-points" "$TMP/plane/scene.json" --mode direct-vis --pixel center -q -o "$TMP/prog.hq.pm" &&
+    "$BIN/pm-info" -r "$TMP/prog.hq.pm" >"$TMP/prog.hits.txt" || prog_ok=0
 for p in $(seq 1 16); do
+    [ $prog_ok = 1 ] || break
     "$BIN/trace-photons" "$TMP/plane/scene.json" --photons 50000 --pass $p -q -o - |
         "$BIN/build-photonmap" - -q -o "$TMP/prog.map.pm" &&
-        "$BIN/trace-gather-points" "$TMP/plane/scene.json" --mode direct-vis --pass $p -q -o "$TMP/prog.q.pm" &&
+        "$BIN/trace-gather-points" "$TMP/plane/scene.json" --mode direct-vis --pixel center --pass $p -q \
+            -o "$TMP/prog.q.pm" &&
         "$BIN/simd-gather" "$TMP/prog.map.pm" "$TMP/prog.q.pm" --radius 0.5 --pass $p -q -o "$TMP/prog.i.pm" &&
         "$BIN/composite" "$TMP/prog.i.pm" --accumulate "$TMP/prog.state.pm" --pass $p -q -o "$TMP/prog.exr" ||
         { prog_ok=0; break; }
     case $p in 1 | 4 | 16) cp "$TMP/prog.exr" "$TMP/prog$p.exr" ;; esac
 done
-if [ $prog_ok = 1 ] && [ -f "$TMP/plane.hits.txt" ] &&
+if [ $prog_ok = 1 ] &&
     "$BIN/trace-photons" "$TMP/plane/scene.json" --photons 800000 -q -o - |
     "$BIN/build-photonmap" - -q -o "$TMP/one.map.pm" &&
     "$BIN/simd-gather" "$TMP/one.map.pm" "$TMP/prog.q.pm" --radius 0.5 -q -o "$TMP/one.i.pm" &&

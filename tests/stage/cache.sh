@@ -20,7 +20,7 @@ flip() { # flip FILE: one payload byte changed, the checksum trailer left as it 
 }
 
 # ---- 12: every parameter is judged before anything runs: exit 2, one line, nothing written
-for bad in PHOTONS=abc SPP=5 RADIUS=-1 THREADS=x EXPOSURE=bright WIDTH=-3 K=abc VERBOSE=2 WAIT=maybe; do
+for bad in PHOTONS=abc SPP=5 RADIUS=-1 THREADS=x EXPOSURE=bright WIDTH=-3 K=abc ISA=avx9 VERBOSE=2 WAIT=maybe; do
     rm -rf "$TMP/v"
     $R "$CORNELL" "$TMP/v" $TINY "$bad" >"$TMP/v.out" 2>"$TMP/v.err"
     status=$?

@@ -122,7 +122,9 @@ $R "$CORNELL" "$TMP/g" $TINY GATHER="$TMP/gather" >/dev/null 2>&1
 rm "$TMP/gather.ok"
 $R "$CORNELL" "$TMP/g" $TINY GATHER="$TMP/gather" RADIUS=0.05 >"$TMP/g.out" 2>&1
 status=$?
-[ $status = 1 ] && grep -qE '^  simd-gather +failed' "$TMP/g.out" && pass "a failing stage is 'failed' in the table" ||
+[ $status = 1 ] && grep -qE '^  simd-gather +failed +-$' "$TMP/g.out" && grep -qE '^  composite +not made' "$TMP/g.out" &&
+    grep -qE '^  hilbert-sort +cached' "$TMP/g.out" &&
+    pass "a failing stage is 'failed' in the table, and what it stopped 'not made'" ||
     fail "failed stage in the table" "exit $status: $(cat "$TMP/g.out")"
 
 # A pass's files are checked too.

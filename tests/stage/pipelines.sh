@@ -117,9 +117,13 @@ $R tests/scenes/glossy-box/scene.json "$TMP/gb" WIDTH=8 HEIGHT=8 SPP=4 GATHER=no
 # ---- usage and failures ----
 expect_exit "an unknown parameter is a usage error" 2 $R "$SCENE" "$TMP/u" RADIUSS=1
 expect_exit "MAP=indirect in gather mode is refused" 2 $R "$SCENE" "$TMP/u" MAP=indirect
-$R "$SCENE" "$TMP/f" $SMALL $FAKE SPP=5 >"$TMP/f.out" 2>&1
+# a gather that writes part of its output and fails (SPP=5, which once failed trace-gather-points
+# here, is now refused before any stage runs: cache.sh)
+printf '#!/bin/sh\nwhile [ "$1" != -o ]; do shift; done\necho partial >"$2"\nexit 1\n' >"$TMP/fail-gather"
+chmod +x "$TMP/fail-gather"
+$R "$SCENE" "$TMP/f" $SMALL GATHER="$TMP/fail-gather" >"$TMP/f.out" 2>&1
 status=$?
-if [ $status = 1 ] && grep -q 'render: stage trace-gather-points failed' "$TMP/f.out" && [ ! -e "$TMP/f/queries.pm" ]; then
+if [ $status = 1 ] && grep -q 'render: stage simd-gather failed' "$TMP/f.out" && [ ! -e "$TMP/f/indirect.pm" ]; then
     pass "a failing stage stops the render, named, with no output left"
 else
     fail "failing stage" "exit $status: $(cat "$TMP/f.out")"

@@ -1,0 +1,163 @@
+# cache.sh: pipelines/render's cache cannot be poisoned (issue 17, items 1, 2, 11, 12): one
+# render at a time in an OUTDIR (the lock, WAIT), a cached file is kept only when its header
+# records what render would do now (files of other parameters with newer dates are remade), a
+# corrupt intermediate is named and rebuilt, a failing stage is called failed, paths holding
+# '#', '$', ':' and spaces render, every parameter is judged before anything runs (exit 2, one
+# line, no OUTDIR), and the scene's unsupported material keys reach the user once per render.
+R=pipelines/render
+CORNELL=scenes/cornell-box/scene.json
+TINY="PHOTONS=5000 SPP=4 WIDTH=16 HEIGHT=12"
+sorted() { tr ' ' '\n' | grep -v '^$' | sort | tr '\n' ' ' | sed 's/ $//'; }
+expect_ran() { # expect_ran NAME OUTDIR "STAGES": exactly these stages ran in the last render
+    local got want
+    got=$(sorted <"$2/ran.txt") want=$(echo "$3" | sorted)
+    if [ "$got" = "$want" ]; then pass "$1"; else fail "$1" "ran '$got', expected '$want'"; fi
+}
+spp_of() { "$BIN/pm-info" --header "$1" | grep -o -- '--spp [0-9]*' | tail -n 1; }
+flip() { # flip FILE: one payload byte changed, the checksum trailer left as it was
+    local off=$(($(stat -c %s "$1") - 100))
+    printf '\x55' | dd of="$1" bs=1 seek=$off conv=notrunc status=none
+}
+
+# ---- 12: every parameter is judged before anything runs: exit 2, one line, nothing written
+for bad in PHOTONS=abc SPP=5 RADIUS=-1 THREADS=x EXPOSURE=bright WIDTH=-3 K=abc ISA=avx9 VERBOSE=2 WAIT=maybe; do
+    rm -rf "$TMP/v"
+    $R "$CORNELL" "$TMP/v" $TINY "$bad" >"$TMP/v.out" 2>"$TMP/v.err"
+    status=$?
+    if [ $status = 2 ] && [ "$(wc -l <"$TMP/v.err")" = 1 ] && grep -q "^render: bad value for ${bad%%=*} '${bad#*=}'" "$TMP/v.err" &&
+        [ ! -e "$TMP/v" ]; then
+        pass "$bad is refused up front: exit 2, one line, no OUTDIR"
+    else
+        fail "$bad refused up front" "exit $status, OUTDIR $( [ -e "$TMP/v" ] && echo made || echo absent): $(head -c 300 "$TMP/v.err")"
+    fi
+done
+
+# ---- 1: the lock. A holder that names itself in OUTDIR/.lock, as render does.
+O=$TMP/lk
+mkdir -p "$O"
+echo "pid 4242: pipelines/render other.json $O" >"$O/.lock"
+flock "$O/.lock" sleep 3 &
+holder=$!
+sleep 0.3
+expect_error "WAIT=0: a held OUTDIR is refused, naming the holder" "^render: '$O' is in use by another render \(pid 4242: pipelines/render other.json" \
+    $R "$CORNELL" "$O" $TINY GATHER=none WAIT=0
+[ ! -e "$O/ran.txt" ] && pass "... and nothing in it is touched" || fail "WAIT=0 touched OUTDIR" "$(ls "$O")"
+$R "$CORNELL" "$O" $TINY GATHER=none >"$TMP/lk.out" 2>"$TMP/lk.err"
+status=$?
+if kill -0 $holder 2>/dev/null; then
+    fail "a second render waits for the holder" "it finished while the holder held the lock (exit $status)"
+elif [ $status = 0 ] && grep -q "^render: waiting for '$O', in use by another render (pid 4242: " "$TMP/lk.err" && [ -s "$O/image.exr" ]; then
+    pass "a second render waits for the holder, saying whom, then renders"
+else
+    fail "a second render waits" "exit $status: $(head -c 300 "$TMP/lk.err")"
+fi
+wait $holder 2>/dev/null
+grep -q "^pid [0-9]*: .*pipelines/render $CORNELL $O " "$O/.lock" && pass "the lock file names the render that held it last" ||
+    fail "lock file" "$(cat "$O/.lock")"
+
+# The issue's repro: two renders into one OUTDIR at once, then the second's parameters again.
+O=$TMP/rc
+$R "$CORNELL" "$O" PHOTONS=20000 WIDTH=32 HEIGHT=32 SPP=4 >"$TMP/rc1.out" 2>&1 &
+first=$!
+$R "$CORNELL" "$O" PHOTONS=30000 WIDTH=32 HEIGHT=32 SPP=8 >"$TMP/rc2.out" 2>&1
+s2=$?
+wait $first
+s1=$?
+$R "$CORNELL" "$O" PHOTONS=30000 WIDTH=32 HEIGHT=32 SPP=8 >"$TMP/rc3.out" 2>&1
+s3=$?
+if [ "$s1 $s2 $s3" = "0 0 0" ] && [ "$(spp_of "$O/indirect.pm")" = "--spp 8" ] &&
+    "$BIN/pm-info" --header "$O/photonmap.pm" | grep -q -- '--photons 30000'; then
+    pass "two renders at once into one OUTDIR, then a third: its files are the third's (--spp 8, 30000 photons)"
+else
+    fail "concurrent renders" "exits $s1 $s2 $s3, indirect.pm says '$(spp_of "$O/indirect.pm")': $(tail -3 "$TMP/rc3.out")"
+fi
+grep -q 'mv: cannot stat' "$TMP/rc1.out" "$TMP/rc2.out" && fail "concurrent renders" "mv: cannot stat" ||
+    pass "... with no 'mv: cannot stat Makefile.tmp'"
+
+# ---- 1: the cache trusts content, not dates. Files of other parameters, newer than every
+# stamp (as a second render would leave them), are remade.
+A=$TMP/a B=$TMP/b
+$R "$CORNELL" "$A" $TINY >/dev/null 2>&1
+$R "$CORNELL" "$B" PHOTONS=5000 SPP=8 WIDTH=16 HEIGHT=12 >/dev/null 2>&1
+sleep 1.1 # newer by a whole second, whatever the file system's resolution
+cp "$A/queries.pm" "$A/direct.pm" "$A/sorted.pm" "$A/indirect.pm" "$B/"
+$R "$CORNELL" "$B" PHOTONS=5000 SPP=8 WIDTH=16 HEIGHT=12 >"$TMP/b.out" 2>&1
+expect_ran "newer files made with SPP=4 in an SPP=8 OUTDIR are remade" "$B" \
+    "trace-gather-points hilbert-sort simd-gather composite"
+[ "$(spp_of "$B/indirect.pm")" = "--spp 8" ] && pass "... and indirect.pm says --spp 8" ||
+    fail "poisoned indirect.pm" "it says '$(spp_of "$B/indirect.pm")'"
+sleep 1.1
+cp "$A/image.exr" "$A/image.png" "$B/"
+$R "$CORNELL" "$B" PHOTONS=5000 SPP=8 WIDTH=16 HEIGHT=12 >/dev/null 2>&1
+expect_ran "a newer image of other buffers is remade" "$B" "composite"
+$R "$CORNELL" "$B" PHOTONS=5000 SPP=8 WIDTH=16 HEIGHT=12 THREADS=1 VERBOSE=1 >/dev/null 2>&1
+expect_ran "THREADS and VERBOSE (-q and --threads in the headers) rerun nothing" "$B" ""
+# an intermediate another stage made (a gather's output in the photon map's place)
+sleep 1.1
+cp "$B/indirect.pm" "$B/photonmap.pm"
+$R "$CORNELL" "$B" PHOTONS=5000 SPP=8 WIDTH=16 HEIGHT=12 >/dev/null 2>&1
+expect_ran "a file made by another command in an intermediate's place is remade" "$B" "build-photonmap simd-gather composite"
+
+# ---- 2: a corrupt cached intermediate is named and rebuilt
+flip "$B/photonmap.pm"
+$R "$CORNELL" "$B" PHOTONS=5000 SPP=8 WIDTH=16 HEIGHT=12 >"$TMP/c.out" 2>"$TMP/c.err"
+status=$?
+if [ $status = 0 ] && [ "$(grep -c corrupt "$TMP/c.err")" = 1 ] &&
+    grep -qx 'render: photonmap.pm is corrupt (checksum mismatch): rebuilding it' "$TMP/c.err" &&
+    "$BIN/pm-info" "$B/photonmap.pm" >/dev/null 2>&1; then
+    pass "a flipped byte in photonmap.pm: one line, and it is rebuilt"
+else
+    fail "corrupt photonmap.pm" "exit $status: $(head -c 400 "$TMP/c.err")"
+fi
+expect_ran "... with what depends on it" "$B" "build-photonmap simd-gather composite"
+# A failing stage is called failed in the table, not cached.
+cat >"$TMP/gather" <<EOF
+#!/usr/bin/env bash
+[ -e "$TMP/gather.ok" ] || { echo "gather: told to fail" >&2; exit 1; }
+exec "$BIN/simd-gather" "\$@"
+EOF
+chmod +x "$TMP/gather"
+touch "$TMP/gather.ok"
+$R "$CORNELL" "$TMP/g" $TINY GATHER="$TMP/gather" >/dev/null 2>&1
+rm "$TMP/gather.ok"
+$R "$CORNELL" "$TMP/g" $TINY GATHER="$TMP/gather" RADIUS=0.05 >"$TMP/g.out" 2>&1
+status=$?
+[ $status = 1 ] && grep -qE '^  simd-gather +failed +-$' "$TMP/g.out" && grep -qE '^  composite +not made' "$TMP/g.out" &&
+    grep -qE '^  hilbert-sort +cached' "$TMP/g.out" &&
+    pass "a failing stage is 'failed' in the table, and what it stopped 'not made'" ||
+    fail "failed stage in the table" "exit $status: $(cat "$TMP/g.out")"
+
+# A pass's files are checked too.
+P2=$TMP/p2
+$R "$CORNELL" "$P2" $TINY PASSES=2 >/dev/null 2>&1
+flip "$P2/pass-0002/photonmap.pm"
+$R "$CORNELL" "$P2" $TINY PASSES=2 >"$TMP/p2.out" 2>"$TMP/p2.err"
+status=$?
+[ $status = 0 ] && grep -qx 'render: pass-0002/photonmap.pm is corrupt (checksum mismatch): rebuilding it' "$TMP/p2.err" &&
+    "$BIN/pm-info" "$P2/pass-0002/photonmap.pm" >/dev/null 2>&1 && [ ! -s "$P2/pass-0001/ran.txt" ] &&
+    pass "passes: a corrupt pass-0002/photonmap.pm is named and rebuilt, pass 1 is kept" ||
+    fail "passes: corrupt map" "exit $status: $(head -c 400 "$TMP/p2.err")"
+
+# ---- 11: '#', '$', ':' and spaces in the scene's path and in OUTDIR
+D="$TMP/a #b \$c: d"
+mkdir -p "$D" && cp -r scenes/cornell-box/. "$D/"
+HO="$D/out #1 \$x"
+$R "$D/scene.json" "$HO" $TINY SHARDS=2 >"$TMP/h.out" 2>&1
+status=$?
+[ $status = 0 ] && [ -s "$HO/image.exr" ] && pass "a scene path and OUTDIR with '#', '\$', ':' and spaces render" ||
+    fail "odd paths" "exit $status: $(tail -3 "$TMP/h.out")"
+$R "$D/scene.json" "$HO" $TINY SHARDS=2 >/dev/null 2>&1
+expect_ran "... and the same render again reruns nothing" "$HO" ""
+$R "$D/scene.json" "$TMP/hp #2" $TINY PASSES=2 >"$TMP/hp.out" 2>&1 && [ -s "$TMP/hp #2/image.exr" ] &&
+    pass "... and with passes" || fail "odd paths with passes" "$(tail -3 "$TMP/hp.out")"
+
+# ---- the scene's warnings, once per render
+$R tests/scenes/unsupported-mtl/scene.json "$TMP/w" WIDTH=8 HEIGHT=8 SPP=4 GATHER=none >"$TMP/w.out" 2>"$TMP/w.err"
+status=$?
+if [ $status = 0 ] && [ "$(grep -c "^render: warning: material 'textured': map_Kd 'tex.png' is not supported (ignored)$" "$TMP/w.err")" = 1 ] &&
+    grep -qx "render: warning: material 'textured': d 0.8 is not supported (ignored)" "$TMP/w.err" &&
+    ! grep -q "material 'plain'" "$TMP/w.err"; then
+    pass "the scene's unsupported material keys are reported once each"
+else
+    fail "scene warnings" "exit $status: $(head -c 400 "$TMP/w.err")"
+fi

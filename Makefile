@@ -8,7 +8,7 @@
 #   make demo       render the Cornell box with what exists (see README)
 #   make bench      benchmarks into docs/benchmarks.md (BENCH=PATTERN: only those sections)
 #   make bench-quick the same on smaller inputs, in under two minutes
-#   make fuzz       libFuzzer targets for every reader (clang), not part of test
+#   make fuzz       libFuzzer targets for every reader, past the checksum too (clang; docs/fuzzing.md), not part of test
 #   make deps       install the Debian packages (apt-get, when root)
 #   make format     lay out every C file as .clang-format says (format-check: only check; part of test)
 #   make clean

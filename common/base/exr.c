@@ -46,6 +46,38 @@ static exr_context_initializer_t exr_init(void)
     return init;
 }
 
+/* One half-precision value from a float, rounded to nearest even. gcc (and clang from 15) have
+ * _Float16 on x86-64 and convert in hardware or libgcc; clang 14, which builds the fuzz targets,
+ * has no _Float16 there, so it gets the same rounding written out on the bit patterns. */
+#ifdef __FLT16_MAX__
+typedef _Float16 exr_half_t;
+static inline exr_half_t exr_half_from_float(float f) { return (_Float16)f; }
+#else
+typedef uint16_t exr_half_t;
+static exr_half_t exr_half_from_float(float f)
+{
+    uint32_t x;
+    memcpy(&x, &f, 4);
+    uint32_t sign = (x >> 16) & 0x8000u, a = x & 0x7fffffffu;
+    if (a >= 0x7f800000u) /* Inf stays Inf; NaN stays a quiet NaN with its top payload bits */
+        return (exr_half_t)(sign | 0x7c00u | (a > 0x7f800000u ? 0x200u | ((a >> 13) & 0x3ffu) : 0));
+    if (a >= 0x477ff000u) /* 65520 and up round past the largest half, 65504 */
+        return (exr_half_t)(sign | 0x7c00u);
+    if (a >= 0x38800000u) { /* a normal half: rebias the exponent (127 - 15), keep 10 mantissa bits */
+        uint32_t h = (a - 0x38000000u) >> 13, rest = a & 0x1fffu;
+        h += rest > 0x1000u || (rest == 0x1000u && (h & 1u)); /* a carry moves to the next exponent */
+        return (exr_half_t)(sign | h);
+    }
+    if (a <= 0x33000000u) /* 2^-25 and below round to zero (2^-25 is a tie, to the even 0) */
+        return (exr_half_t)sign;
+    /* A subnormal half counts units of 2^-24: the float's significand shifted by its exponent. */
+    uint32_t e = a >> 23, m = (a & 0x7fffffu) | 0x800000u, shift = 126u - e;
+    uint32_t h = m >> shift, rest = m & ((1u << shift) - 1u), tie = 1u << (shift - 1u);
+    h += rest > tie || (rest == tie && (h & 1u));
+    return (exr_half_t)(sign | h);
+}
+#endif
+
 /* Converts rows [y0, y0 + lines) of the caller's float RGB into the file's pixel type, one
  * plane per channel (planar data needs no strides the encoder might misread). */
 static void pack_rows(const float *rgb, uint32_t w, uint32_t y0, int32_t lines, pm_exr_pixel_t type, void *planes[3])
@@ -53,9 +85,9 @@ static void pack_rows(const float *rgb, uint32_t w, uint32_t y0, int32_t lines, 
     size_t n = (size_t)w * (size_t)lines, base = (size_t)y0 * w;
     for (int c = 0; c < 3; c++) {
         if (type == PM_EXR_HALF) {
-            _Float16 *p = planes[c];
+            exr_half_t *p = planes[c];
             for (size_t i = 0; i < n; i++)
-                p[i] = (_Float16)rgb[3 * (base + i) + (size_t)c];
+                p[i] = exr_half_from_float(rgb[3 * (base + i) + (size_t)c]);
         } else {
             float *p = planes[c];
             for (size_t i = 0; i < n; i++)

@@ -1,6 +1,7 @@
 /* gather_isa.c: gather_kernel.h instantiated for each SIMD width, each compiled for its
- * own instruction set (GCC target pragmas), so one binary runs the widest the CPU has and
- * falls back to narrower ones (common/base/cpu.h decides which may run).
+ * own instruction set (GCC target pragmas; under clang, which ignores them, the same target
+ * applied to every function of the section by `#pragma clang attribute`), so one binary runs
+ * the widest the CPU has and falls back to narrower ones (common/base/cpu.h decides which may run).
  *
  * Lane masks are plain bit sets (bit l = lane l) everywhere outside the arithmetic, as in
  * the paper's pseudocode; each ISA turns compare results into bits (movemask, or the
@@ -29,8 +30,12 @@
 #include "photonmap/gather_isa_inst.h"
 
 /* ---------------------------------------------------------------- SSE4.1, W = 4 */
+#ifdef __clang__
+#pragma clang attribute push(__attribute__((target("sse4.1"))), apply_to = function)
+#else
 #pragma GCC push_options
 #pragma GCC target("sse4.1")
+#endif
 static const uint32_t lane_bits4[4] = {1, 2, 4, 8};
 static inline __m128 mask4(uint32_t bits)
 {
@@ -65,11 +70,19 @@ typedef int vi4 __attribute__((vector_size(16)));
 #define FLUSH(ar, ag, ab, dacc) flush4(ar, ag, ab, dacc)
 #define ISA_NAME sse4
 #include "photonmap/gather_isa_inst.h"
+#ifdef __clang__
+#pragma clang attribute pop
+#else
 #pragma GCC pop_options
+#endif
 
 /* ---------------------------------------------------------------- AVX2 + FMA, W = 8 */
+#ifdef __clang__
+#pragma clang attribute push(__attribute__((target("avx2,fma"))), apply_to = function)
+#else
 #pragma GCC push_options
 #pragma GCC target("avx2,fma")
+#endif
 static const uint32_t lane_bits8[8] = {1, 2, 4, 8, 16, 32, 64, 128};
 static inline __m256 mask8(uint32_t bits)
 {
@@ -106,11 +119,19 @@ typedef int vi8 __attribute__((vector_size(32)));
 #define FLUSH(ar, ag, ab, dacc) flush8(ar, ag, ab, dacc)
 #define ISA_NAME avx2
 #include "photonmap/gather_isa_inst.h"
+#ifdef __clang__
+#pragma clang attribute pop
+#else
 #pragma GCC pop_options
+#endif
 
 /* ---------------------------------------------------------------- AVX-512, W = 16 */
+#ifdef __clang__
+#pragma clang attribute push(__attribute__((target("avx512f"))), apply_to = function)
+#else
 #pragma GCC push_options
 #pragma GCC target("avx512f")
+#endif
 static inline void flush16(__m512 ar, __m512 ag, __m512 ab, double dacc[3][16])
 {
     __m512 v[3] = {ar, ag, ab};
@@ -141,7 +162,11 @@ typedef int vi16 __attribute__((vector_size(64)));
 #define FLUSH(ar, ag, ab, dacc) flush16(ar, ag, ab, dacc)
 #define ISA_NAME avx512
 #include "photonmap/gather_isa_inst.h"
+#ifdef __clang__
+#pragma clang attribute pop
+#else
 #pragma GCC pop_options
+#endif
 
 gather_fn_t gather_kernel_for(pm_isa_t isa, int variable)
 {

@@ -40,6 +40,7 @@ typedef struct {
     const char *summary;        /* what the program does, one line */
     const pm_option_t *options; /* the table, terminated by an entry whose name is NULL */
     int min_args, max_args;     /* how many positional arguments; max_args < 0 means any */
+    const char *binary_output;  /* the pmtk format -o writes ("photons"), or NULL for text or no -o */
 } pm_cli_t;
 
 /* Parsed positional arguments, and the storage behind @file words. */

@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "base/atomic.h"
 #include "base/cpu.h"
@@ -121,6 +122,13 @@ int pm_stage_begin(pm_stage_t *st, const pm_cli_t *cli, int argc, char **argv)
     /* No stats for a clash: the --stats file may be one of the two. */
     if (check_outputs(st) != PM_OK)
         return begin_fail(st, PM_ERR_USAGE, 0);
+    /* Binary records on a terminal: refused here, before any work, as gzip does (the writer
+     * refuses again, for library callers). */
+    if (cli->binary_output && strcmp(st->output, "-") == 0 && isatty(STDOUT_FILENO)) {
+        pm_error_set(PM_ERR_USAGE, "refusing to write a binary %s file to a terminal (stdout): give -o FILE or pipe it",
+                     cli->binary_output);
+        return begin_fail(st, PM_ERR_USAGE, 0);
+    }
     if (st->stats_path) {
         st->stats = calloc(1, sizeof *st->stats);
         if (st->stats)

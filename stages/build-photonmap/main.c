@@ -98,7 +98,7 @@ int main(int argc, char **argv)
     };
     static const char about[] = "Build the photon map KD-tree (one photon per node, 8-byte nodes) from a photons file; "
                                 "PHOTONS may be - for stdin.";
-    const pm_cli_t cli = {"build-photonmap", "[options] PHOTONS -o MAP", about, options, 1, 1};
+    const pm_cli_t cli = {"build-photonmap", "[options] PHOTONS -o MAP", about, options, 1, 1, "photonmap"};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

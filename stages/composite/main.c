@@ -126,7 +126,7 @@ int main(int argc, char **argv)
         "Add radiance buffers (direct, indirect, shards), each times its SCALE, into an OpenEXR "
         "image and a PNG preview.";
     const pm_cli_t cli = {
-        "composite", "[options] BUFFER[:SCALE]... -o IMAGE.exr [--png PREVIEW.png]", about, options, 1, -1};
+        "composite", "[options] BUFFER[:SCALE]... -o IMAGE.exr [--png PREVIEW.png]", about, options, 1, -1, NULL};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

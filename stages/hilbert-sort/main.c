@@ -190,7 +190,7 @@ int main(int argc, char **argv)
     };
     static const char about[] = "Reorder gather points (a queries file) along a 3-D Hilbert curve, so that packets of "
                                 "queries are coherent; the records are unchanged, only their order.";
-    const pm_cli_t cli = {"hilbert-sort", "[options] [QUERIES|-] [-o OUT|-]", about, options, 0, 1};
+    const pm_cli_t cli = {"hilbert-sort", "[options] [QUERIES|-] [-o OUT|-]", about, options, 0, 1, "queries"};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

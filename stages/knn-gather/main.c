@@ -102,7 +102,7 @@ int main(int argc, char **argv)
     static const char about[] =
         "Gather the k nearest photons at every query (traditional photon mapping, a max-heap per "
         "query, scalar); write the indirect radiance per pixel. QUERIES may be - for stdin.";
-    const pm_cli_t cli = {"knn-gather", "[options] MAP QUERIES -o RADIANCE", about, options, 2, 2};
+    const pm_cli_t cli = {"knn-gather", "[options] MAP QUERIES -o RADIANCE", about, options, 2, 2, "radiance"};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

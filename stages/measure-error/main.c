@@ -87,7 +87,7 @@ int main(int argc, char **argv)
     static const char about[] =
         "Error of an image against a reference (pmtk radiance files, OpenEXR or PFM, same size): RMSE, "
         "relative MSE and mean absolute relative error as JSON.";
-    const pm_cli_t cli = {"measure-error", "[options] TEST REFERENCE", about, options, 2, 2};
+    const pm_cli_t cli = {"measure-error", "[options] TEST REFERENCE", about, options, 2, 2, NULL};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

@@ -176,7 +176,7 @@ int main(int argc, char **argv)
     static const char about[] =
         "Compare two pmtk files of one format: structure and header keys exactly, values within "
         "tolerances. Exit 0 when they agree, 1 when they differ.";
-    const pm_cli_t cli = {"pm-compare", "[options] A B", about, options, 2, 2};
+    const pm_cli_t cli = {"pm-compare", "[options] A B", about, options, 2, 2, NULL};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

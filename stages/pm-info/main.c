@@ -41,7 +41,7 @@ int main(int argc, char **argv)
     static const char about[] =
         "Print the header of pmtk files (photons, photonmap, queries, radiance), check every byte, "
         "and optionally print the records.";
-    const pm_cli_t cli = {"pm-info", "[options] FILE...", about, options, 0, -1};
+    const pm_cli_t cli = {"pm-info", "[options] FILE...", about, options, 0, -1, NULL};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

@@ -113,7 +113,7 @@ int main(int argc, char **argv)
         "Reverse photon mapping: build a KD-tree over the queries and let every photon search it "
         "with the fixed kernel width (simd-gather's estimator); write the indirect radiance per "
         "pixel. QUERIES may be - for stdin.";
-    const pm_cli_t cli = {"reverse-gather", "[options] MAP QUERIES -o RADIANCE", about, options, 2, 2};
+    const pm_cli_t cli = {"reverse-gather", "[options] MAP QUERIES -o RADIANCE", about, options, 2, 2, "radiance"};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

@@ -80,7 +80,7 @@ int main(int argc, char **argv)
         {0},
     };
     static const char about[] = "Load a scene file, build its ray-tracing structure and summarize it.";
-    const pm_cli_t cli = {"scene-info", "[options] SCENE", about, options, 1, 1};
+    const pm_cli_t cli = {"scene-info", "[options] SCENE", about, options, 1, 1, NULL};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

@@ -150,7 +150,7 @@ int main(int argc, char **argv)
     };
     static const char about[] = "Gather photons at every query with SIMD packets and the sample-point estimator; write "
                                 "the indirect radiance per pixel. QUERIES may be - for stdin.";
-    const pm_cli_t cli = {"simd-gather", "[options] MAP QUERIES -o RADIANCE", about, options, 2, 2};
+    const pm_cli_t cli = {"simd-gather", "[options] MAP QUERIES -o RADIANCE", about, options, 2, 2, "radiance"};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

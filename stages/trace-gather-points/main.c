@@ -234,7 +234,7 @@ int main(int argc, char **argv)
     static const char about[] =
         "Trace primary and stratified secondary rays as packets; write gather points and direct light.";
     const pm_cli_t cli = {
-        "trace-gather-points", "[options] SCENE -o QUERIES [--direct RADIANCE]", about, options, 1, 1};
+        "trace-gather-points", "[options] SCENE -o QUERIES [--direct RADIANCE]", about, options, 1, 1, "queries"};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

@@ -146,7 +146,7 @@ int main(int argc, char **argv)
         {0},
     };
     static const char about[] = "Trace photons from the scene's lights and write where they land (watts).";
-    const pm_cli_t cli = {"trace-photons", "[options] SCENE -o PHOTONS", about, options, 1, 1};
+    const pm_cli_t cli = {"trace-photons", "[options] SCENE -o PHOTONS", about, options, 1, 1, "photons"};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

@@ -142,7 +142,7 @@ int main(int argc, char **argv)
     };
     static const char about[] = "Render a reference image with an unbiased path tracer (next-event estimation, MIS, "
                                 "Russian roulette) over the photon stages' scene model; progressive.";
-    const pm_cli_t cli = {"trace-reference", "[options] SCENE [-o] OUT.exr", about, options, 1, 2};
+    const pm_cli_t cli = {"trace-reference", "[options] SCENE [-o] OUT.exr", about, options, 1, 2, NULL};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;

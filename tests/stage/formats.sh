@@ -230,6 +230,12 @@ if command -v script >/dev/null; then
     got=$?
     [ "$got" = 2 ] && grep -q "refusing to write a binary queries file to a terminal" "$TMP/tty.out" &&
         pass "hilbert-sort -o - onto a terminal refuses too" || fail "hilbert-sort to a terminal" "exit $got"
+    # refused before any work: two billion photons would take minutes to trace first
+    timeout 60 script -qec "'$BIN/trace-photons' scenes/cornell-box/scene.json -n 2000000000 -q" /dev/null >"$TMP/tty.out" 2>&1
+    got=$?
+    [ "$got" = 2 ] && grep -q "refusing to write a binary photons file to a terminal" "$TMP/tty.out" &&
+        pass "trace-photons refuses the terminal before it traces (2e9 photons, no work done)" ||
+        fail "trace-photons refuses the terminal before it traces" "exit $got (124: it traced first)"
     # a pipe is not a terminal: the same command writes
     "$BIN/trace-photons" scenes/cornell-box/scene.json -n 100 -q | "$BIN/pm-info" -q - >/dev/null 2>"$TMP/err" &&
         pass "trace-photons into a pipe still writes" || fail "trace-photons into a pipe" "$(cat "$TMP/err")"

@@ -24,7 +24,7 @@ static pm_result_t parse(opts_t *o, pm_args_t *a, int argc, char **argv)
         {"order", 0, PM_OPT_CHOICE, &o->choice, "O", "an order", 1, 0, choices},
         {0},
     };
-    const pm_cli_t cli = {"t", "[options]", "test", t, 0, -1};
+    const pm_cli_t cli = {"t", "[options]", "test", t, 0, -1, NULL};
     return pm_args_parse(&cli, argc, argv, a);
 }
 
@@ -118,7 +118,7 @@ static void test_args_settings_round_trip(void **state)
         {"count", 'n', PM_OPT_INT, &o.n, "N", "a count", 0, 1000, NULL},
         {0},
     };
-    const pm_cli_t cli = {"t", "[options]", "test", t, 0, -1};
+    const pm_cli_t cli = {"t", "[options]", "test", t, 0, -1, NULL};
     o.s = "it's a #name @with\\ blanks";
     o.n = 12;
     char path[256], at[260];
@@ -133,7 +133,7 @@ static void test_args_settings_round_trip(void **state)
         {"count", 'n', PM_OPT_INT, &back.n, "N", "a count", 0, 1000, NULL},
         {0},
     };
-    const pm_cli_t cli2 = {"t", "[options]", "test", t2, 0, -1};
+    const pm_cli_t cli2 = {"t", "[options]", "test", t2, 0, -1, NULL};
     char *argv[] = {"t", at};
     assert_int_equal(pm_args_parse(&cli2, 2, argv, &a), PM_OK);
     assert_string_equal(back.s, o.s);

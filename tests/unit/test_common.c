@@ -89,7 +89,7 @@ static int run_stage(pm_result_t code, const char *extra, char *err_out, size_t 
     pm_stage_t st;
     pm_stage_defaults(&st);
     const pm_option_t opts[] = {PM_STAGE_COMMON_OPTIONS(st), {0}};
-    const pm_cli_t cli = {"unit-stage", "[options]", "a stage that only fails", opts, 0, 0};
+    const pm_cli_t cli = {"unit-stage", "[options]", "a stage that only fails", opts, 0, 0, NULL};
     char *argv[] = {"unit-stage", "--stats", stats, (char *)extra, NULL};
     fflush(stderr);
     int saved = dup(2), fd = open(errpath, O_WRONLY | O_CREAT | O_TRUNC, 0600);

@@ -1,7 +1,8 @@
 # error-vs-time.sh: pipelines/error-vs-time renders every combination it is asked for (primary
 # rays among them), times each from its stages, measures each against the reference (an EXR
 # written by composite, a PFM, or trace-reference's own with area pixels), keeps the best per
-# budget, and refuses a reference of another size before writing anything.
+# budget, refuses a reference of another size before writing anything, and draws the
+# progressive curve (a row per pass of one render) falling.
 E=pipelines/error-vs-time
 CORNELL=scenes/cornell-box/scene.json
 SIZE="WIDTH=16 HEIGHT=16"
@@ -11,7 +12,7 @@ SIZE="WIDTH=16 HEIGHT=16"
 pipelines/render "$CORNELL" "$TMP/ref" PHOTONS=20000 PRIMARY=1 SPP=4 K=40 LEAF=16 $SIZE >/dev/null 2>&1 ||
     fail "error-vs-time reference render" "pipelines/render failed"
 out=$TMP/sweep
-$E "$CORNELL" "$out" PHOTONS=10000,20000 PRIMARY="1 4" SPP=4 K="10 40" LEAF=16 $SIZE PT_SPP= \
+$E "$CORNELL" "$out" PHOTONS=10000,20000 PRIMARY="1 4" SPP=4 K="10 40" LEAF=16 $SIZE PT_SPP= PROGRESSIVE=0 \
     REFERENCE="$TMP/ref/image.exr" >"$TMP/evt.log" 2>&1
 status=$?
 csv=$out/results.csv
@@ -44,7 +45,8 @@ fi
 # Every number is finite, printed with a sensible number of digits (no float noise such as
 # 2.1297200000000003), and the total is the sum of the stages to their rounding (1 ms each).
 if awk -F, -v ct="$ct" 'NR > 1 {
-        for (i = 7; i <= NF; i++) if ($i !~ /^[0-9.eE+-]+$/ || $i ~ /[0-9]{8}/) { print "column " i ": " $i; bad = 1 }
+        for (i = 7; i <= NF; i++) if ((i <= 20 && $i !~ /^[0-9.eE+-]+$/) || $i ~ /[0-9]{8}/) { print "column " i ": " $i; bad = 1 }
+        if ($21 != "" || $22 != "") { print "passes, alpha: " $21 ", " $22; bad = 1 }
         s = 0; for (i = ct + 2; i <= ct + 7; i++) s += $i
         if ((s - $ct) ^ 2 > 0.0035 ^ 2) { print "total " $ct " != sum " s; bad = 1 }
     } END { exit bad }' "$csv" >"$TMP/evt.bad"; then
@@ -76,7 +78,7 @@ grep -q '^| [0-9.e+-]* s | simd-gather, 20000 photons, 1 primary, 4 spp, leaf 16
     binmode STDOUT; printf "PF\n%d %d\n-1.0\n", $w, $h;
     for (my $y = $h - 1; $y >= 0; $y--) { print pack("f<" x 3, @{$px[$y * $w + $_]}) for 0 .. $w - 1 }' >"$TMP/ref.pfm"
 out=$TMP/pfm
-$E "$CORNELL" "$out" PHOTONS=20000 PRIMARY="1 4" SPP=4 MAX_RAYS=4 K=40 LEAF=16 PT_SPP= PLOT=0 \
+$E "$CORNELL" "$out" PHOTONS=20000 PRIMARY="1 4" SPP=4 MAX_RAYS=4 K=40 LEAF=16 PT_SPP= PLOT=0 PROGRESSIVE=0 \
     REFERENCE="$TMP/ref.pfm" >"$TMP/pfm.log" 2>&1
 status=$?
 row=$(tail -n +2 "$out/results.csv" 2>/dev/null)
@@ -102,6 +104,7 @@ fi
 expect_exit "error-vs-time: unknown parameter" 2 $E "$CORNELL" "$TMP/x" NOPE=1
 expect_exit "error-vs-time: a list with a word that is not a number" 2 $E "$CORNELL" "$TMP/x" K="10 ten"
 expect_exit "error-vs-time: a bad PIXEL" 2 $E "$CORNELL" "$TMP/x" PIXEL=corner
+expect_exit "error-vs-time: PROG_ALPHA outside (0, 1)" 2 $E "$CORNELL" "$TMP/x" PROG_ALPHA="0.5 1"
 expect_exit "error-vs-time: missing scene" 1 $E "$TMP/missing.json" "$TMP/x"
 expect_exit "error-vs-time: unreadable reference" 1 $E "$CORNELL" "$TMP/x" REFERENCE="$TMP/none.exr" PT_SPP= PLOT=0 $SIZE
 
@@ -109,7 +112,7 @@ expect_exit "error-vs-time: unreadable reference" 1 $E "$CORNELL" "$TMP/x" REFER
 # 64 samples: with area pixels a pixel that holds a sliver of the light is heavy-tailed in
 # relative error at a few samples (one hit of the light in 16 samples is 16 times its mean).
 out=$TMP/pt
-$E "$CORNELL" "$out" PHOTONS=10000 SPP=4 K=20 PT_SPP="1 64" REF_SPP=64 $SIZE PLOT=0 >"$TMP/pt.log" 2>&1
+$E "$CORNELL" "$out" PHOTONS=10000 SPP=4 K=20 PT_SPP="1 64" REF_SPP=64 $SIZE PLOT=0 PROGRESSIVE=0 >"$TMP/pt.log" 2>&1
 status=$?
 pt1=$(awk -F, -v c="$ce" '$1 == "trace-reference" && $4 == 1 { print $c }' "$out/results.csv" 2>/dev/null)
 pt16=$(awk -F, -v c="$ce" '$1 == "trace-reference" && $4 == 64 { print $c }' "$out/results.csv" 2>/dev/null)
@@ -122,9 +125,31 @@ else
     fail "error-vs-time path tracer curve" "exit $status, relmse '$pt1' and '$pt16': $(tail -3 "$TMP/pt.log")"
 fi
 touch -d '2000-01-01' "$out/reference.exr"
-$E "$CORNELL" "$out" PHOTONS=10000 SPP=4 K=20 PT_SPP= REF_SPP=64 $SIZE PLOT=0 >"$TMP/pt2.log" 2>&1
+$E "$CORNELL" "$out" PHOTONS=10000 SPP=4 K=20 PT_SPP= REF_SPP=64 $SIZE PLOT=0 PROGRESSIVE=0 >"$TMP/pt2.log" 2>&1
 if [ "$(stat -c %Y "$out/reference.exr")" = "$(date -d '2000-01-01' +%s)" ] && ! grep -q 'reference: trace-reference' "$TMP/pt2.log"; then
     pass "the reference is made once and kept for the same scene, size and samples"
 else
     fail "error-vs-time reference cache" "the reference was made again: $(head -2 "$TMP/pt2.log")"
+fi
+
+# The progressive curve: one render of 6 passes gives 6 rows, pass 1 to 6 in growing wall time
+# from the start of that render (the last within the render's own total), drawn as one line;
+# the error falls with the passes. The reference has 256 samples per pixel (its floor is well
+# below the sixth pass's error), and 6 passes of a noisy 16 x 16 image should cut the relative
+# MSE about 4 times: the check asks for 2, and fails when the rows repeat pass 1's image.
+out=$TMP/prog
+$E "$CORNELL" "$out" PHOTONS=10000 PRIMARY=1 SPP=4 K=20 PT_SPP= REF_SPP=256 $SIZE \
+    PROG_PASSES=6 PROG_PHOTONS=20000 PROG_PRIMARY=1 PROG_SPP=4 PROG_K=20 >"$TMP/prog.log" 2>&1
+status=$?
+cpass=$(column passes)
+prog=$(awk -F, -v ct="$ct" -v ce="$ce" -v cp="$cpass" '$1 == "progressive" { print $cp, $ct, $ce }' "$out/results.csv" 2>/dev/null)
+render_s=$(jq -r .total.wall_s "$out/runs/prog-photons20000-primary1-spp4-k20/stats.json" 2>/dev/null)
+if [ $status = 0 ] && [ "$(echo "$prog" | cut -d' ' -f1 | tr '\n' ' ')" = "1 2 3 4 5 6 " ] &&
+    echo "$prog" | awk -v r="$render_s" 'NR > 1 && $2 <= t { bad = 1 } { t = $2 } NR == 1 { e1 = $3 } END { exit bad || !(t <= r && $3 < e1 / 2) }' &&
+    [ "$(wc -l <"$out/curve-progressive-3.csv" 2>/dev/null)" = 6 ] &&
+    grep -q "curve-progressive-3.csv' using .* title 'progressive, 20000 photons, 1 primary, 4 spp per pass, K 20, alpha 0.6667'" "$out/error-vs-time.gp" &&
+    [ "$(head -c 8 "$out/error-vs-time.png" 2>/dev/null | od -An -tx1 | tr -d ' \n')" = 89504e470d0a1a0a ]; then
+    pass "the progressive curve: a row per pass in growing time within the render's, falling ($(echo "$prog" | awk 'NR == 1 { a = $3 } END { print a " to " $3 }'))"
+else
+    fail "error-vs-time progressive curve" "exit $status, rows (pass, s, relmse): $(echo $prog), render $render_s s: $(tail -3 "$TMP/prog.log")"
 fi

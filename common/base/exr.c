@@ -52,6 +52,12 @@ static exr_context_initializer_t exr_init(void)
 #ifdef __FLT16_MAX__
 typedef _Float16 exr_half_t;
 static inline exr_half_t exr_half_from_float(float f) { return (_Float16)f; }
+static inline float exr_half_bits_to_float(uint16_t bits)
+{
+    _Float16 h;
+    memcpy(&h, &bits, 2);
+    return (float)h;
+}
 #else
 typedef uint16_t exr_half_t;
 static exr_half_t exr_half_from_float(float f)
@@ -75,6 +81,26 @@ static exr_half_t exr_half_from_float(float f)
     uint32_t h = m >> shift, rest = m & ((1u << shift) - 1u), tie = 1u << (shift - 1u);
     h += rest > tie || (rest == tie && (h & 1u));
     return (exr_half_t)(sign | h);
+}
+/* Every half is exactly a float: rebias a normal's exponent, normalize a subnormal. */
+static float exr_half_bits_to_float(uint16_t bits)
+{
+    uint32_t sign = (uint32_t)(bits & 0x8000u) << 16, e = (bits >> 10) & 0x1fu, m = bits & 0x3ffu, x;
+    if (e == 0x1fu) /* Inf, or NaN with its payload */
+        x = sign | 0x7f800000u | (m << 13);
+    else if (e) /* normal: exponent 15-biased to 127-biased */
+        x = sign | ((e + 112u) << 23) | (m << 13);
+    else if (!m) /* signed zero */
+        x = sign;
+    else { /* subnormal: m * 2^-24, shifted until its leading one is the implicit bit */
+        e = 113u;
+        while (!(m & 0x400u))
+            m <<= 1, e--;
+        x = sign | (e << 23) | ((m & 0x3ffu) << 13);
+    }
+    float f;
+    memcpy(&f, &x, 4);
+    return f;
 }
 #endif
 
@@ -266,9 +292,9 @@ static pm_result_t choose_channels(exr_const_context_t ctx, const char *path, ex
 static float value_at(const uint8_t *p, uint16_t t)
 {
     if (t == EXR_PIXEL_HALF) {
-        _Float16 h;
-        memcpy(&h, p, 2);
-        return (float)h;
+        uint16_t bits;
+        memcpy(&bits, p, 2);
+        return exr_half_bits_to_float(bits);
     }
     if (t == EXR_PIXEL_UINT) {
         uint32_t u;

@@ -40,7 +40,7 @@ cat >>"$MD" <<MD
 ## Progressive passes: the overhead of a pass
 
 \`pipelines/render PASSES=$((RUNS + 1))\` on the Cornell box, ${size}x${size} pixels, $P photons per pass,
-the scene's spp; the first pass is left out. A pass's wall time is everything render does for
+render's per-pass defaults for the rest (16 primary rays and 4 secondary per pixel, K 5); the first pass is left out. A pass's wall time is everything render does for
 it (the graph, make, every stage, \`composite --accumulate\`, its bookkeeping); the compute is
 the sum of the stages' compute timers (tests/bench/92-passes.sh names them). The
 overhead is the rest, as a fraction of the pass (median over $RUNS passes, min to max in

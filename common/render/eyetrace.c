@@ -14,6 +14,7 @@
 #include <string.h>
 
 #include "base/progress.h"
+#include "base/stage.h"
 #include "base/timer.h"
 #include "formats/formats.h"
 #include "math/rng.h"
@@ -649,4 +650,41 @@ pm_result_t pm_eye_direct_header(const pm_eye_t *c, int argc, char **argv, pm_he
     if (r == PM_OK)
         r = pm_header_set(h, "light_samples", "%u", c->light_samples);
     return r;
+}
+
+void pm_eye_report(pm_stage_t *st, const pm_eye_info_t *in, const pm_eye_stats_t *x, int schedule, int spilled,
+                   pm_isa_t isa)
+{
+    uint64_t rays = x->primary_rays + x->secondary_rays + x->shadow_rays;
+    double tt = x->trace_s, tc = x->trace_cpu_s, te = x->secondary_embree_s;
+    pm_stage_stat_string(st, "mode", pm_eye_mode_names[in->mode]);
+    pm_stage_stat_string(st, "isa", pm_isa_name(isa));
+    pm_stage_stat_int(st, "packet_width", in->packet_width);
+    pm_stage_stat_string(st, "schedule", pm_eye_schedule_names[schedule]);
+    pm_stage_stat_int(st, "width", in->width);
+    pm_stage_stat_int(st, "height", in->height);
+    pm_stage_stat_int(st, "spp", in->spp);
+    pm_stage_stat_int(st, "primary", in->primary);
+    pm_stage_stat_string(st, "pixel", pm_pixel_names[in->pixel]);
+    pm_stage_stat_int(st, "light_samples", in->light_samples);
+    pm_stage_stat_int(st, "seed", (int64_t)in->seed);
+    pm_stage_stat_int(st, "primary_rays", (int64_t)x->primary_rays);
+    pm_stage_stat_int(st, "secondary_rays", (int64_t)x->secondary_rays);
+    pm_stage_stat_int(st, "shadow_rays", (int64_t)x->shadow_rays);
+    pm_stage_stat_int(st, "queries", (int64_t)x->queries);
+    pm_stage_stat_int(st, "spooled_to_file", spilled);
+    pm_stage_stat_double(st, "trace_s", tt);
+    pm_stage_stat_double(st, "spool_s", x->sink_s);
+    pm_stage_stat_double(st, "rays_per_s", tt > 0 ? (double)rays / tt : 0.0);
+    pm_stage_stat_double(st, "secondary_rays_per_s", tt > 0 ? (double)x->secondary_rays / tt : 0.0);
+    pm_stage_stat_double(st, "trace_cpu_s", tc);
+    pm_stage_stat_double(st, "secondary_rays_per_cpu_s", tc > 0 ? (double)x->secondary_rays / tc : 0.0);
+    pm_stage_stat_double(st, "secondary_embree_s", te);
+    pm_stage_stat_double(st, "secondary_embree_rays_per_core_s", te > 0 ? (double)x->secondary_rays / te : 0.0);
+    st->items = x->queries;
+    pm_stage_note(st,
+                  "%" PRIu64 " primary, %" PRIu64 " secondary, %" PRIu64 " shadow rays in %.3f s (%.2f Mrays/s, %s "
+                  "packets of %d); %" PRIu64 " queries",
+                  x->primary_rays, x->secondary_rays, x->shadow_rays, tt, tt > 0 ? 1e-6 * (double)rays / tt : 0.0,
+                  pm_isa_name(isa), in->packet_width, x->queries);
 }

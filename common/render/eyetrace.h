@@ -23,6 +23,7 @@
 
 #include "base/cpu.h"
 #include "base/error.h"
+#include "base/stage.h"
 #include "formats/pmfile.h"
 #include "render/rt.h"
 #include "render/scene.h"
@@ -104,5 +105,11 @@ pm_result_t pm_eye_queries_header(const pm_eye_t *e, int argc, char **argv, uint
 pm_result_t pm_eye_direct_header(const pm_eye_t *e, int argc, char **argv, pm_header_t *h);
 
 void pm_eye_destroy(pm_eye_t *e);
+
+/* What trace-gather-points reports: the tracer's settings and counters into st's --stats
+ * (rays, queries, rates per second of wall and CPU time) and its one-line note. schedule is
+ * the pm_eye_schedule_names index, spilled whether the records went past memory. */
+void pm_eye_report(pm_stage_t *st, const pm_eye_info_t *in, const pm_eye_stats_t *x, int schedule, int spilled,
+                   pm_isa_t isa);
 
 #endif

@@ -104,43 +104,6 @@ static pm_result_t write_outputs(pm_stage_t *st, const tgp_options_t *o, const p
     return r;
 }
 
-static void report(pm_stage_t *st, const tgp_options_t *o, const pm_eye_info_t *in, const pm_eye_stats_t *x,
-                   int spilled, pm_isa_t isa)
-{
-    uint64_t rays = x->primary_rays + x->secondary_rays + x->shadow_rays;
-    double tt = x->trace_s, tc = x->trace_cpu_s, te = x->secondary_embree_s;
-    pm_stage_stat_string(st, "mode", pm_eye_mode_names[in->mode]);
-    pm_stage_stat_string(st, "isa", pm_isa_name(isa));
-    pm_stage_stat_int(st, "packet_width", in->packet_width);
-    pm_stage_stat_string(st, "schedule", pm_eye_schedule_names[o->schedule]);
-    pm_stage_stat_int(st, "width", in->width);
-    pm_stage_stat_int(st, "height", in->height);
-    pm_stage_stat_int(st, "spp", in->spp);
-    pm_stage_stat_int(st, "primary", in->primary);
-    pm_stage_stat_string(st, "pixel", pm_pixel_names[in->pixel]);
-    pm_stage_stat_int(st, "light_samples", in->light_samples);
-    pm_stage_stat_int(st, "seed", (int64_t)in->seed);
-    pm_stage_stat_int(st, "primary_rays", (int64_t)x->primary_rays);
-    pm_stage_stat_int(st, "secondary_rays", (int64_t)x->secondary_rays);
-    pm_stage_stat_int(st, "shadow_rays", (int64_t)x->shadow_rays);
-    pm_stage_stat_int(st, "queries", (int64_t)x->queries);
-    pm_stage_stat_int(st, "spooled_to_file", spilled);
-    pm_stage_stat_double(st, "trace_s", tt);
-    pm_stage_stat_double(st, "spool_s", x->sink_s);
-    pm_stage_stat_double(st, "rays_per_s", tt > 0 ? (double)rays / tt : 0.0);
-    pm_stage_stat_double(st, "secondary_rays_per_s", tt > 0 ? (double)x->secondary_rays / tt : 0.0);
-    pm_stage_stat_double(st, "trace_cpu_s", tc);
-    pm_stage_stat_double(st, "secondary_rays_per_cpu_s", tc > 0 ? (double)x->secondary_rays / tc : 0.0);
-    pm_stage_stat_double(st, "secondary_embree_s", te);
-    pm_stage_stat_double(st, "secondary_embree_rays_per_core_s", te > 0 ? (double)x->secondary_rays / te : 0.0);
-    st->items = x->queries;
-    pm_stage_note(st,
-                  "%" PRIu64 " primary, %" PRIu64 " secondary, %" PRIu64 " shadow rays in %.3f s (%.2f Mrays/s, %s "
-                  "packets of %d); %" PRIu64 " queries",
-                  x->primary_rays, x->secondary_rays, x->shadow_rays, tt, tt > 0 ? 1e-6 * (double)rays / tt : 0.0,
-                  pm_isa_name(isa), in->packet_width, x->queries);
-}
-
 static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t *s, const pm_rt_t *rt, pm_isa_t isa)
 {
     /* The scene's render block stands in for an option not given: the command line wins. */
@@ -187,7 +150,7 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
     if (r == PM_OK)
         r = write_outputs(st, o, e, &k);
     if (r == PM_OK)
-        report(st, o, in, &x, pm_spool_spilled(&k.spool), isa);
+        pm_eye_report(st, in, &x, o->schedule, pm_spool_spilled(&k.spool), isa);
     pm_spool_free(&k.spool);
     free(k.direct);
     pm_eye_destroy(e);

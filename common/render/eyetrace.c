@@ -54,7 +54,7 @@ typedef struct {
     float *sh_c;      /* shadow ray -> RGB radiance it adds when unblocked, W/(m^2 sr) */
     uint32_t *sec_px; /* secondary ray -> pixel column */
     float *sec_w;     /* secondary ray -> RGB path weight (f cos / pdf / N / primary) */
-    float *sec_cos;   /* secondary ray -> cosine at the primary hit (its pdf is cos / pi), for MIS */
+    float *sec_cos;   /* secondary ray -> pi times its solid-angle pdf (a cosine sample: its cosine), for MIS */
     size_t sh_px_cap, sh_c_cap, sec_px_cap, sec_w_cap, sec_cos_cap; /* elements allocated */
     float *u1, *u2;                                                 /* spp stratified points */
     float *lx, *ly, *lz; /* their cosine-weighted directions in the local frame */
@@ -187,7 +187,8 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
         for (int k = 0; k < 3; k++)
             direct[3 * x + k] += (double)(m->ke[k] * inv_p);
 
-    int reflects = m->kd[0] > 0.0f || m->kd[1] > 0.0f || m->kd[2] > 0.0f || pm_material_is_glossy(m);
+    int glossy = pm_material_is_glossy(m);
+    int reflects = m->kd[0] > 0.0f || m->kd[1] > 0.0f || m->kd[2] > 0.0f || glossy;
     if (!reflects)
         return 1; /* black: reflects no light, direct or gathered */
 
@@ -224,7 +225,8 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
          * docs/programs/trace-gather-points.md. */
         if (c->mode == PM_EYE_GATHER) /* shared with the secondary rays that find the light (MIS) */
             g *= pm_power_heuristic((float)c->light_samples * ls.r2 / (ls.cosy * (float)c->geom.area),
-                                    (float)(c->spp / PER_CELL) * ls.cosx * (1.0f / PM_PI));
+                                    glossy ? (float)(c->spp / PER_CELL) * pm_bsdf_pdf(m, n, ls.wi, wo)
+                                           : (float)(c->spp / PER_CELL) * ls.cosx * (1.0f / PM_PI));
         pm_brdf(m, n, ls.wi, wo, f);
         size_t j = sc->shadow.n;
         for (int k = 0; k < 3; k++)
@@ -254,7 +256,6 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
     }
     pm_strata_fill(gather_rng, c->nx, c->ny, PER_CELL, sc->u1, sc->u2);
     pm_strata_cosine(sc->u1, sc->u2, c->spp, sc->lx, sc->ly, sc->lz);
-    int glossy = pm_material_is_glossy(m);
     float scale = inv_p / (float)c->spp;
     if (!glossy) {
         /* Lambertian: (kd/pi) cos / (cos/pi) = kd for every ray; kd > 0 here. Whole
@@ -283,19 +284,32 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
         sr->n += nq;
         return 1;
     }
+    /* Glossy: directions drawn from the BSDF mixture (pm_bsdf_sample), the lobe chosen by the
+     * stratified u1 itself (rescaled into the chosen lobe's share), so that a sharp lobe gets
+     * its rays along the mirror direction and the strata survive. The weight is f cos / pdf
+     * over N with the mixture's pdf (one-sample MIS of the two lobes, balance heuristic); a
+     * glossy draw below the surface is the lobe's energy loss and carries nothing. */
+    float sd = pm_bsdf_diffuse_share(m);
     for (unsigned q = 0; q < c->spp; q++) {
-        float wi[3];
-        for (int k = 0; k < 3; k++)
-            wi[k] = sc->lx[q] * tb[k] + sc->ly[q] * bb[k] + sc->lz[q] * n[k];
+        float wi[3], u1 = sc->u1[q], u2 = sc->u2[q];
+        pm_lobe_t lobe = u1 < sd ? PM_LOBE_DIFFUSE : PM_LOBE_GLOSSY;
+        u1 = lobe == PM_LOBE_DIFFUSE ? u1 / sd : (u1 - sd) / (1.0f - sd);
+        if (!(u1 < 1.0f))
+            u1 = 0x1.fffffep-1f; /* the rescaling can round up to 1 */
+        if (!pm_bsdf_sample_lobe(m, lobe, n, wo, u1, u2, wi))
+            continue;
+        float pdf = pm_bsdf_pdf(m, n, wi, wo), cosi = pm_dot3(n, wi);
+        if (!(pdf > 0.0f))
+            continue;
         size_t j = sc->sec.n;
         float *w = sc->sec_w + 3 * j, f[3];
-        pm_brdf(m, n, wi, wo, f); /* glossy: weight pi f / N per ray */
+        pm_brdf(m, n, wi, wo, f);
         for (int k = 0; k < 3; k++)
-            w[k] = f[k] * PM_PI * scale;
+            w[k] = f[k] * cosi / pdf * scale;
         if (!(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f))
             continue; /* carries nothing: not traced */
         sc->sec_px[j] = x;
-        sc->sec_cos[j] = sc->lz[q];
+        sc->sec_cos[j] = pdf * PM_PI; /* pi times the pdf: what a cosine sample's cosine is */
         pm_rays_push(&sc->sec, o, wi, 0.0f, INFINITY);
     }
     return 1;

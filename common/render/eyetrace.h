@@ -6,7 +6,8 @@
  * filter), or all through its centre (PM_PIXEL_CENTER). At each
  * primary hit adds emission seen directly and direct light (shadow rays to point lights and to
  * sampled points of emissive triangles) into the direct radiance buffer; and spawns `spp`
- * cosine-weighted secondary rays, stratified with PM_EYE_PER_CELL samples per cell so that
+ * secondary rays (cosine-weighted at a Lambertian surface, drawn from the BSDF mixture at a
+ * glossy one), stratified with PM_EYE_PER_CELL samples per cell so that
  * groups of four share origin and direction, also traced as packets. Each secondary hit becomes
  * one gather point, a record of the queries format (formats/formats.h) with the weight contract
  * of docs/formats.md. PM_EYE_DIRECT_VIS makes the primary hits themselves the queries (the

@@ -31,8 +31,10 @@
  * reproducible on its own and no two pixels or phases share numbers. */
 enum { STREAM_JITTER = 0, STREAM_LIGHT = 1, STREAM_GATHER = 2, STREAM_SPECULAR = 3 };
 
-/* Eye paths through mirrors and glass: Russian roulette from this specular bounce on (survival
- * the path's largest throughput channel, capped at 1), and a hard stop after PM_EYE_MAX_SPECULAR
+/* Eye paths through mirrors and glass: Russian roulette from this specular bounce on, survival
+ * the chain's largest channel of energy kept (the product of the weights photons would carry:
+ * kr, 1 for a Fresnel reflection, tf; not the radiance's 1/eta^2, which is no loss and would
+ * kill paths inside glass for nothing), capped at 1; and a hard stop after PM_EYE_MAX_SPECULAR
  * bounces in a row, whose light is lost (the bias docs/accuracy.md states). */
 #define RR_SPECULAR 8
 
@@ -177,6 +179,7 @@ static void follow_specular(const pm_eye_t *c, scratch_t *sc, struct RTCIntersec
                             uint32_t *tri, float o[3], float d[3], float *t, float thr[3])
 {
     const pm_scene_t *s = c->s;
+    float kept[3] = {1.0f, 1.0f, 1.0f}; /* energy the chain has kept, per channel */
     for (unsigned bounce = 0;; bounce++) {
         const pm_material_t *m = &s->materials[s->tri_material[*tri]];
         if (!pm_material_is_specular(m))
@@ -186,21 +189,24 @@ static void follow_specular(const pm_eye_t *c, scratch_t *sc, struct RTCIntersec
         for (int k = 0; k < 3; k++)
             p[k] = o[k] + *t * d[k], wo[k] = -d[k];
         float u = pm_rng_float(rng), v = pm_rng_float(rng);
-        if (bounce >= PM_EYE_MAX_SPECULAR || pm_specular_sample(m, ng, wo, u, 1, wi, wt) < 0) {
+        int how = bounce >= PM_EYE_MAX_SPECULAR ? -1 : pm_specular_sample(m, ng, wo, u, 1, wi, wt);
+        if (how < 0) {
             sc->n_specular_cut += bounce >= PM_EYE_MAX_SPECULAR;
             *tri = PM_RAY_MISS;
             return;
         }
-        for (int k = 0; k < 3; k++)
+        for (int k = 0; k < 3; k++) {
             thr[k] *= wt[k];
+            kept[k] *= how == 1 ? m->tf[k] : wt[k];
+        }
         if (bounce >= RR_SPECULAR) {
-            float q = fminf(1.0f, fmaxf(thr[0], fmaxf(thr[1], thr[2])));
+            float q = fminf(1.0f, fmaxf(kept[0], fmaxf(kept[1], kept[2])));
             if (!(v < q)) {
                 *tri = PM_RAY_MISS;
                 return;
             }
             for (int k = 0; k < 3; k++)
-                thr[k] /= q;
+                thr[k] /= q, kept[k] /= q;
         }
         float side = pm_dot3(ng, wi) >= 0.0f ? c->eps : -c->eps;
         for (int k = 0; k < 3; k++)

@@ -67,7 +67,7 @@ static void sphere(FILE *f, const char *group, const char *mat, double cx, doubl
     }
     unsigned south = nverts + 1;
     vertex(f, cx, cy - r, cz);
-#define RING(j, k) (base + 1 + (unsigned)((j) - 1) * NLON + (unsigned)((k) % NLON))
+#define RING(j, k) (base + 1 + (unsigned)((j)-1) * NLON + (unsigned)((k) % NLON))
     for (int k = 0; k < NLON; k++)
         fprintf(f, "f %u %u %u\n", base, RING(1, k + 1), RING(1, k));
     for (int j = 1; j < NLAT - 1; j++)

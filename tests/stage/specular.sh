@@ -102,6 +102,8 @@ bad_mtl() { # bad_mtl NAME PATTERN MTL-TEXT
 }
 bad_mtl ni-negative "Ni -1 must be a finite number > 0" $'newmtl x\nNi -1\nillum 7\n'
 bad_mtl ni-zero "Ni 0 must be a finite number > 0" $'newmtl x\nNi 0\nillum 7\n'
+bad_mtl ni-nan "Ni nan must be a finite number > 0" $'newmtl x\nNi nan\nillum 7\n'
+bad_mtl ni-inf "Ni inf must be a finite number > 0" $'newmtl x\nNi 1e39\nillum 7\n'
 bad_mtl tf-high "Tf 1.5 in channel r must lie in \[0, 1\]" $'newmtl x\nNi 1.5\nTf 1.5 1 1\nillum 7\n'
 bad_mtl tf-negative "Tf -0.25 in channel b must lie in \[0, 1\]" $'newmtl x\nNi 1.5\nTf 1 1 -0.25\nillum 7\n'
 expect_error "Ni 0 refused by trace-reference too" "material 'x': Ni 0 must be" \

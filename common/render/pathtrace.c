@@ -127,7 +127,8 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
         /* What lies beyond is of a component not asked for: not traced. Direct light ends at
          * the first non-specular vertex's light (nd 1, no mirror or glass after it); a caustic
          * at the first non-specular vertex's mirrors and glass (nd 1 and this hit specular). */
-        if ((pt->set.component == PM_PT_DIRECT && nd >= 1) || (pt->set.component == PM_PT_CAUSTIC && nd >= 1 && !specular))
+        if ((pt->set.component == PM_PT_DIRECT && nd >= 1) ||
+            (pt->set.component == PM_PT_CAUSTIC && nd >= 1 && !specular))
             break;
         if (depth >= pt->set.max_bounces) {
             cnt->capped++;

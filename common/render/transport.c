@@ -89,11 +89,17 @@ float pm_bsdf_pdf(const pm_material_t *m, const float n[3], const float wi[3], c
     return p;
 }
 
+/* Index ratios beyond these are taken as these: their squares stay normal floats, and F and the
+ * directions are those of the limit to within float precision. */
+#define PM_ETA_MIN 1e-6f
+#define PM_ETA_MAX 1e6f
+
 float pm_fresnel_dielectric(float cos_i, float eta)
 {
     float ci = fminf(fabsf(cos_i), 1.0f);
     if (!(eta > 0.0f) || !(ci > 0.0f))
         return 1.0f;
+    eta = fminf(fmaxf(eta, PM_ETA_MIN), PM_ETA_MAX);
     float sin_t2 = (1.0f - ci * ci) / (eta * eta);
     if (sin_t2 >= 1.0f)
         return 1.0f;
@@ -132,7 +138,7 @@ int pm_specular_sample(const pm_material_t *m, const float ng[3], const float wo
             wi_out[k] = weight_out[k] = 0.0f;
         return -1;
     }
-    float eta = pm_dot3(ng, wo) < 0.0f ? 1.0f / m->ior : m->ior;
+    float eta = fminf(fmaxf(pm_dot3(ng, wo) < 0.0f ? 1.0f / m->ior : m->ior, PM_ETA_MIN), PM_ETA_MAX);
     float f = pm_fresnel_dielectric(cos_o, eta);
     if (u < f) {
         store_unit(r, n, wi_out);

@@ -86,7 +86,8 @@ float pm_bsdf_pdf(const pm_material_t *m, const float n[3], const float wi[3], c
  * reflectances, for light arriving at cosine cos_i (taken as |cos_i|, clamped to 1) to the
  * normal on its own side, with eta = n_t / n_i the index beyond the boundary over the index on
  * that side (> 0). 1 under total internal reflection (sin_t >= 1) and at cos_i = 0; 0 for
- * eta = 1 up to rounding. Never NaN for eta > 0. */
+ * eta = 1 up to rounding. Never NaN for eta > 0; a ratio beyond [1e-6, 1e6] is taken as that
+ * limit. */
 float pm_fresnel_dielectric(float cos_i, float eta);
 
 /* Samples the delta BSDF of a specular material (mirror or glass) at a hit with unit geometric

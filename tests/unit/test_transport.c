@@ -532,7 +532,7 @@ static void test_transport_fresnel(void **state)
     assert_true(fabsf(pm_fresnel_dielectric(1.0f, 3.0f) - 0.25f) < 1e-6f);
     /* anything a tracer can pass in: finite and within [0, 1] */
     const float cs[] = {0.0f, -0.0f, 1e-30f, 1e-7f, 0.5f, 1.0f, 1.0000001f, 1.5f, -0.5f, -1.0f};
-    const float es[] = {1e-6f, 1e-3f, 0.3333f, 0.999999f, 1.0f, 1.000001f, 3.0f, 1e3f, 1e6f};
+    const float es[] = {1e-38f, 1e-6f, 1e-3f, 0.3333f, 0.999999f, 1.0f, 1.000001f, 3.0f, 1e3f, 1e6f, 1e30f, 3e38f};
     for (size_t i = 0; i < sizeof cs / sizeof cs[0]; i++)
         for (size_t j = 0; j < sizeof es / sizeof es[0]; j++) {
             float f = pm_fresnel_dielectric(cs[i], es[j]);
@@ -656,11 +656,11 @@ static void test_transport_specular_split(void **state)
 
 /* No direction a tracer can meet gives a NaN, an Inf or a non-unit wi: grazing on both sides
  * (cos 0, 1e-8, denormal), directions a little off unit length, the inverted normal, indices
- * from 1 to 3 and the extremes the loader allows. */
+ * from 1 to 3 and the extremes the loader allows (any finite float > 0). */
 static void test_transport_specular_stiff(void **state)
 {
     (void)state;
-    const float iors[] = {1e-3f, 0.5f, 1.0f, 1.0001f, 1.5f, 3.0f, 1e3f};
+    const float iors[] = {1e-30f, 1e-3f, 0.5f, 1.0f, 1.0001f, 1.5f, 3.0f, 1e3f, 1e30f, 3e38f};
     const float zs[] = {0.0f, -0.0f, 1e-38f, -1e-38f, 1e-8f, -1e-8f, 1e-4f, -1e-4f, 0.5f, -0.5f, 1.0f, -1.0f};
     const float us[] = {0.0f, 0.25f, 0.5f, 0.9999999f};
     for (size_t g = 0; g < sizeof iors / sizeof iors[0]; g++)

@@ -174,9 +174,11 @@ static void specular_rng(pm_rng_t *r, uint64_t seed, uint64_t pixel, uint32_t k)
  * *t, through every specular bounce (pm_specular_sample with radiance weights), to the first
  * hit on anything else: on return *tri, o, d and *t are that last ray's and its hit (*tri
  * PM_RAY_MISS when the path escaped or ended), and thr has been multiplied by the chain's
- * weights. Single rays: chains are rare and incoherent. */
+ * weights. u_first, when not negative, is the first bounce's choice between reflection and
+ * refraction instead of a fresh number (the primary rays of a pixel stratify it). Single rays:
+ * chains are rare and incoherent. */
 static void follow_specular(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContext *ctx, pm_rng_t *rng,
-                            uint32_t *tri, float o[3], float d[3], float *t, float thr[3])
+                            float u_first, uint32_t *tri, float o[3], float d[3], float *t, float thr[3])
 {
     const pm_scene_t *s = c->s;
     float kept[3] = {1.0f, 1.0f, 1.0f}; /* energy the chain has kept, per channel */
@@ -189,6 +191,8 @@ static void follow_specular(const pm_eye_t *c, scratch_t *sc, struct RTCIntersec
         for (int k = 0; k < 3; k++)
             p[k] = o[k] + *t * d[k], wo[k] = -d[k];
         float u = pm_rng_float(rng), v = pm_rng_float(rng);
+        if (bounce == 0 && u_first >= 0.0f)
+            u = u_first;
         int how = bounce >= PM_EYE_MAX_SPECULAR ? -1 : pm_specular_sample(m, ng, wo, u, 1, wi, wt);
         if (how < 0) {
             sc->n_specular_cut += bounce >= PM_EYE_MAX_SPECULAR;
@@ -447,6 +451,7 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
     sc->shadow.n = 0;
     sc->sec.n = 0;
     pm_rng_t light_rng, gather_rng, spec_rng;
+    float spec_xi = 0.0f;                /* the pixel's rotation of its primary rays' first specular choices */
     pm_rng_init(&light_rng, c->seed, 0); /* re-keyed per pixel below */
     pm_rng_init(&gather_rng, c->seed, 0);
     pm_rng_init(&spec_rng, c->seed, 0);
@@ -456,8 +461,10 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
         if (i % c->primary == 0) {
             pm_rng_init(&light_rng, c->seed, 4 * (uint64_t)pixel + STREAM_LIGHT);
             pm_rng_init(&gather_rng, c->seed, 4 * (uint64_t)pixel + STREAM_GATHER);
-            if (c->specular)
+            if (c->specular) {
                 specular_rng(&spec_rng, c->seed, pixel, 0);
+                spec_xi = pm_rng_float(&spec_rng);
+            }
         }
         if (c->specular && sc->prim.prim[i] != PM_RAY_MISS) {
             /* Through mirrors and glass to the first other surface: the ray becomes the chain's last. */
@@ -471,7 +478,13 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
                 for (int k = 0; k < 3; k++)
                     d[k] /= l;
                 t *= l;
-                follow_specular(c, sc, &ctx, &spec_rng, &tri, o, d, &t, thr);
+                /* The pixel's primary rays take the first choice between reflection and refraction
+                 * from a rotated grid, {j / P + xi}, so that P rays split about F P to (1 - F) P
+                 * rather than at random: the glass seen directly is far less noisy. */
+                float u_first = fmodf((float)(i % c->primary) / (float)c->primary + spec_xi, 1.0f);
+                if (!(u_first < 1.0f))
+                    u_first = 0.0f;
+                follow_specular(c, sc, &ctx, &spec_rng, u_first, &tri, o, d, &t, thr);
                 pr->prim[i] = tri;
                 pr->ox[i] = o[0], pr->oy[i] = o[1], pr->oz[i] = o[2];
                 pr->dx[i] = d[0], pr->dy[i] = d[1], pr->dz[i] = d[2];
@@ -522,7 +535,7 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
              * such a chain is L S+ D at the primary hit, the caustic queries' (with the caustic
              * map) or lost without them: never counted here. */
             specular_rng(&spec_rng, c->seed, (uint64_t)y * c->w + last_px, 1 + in_px);
-            follow_specular(c, sc, &ctx, &spec_rng, &tri, o, d, &t, thr);
+            follow_specular(c, sc, &ctx, &spec_rng, -1.0f, &tri, o, d, &t, thr);
             if (tri == PM_RAY_MISS)
                 continue;
             uint32_t mi = s->tri_material[tri];

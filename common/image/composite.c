@@ -195,14 +195,16 @@ pm_result_t pm_composite_sum(pm_composite_t *c, int argc, char **argv, pm_compos
 }
 
 /* The schedule's key `key` of the pass (the first kept buffer that has it) into out: empty when
- * no buffer has it; two buffers that disagree are an error. */
+ * no buffer has it; two buffers that disagree are an error. A caustic buffer's radius1 is its
+ * own map's (the caustic map is far sparser than the global one): the running image keeps the
+ * global gather's. */
 static pm_result_t pass_key(const pm_composite_t *c, const char *key, char *out, size_t size)
 {
     out[0] = 0;
     const char *first = NULL;
     for (int i = 0; i < c->nin; i++) {
         const char *v = c->in[i].used ? pm_header_get(pm_reader_header(c->in[i].rd), key) : NULL;
-        if (!v)
+        if (!v || (!strcmp(key, "radius1") && !strcmp(c->in[i].component, "caustic")))
             continue;
         if (first && strcmp(v, out))
             return pm_error_set(PM_ERR_INPUT, "buffers of one pass disagree on %s: '%s' says %s, '%s' says %s", key,

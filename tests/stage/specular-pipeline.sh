@@ -252,6 +252,32 @@ done
 [ $ok = 1 ] && pass "trace-gather-points through glass: 1 and 3 threads, every schedule, the same three files" ||
     fail "eye determinism" "the files differ between thread counts or schedules"
 
+# ---- pipelines/render: the caustic branch for a scene with mirrors or glass only ----
+# The mirror ceiling of (1) with its area light: render runs the two caustic stages and adds
+# caustic.pm, and its image is composite of the three buffers it made; the same render in two
+# progressive passes works too. The glossy box (no mirror, no glass) runs no caustic stage and
+# writes no caustic file.
+RD=$D/render
+pipelines/render "$D/mca/scene.json" "$RD/mca" PHOTONS=100000 SPP=8 >"$D/r.out" 2>&1
+if grep -qx build-photonmap.caustic "$RD/mca/ran.txt" && grep -qx simd-gather.caustic "$RD/mca/ran.txt" &&
+    grep -aq '^component=caustic$' "$RD/mca/caustic.pm" &&
+    "$BIN/composite" -q "$RD/mca/direct.pm" "$RD/mca/indirect.pm" "$RD/mca/caustic.pm" -o "$D/rmca.exr" &&
+    cmp -s <("$BUILD/tests/pm-exrdump" "$D/rmca.exr") <("$BUILD/tests/pm-exrdump" "$RD/mca/image.exr"); then
+    pass "render: a scene with a mirror runs the caustic branch, and its image is direct + indirect + caustic"
+else
+    fail "render caustic branch" "$(tail -n 5 "$D/r.out" | tr '\n' ' ')"
+fi
+pipelines/render "$D/mca/scene.json" "$RD/mca" PHOTONS=100000 SPP=8 >"$D/r2.out" 2>&1 &&
+    ! grep -q ' ran ' "$D/r2.out" && pass "render: a rerun of the caustic branch runs nothing" ||
+    fail "render caustic rerun" "$(grep ' ran ' "$D/r2.out" | tr '\n' ' ')"
+pipelines/render "$D/mca/scene.json" "$RD/mcap" PASSES=2 PHOTONS=50000 SPP=4 >"$D/rp.out" 2>&1 &&
+    [ -f "$RD/mcap/pass-0002/caustic.pm" ] && grep -q '2 passes' "$D/rp.out" &&
+    pass "render: two progressive passes with the caustic branch" || fail "render caustic passes" "$(tail -n 4 "$D/rp.out")"
+pipelines/render tests/scenes/glossy-box/scene.json "$RD/gb" SPP=4 >"$D/rg.out" 2>&1 &&
+    ! grep -q caustic "$RD/gb/ran.txt" && ! ls "$RD/gb" | grep -q caustic && ! grep -q caustic "$RD/gb/Makefile" &&
+    pass "render: a scene without mirror or glass runs no caustic stage and writes no caustic file" ||
+    fail "render without specular" "$(cat "$RD/gb/ran.txt" | tr '\n' ' ')"
+
 # ---- bad input and misuse ----
 L=tests/scenes/glossy-box/scene.json
 expect_error "--caustic-output on a scene without mirror or glass" "no mirror or glass" \

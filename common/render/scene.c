@@ -671,9 +671,124 @@ static pm_result_t scan_mtl_dropped(pm_scene_t *s, const char *obj, const char *
     return r;
 }
 
+/* sin and cos of an angle in degrees, exact at multiples of 90 (so that a quarter turn maps a
+ * coordinate axis onto another with no 6e-17 residue, and a typed matrix can match it). */
+static void sincos_degrees(double deg, double *s_out, double *c_out)
+{
+    double r = fmod(deg, 360.0);
+    if (r < 0)
+        r += 360.0;
+    if (r == 0.0 || r == 90.0 || r == 180.0 || r == 270.0) {
+        static const double s4[4] = {0, 1, 0, -1}, c4[4] = {1, 0, -1, 0};
+        int q = (int)(r / 90.0);
+        *s_out = s4[q], *c_out = c4[q];
+        return;
+    }
+    *s_out = sin(r * (M_PI / 180.0)), *c_out = cos(r * (M_PI / 180.0));
+}
+
+/* a = b * a for affine 3x4 matrices (rows of [3x3 | t]): b applied after a. */
+static void affine_after(double a[3][4], const double b[3][4])
+{
+    double o[3][4];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 4; j++)
+            o[i][j] = b[i][0] * a[0][j] + b[i][1] * a[1][j] + b[i][2] * a[2][j] + (j == 3 ? b[i][3] : 0.0);
+    memcpy(a, o, sizeof o);
+}
+
+static double det3(const double m[3][4])
+{
+    return m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
+           m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+}
+
+/* A mesh entry's placement (docs/scene-format.md, Transforms): scale, then rotate, then
+ * translate, then matrix, composed into one affine map xf_out. *general_out is 0 when only scale
+ * and translate are given: those scenes keep the arithmetic they always had (same vertices to
+ * the bit). */
+static pm_result_t load_transform(const ctx_t *c, json_t *mj, const char *where, double xf_out[3][4], int *general_out)
+{
+    double scale = 1.0;
+    float tr[3] = {0, 0, 0};
+    char p1[96], p2[96], p3[96];
+    snprintf(p1, sizeof p1, "%s.scale", where);
+    snprintf(p2, sizeof p2, "%s.translate", where);
+    pm_result_t r;
+    if ((r = get_number(c, mj, "scale", p1, 0, 1e-30, PM_SCENE_COORD_MAX, &scale)) != PM_OK ||
+        (r = get_vec3(c, mj, "translate", p2, 0, -PM_SCENE_COORD_MAX, PM_SCENE_COORD_MAX, tr)) != PM_OK)
+        return r;
+    memset(xf_out, 0, 12 * sizeof(double));
+    for (int i = 0; i < 3; i++)
+        xf_out[i][i] = scale;
+    *general_out = 0;
+    json_t *rot = json_object_get(mj, "rotate");
+    if (rot) {
+        static const char *const rkeys[] = {"axis", "degrees", NULL};
+        snprintf(p1, sizeof p1, "%s.rotate", where);
+        if (!json_is_object(rot))
+            return bad(c, p1, "must be an object {\"axis\": [x, y, z], \"degrees\": angle}");
+        float axis[3];
+        double deg = 0;
+        snprintf(p2, sizeof p2, "%s.rotate.axis", where);
+        snprintf(p3, sizeof p3, "%s.rotate.degrees", where);
+        if ((r = only_keys(c, rot, p1, rkeys)) != PM_OK ||
+            (r = get_vec3(c, rot, "axis", p2, 1, -PM_SCENE_COORD_MAX, PM_SCENE_COORD_MAX, axis)) != PM_OK ||
+            (r = get_number(c, rot, "degrees", p3, 1, -1e6, 1e6, &deg)) != PM_OK)
+            return r;
+        double a[3] = {axis[0], axis[1], axis[2]}, len = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+        if (!(len > 0) || !isfinite(len))
+            return bad(c, p2, "is the zero vector: a rotation needs an axis");
+        for (int k = 0; k < 3; k++)
+            a[k] /= len;
+        double sn, cs;
+        sincos_degrees(deg, &sn, &cs);
+        /* Rodrigues: R = cos I + sin [a]x + (1 - cos) a a^T, counter-clockwise seen from the tip of a. */
+        double R[3][4] = {
+            {cs + a[0] * a[0] * (1 - cs), a[0] * a[1] * (1 - cs) - a[2] * sn, a[0] * a[2] * (1 - cs) + a[1] * sn, 0},
+            {a[1] * a[0] * (1 - cs) + a[2] * sn, cs + a[1] * a[1] * (1 - cs), a[1] * a[2] * (1 - cs) - a[0] * sn, 0},
+            {a[2] * a[0] * (1 - cs) - a[1] * sn, a[2] * a[1] * (1 - cs) + a[0] * sn, cs + a[2] * a[2] * (1 - cs), 0}};
+        affine_after(xf_out, R);
+        *general_out = 1;
+    }
+    for (int k = 0; k < 3; k++)
+        xf_out[k][3] = tr[k];
+    json_t *mat = json_object_get(mj, "matrix");
+    if (mat) {
+        snprintf(p1, sizeof p1, "%s.matrix", where);
+        if (!json_is_array(mat) || json_array_size(mat) != 16)
+            return bad(c, p1, "must be an array of 16 numbers (4 x 4, row-major), not %zu",
+                       json_is_array(mat) ? json_array_size(mat) : (size_t)0);
+        double m[16];
+        for (size_t i = 0; i < 16; i++) {
+            json_t *e = json_array_get(mat, i);
+            if (!json_is_number(e))
+                return bad(c, p1, "element %zu is not a number", i);
+            m[i] = json_number_value(e);
+            if (!isfinite(m[i]) || fabs(m[i]) > PM_SCENE_COORD_MAX)
+                return bad(c, p1, "element %zu = %.9g is not finite or beyond %g", i, m[i], PM_SCENE_COORD_MAX);
+        }
+        if (m[12] != 0.0 || m[13] != 0.0 || m[14] != 0.0 || m[15] != 1.0)
+            return bad(c, p1, "last row %.9g %.9g %.9g %.9g is not 0 0 0 1: only affine maps are supported", m[12],
+                       m[13], m[14], m[15]);
+        double M[3][4] = {{m[0], m[1], m[2], m[3]}, {m[4], m[5], m[6], m[7]}, {m[8], m[9], m[10], m[11]}};
+        /* Singular, or so near it that float vertices collapse: |det| against the product of
+         * the rows' lengths (the volume of the unit cube's image against the most it could be). */
+        double rows = 1.0;
+        for (int i = 0; i < 3; i++)
+            rows *= sqrt(M[i][0] * M[i][0] + M[i][1] * M[i][1] + M[i][2] * M[i][2]);
+        double d = det3(M);
+        if (!(fabs(d) > 1e-9 * rows))
+            return bad(c, p1, "is singular (determinant %.9g of its 3 x 3 part): it flattens the mesh", d);
+        affine_after(xf_out, M);
+        *general_out = 1;
+    }
+    return PM_OK;
+}
+
 static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
 {
-    static const char *const keys[] = {"file", "scale", "translate", NULL};
+    static const char *const keys[] = {"file", "scale", "rotate", "translate", "matrix", NULL};
     pm_scene_t *s = c->s;
     char where[64], path[1200];
     snprintf(where, sizeof where, "meshes[%zu]", index);
@@ -685,14 +800,14 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
     const char *file = json_string_value(json_object_get(mj, "file"));
     if (!file)
         return bad(c, where, "'file' is missing or not a string");
-    double scale = 1.0;
-    float tr[3] = {0, 0, 0};
-    char p1[80], p2[80];
-    snprintf(p1, sizeof p1, "%s.scale", where);
-    snprintf(p2, sizeof p2, "%s.translate", where);
-    if ((r = get_number(c, mj, "scale", p1, 0, 1e-30, PM_SCENE_COORD_MAX, &scale)) != PM_OK ||
-        (r = get_vec3(c, mj, "translate", p2, 0, -PM_SCENE_COORD_MAX, PM_SCENE_COORD_MAX, tr)) != PM_OK)
+    double xf[3][4];
+    int general;
+    if ((r = load_transform(c, mj, where, xf, &general)) != PM_OK)
         return r;
+    /* A mirroring map (negative determinant) turns the right-hand-rule normal of every
+     * triangle inward: its vertex order is swapped so that the front face (the side an
+     * emitter lights) stays the mirror image of the mesh's own. */
+    int flip = det3(xf) < 0.0;
     resolve(c->file, file, path, sizeof path);
     FILE *probe = fopen(path, "rb");
     if (!probe)
@@ -778,7 +893,8 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
         for (unsigned v = 0; v < m->mNumVertices; v++) {
             double p[3] = {m->mVertices[v].x, m->mVertices[v].y, m->mVertices[v].z};
             for (int k = 0; k < 3; k++) {
-                double x = p[k] * scale + tr[k];
+                double x = general ? xf[k][0] * p[0] + xf[k][1] * p[1] + xf[k][2] * p[2] + xf[k][3]
+                                   : p[k] * xf[k][k] + xf[k][3];
                 if (!isfinite(x) || fabs(x) > PM_SCENE_COORD_MAX) {
                     r = pm_error_set(PM_ERR_INPUT, "mesh '%s': vertex %u coordinate %c = %g is not finite or beyond %g",
                                      path, v, "xyz"[k], x, PM_SCENE_COORD_MAX);
@@ -801,7 +917,7 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
                                      face->mIndices[k], m->mNumVertices);
                     break;
                 }
-                t[k] = (uint32_t)(v0 + face->mIndices[k]);
+                t[k] = (uint32_t)(v0 + face->mIndices[flip && k ? 3 - k : k]);
             }
             if (r != PM_OK)
                 break;

@@ -29,7 +29,7 @@ WERROR ?= 1
 
 # Debian packages this project builds, tests and runs with (README says why each).
 DEBS := gcc make pkg-config libembree-dev libopenexr-dev libassimp-dev libjansson-dev \
-        libpng-dev libxxhash-dev libcmocka-dev openexr jq gnuplot-nox clang-format
+        libpng-dev libjpeg62-turbo-dev libxxhash-dev libcmocka-dev openexr jq gnuplot-nox clang-format
 
 ifeq ($(V),1)
 Q :=
@@ -55,7 +55,8 @@ INCLUDES := -I. -Icommon
 ALL_CFLAGS := -std=c17 -D_GNU_SOURCE $(INCLUDES) $(WARN) $(if $(WERROR),-Werror,) -fopenmp -fno-math-errno \
               $(SAN) $(PKG_CFLAGS) $(EMBREE_CFLAGS) $(CFLAGS)
 ALL_LDFLAGS := -fopenmp $(SAN) $(LDFLAGS)
-LIBS := $(EMBREE_LIBS) $(PKG_LIBS) -lm
+# libjpeg-turbo (texture JPEGs) ships libjpeg.pc only in newer Debian releases.
+LIBS := $(EMBREE_LIBS) $(PKG_LIBS) -ljpeg -lm
 
 # The library's layers (docs/architecture.md): base, math, formats, then render, photonmap and image.
 LAYERS := common/base common/math formats common/render common/photonmap common/image

@@ -29,6 +29,25 @@ static pm_result_t fail(pm_rt_t *rt, const char *what)
     return r;
 }
 
+/* Cut-out alpha (MTL map_d): Embree calls this for every candidate hit of every ray, closest-hit
+ * and shadow, single and packet, on the geometry of a scene that has some map_d; a hit where
+ * the alpha is below 0.5 is rejected and the ray goes on. Scenes without map_d install none. */
+static void alpha_filter(const struct RTCFilterFunctionNArguments *args)
+{
+    const pm_scene_t *s = args->geometryUserPtr;
+    unsigned n = args->N;
+    /* RTCHitN is N lanes of each field in turn: Ng_x, Ng_y, Ng_z, u, v, primID, ... (the
+     * C++ accessors of rtcore_ray.h spelled out for C) */
+    const float *h = (const float *)args->hit;
+    const unsigned *hu = (const unsigned *)args->hit;
+    for (unsigned i = 0; i < n; i++) {
+        if (args->valid[i] != -1)
+            continue;
+        if (pm_scene_cut_out(s, hu[5 * n + i], h[3 * n + i], h[4 * n + i]))
+            args->valid[i] = 0;
+    }
+}
+
 pm_result_t pm_rt_create(const pm_scene_t *s, int high_quality, int threads, pm_rt_t *out)
 {
     memset(out, 0, sizeof *out);
@@ -64,6 +83,11 @@ pm_result_t pm_rt_create(const pm_scene_t *s, int high_quality, int threads, pm_
         memcpy(v, s->verts, 3 * s->nverts * sizeof(float));
         memset(v + 3 * s->nverts, 0, 3 * sizeof(float));
         memcpy(t, s->tris, 3 * s->ntris * sizeof(unsigned));
+        if (s->any_alpha) {
+            rtcSetGeometryUserData(g, (void *)s);
+            rtcSetGeometryIntersectFilterFunction(g, alpha_filter);
+            rtcSetGeometryOccludedFilterFunction(g, alpha_filter);
+        }
         rtcCommitGeometry(g);
         rtcAttachGeometryByID(out->scene, g, 0);
         rtcReleaseGeometry(g); /* the scene holds it now */

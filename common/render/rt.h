@@ -21,7 +21,8 @@ typedef struct {
 
 /* Builds the acceleration structure with `threads` build threads (--threads; 0 lets
  * Embree choose); quality "high" spends more build time for faster rays (many-ray
- * stages), "medium" is Embree's default. */
+ * stages), "medium" is Embree's default. A scene with cut-out alpha (map_d) gets a filter
+ * that rejects cut-out hits for every ray cast through rt; s must outlive rt. */
 pm_result_t pm_rt_create(const pm_scene_t *s, int high_quality, int threads, pm_rt_t *out);
 void pm_rt_destroy(pm_rt_t *rt);
 

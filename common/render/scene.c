@@ -18,6 +18,7 @@
 
 #include "base/hash.h"
 #include "formats/formats.h"
+#include "math/vec.h"
 
 #define PM_SCENE_MAX_TRIS (1u << 30) /* triangles: 32-bit indices with room to spare */
 #define PM_SCENE_MAX_LIGHTS 65536
@@ -36,6 +37,7 @@
 typedef struct {
     const char *file; /* the scene file, for messages */
     pm_scene_t *s;
+    int missing_magenta; /* missing_textures "magenta": a missing texture file is a warning */
 } ctx_t;
 
 static pm_result_t bad(const ctx_t *c, const char *key, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
@@ -580,6 +582,10 @@ static pm_result_t scan_material(pm_scene_t *s, int is_obj, const struct aiMater
                       : sem == aiTextureType_EMISSION_COLOR ? aiTextureType_EMISSIVE
                       : sem == aiTextureType_NORMAL_CAMERA  ? aiTextureType_NORMALS
                                                             : sem;
+            /* Honoured (load_material_maps): MTL map_Kd, map_Ks, map_d; the base colour elsewhere. */
+            if (sem == aiTextureType_DIFFUSE ||
+                (is_obj && (sem == aiTextureType_SPECULAR || sem == aiTextureType_OPACITY)))
+                continue;
             const char *mtl = is_obj ? mtl_texture_name(sem) : NULL;
             if (mtl)
                 snprintf(name, sizeof name, "%s", mtl);
@@ -663,10 +669,149 @@ static pm_result_t scan_mtl_dropped(pm_scene_t *s, const char *obj, const char *
                         current = (uint32_t)m;
             } else if (current != UINT32_MAX && !mtl_key_exposed(word)) {
                 r = note_unsupported(s, current, word, 0, rest);
+            } else if (current != UINT32_MAX && rest[0] == '-' &&
+                       (strcmp(word, "map_Kd") == 0 || strcmp(word, "map_Ks") == 0 || strcmp(word, "map_d") == 0)) {
+                /* a texture pmtk reads, with options it does not (-clamp, -o, -s, -imfchan, ...;
+                 * assimp drops most without a word): the texture is used as if they were absent */
+                char key[64];
+                snprintf(key, sizeof key, "%s options", word);
+                r = note_unsupported(s, current, key, 0, rest);
             }
         }
         free(line);
         fclose(f);
+    }
+    return r;
+}
+
+/* The folder texture names of material `name` are relative to: the .mtl that defines it (an
+ * OBJ; libs as check_obj_materials lists them) or the mesh file itself (glTF and the rest). */
+static void texture_base(const char *mesh, int is_obj, const char *libs, const char *name, char *out, size_t cap)
+{
+    snprintf(out, cap, "%s", mesh);
+    for (const char *lib = libs; is_obj && *lib;) {
+        const char *eol = strchr(lib, '\n');
+        char lname[1024], lpath[1200];
+        snprintf(lname, sizeof lname, "%.*s", (int)(eol - lib), lib);
+        lib = eol + 1;
+        resolve(mesh, lname, lpath, sizeof lpath);
+        FILE *f = fopen(lpath, "rb");
+        if (!f)
+            continue;
+        char *line = NULL, word[16];
+        size_t lcap = 0;
+        int found = 0;
+        for (ssize_t len; !found && (len = getline(&line, &lcap, f)) >= 0;) {
+            while (len > 0 && (line[len - 1] == '\n' || line[len - 1] == '\r' || line[len - 1] == ' '))
+                line[--len] = '\0';
+            const char *rest = obj_word(line, word, sizeof word);
+            if (strcmp(word, "newmtl") != 0)
+                continue;
+            char mname[64];
+            snprintf(mname, sizeof mname, "%s", rest);
+            for (char *q = mname; *q; q++)
+                if (*q == ' ' || (unsigned char)*q < 0x20 || *q == 0x7f)
+                    *q = '_';
+            found = strcmp(mname, name) == 0;
+        }
+        free(line);
+        fclose(f);
+        if (found) {
+            snprintf(out, cap, "%s", lpath);
+            return;
+        }
+    }
+}
+
+/* The texture file `name` (relative to the file base) as scene texture *index_out, loaded once
+ * per scene. A name with Windows separators (Crytek Sponza's "textures\\x.png") is read with
+ * '/' when it does not open as written. A missing file is an error naming the material, or
+ * under missing_textures "magenta" a magenta texture and a warning. */
+static pm_result_t scene_texture(const ctx_t *c, const char *base, const char *name, const char *mesh,
+                                 const pm_material_t *m, uint32_t mi, const char *key, int32_t *index_out)
+{
+    pm_scene_t *s = c->s;
+    char path[1200];
+    resolve(base, name, path, sizeof path);
+    FILE *probe = fopen(path, "rb");
+    if (!probe && strchr(name, '\\')) {
+        char alt[1024];
+        snprintf(alt, sizeof alt, "%s", name);
+        for (char *q = alt; *q; q++)
+            if (*q == '\\')
+                *q = '/';
+        char altpath[1200];
+        resolve(base, alt, altpath, sizeof altpath);
+        if ((probe = fopen(altpath, "rb")) != NULL)
+            snprintf(path, sizeof path, "%s", altpath);
+    }
+    int missing = !probe && errno == ENOENT;
+    if (probe)
+        fclose(probe);
+    for (size_t i = 0; i < s->ntextures; i++)
+        if (strcmp(s->textures[i].path, path) == 0) {
+            *index_out = (int32_t)i;
+            return PM_OK;
+        }
+    pm_result_t r = grow((void **)&s->textures, s->ntextures + 1, sizeof *s->textures);
+    if (r != PM_OK)
+        return r;
+    pm_texture_t *t = &s->textures[s->ntextures];
+    if (missing && c->missing_magenta) {
+        static const float magenta[3] = {1, 0, 1};
+        if ((r = pm_texture_solid(path, magenta, t)) != PM_OK)
+            return r;
+        if ((r = note_unsupported(s, mi, key, 1, path)) != PM_OK) {
+            pm_texture_free(t);
+            return r;
+        }
+        s->unsupported[s->nunsupported - 1].missing = 1;
+    } else if ((r = pm_texture_load(path, t)) != PM_OK) {
+        pm_error_prefix("mesh '%s': material '%s': %s '%s'", mesh, m->name, key, name);
+        return r;
+    }
+    *index_out = (int32_t)s->ntextures++;
+    return PM_OK;
+}
+
+/* The textures pmtk honours of assimp material am (scene material mi): map_Kd, map_Ks and map_d
+ * of an MTL, the base colour of glTF and the rest (assimp's diffuse slot). */
+static pm_result_t load_material_maps(const ctx_t *c, const char *mesh, int is_obj, const char *libs,
+                                      const struct aiMaterial *am, uint32_t mi)
+{
+    pm_scene_t *s = c->s;
+    pm_material_maps_t *mm = &s->maps[mi];
+    const pm_material_t *m = &s->materials[mi];
+    static const struct {
+        enum aiTextureType type;
+        const char *obj_key, *other_key;
+    } slots[] = {{aiTextureType_DIFFUSE, "map_Kd", "diffuse texture"},
+                 {aiTextureType_SPECULAR, "map_Ks", NULL},
+                 {aiTextureType_OPACITY, "map_d", NULL}};
+    char base[1200] = "";
+    pm_result_t r = PM_OK;
+    for (size_t k = 0; k < 3 && r == PM_OK; k++) {
+        const char *key = is_obj ? slots[k].obj_key : slots[k].other_key;
+        struct aiString tp;
+        if (!key ||
+            aiGetMaterialTexture(am, slots[k].type, 0, &tp, NULL, NULL, NULL, NULL, NULL, NULL) != aiReturn_SUCCESS ||
+            tp.length == 0)
+            continue;
+        if (tp.data[0] == '*') { /* a texture inside the glTF (or .glb): not read */
+            r = note_unsupported(s, mi, "embedded texture", 1, tp.data);
+            continue;
+        }
+        if (slots[k].type == aiTextureType_OPACITY && pm_material_is_emissive(m)) {
+            /* light sampling draws points over an emitter's whole area: cut-outs would not match */
+            r = note_unsupported(s, mi, "map_d on an emitter", 1, tp.data);
+            continue;
+        }
+        if (!base[0])
+            texture_base(mesh, is_obj, libs, m->name, base, sizeof base);
+        int32_t *slot = k == 0 ? &mm->kd : k == 1 ? &mm->ks : &mm->alpha;
+        r = scene_texture(c, base, tp.data, mesh, m, mi, key, slot);
+        if (r == PM_OK && k == 2)
+            s->any_alpha = 1;
     }
     return r;
 }
@@ -852,10 +997,13 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
         }
     }
     size_t mat0 = s->nmaterials;
-    if ((r = grow((void **)&s->materials, mat0 + as->mNumMaterials, sizeof *s->materials)) != PM_OK) {
+    if ((r = grow((void **)&s->materials, mat0 + as->mNumMaterials, sizeof *s->materials)) != PM_OK ||
+        (r = grow((void **)&s->maps, mat0 + as->mNumMaterials, sizeof *s->maps)) != PM_OK) {
         aiReleaseImport(as);
         return r;
     }
+    for (size_t i = mat0; i < mat0 + as->mNumMaterials; i++)
+        s->maps[i] = (pm_material_maps_t){-1, -1, -1};
     for (unsigned i = 0; i < as->mNumMaterials && r == PM_OK; i++) {
         r = load_material(c, path, as->mMaterials[i], &s->materials[mat0 + i]);
         /* assimp's stand-in material is pmtk's grey default whatever it holds: nothing to report */
@@ -864,6 +1012,13 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
                        an.length == 0 || strcmp(an.data, AI_DEFAULT_MATERIAL_NAME) == 0;
         if (r == PM_OK && !stand_in)
             r = scan_material(s, is_obj, as->mMaterials[i], (uint32_t)(mat0 + i));
+        /* only the textures of a material some triangle uses: an unused one is dropped unread */
+        int used = 0;
+        for (unsigned mi = 0; mi < as->mNumMeshes && !used; mi++)
+            used =
+                as->mMeshes[mi]->mMaterialIndex == i && (as->mMeshes[mi]->mPrimitiveTypes & aiPrimitiveType_TRIANGLE);
+        if (r == PM_OK && !stand_in && used)
+            r = load_material_maps(c, path, is_obj, is_obj ? libs : "", as->mMaterials[i], (uint32_t)(mat0 + i));
     }
     if (r == PM_OK && is_obj)
         r = scan_mtl_dropped(s, path, libs, mat0, as->mNumMaterials);
@@ -887,6 +1042,7 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
             break;
         }
         if ((r = grow((void **)&s->verts, 3 * (v0 + m->mNumVertices), sizeof(float))) != PM_OK ||
+            (r = grow((void **)&s->uvs, 2 * (v0 + m->mNumVertices), sizeof(float))) != PM_OK ||
             (r = grow((void **)&s->tris, 3 * (s->ntris + m->mNumFaces), sizeof(uint32_t))) != PM_OK ||
             (r = grow((void **)&s->tri_material, s->ntris + m->mNumFaces, sizeof(uint32_t))) != PM_OK)
             break;
@@ -902,6 +1058,11 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
                 }
                 s->verts[3 * (v0 + v) + k] = (float)x;
             }
+            /* the first set of texture coordinates; none: every point reads texel (0, 0) */
+            const struct aiVector3D *uv = m->mTextureCoords[0] ? &m->mTextureCoords[0][v] : NULL;
+            float uu = uv ? uv->x : 0.0f, vv = uv ? uv->y : 0.0f;
+            s->uvs[2 * (v0 + v)] = isfinite(uu) ? uu : 0.0f;
+            s->uvs[2 * (v0 + v) + 1] = isfinite(vv) ? vv : 0.0f;
             if (r != PM_OK)
                 break;
         }
@@ -993,6 +1154,8 @@ static pm_result_t compact_materials(pm_scene_t *s)
     for (size_t m = 0; m < s->nmaterials; m++)
         if (map[m] == 0) {
             s->materials[n] = s->materials[m];
+            if (s->maps)
+                s->maps[n] = s->maps[m];
             map[m] = (uint32_t)n++;
         }
     for (size_t t = 0; t < s->ntris; t++)
@@ -1007,6 +1170,27 @@ static pm_result_t compact_materials(pm_scene_t *s)
     s->nunsupported = nu;
     s->nmaterials = n;
     free(map);
+    return PM_OK;
+}
+
+/* Frees the texture tables of a scene whose materials (those kept) use no texture, so that it
+ * pays nothing for the feature. */
+static pm_result_t drop_unused_maps(pm_scene_t *s)
+{
+    int any = 0;
+    for (size_t m = 0; s->maps && m < s->nmaterials; m++)
+        any |= s->maps[m].kd >= 0 || s->maps[m].ks >= 0 || s->maps[m].alpha >= 0;
+    if (!any) {
+        free(s->maps);
+        free(s->uvs);
+        s->maps = NULL;
+        s->uvs = NULL;
+        s->any_alpha = 0;
+    } else {
+        s->any_alpha = 0;
+        for (size_t m = 0; m < s->nmaterials; m++)
+            s->any_alpha |= s->maps[m].alpha >= 0;
+    }
     return PM_OK;
 }
 
@@ -1060,7 +1244,7 @@ static pm_result_t check_size(const ctx_t *c)
 pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
 {
     memset(s, 0, sizeof *s);
-    ctx_t c = {path, s};
+    ctx_t c = {path, s, 0};
     snprintf(s->path, sizeof s->path, "%s", path);
     json_error_t je;
     FILE *f = fopen(path, "rb");
@@ -1071,7 +1255,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     fclose(f);
     if (!root)
         return pm_error_set(PM_ERR_INPUT, "scene '%s' line %d column %d: %s", path, je.line, je.column, je.text);
-    static const char *const keys[] = {"pmtk_scene", "name", "meshes", "camera", "point_lights", "render", NULL};
+    static const char *const keys[] = {"pmtk_scene",   "name",   "meshes",           "camera",
+                                       "point_lights", "render", "missing_textures", NULL};
     pm_result_t r =
         json_is_object(root) ? only_keys(&c, root, "top level", keys) : bad(&c, "top level", "must be a JSON object");
     int64_t version = 0;
@@ -1082,6 +1267,14 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         r = bad(&c, "name", "must be a non-empty string without spaces, under %zu bytes", sizeof s->name);
     if (r == PM_OK)
         snprintf(s->name, sizeof s->name, "%s", name);
+    json_t *mt = json_object_get(root, "missing_textures");
+    if (r == PM_OK && mt) {
+        const char *v = json_string_value(mt);
+        if (v && strcmp(v, "magenta") == 0)
+            c.missing_magenta = 1;
+        else if (!v || strcmp(v, "error") != 0)
+            r = bad(&c, "missing_textures", "must be \"error\" (the default) or \"magenta\"");
+    }
     json_t *meshes = json_object_get(root, "meshes");
     if (r == PM_OK && meshes && !json_is_array(meshes))
         r = bad(&c, "meshes", "must be an array");
@@ -1121,6 +1314,15 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         h[4] = pm_hash_bytes(s->materials, s->nmaterials * sizeof *s->materials);
         h[5] = pm_hash_bytes(s->lights, s->nlights * sizeof *s->lights);
         s->hash = pm_hash_bytes(h, sizeof h);
+        if (r == PM_OK && (r = drop_unused_maps(s)) == PM_OK && s->maps) {
+            /* Textured: their texels, the coordinates and which material uses which. A scene
+             * without textures keeps the hash it always had. */
+            uint64_t t[4] = {s->hash, pm_hash_bytes(s->uvs, 2 * s->nverts * sizeof(float)),
+                             pm_hash_bytes(s->maps, s->nmaterials * sizeof *s->maps), 0};
+            for (size_t i = 0; i < s->ntextures; i++)
+                t[3] = pm_hash_bytes((uint64_t[2]){t[3], s->textures[i].hash}, 2 * sizeof(uint64_t));
+            s->hash = pm_hash_bytes(t, sizeof t);
+        }
     }
     if (r == PM_OK)
         finish(s);
@@ -1138,6 +1340,11 @@ void pm_scene_free(pm_scene_t *s)
     free(s->lights);
     free(s->emissive);
     free(s->unsupported);
+    free(s->maps);
+    free(s->uvs);
+    for (size_t i = 0; i < s->ntextures; i++)
+        pm_texture_free(&s->textures[i]);
+    free(s->textures);
     memset(s, 0, sizeof *s);
 }
 
@@ -1151,7 +1358,78 @@ void pm_scene_warn_unsupported(const pm_scene_t *s, const pm_stage_t *st)
     for (size_t i = 0; i < s->nunsupported; i++) {
         char text[300];
         pm_scene_unsupported_text(&s->unsupported[i], text, sizeof text);
-        pm_stage_note(st, "warning: material '%s': %s is not supported (ignored)",
-                      s->materials[s->unsupported[i].material].name, text);
+        if (s->unsupported[i].missing)
+            pm_stage_note(st, "warning: material '%s': %s is missing: rendered magenta (missing_textures)",
+                          s->materials[s->unsupported[i].material].name, text);
+        else
+            pm_stage_note(st, "warning: material '%s': %s is not supported (ignored)",
+                          s->materials[s->unsupported[i].material].name, text);
     }
+}
+
+void pm_scene_barycentrics(const pm_scene_t *s, uint32_t tri, const float p[3], float b_out[2])
+{
+    const float *a = &s->verts[3 * s->tris[3 * tri]], *b = &s->verts[3 * s->tris[3 * tri + 1]],
+                *c = &s->verts[3 * s->tris[3 * tri + 2]];
+    float e1[3], e2[3], d[3];
+    for (int k = 0; k < 3; k++)
+        e1[k] = b[k] - a[k], e2[k] = c[k] - a[k], d[k] = p[k] - a[k];
+    float d11 = pm_dot3(e1, e1), d12 = pm_dot3(e1, e2), d22 = pm_dot3(e2, e2), p1 = pm_dot3(d, e1), p2 = pm_dot3(d, e2),
+          det = d11 * d22 - d12 * d12;
+    float b1 = det > 0.0f ? (d22 * p1 - d12 * p2) / det : 0.0f, b2 = det > 0.0f ? (d11 * p2 - d12 * p1) / det : 0.0f;
+    /* a point found by a ray lies in the triangle up to rounding: clamp it back in */
+    b1 = b1 > 0.0f ? b1 : 0.0f;
+    b2 = b2 > 0.0f ? b2 : 0.0f;
+    if (b1 + b2 > 1.0f) {
+        float t = b1 + b2;
+        b1 /= t, b2 /= t;
+    }
+    b_out[0] = b1, b_out[1] = b2;
+}
+
+void pm_scene_uv(const pm_scene_t *s, uint32_t tri, float b1, float b2, float uv_out[2])
+{
+    uv_out[0] = uv_out[1] = 0.0f;
+    if (!s->uvs)
+        return;
+    const float *t0 = &s->uvs[2 * s->tris[3 * tri]], *t1 = &s->uvs[2 * s->tris[3 * tri + 1]],
+                *t2 = &s->uvs[2 * s->tris[3 * tri + 2]];
+    float b0 = 1.0f - b1 - b2;
+    for (int k = 0; k < 2; k++)
+        uv_out[k] = b0 * t0[k] + b1 * t1[k] + b2 * t2[k];
+}
+
+const pm_material_t *pm_scene_material_textured(const pm_scene_t *s, uint32_t tri, const float p[3],
+                                                pm_material_t *scratch)
+{
+    uint32_t mi = s->tri_material[tri];
+    const pm_material_maps_t *mm = &s->maps[mi];
+    *scratch = s->materials[mi];
+    float b[2], uv[2], texel[4];
+    pm_scene_barycentrics(s, tri, p, b);
+    pm_scene_uv(s, tri, b[0], b[1], uv);
+    if (mm->kd >= 0) {
+        pm_texture_lookup(&s->textures[mm->kd], uv[0], uv[1], 1, texel);
+        for (int k = 0; k < 3; k++)
+            scratch->kd[k] *= fminf(texel[k], 1.0f);
+    }
+    if (mm->ks >= 0) {
+        pm_texture_lookup(&s->textures[mm->ks], uv[0], uv[1], 1, texel);
+        for (int k = 0; k < 3; k++)
+            scratch->ks[k] *= fminf(texel[k], 1.0f);
+    }
+    return scratch;
+}
+
+int pm_scene_cut_out(const pm_scene_t *s, uint32_t tri, float b1, float b2)
+{
+    int32_t a = s->maps ? s->maps[s->tri_material[tri]].alpha : -1;
+    if (a < 0)
+        return 0;
+    const pm_texture_t *t = &s->textures[a];
+    float uv[2], texel[4];
+    pm_scene_uv(s, tri, b1, b2, uv);
+    pm_texture_lookup(t, uv[0], uv[1], 0, texel);
+    /* the alpha channel when the image has one, else its grey (a mask image) */
+    return (t->has_alpha ? texel[3] : texel[0]) < 0.5f;
 }

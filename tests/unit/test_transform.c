@@ -25,7 +25,8 @@ static pm_result_t load_placed(const char *place, pm_scene_t *s)
     char obj[256], mtl[256], json[256], text[1024];
     write_tmp("xf.mtl", "newmtl lamp\nKd 0.5 0.5 0.5\nKe 1 1 1\n", mtl, sizeof mtl);
     write_tmp("xf.obj", "mtllib xf.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl lamp\nf 1 2 3\n", obj, sizeof obj);
-    snprintf(text, sizeof text, "{\"pmtk_scene\": 1, \"name\": \"xf\", \"meshes\": [{\"file\": \"xf.obj\"%s%s}], " CAM "}",
+    snprintf(text, sizeof text,
+             "{\"pmtk_scene\": 1, \"name\": \"xf\", \"meshes\": [{\"file\": \"xf.obj\"%s%s}], " CAM "}",
              place[0] ? ", " : "", place);
     write_tmp("xf.json", text, json, sizeof json);
     return pm_scene_load(json, s);
@@ -130,14 +131,16 @@ static void expect_bad(const char *place, const char *needle)
 static void test_transform_bad_input(void **state)
 {
     (void)state;
-    expect_bad("\"matrix\": [1, 0, 0, 0,  0, 1, 0, 0,  0, 0, 1, 0]", "meshes[0].matrix: must be an array of 16 numbers");
+    expect_bad("\"matrix\": [1, 0, 0, 0,  0, 1, 0, 0,  0, 0, 1, 0]",
+               "meshes[0].matrix: must be an array of 16 numbers");
     expect_bad("\"matrix\": [1, 0, 0, 0,  0, 1, 0, 0,  0, 0, 0, 0,  0, 0, 0, 1]", "matrix: is singular");
     expect_bad("\"matrix\": [1, 2, 3, 0,  2, 4, 6.000000001, 0,  0, 0, 1, 0,  0, 0, 0, 1]", "matrix: is singular");
     expect_bad("\"matrix\": [1, 0, 0, 0,  0, 1, 0, 0,  0, 0, 1, 0,  0, 0, 1, 1]", "is not 0 0 0 1");
     expect_bad("\"matrix\": [1, 0, 0, 0,  0, 1, 0, 0,  0, 0, 1, 0,  0, 0, 0, \"1\"]", "element 15 is not a number");
     /* jansson refuses NaN and Infinity literals: the scene is a syntax error naming the line */
     expect_bad("\"matrix\": [NaN, 0, 0, 0,  0, 1, 0, 0,  0, 0, 1, 0,  0, 0, 0, 1]", "line 1");
-    expect_bad("\"matrix\": [1e300, 0, 0, 0,  0, 1, 0, 0,  0, 0, 1, 0,  0, 0, 0, 1]", "element 0 = 1e+300 is not finite");
+    expect_bad("\"matrix\": [1e300, 0, 0, 0,  0, 1, 0, 0,  0, 0, 1, 0,  0, 0, 0, 1]",
+               "element 0 = 1e+300 is not finite");
     expect_bad("\"rotate\": {\"axis\": [0, 0, 0], \"degrees\": 10}", "rotate.axis: is the zero vector");
     expect_bad("\"rotate\": {\"axis\": [0, 0, 1]}", "rotate.degrees: missing");
     expect_bad("\"rotate\": {\"axis\": [0, 1], \"degrees\": 3}", "rotate.axis: must be an array of 3 numbers");

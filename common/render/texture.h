@@ -17,13 +17,13 @@
 #define PM_TEXTURE_MAX_SIDE 65536 /* pixels: a larger image is refused */
 
 typedef struct {
-    char path[1024];  /* as resolved, for messages */
-    uint32_t w, h;    /* pixels, 1 to PM_TEXTURE_MAX_SIDE */
-    int has_alpha;    /* the file has an alpha channel (else A is 1) */
-    int grey;         /* the file has one colour channel (R = G = B) */
-    uint8_t *u8;      /* w * h * 4 bytes, rows from the top, or NULL */
-    float *f32;       /* w * h * 4 linear floats (OpenEXR), or NULL */
-    uint64_t hash;    /* XXH3-64 of the size and texels, for the scene's hash */
+    char path[1024]; /* as resolved, for messages */
+    uint32_t w, h;   /* pixels, 1 to PM_TEXTURE_MAX_SIDE */
+    int has_alpha;   /* the file has an alpha channel (else A is 1) */
+    int grey;        /* the file has one colour channel (R = G = B) */
+    uint8_t *u8;     /* w * h * 4 bytes, rows from the top, or NULL */
+    float *f32;      /* w * h * 4 linear floats (OpenEXR), or NULL */
+    uint64_t hash;   /* XXH3-64 of the size and texels, for the scene's hash */
 } pm_texture_t;
 
 /* Reads an image file (its kind from its first bytes) into *out. Errors (PM_ERR_INPUT) name

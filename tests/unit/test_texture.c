@@ -16,10 +16,7 @@
 #include "render/texture.h"
 #include "unit.h"
 
-static void tmp_path(const char *name, char *out, size_t cap)
-{
-    snprintf(out, cap, "%s/%s", unit_tmpdir(), name);
-}
+static void tmp_path(const char *name, char *out, size_t cap) { snprintf(out, cap, "%s/%s", unit_tmpdir(), name); }
 
 static void write_text(const char *name, const char *text)
 {
@@ -43,10 +40,7 @@ static void write_png(const char *name, uint32_t w, uint32_t h, uint32_t fmt, co
     assert_true(png_image_write_to_file(&im, p, 0, px, 0, NULL));
 }
 
-static int near(float a, float b, float tol)
-{
-    return fabsf(a - b) <= tol;
-}
+static int near(float a, float b, float tol) { return fabsf(a - b) <= tol; }
 
 static void test_texture_png_lookup(void **state)
 {
@@ -156,7 +150,7 @@ static void write_png_header(const char *name, uint32_t w, uint32_t h)
     memcpy(b + 33, idat, sizeof idat);
     for (int i = 0; i < 4; i++)
         b[16 + i] = (uint8_t)(w >> (24 - 8 * i)), b[20 + i] = (uint8_t)(h >> (24 - 8 * i));
-    b[24] = 8, b[25] = 2; /* 8-bit RGB */
+    b[24] = 8, b[25] = 2;       /* 8-bit RGB */
     uint32_t crc = 0xffffffffu; /* CRC-32 of the chunk type and data, as PNG asks */
     for (int i = 12; i < 29; i++) {
         crc ^= b[i];
@@ -279,7 +273,7 @@ static void test_texture_scene(void **state)
     struct RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     const float o1[3] = {0.1f, 0.5f, 2}, o2[3] = {0.9f, 0.5f, 2}, d[3] = {0, 0, -1};
-    assert_true(pm_rt_occluded1(&rt, &ctx, o1, d, 0.0f, 2.5f));  /* shadow rays too */
+    assert_true(pm_rt_occluded1(&rt, &ctx, o1, d, 0.0f, 2.5f)); /* shadow rays too */
     assert_false(pm_rt_occluded1(&rt, &ctx, o2, d, 0.0f, 2.5f));
     pm_rt_destroy(&rt);
     uint64_t hash = s.hash;

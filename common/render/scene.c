@@ -34,10 +34,20 @@
  * a scene much smaller would be left out by PM_SCENE_AREA_MIN, and the image silently black. */
 #define PM_SCENE_SIZE_MIN 1e-8
 
+/* A mesh file imported once per scene, however many entries place it. */
+typedef struct {
+    char path[1200];
+    const struct aiScene *as;
+    char libs[4096]; /* its .mtl files, one a line (check_obj_materials) */
+} import_t;
+
 typedef struct {
     const char *file; /* the scene file, for messages */
     pm_scene_t *s;
     int missing_magenta; /* missing_textures "magenta": a missing texture file is a warning */
+    import_t *imports;   /* the mesh files imported so far */
+    size_t nimports;
+    float *local; /* every vertex loaded, in its mesh's own units (placements share them) */
 } ctx_t;
 
 static pm_result_t bad(const ctx_t *c, const char *key, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
@@ -931,7 +941,7 @@ static pm_result_t load_transform(const ctx_t *c, json_t *mj, const char *where,
     return PM_OK;
 }
 
-static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
+static pm_result_t load_mesh(ctx_t *c, json_t *mj, size_t index)
 {
     static const char *const keys[] = {"file", "scale", "rotate", "translate", "matrix", NULL};
     pm_scene_t *s = c->s;
@@ -954,54 +964,68 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
      * emitter lights) stays the mirror image of the mesh's own. */
     int flip = det3(xf) < 0.0;
     resolve(c->file, file, path, sizeof path);
-    FILE *probe = fopen(path, "rb");
-    if (!probe)
-        return pm_error_set(PM_ERR_INPUT, "cannot open mesh '%s': %s", path, strerror(errno));
-    fclose(probe);
-    /* Triangulate polygons, merge shared vertices, flatten node transforms, drop points
-     * and lines; normals are not needed: pmtk shades with geometric normals. */
-    struct aiLogStream log = {on_assimp_log, NULL};
-    ai_first_error[0] = '\0';
-    aiAttachLogStream(&log);
-    const struct aiScene *as =
-        aiImportFile(path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_PreTransformVertices |
-                               aiProcess_SortByPType | aiProcess_ValidateDataStructure);
-    aiDetachAllLogStreams();
-    if (!as)
-        return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, aiGetErrorString());
-    if (ai_first_error[0]) {
-        aiReleaseImport(as);
-        return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, ai_first_error);
-    }
-    /* An OBJ whose faces name no material (no mtllib, or a usemtl the .mtl lacks) gets
-     * assimp's default material, or the .mtl's last one; rendering either would be silently
-     * wrong. The OBJ's own order of lines tells; the default material is checked after it. */
     size_t ext = strlen(path);
     int is_obj = ext > 4 && strcasecmp(path + ext - 4, ".obj") == 0;
-    char libs[4096];
-    if (is_obj && (r = check_obj_materials(path, libs, sizeof libs)) != PM_OK) {
-        aiReleaseImport(as);
-        return r;
+    import_t *im = NULL;
+    for (size_t i = 0; i < c->nimports && !im; i++)
+        if (strcmp(c->imports[i].path, path) == 0)
+            im = &c->imports[i];
+    if (!im) {
+        FILE *probe = fopen(path, "rb");
+        if (!probe)
+            return pm_error_set(PM_ERR_INPUT, "cannot open mesh '%s': %s", path, strerror(errno));
+        fclose(probe);
+        if ((r = grow((void **)&c->imports, c->nimports + 1, sizeof *c->imports)) != PM_OK)
+            return r;
+        /* Triangulate polygons, merge shared vertices, flatten node transforms, drop points
+         * and lines; normals are not needed: pmtk shades with geometric normals. */
+        struct aiLogStream log = {on_assimp_log, NULL};
+        ai_first_error[0] = '\0';
+        aiAttachLogStream(&log);
+        const struct aiScene *imported = aiImportFile(path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
+                                                                aiProcess_PreTransformVertices | aiProcess_SortByPType |
+                                                                aiProcess_ValidateDataStructure);
+        aiDetachAllLogStreams();
+        if (!imported)
+            return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, aiGetErrorString());
+        if (ai_first_error[0]) {
+            aiReleaseImport(imported);
+            return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, ai_first_error);
+        }
+        /* An OBJ whose faces name no material (no mtllib, or a usemtl the .mtl lacks) gets
+         * assimp's default material, or the .mtl's last one; rendering either would be
+         * silently wrong. The OBJ's own order of lines tells; the default material is checked
+         * after it. */
+        char libs_read[4096] = "";
+        if (is_obj && (r = check_obj_materials(path, libs_read, sizeof libs_read)) != PM_OK) {
+            aiReleaseImport(imported);
+            return r;
+        }
+        im = &c->imports[c->nimports++];
+        snprintf(im->path, sizeof im->path, "%s", path);
+        snprintf(im->libs, sizeof im->libs, "%s", libs_read);
+        im->as = imported;
     }
+    /* the import is the scene's until pm_scene_load ends: it serves every entry placing it */
+    const struct aiScene *as = im->as;
+    const char *libs = im->libs;
+    size_t tri_start = s->ntris, vert_start = s->nverts;
+    uint64_t kept = 0; /* which faces are kept (degenerate ones left out): a placement's key */
     for (unsigned mi = 0; is_obj && mi < as->mNumMeshes; mi++) {
         const struct aiMesh *m = as->mMeshes[mi];
         struct aiString mname;
         if (m->mMaterialIndex < as->mNumMaterials &&
             aiGetMaterialString(as->mMaterials[m->mMaterialIndex], AI_MATKEY_NAME, &mname) == aiReturn_SUCCESS &&
             strcmp(mname.data, AI_DEFAULT_MATERIAL_NAME) == 0) {
-            r = pm_error_set(PM_ERR_INPUT,
-                             "mesh '%s': %u faces of '%s' have no material (no mtllib, or no usemtl before them)", path,
-                             m->mNumFaces, m->mName.length ? m->mName.data : "(unnamed)");
-            aiReleaseImport(as);
-            return r;
+            return pm_error_set(PM_ERR_INPUT,
+                                "mesh '%s': %u faces of '%s' have no material (no mtllib, or no usemtl before them)",
+                                path, m->mNumFaces, m->mName.length ? m->mName.data : "(unnamed)");
         }
     }
     size_t mat0 = s->nmaterials;
     if ((r = grow((void **)&s->materials, mat0 + as->mNumMaterials, sizeof *s->materials)) != PM_OK ||
-        (r = grow((void **)&s->maps, mat0 + as->mNumMaterials, sizeof *s->maps)) != PM_OK) {
-        aiReleaseImport(as);
+        (r = grow((void **)&s->maps, mat0 + as->mNumMaterials, sizeof *s->maps)) != PM_OK)
         return r;
-    }
     for (size_t i = mat0; i < mat0 + as->mNumMaterials; i++)
         s->maps[i] = (pm_material_maps_t){-1, -1, -1};
     for (unsigned i = 0; i < as->mNumMaterials && r == PM_OK; i++) {
@@ -1022,10 +1046,8 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
     }
     if (r == PM_OK && is_obj)
         r = scan_mtl_dropped(s, path, libs, mat0, as->mNumMaterials);
-    if (r != PM_OK) {
-        aiReleaseImport(as);
+    if (r != PM_OK)
         return r;
-    }
     s->nmaterials += as->mNumMaterials;
     for (unsigned mi = 0; mi < as->mNumMeshes && r == PM_OK; mi++) {
         const struct aiMesh *m = as->mMeshes[mi];
@@ -1043,11 +1065,14 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
         }
         if ((r = grow((void **)&s->verts, 3 * (v0 + m->mNumVertices), sizeof(float))) != PM_OK ||
             (r = grow((void **)&s->uvs, 2 * (v0 + m->mNumVertices), sizeof(float))) != PM_OK ||
+            (r = grow((void **)&c->local, 3 * (v0 + m->mNumVertices), sizeof(float))) != PM_OK ||
             (r = grow((void **)&s->tris, 3 * (s->ntris + m->mNumFaces), sizeof(uint32_t))) != PM_OK ||
             (r = grow((void **)&s->tri_material, s->ntris + m->mNumFaces, sizeof(uint32_t))) != PM_OK)
             break;
         for (unsigned v = 0; v < m->mNumVertices; v++) {
             double p[3] = {m->mVertices[v].x, m->mVertices[v].y, m->mVertices[v].z};
+            for (int k = 0; k < 3; k++)
+                c->local[3 * (v0 + v) + k] = (float)p[k];
             for (int k = 0; k < 3; k++) {
                 double x = general ? xf[k][0] * p[0] + xf[k][1] * p[1] + xf[k][2] * p[2] + xf[k][3]
                                    : p[k] * xf[k][k] + xf[k][3];
@@ -1098,11 +1123,88 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
             if (!(area >= PM_SCENE_AREA_MIN)) {
                 s->ntris--;
                 s->ndropped++;
+            } else {
+                uint64_t id[3] = {kept, mi, f};
+                kept = pm_hash_bytes(id, sizeof id);
             }
         }
     }
-    aiReleaseImport(as);
-    return r;
+    if (r != PM_OK)
+        return r;
+    /* This entry's placement: entries with equal keys hold the same triangles in the same mesh
+     * units and winding, so that Embree can keep one copy and place it by instances. */
+    if ((r = grow((void **)&s->placements, s->nplacements + 1, sizeof *s->placements)) != PM_OK)
+        return r;
+    pm_placement_t *pl = &s->placements[s->nplacements++];
+    memset(pl, 0, sizeof *pl);
+    uint64_t id[4] = {pm_hash_bytes(path, strlen(path)), kept, (uint64_t)flip, s->ntris - tri_start};
+    pl->key = pm_hash_bytes(id, sizeof id);
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 4; j++)
+            pl->xf[4 * i + j] = (float)xf[i][j];
+    pl->tri0 = (uint32_t)tri_start, pl->ntris = (uint32_t)(s->ntris - tri_start);
+    pl->vert0 = (uint32_t)vert_start, pl->nverts = (uint32_t)(s->nverts - vert_start);
+    pl->proto = -1;
+    return PM_OK;
+}
+
+/* Releases the import of entry i's mesh file unless a later entry places the same file, so
+ * that a scene of many different files holds one import at a time. */
+static void release_import(ctx_t *c, json_t *meshes, size_t i)
+{
+    const char *file = json_string_value(json_object_get(json_array_get(meshes, i), "file"));
+    if (!file)
+        return;
+    char path[1200], later[1200];
+    resolve(c->file, file, path, sizeof path);
+    for (size_t j = i + 1; j < json_array_size(meshes); j++) {
+        const char *f = json_string_value(json_object_get(json_array_get(meshes, j), "file"));
+        if (!f)
+            continue;
+        resolve(c->file, f, later, sizeof later);
+        if (strcmp(later, path) == 0)
+            return;
+    }
+    for (size_t k = 0; k < c->nimports; k++)
+        if (c->imports[k].as && strcmp(c->imports[k].path, path) == 0) {
+            aiReleaseImport(c->imports[k].as);
+            c->imports[k].as = NULL;
+            c->imports[k].path[0] = '\0'; /* never found again */
+        }
+}
+
+/* Marks the placements Embree may instance (a key placed more than once, unless the scene
+ * says "instancing": false) and keeps their prototype's vertices in mesh units. */
+static pm_result_t find_instances(ctx_t *c, int allowed)
+{
+    pm_scene_t *s = c->s;
+    size_t nlocal = 0;
+    for (size_t i = 0; allowed && i < s->nplacements; i++) {
+        pm_placement_t *p = &s->placements[i];
+        for (size_t j = 0; j < i && p->proto < 0; j++) {
+            pm_placement_t *q = &s->placements[j];
+            if (q->key == p->key && q->ntris == p->ntris && q->nverts == p->nverts && p->ntris > 0) {
+                if (q->proto < 0) { /* q becomes the prototype */
+                    q->proto = (int32_t)j;
+                    q->local0 = (uint32_t)nlocal;
+                    nlocal += q->nverts;
+                }
+                p->proto = q->proto;
+            }
+        }
+    }
+    if (!nlocal)
+        return PM_OK;
+    s->local_verts = malloc(3 * nlocal * sizeof(float));
+    if (!s->local_verts)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for %zu instanced vertices", nlocal);
+    for (size_t i = 0; i < s->nplacements; i++) {
+        const pm_placement_t *p = &s->placements[i];
+        if (p->proto == (int32_t)i)
+            memcpy(s->local_verts + 3 * (size_t)p->local0, c->local + 3 * (size_t)p->vert0,
+                   3 * (size_t)p->nverts * sizeof(float));
+    }
+    return PM_OK;
 }
 
 double pm_scene_triangle_area(const pm_scene_t *s, size_t t)
@@ -1244,7 +1346,7 @@ static pm_result_t check_size(const ctx_t *c)
 pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
 {
     memset(s, 0, sizeof *s);
-    ctx_t c = {path, s, 0};
+    ctx_t c = {path, s, 0, NULL, 0, NULL};
     snprintf(s->path, sizeof s->path, "%s", path);
     json_error_t je;
     FILE *f = fopen(path, "rb");
@@ -1255,8 +1357,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     fclose(f);
     if (!root)
         return pm_error_set(PM_ERR_INPUT, "scene '%s' line %d column %d: %s", path, je.line, je.column, je.text);
-    static const char *const keys[] = {"pmtk_scene",   "name",   "meshes",           "camera",
-                                       "point_lights", "render", "missing_textures", NULL};
+    static const char *const keys[] = {"pmtk_scene",       "name",       "meshes", "camera", "point_lights", "render",
+                                       "missing_textures", "instancing", NULL};
     pm_result_t r =
         json_is_object(root) ? only_keys(&c, root, "top level", keys) : bad(&c, "top level", "must be a JSON object");
     int64_t version = 0;
@@ -1280,10 +1382,21 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         r = bad(&c, "meshes", "must be an array");
     for (size_t i = 0; r == PM_OK && meshes && i < json_array_size(meshes); i++) {
         r = load_mesh(&c, json_array_get(meshes, i), i);
+        release_import(&c, meshes, i);
         /* Mesh and material faults name the mesh; say which scene entry brought it in. */
         if (r == PM_ERR_INPUT && strncmp(pm_error_message(), "scene '", 7) != 0)
             pm_error_prefix("scene '%s': meshes[%zu]", path, i);
     }
+    json_t *inst = json_object_get(root, "instancing");
+    if (r == PM_OK && inst && !json_is_boolean(inst))
+        r = bad(&c, "instancing", "must be true (the default) or false");
+    if (r == PM_OK)
+        r = find_instances(&c, !inst || json_is_true(inst));
+    for (size_t i = 0; i < c.nimports; i++)
+        if (c.imports[i].as)
+            aiReleaseImport(c.imports[i].as);
+    free(c.imports);
+    free(c.local);
     if (r == PM_OK)
         r = check_size(&c);
     if (r == PM_OK)
@@ -1342,6 +1455,8 @@ void pm_scene_free(pm_scene_t *s)
     free(s->unsupported);
     free(s->maps);
     free(s->uvs);
+    free(s->placements);
+    free(s->local_verts);
     for (size_t i = 0; i < s->ntextures; i++)
         pm_texture_free(&s->textures[i]);
     free(s->textures);

@@ -55,6 +55,17 @@ typedef struct {
     int32_t kd, ks, alpha;
 } pm_material_maps_t;
 
+/* Where one mesh entry of the scene file put its triangles. Every triangle is also in the
+ * flattened arrays (verts, tris, tri_material) that the tracers read; a mesh file placed by
+ * several entries is, in addition, built into Embree once and placed by instances (rt.c). */
+typedef struct {
+    uint64_t key;                        /* mesh file, faces kept, winding: equal keys, same triangles */
+    float xf[12];                        /* mesh units -> m, rows of [3 x 3 | translation] */
+    uint32_t tri0, ntris, vert0, nverts; /* its range in tris and verts */
+    int32_t proto;                       /* the placement Embree holds its triangles from; -1: built flat */
+    uint32_t local0;                     /* when proto is itself: its first vertex in local_verts */
+} pm_placement_t;
+
 typedef struct {
     char name[128];  /* "cornell-box" */
     char path[1024]; /* the scene file */
@@ -81,7 +92,10 @@ typedef struct {
     float *uvs;               /* nverts * 2 texture coordinates (u, v), or NULL with maps */
     pm_texture_t *textures;   /* each file once, however many materials use it */
     size_t ntextures;
-    int any_alpha; /* some material has map_d: render/rt.c installs the cut-out filter */
+    int any_alpha;              /* some material has map_d: render/rt.c installs the cut-out filter */
+    pm_placement_t *placements; /* one per mesh entry */
+    size_t nplacements;
+    float *local_verts; /* prototypes' vertices in mesh units; NULL when no mesh is instanced */
 } pm_scene_t;
 
 /* Loads and checks a scene file. Errors name the file and the line (JSON syntax) or the

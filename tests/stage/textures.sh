@@ -144,6 +144,19 @@ else
     fail "map_d photons" "$(cat "$TMP/why" 2>/dev/null)"
 fi
 
+# The same scene with its mesh placed twice (the second copy 100 m away, out of view): Embree
+# instances of one mesh, with the cut-out filter on the shared geometry; the same hits.
+jq '.meshes += [{file: "plane.obj", translate: [100, 0, 0]}]' "$S" >"$TMP/cut/twice.json"
+if "$BIN/trace-gather-points" "$TMP/cut/twice.json" --mode direct-vis -q -o "$TMP/cut2.q.pm" &&
+    "$BIN/pm-info" -r "$TMP/cut2.q.pm" >"$TMP/cut2.hits.txt" &&
+    awk 'FNR == NR { if ($1 ~ /^[0-9]+$/ && NF >= 11) p[$NF] = $2 " " $3 " " $4; next }
+        $1 ~ /^[0-9]+$/ && NF >= 11 { n++; split(p[$NF], a, " "); if ((a[1] - $2) ^ 2 + (a[2] - $3) ^ 2 + (a[3] - $4) ^ 2 > 1e-10) bad++ }
+        END { printf "%d hits, %d moved\n", n, bad; exit !(n > 900 && !bad) }' "$TMP/cut.hits.txt" "$TMP/cut2.hits.txt" >"$TMP/why"; then
+    pass "map_d on an instanced mesh: the same hits as placed once ($(cat "$TMP/why"))"
+else
+    fail "map_d on an instanced mesh" "$(cat "$TMP/why" 2>/dev/null)"
+fi
+
 # ---- 3. a Sponza-like OBJ + MTL
 D="$TMP/my sponza"
 mkdir -p "$D/mats/textures"

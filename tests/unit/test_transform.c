@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "render/rt.h"
 #include "render/scene.h"
 #include "unit.h"
 
@@ -149,7 +150,97 @@ static void test_transform_bad_input(void **state)
     expect_bad("\"rotate\": {\"axis\": [0, 0, 1], \"degrees\": 1e9}", "rotate.degrees: 1e+09 is outside");
 }
 
+/* A mesh file placed by four entries (turned, mirrored, scaled, moved) is built once and
+ * instanced; every ray finds the same triangle at the same distance with the same normal as in
+ * the same scene built flat ("instancing": false). */
+static void test_transform_instances(void **state)
+{
+    (void)state;
+    char p[512], text[2048];
+    /* a unit cube, open at the bottom, with a second material on its top */
+    write_tmp("cube.mtl", "newmtl side\nKd 0.5 0.5 0.5\nnewmtl top\nKd 0.2 0.2 0.2\n", p, sizeof p);
+    write_tmp("cube.obj",
+              "mtllib cube.mtl\nv 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nv 0 1 0\nv 1 1 0\nv 1 1 1\nv 0 1 1\n"
+              "usemtl side\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\nusemtl top\nf 5 6 7 8\n",
+              p, sizeof p);
+    static const char *const places[] = {
+        "\"translate\": [-3, 0, 0]",
+        "\"rotate\": {\"axis\": [1, 2, 3], \"degrees\": 33}, \"translate\": [0, 0.5, 0]",
+        "\"matrix\": [-1, 0, 0, 3,  0, 1, 0, 0,  0, 0, 1, 0,  0, 0, 0, 1]",
+        "\"scale\": 0.5, \"translate\": [0, 0, 3]",
+    };
+    for (int flat = 0; flat < 2; flat++) {
+        size_t n = (size_t)snprintf(text, sizeof text, "{\"pmtk_scene\": 1, \"name\": \"inst\", %s\"meshes\": [",
+                                    flat ? "\"instancing\": false, " : "");
+        for (size_t i = 0; i < 4; i++)
+            n +=
+                (size_t)snprintf(text + n, sizeof text - n, "%s{\"file\": \"cube.obj\", %s}", i ? ", " : "", places[i]);
+        snprintf(text + n, sizeof text - n, "], " CAM "}");
+        write_tmp(flat ? "flat.json" : "inst.json", text, p, sizeof p);
+    }
+    pm_scene_t si, sf;
+    write_tmp("unused", "", p, sizeof p);
+    snprintf(p + strlen(p) - strlen("unused"), 16, "inst.json");
+    if (pm_scene_load(p, &si) != PM_OK)
+        fail_msg("%s", pm_error_message());
+    snprintf(p + strlen(p) - strlen("inst.json"), 16, "flat.json");
+    if (pm_scene_load(p, &sf) != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_non_null(si.local_verts);
+    assert_null(sf.local_verts);
+    assert_int_equal(si.nplacements, 4);
+    assert_int_equal(si.placements[3].proto, 0);
+    assert_int_equal(si.placements[1].proto, 0);
+    assert_int_equal(si.placements[2].proto, -1); /* mirrored: its winding differs, placed once: built flat */
+    assert_int_equal(si.ntris, sf.ntris);
+    assert_memory_equal(si.verts, sf.verts, 3 * si.nverts * sizeof(float));
+    pm_rt_t ri, rf;
+    assert_int_equal(pm_rt_create(&si, 0, 1, &ri), PM_OK);
+    assert_int_equal(pm_rt_create(&sf, 0, 1, &rf), PM_OK);
+    assert_non_null(ri.base);
+    assert_null(rf.base);
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    uint32_t state_rng = 12345u, hits = 0;
+    for (int k = 0; k < 20000; k++) {
+        float o[3], d[3], l = 0;
+        /* from anywhere in a 10 m box toward a point among the cubes */
+        static const float lo[3] = {-4, -0.5f, -1}, size[3] = {8, 2, 5};
+        for (int c = 0; c < 3; c++) {
+            state_rng = state_rng * 1664525u + 1013904223u;
+            o[c] = (float)(state_rng >> 8) / 16777216.0f * 10.0f - 5.0f;
+            state_rng = state_rng * 1664525u + 1013904223u;
+            d[c] = lo[c] + (float)(state_rng >> 8) / 16777216.0f * size[c] - o[c];
+            l += d[c] * d[c];
+        }
+        for (int c = 0; c < 3; c++)
+            d[c] /= sqrtf(l);
+        float ti, tf, ni[3], nf[3];
+        uint32_t hi = pm_rt_intersect1(&ri, &ctx, o, d, 0.0f, INFINITY, &ti, ni);
+        uint32_t hf = pm_rt_intersect1(&rf, &ctx, o, d, 0.0f, INFINITY, &tf, nf);
+        if (hi != hf)
+            fail_msg("ray %d: triangle %u instanced, %u flat", k, hi, hf);
+        if (hi == PM_RAY_MISS)
+            continue;
+        hits++;
+        assert_true(fabsf(ti - tf) <= 1e-5f * (1.0f + tf));
+        float li = sqrtf(ni[0] * ni[0] + ni[1] * ni[1] + ni[2] * ni[2]),
+              lf = sqrtf(nf[0] * nf[0] + nf[1] * nf[1] + nf[2] * nf[2]);
+        for (int c = 0; c < 3; c++)
+            if (!(fabsf(ni[c] / li - nf[c] / lf) < 1e-5f))
+                fail_msg("ray %d: normal %g %g %g instanced, %g %g %g flat", k, ni[0], ni[1], ni[2], nf[0], nf[1],
+                         nf[2]);
+    }
+    if (hits < 1000)
+        fail_msg("%u of 20000 rays hit", hits);
+    pm_rt_destroy(&ri);
+    pm_rt_destroy(&rf);
+    pm_scene_free(&si);
+    pm_scene_free(&sf);
+}
+
 static const struct CMUnitTest tests[] = {
+    cmocka_unit_test(test_transform_instances),
     cmocka_unit_test(test_transform_order),
     cmocka_unit_test(test_transform_mirror),
     cmocka_unit_test(test_transform_bad_input),

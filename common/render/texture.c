@@ -268,9 +268,10 @@ void pm_texture_lookup(const pm_texture_t *t, float u, float v, int srgb, float 
     v -= floorf(v);
     float x = u * (float)t->w - 0.5f, y = (1.0f - v) * (float)t->h - 0.5f;
     float fx0 = floorf(x), fy0 = floorf(y), fx = x - fx0, fy = y - fy0;
+    /* x in [-1/2, w - 1/2]: the left texel is -1 (the last, wrapped) to w - 1 */
     long x0 = (long)fx0, y0 = (long)fy0;
-    uint32_t xa = (uint32_t)((x0 % (long)t->w + (long)t->w) % (long)t->w), xb = xa + 1 == t->w ? 0 : xa + 1;
-    uint32_t ya = (uint32_t)((y0 % (long)t->h + (long)t->h) % (long)t->h), yb = ya + 1 == t->h ? 0 : ya + 1;
+    uint32_t xa = x0 < 0 ? t->w - 1 : x0 >= (long)t->w ? t->w - 1 : (uint32_t)x0, xb = xa + 1 == t->w ? 0 : xa + 1;
+    uint32_t ya = y0 < 0 ? t->h - 1 : y0 >= (long)t->h ? t->h - 1 : (uint32_t)y0, yb = ya + 1 == t->h ? 0 : ya + 1;
     float a[4], b[4], c[4], d[4];
     texel(t, xa, ya, srgb, a);
     texel(t, xb, ya, srgb, b);

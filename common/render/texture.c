@@ -1,5 +1,6 @@
 /* texture.c: image textures for the scene loader (texture.h): PNG through libpng's simplified
- * reader, JPEG through libjpeg(-turbo), OpenEXR through base/exr.h; all become 4 channels per
+ * reader, JPEG through libjpeg(-turbo), OpenEXR through base/exr.h, Truevision TGA (Crytek
+ * Sponza's textures) through stb_image (Debian's libstb); all become 4 channels per
  * texel, and lookups filter bilinearly with repeat addressing. Read once per stage by
  * pm_scene_load; read-only afterwards, so lookups are safe from any thread. */
 #include "render/texture.h"
@@ -11,9 +12,11 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 /* after stdio.h: jpeglib.h uses FILE without including it */
 #include <jpeglib.h>
+#include <stb_image.h>
 
 #include "base/exr.h"
 #include "base/hash.h"
@@ -178,6 +181,29 @@ static pm_result_t load_exr(const char *path, pm_texture_t *t)
     return PM_OK;
 }
 
+/* TGA has no signature: a file named .tga that is none of the others. stb_image reads its
+ * size first, so that a huge image is refused before it is decoded. */
+static pm_result_t load_tga(const char *path, pm_texture_t *t)
+{
+    int w = 0, h = 0, n = 0;
+    if (!stbi_info(path, &w, &h, &n))
+        return pm_error_set(PM_ERR_INPUT, "texture '%s': stb_image: %s", path, stbi_failure_reason());
+    pm_result_t r = check_size(path, (uint64_t)(w > 0 ? w : 0), (uint64_t)(h > 0 ? h : 0));
+    if (r != PM_OK)
+        return r;
+    stbi_uc *px = stbi_load(path, &w, &h, &n, 4); /* rows from the top, RGBA */
+    if (!px)
+        return pm_error_set(PM_ERR_INPUT, "texture '%s': stb_image: %s", path, stbi_failure_reason());
+    t->w = (uint32_t)w, t->h = (uint32_t)h;
+    t->has_alpha = n == 2 || n == 4;
+    t->grey = n <= 2;
+    t->u8 = malloc((size_t)t->w * t->h * 4);
+    if (t->u8)
+        memcpy(t->u8, px, (size_t)t->w * t->h * 4);
+    stbi_image_free(px);
+    return t->u8 ? PM_OK : pm_error_set(PM_ERR_NOMEM, "out of memory for texture '%s' (%u x %u)", path, t->w, t->h);
+}
+
 static void texture_hash(pm_texture_t *t)
 {
     uint64_t h[3] = {t->w, t->h, 0};
@@ -207,13 +233,16 @@ pm_result_t pm_texture_load(const char *path, pm_texture_t *out)
     } else if (n >= 4 && memcmp(magic, "\x76\x2f\x31\x01", 4) == 0) {
         fclose(f);
         r = load_exr(path, out);
+    } else if (strlen(path) > 4 && strcasecmp(path + strlen(path) - 4, ".tga") == 0) {
+        fclose(f);
+        r = load_tga(path, out);
     } else {
         int was_error = ferror(f);
         fclose(f);
         r = was_error ? pm_error_set(PM_ERR_IO, "cannot read texture '%s'", path)
                       : pm_error_set(PM_ERR_INPUT,
-                                     "texture '%s': not a PNG, JPEG or OpenEXR image (%zu bytes read; convert other "
-                                     "formats, TGA or DDS, to PNG)",
+                                     "texture '%s': not a PNG, JPEG, OpenEXR or TGA image (%zu bytes read; convert "
+                                     "other formats, DDS or BMP, to PNG)",
                                      path, n);
     }
     if (r == PM_OK)

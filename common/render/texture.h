@@ -1,5 +1,6 @@
 /* texture.h: image textures of the scene model (MTL map_Kd, map_Ks, map_d; glTF base colour):
- * decoding PNG (libpng), JPEG (libjpeg-turbo) and OpenEXR (base/exr.h) files into memory once
+ * decoding PNG (libpng), JPEG (libjpeg-turbo), OpenEXR (base/exr.h) and TGA (stb_image) files
+ * into memory once
  * per stage, and looking them up with bilinear filtering and repeat addressing.
  *
  * 8-bit images keep their bytes (4 per texel: R G B A) and decode sRGB colour to linear at each
@@ -27,7 +28,8 @@ typedef struct {
 } pm_texture_t;
 
 /* Reads an image file (its kind from its first bytes) into *out. Errors (PM_ERR_INPUT) name
- * the file and what is wrong: missing or unreadable, not PNG, JPEG or OpenEXR, 0 x 0 or wider
+ * the file and what is wrong: missing or unreadable, not PNG, JPEG, OpenEXR or (named .tga)
+ * TGA, 0 x 0 or wider
  * or taller than PM_TEXTURE_MAX_SIDE, an OpenEXR value that is NaN, negative or above 1. */
 pm_result_t pm_texture_load(const char *path, pm_texture_t *out);
 /* A 1 x 1 texture of linear colour rgb (alpha 1), as float texels: the stand-in for a missing

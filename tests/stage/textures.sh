@@ -8,10 +8,10 @@
 #      pass the same hole.
 #   3. A small generated OBJ + MTL with Crytek Sponza's MTL habits (the .mtl in a sub-folder,
 #      textures relative to it named with Windows backslashes and spaces, material names with
-#      spaces, map_d, a texture that is missing): an error naming the material and the file;
+#      spaces, map_d of a grey TGA, map_Ka, a texture that is missing): an error naming the material and the file;
 #      with "missing_textures": "magenta" a warning, and it renders through pipelines/render and
 #      trace-reference.
-# The PNGs are written byte by byte (a few dozen bytes each, made once with zlib), so that the
+# The images are written byte by byte (a few dozen bytes each, made once with zlib), so that the
 # test needs no image tool.
 PI=3.141592653589793
 
@@ -23,8 +23,8 @@ PNG_AB=89504e470d0a1a0a0000000d4948445200000004000000010800000000dc5750110000000
 PNG_MASK=89504e470d0a1a0a0000000d4948445200000002000000010800000000d14920560000000b4944415478da63f8cf000002010100a11e5c750000000049454e44ae426082
 # 2 x 2 RGB checker of (200 60 40) and (230 200 120)
 PNG_TILE=89504e470d0a1a0a0000000d4948445200000002000000020802000000fdd49a73000000134944415478da633861a3f1ec4405031003590030a606a530874bc50000000049454e44ae426082
-# 2 x 1 grey + alpha: (60, 255) (60, 0)
-PNG_LEAF=89504e470d0a1a0a0000000d49484452000000020000000108040000005e2bb7010000000d4944415478da63b0f96fc30000046a017810c714b00000000049454e44ae426082
+# 2 x 1 grey TGA (type 3, 8 bits), as Crytek Sponza's masks: 255 0
+TGA_LEAF=000003000000000000000000020001000800ff00
 
 # textured_plane DIR MTL-LINES [EXTRA-OBJ]: a 4 m square plane y = 0 (u = x/4 + 1/2, v = z/4 + 1/2),
 # material "paint" (Kd 0.8 0.8 0.8 and MTL-LINES), a point light of pi W/sr 1 m above the
@@ -161,7 +161,7 @@ fi
 D="$TMP/my sponza"
 mkdir -p "$D/mats/textures"
 png "$D/mats/textures/floor tile.png" $PNG_TILE
-png "$D/mats/textures/leaf mask.png" $PNG_LEAF
+png "$D/mats/textures/leaf mask.tga" $TGA_LEAF
 cat >"$D/mini sponza.obj" <<'OBJ'
 # two textured quads and an untextured wall, faces named by groups
 mtllib mats/mini sponza.mtl
@@ -201,7 +201,7 @@ map_Kd textures\floor tile.png
 newmtl leaf
 Kd 1 1 1
 map_Kd textures\floor tile.png
-map_d textures\leaf mask.png
+map_d textures\leaf mask.tga
 
 newmtl plain wall
 Kd 0.5 0.5 0.5

@@ -92,6 +92,28 @@ static void test_texture_jpeg_exr(void **state)
 {
     (void)state;
     char p[512];
+    /* TGA (Crytek Sponza's textures): 2 x 2, 24-bit BGR, rows stored bottom first (origin bit 0):
+     * blue, white at the bottom; red, green at the top */
+    static const uint8_t tga[18 + 12] = {0, 0,  2, 0,   0, 0, 0,   0,   0,   0, 0, 0,   2, 0,   2,
+                                         0, 24, 0, 255, 0, 0, 255, 255, 255, 0, 0, 255, 0, 255, 0};
+    tmp_path("c.TGA", p, sizeof p);
+    FILE *tf = fopen(p, "wb");
+    assert_non_null(tf);
+    fwrite(tga, 1, sizeof tga, tf);
+    fclose(tf);
+    pm_texture_t tt;
+    if (pm_texture_load(p, &tt) != PM_OK)
+        fail_msg("%s", pm_error_message());
+    float q[4];
+    pm_texture_lookup(&tt, 0.25f, 0.75f, 1, q); /* top left: red */
+    assert_true(q[0] == 1.0f && q[1] == 0.0f && q[2] == 0.0f && q[3] == 1.0f);
+    pm_texture_lookup(&tt, 0.25f, 0.25f, 1, q); /* bottom left: blue */
+    assert_true(q[0] == 0.0f && q[2] == 1.0f);
+    pm_texture_lookup(&tt, 0.75f, 0.25f, 1, q); /* bottom right: white */
+    assert_true(q[0] == 1.0f && q[1] == 1.0f && q[2] == 1.0f);
+    assert_false(tt.has_alpha);
+    pm_texture_free(&tt);
+
     tmp_path("c.jpg", p, sizeof p);
     FILE *f = fopen(p, "wb");
     assert_non_null(f);
@@ -184,8 +206,10 @@ static void test_texture_bad_images(void **state)
 {
     (void)state;
     expect_texture_error("none.png", "cannot open texture");
-    write_text("t.tga", "\0\0\2\0\0\0\0\0\0\0\0\0\1\0\1\0\x18\0");
-    expect_texture_error("t.tga", "not a PNG, JPEG or OpenEXR image");
+    write_text("t.tga", "\0\0\2\0\0\0\0\0\0\0\0\0\1\0\1\0\x18\0"); /* a header, no pixel */
+    expect_texture_error("t.tga", "stb_image");
+    write_text("t.bmp", "BM not really");
+    expect_texture_error("t.bmp", "not a PNG, JPEG, OpenEXR or TGA image");
     write_png_header("wide.png", 70000, 1);
     expect_texture_error("wide.png", "70000 x 1 pixels: each side must be 1 to 65536");
     write_png_header("tall.png", 1, 65537);

@@ -1058,6 +1058,11 @@ static pm_result_t load_mesh(ctx_t *c, json_t *mj, size_t index)
                              as->mNumMaterials);
             break;
         }
+        const pm_material_maps_t *mm = &s->maps[mat0 + m->mMaterialIndex];
+        if (!m->mTextureCoords[0] && (mm->kd >= 0 || mm->ks >= 0 || mm->alpha >= 0) &&
+            (r = note_unsupported(s, (uint32_t)(mat0 + m->mMaterialIndex), "texture coordinates", 0,
+                                  "missing (texel 0 0 used)")) != PM_OK)
+            break;
         size_t v0 = s->nverts;
         if (s->ntris + m->mNumFaces > PM_SCENE_MAX_TRIS) {
             r = pm_error_set(PM_ERR_INPUT, "mesh '%s': more than %u triangles in the scene", path, PM_SCENE_MAX_TRIS);

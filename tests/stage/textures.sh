@@ -189,7 +189,7 @@ usemtl leaf
 f 5/1 8/4 7/3 6/2
 g back wall
 usemtl plain wall
-f 9 10 11 12
+f 9/1 10/2 11/3 12/4
 OBJ
 cat >"$D/mats/mini sponza.mtl" <<'MTL'
 newmtl arch stone

@@ -74,6 +74,8 @@ TESTGEN := $(BUILD)/tests/pm-testgen
 EXRDUMP := $(BUILD)/tests/pm-exrdump
 ATRIUM_GEN := $(BUILD)/scenes/make-atrium
 ATRIUM_OBJ := scenes/atrium/atrium.obj
+CAUSTIC_GEN := $(BUILD)/scenes/make-caustic
+CAUSTIC_OBJ := scenes/caustic/caustic.obj
 
 # The C sources clang-format keeps (.clang-format); the generated and fuzz-regression files are not C.
 FORMAT_SRC = $(shell git ls-files '*.c' '*.h' 2>/dev/null)
@@ -82,7 +84,7 @@ FORMAT_SRC = $(shell git ls-files '*.c' '*.h' 2>/dev/null)
 # Keep the stages' objects: they are intermediate to the pattern rule, and make would
 # otherwise delete them and rebuild them next time.
 .SECONDARY:
-all: $(PROGS) $(ATRIUM_OBJ)
+all: $(PROGS) $(ATRIUM_OBJ) $(CAUSTIC_OBJ)
 
 # Rebuild everything when the flags change.
 FLAGS_FILE := $(BUILD)/.flags
@@ -128,6 +130,15 @@ $(ATRIUM_GEN): scenes/atrium/make-atrium.c
 $(ATRIUM_OBJ) scenes/atrium/atrium.mtl &: $(ATRIUM_GEN)
 	@$(if $(Q),echo "  GEN     $@",true)
 	$(Q)$(ATRIUM_GEN) -o scenes/atrium
+
+$(CAUSTIC_GEN): scenes/caustic/make-caustic.c
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  CC      $<",true)
+	$(Q)$(CC) -std=c17 -O2 $(WARN) $(if $(WERROR),-Werror,) $< -lm -o $@
+
+$(CAUSTIC_OBJ) scenes/caustic/caustic.mtl &: $(CAUSTIC_GEN)
+	@$(if $(Q),echo "  GEN     $@",true)
+	$(Q)$(CAUSTIC_GEN) -o scenes/caustic
 
 # ---- tests ----
 check-deps:
@@ -220,6 +231,6 @@ deps:
 	@sh tests/install-deps.sh $(DEBS)
 
 clean:
-	rm -rf $(BUILD) $(BIN) $(ATRIUM_OBJ) scenes/atrium/atrium.mtl
+	rm -rf $(BUILD) $(BIN) $(ATRIUM_OBJ) scenes/atrium/atrium.mtl $(CAUSTIC_OBJ) scenes/caustic/caustic.mtl
 
 -include $(LIB_OBJ:.o=.d) $(UNIT_OBJ:.o=.d) $(STAGES:%=$(BUILD)/stages/%/main.d) $(BUILD)/tests/pm-testgen.d $(BUILD)/tests/pm-exrdump.d

@@ -11,6 +11,7 @@
 #include <jansson.h>
 #include <math.h>
 #include <stdarg.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -261,8 +262,78 @@ static pm_result_t load_defaults(const ctx_t *c, json_t *d)
     return r;
 }
 
+/* The specular part of a material (docs/scene-format.md, "Mirrors and glass"): from an OBJ,
+ * illum 7 is glass (Ni, Tf) and illum 3 or 5 with some Ks a mirror (Ks); from glTF, a
+ * transmissionFactor above 0 is glass (ior, baseColorFactor as the filter) and metallicFactor 1
+ * with roughnessFactor 0 a mirror (baseColorFactor). Sets m->kind, kr, ior and tf; refuses an
+ * index that is not a finite number > 0, a filter outside [0, 1], and mirror and glass at once. */
+static pm_result_t load_specular(const char *mesh, int is_obj, const struct aiMaterial *am, const float kd[3],
+                                 const float ks[3], pm_material_t *m)
+{
+    int illum = 0, glass = 0, mirror = 0;
+    ai_real ior = 1, transmission = 0, metallic = 0, roughness = 1;
+    struct aiColor4D tf = {1, 1, 1, 1};
+    unsigned one = 1;
+    m->ior = 1.0f;
+    m->tf[0] = m->tf[1] = m->tf[2] = 1.0f;
+    aiGetMaterialFloatArray(am, AI_MATKEY_REFRACTI, &ior, NULL);
+    if (is_obj) {
+        aiGetMaterialIntegerArray(am, "$mat.illum", 0, 0, &illum, &one);
+        aiGetMaterialColor(am, AI_MATKEY_COLOR_TRANSPARENT, &tf);
+        glass = illum == 7;
+        mirror = (illum == 3 || illum == 5) && (ks[0] > 0.0f || ks[1] > 0.0f || ks[2] > 0.0f);
+        for (int k = 0; k < 3; k++)
+            m->kr[k] = mirror ? ks[k] : 0.0f;
+    } else {
+        /* glTF's index defaults to 1.5 where KHR_materials_ior is absent */
+        if (aiGetMaterialFloatArray(am, AI_MATKEY_REFRACTI, &ior, NULL) != aiReturn_SUCCESS)
+            ior = 1.5f;
+        aiGetMaterialFloatArray(am, AI_MATKEY_TRANSMISSION_FACTOR, &transmission, NULL);
+        aiGetMaterialFloatArray(am, AI_MATKEY_METALLIC_FACTOR, &metallic, NULL);
+        aiGetMaterialFloatArray(am, AI_MATKEY_ROUGHNESS_FACTOR, &roughness, NULL);
+        if (!(transmission >= 0 && transmission <= 1))
+            return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': transmissionFactor %g must lie in [0, 1]",
+                                mesh, m->name, transmission);
+        glass = transmission > 0;
+        mirror = metallic == 1 && roughness == 0;
+        /* the base colour tints what a metal reflects and what glass transmits */
+        tf = (struct aiColor4D){kd[0], kd[1], kd[2], 1};
+        for (int k = 0; k < 3; k++)
+            m->kr[k] = mirror ? kd[k] : 0.0f;
+    }
+    /* only glTF can say both (an OBJ material has one illum) */
+    if (glass && mirror)
+        return pm_error_set(PM_ERR_INPUT,
+                            "mesh '%s': material '%s': transmissionFactor %g makes it glass, and metallicFactor 1 "
+                            "with roughnessFactor 0 a mirror: it cannot be both",
+                            mesh, m->name, transmission);
+    if (glass) {
+        if (!(isfinite(ior) && ior > 0))
+            return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': %s %g must be a finite number > 0", mesh,
+                                m->name, is_obj ? "Ni" : "ior", ior);
+        float tv[3] = {tf.r, tf.g, tf.b};
+        for (int k = 0; k < 3; k++)
+            if (!(tv[k] >= 0.0f && tv[k] <= 1.0f))
+                return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': %s %g in channel %c must lie in [0, 1]",
+                                    mesh, m->name, is_obj ? "Tf" : "baseColorFactor", tv[k], "rgb"[k]);
+        m->kind = PM_MAT_GLASS;
+        m->ior = (float)ior;
+        for (int k = 0; k < 3; k++)
+            m->tf[k] = tv[k];
+    } else if (mirror) {
+        m->kind = PM_MAT_MIRROR;
+    }
+    /* A specular material is its delta BSDF alone (the Kd and Ks it sets besides are
+     * reported by scan_material and scan_mtl_dropped). */
+    if (pm_material_is_specular(m))
+        for (int k = 0; k < 3; k++)
+            m->kd[k] = m->ks[k] = 0.0f;
+    return PM_OK;
+}
+
 /* Reads one material's reflectance from assimp and checks it is physical. */
-static pm_result_t load_material(const ctx_t *c, const char *mesh, const struct aiMaterial *am, pm_material_t *m)
+static pm_result_t load_material(const ctx_t *c, const char *mesh, int is_obj, const struct aiMaterial *am,
+                                 pm_material_t *m)
 {
     struct aiString name;
     struct aiColor4D kd = {0.8f, 0.8f, 0.8f, 1}, ks = {0, 0, 0, 1}, ke = {0, 0, 0, 1};
@@ -278,7 +349,8 @@ static pm_result_t load_material(const ctx_t *c, const char *mesh, const struct 
     aiGetMaterialColor(am, AI_MATKEY_COLOR_SPECULAR, &ks);
     aiGetMaterialColor(am, AI_MATKEY_COLOR_EMISSIVE, &ke);
     aiGetMaterialFloatArray(am, AI_MATKEY_SHININESS, &ns, NULL);
-    if (!m->name[0] || strcmp(m->name, AI_DEFAULT_MATERIAL_NAME) == 0) {
+    int stand_in = !m->name[0] || strcmp(m->name, AI_DEFAULT_MATERIAL_NAME) == 0;
+    if (stand_in) {
         /* assimp's stand-in for a mesh that names no material (PLY, STL): a plain grey
          * Lambertian surface, whatever the importer filled in (some set Ks to 1). */
         kd = (struct aiColor4D){0.8f, 0.8f, 0.8f, 1};
@@ -286,25 +358,31 @@ static pm_result_t load_material(const ctx_t *c, const char *mesh, const struct 
         snprintf(m->name, sizeof m->name, "default");
     }
     float kdv[3] = {kd.r, kd.g, kd.b}, ksv[3] = {ks.r, ks.g, ks.b}, kev[3] = {ke.r, ke.g, ke.b};
+    pm_result_t r = PM_OK;
+    if (!stand_in && (r = load_specular(mesh, is_obj, am, kdv, ksv, m)) != PM_OK)
+        return r;
+    int specular = pm_material_is_specular(m);
     for (int i = 0; i < 3; i++) {
         if (!(kdv[i] >= 0.0f && kdv[i] <= 1.0f) || !(ksv[i] >= 0.0f && ksv[i] <= 1.0f))
             return pm_error_set(PM_ERR_INPUT,
                                 "mesh '%s': material '%s': Kd %g and Ks %g in channel %c must lie in [0, 1]", mesh,
                                 m->name, kdv[i], ksv[i], "rgb"[i]);
-        if (kdv[i] + ksv[i] > 1.0f + 1e-6f)
+        /* a mirror's Ks is its reflectance and its Kd unused: their sum is no constraint */
+        if (!specular && kdv[i] + ksv[i] > 1.0f + 1e-6f)
             return pm_error_set(
                 PM_ERR_INPUT, "mesh '%s': material '%s': Kd + Ks = %g in channel %c exceeds 1 (not energy conserving)",
                 mesh, m->name, kdv[i] + ksv[i], "rgb"[i]);
         if (!(kev[i] >= 0.0f && kev[i] <= 1e30f))
             return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': Ke %g in channel %c must lie in [0, 1e30]",
                                 mesh, m->name, kev[i], "rgb"[i]);
-        m->kd[i] = kdv[i];
-        m->ks[i] = ksv[i];
+        m->kd[i] = specular ? 0.0f : kdv[i];
+        m->ks[i] = specular ? 0.0f : ksv[i];
         m->ke[i] = kev[i];
     }
     if (!(ns >= 0 && ns <= 1e6))
         return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': Ns %g must lie in [0, 1e6]", mesh, m->name, ns);
-    m->ns = (float)ns;
+    /* a Phong exponent matters only where there is a Phong lobe */
+    m->ns = specular ? 0.0f : (float)ns;
     (void)c;
     return PM_OK;
 }
@@ -485,6 +563,7 @@ static const material_key_t material_keys[] = {
     {"$mat.reflectivity", "reflectivity", "reflectivity", KEY_ZERO, KEY_ZERO},
     {"$clr.reflective", "reflective", "reflectiveColor", KEY_ZERO, KEY_ZERO},
     {"$mat.transparencyfactor", "transparencyfactor", "transparencyFactor", KEY_ZERO, KEY_ZERO},
+    {"$mat.transmission.factor", "transmission", "transmissionFactor", KEY_ZERO, KEY_ZERO},
 };
 
 /* A texture slot as MTL names it (assimp 5.2's ObjFileMtlImporter mapping), or NULL. */
@@ -613,6 +692,21 @@ static pm_result_t scan_material(pm_scene_t *s, int is_obj, const struct aiMater
             if (strcmp(material_keys[j].ai_key, key) == 0)
                 k = &material_keys[j];
         int kind = k ? (is_obj ? k->obj_kind : k->other_kind) : KEY_ANY;
+        /* What makes a material a mirror or glass is honoured (load_specular); a glass is
+         * smooth (roughness 0) and wholly transmissive (transmission 1). */
+        const pm_material_t *mat = &s->materials[m];
+        if (pm_material_is_specular(mat)) {
+            int is_glass = mat->kind == PM_MAT_GLASS;
+            if (strcmp(key, "$mat.illum") == 0 || (is_glass && strcmp(key, "$mat.refracti") == 0) ||
+                (is_glass && is_obj && strcmp(key, "$clr.transparent") == 0))
+                continue;
+            if (!is_obj && strcmp(key, "$mat.metallicFactor") == 0)
+                kind = is_glass ? KEY_ZERO : KEY_SKIP;
+            if (!is_obj && strcmp(key, "$mat.roughnessFactor") == 0)
+                kind = KEY_ZERO;
+            if (!is_obj && strcmp(key, "$mat.transmission.factor") == 0)
+                kind = KEY_ONE;
+        }
         if (kind == KEY_HONOURED || kind == KEY_SKIP)
             continue;
         /* A key pmtk does not know: named without assimp's "$mat." or "$clr." prefix. */
@@ -640,6 +734,19 @@ static int mtl_key_exposed(const char *word)
         if (strcmp(*k, w) == 0 || strcmp(*k, word) == 0)
             return 1;
     return strncmp(word, "map_", 4) == 0;
+}
+
+/* Whether an MTL line sets a colour a specular material does not use: a mirror's or a glass's
+ * Kd, a glass's Ks, at a value other than 0. Read from the .mtl itself: assimp fills in a Kd of
+ * 0.6 where the .mtl gives none. */
+static int unused_colour(const pm_material_t *m, const char *word, const char *rest)
+{
+    int kd = strcasecmp(word, "Kd") == 0, ks = strcasecmp(word, "Ks") == 0;
+    if (!pm_material_is_specular(m) || !(kd || (ks && m->kind == PM_MAT_GLASS)))
+        return 0;
+    float v[3] = {0, 0, 0};
+    int n = sscanf(rest, "%f %f %f", &v[0], &v[1], &v[2]);
+    return n < 1 || v[0] != 0.0f || v[1] != 0.0f || v[2] != 0.0f;
 }
 
 /* Reads the .mtl files an OBJ names (libs: one a line, relative to the OBJ) for the keys assimp
@@ -686,6 +793,8 @@ static pm_result_t scan_mtl_dropped(pm_scene_t *s, const char *obj, const char *
                 char key[64];
                 snprintf(key, sizeof key, "%s options", word);
                 r = note_unsupported(s, current, key, 0, rest);
+            } else if (current != UINT32_MAX && unused_colour(&s->materials[current], word, rest)) {
+                r = note_unsupported(s, current, word, 0, rest);
             }
         }
         free(line);
@@ -1029,7 +1138,7 @@ static pm_result_t load_mesh(ctx_t *c, json_t *mj, size_t index)
     for (size_t i = mat0; i < mat0 + as->mNumMaterials; i++)
         s->maps[i] = (pm_material_maps_t){-1, -1, -1};
     for (unsigned i = 0; i < as->mNumMaterials && r == PM_OK; i++) {
-        r = load_material(c, path, as->mMaterials[i], &s->materials[mat0 + i]);
+        r = load_material(c, path, is_obj, as->mMaterials[i], &s->materials[mat0 + i]);
         /* assimp's stand-in material is pmtk's grey default whatever it holds: nothing to report */
         struct aiString an;
         int stand_in = aiGetMaterialString(as->mMaterials[i], AI_MATKEY_NAME, &an) != aiReturn_SUCCESS ||
@@ -1301,6 +1410,29 @@ static pm_result_t drop_unused_maps(pm_scene_t *s)
     return PM_OK;
 }
 
+/* The materials' share of the scene hash. Without a mirror or glass, each material's bytes up
+ * to its specular fields (name to ke, no padding), as the hash took them before those fields
+ * existed, so that such a scene's identity, and every file naming it, stays what it was. */
+static pm_result_t hash_materials(const pm_scene_t *s, uint64_t *out)
+{
+    int specular = 0;
+    for (size_t m = 0; m < s->nmaterials; m++)
+        specular |= pm_material_is_specular(&s->materials[m]);
+    if (specular) {
+        *out = pm_hash_bytes(s->materials, s->nmaterials * sizeof *s->materials);
+        return PM_OK;
+    }
+    size_t head = offsetof(pm_material_t, kind);
+    unsigned char *buf = malloc(s->nmaterials ? s->nmaterials * head : 1);
+    if (!buf)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory");
+    for (size_t m = 0; m < s->nmaterials; m++)
+        memcpy(buf + m * head, &s->materials[m], head);
+    *out = pm_hash_bytes(buf, s->nmaterials * head);
+    free(buf);
+    return PM_OK;
+}
+
 static void finish(pm_scene_t *s)
 {
     float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
@@ -1320,8 +1452,10 @@ static void finish(pm_scene_t *s)
         s->bounds[k] = lo[k] <= hi[k] ? lo[k] : 0.0f;
         s->bounds[k + 3] = lo[k] <= hi[k] ? hi[k] : 0.0f;
     }
-    for (size_t m = 0; m < s->nmaterials; m++)
+    for (size_t m = 0; m < s->nmaterials; m++) {
         s->any_glossy |= pm_material_is_glossy(&s->materials[m]);
+        s->any_specular |= pm_material_is_specular(&s->materials[m]);
+    }
 }
 
 /* Refuses geometry too small to render: the longest side of the box around every vertex
@@ -1429,7 +1563,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         h[1] = pm_hash_bytes(s->verts, 3 * s->nverts * sizeof(float));
         h[2] = pm_hash_bytes(s->tris, 3 * s->ntris * sizeof(uint32_t));
         h[3] = pm_hash_bytes(s->tri_material, s->ntris * sizeof(uint32_t));
-        h[4] = pm_hash_bytes(s->materials, s->nmaterials * sizeof *s->materials);
+        if (r == PM_OK)
+            r = hash_materials(s, &h[4]);
         h[5] = pm_hash_bytes(s->lights, s->nlights * sizeof *s->lights);
         s->hash = pm_hash_bytes(h, sizeof h);
         if (r == PM_OK && (r = drop_unused_maps(s)) == PM_OK && s->maps) {

@@ -85,6 +85,7 @@ typedef struct {
     pm_render_defaults_t defaults;
     float bounds[6];                     /* min xyz, max xyz of all triangles and point lights, m */
     int any_glossy;                      /* 1 when some material has ks > 0: direction channels are needed */
+    int any_specular;                    /* 1 when some material is a mirror or glass */
     pm_scene_unsupported_t *unsupported; /* of the materials kept, in material order */
     size_t nunsupported;
     /* Textures: all NULL and 0 in a scene without any (it pays nothing for the feature). */

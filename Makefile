@@ -29,7 +29,7 @@ WERROR ?= 1
 
 # Debian packages this project builds, tests and runs with (README says why each).
 DEBS := gcc make pkg-config libembree-dev libopenexr-dev libassimp-dev libjansson-dev \
-        libpng-dev libxxhash-dev libcmocka-dev openexr jq gnuplot-nox clang-format
+        libpng-dev libjpeg62-turbo-dev libstb-dev libxxhash-dev libcmocka-dev openexr jq gnuplot-nox clang-format
 
 ifeq ($(V),1)
 Q :=
@@ -37,13 +37,13 @@ else
 Q := @
 endif
 
-PKGS := OpenEXR assimp jansson libpng libxxhash
+PKGS := OpenEXR assimp jansson libpng libxxhash stb
 # Debian's libembree-dev ships no .pc file; use pkg-config when there is one.
 EMBREE_CFLAGS := $(shell pkg-config --cflags embree3 2>/dev/null)
 EMBREE_LIBS := $(shell pkg-config --libs embree3 2>/dev/null || echo -lembree3)
 PKG_CFLAGS := $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
 # Only OpenEXR's C API (OpenEXRCore) is used; the C++ libraries are not linked.
-PKG_LIBS := -lOpenEXRCore-3_1 $(shell pkg-config --libs assimp jansson libpng libxxhash 2>/dev/null)
+PKG_LIBS := -lOpenEXRCore-3_1 $(shell pkg-config --libs assimp jansson libpng libxxhash stb 2>/dev/null)
 CMOCKA_LIBS := $(shell pkg-config --libs cmocka 2>/dev/null || echo -lcmocka)
 
 # snprintf truncation is how this code bounds names and messages, so it is not warned about.
@@ -55,7 +55,8 @@ INCLUDES := -I. -Icommon
 ALL_CFLAGS := -std=c17 -D_GNU_SOURCE $(INCLUDES) $(WARN) $(if $(WERROR),-Werror,) -fopenmp -fno-math-errno \
               $(SAN) $(PKG_CFLAGS) $(EMBREE_CFLAGS) $(CFLAGS)
 ALL_LDFLAGS := -fopenmp $(SAN) $(LDFLAGS)
-LIBS := $(EMBREE_LIBS) $(PKG_LIBS) -lm
+# libjpeg-turbo (texture JPEGs) ships libjpeg.pc only in newer Debian releases.
+LIBS := $(EMBREE_LIBS) $(PKG_LIBS) -ljpeg -lm
 
 # The library's layers (docs/architecture.md): base, math, formats, then render, photonmap and image.
 LAYERS := common/base common/math formats common/render common/photonmap common/image

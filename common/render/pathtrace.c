@@ -111,7 +111,8 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
         const float *ng = g->tri_n + 3 * (size_t)tri;
         float cos_front = pm_dot3(ng, wo), side = cos_front >= 0.0f ? 1.0f : -1.0f;
         float n[3] = {side * ng[0], side * ng[1], side * ng[2]};
-        const pm_material_t *m = &s->materials[s->tri_material[tri]];
+        pm_material_t textured; /* the material with its textures at p (render/scene.h) */
+        const pm_material_t *m = pm_scene_material_at(s, tri, p, &textured);
         int specular = pm_material_is_specular(m);
 
         /* Emission, front face only. Seen by the camera, or through mirrors and glass, it is

@@ -165,7 +165,7 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
                 cnt->longest = depth + 1;
             float org[3] = {p[0] + eps * n[0], p[1] + eps * n[1], p[2] + eps * n[2]};
 
-            /* Point lights: I cos / r^2, each one every vertex. */
+            /* Point lights and spots: I s cos / r^2, each one every vertex. */
             pm_light_sample_t ls;
             for (size_t l = 0; l < s->nlights && wanted(pt, nd + 1, 0); l++) {
                 const pm_point_light_t *pl = &s->lights[l];
@@ -177,7 +177,7 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
                 float f[3];
                 pm_brdf(m, n, ls.wi, wo, f);
                 for (int q = 0; q < 3; q++)
-                    L[q] += beta[q] * (double)f[q] * pl->intensity[q] * ls.cosx / ls.r2;
+                    L[q] += beta[q] * (double)f[q] * pm_point_light_intensity(pl, &ls, q) * ls.cosx / ls.r2;
             }
             /* One point on the area lights, pdf 1/A per m^2, weighted against BSDF sampling. */
             if (g->nemissive && pm_area_light_sample(s, g, &rng, p, n, &ls) && wanted(pt, nd + 1, 0)) {

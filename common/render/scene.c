@@ -190,9 +190,50 @@ static pm_result_t load_camera(const ctx_t *c, json_t *cam)
     return PM_OK;
 }
 
+/* The spot keys of point light l (direction, cone, falloff); none of them leaves it isotropic. */
+static pm_result_t load_spot(const ctx_t *c, json_t *l, const char *where, pm_point_light_t *pl)
+{
+    char pd[80], pc[80], pf[80];
+    snprintf(pd, sizeof pd, "%s.direction", where);
+    snprintf(pc, sizeof pc, "%s.cone", where);
+    snprintf(pf, sizeof pf, "%s.falloff", where);
+    pl->cos_cone = -1.0f;
+    json_t *cone = json_object_get(l, "cone"), *dir = json_object_get(l, "direction"),
+           *fall = json_object_get(l, "falloff");
+    if (!cone && !dir && !fall)
+        return PM_OK;
+    if (!dir)
+        return bad(c, pd, "missing (a light with a cone or a falloff is a spot and needs an axis)");
+    if (cone && json_is_number(cone)) {
+        /* The half-angle's own range, stated as users read it: (0, 180] degrees. */
+        double a = json_number_value(cone);
+        if (!(a > 0.0 && a <= 180.0))
+            return bad(c, pc, "%.9g degrees is outside (0, 180]", a);
+    }
+    double a = 180.0, e = 0.0;
+    float d[3];
+    pm_result_t r = get_vec3(c, l, "direction", pd, 1, -PM_SCENE_COORD_MAX, PM_SCENE_COORD_MAX, d);
+    if (r == PM_OK)
+        r = get_number(c, l, "cone", pc, 0, 0.0, 180.0, &a);
+    if (r == PM_OK)
+        r = get_number(c, l, "falloff", pf, 0, 0.0, 1e4, &e);
+    if (r != PM_OK)
+        return r;
+    double dl = sqrt((double)d[0] * d[0] + (double)d[1] * d[1] + (double)d[2] * d[2]);
+    if (!(dl > 0.0))
+        return bad(c, pd, "is the zero vector");
+    for (int k = 0; k < 3; k++)
+        pl->axis[k] = (float)(d[k] / dl);
+    pl->cos_cone = a >= 180.0 ? -1.0f : (float)cos(a * M_PI / 180.0);
+    pl->falloff = (float)e;
+    if (!(pl->cos_cone < 1.0f))
+        return bad(c, pc, "%.9g degrees is too narrow: its cosine rounds to 1", a);
+    return PM_OK;
+}
+
 static pm_result_t load_lights(const ctx_t *c, json_t *lights)
 {
-    static const char *const keys[] = {"position", "intensity", NULL};
+    static const char *const keys[] = {"position", "intensity", "direction", "cone", "falloff", NULL};
     if (!lights)
         return PM_OK;
     if (!json_is_array(lights))
@@ -219,6 +260,8 @@ static pm_result_t load_lights(const ctx_t *c, json_t *lights)
         if (r == PM_OK)
             r = get_vec3(c, l, "intensity", p2, 1, 0.0, 1e30, pl->intensity);
         if (r != PM_OK)
+            return r;
+        if ((r = load_spot(c, l, where, pl)) != PM_OK)
             return r;
     }
     c->s->nlights = n;
@@ -1321,6 +1364,14 @@ static pm_result_t find_instances(ctx_t *c, int allowed)
     return PM_OK;
 }
 
+double pm_point_light_power(const pm_point_light_t *l, int k)
+{
+    if (!pm_point_light_is_spot(l))
+        return 4.0 * M_PI * l->intensity[k];
+    /* The integral of s over the sphere: 2 pi times that of ((c - cc) / (1 - cc))^e dc over [cc, 1]. */
+    return 2.0 * M_PI * l->intensity[k] * (1.0 - (double)l->cos_cone) / ((double)l->falloff + 1.0);
+}
+
 double pm_scene_triangle_area(const pm_scene_t *s, size_t t)
 {
     const float *a = &s->verts[3 * s->tris[3 * t]], *b = &s->verts[3 * s->tris[3 * t + 1]],
@@ -1341,7 +1392,7 @@ void pm_scene_power(const pm_scene_t *s, double p[3])
     p[0] = p[1] = p[2] = 0.0;
     for (size_t i = 0; i < s->nlights; i++)
         for (int k = 0; k < 3; k++)
-            p[k] += 4.0 * M_PI * s->lights[i].intensity[k];
+            p[k] += pm_point_light_power(&s->lights[i], k);
     for (size_t i = 0; i < s->nemissive; i++) {
         size_t t = s->emissive[i];
         double a = pm_scene_triangle_area(s, t);
@@ -1482,6 +1533,34 @@ static pm_result_t check_size(const ctx_t *c)
     return PM_OK;
 }
 
+/* The point lights' hash: position and intensity of each, the bytes a scene without spots
+ * always hashed (its hash stays what it was), then the spots' axes, cones and falloffs when
+ * there is any spot. */
+static pm_result_t hash_lights(const pm_scene_t *s, uint64_t *hash_out)
+{
+    float *b = malloc((s->nlights ? s->nlights : 1) * 6 * sizeof(float));
+    if (!b)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for the hash of %zu lights", s->nlights);
+    int spot = 0;
+    for (size_t i = 0; i < s->nlights; i++) {
+        memcpy(b + 6 * i, s->lights[i].position, 3 * sizeof(float));
+        memcpy(b + 6 * i + 3, s->lights[i].intensity, 3 * sizeof(float));
+        spot |= pm_point_light_is_spot(&s->lights[i]);
+    }
+    uint64_t h[2] = {pm_hash_bytes(b, s->nlights * 6 * sizeof(float)), 0};
+    free(b);
+    *hash_out = h[0];
+    if (!spot)
+        return PM_OK;
+    for (size_t i = 0; i < s->nlights; i++) {
+        const pm_point_light_t *l = &s->lights[i];
+        float v[5] = {l->axis[0], l->axis[1], l->axis[2], l->cos_cone, l->falloff};
+        h[1] = pm_hash_bytes((uint64_t[2]){h[1], pm_hash_bytes(v, sizeof v)}, 2 * sizeof(uint64_t));
+    }
+    *hash_out = pm_hash_bytes(h, sizeof h);
+    return PM_OK;
+}
+
 pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
 {
     memset(s, 0, sizeof *s);
@@ -1565,7 +1644,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         h[3] = pm_hash_bytes(s->tri_material, s->ntris * sizeof(uint32_t));
         if (r == PM_OK)
             r = hash_materials(s, &h[4]);
-        h[5] = pm_hash_bytes(s->lights, s->nlights * sizeof *s->lights);
+        if (r == PM_OK)
+            r = hash_lights(s, &h[5]);
         s->hash = pm_hash_bytes(h, sizeof h);
         if (r == PM_OK && (r = drop_unused_maps(s)) == PM_OK && s->maps) {
             /* Textured: their texels, the coordinates and which material uses which. A scene

@@ -14,10 +14,23 @@
 #include "formats/material.h"
 #include "render/texture.h"
 
+/* A point light, isotropic or a spot: intensity I s(theta) in the direction at angle theta
+ * to the axis, with s = ((cos theta - cos_cone) / (1 - cos_cone))^falloff inside the cone and
+ * 0 outside it (docs/scene-format.md). An isotropic light has cos_cone -1 and falloff 0 (s = 1
+ * everywhere); its power is 4 pi I, a spot's 2 pi I (1 - cos_cone) / (falloff + 1). */
 typedef struct {
     float position[3];  /* m */
-    float intensity[3]; /* W/sr, RGB; the light's power is 4 pi times this */
+    float intensity[3]; /* W/sr, RGB, on the axis */
+    float axis[3];      /* unit, where a spot points; (0, 0, 0) for an isotropic light */
+    float cos_cone;     /* cosine of the cone's half-angle, in [-1, 1) */
+    float falloff;      /* exponent >= 0 of s, dimensionless */
 } pm_point_light_t;
+
+/* 1 when l is a spot (has a cone or a falloff), 0 for an isotropic point light. */
+static inline int pm_point_light_is_spot(const pm_point_light_t *l)
+{
+    return l->cos_cone > -1.0f || l->falloff != 0.0f;
+}
 
 typedef struct {
     float eye[3], look_at[3], up[3]; /* m */
@@ -113,8 +126,13 @@ void pm_scene_warn_unsupported(const pm_scene_t *s, const pm_stage_t *st);
  * print it. */
 void pm_scene_unsupported_text(const pm_scene_unsupported_t *u, char *out, size_t cap);
 
-/* Total emitted power, W, RGB: point lights (4 pi I) plus area lights (pi Ke area). */
+/* Total emitted power, W, RGB: point lights (4 pi I, spots less: pm_point_light_power)
+ * plus area lights (pi Ke area). */
 void pm_scene_power(const pm_scene_t *s, double power_out[3]);
+
+/* Power of point light l in channel k, W: 4 pi I isotropic, 2 pi I (1 - cos_cone) /
+ * (falloff + 1) for a spot. */
+double pm_point_light_power(const pm_point_light_t *l, int k);
 
 /* Area of triangle t, m^2. */
 double pm_scene_triangle_area(const pm_scene_t *s, size_t t);

@@ -1,6 +1,6 @@
 /* transport.c: the BSDF (evaluation, lobe sampling and pdfs, the mixture), the delta BSDFs
- * of mirrors and glass (Fresnel, reflection and refraction), and the light samplers (point lights, area lights uniform
- * by area) that every tracer shares (transport.h).
+ * of mirrors and glass (Fresnel, reflection and refraction), and the light samplers (point lights
+ * and spots, area lights uniform by area) that every tracer shares (transport.h).
  *
  * The arithmetic keeps the order of operations the tracers had before they shared it (the
  * glossy pdf weighted before it is multiplied out, the mirror direction left unnormalized
@@ -206,6 +206,28 @@ void pm_triangle_point(const pm_scene_t *s, uint32_t t, float b0, float b1, floa
     float b2 = 1.0f - b0 - b1;
     for (int k = 0; k < 3; k++)
         p_out[k] = b0 * a[k] + b1 * b[k] + b2 * c[k];
+}
+
+void pm_point_light_emit(const pm_point_light_t *l, float u1, float u2, float dir_out[3])
+{
+    if (!pm_point_light_is_spot(l)) {
+        pm_v3_store(dir_out, pm_sample_sphere(u1, u2));
+        return;
+    }
+    /* Inverting the cdf of cos(theta), whose density is ((c - cc) / (1 - cc))^e on [cc, 1]. */
+    float cc = l->cos_cone, c = cc + (1.0f - cc) * powf(u1, 1.0f / (l->falloff + 1.0f));
+    c = fminf(1.0f, fmaxf(-1.0f, c));
+    float sn = sqrtf(fmaxf(0.0f, 1.0f - c * c)), phi = 2.0f * PM_PI * u2;
+    pm_vec3_t a = pm_v3_load(l->axis), t, b;
+    pm_onb(a, &t, &b);
+    pm_v3_store(dir_out, pm_v3_normalize(pm_onb_to_world(pm_v3(sn * cosf(phi), sn * sinf(phi), c), t, b, a)));
+}
+
+float pm_point_light_emit_pdf(const pm_point_light_t *l, const float w[3])
+{
+    if (!pm_point_light_is_spot(l))
+        return 1.0f / (4.0f * PM_PI);
+    return pm_spot_factor(l, w) * (l->falloff + 1.0f) / (2.0f * PM_PI * (1.0f - l->cos_cone));
 }
 
 int pm_point_light_toward(const pm_point_light_t *l, const float p[3], const float n[3], pm_light_sample_t *o)

@@ -128,9 +128,38 @@ typedef struct {
     uint32_t tri;
 } pm_light_sample_t;
 
+/* The spot factor s of point light l toward unit direction w (from the light outward):
+ * ((cos - cos_cone) / (1 - cos_cone))^falloff inside the cone, 0 outside; exactly 1 for an
+ * isotropic light, so that its products keep the bits they had. */
+static inline float pm_spot_factor(const pm_point_light_t *l, const float w[3])
+{
+    if (!pm_point_light_is_spot(l))
+        return 1.0f;
+    float c = pm_dot3(l->axis, w);
+    if (!(c > l->cos_cone))
+        return 0.0f;
+    float x = fminf(1.0f, (c - l->cos_cone) / (1.0f - l->cos_cone));
+    return l->falloff == 0.0f ? 1.0f : powf(x, l->falloff);
+}
+
+/* A photon direction of point light l from u1, u2 in [0, 1), distributed as its intensity:
+ * uniform on the sphere for an isotropic light (pm_sample_sphere), for a spot cos(theta) to
+ * the axis = cos_cone + (1 - cos_cone) u1^(1 / (falloff + 1)) and azimuth 2 pi u2. */
+void pm_point_light_emit(const pm_point_light_t *l, float u1, float u2, float dir_out[3]);
+
+/* The solid-angle pdf, 1/sr, of pm_point_light_emit at unit direction w: s(w) times
+ * (falloff + 1) / (2 pi (1 - cos_cone)), 1 / (4 pi) for an isotropic light. */
+float pm_point_light_emit_pdf(const pm_point_light_t *l, const float w[3]);
+
 /* Point light l from p with normal n (geometry from p itself; only a shadow ray starts off the
  * surface); 0 when l is at p or behind the surface. */
 int pm_point_light_toward(const pm_point_light_t *l, const float p[3], const float n[3], pm_light_sample_t *out);
+/* Intensity of l toward the point its sample o was taken from, W/sr, channel k: I s. */
+static inline float pm_point_light_intensity(const pm_point_light_t *l, const pm_light_sample_t *o, int k)
+{
+    float w[3] = {-o->wi[0], -o->wi[1], -o->wi[2]};
+    return l->intensity[k] * pm_spot_factor(l, w);
+}
 /* One point on the area lights, uniform over their total area g->area (pdf 1/A per m^2), from
  * three numbers of rng: the triangle (a double), then two floats for the point. 0 when the point
  * is at p, behind the surface, or sees its back. The scene must have emissive triangles. */

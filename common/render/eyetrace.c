@@ -192,17 +192,20 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
     if (!reflects)
         return 1; /* black: reflects no light, direct or gathered */
 
-    /* Point lights: intensity I (W/sr) at distance r gives irradiance I cos / r^2. */
+    /* Point lights and spots: intensity I s (W/sr) at distance r gives irradiance I s cos / r^2. */
     pm_light_sample_t ls;
     for (size_t l = 0; l < s->nlights; l++) {
         const pm_point_light_t *L = &s->lights[l];
         if (!pm_point_light_toward(L, p, n, &ls))
             continue;
-        float f[3];
+        float f[3], il[3] = {pm_point_light_intensity(L, &ls, 0), pm_point_light_intensity(L, &ls, 1),
+                             pm_point_light_intensity(L, &ls, 2)};
+        if (!(il[0] > 0.0f || il[1] > 0.0f || il[2] > 0.0f))
+            continue; /* outside a spot's cone */
         pm_brdf(m, n, ls.wi, wo, f);
         size_t j = sc->shadow.n;
         for (int k = 0; k < 3; k++)
-            sc->sh_c[3 * j + k] = f[k] * L->intensity[k] * ls.cosx / ls.r2 * inv_p;
+            sc->sh_c[3 * j + k] = f[k] * il[k] * ls.cosx / ls.r2 * inv_p;
         sc->sh_px[j] = x;
         pm_rays_push(&sc->shadow, o, ls.wi, 0.0f, ls.r - c->eps);
     }

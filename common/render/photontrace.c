@@ -84,7 +84,7 @@ static int build_lights(tracer_t *t, const pm_scene_t *s)
         l->kind = 0;
         l->index = (uint32_t)i;
         for (int c = 0; c < 3; c++)
-            l->power[c] = 4.0 * M_PI * s->lights[i].intensity[c];
+            l->power[c] = pm_point_light_power(&s->lights[i], c);
         l->scalar = l->power[0] + l->power[1] + l->power[2];
         k += l->scalar > 0.0;
     }
@@ -196,7 +196,7 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
     if (l->kind == 0) {
         const pm_point_light_t *pl = &s->lights[l->index];
         memcpy(org, pl->position, sizeof org);
-        pm_v3_store(dir, pm_sample_sphere(u1, u2));
+        pm_point_light_emit(pl, u1, u2, dir);
     } else {
         const uint32_t *tri = &s->tris[3 * (size_t)l->index];
         pm_vec3_t v0 = pm_v3_load(&s->verts[3 * (size_t)tri[0]]), v1 = pm_v3_load(&s->verts[3 * (size_t)tri[1]]),

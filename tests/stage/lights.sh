@@ -1,0 +1,117 @@
+# lights.sh: spot lights, suns and the sky (docs/scene-format.md, Lights) against their closed
+# forms, through the photon pipeline (trace-photons, build-photonmap, trace-gather-points
+# --mode direct-vis, simd-gather), through trace-gather-points' direct buffer (next-event
+# estimation) and through trace-reference (pixel centres), on a lone diffuse plane y = 0 of
+# albedo KD seen from 1 m above (fov 90: x, z in [-1, 1]):
+#   spot at (0, 1, 0) pointing down, intensity I, half-angle C, falloff e:
+#     E = I s(theta) cos(theta) / r^2, s = ((cos theta - cos C) / (1 - cos C))^e inside, 0 outside
+#   (the plane's normal and the spot's axis are the same line, so theta is also the angle of
+#   incidence). Reflected light escapes: there is nothing else, so E is the whole answer.
+# Expected radiance L = KD / pi * E. The photon estimate's tolerances are those of analytic.sh
+# (k = 200 photons per kernel: about 9% per pixel, mean within 2%); pixels within a kernel's
+# reach of the cone's edge (3 degrees) are left out of the ratio, and beyond it the photon
+# image must be exactly 0 (no photon leaves the cone). Next-event estimation of a delta light
+# is exact up to float rounding (1e-4).
+PI=3.141592653589793
+
+# lit_plane DIR KD LIGHTS-JSON: the plane (half-width 20 m) and the camera, with LIGHTS-JSON
+# (top-level members, e.g. "point_lights": [...]) as its lights.
+lit_plane() {
+    local dir=$1 kd=$2 lights=$3
+    mkdir -p "$dir"
+    printf 'mtllib plane.mtl\nv -20 0 -20\nv 20 0 -20\nv 20 0 20\nv -20 0 20\nusemtl floor\nf 1 4 3 2\n' >"$dir/plane.obj"
+    printf 'newmtl floor\nKd %s %s %s\n' "$kd" "$kd" "$kd" >"$dir/plane.mtl"
+    cat >"$dir/scene.json" <<JSON
+{
+  "pmtk_scene": 1,
+  "name": "lights-plane",
+  "meshes": [ { "file": "plane.obj" } ],
+  "camera": { "eye": [0, 1, 0], "look_at": [0, 0, 0], "up": [0, 0, 1], "fov_y": 90, "width": 32, "height": 32 },
+  $lights,
+  "render": { "photons": 200000, "spp": 4, "seed": 1 }
+}
+JSON
+}
+
+# The expected radiance at each pixel's primary hit and the comparison (one summary line, exit
+# 1 on failure). Inputs: `pm-info -r` of direct-vis queries, then `pm-exrdump` of the image.
+#   -v kind=spot -v I= -v cone=DEG -v e= (spot at (0, 1, 0) pointing down) | kind=const -v E=
+#   -v kd= -v tmean= -v trms= -v tmax= [-v margin=DEG: spot pixels this close to the edge skipped]
+cat >"$TMP/lights.awk" <<'AWK'
+FNR == NR {
+    if ($1 ~ /^[0-9]+$/ && NF >= 11) {
+        px = $NF; x = $2; y = $3; z = $4
+        if (kind == "spot") {
+            d2 = x * x + (1 - y) ^ 2 + z * z; c = (1 - y) / sqrt(d2); cc = cos(cone * pi / 180)
+            a = atan2(sqrt(1 - c * c), c) * 180 / pi
+            zone[px] = a < cone - margin ? 1 : a > cone + margin ? 0 : -1
+            E = c > cc ? I * ((c - cc) / (1 - cc)) ^ e * c / d2 : 0
+        } else { E = Ec; zone[px] = 1 }
+        want[px] = kd / pi * E
+    }
+    next
+}
+$1 == "size" { w = $2; h = $3; next }
+{
+    p = $2 * w + $1; seen++
+    if (!(p in want)) { why = why sprintf(" pixel %d has no hit;", p); bad = 1; next }
+    for (c = 3; c <= 5; c++) {
+        v = $c
+        if (v !~ /^[-+]?[0-9.]+([eE][-+]?[0-9]+)?$/) { why = why sprintf(" pixel %d value %s;", p, v); bad = 1; continue }
+        if (zone[p] == 0) { nout++; if (v != 0) { nz++; if (v > vmax) vmax = v } continue }
+        if (zone[p] < 0) continue
+        r = v / want[p]; n++; s += r; ss += (r - 1) ^ 2
+        if (n == 1 || r < mn) mn = r
+        if (n == 1 || r > mx) mx = r
+    }
+}
+END {
+    if (seen != w * h || n == 0) { print "failed: " seen " of " w * h " pixels read, " n " values inside"; exit 1 }
+    mean = s / n; rms = sqrt(ss / n)
+    printf "ratio measured/expected: mean %.5f, rms dev %.5f, min %.4f, max %.4f over %d values; %d outside, %d of them lit (max %g)\n",
+        mean, rms, mn, mx, n, nout, nz, vmax
+    if ((mean - 1) ^ 2 > tmean ^ 2) { why = why " mean off;"; bad = 1 }
+    if (!(rms <= trms)) { why = why " rms too large;"; bad = 1 }
+    if (!(mn >= 1 - tmax && mx <= 1 + tmax)) { why = why " a pixel too far off;"; bad = 1 }
+    if (nz) { why = why " light outside the cone;"; bad = 1 }
+    if (bad) print "failed:" why
+    exit bad
+}
+AWK
+
+# judge NAME HITS IMAGE-TXT awk-options...: the image against the closed form.
+judge() {
+    local name=$1 hits=$2 img=$3; shift 3
+    if awk -v pi=$PI "$@" -f "$TMP/lights.awk" "$hits" "$img" >"$TMP/why"; then
+        pass "$name ($(cat "$TMP/why"))"
+    else
+        fail "$name" "$(tr '\n' ' ' <"$TMP/why")"
+    fi
+}
+
+# three_ways NAME SCENE KD awk-options...: the photon pipeline (direct-vis gather of the global
+# map), the direct buffer and trace-reference, each judged.
+three_ways() {
+    local name=$1 scene=$2; shift 2
+    local t=$TMP/$name
+    if "$BIN/trace-photons" "$scene" --photons 400000 -q -o - | "$BIN/build-photonmap" - -q -o "$t.map.pm" &&
+        "$BIN/trace-gather-points" "$scene" --pixel center --mode direct-vis -q -o "$t.q.pm" --direct "$t.d.pm" &&
+        "$BIN/simd-gather" "$t.map.pm" "$t.q.pm" --k 200 -q -o "$t.i.pm" &&
+        "$BIN/pm-info" -r "$t.q.pm" >"$t.hits" &&
+        "$BIN/composite" "$t.i.pm" -q -o "$t.i.exr" && "$BUILD/tests/pm-exrdump" "$t.i.exr" >"$t.i.txt" &&
+        "$BIN/composite" "$t.d.pm" -q -o "$t.d.exr" && "$BUILD/tests/pm-exrdump" "$t.d.exr" >"$t.d.txt" &&
+        "$BIN/trace-reference" "$scene" -q --pixel center --spp "${REF_SPP:-4}" -o "$t.r.exr" &&
+        "$BUILD/tests/pm-exrdump" "$t.r.exr" >"$t.r.txt"; then
+        judge "$name, photon map" "$t.hits" "$t.i.txt" -v tmean=0.02 -v trms=0.15 -v tmax=0.5 "$@"
+        judge "$name, direct buffer" "$t.hits" "$t.d.txt" ${TOL_D:--v tmean=1e-4 -v trms=1e-4 -v tmax=1e-3} "$@"
+        judge "$name, trace-reference" "$t.hits" "$t.r.txt" ${TOL_R:--v tmean=1e-4 -v trms=1e-4 -v tmax=1e-3} "$@"
+    else
+        fail "$name" "a stage failed"
+    fi
+}
+
+# ---- 1. spot lights
+lit_plane "$TMP/spot" 0.5 '"point_lights": [ { "position": [0, 1, 0], "intensity": [3, 3, 3], "direction": [0, -1, 0], "cone": 30, "falloff": 1 } ]'
+three_ways "spot of 30 degrees, falloff 1, over a plane" "$TMP/spot/scene.json" -v kd=0.5 -v kind=spot -v I=3 -v cone=30 -v e=1 -v margin=3
+lit_plane "$TMP/spot2" 0.8 '"point_lights": [ { "position": [0, 1, 0], "intensity": [2, 2, 2], "direction": [0, -1, 0], "cone": 40 } ]'
+three_ways "spot of 40 degrees, hard edge, over a plane" "$TMP/spot2/scene.json" -v kd=0.8 -v kind=spot -v I=2 -v cone=40 -v e=0 -v margin=3

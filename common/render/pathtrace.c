@@ -97,16 +97,30 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
      * without the radiance scaling of refraction, which Russian roulette looks at, so that a
      * path into glass is not culled for a factor the way out gives back. */
     double eta2 = 1.0;
-    float bsdf_pdf_prev = 0.0f; /* solid-angle pdf of the BSDF sample that made this ray */
-    int delta_prev = 0;         /* the ray left a mirror or glass: no light sample could have found its end */
-    unsigned nd = 0;            /* non-specular vertices so far (the camera's side of the light path) */
-    int spec = 0;               /* a mirror or glass since the last of them */
+    float bsdf_pdf_prev = 0.0f;           /* solid-angle pdf of the BSDF sample that made this ray */
+    float n_prev[3] = {0.0f, 0.0f, 1.0f}; /* the normal where that sample was taken (the sky's pdf) */
+    int delta_prev = 0;                   /* the ray left a mirror or glass: no light sample could have found its end */
+    unsigned nd = 0;                      /* non-specular vertices so far (the camera's side of the light path) */
+    int spec = 0;                         /* a mirror or glass since the last of them */
     cnt->paths++;
     for (unsigned depth = 0;; depth++) {
         cnt->rays++;
         uint32_t tri = pm_rt_intersect1(pt->rt, ctx, o, d, 0.0f, INFINITY, &t, NULL);
-        if (tri == PM_RAY_MISS)
-            break; /* no sky: escaped light is lost */
+        if (tri == PM_RAY_MISS) {
+            /* Escaped: the sky and the sun. Seen by the camera or through mirrors and glass
+             * they are taken whole; found by a BSDF sample, each shares with its own light
+             * sample of the vertex before (power heuristic). */
+            if ((s->has_sky || s->has_sun) && wanted(pt, nd, spec)) {
+                int mis = depth > 0 && !delta_prev;
+                float wsky = mis ? pm_power_heuristic(bsdf_pdf_prev, pm_sky_pdf(n_prev, d)) : 1.0f;
+                float wsun = mis && s->has_sun ? pm_power_heuristic(bsdf_pdf_prev, pm_sun_pdf(&s->sun, d)) : 1.0f;
+                int in_sun = s->has_sun && pm_dot3(s->sun.direction, d) >= s->sun.cos_max;
+                for (int q = 0; q < 3; q++)
+                    L[q] += beta[q] * ((s->has_sky ? (double)s->sky[q] * wsky : 0.0) +
+                                       (in_sun ? (double)s->sun.radiance[q] * wsun : 0.0));
+            }
+            break;
+        }
         float p[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]}, wo[3] = {-d[0], -d[1], -d[2]};
         const float *ng = g->tri_n + 3 * (size_t)tri;
         float cos_front = pm_dot3(ng, wo), side = cos_front >= 0.0f ? 1.0f : -1.0f;
@@ -193,6 +207,30 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
                 }
             }
 
+            /* The sun, one direction in its cone (pdf 1 / omega), and the sky, one cosine-weighted
+             * direction (pdf cos / pi), each weighted against BSDF sampling; shadow rays to
+             * infinity. Drawn only in a scene that has them. */
+            for (int e = 0; e < 2 && wanted(pt, nd + 1, 0); e++) {
+                if (!(e == 0 ? s->has_sun : s->has_sky))
+                    continue;
+                float wi[3], u1 = pm_rng_float(&rng), u2 = pm_rng_float(&rng);
+                if (e == 0)
+                    pm_sun_sample(&s->sun, u1, u2, wi);
+                else
+                    pm_sky_sample(n, u1, u2, wi);
+                float cosi = pm_dot3(n, wi), pl = e == 0 ? pm_sun_pdf(&s->sun, wi) : pm_sky_pdf(n, wi);
+                if (!(cosi > 0.0f && pl > 0.0f))
+                    continue;
+                cnt->shadow_rays++;
+                if (pm_rt_occluded1(pt->rt, ctx, org, wi, 0.0f, INFINITY))
+                    continue;
+                float f[3], pb = pm_bsdf_pdf(m, n, wi, wo);
+                pm_brdf(m, n, wi, wo, f);
+                double gw = (double)cosi / pl * pm_power_heuristic(pl, pb);
+                for (int q = 0; q < 3; q++)
+                    L[q] += beta[q] * (double)f[q] * (e == 0 ? s->sun.radiance[q] : s->sky[q]) * gw;
+            }
+
             /* Continue along a BSDF sample: the lobe, then two numbers for the direction. */
             float wi[3], u = pm_rng_float(&rng), u1 = pm_rng_float(&rng), u2 = pm_rng_float(&rng);
             if (!pm_bsdf_sample(m, n, wo, u, u1, u2, wi))
@@ -205,6 +243,7 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
             for (int q = 0; q < 3; q++)
                 beta[q] *= (double)f[q] * cosi / pdf;
             bsdf_pdf_prev = pdf;
+            memcpy(n_prev, n, sizeof n_prev);
             memcpy(o, org, sizeof o);
             memcpy(d, wi, sizeof d);
             nd++;

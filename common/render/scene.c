@@ -268,6 +268,53 @@ static pm_result_t load_lights(const ctx_t *c, json_t *lights)
     return PM_OK;
 }
 
+/* The sun (direction, radiance, solid_angle) and the sky (radiance), both optional. */
+static pm_result_t load_sun_sky(const ctx_t *c, json_t *sun, json_t *sky)
+{
+    static const char *const sun_keys[] = {"direction", "radiance", "solid_angle", NULL};
+    static const char *const sky_keys[] = {"radiance", NULL};
+    pm_scene_t *s = c->s;
+    pm_result_t r = PM_OK;
+    if (sun) {
+        if (!json_is_object(sun))
+            return bad(c, "sun", "must be an object");
+        float d[3];
+        double omega = 0.0;
+        json_t *om = json_object_get(sun, "solid_angle");
+        /* Stated as users read it: the solid angle must be positive, and a hemisphere at most. */
+        if (om && json_is_number(om) && !(json_number_value(om) > 0.0 && json_number_value(om) <= 2.0 * M_PI))
+            return bad(c, "sun.solid_angle", "%.9g sr is outside (0, 2 pi]", json_number_value(om));
+        if ((r = only_keys(c, sun, "sun", sun_keys)) == PM_OK)
+            r = get_vec3(c, sun, "direction", "sun.direction", 1, -PM_SCENE_COORD_MAX, PM_SCENE_COORD_MAX, d);
+        if (r == PM_OK)
+            r = get_vec3(c, sun, "radiance", "sun.radiance", 1, 0.0, 1e30, s->sun.radiance);
+        if (r == PM_OK)
+            r = get_number(c, sun, "solid_angle", "sun.solid_angle", 1, 0.0, 2.0 * M_PI, &omega);
+        if (r != PM_OK)
+            return r;
+        double dl = sqrt((double)d[0] * d[0] + (double)d[1] * d[1] + (double)d[2] * d[2]);
+        if (!(dl > 0.0))
+            return bad(c, "sun.direction", "is the zero vector");
+        for (int k = 0; k < 3; k++)
+            s->sun.direction[k] = (float)(d[k] / dl);
+        s->sun.solid_angle = (float)omega;
+        s->sun.cos_max = (float)(1.0 - omega / (2.0 * M_PI));
+        if (!(s->sun.cos_max < 1.0f))
+            return bad(c, "sun.solid_angle", "%.9g sr is too small: the cone's cosine rounds to 1", omega);
+        s->has_sun = 1;
+    }
+    if (sky) {
+        if (!json_is_object(sky))
+            return bad(c, "sky", "must be an object");
+        if ((r = only_keys(c, sky, "sky", sky_keys)) == PM_OK)
+            r = get_vec3(c, sky, "radiance", "sky.radiance", 1, 0.0, 1e30, s->sky);
+        if (r != PM_OK)
+            return r;
+        s->has_sky = 1;
+    }
+    return PM_OK;
+}
+
 static pm_result_t load_defaults(const ctx_t *c, json_t *d)
 {
     static const char *const keys[] = {"photons", "spp",  "primary", "light_samples", "radius", "k",
@@ -1364,6 +1411,33 @@ static pm_result_t find_instances(ctx_t *c, int allowed)
     return PM_OK;
 }
 
+void pm_scene_sphere(const pm_scene_t *s, double c[3], double *radius_out)
+{
+    double r2 = 0.0;
+    for (int k = 0; k < 3; k++) {
+        double h = 0.5 * ((double)s->bounds[k + 3] - s->bounds[k]);
+        c[k] = 0.5 * ((double)s->bounds[k] + s->bounds[k + 3]);
+        r2 += h * h;
+    }
+    /* 1% and a millimetre beyond the box's corners: photons start clear of every surface. */
+    *radius_out = 1.01 * sqrt(r2) + 1e-3;
+}
+
+double pm_sun_power(const pm_scene_t *s, int k)
+{
+    double c[3], r;
+    pm_scene_sphere(s, c, &r);
+    /* L times the cone's solid angle times the disc's area pi R^2 (render/transport.h, pm_env_emit). */
+    return s->sun.radiance[k] * (double)s->sun.solid_angle * M_PI * r * r;
+}
+
+double pm_sky_power(const pm_scene_t *s, int k)
+{
+    double c[3], r;
+    pm_scene_sphere(s, c, &r);
+    return s->sky[k] * M_PI * r * r * 4.0 * M_PI;
+}
+
 double pm_point_light_power(const pm_point_light_t *l, int k)
 {
     if (!pm_point_light_is_spot(l))
@@ -1399,6 +1473,10 @@ void pm_scene_power(const pm_scene_t *s, double p[3])
         for (int k = 0; k < 3; k++)
             p[k] += M_PI * s->materials[s->tri_material[t]].ke[k] * a;
     }
+    for (int k = 0; k < 3 && s->has_sun; k++)
+        p[k] += pm_sun_power(s, k);
+    for (int k = 0; k < 3 && s->has_sky; k++)
+        p[k] += pm_sky_power(s, k);
 }
 
 void pm_scene_id(const pm_scene_t *s, char *out, size_t cap)
@@ -1575,7 +1653,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     fclose(f);
     if (!root)
         return pm_error_set(PM_ERR_INPUT, "scene '%s' line %d column %d: %s", path, je.line, je.column, je.text);
-    static const char *const keys[] = {"pmtk_scene",       "name",       "meshes", "camera", "point_lights", "render",
+    static const char *const keys[] = {"pmtk_scene",       "name",       "meshes", "camera",
+                                       "point_lights",     "sun",        "sky",    "render",
                                        "missing_textures", "instancing", NULL};
     pm_result_t r =
         json_is_object(root) ? only_keys(&c, root, "top level", keys) : bad(&c, "top level", "must be a JSON object");
@@ -1622,6 +1701,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     if (r == PM_OK)
         r = load_lights(&c, json_object_get(root, "point_lights"));
     if (r == PM_OK)
+        r = load_sun_sky(&c, json_object_get(root, "sun"), json_object_get(root, "sky"));
+    if (r == PM_OK)
         r = load_defaults(&c, json_object_get(root, "render"));
     json_decref(root);
     if (r == PM_OK)
@@ -1656,6 +1737,12 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
                 t[3] = pm_hash_bytes((uint64_t[2]){t[3], s->textures[i].hash}, 2 * sizeof(uint64_t));
             s->hash = pm_hash_bytes(t, sizeof t);
         }
+    }
+    if (r == PM_OK && (s->has_sun || s->has_sky)) {
+        /* A sun or a sky: folded into the hash; a scene without either keeps the hash it had. */
+        uint64_t e[3] = {s->hash, s->has_sun ? pm_hash_bytes(&s->sun, sizeof s->sun) : 0,
+                         s->has_sky ? pm_hash_bytes(s->sky, sizeof s->sky) : 0};
+        s->hash = pm_hash_bytes(e, sizeof e);
     }
     if (r == PM_OK)
         finish(s);

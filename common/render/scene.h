@@ -32,6 +32,16 @@ static inline int pm_point_light_is_spot(const pm_point_light_t *l)
     return l->cos_cone > -1.0f || l->falloff != 0.0f;
 }
 
+/* A sun: a disc of uniform radiance at infinity, seen under a cone of solid angle omega about
+ * `direction`; lights every point from that cone (irradiance L pi sin^2(half-angle) cos on a
+ * surface at angle cos to the direction, L omega cos for a small disc). */
+typedef struct {
+    float direction[3]; /* unit, from the scene toward the sun */
+    float radiance[3];  /* W/(m^2 sr), RGB */
+    float solid_angle;  /* sr, in (0, 2 pi] */
+    float cos_max;      /* cosine of the cone's half-angle: 1 - omega / (2 pi) */
+} pm_sun_t;
+
 typedef struct {
     float eye[3], look_at[3], up[3]; /* m */
     float fov_y;                     /* degrees, vertical, in (0, 180) */
@@ -91,6 +101,9 @@ typedef struct {
     size_t nmaterials;
     pm_point_light_t *lights;
     size_t nlights;
+    int has_sun, has_sky; /* 1 when the scene file names a sun / a sky */
+    pm_sun_t sun;
+    float sky[3];       /* W/(m^2 sr), RGB: radiance of a constant sky, seen by every ray that escapes */
     uint32_t *emissive; /* indices of triangles whose material emits */
     size_t nemissive;
     size_t ndropped; /* degenerate (zero-area) triangles left out at load */
@@ -127,12 +140,21 @@ void pm_scene_warn_unsupported(const pm_scene_t *s, const pm_stage_t *st);
 void pm_scene_unsupported_text(const pm_scene_unsupported_t *u, char *out, size_t cap);
 
 /* Total emitted power, W, RGB: point lights (4 pi I, spots less: pm_point_light_power)
- * plus area lights (pi Ke area). */
+ * plus area lights (pi Ke area) plus the sun's and the sky's power into the scene's bounding
+ * sphere (pm_scene_sphere): L omega pi R^2 and L 4 pi pi R^2. */
 void pm_scene_power(const pm_scene_t *s, double power_out[3]);
 
 /* Power of point light l in channel k, W: 4 pi I isotropic, 2 pi I (1 - cos_cone) /
  * (falloff + 1) for a spot. */
 double pm_point_light_power(const pm_point_light_t *l, int k);
+
+/* The sphere the sun's and the sky's photons are aimed at: centre (m) and radius (m) around
+ * s->bounds, a little larger, so that every photon starts outside the geometry. */
+void pm_scene_sphere(const pm_scene_t *s, double centre_out[3], double *radius_out);
+
+/* Power of the sun and of the sky in channel k, W, as their photons carry it (above). */
+double pm_sun_power(const pm_scene_t *s, int k);
+double pm_sky_power(const pm_scene_t *s, int k);
 
 /* Area of triangle t, m^2. */
 double pm_scene_triangle_area(const pm_scene_t *s, size_t t);

@@ -230,6 +230,42 @@ float pm_point_light_emit_pdf(const pm_point_light_t *l, const float w[3])
     return pm_spot_factor(l, w) * (l->falloff + 1.0f) / (2.0f * PM_PI * (1.0f - l->cos_cone));
 }
 
+void pm_sun_sample(const pm_sun_t *sun, float u1, float u2, float wi_out[3])
+{
+    float c = 1.0f - u1 * (1.0f - sun->cos_max), sn = sqrtf(fmaxf(0.0f, 1.0f - c * c)), phi = 2.0f * PM_PI * u2;
+    pm_vec3_t a = pm_v3_load(sun->direction), t, b;
+    pm_onb(a, &t, &b);
+    pm_v3_store(wi_out, pm_v3_normalize(pm_onb_to_world(pm_v3(sn * cosf(phi), sn * sinf(phi), c), t, b, a)));
+}
+
+void pm_sky_sample(const float n[3], float u1, float u2, float wi_out[3])
+{
+    pm_vec3_t nn = pm_v3_load(n), t, b;
+    pm_onb(nn, &t, &b);
+    pm_v3_store(wi_out, pm_onb_to_world(pm_sample_cosine_hemisphere(u1, u2), t, b, nn));
+}
+
+void pm_env_emit(const pm_scene_t *s, int sun, float u1, float u2, float u3, float u4, float org_out[3],
+                 float dir_out[3])
+{
+    float w[3], x, y;
+    if (sun)
+        pm_sun_sample(&s->sun, u1, u2, w);
+    else
+        pm_v3_store(w, pm_sample_sphere(u1, u2));
+    double c[3], r;
+    pm_scene_sphere(s, c, &r);
+    pm_vec3_t wv = pm_v3_load(w), t, b;
+    pm_onb(wv, &t, &b);
+    pm_sample_disc(u3, u4, &x, &y);
+    float tt[3], bb[3];
+    pm_v3_store(tt, t), pm_v3_store(bb, b);
+    for (int k = 0; k < 3; k++) {
+        org_out[k] = (float)(c[k] + r * ((double)w[k] + x * (double)tt[k] + y * (double)bb[k]));
+        dir_out[k] = -w[k];
+    }
+}
+
 int pm_point_light_toward(const pm_point_light_t *l, const float p[3], const float n[3], pm_light_sample_t *o)
 {
     float v[3] = {l->position[0] - p[0], l->position[1] - p[1], l->position[2] - p[2]};

@@ -21,6 +21,7 @@
 #include "base/error.h"
 #include "formats/material.h"
 #include "math/rng.h"
+#include "math/sampling.h"
 #include "math/vec.h"
 #include "render/scene.h"
 
@@ -171,6 +172,45 @@ static inline float pm_area_light_pdf(const pm_shade_geom_t *g, float r2, float 
 {
     return r2 / (cos_light * (float)g->area);
 }
+
+/* ---- the sun and the sky (lights at infinity) ---- */
+
+/* Radiance (W/(m^2 sr)) a ray that escapes along unit direction w brings back: the sky's, plus
+ * the sun's when w lies within its cone; zero in a scene with neither. */
+static inline void pm_env_radiance(const pm_scene_t *s, const float w[3], float L_out[3])
+{
+    int sun = s->has_sun && pm_dot3(s->sun.direction, w) >= s->sun.cos_max;
+    for (int k = 0; k < 3; k++)
+        L_out[k] = (s->has_sky ? s->sky[k] : 0.0f) + (sun ? s->sun.radiance[k] : 0.0f);
+}
+
+/* A direction in the sun's cone, uniform over its solid angle (pdf 1 / omega), from u1, u2 in
+ * [0, 1): cos(theta) to the axis = 1 - u1 (1 - cos_max), azimuth 2 pi u2. */
+void pm_sun_sample(const pm_sun_t *sun, float u1, float u2, float wi_out[3]);
+/* The pdf of pm_sun_sample at unit direction w, 1/sr: 1 / omega inside the cone, 0 outside. */
+static inline float pm_sun_pdf(const pm_sun_t *sun, const float w[3])
+{
+    return pm_dot3(sun->direction, w) >= sun->cos_max ? 1.0f / sun->solid_angle : 0.0f;
+}
+
+/* A direction toward the sky for next-event estimation: cosine-weighted about n (pdf
+ * cos / pi), from u1, u2 in [0, 1). */
+void pm_sky_sample(const float n[3], float u1, float u2, float wi_out[3]);
+/* The pdf of pm_sky_sample at unit direction w, 1/sr. */
+static inline float pm_sky_pdf(const float n[3], const float w[3])
+{
+    float c = pm_dot3(n, w);
+    return c > 0.0f ? c * (1.0f / PM_PI) : 0.0f;
+}
+
+/* A photon of the sun (sun 1) or of the sky (sun 0), from four uniforms in [0, 1): the
+ * direction w it comes from, uniform in the sun's cone or over the sphere, then a point
+ * uniform on the disc of radius R perpendicular to w, tangent to the scene's bounding sphere
+ * (pm_scene_sphere) on w's side; the photon starts there and travels along -w. Every point of
+ * the ball then receives radiance L from each direction of the light, and the photons carry
+ * L omega pi R^2 (omega the cone's solid angle, 4 pi for the sky): pm_sun_power, pm_sky_power. */
+void pm_env_emit(const pm_scene_t *s, int sun, float u1, float u2, float u3, float u4, float org_out[3],
+                 float dir_out[3]);
 
 /* Veach's power heuristic: the weight of strategy a against b, each a sample count times a
  * solid-angle pdf at one direction; 0 when neither could have produced it. */

@@ -237,6 +237,30 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
         /* Stop short of the light's own surface, by the offset and a relative margin. */
         pm_rays_push(&sc->shadow, o, ls.wi, 0.0f, ls.r * (1.0f - 1e-4f) - 2.0f * c->eps);
     }
+    /* The sun (directions uniform in its cone, pdf 1 / omega) and the sky (cosine-weighted,
+     * pdf cos / pi), light_samples each: L f cos / pdf, averaged. Secondary rays that escape
+     * add nothing, so these carry weight 1 (no MIS). */
+    for (int e = 0; e < 2; e++) {
+        if (!(e == 0 ? s->has_sun : s->has_sky))
+            continue;
+        for (unsigned q = 0; q < c->light_samples; q++) {
+            float wi[3], u1 = pm_rng_float(light_rng), u2 = pm_rng_float(light_rng);
+            if (e == 0)
+                pm_sun_sample(&s->sun, u1, u2, wi);
+            else
+                pm_sky_sample(n, u1, u2, wi);
+            float cosi = pm_dot3(n, wi), pl = e == 0 ? pm_sun_pdf(&s->sun, wi) : pm_sky_pdf(n, wi), f[3];
+            if (!(cosi > 0.0f && pl > 0.0f))
+                continue;
+            pm_brdf(m, n, wi, wo, f);
+            float g = cosi / pl / (float)c->light_samples * inv_p;
+            size_t j = sc->shadow.n;
+            for (int k = 0; k < 3; k++)
+                sc->sh_c[3 * j + k] = f[k] * (e == 0 ? s->sun.radiance[k] : s->sky[k]) * g;
+            sc->sh_px[j] = x;
+            pm_rays_push(&sc->shadow, o, wi, 0.0f, INFINITY);
+        }
+    }
 
     if (c->mode == PM_EYE_DIRECT_VIS) {
         /* The primary hit is the query: path weight 1 (over the primary rays of the pixel). */
@@ -312,7 +336,8 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
 {
     const pm_scene_t *s = c->s;
     size_t np = (size_t)c->w * c->primary;
-    size_t nshadow = np * (s->nlights + (s->nemissive ? c->light_samples : 0));
+    size_t nshadow = np * (s->nlights + (s->nemissive ? c->light_samples : 0) +
+                           (size_t)(s->has_sun + s->has_sky) * c->light_samples);
     size_t nsec = c->mode == PM_EYE_GATHER ? np * c->spp : 0;
     pm_result_t r = scratch_reserve(sc, y, np, nshadow, nsec, c->mode == PM_EYE_GATHER ? c->spp : 0);
     if (r != PM_OK)
@@ -351,8 +376,14 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
             pm_rng_init(&light_rng, c->seed, 4 * (uint64_t)pixel + STREAM_LIGHT);
             pm_rng_init(&gather_rng, c->seed, 4 * (uint64_t)pixel + STREAM_GATHER);
         }
-        if (sc->prim.prim[i] == PM_RAY_MISS)
-            continue; /* sky: no query, no direct light */
+        if (sc->prim.prim[i] == PM_RAY_MISS) {
+            /* Escaped: no query; the sky and the sun seen directly are direct light. */
+            float d[3] = {sc->prim.dx[i], sc->prim.dy[i], sc->prim.dz[i]}, le[3];
+            pm_env_radiance(s, d, le);
+            for (int k = 0; k < 3; k++)
+                direct[3 * x + k] += (double)(le[k] / (float)c->primary);
+            continue;
+        }
         if (!shade_primary(c, sc, i, x, pixel, &light_rng, &gather_rng, direct, out))
             return pm_error_set(PM_ERR_NOMEM, "out of memory for the queries of row %" PRIu32 ": %" PRIu64 " records",
                                 y, out->count + 1);

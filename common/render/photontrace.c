@@ -27,7 +27,7 @@
 enum { CHUNK = 2048 };
 
 typedef struct {
-    int kind;        /* 0 point light, 1 emissive triangle */
+    int kind;        /* 0 point light, 1 emissive triangle, 2 the sun, 3 the sky */
     uint32_t index;  /* into s->lights or the triangle index */
     double power[3]; /* W */
     double scalar;   /* power[0] + power[1] + power[2] */
@@ -73,7 +73,7 @@ typedef struct {
 
 static int build_lights(tracer_t *t, const pm_scene_t *s)
 {
-    size_t n = s->nlights + s->nemissive;
+    size_t n = s->nlights + s->nemissive + 2;
     t->lights = calloc(n ? n : 1, sizeof *t->lights);
     t->cdf = calloc(n ? n : 1, sizeof *t->cdf);
     if (!t->lights || !t->cdf)
@@ -97,6 +97,18 @@ static int build_lights(tracer_t *t, const pm_scene_t *s)
         l->index = tri;
         for (int c = 0; c < 3; c++)
             l->power[c] = M_PI * m->ke[c] * a;
+        l->scalar = l->power[0] + l->power[1] + l->power[2];
+        k += l->scalar > 0.0;
+    }
+    /* The sun (kind 2) and the sky (kind 3), last: a scene without them keeps its table. */
+    for (int e = 0; e < 2; e++) {
+        if (!(e == 0 ? s->has_sun : s->has_sky))
+            continue;
+        light_t *l = &t->lights[k];
+        l->kind = 2 + e;
+        l->index = 0;
+        for (int c = 0; c < 3; c++)
+            l->power[c] = e == 0 ? pm_sun_power(s, c) : pm_sky_power(s, c);
         l->scalar = l->power[0] + l->power[1] + l->power[2];
         k += l->scalar > 0.0;
     }
@@ -197,6 +209,8 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
         const pm_point_light_t *pl = &s->lights[l->index];
         memcpy(org, pl->position, sizeof org);
         pm_point_light_emit(pl, u1, u2, dir);
+    } else if (l->kind >= 2) {
+        pm_env_emit(s, l->kind == 2, u1, u2, u3, u4, org, dir); /* from the disc facing the sun or the sky */
     } else {
         const uint32_t *tri = &s->tris[3 * (size_t)l->index];
         pm_vec3_t v0 = pm_v3_load(&s->verts[3 * (size_t)tri[0]]), v1 = pm_v3_load(&s->verts[3 * (size_t)tri[1]]),

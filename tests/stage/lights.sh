@@ -139,3 +139,58 @@ TOL_D="-v tmean=2e-3 -v trms=0.015 -v tmax=0.05" TOL_R="-v tmean=2e-3 -v trms=0.
 lit_plane "$TMP/sky" 0.5 '"sky": { "radiance": [1, 1, 1] }' 3
 three_ways "constant sky of L 1 over a plane of albedo 0.5, L_out = rho L" "$TMP/sky/scene.json" \
     -v kd=0.5 -v kind=const -v Ec=$PI
+
+# ---- bad lights: one line naming the light, the key and the value, exit 1, nothing written
+# bad_light NAME PATTERN LIGHTS-JSON: trace-photons and trace-reference both refuse the scene.
+bad_light() {
+    local name=$1 pattern=$2
+    lit_plane "$TMP/bad" 0.5 "$3" 3
+    rm -f "$TMP/bad.pm" "$TMP/bad.exr"
+    expect_error "$name (trace-photons)" "$pattern" "$BIN/trace-photons" "$TMP/bad/scene.json" -q -o "$TMP/bad.pm"
+    expect_error "$name (trace-reference)" "$pattern" "$BIN/trace-reference" "$TMP/bad/scene.json" -q --spp 1 -o "$TMP/bad.exr"
+    if [ -e "$TMP/bad.pm" ] || [ -e "$TMP/bad.exr" ]; then fail "$name: nothing written" "an output exists"; fi
+}
+SPOT='"position": [0, 1, 0], "intensity": [1, 1, 1], "direction": [0, -1, 0]'
+bad_light "spot cone 0" "point_lights\[0\]\.cone: 0 degrees is outside \(0, 180\]" "\"point_lights\": [ { $SPOT, \"cone\": 0 } ]"
+bad_light "spot cone 200" "point_lights\[0\]\.cone: 200 degrees is outside \(0, 180\]" "\"point_lights\": [ { $SPOT, \"cone\": 200 } ]"
+bad_light "spot cone -5" "point_lights\[0\]\.cone: -5 degrees is outside \(0, 180\]" "\"point_lights\": [ { $SPOT, \"cone\": -5 } ]"
+bad_light "spot without a direction" "point_lights\[0\]\.direction: missing" \
+    '"point_lights": [ { "position": [0, 1, 0], "intensity": [1, 1, 1], "cone": 30 } ]'
+bad_light "spot of direction 0" "point_lights\[0\]\.direction: is the zero vector" "\"point_lights\": [ { \"position\": [0, 1, 0], \"intensity\": [1, 1, 1], \"direction\": [0, 0, 0] } ]"
+bad_light "spot of negative falloff" "point_lights\[0\]\.falloff: -1 is outside" "\"point_lights\": [ { $SPOT, \"falloff\": -1 } ]"
+bad_light "sun of zero solid angle" "sun\.solid_angle: 0 sr is outside \(0, 2 pi\]" \
+    '"sun": { "direction": [0, 1, 0], "radiance": [1, 1, 1], "solid_angle": 0 }'
+bad_light "sun of negative radiance" "sun\.radiance: element 2 = -1 is outside \[0, 1e\+30\]" \
+    '"sun": { "direction": [0, 1, 0], "radiance": [1, 1, -1], "solid_angle": 0.01 }'
+bad_light "sun without a solid angle" "sun\.solid_angle: missing" '"sun": { "direction": [0, 1, 0], "radiance": [1, 1, 1] }'
+bad_light "sky of negative radiance" "sky\.radiance: element 0 = -0\.5 is outside" '"sky": { "radiance": [-0.5, 1, 1] }'
+# JSON has no NaN; a NaN written as the bare word is a syntax error naming the line.
+bad_light "sky of NaN radiance" "scene '.*' line [0-9]+ column [0-9]+" '"sky": { "radiance": [NaN, 1, 1] }'
+bad_light "sky with an unknown key" "sky: unknown key 'color'" '"sky": { "radiance": [1, 1, 1], "color": 1 }'
+
+# ---- scene-info lists the lights, and their power
+lit_plane "$TMP/all" 0.5 "\"point_lights\": [ { \"position\": [0, 1, 0], \"intensity\": [1, 2, 3] }, { $SPOT, \"cone\": 60, \"falloff\": 2 } ],
+  \"sun\": { \"direction\": [0, 2, 0], \"radiance\": [5, 5, 5], \"solid_angle\": 0.5 }, \"sky\": { \"radiance\": [0.25, 0.25, 0.25] }" 3
+if "$BIN/scene-info" -q "$TMP/all/scene.json" >"$TMP/all.txt" && "$BIN/scene-info" -q --json "$TMP/all/scene.json" >"$TMP/all.json"; then
+    if grep -q "^  light 0 at 0 1 0 intensity 1 2 3 W/sr$" "$TMP/all.txt" &&
+        grep -q "^  light 1 at 0 1 0 intensity 1 1 1 W/sr spot toward 0 -1 0 cone 60 deg falloff 2$" "$TMP/all.txt" &&
+        grep -q "^sun: toward 0 1 0 radiance 5 5 5 W/(m^2 sr) solid angle 0.5 sr$" "$TMP/all.txt" &&
+        grep -q "^sky: radiance 0.25 0.25 0.25 W/(m^2 sr)$" "$TMP/all.txt" &&
+        [ "$(jq -r '[.lights[].kind] | join(" ")' "$TMP/all.json")" = "point spot sun sky" ]; then
+        pass "scene-info lists a point light, a spot, the sun and the sky (text and JSON)"
+    else
+        fail "scene-info light listing" "$(grep -E '^(  light|sun|sky)' "$TMP/all.txt" | tr '\n' ';')"
+    fi
+    # Power, channel 0: 4 pi 1 + 2 pi 1 (1 - cos 60) / 3 + the sun's 5 * 0.5 * pi R^2 + the sky's
+    # 0.25 * 4 pi * pi R^2, R = 1.01 * sqrt(3^2 + 0.5^2 + 3^2) + 0.001 (the sphere around the box
+    # of the plane and the point lights 1 m above it).
+    want=$(awk -v p=$PI 'BEGIN { r = 1.01 * sqrt(18.25) + 0.001; printf "%.17g", 4 * p + 2 * p * 0.5 / 3 + 5 * 0.5 * p * r * r + 0.25 * 4 * p * p * r * r }')
+    got=$(jq '.power_w[0]' "$TMP/all.json")
+    if awk -v a="$got" -v b="$want" 'BEGIN { exit !(a / b > 1 - 1e-6 && a / b < 1 + 1e-6) }'; then
+        pass "scene power of a point light, a spot, the sun and the sky: $got W (formula $want)"
+    else
+        fail "scene power" "$got W, formula $want W"
+    fi
+else
+    fail "scene-info of a scene with every light" "$(cat "$TMP/all.txt" | head -3)"
+fi

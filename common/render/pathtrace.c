@@ -112,12 +112,13 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
              * sample of the vertex before (power heuristic). */
             if ((s->has_sky || s->has_sun) && wanted(pt, nd, spec)) {
                 int mis = depth > 0 && !delta_prev;
-                float wsky = mis ? pm_power_heuristic(bsdf_pdf_prev, pm_sky_pdf(n_prev, d)) : 1.0f;
+                float wsky = mis ? pm_power_heuristic(bsdf_pdf_prev, pm_sky_pdf(s, n_prev, d)) : 1.0f;
                 float wsun = mis && s->has_sun ? pm_power_heuristic(bsdf_pdf_prev, pm_sun_pdf(&s->sun, d)) : 1.0f;
                 int in_sun = s->has_sun && pm_dot3(s->sun.direction, d) >= s->sun.cos_max;
+                float ls[3];
+                pm_sky_radiance(s, d, ls);
                 for (int q = 0; q < 3; q++)
-                    L[q] += beta[q] * ((s->has_sky ? (double)s->sky[q] * wsky : 0.0) +
-                                       (in_sun ? (double)s->sun.radiance[q] * wsun : 0.0));
+                    L[q] += beta[q] * ((double)ls[q] * wsky + (in_sun ? (double)s->sun.radiance[q] * wsun : 0.0));
             }
             break;
         }
@@ -217,18 +218,22 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
                 if (e == 0)
                     pm_sun_sample(&s->sun, u1, u2, wi);
                 else
-                    pm_sky_sample(n, u1, u2, wi);
-                float cosi = pm_dot3(n, wi), pl = e == 0 ? pm_sun_pdf(&s->sun, wi) : pm_sky_pdf(n, wi);
+                    pm_sky_sample(s, n, u1, u2, wi);
+                float cosi = pm_dot3(n, wi), pl = e == 0 ? pm_sun_pdf(&s->sun, wi) : pm_sky_pdf(s, n, wi);
                 if (!(cosi > 0.0f && pl > 0.0f))
                     continue;
                 cnt->shadow_rays++;
                 if (pm_rt_occluded1(pt->rt, ctx, org, wi, 0.0f, INFINITY))
                     continue;
-                float f[3], pb = pm_bsdf_pdf(m, n, wi, wo);
+                float f[3], pb = pm_bsdf_pdf(m, n, wi, wo), le[3];
+                if (e == 0)
+                    memcpy(le, s->sun.radiance, sizeof le);
+                else
+                    pm_sky_radiance(s, wi, le);
                 pm_brdf(m, n, wi, wo, f);
                 double gw = (double)cosi / pl * pm_power_heuristic(pl, pb);
                 for (int q = 0; q < 3; q++)
-                    L[q] += beta[q] * (double)f[q] * (e == 0 ? s->sun.radiance[q] : s->sky[q]) * gw;
+                    L[q] += beta[q] * (double)f[q] * le[q] * gw;
             }
 
             /* Continue along a BSDF sample: the lobe, then two numbers for the direction. */

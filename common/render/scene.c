@@ -17,6 +17,7 @@
 #include <string.h>
 #include <strings.h>
 
+#include "base/exr.h"
 #include "base/hash.h"
 #include "formats/formats.h"
 #include "math/vec.h"
@@ -268,11 +269,99 @@ static pm_result_t load_lights(const ctx_t *c, json_t *lights)
     return PM_OK;
 }
 
-/* The sun (direction, radiance, solid_angle) and the sky (radiance), both optional. */
+pm_result_t pm_envmap_init(pm_envmap_t *e, uint32_t w, uint32_t h, float *rgb)
+{
+    memset(e, 0, sizeof *e);
+    e->w = w, e->h = h, e->rgb = rgb;
+    size_t n = (size_t)w * h;
+    for (size_t i = 0; i < 3 * n; i++)
+        if (!(rgb[i] >= 0.0f && isfinite(rgb[i]))) {
+            size_t px = i / 3;
+            char v[32];
+            snprintf(v, sizeof v, "%g", (double)rgb[i]);
+            pm_result_t r =
+                pm_error_set(PM_ERR_INPUT, "pixel (%zu, %zu) channel %c = %s is not a radiance (finite, >= 0)", px % w,
+                             px / w, "RGB"[i % 3], v);
+            pm_envmap_free(e);
+            return r;
+        }
+    e->row_cdf = malloc(h * sizeof(double));
+    e->col_cdf = malloc(n * sizeof(double));
+    e->pix_p = malloc(n * sizeof(double));
+    if (!e->row_cdf || !e->col_cdf || !e->pix_p) {
+        pm_envmap_free(e);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for the tables of a %" PRIu32 "x%" PRIu32 " map", w, h);
+    }
+    double acc = 0.0;
+    for (uint32_t y = 0; y < h; y++) {
+        /* Luminance (Rec. 709) times the pixel's solid angle over 2 pi / w: sin at its centre. */
+        double st = sin(M_PI * (y + 0.5) / h), row = 0.0;
+        double dom = 2.0 * M_PI / w * (cos(M_PI * y / h) - cos(M_PI * (y + 1.0) / h));
+        for (uint32_t x = 0; x < w; x++) {
+            const float *p = rgb + 3 * ((size_t)y * w + x);
+            double wt = (0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]) * st;
+            e->pix_p[(size_t)y * w + x] = wt;
+            e->col_cdf[(size_t)y * w + x] = row += wt;
+            for (int k = 0; k < 3; k++)
+                e->integral[k] += p[k] * dom;
+        }
+        e->row_cdf[y] = acc += row;
+    }
+    e->total = acc;
+    for (uint32_t y = 0; y < h && acc > 0.0; y++) {
+        double row = e->col_cdf[(size_t)y * w + w - 1];
+        for (uint32_t x = 0; x < w; x++) {
+            e->pix_p[(size_t)y * w + x] /= acc;
+            e->col_cdf[(size_t)y * w + x] = row > 0.0 ? e->col_cdf[(size_t)y * w + x] / row : (x + 1.0) / w;
+        }
+        e->col_cdf[(size_t)y * w + w - 1] = 1.0;
+        e->row_cdf[y] /= acc;
+    }
+    if (acc > 0.0)
+        e->row_cdf[h - 1] = 1.0;
+    return PM_OK;
+}
+
+void pm_envmap_free(pm_envmap_t *e)
+{
+    free(e->rgb);
+    free(e->row_cdf);
+    free(e->col_cdf);
+    free(e->pix_p);
+    memset(e, 0, sizeof *e);
+}
+
+static void resolve(const char *scene_path, const char *file, char *out, size_t cap);
+
+/* The sky's map: an OpenEXR file relative to the scene, each value times sky.radiance. */
+static pm_result_t load_envmap(const ctx_t *c, const char *file)
+{
+    char path[2048];
+    resolve(c->file, file, path, sizeof path);
+    uint32_t w = 0, h = 0;
+    float *rgb = NULL;
+    pm_result_t r = pm_exr_read_rgb(path, &w, &h, &rgb);
+    if (r != PM_OK) {
+        pm_error_prefix("scene '%s': sky.map", c->file);
+        return r;
+    }
+    for (size_t i = 0; i < 3 * (size_t)w * h; i++)
+        rgb[i] *= c->s->sky[i % 3];
+    c->s->envmap = calloc(1, sizeof *c->s->envmap);
+    if (!c->s->envmap) {
+        free(rgb);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for the sky's map");
+    }
+    if ((r = pm_envmap_init(c->s->envmap, w, h, rgb)) != PM_OK)
+        pm_error_prefix("scene '%s': sky.map '%s'", c->file, file);
+    return r;
+}
+
+/* The sun (direction, radiance, solid_angle) and the sky (radiance, map), all optional. */
 static pm_result_t load_sun_sky(const ctx_t *c, json_t *sun, json_t *sky)
 {
     static const char *const sun_keys[] = {"direction", "radiance", "solid_angle", NULL};
-    static const char *const sky_keys[] = {"radiance", NULL};
+    static const char *const sky_keys[] = {"radiance", "map", NULL};
     pm_scene_t *s = c->s;
     pm_result_t r = PM_OK;
     if (sun) {
@@ -306,8 +395,14 @@ static pm_result_t load_sun_sky(const ctx_t *c, json_t *sun, json_t *sky)
     if (sky) {
         if (!json_is_object(sky))
             return bad(c, "sky", "must be an object");
+        json_t *map = json_object_get(sky, "map");
+        s->sky[0] = s->sky[1] = s->sky[2] = 1.0f; /* a map's scale when radiance is not given */
         if ((r = only_keys(c, sky, "sky", sky_keys)) == PM_OK)
-            r = get_vec3(c, sky, "radiance", "sky.radiance", 1, 0.0, 1e30, s->sky);
+            r = get_vec3(c, sky, "radiance", "sky.radiance", !map, 0.0, 1e30, s->sky);
+        if (r == PM_OK && map && (!json_is_string(map) || !*json_string_value(map)))
+            r = bad(c, "sky.map", "must be a file name (an OpenEXR lat-long map)");
+        if (r == PM_OK && map)
+            r = load_envmap(c, json_string_value(map));
         if (r != PM_OK)
             return r;
         s->has_sky = 1;
@@ -1435,6 +1530,8 @@ double pm_sky_power(const pm_scene_t *s, int k)
 {
     double c[3], r;
     pm_scene_sphere(s, c, &r);
+    if (s->envmap)
+        return s->envmap->integral[k] * M_PI * r * r;
     return s->sky[k] * M_PI * r * r * 4.0 * M_PI;
 }
 
@@ -1742,6 +1839,12 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         /* A sun or a sky: folded into the hash; a scene without either keeps the hash it had. */
         uint64_t e[3] = {s->hash, s->has_sun ? pm_hash_bytes(&s->sun, sizeof s->sun) : 0,
                          s->has_sky ? pm_hash_bytes(s->sky, sizeof s->sky) : 0};
+        if (s->envmap) /* the map's texels (already scaled) and size */
+            e[2] = pm_hash_bytes(
+                (uint64_t[3]){e[2],
+                              pm_hash_bytes(s->envmap->rgb, 3 * sizeof(float) * s->envmap->w * (size_t)s->envmap->h),
+                              (uint64_t)s->envmap->w << 32 | s->envmap->h},
+                3 * sizeof(uint64_t));
         s->hash = pm_hash_bytes(e, sizeof e);
     }
     if (r == PM_OK)
@@ -1758,6 +1861,9 @@ void pm_scene_free(pm_scene_t *s)
     free(s->tri_material);
     free(s->materials);
     free(s->lights);
+    if (s->envmap)
+        pm_envmap_free(s->envmap);
+    free(s->envmap);
     free(s->emissive);
     free(s->unsupported);
     free(s->maps);

@@ -42,6 +42,26 @@ typedef struct {
     float cos_max;      /* cosine of the cone's half-angle: 1 - omega / (2 pi) */
 } pm_sun_t;
 
+/* A lat-long environment map (the sky's `map`): pixel (x, y) of w x h covers the directions of
+ * polar angle theta from +y in [pi y / h, pi (y + 1) / h) and azimuth phi in [2 pi x / w,
+ * 2 pi (x + 1) / w), direction (sin theta cos phi, cos theta, sin theta sin phi); radiance is
+ * constant over a pixel. Sampled by pixel in proportion to luminance times sin(theta) at the
+ * pixel's centre (a row, then a column in it), then uniformly in (theta, phi) within it. */
+typedef struct {
+    uint32_t w, h;
+    float *rgb;         /* w * h * 3, W/(m^2 sr), top row (theta 0) first, times sky.radiance */
+    double *row_cdf;    /* h: cumulative probability of rows 0..y, the last 1 */
+    double *col_cdf;    /* h * w: within each row, cumulative over columns 0..x, the last 1 */
+    double *pix_p;      /* h * w: probability of each pixel */
+    double integral[3]; /* W/m^2 per channel: the map's radiance integrated over the sphere */
+    double total;       /* the sum of the weights; 0 when the map is black */
+} pm_envmap_t;
+
+/* Builds e's tables from rgb (w x h, owned by e from here, freed by pm_envmap_free); an
+ * error on a value that is NaN, infinite or negative (named with its pixel and channel). */
+pm_result_t pm_envmap_init(pm_envmap_t *e, uint32_t w, uint32_t h, float *rgb);
+void pm_envmap_free(pm_envmap_t *e);
+
 typedef struct {
     float eye[3], look_at[3], up[3]; /* m */
     float fov_y;                     /* degrees, vertical, in (0, 180) */
@@ -103,8 +123,9 @@ typedef struct {
     size_t nlights;
     int has_sun, has_sky; /* 1 when the scene file names a sun / a sky */
     pm_sun_t sun;
-    float sky[3];       /* W/(m^2 sr), RGB: radiance of a constant sky, seen by every ray that escapes */
-    uint32_t *emissive; /* indices of triangles whose material emits */
+    float sky[3];        /* W/(m^2 sr), RGB: radiance of a constant sky, seen by every ray that escapes */
+    pm_envmap_t *envmap; /* the sky's lat-long map (its radiance then scales it), or NULL */
+    uint32_t *emissive;  /* indices of triangles whose material emits */
     size_t nemissive;
     size_t ndropped; /* degenerate (zero-area) triangles left out at load */
     pm_camera_t camera;

@@ -177,12 +177,9 @@ static inline float pm_area_light_pdf(const pm_shade_geom_t *g, float r2, float 
 
 /* Radiance (W/(m^2 sr)) a ray that escapes along unit direction w brings back: the sky's, plus
  * the sun's when w lies within its cone; zero in a scene with neither. */
-static inline void pm_env_radiance(const pm_scene_t *s, const float w[3], float L_out[3])
-{
-    int sun = s->has_sun && pm_dot3(s->sun.direction, w) >= s->sun.cos_max;
-    for (int k = 0; k < 3; k++)
-        L_out[k] = (s->has_sky ? s->sky[k] : 0.0f) + (sun ? s->sun.radiance[k] : 0.0f);
-}
+void pm_env_radiance(const pm_scene_t *s, const float w[3], float L_out[3]);
+/* The sky's radiance alone along w (its map's pixel, or the constant); zero without a sky. */
+void pm_sky_radiance(const pm_scene_t *s, const float w[3], float L_out[3]);
 
 /* A direction in the sun's cone, uniform over its solid angle (pdf 1 / omega), from u1, u2 in
  * [0, 1): cos(theta) to the axis = 1 - u1 (1 - cos_max), azimuth 2 pi u2. */
@@ -193,24 +190,31 @@ static inline float pm_sun_pdf(const pm_sun_t *sun, const float w[3])
     return pm_dot3(sun->direction, w) >= sun->cos_max ? 1.0f / sun->solid_angle : 0.0f;
 }
 
-/* A direction toward the sky for next-event estimation: cosine-weighted about n (pdf
- * cos / pi), from u1, u2 in [0, 1). */
-void pm_sky_sample(const float n[3], float u1, float u2, float wi_out[3]);
+/* A direction toward the sky for next-event estimation, from u1, u2 in [0, 1): a constant
+ * sky's cosine-weighted about n (pdf cos / pi), a map's by its pixels' luminance
+ * (pm_envmap_t; the normal plays no part). */
+void pm_sky_sample(const pm_scene_t *s, const float n[3], float u1, float u2, float wi_out[3]);
 /* The pdf of pm_sky_sample at unit direction w, 1/sr. */
-static inline float pm_sky_pdf(const float n[3], const float w[3])
-{
-    float c = pm_dot3(n, w);
-    return c > 0.0f ? c * (1.0f / PM_PI) : 0.0f;
-}
+float pm_sky_pdf(const pm_scene_t *s, const float n[3], const float w[3]);
+
+/* A map's sampler and its pdf, 1/sr: a pixel with probability pix_p (row by row_cdf, column
+ * by col_cdf), then (theta, phi) uniform within it: pdf pix_p w h / (2 pi^2 sin theta). 0 for
+ * a black map. */
+void pm_envmap_sample(const pm_envmap_t *e, float u1, float u2, float wi_out[3]);
+float pm_envmap_pdf(const pm_envmap_t *e, const float w[3]);
+/* The map's pixel that direction w falls in (column, row). */
+void pm_envmap_pixel(const pm_envmap_t *e, const float w[3], uint32_t *x_out, uint32_t *y_out);
 
 /* A photon of the sun (sun 1) or of the sky (sun 0), from four uniforms in [0, 1): the
  * direction w it comes from, uniform in the sun's cone or over the sphere, then a point
  * uniform on the disc of radius R perpendicular to w, tangent to the scene's bounding sphere
  * (pm_scene_sphere) on w's side; the photon starts there and travels along -w. Every point of
- * the ball then receives radiance L from each direction of the light, and the photons carry
- * L omega pi R^2 (omega the cone's solid angle, 4 pi for the sky): pm_sun_power, pm_sky_power. */
+ * the ball then receives radiance L from each direction of the light. A map's directions are
+ * drawn by pm_envmap_sample instead. flux_out: the photon's flux were it the light's only one,
+ * L(w) pi R^2 / pdf(w), W: L omega pi R^2 for the sun (omega its solid angle), L 4 pi pi R^2
+ * for a constant sky, whose expectations are pm_sun_power and pm_sky_power. */
 void pm_env_emit(const pm_scene_t *s, int sun, float u1, float u2, float u3, float u4, float org_out[3],
-                 float dir_out[3]);
+                 float dir_out[3], double flux_out[3]);
 
 /* Veach's power heuristic: the weight of strategy a against b, each a sample count times a
  * solid-angle pdf at one direction; 0 when neither could have produced it. */

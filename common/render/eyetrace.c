@@ -248,15 +248,19 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
             if (e == 0)
                 pm_sun_sample(&s->sun, u1, u2, wi);
             else
-                pm_sky_sample(n, u1, u2, wi);
-            float cosi = pm_dot3(n, wi), pl = e == 0 ? pm_sun_pdf(&s->sun, wi) : pm_sky_pdf(n, wi), f[3];
+                pm_sky_sample(s, n, u1, u2, wi);
+            float cosi = pm_dot3(n, wi), pl = e == 0 ? pm_sun_pdf(&s->sun, wi) : pm_sky_pdf(s, n, wi), f[3], le[3];
             if (!(cosi > 0.0f && pl > 0.0f))
                 continue;
+            if (e == 0)
+                memcpy(le, s->sun.radiance, sizeof le);
+            else
+                pm_sky_radiance(s, wi, le);
             pm_brdf(m, n, wi, wo, f);
             float g = cosi / pl / (float)c->light_samples * inv_p;
             size_t j = sc->shadow.n;
             for (int k = 0; k < 3; k++)
-                sc->sh_c[3 * j + k] = f[k] * (e == 0 ? s->sun.radiance[k] : s->sky[k]) * g;
+                sc->sh_c[3 * j + k] = f[k] * le[k] * g;
             sc->sh_px[j] = x;
             pm_rays_push(&sc->shadow, o, wi, 0.0f, INFINITY);
         }

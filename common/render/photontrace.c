@@ -202,7 +202,7 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
 
     /* Emission: a light by power, then a point and a direction on it. */
     const light_t *l = &t->lights[pm_cdf_pick(t->cdf, t->nlights, pm_rng_double(&rng))];
-    double power[3];
+    double power[3], flux[3] = {0.0, 0.0, 0.0};
     float org[3], dir[3];
     float u1 = pm_rng_float(&rng), u2 = pm_rng_float(&rng), u3 = pm_rng_float(&rng), u4 = pm_rng_float(&rng);
     if (l->kind == 0) {
@@ -210,7 +210,7 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
         memcpy(org, pl->position, sizeof org);
         pm_point_light_emit(pl, u1, u2, dir);
     } else if (l->kind >= 2) {
-        pm_env_emit(s, l->kind == 2, u1, u2, u3, u4, org, dir); /* from the disc facing the sun or the sky */
+        pm_env_emit(s, l->kind == 2, u1, u2, u3, u4, org, dir, flux); /* from the disc facing the sun or the sky */
     } else {
         const uint32_t *tri = &s->tris[3 * (size_t)l->index];
         pm_vec3_t v0 = pm_v3_load(&s->verts[3 * (size_t)tri[0]]), v1 = pm_v3_load(&s->verts[3 * (size_t)tri[1]]),
@@ -228,7 +228,7 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
      * number of photons, so that summing all photons gives the lights' total power. */
     double scale = t->total / (l->scalar * (double)t->o->photons);
     for (int k = 0; k < 3; k++) {
-        power[k] = l->power[k] * scale;
+        power[k] = (l->kind >= 2 ? flux[k] : l->power[k]) * scale; /* a map's photons differ by direction */
         c->power_emitted[k] += power[k];
     }
 

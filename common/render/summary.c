@@ -138,7 +138,11 @@ static void print_text(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, double
         fprintf(out, "sun: toward %.6g %.6g %.6g radiance %.6g %.6g %.6g W/(m^2 sr) solid angle %.6g sr\n",
                 s->sun.direction[0], s->sun.direction[1], s->sun.direction[2], s->sun.radiance[0], s->sun.radiance[1],
                 s->sun.radiance[2], s->sun.solid_angle);
-    if (s->has_sky)
+    if (s->has_sky && s->envmap)
+        fprintf(out, "sky: map %" PRIu32 "x%" PRIu32 " times %.6g %.6g %.6g, mean radiance %.6g %.6g %.6g W/(m^2 sr)\n",
+                s->envmap->w, s->envmap->h, s->sky[0], s->sky[1], s->sky[2], s->envmap->integral[0] / (4.0 * M_PI),
+                s->envmap->integral[1] / (4.0 * M_PI), s->envmap->integral[2] / (4.0 * M_PI));
+    else if (s->has_sky)
         fprintf(out, "sky: radiance %.6g %.6g %.6g W/(m^2 sr)\n", s->sky[0], s->sky[1], s->sky[2]);
     fprintf(out, "emissive triangles: %zu\n", s->nemissive);
     fprintf(out, "emitted power: %.6g %.6g %.6g W\n", p[0], p[1], p[2]);
@@ -234,9 +238,13 @@ pm_result_t pm_summary_json(const pm_scene_t *s, const pm_rt_t *rt, const pm_sum
         json_array_append_new(lights, json_pack("{s:s, s:o, s:o, s:f}", "kind", "sun", "direction",
                                                 floats_json(s->sun.direction, 3), "radiance_w_m2_sr",
                                                 floats_json(s->sun.radiance, 3), "solid_angle_sr", s->sun.solid_angle));
-    if (s->has_sky)
-        json_array_append_new(lights,
-                              json_pack("{s:s, s:o}", "kind", "sky", "radiance_w_m2_sr", floats_json(s->sky, 3)));
+    if (s->has_sky) {
+        json_t *sj = json_pack("{s:s, s:o}", "kind", "sky", "radiance_w_m2_sr", floats_json(s->sky, 3));
+        if (s->envmap) /* radiance is then the map's scale */
+            json_object_set_new(sj, "map_pixels",
+                                json_pack("[I, I]", (json_int_t)s->envmap->w, (json_int_t)s->envmap->h));
+        json_array_append_new(lights, sj);
+    }
     json_object_set_new(j, "lights", lights);
     json_object_set_new(j, "emissive_triangles", json_integer((json_int_t)s->nemissive));
     for (int k = 0; k < 3; k++)

@@ -130,13 +130,14 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
         const pm_material_t *m = pm_scene_material_at(s, tri, p, &textured);
         int specular = pm_material_is_specular(m);
 
-        /* Emission, front face only. Seen by the camera, or through mirrors and glass, it is
-         * taken whole; found by a BSDF sample it shares with the light sample of the vertex
-         * before (power heuristic). */
-        if (cos_front > 0.0f && pm_material_is_emissive(m) && wanted(pt, nd, spec)) {
+        /* Emission, front face only (both with two_sided_lights). Seen by the camera, or through mirrors and glass, it
+         * is taken whole; found by a BSDF sample it shares with the light sample of the vertex before (power
+         * heuristic). */
+        float cos_emit = s->two_sided_lights ? fabsf(cos_front) : cos_front; /* the emitting face's cosine */
+        if (cos_emit > 0.0f && pm_material_is_emissive(m) && wanted(pt, nd, spec)) {
             float w = 1.0f;
             if (depth > 0 && !delta_prev)
-                w = pm_power_heuristic(bsdf_pdf_prev, pm_area_light_pdf(g, t * t, cos_front));
+                w = pm_power_heuristic(bsdf_pdf_prev, pm_area_light_pdf(g, t * t, cos_emit));
             for (int q = 0; q < 3; q++)
                 L[q] += beta[q] * m->ke[q] * w;
         }

@@ -1568,7 +1568,7 @@ void pm_scene_power(const pm_scene_t *s, double p[3])
         size_t t = s->emissive[i];
         double a = pm_scene_triangle_area(s, t);
         for (int k = 0; k < 3; k++)
-            p[k] += M_PI * s->materials[s->tri_material[t]].ke[k] * a;
+            p[k] += (s->two_sided_lights ? 2.0 : 1.0) * M_PI * s->materials[s->tri_material[t]].ke[k] * a;
     }
     for (int k = 0; k < 3 && s->has_sun; k++)
         p[k] += pm_sun_power(s, k);
@@ -1750,9 +1750,9 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     fclose(f);
     if (!root)
         return pm_error_set(PM_ERR_INPUT, "scene '%s' line %d column %d: %s", path, je.line, je.column, je.text);
-    static const char *const keys[] = {"pmtk_scene",       "name",       "meshes", "camera",
-                                       "point_lights",     "sun",        "sky",    "render",
-                                       "missing_textures", "instancing", NULL};
+    static const char *const keys[] = {
+        "pmtk_scene", "name",   "meshes",           "camera",     "point_lights",     "sun",
+        "sky",        "render", "missing_textures", "instancing", "two_sided_lights", NULL};
     pm_result_t r =
         json_is_object(root) ? only_keys(&c, root, "top level", keys) : bad(&c, "top level", "must be a JSON object");
     int64_t version = 0;
@@ -1781,6 +1781,10 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         if (r == PM_ERR_INPUT && strncmp(pm_error_message(), "scene '", 7) != 0)
             pm_error_prefix("scene '%s': meshes[%zu]", path, i);
     }
+    json_t *two = json_object_get(root, "two_sided_lights");
+    if (r == PM_OK && two && !json_is_boolean(two))
+        r = bad(&c, "two_sided_lights", "must be true or false (the default: emitters light from their front face)");
+    s->two_sided_lights = two && json_is_true(two);
     json_t *inst = json_object_get(root, "instancing");
     if (r == PM_OK && inst && !json_is_boolean(inst))
         r = bad(&c, "instancing", "must be true (the default) or false");
@@ -1835,6 +1839,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
             s->hash = pm_hash_bytes(t, sizeof t);
         }
     }
+    if (r == PM_OK && s->two_sided_lights) /* folded in only when set: other scenes keep their hash */
+        s->hash = pm_hash_bytes((uint64_t[2]){s->hash, 2}, 2 * sizeof(uint64_t));
     if (r == PM_OK && (s->has_sun || s->has_sky)) {
         /* A sun or a sky: folded into the hash; a scene without either keeps the hash it had. */
         uint64_t e[3] = {s->hash, s->has_sun ? pm_hash_bytes(&s->sun, sizeof s->sun) : 0,

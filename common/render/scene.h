@@ -122,6 +122,7 @@ typedef struct {
     pm_point_light_t *lights;
     size_t nlights;
     int has_sun, has_sky; /* 1 when the scene file names a sun / a sky */
+    int two_sided_lights; /* 1: emissive triangles emit from both faces (scene key two_sided_lights) */
     pm_sun_t sun;
     float sky[3];        /* W/(m^2 sr), RGB: radiance of a constant sky, seen by every ray that escapes */
     pm_envmap_t *envmap; /* the sky's lat-long map (its radiance then scales it), or NULL */
@@ -161,7 +162,7 @@ void pm_scene_warn_unsupported(const pm_scene_t *s, const pm_stage_t *st);
 void pm_scene_unsupported_text(const pm_scene_unsupported_t *u, char *out, size_t cap);
 
 /* Total emitted power, W, RGB: point lights (4 pi I, spots less: pm_point_light_power)
- * plus area lights (pi Ke area) plus the sun's and the sky's power into the scene's bounding
+ * plus area lights (pi Ke area, twice that when two-sided) plus the sun's and the sky's power into the scene's bounding
  * sphere (pm_scene_sphere): L omega pi R^2 and L 4 pi pi R^2. */
 void pm_scene_power(const pm_scene_t *s, double power_out[3]);
 

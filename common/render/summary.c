@@ -17,7 +17,9 @@
 
 pm_scene_needs_t pm_scene_needs(const pm_scene_t *s)
 {
-    return (pm_scene_needs_t){s->any_glossy, s->any_glossy && s->nmaterials > 1, s->nemissive > 0};
+    /* Light samples are drawn for area lights and for the sun and the sky alike. */
+    return (pm_scene_needs_t){s->any_glossy, s->any_glossy && s->nmaterials > 1,
+                              s->nemissive > 0 || s->has_sun || s->has_sky};
 }
 
 /* ------------------------------------------------------------------ the probe */
@@ -145,6 +147,8 @@ static void print_text(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, double
     else if (s->has_sky)
         fprintf(out, "sky: radiance %.6g %.6g %.6g W/(m^2 sr)\n", s->sky[0], s->sky[1], s->sky[2]);
     fprintf(out, "emissive triangles: %zu\n", s->nemissive);
+    if (s->two_sided_lights)
+        fprintf(out, "two-sided area lights: yes\n");
     fprintf(out, "emitted power: %.6g %.6g %.6g W\n", p[0], p[1], p[2]);
     fprintf(out, "bounds: %.9g %.9g %.9g  %.9g %.9g %.9g m\n", s->bounds[0], s->bounds[1], s->bounds[2], s->bounds[3],
             s->bounds[4], s->bounds[5]);
@@ -247,6 +251,8 @@ pm_result_t pm_summary_json(const pm_scene_t *s, const pm_rt_t *rt, const pm_sum
     }
     json_object_set_new(j, "lights", lights);
     json_object_set_new(j, "emissive_triangles", json_integer((json_int_t)s->nemissive));
+    if (s->two_sided_lights)
+        json_object_set_new(j, "two_sided_lights", json_true());
     for (int k = 0; k < 3; k++)
         json_array_append_new(power, json_real(p[k]));
     json_object_set_new(j, "power_w", power);

@@ -377,5 +377,7 @@ int pm_area_light_sample(const pm_scene_t *s, const pm_shade_geom_t *g, pm_rng_t
     for (int k = 0; k < 3; k++)
         o->wi[k] = v[k] / o->r;
     o->cosx = pm_dot3(n, o->wi), o->cosy = -pm_dot3(g->tri_n + 3 * (size_t)o->tri, o->wi);
+    if (s->two_sided_lights) /* either face lights */
+        o->cosy = fabsf(o->cosy);
     return o->cosx > 0.0f && o->cosy > 0.0f;
 }

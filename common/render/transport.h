@@ -163,7 +163,8 @@ static inline float pm_point_light_intensity(const pm_point_light_t *l, const pm
 }
 /* One point on the area lights, uniform over their total area g->area (pdf 1/A per m^2), from
  * three numbers of rng: the triangle (a double), then two floats for the point. 0 when the point
- * is at p, behind the surface, or sees its back. The scene must have emissive triangles. */
+ * is at p, behind the surface, or sees its back (unless s->two_sided_lights: cosy is then the
+ * cosine at either face). The scene must have emissive triangles. */
 int pm_area_light_sample(const pm_scene_t *s, const pm_shade_geom_t *g, pm_rng_t *rng, const float p[3],
                          const float n[3], pm_light_sample_t *out);
 /* The pdf of pm_area_light_sample over solid angle, 1/sr, at a light point r2 m^2 away whose

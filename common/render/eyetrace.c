@@ -184,7 +184,7 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
         o[k] = p[k] + c->eps * n[k];
 
     /* Emission seen directly: emitters radiate from their front side only. */
-    if (side > 0.0f && pm_material_is_emissive(m))
+    if ((side > 0.0f || s->two_sided_lights) && pm_material_is_emissive(m))
         for (int k = 0; k < 3; k++)
             direct[3 * x + k] += (double)(m->ke[k] * inv_p);
 
@@ -435,8 +435,8 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
         }
         /* An emitter's front seen by a secondary ray: direct light of the primary hit, weighted
          * against the light samples that could have found the same point (MIS, power heuristic). */
-        if (side > 0.0f && pm_material_is_emissive(&s->materials[mi])) {
-            const float *ke = s->materials[mi].ke, cosy = pm_dot3(ng, wo);
+        if ((side > 0.0f || s->two_sided_lights) && pm_material_is_emissive(&s->materials[mi])) {
+            const float *ke = s->materials[mi].ke, cosy = fabsf(pm_dot3(ng, wo));
             float wb = pm_power_heuristic((float)(c->spp / PER_CELL) * sc->sec_cos[j] * (1.0f / PM_PI),
                                           (float)c->light_samples * t * t / (cosy * (float)c->geom.area));
             for (int k = 0; k < 3; k++)

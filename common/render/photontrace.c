@@ -96,7 +96,7 @@ static int build_lights(tracer_t *t, const pm_scene_t *s)
         l->kind = 1;
         l->index = tri;
         for (int c = 0; c < 3; c++)
-            l->power[c] = M_PI * m->ke[c] * a;
+            l->power[c] = (s->two_sided_lights ? 2.0 : 1.0) * M_PI * m->ke[c] * a;
         l->scalar = l->power[0] + l->power[1] + l->power[2];
         k += l->scalar > 0.0;
     }
@@ -220,6 +220,12 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
         pm_triangle_point(s, l->index, b0, b1, p);
         /* Area lights emit from their front face: the right-hand-rule normal of (v0, v1, v2). */
         pm_vec3_t n = pm_v3_normalize(pm_v3_cross(pm_v3_sub(v1, v0), pm_v3_sub(v2, v0))), tb, bb;
+        if (s->two_sided_lights) { /* either face, by half of u3; the other half stays uniform */
+            if (u3 < 0.5f)
+                n = pm_v3_scale(n, -1.0f), u3 = 2.0f * u3;
+            else
+                u3 = 2.0f * u3 - 1.0f;
+        }
         pm_onb(n, &tb, &bb);
         pm_v3_store(dir, pm_onb_to_world(pm_sample_cosine_hemisphere(u3, u4), tb, bb, n));
         pm_v3_store(org, pm_v3_add(pm_v3_load(p), pm_v3_scale(n, eps)));

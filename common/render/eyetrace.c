@@ -264,7 +264,7 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
         o[k] = p[k] + c->eps * n[k];
 
     /* Emission seen directly: emitters radiate from their front side only. */
-    if (side > 0.0f && pm_material_is_emissive(m))
+    if ((side > 0.0f || s->two_sided_lights) && pm_material_is_emissive(m))
         for (int k = 0; k < 3; k++)
             direct[3 * x + k] += (double)(m->ke[k] * inv_p * tp[k]);
 
@@ -284,17 +284,20 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
         }
     }
 
-    /* Point lights: intensity I (W/sr) at distance r gives irradiance I cos / r^2. */
+    /* Point lights and spots: intensity I s (W/sr) at distance r gives irradiance I s cos / r^2. */
     pm_light_sample_t ls;
     for (size_t l = 0; l < s->nlights; l++) {
         const pm_point_light_t *L = &s->lights[l];
         if (!pm_point_light_toward(L, p, n, &ls))
             continue;
-        float f[3];
+        float f[3], il[3] = {pm_point_light_intensity(L, &ls, 0), pm_point_light_intensity(L, &ls, 1),
+                             pm_point_light_intensity(L, &ls, 2)};
+        if (!(il[0] > 0.0f || il[1] > 0.0f || il[2] > 0.0f))
+            continue; /* outside a spot's cone */
         pm_brdf(m, n, ls.wi, wo, f);
         size_t j = sc->shadow.n;
         for (int k = 0; k < 3; k++)
-            sc->sh_c[3 * j + k] = f[k] * L->intensity[k] * ls.cosx / ls.r2 * inv_p * tp[k];
+            sc->sh_c[3 * j + k] = f[k] * il[k] * ls.cosx / ls.r2 * inv_p * tp[k];
         sc->sh_px[j] = x;
         pm_rays_push(&sc->shadow, o, ls.wi, 0.0f, ls.r - c->eps);
     }
@@ -326,6 +329,34 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
         sc->sh_px[j] = x;
         /* Stop short of the light's own surface, by the offset and a relative margin. */
         pm_rays_push(&sc->shadow, o, ls.wi, 0.0f, ls.r * (1.0f - 1e-4f) - 2.0f * c->eps);
+    }
+    /* The sun (directions uniform in its cone, pdf 1 / omega) and the sky (cosine-weighted,
+     * pdf cos / pi), light_samples each: L f cos / pdf, averaged. Secondary rays that escape
+     * add nothing, so these carry weight 1 (no MIS). */
+    for (int e = 0; e < 2; e++) {
+        if (!(e == 0 ? s->has_sun : s->has_sky))
+            continue;
+        for (unsigned q = 0; q < c->light_samples; q++) {
+            float wi[3], u1 = pm_rng_float(light_rng), u2 = pm_rng_float(light_rng);
+            if (e == 0)
+                pm_sun_sample(&s->sun, u1, u2, wi);
+            else
+                pm_sky_sample(s, n, u1, u2, wi);
+            float cosi = pm_dot3(n, wi), pl = e == 0 ? pm_sun_pdf(&s->sun, wi) : pm_sky_pdf(s, n, wi), f[3], le[3];
+            if (!(cosi > 0.0f && pl > 0.0f))
+                continue;
+            if (e == 0)
+                memcpy(le, s->sun.radiance, sizeof le);
+            else
+                pm_sky_radiance(s, wi, le);
+            pm_brdf(m, n, wi, wo, f);
+            float g = cosi / pl / (float)c->light_samples * inv_p;
+            size_t j = sc->shadow.n;
+            for (int k = 0; k < 3; k++)
+                sc->sh_c[3 * j + k] = f[k] * le[k] * g * tp[k];
+            sc->sh_px[j] = x;
+            pm_rays_push(&sc->shadow, o, wi, 0.0f, INFINITY);
+        }
     }
 
     if (c->mode == PM_EYE_DIRECT_VIS) {
@@ -417,7 +448,8 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
 {
     const pm_scene_t *s = c->s;
     size_t np = (size_t)c->w * c->primary;
-    size_t nshadow = np * (s->nlights + (s->nemissive ? c->light_samples : 0));
+    size_t nshadow = np * (s->nlights + (s->nemissive ? c->light_samples : 0) +
+                           (size_t)(s->has_sun + s->has_sky) * c->light_samples);
     size_t nsec = c->mode == PM_EYE_GATHER ? np * c->spp : 0;
     pm_result_t r = scratch_reserve(sc, y, np, nshadow, nsec, c->mode == PM_EYE_GATHER ? c->spp : 0);
     if (r != PM_OK)
@@ -467,6 +499,10 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
                 spec_xi = pm_rng_float(&spec_rng);
             }
         }
+        if (c->specular) {
+            float *t0 = sc->thr + 3 * i;
+            t0[0] = t0[1] = t0[2] = 1.0f; /* the chain's throughput: none yet */
+        }
         if (c->specular && sc->prim.prim[i] != PM_RAY_MISS) {
             /* Through mirrors and glass to the first other surface: the ray becomes the chain's last. */
             pm_rays_t *pr = &sc->prim;
@@ -492,8 +528,16 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
                 pr->tfar[i] = t;
             }
         }
-        if (sc->prim.prim[i] == PM_RAY_MISS)
-            continue; /* sky: no query, no direct light */
+        if (sc->prim.prim[i] == PM_RAY_MISS) {
+            /* Escaped, at once or after mirrors and glass: no query; the sky and the sun seen
+             * are direct light, times the chain's throughput. */
+            float d[3] = {sc->prim.dx[i], sc->prim.dy[i], sc->prim.dz[i]}, le[3];
+            const float *thr = c->specular ? sc->thr + 3 * i : NULL;
+            pm_env_radiance(s, d, le);
+            for (int k = 0; k < 3; k++)
+                direct[3 * x + k] += (double)(le[k] * (thr ? thr[k] : 1.0f) / (float)c->primary);
+            continue;
+        }
         if (!shade_primary(c, sc, i, x, pixel, &light_rng, &gather_rng, direct, out, caus))
             return pm_error_set(PM_ERR_NOMEM, "out of memory for the queries of row %" PRIu32 ": %" PRIu64 " records",
                                 y, out->count + 1);
@@ -579,8 +623,8 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
         }
         /* An emitter's front seen by a secondary ray: direct light of the primary hit, weighted
          * against the light samples that could have found the same point (MIS, power heuristic). */
-        if (side > 0.0f && pm_material_is_emissive(&s->materials[mi])) {
-            const float *ke = s->materials[mi].ke, cosy = pm_dot3(ng, wo);
+        if ((side > 0.0f || s->two_sided_lights) && pm_material_is_emissive(&s->materials[mi])) {
+            const float *ke = s->materials[mi].ke, cosy = fabsf(pm_dot3(ng, wo));
             float wb = pm_power_heuristic((float)(c->spp / PER_CELL) * sc->sec_cos[j] * (1.0f / PM_PI),
                                           (float)c->light_samples * t * t / (cosy * (float)c->geom.area));
             for (int k = 0; k < 3; k++)

@@ -97,16 +97,31 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
      * without the radiance scaling of refraction, which Russian roulette looks at, so that a
      * path into glass is not culled for a factor the way out gives back. */
     double eta2 = 1.0;
-    float bsdf_pdf_prev = 0.0f; /* solid-angle pdf of the BSDF sample that made this ray */
-    int delta_prev = 0;         /* the ray left a mirror or glass: no light sample could have found its end */
-    unsigned nd = 0;            /* non-specular vertices so far (the camera's side of the light path) */
-    int spec = 0;               /* a mirror or glass since the last of them */
+    float bsdf_pdf_prev = 0.0f;           /* solid-angle pdf of the BSDF sample that made this ray */
+    float n_prev[3] = {0.0f, 0.0f, 1.0f}; /* the normal where that sample was taken (the sky's pdf) */
+    int delta_prev = 0;                   /* the ray left a mirror or glass: no light sample could have found its end */
+    unsigned nd = 0;                      /* non-specular vertices so far (the camera's side of the light path) */
+    int spec = 0;                         /* a mirror or glass since the last of them */
     cnt->paths++;
     for (unsigned depth = 0;; depth++) {
         cnt->rays++;
         uint32_t tri = pm_rt_intersect1(pt->rt, ctx, o, d, 0.0f, INFINITY, &t, NULL);
-        if (tri == PM_RAY_MISS)
-            break; /* no sky: escaped light is lost */
+        if (tri == PM_RAY_MISS) {
+            /* Escaped: the sky and the sun. Seen by the camera or through mirrors and glass
+             * they are taken whole; found by a BSDF sample, each shares with its own light
+             * sample of the vertex before (power heuristic). */
+            if ((s->has_sky || s->has_sun) && wanted(pt, nd, spec)) {
+                int mis = depth > 0 && !delta_prev;
+                float wsky = mis ? pm_power_heuristic(bsdf_pdf_prev, pm_sky_pdf(s, n_prev, d)) : 1.0f;
+                float wsun = mis && s->has_sun ? pm_power_heuristic(bsdf_pdf_prev, pm_sun_pdf(&s->sun, d)) : 1.0f;
+                int in_sun = s->has_sun && pm_dot3(s->sun.direction, d) >= s->sun.cos_max;
+                float ls[3];
+                pm_sky_radiance(s, d, ls);
+                for (int q = 0; q < 3; q++)
+                    L[q] += beta[q] * ((double)ls[q] * wsky + (in_sun ? (double)s->sun.radiance[q] * wsun : 0.0));
+            }
+            break;
+        }
         float p[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]}, wo[3] = {-d[0], -d[1], -d[2]};
         const float *ng = g->tri_n + 3 * (size_t)tri;
         float cos_front = pm_dot3(ng, wo), side = cos_front >= 0.0f ? 1.0f : -1.0f;
@@ -115,13 +130,14 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
         const pm_material_t *m = pm_scene_material_at(s, tri, p, &textured);
         int specular = pm_material_is_specular(m);
 
-        /* Emission, front face only. Seen by the camera, or through mirrors and glass, it is
-         * taken whole; found by a BSDF sample it shares with the light sample of the vertex
-         * before (power heuristic). */
-        if (cos_front > 0.0f && pm_material_is_emissive(m) && wanted(pt, nd, spec)) {
+        /* Emission, front face only (both with two_sided_lights). Seen by the camera, or through mirrors and glass, it
+         * is taken whole; found by a BSDF sample it shares with the light sample of the vertex before (power
+         * heuristic). */
+        float cos_emit = s->two_sided_lights ? fabsf(cos_front) : cos_front; /* the emitting face's cosine */
+        if (cos_emit > 0.0f && pm_material_is_emissive(m) && wanted(pt, nd, spec)) {
             float w = 1.0f;
             if (depth > 0 && !delta_prev)
-                w = pm_power_heuristic(bsdf_pdf_prev, pm_area_light_pdf(g, t * t, cos_front));
+                w = pm_power_heuristic(bsdf_pdf_prev, pm_area_light_pdf(g, t * t, cos_emit));
             for (int q = 0; q < 3; q++)
                 L[q] += beta[q] * m->ke[q] * w;
         }
@@ -165,7 +181,7 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
                 cnt->longest = depth + 1;
             float org[3] = {p[0] + eps * n[0], p[1] + eps * n[1], p[2] + eps * n[2]};
 
-            /* Point lights: I cos / r^2, each one every vertex. */
+            /* Point lights and spots: I s cos / r^2, each one every vertex. */
             pm_light_sample_t ls;
             for (size_t l = 0; l < s->nlights && wanted(pt, nd + 1, 0); l++) {
                 const pm_point_light_t *pl = &s->lights[l];
@@ -177,7 +193,7 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
                 float f[3];
                 pm_brdf(m, n, ls.wi, wo, f);
                 for (int q = 0; q < 3; q++)
-                    L[q] += beta[q] * (double)f[q] * pl->intensity[q] * ls.cosx / ls.r2;
+                    L[q] += beta[q] * (double)f[q] * pm_point_light_intensity(pl, &ls, q) * ls.cosx / ls.r2;
             }
             /* One point on the area lights, pdf 1/A per m^2, weighted against BSDF sampling. */
             if (g->nemissive && pm_area_light_sample(s, g, &rng, p, n, &ls) && wanted(pt, nd + 1, 0)) {
@@ -193,6 +209,34 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
                 }
             }
 
+            /* The sun, one direction in its cone (pdf 1 / omega), and the sky, one cosine-weighted
+             * direction (pdf cos / pi), each weighted against BSDF sampling; shadow rays to
+             * infinity. Drawn only in a scene that has them. */
+            for (int e = 0; e < 2 && wanted(pt, nd + 1, 0); e++) {
+                if (!(e == 0 ? s->has_sun : s->has_sky))
+                    continue;
+                float wi[3], u1 = pm_rng_float(&rng), u2 = pm_rng_float(&rng);
+                if (e == 0)
+                    pm_sun_sample(&s->sun, u1, u2, wi);
+                else
+                    pm_sky_sample(s, n, u1, u2, wi);
+                float cosi = pm_dot3(n, wi), pl = e == 0 ? pm_sun_pdf(&s->sun, wi) : pm_sky_pdf(s, n, wi);
+                if (!(cosi > 0.0f && pl > 0.0f))
+                    continue;
+                cnt->shadow_rays++;
+                if (pm_rt_occluded1(pt->rt, ctx, org, wi, 0.0f, INFINITY))
+                    continue;
+                float f[3], pb = pm_bsdf_pdf(m, n, wi, wo), le[3];
+                if (e == 0)
+                    memcpy(le, s->sun.radiance, sizeof le);
+                else
+                    pm_sky_radiance(s, wi, le);
+                pm_brdf(m, n, wi, wo, f);
+                double gw = (double)cosi / pl * pm_power_heuristic(pl, pb);
+                for (int q = 0; q < 3; q++)
+                    L[q] += beta[q] * (double)f[q] * le[q] * gw;
+            }
+
             /* Continue along a BSDF sample: the lobe, then two numbers for the direction. */
             float wi[3], u = pm_rng_float(&rng), u1 = pm_rng_float(&rng), u2 = pm_rng_float(&rng);
             if (!pm_bsdf_sample(m, n, wo, u, u1, u2, wi))
@@ -205,6 +249,7 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
             for (int q = 0; q < 3; q++)
                 beta[q] *= (double)f[q] * cosi / pdf;
             bsdf_pdf_prev = pdf;
+            memcpy(n_prev, n, sizeof n_prev);
             memcpy(o, org, sizeof o);
             memcpy(d, wi, sizeof d);
             nd++;

@@ -27,7 +27,7 @@
 enum { CHUNK = 2048 };
 
 typedef struct {
-    int kind;        /* 0 point light, 1 emissive triangle */
+    int kind;        /* 0 point light, 1 emissive triangle, 2 the sun, 3 the sky */
     uint32_t index;  /* into s->lights or the triangle index */
     double power[3]; /* W */
     double scalar;   /* power[0] + power[1] + power[2] */
@@ -81,7 +81,7 @@ typedef struct {
 
 static int build_lights(tracer_t *t, const pm_scene_t *s)
 {
-    size_t n = s->nlights + s->nemissive;
+    size_t n = s->nlights + s->nemissive + 2;
     t->lights = calloc(n ? n : 1, sizeof *t->lights);
     t->cdf = calloc(n ? n : 1, sizeof *t->cdf);
     if (!t->lights || !t->cdf)
@@ -92,7 +92,7 @@ static int build_lights(tracer_t *t, const pm_scene_t *s)
         l->kind = 0;
         l->index = (uint32_t)i;
         for (int c = 0; c < 3; c++)
-            l->power[c] = 4.0 * M_PI * s->lights[i].intensity[c];
+            l->power[c] = pm_point_light_power(&s->lights[i], c);
         l->scalar = l->power[0] + l->power[1] + l->power[2];
         k += l->scalar > 0.0;
     }
@@ -104,7 +104,19 @@ static int build_lights(tracer_t *t, const pm_scene_t *s)
         l->kind = 1;
         l->index = tri;
         for (int c = 0; c < 3; c++)
-            l->power[c] = M_PI * m->ke[c] * a;
+            l->power[c] = (s->two_sided_lights ? 2.0 : 1.0) * M_PI * m->ke[c] * a;
+        l->scalar = l->power[0] + l->power[1] + l->power[2];
+        k += l->scalar > 0.0;
+    }
+    /* The sun (kind 2) and the sky (kind 3), last: a scene without them keeps its table. */
+    for (int e = 0; e < 2; e++) {
+        if (!(e == 0 ? s->has_sun : s->has_sky))
+            continue;
+        light_t *l = &t->lights[k];
+        l->kind = 2 + e;
+        l->index = 0;
+        for (int c = 0; c < 3; c++)
+            l->power[c] = e == 0 ? pm_sun_power(s, c) : pm_sky_power(s, c);
         l->scalar = l->power[0] + l->power[1] + l->power[2];
         k += l->scalar > 0.0;
     }
@@ -238,13 +250,15 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
 
     /* Emission: a light by power, then a point and a direction on it. */
     const light_t *l = &t->lights[pm_cdf_pick(t->cdf, t->nlights, pm_rng_double(&rng))];
-    double power[3];
+    double power[3], flux[3] = {0.0, 0.0, 0.0};
     float org[3], dir[3];
     float u1 = pm_rng_float(&rng), u2 = pm_rng_float(&rng), u3 = pm_rng_float(&rng), u4 = pm_rng_float(&rng);
     if (l->kind == 0) {
         const pm_point_light_t *pl = &s->lights[l->index];
         memcpy(org, pl->position, sizeof org);
-        pm_v3_store(dir, pm_sample_sphere(u1, u2));
+        pm_point_light_emit(pl, u1, u2, dir);
+    } else if (l->kind >= 2) {
+        pm_env_emit(s, l->kind == 2, u1, u2, u3, u4, org, dir, flux); /* from the disc facing the sun or the sky */
     } else {
         const uint32_t *tri = &s->tris[3 * (size_t)l->index];
         pm_vec3_t v0 = pm_v3_load(&s->verts[3 * (size_t)tri[0]]), v1 = pm_v3_load(&s->verts[3 * (size_t)tri[1]]),
@@ -254,6 +268,12 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
         pm_triangle_point(s, l->index, b0, b1, p);
         /* Area lights emit from their front face: the right-hand-rule normal of (v0, v1, v2). */
         pm_vec3_t n = pm_v3_normalize(pm_v3_cross(pm_v3_sub(v1, v0), pm_v3_sub(v2, v0))), tb, bb;
+        if (s->two_sided_lights) { /* either face, by half of u3; the other half stays uniform */
+            if (u3 < 0.5f)
+                n = pm_v3_scale(n, -1.0f), u3 = 2.0f * u3;
+            else
+                u3 = 2.0f * u3 - 1.0f;
+        }
         pm_onb(n, &tb, &bb);
         pm_v3_store(dir, pm_onb_to_world(pm_sample_cosine_hemisphere(u3, u4), tb, bb, n));
         pm_v3_store(org, pm_v3_add(pm_v3_load(p), pm_v3_scale(n, eps)));
@@ -262,7 +282,7 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
      * number of photons, so that summing all photons gives the lights' total power. */
     double scale = t->total / (l->scalar * (double)t->o->photons);
     for (int k = 0; k < 3; k++) {
-        power[k] = l->power[k] * scale;
+        power[k] = (l->kind >= 2 ? flux[k] : l->power[k]) * scale; /* a map's photons differ by direction */
         c->power_emitted[k] += power[k];
     }
 

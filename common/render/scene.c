@@ -17,6 +17,7 @@
 #include <string.h>
 #include <strings.h>
 
+#include "base/exr.h"
 #include "base/hash.h"
 #include "formats/formats.h"
 #include "math/vec.h"
@@ -190,9 +191,50 @@ static pm_result_t load_camera(const ctx_t *c, json_t *cam)
     return PM_OK;
 }
 
+/* The spot keys of point light l (direction, cone, falloff); none of them leaves it isotropic. */
+static pm_result_t load_spot(const ctx_t *c, json_t *l, const char *where, pm_point_light_t *pl)
+{
+    char pd[80], pc[80], pf[80];
+    snprintf(pd, sizeof pd, "%s.direction", where);
+    snprintf(pc, sizeof pc, "%s.cone", where);
+    snprintf(pf, sizeof pf, "%s.falloff", where);
+    pl->cos_cone = -1.0f;
+    json_t *cone = json_object_get(l, "cone"), *dir = json_object_get(l, "direction"),
+           *fall = json_object_get(l, "falloff");
+    if (!cone && !dir && !fall)
+        return PM_OK;
+    if (!dir)
+        return bad(c, pd, "missing (a light with a cone or a falloff is a spot and needs an axis)");
+    if (cone && json_is_number(cone)) {
+        /* The half-angle's own range, stated as users read it: (0, 180] degrees. */
+        double a = json_number_value(cone);
+        if (!(a > 0.0 && a <= 180.0))
+            return bad(c, pc, "%.9g degrees is outside (0, 180]", a);
+    }
+    double a = 180.0, e = 0.0;
+    float d[3];
+    pm_result_t r = get_vec3(c, l, "direction", pd, 1, -PM_SCENE_COORD_MAX, PM_SCENE_COORD_MAX, d);
+    if (r == PM_OK)
+        r = get_number(c, l, "cone", pc, 0, 0.0, 180.0, &a);
+    if (r == PM_OK)
+        r = get_number(c, l, "falloff", pf, 0, 0.0, 1e4, &e);
+    if (r != PM_OK)
+        return r;
+    double dl = sqrt((double)d[0] * d[0] + (double)d[1] * d[1] + (double)d[2] * d[2]);
+    if (!(dl > 0.0))
+        return bad(c, pd, "is the zero vector");
+    for (int k = 0; k < 3; k++)
+        pl->axis[k] = (float)(d[k] / dl);
+    pl->cos_cone = a >= 180.0 ? -1.0f : (float)cos(a * M_PI / 180.0);
+    pl->falloff = (float)e;
+    if (!(pl->cos_cone < 1.0f))
+        return bad(c, pc, "%.9g degrees is too narrow: its cosine rounds to 1", a);
+    return PM_OK;
+}
+
 static pm_result_t load_lights(const ctx_t *c, json_t *lights)
 {
-    static const char *const keys[] = {"position", "intensity", NULL};
+    static const char *const keys[] = {"position", "intensity", "direction", "cone", "falloff", NULL};
     if (!lights)
         return PM_OK;
     if (!json_is_array(lights))
@@ -220,8 +262,151 @@ static pm_result_t load_lights(const ctx_t *c, json_t *lights)
             r = get_vec3(c, l, "intensity", p2, 1, 0.0, 1e30, pl->intensity);
         if (r != PM_OK)
             return r;
+        if ((r = load_spot(c, l, where, pl)) != PM_OK)
+            return r;
     }
     c->s->nlights = n;
+    return PM_OK;
+}
+
+pm_result_t pm_envmap_init(pm_envmap_t *e, uint32_t w, uint32_t h, float *rgb)
+{
+    memset(e, 0, sizeof *e);
+    e->w = w, e->h = h, e->rgb = rgb;
+    size_t n = (size_t)w * h;
+    for (size_t i = 0; i < 3 * n; i++)
+        if (!(rgb[i] >= 0.0f && isfinite(rgb[i]))) {
+            size_t px = i / 3;
+            char v[32];
+            snprintf(v, sizeof v, "%g", (double)rgb[i]);
+            pm_result_t r =
+                pm_error_set(PM_ERR_INPUT, "pixel (%zu, %zu) channel %c = %s is not a radiance (finite, >= 0)", px % w,
+                             px / w, "RGB"[i % 3], v);
+            pm_envmap_free(e);
+            return r;
+        }
+    e->row_cdf = malloc(h * sizeof(double));
+    e->col_cdf = malloc(n * sizeof(double));
+    e->pix_p = malloc(n * sizeof(double));
+    if (!e->row_cdf || !e->col_cdf || !e->pix_p) {
+        pm_envmap_free(e);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for the tables of a %" PRIu32 "x%" PRIu32 " map", w, h);
+    }
+    double acc = 0.0;
+    for (uint32_t y = 0; y < h; y++) {
+        /* Luminance (Rec. 709) times the pixel's solid angle over 2 pi / w: sin at its centre. */
+        double st = sin(M_PI * (y + 0.5) / h), row = 0.0;
+        double dom = 2.0 * M_PI / w * (cos(M_PI * y / h) - cos(M_PI * (y + 1.0) / h));
+        for (uint32_t x = 0; x < w; x++) {
+            const float *p = rgb + 3 * ((size_t)y * w + x);
+            double wt = (0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]) * st;
+            e->pix_p[(size_t)y * w + x] = wt;
+            e->col_cdf[(size_t)y * w + x] = row += wt;
+            for (int k = 0; k < 3; k++)
+                e->integral[k] += p[k] * dom;
+        }
+        e->row_cdf[y] = acc += row;
+    }
+    e->total = acc;
+    for (uint32_t y = 0; y < h && acc > 0.0; y++) {
+        double row = e->col_cdf[(size_t)y * w + w - 1];
+        for (uint32_t x = 0; x < w; x++) {
+            e->pix_p[(size_t)y * w + x] /= acc;
+            e->col_cdf[(size_t)y * w + x] = row > 0.0 ? e->col_cdf[(size_t)y * w + x] / row : (x + 1.0) / w;
+        }
+        e->col_cdf[(size_t)y * w + w - 1] = 1.0;
+        e->row_cdf[y] /= acc;
+    }
+    if (acc > 0.0)
+        e->row_cdf[h - 1] = 1.0;
+    return PM_OK;
+}
+
+void pm_envmap_free(pm_envmap_t *e)
+{
+    free(e->rgb);
+    free(e->row_cdf);
+    free(e->col_cdf);
+    free(e->pix_p);
+    memset(e, 0, sizeof *e);
+}
+
+static void resolve(const char *scene_path, const char *file, char *out, size_t cap);
+
+/* The sky's map: an OpenEXR file relative to the scene, each value times sky.radiance. */
+static pm_result_t load_envmap(const ctx_t *c, const char *file)
+{
+    char path[2048];
+    resolve(c->file, file, path, sizeof path);
+    uint32_t w = 0, h = 0;
+    float *rgb = NULL;
+    pm_result_t r = pm_exr_read_rgb(path, &w, &h, &rgb);
+    if (r != PM_OK) {
+        pm_error_prefix("scene '%s': sky.map", c->file);
+        return r;
+    }
+    for (size_t i = 0; i < 3 * (size_t)w * h; i++)
+        rgb[i] *= c->s->sky[i % 3];
+    c->s->envmap = calloc(1, sizeof *c->s->envmap);
+    if (!c->s->envmap) {
+        free(rgb);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for the sky's map");
+    }
+    if ((r = pm_envmap_init(c->s->envmap, w, h, rgb)) != PM_OK)
+        pm_error_prefix("scene '%s': sky.map '%s'", c->file, file);
+    return r;
+}
+
+/* The sun (direction, radiance, solid_angle) and the sky (radiance, map), all optional. */
+static pm_result_t load_sun_sky(const ctx_t *c, json_t *sun, json_t *sky)
+{
+    static const char *const sun_keys[] = {"direction", "radiance", "solid_angle", NULL};
+    static const char *const sky_keys[] = {"radiance", "map", NULL};
+    pm_scene_t *s = c->s;
+    pm_result_t r = PM_OK;
+    if (sun) {
+        if (!json_is_object(sun))
+            return bad(c, "sun", "must be an object");
+        float d[3];
+        double omega = 0.0;
+        json_t *om = json_object_get(sun, "solid_angle");
+        /* Stated as users read it: the solid angle must be positive, and a hemisphere at most. */
+        if (om && json_is_number(om) && !(json_number_value(om) > 0.0 && json_number_value(om) <= 2.0 * M_PI))
+            return bad(c, "sun.solid_angle", "%.9g sr is outside (0, 2 pi]", json_number_value(om));
+        if ((r = only_keys(c, sun, "sun", sun_keys)) == PM_OK)
+            r = get_vec3(c, sun, "direction", "sun.direction", 1, -PM_SCENE_COORD_MAX, PM_SCENE_COORD_MAX, d);
+        if (r == PM_OK)
+            r = get_vec3(c, sun, "radiance", "sun.radiance", 1, 0.0, 1e30, s->sun.radiance);
+        if (r == PM_OK)
+            r = get_number(c, sun, "solid_angle", "sun.solid_angle", 1, 0.0, 2.0 * M_PI, &omega);
+        if (r != PM_OK)
+            return r;
+        double dl = sqrt((double)d[0] * d[0] + (double)d[1] * d[1] + (double)d[2] * d[2]);
+        if (!(dl > 0.0))
+            return bad(c, "sun.direction", "is the zero vector");
+        for (int k = 0; k < 3; k++)
+            s->sun.direction[k] = (float)(d[k] / dl);
+        s->sun.solid_angle = (float)omega;
+        s->sun.cos_max = (float)(1.0 - omega / (2.0 * M_PI));
+        if (!(s->sun.cos_max < 1.0f))
+            return bad(c, "sun.solid_angle", "%.9g sr is too small: the cone's cosine rounds to 1", omega);
+        s->has_sun = 1;
+    }
+    if (sky) {
+        if (!json_is_object(sky))
+            return bad(c, "sky", "must be an object");
+        json_t *map = json_object_get(sky, "map");
+        s->sky[0] = s->sky[1] = s->sky[2] = 1.0f; /* a map's scale when radiance is not given */
+        if ((r = only_keys(c, sky, "sky", sky_keys)) == PM_OK)
+            r = get_vec3(c, sky, "radiance", "sky.radiance", !map, 0.0, 1e30, s->sky);
+        if (r == PM_OK && map && (!json_is_string(map) || !*json_string_value(map)))
+            r = bad(c, "sky.map", "must be a file name (an OpenEXR lat-long map)");
+        if (r == PM_OK && map)
+            r = load_envmap(c, json_string_value(map));
+        if (r != PM_OK)
+            return r;
+        s->has_sky = 1;
+    }
     return PM_OK;
 }
 
@@ -1321,6 +1506,43 @@ static pm_result_t find_instances(ctx_t *c, int allowed)
     return PM_OK;
 }
 
+void pm_scene_sphere(const pm_scene_t *s, double c[3], double *radius_out)
+{
+    double r2 = 0.0;
+    for (int k = 0; k < 3; k++) {
+        double h = 0.5 * ((double)s->bounds[k + 3] - s->bounds[k]);
+        c[k] = 0.5 * ((double)s->bounds[k] + s->bounds[k + 3]);
+        r2 += h * h;
+    }
+    /* 1% and a millimetre beyond the box's corners: photons start clear of every surface. */
+    *radius_out = 1.01 * sqrt(r2) + 1e-3;
+}
+
+double pm_sun_power(const pm_scene_t *s, int k)
+{
+    double c[3], r;
+    pm_scene_sphere(s, c, &r);
+    /* L times the cone's solid angle times the disc's area pi R^2 (render/transport.h, pm_env_emit). */
+    return s->sun.radiance[k] * (double)s->sun.solid_angle * M_PI * r * r;
+}
+
+double pm_sky_power(const pm_scene_t *s, int k)
+{
+    double c[3], r;
+    pm_scene_sphere(s, c, &r);
+    if (s->envmap)
+        return s->envmap->integral[k] * M_PI * r * r;
+    return s->sky[k] * M_PI * r * r * 4.0 * M_PI;
+}
+
+double pm_point_light_power(const pm_point_light_t *l, int k)
+{
+    if (!pm_point_light_is_spot(l))
+        return 4.0 * M_PI * l->intensity[k];
+    /* The integral of s over the sphere: 2 pi times that of ((c - cc) / (1 - cc))^e dc over [cc, 1]. */
+    return 2.0 * M_PI * l->intensity[k] * (1.0 - (double)l->cos_cone) / ((double)l->falloff + 1.0);
+}
+
 double pm_scene_triangle_area(const pm_scene_t *s, size_t t)
 {
     const float *a = &s->verts[3 * s->tris[3 * t]], *b = &s->verts[3 * s->tris[3 * t + 1]],
@@ -1341,13 +1563,17 @@ void pm_scene_power(const pm_scene_t *s, double p[3])
     p[0] = p[1] = p[2] = 0.0;
     for (size_t i = 0; i < s->nlights; i++)
         for (int k = 0; k < 3; k++)
-            p[k] += 4.0 * M_PI * s->lights[i].intensity[k];
+            p[k] += pm_point_light_power(&s->lights[i], k);
     for (size_t i = 0; i < s->nemissive; i++) {
         size_t t = s->emissive[i];
         double a = pm_scene_triangle_area(s, t);
         for (int k = 0; k < 3; k++)
-            p[k] += M_PI * s->materials[s->tri_material[t]].ke[k] * a;
+            p[k] += (s->two_sided_lights ? 2.0 : 1.0) * M_PI * s->materials[s->tri_material[t]].ke[k] * a;
     }
+    for (int k = 0; k < 3 && s->has_sun; k++)
+        p[k] += pm_sun_power(s, k);
+    for (int k = 0; k < 3 && s->has_sky; k++)
+        p[k] += pm_sky_power(s, k);
 }
 
 void pm_scene_id(const pm_scene_t *s, char *out, size_t cap)
@@ -1482,6 +1708,34 @@ static pm_result_t check_size(const ctx_t *c)
     return PM_OK;
 }
 
+/* The point lights' hash: position and intensity of each, the bytes a scene without spots
+ * always hashed (its hash stays what it was), then the spots' axes, cones and falloffs when
+ * there is any spot. */
+static pm_result_t hash_lights(const pm_scene_t *s, uint64_t *hash_out)
+{
+    float *b = malloc((s->nlights ? s->nlights : 1) * 6 * sizeof(float));
+    if (!b)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for the hash of %zu lights", s->nlights);
+    int spot = 0;
+    for (size_t i = 0; i < s->nlights; i++) {
+        memcpy(b + 6 * i, s->lights[i].position, 3 * sizeof(float));
+        memcpy(b + 6 * i + 3, s->lights[i].intensity, 3 * sizeof(float));
+        spot |= pm_point_light_is_spot(&s->lights[i]);
+    }
+    uint64_t h[2] = {pm_hash_bytes(b, s->nlights * 6 * sizeof(float)), 0};
+    free(b);
+    *hash_out = h[0];
+    if (!spot)
+        return PM_OK;
+    for (size_t i = 0; i < s->nlights; i++) {
+        const pm_point_light_t *l = &s->lights[i];
+        float v[5] = {l->axis[0], l->axis[1], l->axis[2], l->cos_cone, l->falloff};
+        h[1] = pm_hash_bytes((uint64_t[2]){h[1], pm_hash_bytes(v, sizeof v)}, 2 * sizeof(uint64_t));
+    }
+    *hash_out = pm_hash_bytes(h, sizeof h);
+    return PM_OK;
+}
+
 pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
 {
     memset(s, 0, sizeof *s);
@@ -1496,8 +1750,9 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     fclose(f);
     if (!root)
         return pm_error_set(PM_ERR_INPUT, "scene '%s' line %d column %d: %s", path, je.line, je.column, je.text);
-    static const char *const keys[] = {"pmtk_scene",       "name",       "meshes", "camera", "point_lights", "render",
-                                       "missing_textures", "instancing", NULL};
+    static const char *const keys[] = {
+        "pmtk_scene", "name",   "meshes",           "camera",     "point_lights",     "sun",
+        "sky",        "render", "missing_textures", "instancing", "two_sided_lights", NULL};
     pm_result_t r =
         json_is_object(root) ? only_keys(&c, root, "top level", keys) : bad(&c, "top level", "must be a JSON object");
     int64_t version = 0;
@@ -1526,6 +1781,10 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         if (r == PM_ERR_INPUT && strncmp(pm_error_message(), "scene '", 7) != 0)
             pm_error_prefix("scene '%s': meshes[%zu]", path, i);
     }
+    json_t *two = json_object_get(root, "two_sided_lights");
+    if (r == PM_OK && two && !json_is_boolean(two))
+        r = bad(&c, "two_sided_lights", "must be true or false (the default: emitters light from their front face)");
+    s->two_sided_lights = two && json_is_true(two);
     json_t *inst = json_object_get(root, "instancing");
     if (r == PM_OK && inst && !json_is_boolean(inst))
         r = bad(&c, "instancing", "must be true (the default) or false");
@@ -1542,6 +1801,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         r = load_camera(&c, json_object_get(root, "camera"));
     if (r == PM_OK)
         r = load_lights(&c, json_object_get(root, "point_lights"));
+    if (r == PM_OK)
+        r = load_sun_sky(&c, json_object_get(root, "sun"), json_object_get(root, "sky"));
     if (r == PM_OK)
         r = load_defaults(&c, json_object_get(root, "render"));
     json_decref(root);
@@ -1565,7 +1826,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         h[3] = pm_hash_bytes(s->tri_material, s->ntris * sizeof(uint32_t));
         if (r == PM_OK)
             r = hash_materials(s, &h[4]);
-        h[5] = pm_hash_bytes(s->lights, s->nlights * sizeof *s->lights);
+        if (r == PM_OK)
+            r = hash_lights(s, &h[5]);
         s->hash = pm_hash_bytes(h, sizeof h);
         if (r == PM_OK && (r = drop_unused_maps(s)) == PM_OK && s->maps) {
             /* Textured: their texels, the coordinates and which material uses which. A scene
@@ -1576,6 +1838,20 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
                 t[3] = pm_hash_bytes((uint64_t[2]){t[3], s->textures[i].hash}, 2 * sizeof(uint64_t));
             s->hash = pm_hash_bytes(t, sizeof t);
         }
+    }
+    if (r == PM_OK && s->two_sided_lights) /* folded in only when set: other scenes keep their hash */
+        s->hash = pm_hash_bytes((uint64_t[2]){s->hash, 2}, 2 * sizeof(uint64_t));
+    if (r == PM_OK && (s->has_sun || s->has_sky)) {
+        /* A sun or a sky: folded into the hash; a scene without either keeps the hash it had. */
+        uint64_t e[3] = {s->hash, s->has_sun ? pm_hash_bytes(&s->sun, sizeof s->sun) : 0,
+                         s->has_sky ? pm_hash_bytes(s->sky, sizeof s->sky) : 0};
+        if (s->envmap) /* the map's texels (already scaled) and size */
+            e[2] = pm_hash_bytes(
+                (uint64_t[3]){e[2],
+                              pm_hash_bytes(s->envmap->rgb, 3 * sizeof(float) * s->envmap->w * (size_t)s->envmap->h),
+                              (uint64_t)s->envmap->w << 32 | s->envmap->h},
+                3 * sizeof(uint64_t));
+        s->hash = pm_hash_bytes(e, sizeof e);
     }
     if (r == PM_OK)
         finish(s);
@@ -1591,6 +1867,9 @@ void pm_scene_free(pm_scene_t *s)
     free(s->tri_material);
     free(s->materials);
     free(s->lights);
+    if (s->envmap)
+        pm_envmap_free(s->envmap);
+    free(s->envmap);
     free(s->emissive);
     free(s->unsupported);
     free(s->maps);

@@ -14,10 +14,53 @@
 #include "formats/material.h"
 #include "render/texture.h"
 
+/* A point light, isotropic or a spot: intensity I s(theta) in the direction at angle theta
+ * to the axis, with s = ((cos theta - cos_cone) / (1 - cos_cone))^falloff inside the cone and
+ * 0 outside it (docs/scene-format.md). An isotropic light has cos_cone -1 and falloff 0 (s = 1
+ * everywhere); its power is 4 pi I, a spot's 2 pi I (1 - cos_cone) / (falloff + 1). */
 typedef struct {
     float position[3];  /* m */
-    float intensity[3]; /* W/sr, RGB; the light's power is 4 pi times this */
+    float intensity[3]; /* W/sr, RGB, on the axis */
+    float axis[3];      /* unit, where a spot points; (0, 0, 0) for an isotropic light */
+    float cos_cone;     /* cosine of the cone's half-angle, in [-1, 1) */
+    float falloff;      /* exponent >= 0 of s, dimensionless */
 } pm_point_light_t;
+
+/* 1 when l is a spot (has a cone or a falloff), 0 for an isotropic point light. */
+static inline int pm_point_light_is_spot(const pm_point_light_t *l)
+{
+    return l->cos_cone > -1.0f || l->falloff != 0.0f;
+}
+
+/* A sun: a disc of uniform radiance at infinity, seen under a cone of solid angle omega about
+ * `direction`; lights every point from that cone (irradiance L pi sin^2(half-angle) cos on a
+ * surface at angle cos to the direction, L omega cos for a small disc). */
+typedef struct {
+    float direction[3]; /* unit, from the scene toward the sun */
+    float radiance[3];  /* W/(m^2 sr), RGB */
+    float solid_angle;  /* sr, in (0, 2 pi] */
+    float cos_max;      /* cosine of the cone's half-angle: 1 - omega / (2 pi) */
+} pm_sun_t;
+
+/* A lat-long environment map (the sky's `map`): pixel (x, y) of w x h covers the directions of
+ * polar angle theta from +y in [pi y / h, pi (y + 1) / h) and azimuth phi in [2 pi x / w,
+ * 2 pi (x + 1) / w), direction (sin theta cos phi, cos theta, sin theta sin phi); radiance is
+ * constant over a pixel. Sampled by pixel in proportion to luminance times sin(theta) at the
+ * pixel's centre (a row, then a column in it), then uniformly in (theta, phi) within it. */
+typedef struct {
+    uint32_t w, h;
+    float *rgb;         /* w * h * 3, W/(m^2 sr), top row (theta 0) first, times sky.radiance */
+    double *row_cdf;    /* h: cumulative probability of rows 0..y, the last 1 */
+    double *col_cdf;    /* h * w: within each row, cumulative over columns 0..x, the last 1 */
+    double *pix_p;      /* h * w: probability of each pixel */
+    double integral[3]; /* W/m^2 per channel: the map's radiance integrated over the sphere */
+    double total;       /* the sum of the weights; 0 when the map is black */
+} pm_envmap_t;
+
+/* Builds e's tables from rgb (w x h, owned by e from here, freed by pm_envmap_free); an
+ * error on a value that is NaN, infinite or negative (named with its pixel and channel). */
+pm_result_t pm_envmap_init(pm_envmap_t *e, uint32_t w, uint32_t h, float *rgb);
+void pm_envmap_free(pm_envmap_t *e);
 
 typedef struct {
     float eye[3], look_at[3], up[3]; /* m */
@@ -78,7 +121,12 @@ typedef struct {
     size_t nmaterials;
     pm_point_light_t *lights;
     size_t nlights;
-    uint32_t *emissive; /* indices of triangles whose material emits */
+    int has_sun, has_sky; /* 1 when the scene file names a sun / a sky */
+    int two_sided_lights; /* 1: emissive triangles emit from both faces (scene key two_sided_lights) */
+    pm_sun_t sun;
+    float sky[3];        /* W/(m^2 sr), RGB: radiance of a constant sky, seen by every ray that escapes */
+    pm_envmap_t *envmap; /* the sky's lat-long map (its radiance then scales it), or NULL */
+    uint32_t *emissive;  /* indices of triangles whose material emits */
     size_t nemissive;
     size_t ndropped; /* degenerate (zero-area) triangles left out at load */
     pm_camera_t camera;
@@ -113,8 +161,22 @@ void pm_scene_warn_unsupported(const pm_scene_t *s, const pm_stage_t *st);
  * print it. */
 void pm_scene_unsupported_text(const pm_scene_unsupported_t *u, char *out, size_t cap);
 
-/* Total emitted power, W, RGB: point lights (4 pi I) plus area lights (pi Ke area). */
+/* Total emitted power, W, RGB: point lights (4 pi I, spots less: pm_point_light_power)
+ * plus area lights (pi Ke area, twice that when two-sided) plus the sun's and the sky's power into the scene's bounding
+ * sphere (pm_scene_sphere): L omega pi R^2 and L 4 pi pi R^2. */
 void pm_scene_power(const pm_scene_t *s, double power_out[3]);
+
+/* Power of point light l in channel k, W: 4 pi I isotropic, 2 pi I (1 - cos_cone) /
+ * (falloff + 1) for a spot. */
+double pm_point_light_power(const pm_point_light_t *l, int k);
+
+/* The sphere the sun's and the sky's photons are aimed at: centre (m) and radius (m) around
+ * s->bounds, a little larger, so that every photon starts outside the geometry. */
+void pm_scene_sphere(const pm_scene_t *s, double centre_out[3], double *radius_out);
+
+/* Power of the sun and of the sky in channel k, W, as their photons carry it (above). */
+double pm_sun_power(const pm_scene_t *s, int k);
+double pm_sky_power(const pm_scene_t *s, int k);
 
 /* Area of triangle t, m^2. */
 double pm_scene_triangle_area(const pm_scene_t *s, size_t t);

@@ -1,6 +1,6 @@
 /* transport.c: the BSDF (evaluation, lobe sampling and pdfs, the mixture), the delta BSDFs
- * of mirrors and glass (Fresnel, reflection and refraction), and the light samplers (point lights, area lights uniform
- * by area) that every tracer shares (transport.h).
+ * of mirrors and glass (Fresnel, reflection and refraction), and the light samplers (point lights
+ * and spots, area lights uniform by area) that every tracer shares (transport.h).
  *
  * The arithmetic keeps the order of operations the tracers had before they shared it (the
  * glossy pdf weighted before it is multiplied out, the mirror direction left unnormalized
@@ -208,6 +208,147 @@ void pm_triangle_point(const pm_scene_t *s, uint32_t t, float b0, float b1, floa
         p_out[k] = b0 * a[k] + b1 * b[k] + b2 * c[k];
 }
 
+void pm_point_light_emit(const pm_point_light_t *l, float u1, float u2, float dir_out[3])
+{
+    if (!pm_point_light_is_spot(l)) {
+        pm_v3_store(dir_out, pm_sample_sphere(u1, u2));
+        return;
+    }
+    /* Inverting the cdf of cos(theta), whose density is ((c - cc) / (1 - cc))^e on [cc, 1]. */
+    float cc = l->cos_cone, c = cc + (1.0f - cc) * powf(u1, 1.0f / (l->falloff + 1.0f));
+    c = fminf(1.0f, fmaxf(-1.0f, c));
+    float sn = sqrtf(fmaxf(0.0f, 1.0f - c * c)), phi = 2.0f * PM_PI * u2;
+    pm_vec3_t a = pm_v3_load(l->axis), t, b;
+    pm_onb(a, &t, &b);
+    pm_v3_store(dir_out, pm_v3_normalize(pm_onb_to_world(pm_v3(sn * cosf(phi), sn * sinf(phi), c), t, b, a)));
+}
+
+float pm_point_light_emit_pdf(const pm_point_light_t *l, const float w[3])
+{
+    if (!pm_point_light_is_spot(l))
+        return 1.0f / (4.0f * PM_PI);
+    return pm_spot_factor(l, w) * (l->falloff + 1.0f) / (2.0f * PM_PI * (1.0f - l->cos_cone));
+}
+
+void pm_sun_sample(const pm_sun_t *sun, float u1, float u2, float wi_out[3])
+{
+    float c = 1.0f - u1 * (1.0f - sun->cos_max), sn = sqrtf(fmaxf(0.0f, 1.0f - c * c)), phi = 2.0f * PM_PI * u2;
+    pm_vec3_t a = pm_v3_load(sun->direction), t, b;
+    pm_onb(a, &t, &b);
+    pm_v3_store(wi_out, pm_v3_normalize(pm_onb_to_world(pm_v3(sn * cosf(phi), sn * sinf(phi), c), t, b, a)));
+}
+
+void pm_envmap_pixel(const pm_envmap_t *e, const float w[3], uint32_t *x_out, uint32_t *y_out)
+{
+    /* theta from the horizontal length, not acos(y): near the poles y rounds to 1 first. */
+    double st = sqrt((double)w[0] * w[0] + (double)w[2] * w[2]);
+    double th = atan2(st, (double)w[1]), ph = atan2((double)w[2], (double)w[0]);
+    if (ph < 0.0)
+        ph += 2.0 * M_PI;
+    double fx = ph / (2.0 * M_PI) * e->w, fy = th / M_PI * e->h;
+    *x_out = fx >= e->w ? e->w - 1 : (uint32_t)fx;
+    *y_out = fy >= e->h ? e->h - 1 : (uint32_t)fy;
+}
+
+void pm_envmap_sample(const pm_envmap_t *e, float u1, float u2, float wi_out[3])
+{
+    /* A row, a column in it, and the position within the pixel from what is left of u1, u2. */
+    size_t y = pm_cdf_pick(e->row_cdf, e->h, u1);
+    const double *cc = e->col_cdf + y * e->w;
+    size_t x = pm_cdf_pick(cc, e->w, u2);
+    double r0 = y ? e->row_cdf[y - 1] : 0.0, c0 = x ? cc[x - 1] : 0.0;
+    double fy = e->row_cdf[y] > r0 ? (u1 - r0) / (e->row_cdf[y] - r0) : 0.5;
+    double fx = cc[x] > c0 ? (u2 - c0) / (cc[x] - c0) : 0.5;
+    fy = fmin(fmax(fy, 0.0), 1.0), fx = fmin(fmax(fx, 0.0), 1.0);
+    double th = M_PI * (y + fy) / e->h, ph = 2.0 * M_PI * (x + fx) / e->w;
+    wi_out[0] = (float)(sin(th) * cos(ph)), wi_out[1] = (float)cos(th), wi_out[2] = (float)(sin(th) * sin(ph));
+}
+
+float pm_envmap_pdf(const pm_envmap_t *e, const float w[3])
+{
+    if (!(e->total > 0.0))
+        return 0.0f;
+    uint32_t x, y;
+    pm_envmap_pixel(e, w, &x, &y);
+    double st = sqrt((double)w[0] * w[0] + (double)w[2] * w[2]) / sqrt(pm_dot3(w, w));
+    if (!(st > 0.0))
+        return 0.0f;
+    return (float)(e->pix_p[(size_t)y * e->w + x] * e->w * e->h / (2.0 * M_PI * M_PI * st));
+}
+
+void pm_sky_radiance(const pm_scene_t *s, const float w[3], float L_out[3])
+{
+    if (s->envmap) {
+        uint32_t x, y;
+        pm_envmap_pixel(s->envmap, w, &x, &y);
+        for (int k = 0; k < 3; k++)
+            L_out[k] = s->envmap->rgb[3 * ((size_t)y * s->envmap->w + x) + k];
+        return;
+    }
+    for (int k = 0; k < 3; k++)
+        L_out[k] = s->has_sky ? s->sky[k] : 0.0f;
+}
+
+void pm_env_radiance(const pm_scene_t *s, const float w[3], float L_out[3])
+{
+    pm_sky_radiance(s, w, L_out);
+    if (s->has_sun && pm_dot3(s->sun.direction, w) >= s->sun.cos_max)
+        for (int k = 0; k < 3; k++)
+            L_out[k] += s->sun.radiance[k];
+}
+
+void pm_sky_sample(const pm_scene_t *s, const float n[3], float u1, float u2, float wi_out[3])
+{
+    if (s->envmap) {
+        pm_envmap_sample(s->envmap, u1, u2, wi_out);
+        return;
+    }
+    pm_vec3_t nn = pm_v3_load(n), t, b;
+    pm_onb(nn, &t, &b);
+    pm_v3_store(wi_out, pm_onb_to_world(pm_sample_cosine_hemisphere(u1, u2), t, b, nn));
+}
+
+float pm_sky_pdf(const pm_scene_t *s, const float n[3], const float w[3])
+{
+    if (s->envmap)
+        return pm_envmap_pdf(s->envmap, w);
+    float c = pm_dot3(n, w);
+    return c > 0.0f ? c * (1.0f / PM_PI) : 0.0f;
+}
+
+void pm_env_emit(const pm_scene_t *s, int sun, float u1, float u2, float u3, float u4, float org_out[3],
+                 float dir_out[3], double flux_out[3])
+{
+    float w[3], x, y;
+    double c[3], r;
+    pm_scene_sphere(s, c, &r);
+    double disc = M_PI * r * r;
+    if (sun) {
+        pm_sun_sample(&s->sun, u1, u2, w);
+        for (int k = 0; k < 3; k++)
+            flux_out[k] = s->sun.radiance[k] * (double)s->sun.solid_angle * disc;
+    } else if (s->envmap) {
+        pm_envmap_sample(s->envmap, u1, u2, w);
+        float L[3], p = pm_envmap_pdf(s->envmap, w);
+        pm_sky_radiance(s, w, L);
+        for (int k = 0; k < 3; k++)
+            flux_out[k] = p > 0.0f ? L[k] / (double)p * disc : 0.0;
+    } else {
+        pm_v3_store(w, pm_sample_sphere(u1, u2));
+        for (int k = 0; k < 3; k++)
+            flux_out[k] = s->sky[k] * 4.0 * M_PI * disc;
+    }
+    pm_vec3_t wv = pm_v3_load(w), t, b;
+    pm_onb(wv, &t, &b);
+    pm_sample_disc(u3, u4, &x, &y);
+    float tt[3], bb[3];
+    pm_v3_store(tt, t), pm_v3_store(bb, b);
+    for (int k = 0; k < 3; k++) {
+        org_out[k] = (float)(c[k] + r * ((double)w[k] + x * (double)tt[k] + y * (double)bb[k]));
+        dir_out[k] = -w[k];
+    }
+}
+
 int pm_point_light_toward(const pm_point_light_t *l, const float p[3], const float n[3], pm_light_sample_t *o)
 {
     float v[3] = {l->position[0] - p[0], l->position[1] - p[1], l->position[2] - p[2]};
@@ -236,5 +377,7 @@ int pm_area_light_sample(const pm_scene_t *s, const pm_shade_geom_t *g, pm_rng_t
     for (int k = 0; k < 3; k++)
         o->wi[k] = v[k] / o->r;
     o->cosx = pm_dot3(n, o->wi), o->cosy = -pm_dot3(g->tri_n + 3 * (size_t)o->tri, o->wi);
+    if (s->two_sided_lights) /* either face lights */
+        o->cosy = fabsf(o->cosy);
     return o->cosx > 0.0f && o->cosy > 0.0f;
 }

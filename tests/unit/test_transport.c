@@ -679,12 +679,267 @@ static void test_transport_specular_stiff(void **state)
                 }
 }
 
+/* ---- lights: spots, the sun, the sky ---- */
+
+/* A light's direction pdf on the sphere (1/sr) and its sampler, for the checks below. */
+typedef struct {
+    const char *name;
+    pm_point_light_t spot; /* used when kind 0 */
+    pm_sun_t sun;          /* kind 1 */
+    int kind;              /* 0 spot emission, 1 sun, 2 sky about AXIS */
+} dirlight_t;
+
+static const float AXIS[3] = {0.36f, -0.48f, 0.8f}; /* unit */
+
+static dirlight_t spot_case(const char *name, float cone_deg, float falloff)
+{
+    dirlight_t d;
+    memset(&d, 0, sizeof d);
+    d.name = name, d.kind = 0;
+    memcpy(d.spot.axis, AXIS, sizeof d.spot.axis);
+    d.spot.intensity[0] = d.spot.intensity[1] = d.spot.intensity[2] = 2.0f;
+    d.spot.cos_cone = cone_deg >= 180.0f ? -1.0f : cosf(cone_deg * PM_PI / 180.0f);
+    d.spot.falloff = falloff;
+    return d;
+}
+
+static dirlight_t sun_case(const char *name, float omega)
+{
+    dirlight_t d;
+    memset(&d, 0, sizeof d);
+    d.name = name, d.kind = 1;
+    memcpy(d.sun.direction, AXIS, sizeof d.sun.direction);
+    d.sun.solid_angle = omega, d.sun.cos_max = 1.0f - omega / (2.0f * PM_PI);
+    return d;
+}
+
+/* A scene with a constant sky and nothing else: what the sky's sampler reads. */
+static const pm_scene_t *sky_scene(void)
+{
+    static pm_scene_t s;
+    s.has_sky = 1, s.sky[0] = s.sky[1] = s.sky[2] = 1.0f;
+    return &s;
+}
+
+static float dl_pdf(const dirlight_t *d, const float w[3])
+{
+    return d->kind == 0   ? pm_point_light_emit_pdf(&d->spot, w)
+           : d->kind == 1 ? pm_sun_pdf(&d->sun, w)
+                          : pm_sky_pdf(sky_scene(), AXIS, w);
+}
+
+static void dl_sample(const dirlight_t *d, float u1, float u2, float w[3])
+{
+    if (d->kind == 0)
+        pm_point_light_emit(&d->spot, u1, u2, w);
+    else if (d->kind == 1)
+        pm_sun_sample(&d->sun, u1, u2, w);
+    else
+        pm_sky_sample(sky_scene(), AXIS, u1, u2, w);
+}
+
+/* Probability of cos(theta) to the axis in [c0, c1] under the light's pdf, in closed form. */
+static double dl_mass(const dirlight_t *d, double c0, double c1)
+{
+    if (d->kind == 0) {
+        double cc = d->spot.cos_cone, e = d->spot.falloff;
+        double x0 = fmin(1.0, fmax(0.0, (c0 - cc) / (1.0 - cc))), x1 = fmin(1.0, fmax(0.0, (c1 - cc) / (1.0 - cc)));
+        return pow(x1, e + 1.0) - pow(x0, e + 1.0);
+    }
+    if (d->kind == 1) {
+        double cm = d->sun.cos_max, a = fmax(c0, cm), b = fmax(c1, cm);
+        return (b - a) / (1.0 - cm);
+    }
+    double a = fmax(c0, 0.0), b = fmax(c1, 0.0);
+    return b * b - a * a;
+}
+
+static const dirlight_t *dl_cases(int *n_out)
+{
+    static dirlight_t c[7];
+    c[0] = spot_case("spot 30 deg hard", 30.0f, 0.0f);
+    c[1] = spot_case("spot 45 deg falloff 1", 45.0f, 1.0f);
+    c[2] = spot_case("spot 120 deg falloff 4", 120.0f, 4.0f);
+    c[3] = spot_case("spot 180 deg falloff 2", 180.0f, 2.0f);
+    c[4] = sun_case("sun 0.05 sr", 0.05f);
+    c[5] = sun_case("sun 2 sr", 2.0f);
+    c[6] = (dirlight_t){.name = "sky", .kind = 2};
+    *n_out = 7;
+    return c;
+}
+
+/* (d) Each light's direction pdf integrates to 1 over the sphere (midpoint rule about the
+ * axis, 4000 cosines by 64 angles on each side of the cone's edge: the pdfs depend on the
+ * cosine alone and are smooth inside the cone, so the rule is well within 1e-3), and a spot's power is
+ * the integral of its intensity: a pdf normalized by (1 - cos) / e instead of / (e + 1), or a
+ * power of 4 pi I for a cone, is off by far more. */
+static void test_transport_light_pdfs_integrate_to_one(void **state)
+{
+    (void)state;
+    int n;
+    const dirlight_t *c = dl_cases(&n);
+    frame_t f = frame_about(AXIS);
+    const int nc = 4000, nphi = 64;
+    for (int i = 0; i < n; i++) {
+        /* Two grids: from -1 to the light's lowest cosine lo (where the pdf must be 0) and
+         * from lo to 1, so that the edge of a narrow cone falls between two grids. */
+        double lo = c[i].kind == 0 ? c[i].spot.cos_cone : c[i].kind == 1 ? c[i].sun.cos_max : 0.0;
+        double sum = 0.0, isum = 0.0, dphi = 2.0 * M_PI / nphi;
+        for (int part = 0; part < 2; part++) {
+            double c0 = part ? lo : -1.0, dc = ((part ? 1.0 : lo) - c0) / nc;
+            for (int a = 0; a < nc && dc > 0.0; a++)
+                for (int b = 0; b < nphi; b++) {
+                    float w[3];
+                    dir_in(&f, c0 + (a + 0.5) * dc, (b + 0.5) * dphi, w);
+                    sum += dl_pdf(&c[i], w) * dc * dphi;
+                    if (c[i].kind == 0)
+                        isum += c[i].spot.intensity[0] * pm_spot_factor(&c[i].spot, w) * dc * dphi;
+                }
+        }
+        if (!(fabs(sum - 1.0) < 1e-3))
+            fail_msg("%s: the pdf integrates to %.6f", c[i].name, sum);
+        if (c[i].kind == 0 && !(fabs(isum / pm_point_light_power(&c[i].spot, 0) - 1.0) < 1e-3))
+            fail_msg("%s: power %.6f W, the intensity integrates to %.6f W", c[i].name,
+                     pm_point_light_power(&c[i].spot, 0), isum);
+    }
+}
+
+/* (e) Each light's sampler against its pdf: 200,000 directions binned in 50 equal steps of
+ * cos(theta) to the axis over the range the light covers, chi-square against the masses in
+ * closed form (dl_mass); every direction must also have a positive pdf. A sampler drawing cos
+ * uniformly for a spot of falloff 1 moves the bins by up to half their mass. */
+static void test_transport_light_samplers_match_pdf(void **state)
+{
+    (void)state;
+    int n;
+    const dirlight_t *c = dl_cases(&n);
+    enum { NBINS = 50 };
+    const int ns = 200000;
+    for (int i = 0; i < n; i++) {
+        double lo = c[i].kind == 0 ? c[i].spot.cos_cone : c[i].kind == 1 ? c[i].sun.cos_max : 0.0;
+        long bins[NBINS] = {0};
+        pm_rng_t r;
+        pm_rng_init(&r, 77, (uint64_t)i);
+        for (int k = 0; k < ns; k++) {
+            float w[3];
+            dl_sample(&c[i], pm_rng_float(&r), pm_rng_float(&r), w);
+            double cw = pm_dot3(w, AXIS);
+            if (!(fabs(pm_dot3(w, w) - 1.0) < 1e-5))
+                fail_msg("%s: a direction of length %.7f", c[i].name, sqrt(pm_dot3(w, w)));
+            if (!(dl_pdf(&c[i], w) > 0.0f) && cw < 1.0 - 1e-6 && cw > lo + 1e-5)
+                fail_msg("%s: a direction of zero pdf (cos %.7f)", c[i].name, cw);
+            int b = (int)((cw - lo) / (1.0 - lo) * NBINS);
+            bins[b < 0 ? 0 : b >= NBINS ? NBINS - 1 : b]++;
+        }
+        double chi2 = 0.0;
+        int dof = 0;
+        for (int b = 0; b < NBINS; b++) {
+            double e = ns * dl_mass(&c[i], lo + (1.0 - lo) * b / NBINS, lo + (1.0 - lo) * (b + 1) / NBINS);
+            if (e < 20.0) {
+                if (bins[b] > 5.0 * e + 20.0)
+                    fail_msg("%s: bin %d holds %ld, expected %.1f", c[i].name, b, bins[b], e);
+                continue;
+            }
+            chi2 += (bins[b] - e) * (bins[b] - e) / e;
+            dof++;
+        }
+        check_chi2(c[i].name, "direction", chi2, dof - 1);
+    }
+}
+
+/* (f) A lat-long map's sampler: a 16 x 8 map of uneven luminance (one hot pixel at 50 times
+ * the rest, a black row, colours). Its pdf integrates to 1 over the sphere (midpoint rule on
+ * a grid aligned with the pixels, 64 x 64 points per pixel: within 1e-3), the pdf of each
+ * sample is positive and agrees with pm_envmap_pixel's pixel, 400,000 samples land in the
+ * pixels as pix_p says (chi-square), the pixel probabilities follow luminance times sin
+ * theta, and a NaN or negative value is refused naming the pixel and channel. */
+static void test_transport_envmap_sampler(void **state)
+{
+    (void)state;
+    enum { W = 16, H = 8 };
+    float *rgb = malloc(W * H * 3 * sizeof(float));
+    assert_non_null(rgb);
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++)
+            for (int k = 0; k < 3; k++)
+                rgb[3 * (y * W + x) + k] = y == 5 ? 0.0f : (float)(1 + (x * 7 + y * 3) % 5) * (k == 1 ? 1.0f : 0.5f);
+    for (int k = 0; k < 3; k++)
+        rgb[3 * (2 * W + 11) + k] *= 50.0f;
+    pm_envmap_t e;
+    assert_int_equal(pm_envmap_init(&e, W, H, rgb), PM_OK);
+    double sum = 0.0;
+    const int sub = 64;
+    for (int y = 0; y < H * sub; y++)
+        for (int x = 0; x < W * sub; x++) {
+            double th = M_PI * (y + 0.5) / (H * sub), ph = 2.0 * M_PI * (x + 0.5) / (W * sub);
+            float w[3] = {(float)(sin(th) * cos(ph)), (float)cos(th), (float)(sin(th) * sin(ph))};
+            sum += pm_envmap_pdf(&e, w) * sin(th) * (M_PI / (H * sub)) * (2.0 * M_PI / (W * sub));
+        }
+    if (!(fabs(sum - 1.0) < 1e-3))
+        fail_msg("envmap: the pdf integrates to %.6f", sum);
+    for (int y = 0; y < H; y++) {
+        double lum =
+            0.2126 * rgb[3 * (y * W + 3)] + 0.7152 * rgb[3 * (y * W + 3) + 1] + 0.0722 * rgb[3 * (y * W + 3) + 2];
+        double want = lum * sin(M_PI * (y + 0.5) / H) / e.total;
+        if (!(fabs(e.pix_p[y * W + 3] - want) <= 1e-12 + 1e-9 * want))
+            fail_msg("envmap: pixel (3, %d) has probability %.9g, luminance times sin says %.9g", y, e.pix_p[y * W + 3],
+                     want);
+    }
+    static long bins[W * H];
+    memset(bins, 0, sizeof bins);
+    const int ns = 400000;
+    pm_rng_t r;
+    pm_rng_init(&r, 5, 5);
+    for (int i = 0; i < ns; i++) {
+        float w[3];
+        pm_envmap_sample(&e, pm_rng_float(&r), pm_rng_float(&r), w);
+        uint32_t x, y;
+        pm_envmap_pixel(&e, w, &x, &y);
+        if (!(pm_envmap_pdf(&e, w) > 0.0f))
+            fail_msg("envmap: a sample of zero pdf in pixel (%u, %u)", x, y);
+        bins[y * W + x]++;
+    }
+    double chi2 = 0.0;
+    int dof = 0;
+    for (int i = 0; i < W * H; i++) {
+        double ex = ns * e.pix_p[i];
+        if (ex == 0.0) {
+            if (bins[i])
+                fail_msg("envmap: %ld samples in black pixel %d", bins[i], i);
+            continue;
+        }
+        chi2 += (bins[i] - ex) * (bins[i] - ex) / ex;
+        dof++;
+    }
+    check_chi2("envmap", "pixels", chi2, dof - 1);
+    pm_envmap_free(&e);
+
+    float *bad = calloc(W * H * 3, sizeof(float));
+    assert_non_null(bad);
+    bad[3 * (4 * W + 9) + 1] = -0.5f;
+    assert_int_equal(pm_envmap_init(&e, W, H, bad), PM_ERR_INPUT);
+    assert_non_null(strstr(pm_error_message(), "pixel (9, 4) channel G = -0.5"));
+    bad = calloc(W * H * 3, sizeof(float));
+    assert_non_null(bad);
+    bad[3 * 2 + 2] = NAN;
+    assert_int_equal(pm_envmap_init(&e, W, H, bad), PM_ERR_INPUT);
+    assert_non_null(strstr(pm_error_message(), "pixel (2, 0) channel B = nan"));
+}
+
 static const struct CMUnitTest tests[] = {
-    cmocka_unit_test(test_transport_pdf_integrates_to_one), cmocka_unit_test(test_transport_sampler_matches_pdf),
-    cmocka_unit_test(test_transport_brdf_reciprocal),       cmocka_unit_test(test_transport_area_light_uniform),
-    cmocka_unit_test(test_transport_area_light_pdf),        cmocka_unit_test(test_transport_point_light),
-    cmocka_unit_test(test_transport_rt_single_rays),        cmocka_unit_test(test_transport_fresnel),
-    cmocka_unit_test(test_transport_specular_directions),   cmocka_unit_test(test_transport_specular_split),
+    cmocka_unit_test(test_transport_pdf_integrates_to_one),
+    cmocka_unit_test(test_transport_sampler_matches_pdf),
+    cmocka_unit_test(test_transport_brdf_reciprocal),
+    cmocka_unit_test(test_transport_area_light_uniform),
+    cmocka_unit_test(test_transport_area_light_pdf),
+    cmocka_unit_test(test_transport_point_light),
+    cmocka_unit_test(test_transport_rt_single_rays),
+    cmocka_unit_test(test_transport_fresnel),
+    cmocka_unit_test(test_transport_specular_directions),
+    cmocka_unit_test(test_transport_specular_split),
     cmocka_unit_test(test_transport_specular_stiff),
+    cmocka_unit_test(test_transport_light_pdfs_integrate_to_one),
+    cmocka_unit_test(test_transport_light_samplers_match_pdf),
+    cmocka_unit_test(test_transport_envmap_sampler),
 };
 UNIT_GROUP(transport_group, "transport", tests)

@@ -144,6 +144,11 @@ for f in /usr/bin/* /bin/*; do
     [ -e "$TMP/nopath/${f##*/}" ] || ln -s "$f" "$TMP/nopath/${f##*/}"
 done
 expect_error "no sbatch on PATH" "no 'sbatch' on PATH" env PATH="$TMP/nopath" pipelines/slurm "$SCENE" "$TMP/h" "${PR[@]}"
+# an OUTDIR the nodes do not see: a tmpfs mounted in a mount namespace of the submitting side alone
+mkdir -p "$TMP/private"
+expect_error "an OUTDIR the tasks cannot see" "OUTDIR must be on a filesystem the compute nodes share" \
+    unshare -m --propagation private bash -c 'mount -t tmpfs pmtk "$1" && shift && exec "$@"' - "$TMP/private" \
+    pipelines/slurm "$SCENE" "$TMP/private/out" "${PR[@]}"
 expect_exit "PASSES missing" 2 pipelines/slurm "$SCENE" "$TMP/h" WIDTH=48
 expect_exit "TIME refused" 2 pipelines/slurm "$SCENE" "$TMP/h" PASSES=4 TIME=10
 expect_exit "unknown parameter" 2 pipelines/slurm "$SCENE" "$TMP/h" PASSES=4 NOSUCH=1

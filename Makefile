@@ -29,7 +29,7 @@ WERROR ?= 1
 
 # Debian packages this project builds, tests and runs with (README says why each).
 DEBS := gcc make pkg-config libembree-dev libopenexr-dev libassimp-dev libjansson-dev \
-        libpng-dev libxxhash-dev libcmocka-dev openexr jq gnuplot-nox clang-format
+        libpng-dev libjpeg62-turbo-dev libstb-dev libxxhash-dev libcmocka-dev openexr jq gnuplot-nox clang-format
 
 ifeq ($(V),1)
 Q :=
@@ -37,13 +37,13 @@ else
 Q := @
 endif
 
-PKGS := OpenEXR assimp jansson libpng libxxhash
+PKGS := OpenEXR assimp jansson libpng libxxhash stb
 # Debian's libembree-dev ships no .pc file; use pkg-config when there is one.
 EMBREE_CFLAGS := $(shell pkg-config --cflags embree3 2>/dev/null)
 EMBREE_LIBS := $(shell pkg-config --libs embree3 2>/dev/null || echo -lembree3)
 PKG_CFLAGS := $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
 # Only OpenEXR's C API (OpenEXRCore) is used; the C++ libraries are not linked.
-PKG_LIBS := -lOpenEXRCore-3_1 $(shell pkg-config --libs assimp jansson libpng libxxhash 2>/dev/null)
+PKG_LIBS := -lOpenEXRCore-3_1 $(shell pkg-config --libs assimp jansson libpng libxxhash stb 2>/dev/null)
 CMOCKA_LIBS := $(shell pkg-config --libs cmocka 2>/dev/null || echo -lcmocka)
 
 # snprintf truncation is how this code bounds names and messages, so it is not warned about.
@@ -55,7 +55,8 @@ INCLUDES := -I. -Icommon
 ALL_CFLAGS := -std=c17 -D_GNU_SOURCE $(INCLUDES) $(WARN) $(if $(WERROR),-Werror,) -fopenmp -fno-math-errno \
               $(SAN) $(PKG_CFLAGS) $(EMBREE_CFLAGS) $(CFLAGS)
 ALL_LDFLAGS := -fopenmp $(SAN) $(LDFLAGS)
-LIBS := $(EMBREE_LIBS) $(PKG_LIBS) -lm
+# libjpeg-turbo (texture JPEGs) ships libjpeg.pc only in newer Debian releases.
+LIBS := $(EMBREE_LIBS) $(PKG_LIBS) -ljpeg -lm
 
 # The library's layers (docs/architecture.md): base, math, formats, then render, photonmap and image.
 LAYERS := common/base common/math formats common/render common/photonmap common/image
@@ -73,6 +74,8 @@ TESTGEN := $(BUILD)/tests/pm-testgen
 EXRDUMP := $(BUILD)/tests/pm-exrdump
 ATRIUM_GEN := $(BUILD)/scenes/make-atrium
 ATRIUM_OBJ := scenes/atrium/atrium.obj
+CAUSTIC_GEN := $(BUILD)/scenes/make-caustic
+CAUSTIC_OBJ := scenes/caustic/caustic.obj
 
 # The C sources clang-format keeps (.clang-format); the generated and fuzz-regression files are not C.
 FORMAT_SRC = $(shell git ls-files '*.c' '*.h' 2>/dev/null)
@@ -81,7 +84,7 @@ FORMAT_SRC = $(shell git ls-files '*.c' '*.h' 2>/dev/null)
 # Keep the stages' objects: they are intermediate to the pattern rule, and make would
 # otherwise delete them and rebuild them next time.
 .SECONDARY:
-all: $(PROGS) $(ATRIUM_OBJ)
+all: $(PROGS) $(ATRIUM_OBJ) $(CAUSTIC_OBJ)
 
 # Rebuild everything when the flags change.
 FLAGS_FILE := $(BUILD)/.flags
@@ -127,6 +130,15 @@ $(ATRIUM_GEN): scenes/atrium/make-atrium.c
 $(ATRIUM_OBJ) scenes/atrium/atrium.mtl &: $(ATRIUM_GEN)
 	@$(if $(Q),echo "  GEN     $@",true)
 	$(Q)$(ATRIUM_GEN) -o scenes/atrium
+
+$(CAUSTIC_GEN): scenes/caustic/make-caustic.c
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  CC      $<",true)
+	$(Q)$(CC) -std=c17 -O2 $(WARN) $(if $(WERROR),-Werror,) $< -lm -o $@
+
+$(CAUSTIC_OBJ) scenes/caustic/caustic.mtl &: $(CAUSTIC_GEN)
+	@$(if $(Q),echo "  GEN     $@",true)
+	$(Q)$(CAUSTIC_GEN) -o scenes/caustic
 
 # ---- tests ----
 check-deps:
@@ -227,6 +239,6 @@ deps:
 	@sh tests/install-deps.sh $(DEBS)
 
 clean:
-	rm -rf $(BUILD) $(BIN) $(ATRIUM_OBJ) scenes/atrium/atrium.mtl
+	rm -rf $(BUILD) $(BIN) $(ATRIUM_OBJ) scenes/atrium/atrium.mtl $(CAUSTIC_OBJ) scenes/caustic/caustic.mtl
 
 -include $(LIB_OBJ:.o=.d) $(UNIT_OBJ:.o=.d) $(STAGES:%=$(BUILD)/stages/%/main.d) $(BUILD)/tests/pm-testgen.d $(BUILD)/tests/pm-exrdump.d

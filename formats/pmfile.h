@@ -171,6 +171,14 @@ pm_result_t pm_table_read_range(const char *path, const pm_schema_t *schema, uin
                                 uint64_t end, pm_table_t *out);
 /* The same from an open reader whose records have not been read yet. */
 pm_result_t pm_table_read_from(pm_reader_t *r, uint64_t begin, uint64_t end, pm_table_t *out);
+/* A file read a chunk of rows at a time, for a stage that streams it (simd-gather): chunks_open
+ * gives `out` the reader's header (COUNT, channels, every key) and columns for cap rows, no
+ * record read yet; each chunks_read fills rows [0, out->count) with the next at most cap
+ * records (record *first_out of the file first), checked as pm_table_read_from checks them, and
+ * the call that finds no more ends the file (its checksum into out->checksum) with
+ * out->count 0. Free with pm_table_free. */
+pm_result_t pm_table_chunks_open(pm_reader_t *r, uint64_t cap, pm_table_t *out);
+pm_result_t pm_table_chunks_read(pm_reader_t *r, pm_table_t *t, uint64_t cap, uint64_t *first_out);
 /* Record i as RECORD_SIZE bytes in file layout. */
 void pm_table_record(const pm_table_t *t, uint64_t i, void *record_out);
 pm_result_t pm_table_write(const pm_table_t *t, const char *path);

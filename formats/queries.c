@@ -2,8 +2,10 @@
  * hilbert-sort and read by simd-gather. Header keys width and height give the image,
  * materials and material.K the reflectance table the material channel indexes. */
 #include <inttypes.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "formats/formats.h"
 
@@ -49,8 +51,15 @@ pm_result_t pm_queries_set_materials(pm_header_t *h, const pm_material_t *m, siz
     for (size_t i = 0; i < n && r == PM_OK; i++) {
         char key[32];
         snprintf(key, sizeof key, "material.%zu", i);
-        r = pm_header_set(h, key, "%s kd %.9g %.9g %.9g ks %.9g %.9g %.9g ns %.9g", m[i].name[0] ? m[i].name : "-",
-                          m[i].kd[0], m[i].kd[1], m[i].kd[2], m[i].ks[0], m[i].ks[1], m[i].ks[2], m[i].ns);
+        /* a mirror or glass says so after the standard part; other materials read as they always did */
+        char extra[96] = "";
+        if (m[i].kind == PM_MAT_MIRROR)
+            snprintf(extra, sizeof extra, " mirror kr %.9g %.9g %.9g", m[i].kr[0], m[i].kr[1], m[i].kr[2]);
+        else if (m[i].kind == PM_MAT_GLASS)
+            snprintf(extra, sizeof extra, " glass ior %.9g tf %.9g %.9g %.9g", m[i].ior, m[i].tf[0], m[i].tf[1],
+                     m[i].tf[2]);
+        r = pm_header_set(h, key, "%s kd %.9g %.9g %.9g ks %.9g %.9g %.9g ns %.9g%s", m[i].name[0] ? m[i].name : "-",
+                          m[i].kd[0], m[i].kd[1], m[i].kd[2], m[i].ks[0], m[i].ks[1], m[i].ks[2], m[i].ns, extra);
     }
     return r;
 }
@@ -70,15 +79,32 @@ pm_result_t pm_queries_get_materials(const pm_header_t *h, const char *path, pm_
         char key[32];
         snprintf(key, sizeof key, "material.%" PRIu64, i);
         const char *v = pm_header_get(h, key);
-        int used = 0;
-        if (!v ||
-            sscanf(v, "%63s kd %f %f %f ks %f %f %f ns %f%n", m[i].name, &m[i].kd[0], &m[i].kd[1], &m[i].kd[2],
-                   &m[i].ks[0], &m[i].ks[1], &m[i].ks[2], &m[i].ns, &used) != 8 ||
-            v[used] != '\0') {
+        int used = 0, more = 0;
+        m[i].ior = 1.0f, m[i].tf[0] = m[i].tf[1] = m[i].tf[2] = 1.0f;
+        int ok = v && sscanf(v, "%63s kd %f %f %f ks %f %f %f ns %f%n", m[i].name, &m[i].kd[0], &m[i].kd[1],
+                             &m[i].kd[2], &m[i].ks[0], &m[i].ks[1], &m[i].ks[2], &m[i].ns, &used) == 8;
+        if (ok && v[used] == ' ' && strncmp(v + used, " mirror", 7) == 0) {
+            m[i].kind = PM_MAT_MIRROR;
+            ok = sscanf(v + used, " mirror kr %f %f %f%n", &m[i].kr[0], &m[i].kr[1], &m[i].kr[2], &more) == 3;
+        } else if (ok && v[used] == ' ' && strncmp(v + used, " glass", 6) == 0) {
+            m[i].kind = PM_MAT_GLASS;
+            ok = sscanf(v + used, " glass ior %f tf %f %f %f%n", &m[i].ior, &m[i].tf[0], &m[i].tf[1], &m[i].tf[2],
+                        &more) == 4;
+        }
+        if (!ok || v[used + more] != '\0') {
             free(m);
             return pm_error_set(PM_ERR_INPUT, "queries '%s': header key %s is %s", path, key,
-                                v ? "not 'NAME kd R G B ks R G B ns E'" : "missing");
+                                v ? "not 'NAME kd R G B ks R G B ns E', then optionally 'mirror kr R G B' or "
+                                    "'glass ior N tf R G B'"
+                                  : "missing");
         }
+        /* a specular entry has no standard part, a reflectance in [0, 1] and an index > 0 */
+        for (int k = 0; k < 3 && m[i].kind != PM_MAT_STANDARD; k++)
+            if (!(m[i].kr[k] >= 0.0f && m[i].kr[k] <= 1.0f && m[i].tf[k] >= 0.0f && m[i].tf[k] <= 1.0f) ||
+                !(m[i].ior > 0.0f && m[i].ior < INFINITY) || m[i].kd[k] != 0.0f || m[i].ks[k] != 0.0f) {
+                free(m);
+                return pm_error_set(PM_ERR_INPUT, "queries '%s': %s is not a physical mirror or glass", path, key);
+            }
         for (int k = 0; k < 3; k++)
             if (!(m[i].kd[k] >= 0.0f && m[i].ks[k] >= 0.0f && m[i].kd[k] + m[i].ks[k] <= 1.0f + 1e-6f) ||
                 !(m[i].ns >= 0.0f && m[i].ns <= 1e6f)) {

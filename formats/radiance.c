@@ -25,8 +25,9 @@ static pm_result_t validate_header(const pm_header_t *h, const char *path)
             PM_ERR_INPUT, "wrong count in radiance buffer '%s': COUNT=%" PRIu64 " for a %" PRIu32 "x%" PRIu32 " image",
             path, h->count, w, ht);
     const char *c = pm_header_get(h, "component");
-    if (!c || (strcmp(c, "direct") && strcmp(c, "indirect") && strcmp(c, "total")))
-        return pm_error_set(PM_ERR_INPUT, "radiance buffer '%s': component '%s' is not direct, indirect or total", path,
+    if (!c || (strcmp(c, "direct") && strcmp(c, "indirect") && strcmp(c, "caustic") && strcmp(c, "total")))
+        return pm_error_set(PM_ERR_INPUT,
+                            "radiance buffer '%s': component '%s' is not direct, indirect, caustic or total", path,
                             c ? c : "(missing)");
     return PM_OK;
 }

@@ -5,6 +5,7 @@
  * anything after it. */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
+#include <fcntl.h>
 #include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -16,6 +17,23 @@
 const unsigned char pmfile_bom[4] = {0x04, 0x03, 0x02, 0x01};
 
 static const char *reader_title(const pm_reader_t *r) { return pmfile_title(&r->hdr); }
+
+#ifndef F_SETPIPE_SZ
+#define F_SETPIPE_SZ 1031 /* Linux's fcntl command; glibc names it only under _GNU_SOURCE */
+#endif
+#define PM_PIPE_BYTES ((int)4 << 20) /* bytes asked for; Linux's default cap for a user is 1 MiB */
+
+void pmfile_widen_pipe(int fd)
+{
+    struct stat st;
+    if (fd < 0 || fstat(fd, &st) != 0 || !S_ISFIFO(st.st_mode))
+        return;
+    /* The largest size allowed: halve the request until the system takes it (EPERM past its
+     * cap); the 64 KiB default stays when nothing larger is allowed. */
+    for (int bytes = PM_PIPE_BYTES; bytes > (64 << 10); bytes /= 2)
+        if (fcntl(fd, F_SETPIPE_SZ, bytes) >= 0)
+            return;
+}
 
 /* Reads header text up to and including the blank line that ends it. */
 static pm_result_t read_header_text(pm_reader_t *r, char **text_out, size_t *len_out)
@@ -135,6 +153,8 @@ static pm_result_t reader_start(pm_reader_t *r, const pm_schema_t *schema, uint3
         return res;
     }
 
+    if (!r->file_size)
+        pmfile_widen_pipe(fileno(r->f));
     char *text = NULL;
     size_t len = 0;
     pm_result_t res = read_header_text(r, &text, &len);

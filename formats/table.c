@@ -189,6 +189,46 @@ pm_result_t pm_table_read_from(pm_reader_t *r, uint64_t begin, uint64_t end, pm_
     return res;
 }
 
+pm_result_t pm_table_chunks_open(pm_reader_t *r, uint64_t cap, pm_table_t *out)
+{
+    memset(out, 0, sizeof *out);
+    const pm_header_t *h = pm_reader_header(r);
+    pm_header_init(&out->hdr, h->schema);
+    out->hdr.channels = h->channels;
+    out->hdr.record_size = h->record_size;
+    out->hdr.count = h->count;
+    out->count = 0;
+    pm_result_t res = cols_resize(out, 0, cap ? cap : 1);
+    if (res == PM_OK)
+        res = header_copy(&out->hdr, h);
+    if (res != PM_OK)
+        pm_table_free(out);
+    return res;
+}
+
+pm_result_t pm_table_chunks_read(pm_reader_t *r, pm_table_t *t, uint64_t cap, uint64_t *first_out)
+{
+    const pm_header_t *h = pm_reader_header(r);
+    uint64_t at = 0;
+    *first_out = r->next;
+    t->count = 0;
+    while (at < cap) {
+        uint64_t want = cap - at < PM_CHUNK_RECORDS ? cap - at : PM_CHUNK_RECORDS, got, first = r->next;
+        pm_result_t res = pmfile_reader_read(r, r->scratch, want, &got, 0);
+        if (res != PM_OK)
+            return res;
+        if (got == 0)
+            break;
+        scatter(t, r->scratch, got, at);
+        res = pmfile_check_after(h, r->path, r->scratch, got, first, pmfile_columns_suspect(t, at, got));
+        if (res != PM_OK)
+            return res;
+        at += got;
+    }
+    t->count = at;
+    return at ? PM_OK : pm_reader_finish(r, &t->checksum);
+}
+
 pm_result_t pm_table_read_range(const char *path, const pm_schema_t *schema, uint32_t need, uint64_t begin,
                                 uint64_t end, pm_table_t *out)
 {

@@ -84,6 +84,7 @@ pm_result_t pm_writer_open(const char *path, const pm_header_t *h, pm_writer_t *
         free(text);
         return res;
     }
+    pmfile_widen_pipe(fileno(w->out.f));
     XXH3_64bits_update(w->hash, text, len);
     XXH3_64bits_update(w->hash, pmfile_bom, 4);
     if (fwrite(text, 1, len, w->out.f) != len || fwrite(pmfile_bom, 1, 4, w->out.f) != 4)

@@ -276,22 +276,33 @@ pm_result_t pm_atomic_check(const char *path)
     return r;
 }
 
+/* 0 when the environment says PMTK_FSYNC=0: the caller (pipelines/render for the files of a
+ * progressive pass) checks every file's checksum before it reuses it, so a file that a power
+ * loss left torn is found and remade, and waiting for the disk buys nothing there. Anything
+ * else: 1. */
+static int want_sync(void)
+{
+    const char *e = getenv("PMTK_FSYNC");
+    return !(e && strcmp(e, "0") == 0);
+}
+
 /* Everything before the rename: flush, check, fsync (the data must be on disk before its
  * name is), close. Sets the message on failure. */
 static pm_result_t prepare(pm_atomic_t *a)
 {
     int e = 0;
+    const int do_sync = want_sync();
     if (a->f) {
         errno = 0;
         if (fflush(a->f) != 0 || ferror(a->f))
             e = errno ? errno : EIO;
         /* EINVAL: a file system that cannot sync; nothing more can be done there. */
-        else if (a->tmp_path && fsync(fileno(a->f)) != 0 && errno != EINVAL)
+        else if (a->tmp_path && do_sync && fsync(fileno(a->f)) != 0 && errno != EINVAL)
             e = errno;
         if (a->f != stdout && fclose(a->f) != 0 && !e)
             e = errno ? errno : EIO;
         a->f = NULL;
-    } else if (a->tmp_path && !a->special) {
+    } else if (a->tmp_path && !a->special && do_sync) {
         /* A reserved name, written and closed by the library that writes by name. */
         int fd = open(a->tmp_path, O_RDONLY | O_CLOEXEC);
         if (fd < 0 || (fsync(fd) != 0 && errno != EINVAL))
@@ -335,7 +346,7 @@ static void sync_dir(const char *path)
 {
     size_t d = dir_len(path);
     char dir[PATH_MAX];
-    if (d >= sizeof dir)
+    if (d >= sizeof dir || !want_sync())
         return;
     if (d)
         memcpy(dir, path, d);

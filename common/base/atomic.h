@@ -3,7 +3,9 @@
  * A regular output is written into DIR/.NAME.XXXXXX (mkstemp; the NAME part shortened so that
  * the temporary name fits NAME_MAX) and renamed onto DIR/NAME only after the last byte is
  * flushed, checked and fsync'ed; the directory is fsync'ed after the rename, so that after a
- * power loss NAME is either the old file or the whole new one. Temporary files are registered
+ * power loss NAME is either the old file or the whole new one (PMTK_FSYNC=0 in the environment
+ * leaves out both fsyncs, for callers that check a file's checksum before they trust it: then
+ * a power loss can leave NAME torn, never a reader fooled). Temporary files are registered
  * so that SIGINT, SIGTERM, SIGHUP and SIGPIPE remove them before the process dies.
  *
  * What the path names decides how it is written (docs/cli.md, "Outputs"):

@@ -13,6 +13,37 @@
 
 const char *const pm_kernel_names[] = {"uniform", "epanechnikov", NULL};
 
+/* After the map and the queries' header are in: the checks of both headers, the views (the
+ * map's only when map_too) and per_query for the rows q_table holds (rows: how many it has
+ * room for). */
+static pm_result_t inputs_setup(pm_gather_inputs_t *in, int variable, uint64_t rows, int map_too)
+{
+    pm_result_t r;
+    const pm_header_t *mh = &in->map_table.hdr, *qh = &in->q_table.hdr;
+    const char *wk = pm_header_get(qh, "weights");
+    if (!wk || strcmp(wk, "lambertian-brdf-folded") != 0)
+        return pm_error_set(PM_ERR_INPUT,
+                            "queries '%s' do not say which weight contract they follow (weights=%s; "
+                            "expected lambertian-brdf-folded, docs/formats.md 3.3)",
+                            in->q_path, wk ? wk : "missing");
+    const char *sm = pm_header_get(mh, "SCENE"), *sq = pm_header_get(qh, "SCENE");
+    if (sm && sq && strcmp(sm, sq) != 0)
+        return pm_error_set(PM_ERR_INPUT, "photon map '%s' is of scene '%s' but queries '%s' are of scene '%s'",
+                            in->map_path, sm, in->q_path, sq);
+    if ((r = pm_header_get_image_size(qh, in->q_path, &in->width, &in->height)) != PM_OK ||
+        (map_too && (r = pm_gather_map_init(&in->map, &in->map_table, variable)) != PM_OK))
+        return r;
+    free(in->materials);
+    in->materials = NULL;
+    if ((r = pm_gather_queries_init(&in->q, &in->q_table, in->q_path, &in->materials)) != PM_OK)
+        return r;
+    pm_free_aligned(in->per_query);
+    in->per_query = pm_alloc_aligned((rows ? rows : 1) * 3 * sizeof *in->per_query);
+    if (!in->per_query)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for %" PRIu64 " query results", rows);
+    return PM_OK;
+}
+
 pm_result_t pm_gather_inputs_read(pm_gather_inputs_t *in, const char *map_path, const char *q_path, const char *range,
                                   int variable)
 {
@@ -43,24 +74,89 @@ pm_result_t pm_gather_inputs_read(pm_gather_inputs_t *in, const char *map_path, 
         in->begin = in->total;
     if (in->end > in->total)
         in->end = in->total;
-    const pm_header_t *mh = &in->map_table.hdr, *qh = &in->q_table.hdr;
-    const char *wk = pm_header_get(qh, "weights");
-    if (!wk || strcmp(wk, "lambertian-brdf-folded") != 0)
-        return pm_error_set(PM_ERR_INPUT,
-                            "queries '%s' do not say which weight contract they follow (weights=%s; "
-                            "expected lambertian-brdf-folded, docs/formats.md 3.3)",
-                            q_path, wk ? wk : "missing");
-    const char *sm = pm_header_get(mh, "SCENE"), *sq = pm_header_get(qh, "SCENE");
-    if (sm && sq && strcmp(sm, sq) != 0)
-        return pm_error_set(PM_ERR_INPUT, "photon map '%s' is of scene '%s' but queries '%s' are of scene '%s'",
-                            map_path, sm, q_path, sq);
-    if ((r = pm_header_get_image_size(qh, q_path, &in->width, &in->height)) != PM_OK ||
-        (r = pm_gather_map_init(&in->map, &in->map_table, variable)) != PM_OK ||
-        (r = pm_gather_queries_init(&in->q, &in->q_table, q_path, &in->materials)) != PM_OK)
+    return inputs_setup(in, variable, in->q_table.count, 1);
+}
+
+pm_result_t pm_gather_inputs_open(pm_gather_inputs_t *in, const char *map_path, const char *q_path, int variable)
+{
+    memset(in, 0, sizeof *in);
+    in->map_path = map_path;
+    in->q_path = q_path;
+    double t0 = pm_time_wall();
+    pm_result_t r =
+        pm_table_read(map_path, &pm_photonmap_schema, pm_schema_required(&pm_photonmap_schema), &in->map_table);
+    if (r != PM_OK)
         return r;
-    in->per_query = pm_alloc_aligned((in->q.n ? in->q.n : 1) * 3 * sizeof *in->per_query);
-    if (!in->per_query)
-        return pm_error_set(PM_ERR_NOMEM, "out of memory for %" PRIu64 " query results", in->q.n);
+    if ((r = pm_reader_open(q_path, &pm_queries_schema, pm_schema_required(&pm_queries_schema), &in->stream)) != PM_OK)
+        return r;
+    in->total = in->end = pm_reader_header(in->stream)->count;
+    if ((r = pm_table_chunks_open(in->stream, PM_GATHER_STREAM_ROWS, &in->q_table)) != PM_OK)
+        return r;
+    in->read_s = pm_time_wall() - t0;
+    return inputs_setup(in, variable, PM_GATHER_STREAM_ROWS, 1);
+}
+
+pm_result_t pm_gather_inputs_read_rest(pm_gather_inputs_t *in, int variable)
+{
+    double t0 = pm_time_wall();
+    pm_table_free(&in->q_table);
+    pm_result_t r = pm_table_read_from(in->stream, 0, UINT64_MAX, &in->q_table);
+    pm_reader_close(in->stream);
+    in->stream = NULL;
+    if (r != PM_OK)
+        return r;
+    in->read_s += pm_time_wall() - t0;
+    return inputs_setup(in, variable, in->q_table.count, 0);
+}
+
+pm_result_t pm_gather_stream(pm_gather_inputs_t *in, const pm_gather_params_t *p, pm_gather_stats_t *stats,
+                             double *gather_s_out)
+{
+    memset(stats, 0, sizeof *stats);
+    *gather_s_out = 0.0;
+    size_t npx = (size_t)in->width * in->height * 3;
+    if (!(in->pixels = calloc(npx ? npx : 1, sizeof *in->pixels)))
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for a %" PRIu32 "x%" PRIu32 " image", in->width, in->height);
+    uint64_t n = 0;
+    for (;;) {
+        uint64_t first;
+        double t0 = pm_time_wall();
+        pm_result_t r = pm_table_chunks_read(in->stream, &in->q_table, PM_GATHER_STREAM_ROWS, &first);
+        double t1 = pm_time_wall();
+        in->read_s += t1 - t0;
+        if (r != PM_OK)
+            return r;
+        uint64_t m = in->q_table.count;
+        if (!m)
+            break;
+        in->q.n = m;
+        pm_gather_stats_t gs;
+        if ((r = pm_gather_run(&in->map, &in->q, 0, m, p, in->per_query, &gs)) != PM_OK)
+            return r;
+        *gather_s_out += pm_time_wall() - t1;
+        stats->shader_ops += gs.shader_ops;
+        stats->shade_steps += gs.shade_steps;
+        stats->active_lanes += gs.active_lanes;
+        stats->straddling_lanes += gs.straddling_lanes;
+        stats->nodes_visited += gs.nodes_visited;
+        stats->packets += gs.packets;
+        stats->cpu_s += gs.cpu_s;
+        in->begin = first; /* for the message of pm_gather_check_finite */
+        if ((r = pm_gather_check_finite(in, "the gather")) != PM_OK)
+            return r;
+        /* Queries into pixels, in file order: the sums of pm_gather_output_init. */
+        const double *pq = in->per_query;
+        for (uint64_t i = 0; i < m; i++) {
+            uint32_t pi = in->q.pixel[i];
+            for (int k = 0; k < 3; k++)
+                in->pixels[3 * (size_t)pi + k] += pq[3 * i + k];
+        }
+        n += m;
+    }
+    in->q.n = n;
+    in->begin = 0;
+    pm_reader_close(in->stream);
+    in->stream = NULL;
     return PM_OK;
 }
 
@@ -107,6 +203,10 @@ pm_result_t pm_gather_inputs_scene_kernel(const pm_gather_inputs_t *in, const pm
 
 void pm_gather_inputs_free(pm_gather_inputs_t *in)
 {
+    pm_reader_close(in->stream);
+    in->stream = NULL;
+    free(in->pixels);
+    in->pixels = NULL;
     pm_free_aligned(in->per_query);
     free(in->materials);
     pm_gather_map_free(&in->map);
@@ -244,7 +344,9 @@ pm_result_t pm_gather_output_init(pm_table_t *out, const pm_gather_inputs_t *in,
         return r;
     /* Queries into pixels, in file order: the same sums for any thread count. */
     double *px = out->col[PM_RADIANCE_RGB];
-    for (uint64_t i = 0; i < in->q.n; i++) {
+    if (in->pixels)
+        memcpy(px, in->pixels, (size_t)in->width * in->height * 3 * sizeof *px);
+    for (uint64_t i = 0; !in->pixels && i < in->q.n; i++) {
         uint32_t pi = in->q.pixel[i];
         for (int k = 0; k < 3; k++)
             px[3 * (size_t)pi + k] += per_query[3 * i + k];

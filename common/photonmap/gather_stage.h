@@ -65,6 +65,8 @@ typedef struct {
     uint32_t width, height;     /* image size, pixels */
     double read_s;              /* wall seconds spent reading and checking both files */
     double *per_query;          /* owned, 3 per row of q: for the gather's weighted radiance, W/(m^2 sr) */
+    pm_reader_t *stream;        /* streamed queries (pm_gather_inputs_open): the reader, NULL once read whole */
+    double *pixels;             /* owned, with a stream: width * height RGB sums, filled by pm_gather_stream */
 } pm_gather_inputs_t;
 
 /* Reads MAP and QUERIES (range "B:E" or NULL for all; QUERIES may be "-"), checks the
@@ -74,6 +76,23 @@ typedef struct {
 pm_result_t pm_gather_inputs_read(pm_gather_inputs_t *in, const char *map_path, const char *q_path, const char *range,
                                   int variable);
 void pm_gather_inputs_free(pm_gather_inputs_t *in);
+/* Like pm_gather_inputs_read for all the queries, but reads only their header: q_table holds
+ * it and columns for PM_GATHER_STREAM_ROWS queries, `q` views them (n 0) and per_query has as
+ * many rows. Then either pm_gather_stream gathers the queries a chunk at a time as they
+ * arrive (the memory of one chunk, and the gather overlaps the stage that writes them), or
+ * pm_gather_inputs_read_rest reads them whole as pm_gather_inputs_read does (for --k, whose
+ * width is measured on all of them). */
+pm_result_t pm_gather_inputs_open(pm_gather_inputs_t *in, const char *map_path, const char *q_path, int variable);
+pm_result_t pm_gather_inputs_read_rest(pm_gather_inputs_t *in, int variable);
+/* Queries a chunk holds: a whole number of the gather's blocks, so that every packet and
+ * every sum is the one a gather of the whole file makes, bit for bit. */
+#define PM_GATHER_STREAM_ROWS ((uint64_t)1 << 17)
+/* Gathers the streamed queries chunk by chunk with pm_gather_run (parameters p), checks each
+ * chunk as pm_gather_check_finite does and adds its queries to in->pixels in file order; at
+ * the end in->q.n is the number of queries, in->q_table.checksum their file's checksum and
+ * the stats the sums of every chunk's (gather_s_out: wall seconds in pm_gather_run). */
+pm_result_t pm_gather_stream(pm_gather_inputs_t *in, const pm_gather_params_t *p, pm_gather_stats_t *stats,
+                             double *gather_s_out);
 
 /* The kernel width options after the scene's suggestions. An option given on the command line
  * wins (a given --k alone also sets the width from k, leaving the scene's radius aside);
@@ -90,7 +109,8 @@ pm_result_t pm_gather_inputs_scene_kernel(const pm_gather_inputs_t *in, const pm
  * order of the queries; a shard samples the whole file (which must then not be stdin). */
 pm_result_t pm_gather_inputs_radius_for_k(const pm_gather_inputs_t *in, double k, float normal_cos, double *radius_out);
 
-/* The radiance buffer of in->per_query: each query added to its pixel in file order, so the
+/* The radiance buffer of in->per_query (or of in->pixels after pm_gather_stream): each query
+ * added to its pixel in file order, so the
  * buffer does not depend on how the sums were computed in parallel. The header inherits both
  * inputs, names them, adds the command line, width, height, component=indirect, the kernel
  * (pm_kernel_names[kernel]) and widths (fixed, variable, knn); the caller adds its own keys

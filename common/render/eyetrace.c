@@ -177,7 +177,8 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
     float side = pm_dot3(ng, wo) >= 0.0f ? 1.0f : -1.0f; /* both sides reflect: face the viewer */
     for (int k = 0; k < 3; k++)
         n[k] = side * ng[k];
-    const pm_material_t *m = &s->materials[s->tri_material[tri]];
+    pm_material_t textured; /* the material with its textures at p (render/scene.h) */
+    const pm_material_t *m = pm_scene_material_at(s, tri, p, &textured);
     float o[3];
     for (int k = 0; k < 3; k++)
         o[k] = p[k] + c->eps * n[k];
@@ -387,6 +388,13 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
             n[k] = side * ng[k];
         uint32_t mi = s->tri_material[tri];
         const float *fold = c->fold + 3 * (size_t)mi, *rw = sc->sec_w + 3 * j;
+        float fold_tex[3];
+        if (s->maps) { /* a textured scene: the fold of the material with its textures at q */
+            pm_material_t textured;
+            const float one[3] = {1.0f, 1.0f, 1.0f};
+            query_weight(pm_scene_material_at(s, tri, q, &textured), one, fold_tex);
+            fold = fold_tex;
+        }
         /* An emitter's front seen by a secondary ray: direct light of the primary hit, weighted
          * against the light samples that could have found the same point (MIS, power heuristic). */
         if (side > 0.0f && pm_material_is_emissive(&s->materials[mi])) {

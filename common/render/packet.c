@@ -95,14 +95,16 @@ int pm_packet_width(const pm_rt_t *rt, pm_isa_t isa)
         _Alignas(64) int valid[W];                                                                                     \
         PM_FILL_RAY(rh.ray, W, r, b, n);                                                                               \
         for (unsigned k = 0; k < (W); k++)                                                                             \
-            rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;                                                                \
+            rh.hit.geomID[k] = rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;                                          \
         rtcIntersect##W(valid, rt->scene, ctx, &rh);                                                                   \
         for (unsigned k = 0; k < n; k++) {                                                                             \
             size_t i = b + k;                                                                                          \
             int hit = rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID;                                                     \
+            float ng[3] = {rh.hit.Ng_x[k], rh.hit.Ng_y[k], rh.hit.Ng_z[k]};                                            \
             r->tfar[i] = rh.ray.tfar[k];                                                                               \
-            r->prim[i] = hit ? rh.hit.primID[k] : PM_RAY_MISS;                                                         \
-            r->ngx[i] = rh.hit.Ng_x[k], r->ngy[i] = rh.hit.Ng_y[k], r->ngz[i] = rh.hit.Ng_z[k];                        \
+            r->prim[i] = hit ? pm_rt_hit_triangle(rt, rh.hit.geomID[k], rh.hit.instID[0][k], rh.hit.primID[k], ng)     \
+                             : PM_RAY_MISS;                                                                            \
+            r->ngx[i] = ng[0], r->ngy[i] = ng[1], r->ngz[i] = ng[2];                                                   \
         }                                                                                                              \
     }                                                                                                                  \
     static void occluded##W(const pm_rt_t *rt, struct RTCIntersectContext *ctx, pm_rays_t *r, size_t b, unsigned n)    \

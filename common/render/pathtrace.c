@@ -24,12 +24,20 @@
 #include "math/rng.h"
 #include "math/vec.h"
 
-const char *const pm_pt_component_names[] = {"total", "direct", "indirect", NULL};
+const char *const pm_pt_component_names[] = {"total", "direct", "indirect", "caustic", NULL};
 
-/* Whether a contribution that reflected b times belongs to the component asked for. */
-static inline int wanted(const pm_pathtracer_t *pt, unsigned b)
+/* Which component a contribution belongs to (pathtrace.h): nd non-specular vertices on the path
+ * from the camera to the light, spec whether a mirror or glass lies between the last of them
+ * and the light. */
+static inline int component_of(unsigned nd, int spec)
 {
-    return pt->set.component == PM_PT_TOTAL || (pt->set.component == PM_PT_DIRECT) == (b <= 1);
+    return nd >= 2 ? PM_PT_INDIRECT : nd == 1 && spec ? PM_PT_CAUSTIC : PM_PT_DIRECT;
+}
+
+/* Whether a contribution belongs to the component asked for. */
+static inline int wanted(const pm_pathtracer_t *pt, unsigned nd, int spec)
+{
+    return pt->set.component == PM_PT_TOTAL || pt->set.component == component_of(nd, spec);
 }
 
 pm_result_t pm_pathtracer_init(pm_pathtracer_t *pt, const pm_scene_t *s, const pm_rt_t *rt,
@@ -85,7 +93,14 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
     pm_camera_dir(&pt->cam, (float)x + jx, (float)y + jy, d);
     L[0] = L[1] = L[2] = 0.0;
     double beta[3] = {1.0, 1.0, 1.0}; /* path throughput: f cos / pdf products over survival */
-    float bsdf_pdf_prev = 0.0f;       /* solid-angle pdf of the BSDF sample that made this ray */
+    /* The product of eta^2 over the refractions so far: beta times it is the throughput
+     * without the radiance scaling of refraction, which Russian roulette looks at, so that a
+     * path into glass is not culled for a factor the way out gives back. */
+    double eta2 = 1.0;
+    float bsdf_pdf_prev = 0.0f; /* solid-angle pdf of the BSDF sample that made this ray */
+    int delta_prev = 0;         /* the ray left a mirror or glass: no light sample could have found its end */
+    unsigned nd = 0;            /* non-specular vertices so far (the camera's side of the light path) */
+    int spec = 0;               /* a mirror or glass since the last of them */
     cnt->paths++;
     for (unsigned depth = 0;; depth++) {
         cnt->rays++;
@@ -96,72 +111,108 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
         const float *ng = g->tri_n + 3 * (size_t)tri;
         float cos_front = pm_dot3(ng, wo), side = cos_front >= 0.0f ? 1.0f : -1.0f;
         float n[3] = {side * ng[0], side * ng[1], side * ng[2]};
-        const pm_material_t *m = &s->materials[s->tri_material[tri]];
+        pm_material_t textured; /* the material with its textures at p (render/scene.h) */
+        const pm_material_t *m = pm_scene_material_at(s, tri, p, &textured);
+        int specular = pm_material_is_specular(m);
 
-        /* Emission, front face only. Seen by the camera it is taken whole; found by a BSDF
-         * sample it shares with the light sample of the vertex before (power heuristic). */
-        if (cos_front > 0.0f && pm_material_is_emissive(m) && wanted(pt, depth)) {
+        /* Emission, front face only. Seen by the camera, or through mirrors and glass, it is
+         * taken whole; found by a BSDF sample it shares with the light sample of the vertex
+         * before (power heuristic). */
+        if (cos_front > 0.0f && pm_material_is_emissive(m) && wanted(pt, nd, spec)) {
             float w = 1.0f;
-            if (depth > 0)
+            if (depth > 0 && !delta_prev)
                 w = pm_power_heuristic(bsdf_pdf_prev, pm_area_light_pdf(g, t * t, cos_front));
             for (int q = 0; q < 3; q++)
                 L[q] += beta[q] * m->ke[q] * w;
         }
-        if (pt->set.component == PM_PT_DIRECT && depth >= 1)
-            break; /* what lies beyond is indirect: not traced */
+        /* What lies beyond is of a component not asked for: not traced. Direct light ends at
+         * the first non-specular vertex's light (nd 1, no mirror or glass after it); a caustic
+         * at the first non-specular vertex's mirrors and glass (nd 1 and this hit specular). */
+        if ((pt->set.component == PM_PT_DIRECT && nd >= 1) ||
+            (pt->set.component == PM_PT_CAUSTIC && nd >= 1 && !specular))
+            break;
         if (depth >= pt->set.max_bounces) {
             cnt->capped++;
             break;
         }
-        float pd, ps;
-        pm_bsdf_albedo(m, &pd, &ps);
-        if (!(pd > 0.0f || pm_material_is_glossy(m)))
-            break; /* black: reflects nothing */
-        if (depth + 1 > cnt->longest)
-            cnt->longest = depth + 1;
-        float org[3] = {p[0] + eps * n[0], p[1] + eps * n[1], p[2] + eps * n[2]};
-
-        /* Point lights: I cos / r^2, each one every vertex. */
-        pm_light_sample_t ls;
-        for (size_t l = 0; l < s->nlights && wanted(pt, depth + 1); l++) {
-            const pm_point_light_t *pl = &s->lights[l];
-            if (!pm_point_light_toward(pl, p, n, &ls))
-                continue;
-            cnt->shadow_rays++;
-            if (pm_rt_occluded1(pt->rt, ctx, org, ls.wi, 0.0f, ls.r - eps))
-                continue;
-            float f[3];
-            pm_brdf(m, n, ls.wi, wo, f);
+        if (specular) {
+            /* A delta BSDF: no light sample (it could not find the light through a delta
+             * lobe), no MIS; the sample carries the weight f cos / pdf. */
+            float wi[3], w[3];
+            int tr = pm_specular_sample(m, ng, wo, pm_rng_float(&rng), 1, wi, w);
+            if (tr < 0)
+                break; /* a black mirror */
+            if (depth + 1 > cnt->longest)
+                cnt->longest = depth + 1;
             for (int q = 0; q < 3; q++)
-                L[q] += beta[q] * (double)f[q] * pl->intensity[q] * ls.cosx / ls.r2;
-        }
-        /* One point on the area lights, pdf 1/A per m^2, weighted against BSDF sampling. */
-        if (g->nemissive && pm_area_light_sample(s, g, &rng, p, n, &ls) && wanted(pt, depth + 1)) {
-            cnt->shadow_rays++;
-            /* Stop short of the light's own surface, by the offset and a relative margin. */
-            if (!pm_rt_occluded1(pt->rt, ctx, org, ls.wi, 0.0f, ls.r * (1.0f - 1e-4f) - 2.0f * eps)) {
-                const pm_material_t *lm = &s->materials[s->tri_material[ls.tri]];
-                float pl = pm_area_light_pdf(g, ls.r2, ls.cosy), pb = pm_bsdf_pdf(m, n, ls.wi, wo), f[3];
-                pm_brdf(m, n, ls.wi, wo, f);
-                double gw = (double)ls.cosx / pl * pm_power_heuristic(pl, pb);
-                for (int q = 0; q < 3; q++)
-                    L[q] += beta[q] * (double)f[q] * lm->ke[q] * gw;
+                beta[q] *= (double)w[q];
+            if (tr == 1) {
+                double e = cos_front < 0.0f ? 1.0 / m->ior : m->ior;
+                eta2 *= e * e;
             }
-        }
+            /* off the surface on the side the ray leaves by */
+            float ofs = tr == 1 ? -eps : eps;
+            for (int q = 0; q < 3; q++)
+                o[q] = p[q] + ofs * n[q], d[q] = wi[q];
+            spec = 1;
+            delta_prev = 1;
+        } else {
+            float pd, ps;
+            pm_bsdf_albedo(m, &pd, &ps);
+            if (!(pd > 0.0f || pm_material_is_glossy(m)))
+                break; /* black: reflects nothing */
+            if (depth + 1 > cnt->longest)
+                cnt->longest = depth + 1;
+            float org[3] = {p[0] + eps * n[0], p[1] + eps * n[1], p[2] + eps * n[2]};
 
-        /* Continue along a BSDF sample: the lobe, then two numbers for the direction. */
-        float wi[3], u = pm_rng_float(&rng), u1 = pm_rng_float(&rng), u2 = pm_rng_float(&rng);
-        if (!pm_bsdf_sample(m, n, wo, u, u1, u2, wi))
-            break; /* the Phong lobe's share below the surface: its energy loss */
-        float pdf = pm_bsdf_pdf(m, n, wi, wo), f[3];
-        if (!(pdf > 0.0f))
-            break;
-        pm_brdf(m, n, wi, wo, f);
-        float cosi = pm_dot3(n, wi);
-        for (int q = 0; q < 3; q++)
-            beta[q] *= (double)f[q] * cosi / pdf;
+            /* Point lights: I cos / r^2, each one every vertex. */
+            pm_light_sample_t ls;
+            for (size_t l = 0; l < s->nlights && wanted(pt, nd + 1, 0); l++) {
+                const pm_point_light_t *pl = &s->lights[l];
+                if (!pm_point_light_toward(pl, p, n, &ls))
+                    continue;
+                cnt->shadow_rays++;
+                if (pm_rt_occluded1(pt->rt, ctx, org, ls.wi, 0.0f, ls.r - eps))
+                    continue;
+                float f[3];
+                pm_brdf(m, n, ls.wi, wo, f);
+                for (int q = 0; q < 3; q++)
+                    L[q] += beta[q] * (double)f[q] * pl->intensity[q] * ls.cosx / ls.r2;
+            }
+            /* One point on the area lights, pdf 1/A per m^2, weighted against BSDF sampling. */
+            if (g->nemissive && pm_area_light_sample(s, g, &rng, p, n, &ls) && wanted(pt, nd + 1, 0)) {
+                cnt->shadow_rays++;
+                /* Stop short of the light's own surface, by the offset and a relative margin. */
+                if (!pm_rt_occluded1(pt->rt, ctx, org, ls.wi, 0.0f, ls.r * (1.0f - 1e-4f) - 2.0f * eps)) {
+                    const pm_material_t *lm = &s->materials[s->tri_material[ls.tri]];
+                    float pl = pm_area_light_pdf(g, ls.r2, ls.cosy), pb = pm_bsdf_pdf(m, n, ls.wi, wo), f[3];
+                    pm_brdf(m, n, ls.wi, wo, f);
+                    double gw = (double)ls.cosx / pl * pm_power_heuristic(pl, pb);
+                    for (int q = 0; q < 3; q++)
+                        L[q] += beta[q] * (double)f[q] * lm->ke[q] * gw;
+                }
+            }
+
+            /* Continue along a BSDF sample: the lobe, then two numbers for the direction. */
+            float wi[3], u = pm_rng_float(&rng), u1 = pm_rng_float(&rng), u2 = pm_rng_float(&rng);
+            if (!pm_bsdf_sample(m, n, wo, u, u1, u2, wi))
+                break; /* the Phong lobe's share below the surface: its energy loss */
+            float pdf = pm_bsdf_pdf(m, n, wi, wo), f[3];
+            if (!(pdf > 0.0f))
+                break;
+            pm_brdf(m, n, wi, wo, f);
+            float cosi = pm_dot3(n, wi);
+            for (int q = 0; q < 3; q++)
+                beta[q] *= (double)f[q] * cosi / pdf;
+            bsdf_pdf_prev = pdf;
+            memcpy(o, org, sizeof o);
+            memcpy(d, wi, sizeof d);
+            nd++;
+            spec = 0;
+            delta_prev = 0;
+        }
         if (depth + 1 >= pt->set.rr_start) {
-            double qs = fmax(beta[0], fmax(beta[1], beta[2]));
+            double qs = fmax(beta[0], fmax(beta[1], beta[2])) * eta2;
             if (qs < 1.0) {
                 if (!(pm_rng_double(&rng) < qs))
                     break;
@@ -169,9 +220,6 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
                     beta[q] /= qs;
             }
         }
-        bsdf_pdf_prev = pdf;
-        memcpy(o, org, sizeof o);
-        memcpy(d, wi, sizeof d);
     }
     if (!(isfinite(L[0]) && isfinite(L[1]) && isfinite(L[2]))) {
         cnt->nonfinite++; /* counted and reported; never written */

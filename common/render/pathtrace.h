@@ -3,12 +3,19 @@
  * and lights: point lights in W/sr, Ke in W/(m^2 sr), front-face emitters), so that
  * measure-error can say how wrong a photon-mapped image is.
  *
- * Estimator: at every vertex, next-event estimation toward each point light (delta: light
- * sampling only) and toward one point on the area lights (uniform over their total area),
- * combined with BSDF sampling by the power heuristic; the BSDF is sampled as the mixture of
- * its lobes (pm_bsdf_sample). Paths end by Russian roulette with survival min(1, max
- * throughput), which keeps them unbiased and their weights bounded by 1 at any albedo;
- * max_bounces is a safety net whose paths are counted.
+ * Estimator: at every non-specular vertex, next-event estimation toward each point light
+ * (delta: light sampling only) and toward one point on the area lights (uniform over their
+ * total area), combined with BSDF sampling by the power heuristic; the BSDF is sampled as the
+ * mixture of its lobes (pm_bsdf_sample). At a mirror or glass vertex the delta BSDF is sampled
+ * alone (pm_specular_sample, carrying radiance): no light sample, no MIS, and emission the
+ * next ray finds counts whole, since no light sample could have found it. Light from a point
+ * light reaching a diffuse surface only through mirrors or glass (a point light's caustic)
+ * is therefore never found: a path tracer cannot sample it, and it is zero in this estimate.
+ * Paths end by Russian roulette with survival min(1, max throughput times the product of
+ * eta^2 over the refractions so far), which keeps them unbiased, their weights bounded by 1 at
+ * any albedo outside glass, and does not cull a path inside glass for the 1/eta^2 its way
+ * out gives back; max_bounces is a safety net whose paths are counted (a lossless mirror
+ * cavity never ends otherwise).
  *
  * Progressive: pm_pathtrace_render runs passes of samples per pixel and rewrites the outputs
  * (an OpenEXR image and optionally the f64 radiance buffer with each pixel's variance) after
@@ -29,11 +36,18 @@
 #include "render/scene.h"
 #include "render/shade.h"
 
-/* Which light: a contribution that reflected b times on its way to the camera (emission seen
- * directly b = 0, direct light b = 1) is direct for b <= 1 and indirect beyond, as
- * trace-gather-points' direct buffer and simd-gather's indirect one split it. */
-enum { PM_PT_TOTAL = 0, PM_PT_DIRECT = 1, PM_PT_INDIRECT = 2 };
-extern const char *const pm_pt_component_names[]; /* "total", "direct", "indirect", NULL */
+/* Which light: a contribution that met b non-specular surfaces (diffuse or glossy) on its way
+ * to the camera, mirrors and glass not counted, is
+ *   direct for b = 0 (emission seen, directly or through mirrors and glass) and for b = 1 when
+ *     no mirror or glass lies between the light and that surface (L D S* E, Heckbert's
+ *     notation: as trace-gather-points' direct buffer samples it);
+ *   caustic for b = 1 with one or more mirror or glass bounces between the light and the
+ *     surface (L S+ D S* E: what a caustic photon map holds);
+ *   indirect for b >= 2 (simd-gather's indirect buffer).
+ * In a scene without mirrors or glass b counts every bounce and caustic is 0. The three add up
+ * to the total. */
+enum { PM_PT_TOTAL = 0, PM_PT_DIRECT = 1, PM_PT_INDIRECT = 2, PM_PT_CAUSTIC = 3 };
+extern const char *const pm_pt_component_names[]; /* "total", "direct", "indirect", "caustic", NULL */
 
 typedef struct {
     uint32_t width, height; /* pixels */

@@ -237,7 +237,8 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
         pm_v3_store(n, pm_v3_normalize(pm_v3_load(ng)));
         if (pm_dot3(n, dir) > 0.0f) /* the side the photon arrived from */
             pm_v3_store(n, pm_v3_scale(pm_v3_load(n), -1.0f));
-        const pm_material_t *m = &s->materials[s->tri_material[hit]];
+        pm_material_t textured; /* the material with its textures at p (render/scene.h) */
+        const pm_material_t *m = pm_scene_material_at(s, hit, p, &textured);
         float pd, ps;
         pm_bsdf_albedo(m, &pd, &ps);
         if (pd + ps > 0.0f)

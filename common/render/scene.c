@@ -11,6 +11,7 @@
 #include <jansson.h>
 #include <math.h>
 #include <stdarg.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -18,6 +19,7 @@
 
 #include "base/hash.h"
 #include "formats/formats.h"
+#include "math/vec.h"
 
 #define PM_SCENE_MAX_TRIS (1u << 30) /* triangles: 32-bit indices with room to spare */
 #define PM_SCENE_MAX_LIGHTS 65536
@@ -33,9 +35,20 @@
  * a scene much smaller would be left out by PM_SCENE_AREA_MIN, and the image silently black. */
 #define PM_SCENE_SIZE_MIN 1e-8
 
+/* A mesh file imported once per scene, however many entries place it. */
+typedef struct {
+    char path[1200];
+    const struct aiScene *as;
+    char libs[4096]; /* its .mtl files, one a line (check_obj_materials) */
+} import_t;
+
 typedef struct {
     const char *file; /* the scene file, for messages */
     pm_scene_t *s;
+    int missing_magenta; /* missing_textures "magenta": a missing texture file is a warning */
+    import_t *imports;   /* the mesh files imported so far */
+    size_t nimports;
+    float *local; /* every vertex loaded, in its mesh's own units (placements share them) */
 } ctx_t;
 
 static pm_result_t bad(const ctx_t *c, const char *key, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
@@ -249,8 +262,78 @@ static pm_result_t load_defaults(const ctx_t *c, json_t *d)
     return r;
 }
 
+/* The specular part of a material (docs/scene-format.md, "Mirrors and glass"): from an OBJ,
+ * illum 7 is glass (Ni, Tf) and illum 3 or 5 with some Ks a mirror (Ks); from glTF, a
+ * transmissionFactor above 0 is glass (ior, baseColorFactor as the filter) and metallicFactor 1
+ * with roughnessFactor 0 a mirror (baseColorFactor). Sets m->kind, kr, ior and tf; refuses an
+ * index that is not a finite number > 0, a filter outside [0, 1], and mirror and glass at once. */
+static pm_result_t load_specular(const char *mesh, int is_obj, const struct aiMaterial *am, const float kd[3],
+                                 const float ks[3], pm_material_t *m)
+{
+    int illum = 0, glass = 0, mirror = 0;
+    ai_real ior = 1, transmission = 0, metallic = 0, roughness = 1;
+    struct aiColor4D tf = {1, 1, 1, 1};
+    unsigned one = 1;
+    m->ior = 1.0f;
+    m->tf[0] = m->tf[1] = m->tf[2] = 1.0f;
+    aiGetMaterialFloatArray(am, AI_MATKEY_REFRACTI, &ior, NULL);
+    if (is_obj) {
+        aiGetMaterialIntegerArray(am, "$mat.illum", 0, 0, &illum, &one);
+        aiGetMaterialColor(am, AI_MATKEY_COLOR_TRANSPARENT, &tf);
+        glass = illum == 7;
+        mirror = (illum == 3 || illum == 5) && (ks[0] > 0.0f || ks[1] > 0.0f || ks[2] > 0.0f);
+        for (int k = 0; k < 3; k++)
+            m->kr[k] = mirror ? ks[k] : 0.0f;
+    } else {
+        /* glTF's index defaults to 1.5 where KHR_materials_ior is absent */
+        if (aiGetMaterialFloatArray(am, AI_MATKEY_REFRACTI, &ior, NULL) != aiReturn_SUCCESS)
+            ior = 1.5f;
+        aiGetMaterialFloatArray(am, AI_MATKEY_TRANSMISSION_FACTOR, &transmission, NULL);
+        aiGetMaterialFloatArray(am, AI_MATKEY_METALLIC_FACTOR, &metallic, NULL);
+        aiGetMaterialFloatArray(am, AI_MATKEY_ROUGHNESS_FACTOR, &roughness, NULL);
+        if (!(transmission >= 0 && transmission <= 1))
+            return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': transmissionFactor %g must lie in [0, 1]",
+                                mesh, m->name, transmission);
+        glass = transmission > 0;
+        mirror = metallic == 1 && roughness == 0;
+        /* the base colour tints what a metal reflects and what glass transmits */
+        tf = (struct aiColor4D){kd[0], kd[1], kd[2], 1};
+        for (int k = 0; k < 3; k++)
+            m->kr[k] = mirror ? kd[k] : 0.0f;
+    }
+    /* only glTF can say both (an OBJ material has one illum) */
+    if (glass && mirror)
+        return pm_error_set(PM_ERR_INPUT,
+                            "mesh '%s': material '%s': transmissionFactor %g makes it glass, and metallicFactor 1 "
+                            "with roughnessFactor 0 a mirror: it cannot be both",
+                            mesh, m->name, transmission);
+    if (glass) {
+        if (!(isfinite(ior) && ior > 0))
+            return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': %s %g must be a finite number > 0", mesh,
+                                m->name, is_obj ? "Ni" : "ior", ior);
+        float tv[3] = {tf.r, tf.g, tf.b};
+        for (int k = 0; k < 3; k++)
+            if (!(tv[k] >= 0.0f && tv[k] <= 1.0f))
+                return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': %s %g in channel %c must lie in [0, 1]",
+                                    mesh, m->name, is_obj ? "Tf" : "baseColorFactor", tv[k], "rgb"[k]);
+        m->kind = PM_MAT_GLASS;
+        m->ior = (float)ior;
+        for (int k = 0; k < 3; k++)
+            m->tf[k] = tv[k];
+    } else if (mirror) {
+        m->kind = PM_MAT_MIRROR;
+    }
+    /* A specular material is its delta BSDF alone (the Kd and Ks it sets besides are
+     * reported by scan_material and scan_mtl_dropped). */
+    if (pm_material_is_specular(m))
+        for (int k = 0; k < 3; k++)
+            m->kd[k] = m->ks[k] = 0.0f;
+    return PM_OK;
+}
+
 /* Reads one material's reflectance from assimp and checks it is physical. */
-static pm_result_t load_material(const ctx_t *c, const char *mesh, const struct aiMaterial *am, pm_material_t *m)
+static pm_result_t load_material(const ctx_t *c, const char *mesh, int is_obj, const struct aiMaterial *am,
+                                 pm_material_t *m)
 {
     struct aiString name;
     struct aiColor4D kd = {0.8f, 0.8f, 0.8f, 1}, ks = {0, 0, 0, 1}, ke = {0, 0, 0, 1};
@@ -266,7 +349,8 @@ static pm_result_t load_material(const ctx_t *c, const char *mesh, const struct 
     aiGetMaterialColor(am, AI_MATKEY_COLOR_SPECULAR, &ks);
     aiGetMaterialColor(am, AI_MATKEY_COLOR_EMISSIVE, &ke);
     aiGetMaterialFloatArray(am, AI_MATKEY_SHININESS, &ns, NULL);
-    if (!m->name[0] || strcmp(m->name, AI_DEFAULT_MATERIAL_NAME) == 0) {
+    int stand_in = !m->name[0] || strcmp(m->name, AI_DEFAULT_MATERIAL_NAME) == 0;
+    if (stand_in) {
         /* assimp's stand-in for a mesh that names no material (PLY, STL): a plain grey
          * Lambertian surface, whatever the importer filled in (some set Ks to 1). */
         kd = (struct aiColor4D){0.8f, 0.8f, 0.8f, 1};
@@ -274,25 +358,31 @@ static pm_result_t load_material(const ctx_t *c, const char *mesh, const struct 
         snprintf(m->name, sizeof m->name, "default");
     }
     float kdv[3] = {kd.r, kd.g, kd.b}, ksv[3] = {ks.r, ks.g, ks.b}, kev[3] = {ke.r, ke.g, ke.b};
+    pm_result_t r = PM_OK;
+    if (!stand_in && (r = load_specular(mesh, is_obj, am, kdv, ksv, m)) != PM_OK)
+        return r;
+    int specular = pm_material_is_specular(m);
     for (int i = 0; i < 3; i++) {
         if (!(kdv[i] >= 0.0f && kdv[i] <= 1.0f) || !(ksv[i] >= 0.0f && ksv[i] <= 1.0f))
             return pm_error_set(PM_ERR_INPUT,
                                 "mesh '%s': material '%s': Kd %g and Ks %g in channel %c must lie in [0, 1]", mesh,
                                 m->name, kdv[i], ksv[i], "rgb"[i]);
-        if (kdv[i] + ksv[i] > 1.0f + 1e-6f)
+        /* a mirror's Ks is its reflectance and its Kd unused: their sum is no constraint */
+        if (!specular && kdv[i] + ksv[i] > 1.0f + 1e-6f)
             return pm_error_set(
                 PM_ERR_INPUT, "mesh '%s': material '%s': Kd + Ks = %g in channel %c exceeds 1 (not energy conserving)",
                 mesh, m->name, kdv[i] + ksv[i], "rgb"[i]);
         if (!(kev[i] >= 0.0f && kev[i] <= 1e30f))
             return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': Ke %g in channel %c must lie in [0, 1e30]",
                                 mesh, m->name, kev[i], "rgb"[i]);
-        m->kd[i] = kdv[i];
-        m->ks[i] = ksv[i];
+        m->kd[i] = specular ? 0.0f : kdv[i];
+        m->ks[i] = specular ? 0.0f : ksv[i];
         m->ke[i] = kev[i];
     }
     if (!(ns >= 0 && ns <= 1e6))
         return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': Ns %g must lie in [0, 1e6]", mesh, m->name, ns);
-    m->ns = (float)ns;
+    /* a Phong exponent matters only where there is a Phong lobe */
+    m->ns = specular ? 0.0f : (float)ns;
     (void)c;
     return PM_OK;
 }
@@ -473,6 +563,7 @@ static const material_key_t material_keys[] = {
     {"$mat.reflectivity", "reflectivity", "reflectivity", KEY_ZERO, KEY_ZERO},
     {"$clr.reflective", "reflective", "reflectiveColor", KEY_ZERO, KEY_ZERO},
     {"$mat.transparencyfactor", "transparencyfactor", "transparencyFactor", KEY_ZERO, KEY_ZERO},
+    {"$mat.transmission.factor", "transmission", "transmissionFactor", KEY_ZERO, KEY_ZERO},
 };
 
 /* A texture slot as MTL names it (assimp 5.2's ObjFileMtlImporter mapping), or NULL. */
@@ -580,6 +671,10 @@ static pm_result_t scan_material(pm_scene_t *s, int is_obj, const struct aiMater
                       : sem == aiTextureType_EMISSION_COLOR ? aiTextureType_EMISSIVE
                       : sem == aiTextureType_NORMAL_CAMERA  ? aiTextureType_NORMALS
                                                             : sem;
+            /* Honoured (load_material_maps): MTL map_Kd, map_Ks, map_d; the base colour elsewhere. */
+            if (sem == aiTextureType_DIFFUSE ||
+                (is_obj && (sem == aiTextureType_SPECULAR || sem == aiTextureType_OPACITY)))
+                continue;
             const char *mtl = is_obj ? mtl_texture_name(sem) : NULL;
             if (mtl)
                 snprintf(name, sizeof name, "%s", mtl);
@@ -597,6 +692,21 @@ static pm_result_t scan_material(pm_scene_t *s, int is_obj, const struct aiMater
             if (strcmp(material_keys[j].ai_key, key) == 0)
                 k = &material_keys[j];
         int kind = k ? (is_obj ? k->obj_kind : k->other_kind) : KEY_ANY;
+        /* What makes a material a mirror or glass is honoured (load_specular); a glass is
+         * smooth (roughness 0) and wholly transmissive (transmission 1). */
+        const pm_material_t *mat = &s->materials[m];
+        if (pm_material_is_specular(mat)) {
+            int is_glass = mat->kind == PM_MAT_GLASS;
+            if (strcmp(key, "$mat.illum") == 0 || (is_glass && strcmp(key, "$mat.refracti") == 0) ||
+                (is_glass && is_obj && strcmp(key, "$clr.transparent") == 0))
+                continue;
+            if (!is_obj && strcmp(key, "$mat.metallicFactor") == 0)
+                kind = is_glass ? KEY_ZERO : KEY_SKIP;
+            if (!is_obj && strcmp(key, "$mat.roughnessFactor") == 0)
+                kind = KEY_ZERO;
+            if (!is_obj && strcmp(key, "$mat.transmission.factor") == 0)
+                kind = KEY_ONE;
+        }
         if (kind == KEY_HONOURED || kind == KEY_SKIP)
             continue;
         /* A key pmtk does not know: named without assimp's "$mat." or "$clr." prefix. */
@@ -624,6 +734,19 @@ static int mtl_key_exposed(const char *word)
         if (strcmp(*k, w) == 0 || strcmp(*k, word) == 0)
             return 1;
     return strncmp(word, "map_", 4) == 0;
+}
+
+/* Whether an MTL line sets a colour a specular material does not use: a mirror's or a glass's
+ * Kd, a glass's Ks, at a value other than 0. Read from the .mtl itself: assimp fills in a Kd of
+ * 0.6 where the .mtl gives none. */
+static int unused_colour(const pm_material_t *m, const char *word, const char *rest)
+{
+    int kd = strcasecmp(word, "Kd") == 0, ks = strcasecmp(word, "Ks") == 0;
+    if (!pm_material_is_specular(m) || !(kd || (ks && m->kind == PM_MAT_GLASS)))
+        return 0;
+    float v[3] = {0, 0, 0};
+    int n = sscanf(rest, "%f %f %f", &v[0], &v[1], &v[2]);
+    return n < 1 || v[0] != 0.0f || v[1] != 0.0f || v[2] != 0.0f;
 }
 
 /* Reads the .mtl files an OBJ names (libs: one a line, relative to the OBJ) for the keys assimp
@@ -663,6 +786,15 @@ static pm_result_t scan_mtl_dropped(pm_scene_t *s, const char *obj, const char *
                         current = (uint32_t)m;
             } else if (current != UINT32_MAX && !mtl_key_exposed(word)) {
                 r = note_unsupported(s, current, word, 0, rest);
+            } else if (current != UINT32_MAX && rest[0] == '-' &&
+                       (strcmp(word, "map_Kd") == 0 || strcmp(word, "map_Ks") == 0 || strcmp(word, "map_d") == 0)) {
+                /* a texture pmtk reads, with options it does not (-clamp, -o, -s, -imfchan, ...;
+                 * assimp drops most without a word): the texture is used as if they were absent */
+                char key[64];
+                snprintf(key, sizeof key, "%s options", word);
+                r = note_unsupported(s, current, key, 0, rest);
+            } else if (current != UINT32_MAX && unused_colour(&s->materials[current], word, rest)) {
+                r = note_unsupported(s, current, word, 0, rest);
             }
         }
         free(line);
@@ -671,9 +803,256 @@ static pm_result_t scan_mtl_dropped(pm_scene_t *s, const char *obj, const char *
     return r;
 }
 
-static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
+/* The folder texture names of material `name` are relative to: the .mtl that defines it (an
+ * OBJ; libs as check_obj_materials lists them) or the mesh file itself (glTF and the rest). */
+static void texture_base(const char *mesh, int is_obj, const char *libs, const char *name, char *out, size_t cap)
 {
-    static const char *const keys[] = {"file", "scale", "translate", NULL};
+    snprintf(out, cap, "%s", mesh);
+    for (const char *lib = libs; is_obj && *lib;) {
+        const char *eol = strchr(lib, '\n');
+        char lname[1024], lpath[1200];
+        snprintf(lname, sizeof lname, "%.*s", (int)(eol - lib), lib);
+        lib = eol + 1;
+        resolve(mesh, lname, lpath, sizeof lpath);
+        FILE *f = fopen(lpath, "rb");
+        if (!f)
+            continue;
+        char *line = NULL, word[16];
+        size_t lcap = 0;
+        int found = 0;
+        for (ssize_t len; !found && (len = getline(&line, &lcap, f)) >= 0;) {
+            while (len > 0 && (line[len - 1] == '\n' || line[len - 1] == '\r' || line[len - 1] == ' '))
+                line[--len] = '\0';
+            const char *rest = obj_word(line, word, sizeof word);
+            if (strcmp(word, "newmtl") != 0)
+                continue;
+            char mname[64];
+            snprintf(mname, sizeof mname, "%s", rest);
+            for (char *q = mname; *q; q++)
+                if (*q == ' ' || (unsigned char)*q < 0x20 || *q == 0x7f)
+                    *q = '_';
+            found = strcmp(mname, name) == 0;
+        }
+        free(line);
+        fclose(f);
+        if (found) {
+            snprintf(out, cap, "%s", lpath);
+            return;
+        }
+    }
+}
+
+/* The texture file `name` (relative to the file base) as scene texture *index_out, loaded once
+ * per scene. A name with Windows separators (Crytek Sponza's "textures\\x.png") is read with
+ * '/' when it does not open as written. A missing file is an error naming the material, or
+ * under missing_textures "magenta" a magenta texture and a warning. */
+static pm_result_t scene_texture(const ctx_t *c, const char *base, const char *name, const char *mesh,
+                                 const pm_material_t *m, uint32_t mi, const char *key, int32_t *index_out)
+{
+    pm_scene_t *s = c->s;
+    char path[1200];
+    resolve(base, name, path, sizeof path);
+    FILE *probe = fopen(path, "rb");
+    if (!probe && strchr(name, '\\')) {
+        char alt[1024];
+        snprintf(alt, sizeof alt, "%s", name);
+        for (char *q = alt; *q; q++)
+            if (*q == '\\')
+                *q = '/';
+        char altpath[1200];
+        resolve(base, alt, altpath, sizeof altpath);
+        if ((probe = fopen(altpath, "rb")) != NULL)
+            snprintf(path, sizeof path, "%s", altpath);
+    }
+    int missing = !probe && errno == ENOENT;
+    if (probe)
+        fclose(probe);
+    for (size_t i = 0; i < s->ntextures; i++)
+        if (strcmp(s->textures[i].path, path) == 0) {
+            *index_out = (int32_t)i;
+            return PM_OK;
+        }
+    pm_result_t r = grow((void **)&s->textures, s->ntextures + 1, sizeof *s->textures);
+    if (r != PM_OK)
+        return r;
+    pm_texture_t *t = &s->textures[s->ntextures];
+    if (missing && c->missing_magenta) {
+        static const float magenta[3] = {1, 0, 1};
+        if ((r = pm_texture_solid(path, magenta, t)) != PM_OK)
+            return r;
+        if ((r = note_unsupported(s, mi, key, 1, path)) != PM_OK) {
+            pm_texture_free(t);
+            return r;
+        }
+        s->unsupported[s->nunsupported - 1].missing = 1;
+    } else if ((r = pm_texture_load(path, t)) != PM_OK) {
+        pm_error_prefix("mesh '%s': material '%s': %s '%s'", mesh, m->name, key, name);
+        return r;
+    }
+    *index_out = (int32_t)s->ntextures++;
+    return PM_OK;
+}
+
+/* The textures pmtk honours of assimp material am (scene material mi): map_Kd, map_Ks and map_d
+ * of an MTL, the base colour of glTF and the rest (assimp's diffuse slot). */
+static pm_result_t load_material_maps(const ctx_t *c, const char *mesh, int is_obj, const char *libs,
+                                      const struct aiMaterial *am, uint32_t mi)
+{
+    pm_scene_t *s = c->s;
+    pm_material_maps_t *mm = &s->maps[mi];
+    const pm_material_t *m = &s->materials[mi];
+    static const struct {
+        enum aiTextureType type;
+        const char *obj_key, *other_key;
+    } slots[] = {{aiTextureType_DIFFUSE, "map_Kd", "diffuse texture"},
+                 {aiTextureType_SPECULAR, "map_Ks", NULL},
+                 {aiTextureType_OPACITY, "map_d", NULL}};
+    char base[1200] = "";
+    pm_result_t r = PM_OK;
+    for (size_t k = 0; k < 3 && r == PM_OK; k++) {
+        const char *key = is_obj ? slots[k].obj_key : slots[k].other_key;
+        struct aiString tp;
+        if (!key ||
+            aiGetMaterialTexture(am, slots[k].type, 0, &tp, NULL, NULL, NULL, NULL, NULL, NULL) != aiReturn_SUCCESS ||
+            tp.length == 0)
+            continue;
+        if (tp.data[0] == '*') { /* a texture inside the glTF (or .glb): not read */
+            r = note_unsupported(s, mi, "embedded texture", 1, tp.data);
+            continue;
+        }
+        if (slots[k].type == aiTextureType_OPACITY && pm_material_is_emissive(m)) {
+            /* light sampling draws points over an emitter's whole area: cut-outs would not match */
+            r = note_unsupported(s, mi, "map_d on an emitter", 1, tp.data);
+            continue;
+        }
+        if (!base[0])
+            texture_base(mesh, is_obj, libs, m->name, base, sizeof base);
+        int32_t *slot = k == 0 ? &mm->kd : k == 1 ? &mm->ks : &mm->alpha;
+        r = scene_texture(c, base, tp.data, mesh, m, mi, key, slot);
+        if (r == PM_OK && k == 2)
+            s->any_alpha = 1;
+    }
+    return r;
+}
+
+/* sin and cos of an angle in degrees, exact at multiples of 90 (so that a quarter turn maps a
+ * coordinate axis onto another with no 6e-17 residue, and a typed matrix can match it). */
+static void sincos_degrees(double deg, double *s_out, double *c_out)
+{
+    double r = fmod(deg, 360.0);
+    if (r < 0)
+        r += 360.0;
+    if (r == 0.0 || r == 90.0 || r == 180.0 || r == 270.0) {
+        static const double s4[4] = {0, 1, 0, -1}, c4[4] = {1, 0, -1, 0};
+        int q = (int)(r / 90.0);
+        *s_out = s4[q], *c_out = c4[q];
+        return;
+    }
+    *s_out = sin(r * (M_PI / 180.0)), *c_out = cos(r * (M_PI / 180.0));
+}
+
+/* a = b * a for affine 3x4 matrices (rows of [3x3 | t]): b applied after a. */
+static void affine_after(double a[3][4], const double b[3][4])
+{
+    double o[3][4];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 4; j++)
+            o[i][j] = b[i][0] * a[0][j] + b[i][1] * a[1][j] + b[i][2] * a[2][j] + (j == 3 ? b[i][3] : 0.0);
+    memcpy(a, o, sizeof o);
+}
+
+static double det3(const double m[3][4])
+{
+    return m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
+           m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+}
+
+/* A mesh entry's placement (docs/scene-format.md, Transforms): scale, then rotate, then
+ * translate, then matrix, composed into one affine map xf_out. *general_out is 0 when only scale
+ * and translate are given: those scenes keep the arithmetic they always had (same vertices to
+ * the bit). */
+static pm_result_t load_transform(const ctx_t *c, json_t *mj, const char *where, double xf_out[3][4], int *general_out)
+{
+    double scale = 1.0;
+    float tr[3] = {0, 0, 0};
+    char p1[96], p2[96], p3[96];
+    snprintf(p1, sizeof p1, "%s.scale", where);
+    snprintf(p2, sizeof p2, "%s.translate", where);
+    pm_result_t r;
+    if ((r = get_number(c, mj, "scale", p1, 0, 1e-30, PM_SCENE_COORD_MAX, &scale)) != PM_OK ||
+        (r = get_vec3(c, mj, "translate", p2, 0, -PM_SCENE_COORD_MAX, PM_SCENE_COORD_MAX, tr)) != PM_OK)
+        return r;
+    memset(xf_out, 0, 12 * sizeof(double));
+    for (int i = 0; i < 3; i++)
+        xf_out[i][i] = scale;
+    *general_out = 0;
+    json_t *rot = json_object_get(mj, "rotate");
+    if (rot) {
+        static const char *const rkeys[] = {"axis", "degrees", NULL};
+        snprintf(p1, sizeof p1, "%s.rotate", where);
+        if (!json_is_object(rot))
+            return bad(c, p1, "must be an object {\"axis\": [x, y, z], \"degrees\": angle}");
+        float axis[3];
+        double deg = 0;
+        snprintf(p2, sizeof p2, "%s.rotate.axis", where);
+        snprintf(p3, sizeof p3, "%s.rotate.degrees", where);
+        if ((r = only_keys(c, rot, p1, rkeys)) != PM_OK ||
+            (r = get_vec3(c, rot, "axis", p2, 1, -PM_SCENE_COORD_MAX, PM_SCENE_COORD_MAX, axis)) != PM_OK ||
+            (r = get_number(c, rot, "degrees", p3, 1, -1e6, 1e6, &deg)) != PM_OK)
+            return r;
+        double a[3] = {axis[0], axis[1], axis[2]}, len = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+        if (!(len > 0) || !isfinite(len))
+            return bad(c, p2, "is the zero vector: a rotation needs an axis");
+        for (int k = 0; k < 3; k++)
+            a[k] /= len;
+        double sn, cs;
+        sincos_degrees(deg, &sn, &cs);
+        /* Rodrigues: R = cos I + sin [a]x + (1 - cos) a a^T, counter-clockwise seen from the tip of a. */
+        double R[3][4] = {
+            {cs + a[0] * a[0] * (1 - cs), a[0] * a[1] * (1 - cs) - a[2] * sn, a[0] * a[2] * (1 - cs) + a[1] * sn, 0},
+            {a[1] * a[0] * (1 - cs) + a[2] * sn, cs + a[1] * a[1] * (1 - cs), a[1] * a[2] * (1 - cs) - a[0] * sn, 0},
+            {a[2] * a[0] * (1 - cs) - a[1] * sn, a[2] * a[1] * (1 - cs) + a[0] * sn, cs + a[2] * a[2] * (1 - cs), 0}};
+        affine_after(xf_out, R);
+        *general_out = 1;
+    }
+    for (int k = 0; k < 3; k++)
+        xf_out[k][3] = tr[k];
+    json_t *mat = json_object_get(mj, "matrix");
+    if (mat) {
+        snprintf(p1, sizeof p1, "%s.matrix", where);
+        if (!json_is_array(mat) || json_array_size(mat) != 16)
+            return bad(c, p1, "must be an array of 16 numbers (4 x 4, row-major), not %zu",
+                       json_is_array(mat) ? json_array_size(mat) : (size_t)0);
+        double m[16];
+        for (size_t i = 0; i < 16; i++) {
+            json_t *e = json_array_get(mat, i);
+            if (!json_is_number(e))
+                return bad(c, p1, "element %zu is not a number", i);
+            m[i] = json_number_value(e);
+            if (!isfinite(m[i]) || fabs(m[i]) > PM_SCENE_COORD_MAX)
+                return bad(c, p1, "element %zu = %.9g is not finite or beyond %g", i, m[i], PM_SCENE_COORD_MAX);
+        }
+        if (m[12] != 0.0 || m[13] != 0.0 || m[14] != 0.0 || m[15] != 1.0)
+            return bad(c, p1, "last row %.9g %.9g %.9g %.9g is not 0 0 0 1: only affine maps are supported", m[12],
+                       m[13], m[14], m[15]);
+        double M[3][4] = {{m[0], m[1], m[2], m[3]}, {m[4], m[5], m[6], m[7]}, {m[8], m[9], m[10], m[11]}};
+        /* Singular, or so near it that float vertices collapse: |det| against the product of
+         * the rows' lengths (the volume of the unit cube's image against the most it could be). */
+        double rows = 1.0;
+        for (int i = 0; i < 3; i++)
+            rows *= sqrt(M[i][0] * M[i][0] + M[i][1] * M[i][1] + M[i][2] * M[i][2]);
+        double d = det3(M);
+        if (!(fabs(d) > 1e-9 * rows))
+            return bad(c, p1, "is singular (determinant %.9g of its 3 x 3 part): it flattens the mesh", d);
+        affine_after(xf_out, M);
+        *general_out = 1;
+    }
+    return PM_OK;
+}
+
+static pm_result_t load_mesh(ctx_t *c, json_t *mj, size_t index)
+{
+    static const char *const keys[] = {"file", "scale", "rotate", "translate", "matrix", NULL};
     pm_scene_t *s = c->s;
     char where[64], path[1200];
     snprintf(where, sizeof where, "meshes[%zu]", index);
@@ -685,77 +1064,99 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
     const char *file = json_string_value(json_object_get(mj, "file"));
     if (!file)
         return bad(c, where, "'file' is missing or not a string");
-    double scale = 1.0;
-    float tr[3] = {0, 0, 0};
-    char p1[80], p2[80];
-    snprintf(p1, sizeof p1, "%s.scale", where);
-    snprintf(p2, sizeof p2, "%s.translate", where);
-    if ((r = get_number(c, mj, "scale", p1, 0, 1e-30, PM_SCENE_COORD_MAX, &scale)) != PM_OK ||
-        (r = get_vec3(c, mj, "translate", p2, 0, -PM_SCENE_COORD_MAX, PM_SCENE_COORD_MAX, tr)) != PM_OK)
+    double xf[3][4];
+    int general;
+    if ((r = load_transform(c, mj, where, xf, &general)) != PM_OK)
         return r;
+    /* A mirroring map (negative determinant) turns the right-hand-rule normal of every
+     * triangle inward: its vertex order is swapped so that the front face (the side an
+     * emitter lights) stays the mirror image of the mesh's own. */
+    int flip = det3(xf) < 0.0;
     resolve(c->file, file, path, sizeof path);
-    FILE *probe = fopen(path, "rb");
-    if (!probe)
-        return pm_error_set(PM_ERR_INPUT, "cannot open mesh '%s': %s", path, strerror(errno));
-    fclose(probe);
-    /* Triangulate polygons, merge shared vertices, flatten node transforms, drop points
-     * and lines; normals are not needed: pmtk shades with geometric normals. */
-    struct aiLogStream log = {on_assimp_log, NULL};
-    ai_first_error[0] = '\0';
-    aiAttachLogStream(&log);
-    const struct aiScene *as =
-        aiImportFile(path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_PreTransformVertices |
-                               aiProcess_SortByPType | aiProcess_ValidateDataStructure);
-    aiDetachAllLogStreams();
-    if (!as)
-        return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, aiGetErrorString());
-    if (ai_first_error[0]) {
-        aiReleaseImport(as);
-        return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, ai_first_error);
-    }
-    /* An OBJ whose faces name no material (no mtllib, or a usemtl the .mtl lacks) gets
-     * assimp's default material, or the .mtl's last one; rendering either would be silently
-     * wrong. The OBJ's own order of lines tells; the default material is checked after it. */
     size_t ext = strlen(path);
     int is_obj = ext > 4 && strcasecmp(path + ext - 4, ".obj") == 0;
-    char libs[4096];
-    if (is_obj && (r = check_obj_materials(path, libs, sizeof libs)) != PM_OK) {
-        aiReleaseImport(as);
-        return r;
+    import_t *im = NULL;
+    for (size_t i = 0; i < c->nimports && !im; i++)
+        if (strcmp(c->imports[i].path, path) == 0)
+            im = &c->imports[i];
+    if (!im) {
+        FILE *probe = fopen(path, "rb");
+        if (!probe)
+            return pm_error_set(PM_ERR_INPUT, "cannot open mesh '%s': %s", path, strerror(errno));
+        fclose(probe);
+        if ((r = grow((void **)&c->imports, c->nimports + 1, sizeof *c->imports)) != PM_OK)
+            return r;
+        /* Triangulate polygons, merge shared vertices, flatten node transforms, drop points
+         * and lines; normals are not needed: pmtk shades with geometric normals. */
+        struct aiLogStream log = {on_assimp_log, NULL};
+        ai_first_error[0] = '\0';
+        aiAttachLogStream(&log);
+        const struct aiScene *imported = aiImportFile(path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
+                                                                aiProcess_PreTransformVertices | aiProcess_SortByPType |
+                                                                aiProcess_ValidateDataStructure);
+        aiDetachAllLogStreams();
+        if (!imported)
+            return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, aiGetErrorString());
+        if (ai_first_error[0]) {
+            aiReleaseImport(imported);
+            return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, ai_first_error);
+        }
+        /* An OBJ whose faces name no material (no mtllib, or a usemtl the .mtl lacks) gets
+         * assimp's default material, or the .mtl's last one; rendering either would be
+         * silently wrong. The OBJ's own order of lines tells; the default material is checked
+         * after it. */
+        char libs_read[4096] = "";
+        if (is_obj && (r = check_obj_materials(path, libs_read, sizeof libs_read)) != PM_OK) {
+            aiReleaseImport(imported);
+            return r;
+        }
+        im = &c->imports[c->nimports++];
+        snprintf(im->path, sizeof im->path, "%s", path);
+        snprintf(im->libs, sizeof im->libs, "%s", libs_read);
+        im->as = imported;
     }
+    /* the import is the scene's until pm_scene_load ends: it serves every entry placing it */
+    const struct aiScene *as = im->as;
+    const char *libs = im->libs;
+    size_t tri_start = s->ntris, vert_start = s->nverts;
+    uint64_t kept = 0; /* which faces are kept (degenerate ones left out): a placement's key */
     for (unsigned mi = 0; is_obj && mi < as->mNumMeshes; mi++) {
         const struct aiMesh *m = as->mMeshes[mi];
         struct aiString mname;
         if (m->mMaterialIndex < as->mNumMaterials &&
             aiGetMaterialString(as->mMaterials[m->mMaterialIndex], AI_MATKEY_NAME, &mname) == aiReturn_SUCCESS &&
             strcmp(mname.data, AI_DEFAULT_MATERIAL_NAME) == 0) {
-            r = pm_error_set(PM_ERR_INPUT,
-                             "mesh '%s': %u faces of '%s' have no material (no mtllib, or no usemtl before them)", path,
-                             m->mNumFaces, m->mName.length ? m->mName.data : "(unnamed)");
-            aiReleaseImport(as);
-            return r;
+            return pm_error_set(PM_ERR_INPUT,
+                                "mesh '%s': %u faces of '%s' have no material (no mtllib, or no usemtl before them)",
+                                path, m->mNumFaces, m->mName.length ? m->mName.data : "(unnamed)");
         }
     }
     size_t mat0 = s->nmaterials;
-    if ((r = grow((void **)&s->materials, mat0 + as->mNumMaterials, sizeof *s->materials)) != PM_OK) {
-        aiReleaseImport(as);
+    if ((r = grow((void **)&s->materials, mat0 + as->mNumMaterials, sizeof *s->materials)) != PM_OK ||
+        (r = grow((void **)&s->maps, mat0 + as->mNumMaterials, sizeof *s->maps)) != PM_OK)
         return r;
-    }
+    for (size_t i = mat0; i < mat0 + as->mNumMaterials; i++)
+        s->maps[i] = (pm_material_maps_t){-1, -1, -1};
     for (unsigned i = 0; i < as->mNumMaterials && r == PM_OK; i++) {
-        r = load_material(c, path, as->mMaterials[i], &s->materials[mat0 + i]);
+        r = load_material(c, path, is_obj, as->mMaterials[i], &s->materials[mat0 + i]);
         /* assimp's stand-in material is pmtk's grey default whatever it holds: nothing to report */
         struct aiString an;
         int stand_in = aiGetMaterialString(as->mMaterials[i], AI_MATKEY_NAME, &an) != aiReturn_SUCCESS ||
                        an.length == 0 || strcmp(an.data, AI_DEFAULT_MATERIAL_NAME) == 0;
         if (r == PM_OK && !stand_in)
             r = scan_material(s, is_obj, as->mMaterials[i], (uint32_t)(mat0 + i));
+        /* only the textures of a material some triangle uses: an unused one is dropped unread */
+        int used = 0;
+        for (unsigned mi = 0; mi < as->mNumMeshes && !used; mi++)
+            used =
+                as->mMeshes[mi]->mMaterialIndex == i && (as->mMeshes[mi]->mPrimitiveTypes & aiPrimitiveType_TRIANGLE);
+        if (r == PM_OK && !stand_in && used)
+            r = load_material_maps(c, path, is_obj, is_obj ? libs : "", as->mMaterials[i], (uint32_t)(mat0 + i));
     }
     if (r == PM_OK && is_obj)
         r = scan_mtl_dropped(s, path, libs, mat0, as->mNumMaterials);
-    if (r != PM_OK) {
-        aiReleaseImport(as);
+    if (r != PM_OK)
         return r;
-    }
     s->nmaterials += as->mNumMaterials;
     for (unsigned mi = 0; mi < as->mNumMeshes && r == PM_OK; mi++) {
         const struct aiMesh *m = as->mMeshes[mi];
@@ -766,19 +1167,29 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
                              as->mNumMaterials);
             break;
         }
+        const pm_material_maps_t *mm = &s->maps[mat0 + m->mMaterialIndex];
+        if (!m->mTextureCoords[0] && (mm->kd >= 0 || mm->ks >= 0 || mm->alpha >= 0) &&
+            (r = note_unsupported(s, (uint32_t)(mat0 + m->mMaterialIndex), "texture coordinates", 0,
+                                  "missing (texel 0 0 used)")) != PM_OK)
+            break;
         size_t v0 = s->nverts;
         if (s->ntris + m->mNumFaces > PM_SCENE_MAX_TRIS) {
             r = pm_error_set(PM_ERR_INPUT, "mesh '%s': more than %u triangles in the scene", path, PM_SCENE_MAX_TRIS);
             break;
         }
         if ((r = grow((void **)&s->verts, 3 * (v0 + m->mNumVertices), sizeof(float))) != PM_OK ||
+            (r = grow((void **)&s->uvs, 2 * (v0 + m->mNumVertices), sizeof(float))) != PM_OK ||
+            (r = grow((void **)&c->local, 3 * (v0 + m->mNumVertices), sizeof(float))) != PM_OK ||
             (r = grow((void **)&s->tris, 3 * (s->ntris + m->mNumFaces), sizeof(uint32_t))) != PM_OK ||
             (r = grow((void **)&s->tri_material, s->ntris + m->mNumFaces, sizeof(uint32_t))) != PM_OK)
             break;
         for (unsigned v = 0; v < m->mNumVertices; v++) {
             double p[3] = {m->mVertices[v].x, m->mVertices[v].y, m->mVertices[v].z};
+            for (int k = 0; k < 3; k++)
+                c->local[3 * (v0 + v) + k] = (float)p[k];
             for (int k = 0; k < 3; k++) {
-                double x = p[k] * scale + tr[k];
+                double x = general ? xf[k][0] * p[0] + xf[k][1] * p[1] + xf[k][2] * p[2] + xf[k][3]
+                                   : p[k] * xf[k][k] + xf[k][3];
                 if (!isfinite(x) || fabs(x) > PM_SCENE_COORD_MAX) {
                     r = pm_error_set(PM_ERR_INPUT, "mesh '%s': vertex %u coordinate %c = %g is not finite or beyond %g",
                                      path, v, "xyz"[k], x, PM_SCENE_COORD_MAX);
@@ -786,6 +1197,11 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
                 }
                 s->verts[3 * (v0 + v) + k] = (float)x;
             }
+            /* the first set of texture coordinates; none: every point reads texel (0, 0) */
+            const struct aiVector3D *uv = m->mTextureCoords[0] ? &m->mTextureCoords[0][v] : NULL;
+            float uu = uv ? uv->x : 0.0f, vv = uv ? uv->y : 0.0f;
+            s->uvs[2 * (v0 + v)] = isfinite(uu) ? uu : 0.0f;
+            s->uvs[2 * (v0 + v) + 1] = isfinite(vv) ? vv : 0.0f;
             if (r != PM_OK)
                 break;
         }
@@ -801,7 +1217,7 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
                                      face->mIndices[k], m->mNumVertices);
                     break;
                 }
-                t[k] = (uint32_t)(v0 + face->mIndices[k]);
+                t[k] = (uint32_t)(v0 + face->mIndices[flip && k ? 3 - k : k]);
             }
             if (r != PM_OK)
                 break;
@@ -821,11 +1237,88 @@ static pm_result_t load_mesh(const ctx_t *c, json_t *mj, size_t index)
             if (!(area >= PM_SCENE_AREA_MIN)) {
                 s->ntris--;
                 s->ndropped++;
+            } else {
+                uint64_t id[3] = {kept, mi, f};
+                kept = pm_hash_bytes(id, sizeof id);
             }
         }
     }
-    aiReleaseImport(as);
-    return r;
+    if (r != PM_OK)
+        return r;
+    /* This entry's placement: entries with equal keys hold the same triangles in the same mesh
+     * units and winding, so that Embree can keep one copy and place it by instances. */
+    if ((r = grow((void **)&s->placements, s->nplacements + 1, sizeof *s->placements)) != PM_OK)
+        return r;
+    pm_placement_t *pl = &s->placements[s->nplacements++];
+    memset(pl, 0, sizeof *pl);
+    uint64_t id[4] = {pm_hash_bytes(path, strlen(path)), kept, (uint64_t)flip, s->ntris - tri_start};
+    pl->key = pm_hash_bytes(id, sizeof id);
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 4; j++)
+            pl->xf[4 * i + j] = (float)xf[i][j];
+    pl->tri0 = (uint32_t)tri_start, pl->ntris = (uint32_t)(s->ntris - tri_start);
+    pl->vert0 = (uint32_t)vert_start, pl->nverts = (uint32_t)(s->nverts - vert_start);
+    pl->proto = -1;
+    return PM_OK;
+}
+
+/* Releases the import of entry i's mesh file unless a later entry places the same file, so
+ * that a scene of many different files holds one import at a time. */
+static void release_import(ctx_t *c, json_t *meshes, size_t i)
+{
+    const char *file = json_string_value(json_object_get(json_array_get(meshes, i), "file"));
+    if (!file)
+        return;
+    char path[1200], later[1200];
+    resolve(c->file, file, path, sizeof path);
+    for (size_t j = i + 1; j < json_array_size(meshes); j++) {
+        const char *f = json_string_value(json_object_get(json_array_get(meshes, j), "file"));
+        if (!f)
+            continue;
+        resolve(c->file, f, later, sizeof later);
+        if (strcmp(later, path) == 0)
+            return;
+    }
+    for (size_t k = 0; k < c->nimports; k++)
+        if (c->imports[k].as && strcmp(c->imports[k].path, path) == 0) {
+            aiReleaseImport(c->imports[k].as);
+            c->imports[k].as = NULL;
+            c->imports[k].path[0] = '\0'; /* never found again */
+        }
+}
+
+/* Marks the placements Embree may instance (a key placed more than once, unless the scene
+ * says "instancing": false) and keeps their prototype's vertices in mesh units. */
+static pm_result_t find_instances(ctx_t *c, int allowed)
+{
+    pm_scene_t *s = c->s;
+    size_t nlocal = 0;
+    for (size_t i = 0; allowed && i < s->nplacements; i++) {
+        pm_placement_t *p = &s->placements[i];
+        for (size_t j = 0; j < i && p->proto < 0; j++) {
+            pm_placement_t *q = &s->placements[j];
+            if (q->key == p->key && q->ntris == p->ntris && q->nverts == p->nverts && p->ntris > 0) {
+                if (q->proto < 0) { /* q becomes the prototype */
+                    q->proto = (int32_t)j;
+                    q->local0 = (uint32_t)nlocal;
+                    nlocal += q->nverts;
+                }
+                p->proto = q->proto;
+            }
+        }
+    }
+    if (!nlocal)
+        return PM_OK;
+    s->local_verts = malloc(3 * nlocal * sizeof(float));
+    if (!s->local_verts)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for %zu instanced vertices", nlocal);
+    for (size_t i = 0; i < s->nplacements; i++) {
+        const pm_placement_t *p = &s->placements[i];
+        if (p->proto == (int32_t)i)
+            memcpy(s->local_verts + 3 * (size_t)p->local0, c->local + 3 * (size_t)p->vert0,
+                   3 * (size_t)p->nverts * sizeof(float));
+    }
+    return PM_OK;
 }
 
 double pm_scene_triangle_area(const pm_scene_t *s, size_t t)
@@ -877,6 +1370,8 @@ static pm_result_t compact_materials(pm_scene_t *s)
     for (size_t m = 0; m < s->nmaterials; m++)
         if (map[m] == 0) {
             s->materials[n] = s->materials[m];
+            if (s->maps)
+                s->maps[n] = s->maps[m];
             map[m] = (uint32_t)n++;
         }
     for (size_t t = 0; t < s->ntris; t++)
@@ -891,6 +1386,50 @@ static pm_result_t compact_materials(pm_scene_t *s)
     s->nunsupported = nu;
     s->nmaterials = n;
     free(map);
+    return PM_OK;
+}
+
+/* Frees the texture tables of a scene whose materials (those kept) use no texture, so that it
+ * pays nothing for the feature. */
+static pm_result_t drop_unused_maps(pm_scene_t *s)
+{
+    int any = 0;
+    for (size_t m = 0; s->maps && m < s->nmaterials; m++)
+        any |= s->maps[m].kd >= 0 || s->maps[m].ks >= 0 || s->maps[m].alpha >= 0;
+    if (!any) {
+        free(s->maps);
+        free(s->uvs);
+        s->maps = NULL;
+        s->uvs = NULL;
+        s->any_alpha = 0;
+    } else {
+        s->any_alpha = 0;
+        for (size_t m = 0; m < s->nmaterials; m++)
+            s->any_alpha |= s->maps[m].alpha >= 0;
+    }
+    return PM_OK;
+}
+
+/* The materials' share of the scene hash. Without a mirror or glass, each material's bytes up
+ * to its specular fields (name to ke, no padding), as the hash took them before those fields
+ * existed, so that such a scene's identity, and every file naming it, stays what it was. */
+static pm_result_t hash_materials(const pm_scene_t *s, uint64_t *out)
+{
+    int specular = 0;
+    for (size_t m = 0; m < s->nmaterials; m++)
+        specular |= pm_material_is_specular(&s->materials[m]);
+    if (specular) {
+        *out = pm_hash_bytes(s->materials, s->nmaterials * sizeof *s->materials);
+        return PM_OK;
+    }
+    size_t head = offsetof(pm_material_t, kind);
+    unsigned char *buf = malloc(s->nmaterials ? s->nmaterials * head : 1);
+    if (!buf)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory");
+    for (size_t m = 0; m < s->nmaterials; m++)
+        memcpy(buf + m * head, &s->materials[m], head);
+    *out = pm_hash_bytes(buf, s->nmaterials * head);
+    free(buf);
     return PM_OK;
 }
 
@@ -913,8 +1452,10 @@ static void finish(pm_scene_t *s)
         s->bounds[k] = lo[k] <= hi[k] ? lo[k] : 0.0f;
         s->bounds[k + 3] = lo[k] <= hi[k] ? hi[k] : 0.0f;
     }
-    for (size_t m = 0; m < s->nmaterials; m++)
+    for (size_t m = 0; m < s->nmaterials; m++) {
         s->any_glossy |= pm_material_is_glossy(&s->materials[m]);
+        s->any_specular |= pm_material_is_specular(&s->materials[m]);
+    }
 }
 
 /* Refuses geometry too small to render: the longest side of the box around every vertex
@@ -944,7 +1485,7 @@ static pm_result_t check_size(const ctx_t *c)
 pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
 {
     memset(s, 0, sizeof *s);
-    ctx_t c = {path, s};
+    ctx_t c = {path, s, 0, NULL, 0, NULL};
     snprintf(s->path, sizeof s->path, "%s", path);
     json_error_t je;
     FILE *f = fopen(path, "rb");
@@ -955,7 +1496,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     fclose(f);
     if (!root)
         return pm_error_set(PM_ERR_INPUT, "scene '%s' line %d column %d: %s", path, je.line, je.column, je.text);
-    static const char *const keys[] = {"pmtk_scene", "name", "meshes", "camera", "point_lights", "render", NULL};
+    static const char *const keys[] = {"pmtk_scene",       "name",       "meshes", "camera", "point_lights", "render",
+                                       "missing_textures", "instancing", NULL};
     pm_result_t r =
         json_is_object(root) ? only_keys(&c, root, "top level", keys) : bad(&c, "top level", "must be a JSON object");
     int64_t version = 0;
@@ -966,15 +1508,34 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         r = bad(&c, "name", "must be a non-empty string without spaces, under %zu bytes", sizeof s->name);
     if (r == PM_OK)
         snprintf(s->name, sizeof s->name, "%s", name);
+    json_t *mt = json_object_get(root, "missing_textures");
+    if (r == PM_OK && mt) {
+        const char *v = json_string_value(mt);
+        if (v && strcmp(v, "magenta") == 0)
+            c.missing_magenta = 1;
+        else if (!v || strcmp(v, "error") != 0)
+            r = bad(&c, "missing_textures", "must be \"error\" (the default) or \"magenta\"");
+    }
     json_t *meshes = json_object_get(root, "meshes");
     if (r == PM_OK && meshes && !json_is_array(meshes))
         r = bad(&c, "meshes", "must be an array");
     for (size_t i = 0; r == PM_OK && meshes && i < json_array_size(meshes); i++) {
         r = load_mesh(&c, json_array_get(meshes, i), i);
+        release_import(&c, meshes, i);
         /* Mesh and material faults name the mesh; say which scene entry brought it in. */
         if (r == PM_ERR_INPUT && strncmp(pm_error_message(), "scene '", 7) != 0)
             pm_error_prefix("scene '%s': meshes[%zu]", path, i);
     }
+    json_t *inst = json_object_get(root, "instancing");
+    if (r == PM_OK && inst && !json_is_boolean(inst))
+        r = bad(&c, "instancing", "must be true (the default) or false");
+    if (r == PM_OK)
+        r = find_instances(&c, !inst || json_is_true(inst));
+    for (size_t i = 0; i < c.nimports; i++)
+        if (c.imports[i].as)
+            aiReleaseImport(c.imports[i].as);
+    free(c.imports);
+    free(c.local);
     if (r == PM_OK)
         r = check_size(&c);
     if (r == PM_OK)
@@ -1002,9 +1563,19 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         h[1] = pm_hash_bytes(s->verts, 3 * s->nverts * sizeof(float));
         h[2] = pm_hash_bytes(s->tris, 3 * s->ntris * sizeof(uint32_t));
         h[3] = pm_hash_bytes(s->tri_material, s->ntris * sizeof(uint32_t));
-        h[4] = pm_hash_bytes(s->materials, s->nmaterials * sizeof *s->materials);
+        if (r == PM_OK)
+            r = hash_materials(s, &h[4]);
         h[5] = pm_hash_bytes(s->lights, s->nlights * sizeof *s->lights);
         s->hash = pm_hash_bytes(h, sizeof h);
+        if (r == PM_OK && (r = drop_unused_maps(s)) == PM_OK && s->maps) {
+            /* Textured: their texels, the coordinates and which material uses which. A scene
+             * without textures keeps the hash it always had. */
+            uint64_t t[4] = {s->hash, pm_hash_bytes(s->uvs, 2 * s->nverts * sizeof(float)),
+                             pm_hash_bytes(s->maps, s->nmaterials * sizeof *s->maps), 0};
+            for (size_t i = 0; i < s->ntextures; i++)
+                t[3] = pm_hash_bytes((uint64_t[2]){t[3], s->textures[i].hash}, 2 * sizeof(uint64_t));
+            s->hash = pm_hash_bytes(t, sizeof t);
+        }
     }
     if (r == PM_OK)
         finish(s);
@@ -1022,6 +1593,13 @@ void pm_scene_free(pm_scene_t *s)
     free(s->lights);
     free(s->emissive);
     free(s->unsupported);
+    free(s->maps);
+    free(s->uvs);
+    free(s->placements);
+    free(s->local_verts);
+    for (size_t i = 0; i < s->ntextures; i++)
+        pm_texture_free(&s->textures[i]);
+    free(s->textures);
     memset(s, 0, sizeof *s);
 }
 
@@ -1035,7 +1613,78 @@ void pm_scene_warn_unsupported(const pm_scene_t *s, const pm_stage_t *st)
     for (size_t i = 0; i < s->nunsupported; i++) {
         char text[300];
         pm_scene_unsupported_text(&s->unsupported[i], text, sizeof text);
-        pm_stage_note(st, "warning: material '%s': %s is not supported (ignored)",
-                      s->materials[s->unsupported[i].material].name, text);
+        if (s->unsupported[i].missing)
+            pm_stage_note(st, "warning: material '%s': %s is missing: rendered magenta (missing_textures)",
+                          s->materials[s->unsupported[i].material].name, text);
+        else
+            pm_stage_note(st, "warning: material '%s': %s is not supported (ignored)",
+                          s->materials[s->unsupported[i].material].name, text);
     }
+}
+
+void pm_scene_barycentrics(const pm_scene_t *s, uint32_t tri, const float p[3], float b_out[2])
+{
+    const float *a = &s->verts[3 * s->tris[3 * tri]], *b = &s->verts[3 * s->tris[3 * tri + 1]],
+                *c = &s->verts[3 * s->tris[3 * tri + 2]];
+    float e1[3], e2[3], d[3];
+    for (int k = 0; k < 3; k++)
+        e1[k] = b[k] - a[k], e2[k] = c[k] - a[k], d[k] = p[k] - a[k];
+    float d11 = pm_dot3(e1, e1), d12 = pm_dot3(e1, e2), d22 = pm_dot3(e2, e2), p1 = pm_dot3(d, e1), p2 = pm_dot3(d, e2),
+          det = d11 * d22 - d12 * d12;
+    float b1 = det > 0.0f ? (d22 * p1 - d12 * p2) / det : 0.0f, b2 = det > 0.0f ? (d11 * p2 - d12 * p1) / det : 0.0f;
+    /* a point found by a ray lies in the triangle up to rounding: clamp it back in */
+    b1 = b1 > 0.0f ? b1 : 0.0f;
+    b2 = b2 > 0.0f ? b2 : 0.0f;
+    if (b1 + b2 > 1.0f) {
+        float t = b1 + b2;
+        b1 /= t, b2 /= t;
+    }
+    b_out[0] = b1, b_out[1] = b2;
+}
+
+void pm_scene_uv(const pm_scene_t *s, uint32_t tri, float b1, float b2, float uv_out[2])
+{
+    uv_out[0] = uv_out[1] = 0.0f;
+    if (!s->uvs)
+        return;
+    const float *t0 = &s->uvs[2 * s->tris[3 * tri]], *t1 = &s->uvs[2 * s->tris[3 * tri + 1]],
+                *t2 = &s->uvs[2 * s->tris[3 * tri + 2]];
+    float b0 = 1.0f - b1 - b2;
+    for (int k = 0; k < 2; k++)
+        uv_out[k] = b0 * t0[k] + b1 * t1[k] + b2 * t2[k];
+}
+
+const pm_material_t *pm_scene_material_textured(const pm_scene_t *s, uint32_t tri, const float p[3],
+                                                pm_material_t *scratch)
+{
+    uint32_t mi = s->tri_material[tri];
+    const pm_material_maps_t *mm = &s->maps[mi];
+    *scratch = s->materials[mi];
+    float b[2], uv[2], texel[4];
+    pm_scene_barycentrics(s, tri, p, b);
+    pm_scene_uv(s, tri, b[0], b[1], uv);
+    if (mm->kd >= 0) {
+        pm_texture_lookup(&s->textures[mm->kd], uv[0], uv[1], 1, texel);
+        for (int k = 0; k < 3; k++)
+            scratch->kd[k] *= fminf(texel[k], 1.0f);
+    }
+    if (mm->ks >= 0) {
+        pm_texture_lookup(&s->textures[mm->ks], uv[0], uv[1], 1, texel);
+        for (int k = 0; k < 3; k++)
+            scratch->ks[k] *= fminf(texel[k], 1.0f);
+    }
+    return scratch;
+}
+
+int pm_scene_cut_out(const pm_scene_t *s, uint32_t tri, float b1, float b2)
+{
+    int32_t a = s->maps ? s->maps[s->tri_material[tri]].alpha : -1;
+    if (a < 0)
+        return 0;
+    const pm_texture_t *t = &s->textures[a];
+    float uv[2], texel[4];
+    pm_scene_uv(s, tri, b1, b2, uv);
+    pm_texture_lookup(t, uv[0], uv[1], 0, texel);
+    /* the alpha channel when the image has one, else its grey (a mask image) */
+    return (t->has_alpha ? texel[3] : texel[0]) < 0.5f;
 }

@@ -12,6 +12,7 @@
 #include "base/error.h"
 #include "base/stage.h"
 #include "formats/material.h"
+#include "render/texture.h"
 
 typedef struct {
     float position[3];  /* m */
@@ -42,9 +43,28 @@ typedef struct {
 typedef struct {
     uint32_t material; /* index into pm_scene_t.materials */
     int is_file;       /* value is a file name (a texture), quoted when printed */
+    int missing;       /* a texture file that is missing, rendered magenta (missing_textures) */
     char key[32];      /* as the mesh format names it: "map_Kd", "illum", "metallicFactor" */
     char value[224];   /* as assimp read it: "tex.png", "7", "0.75" */
 } pm_scene_unsupported_t;
+
+/* The textures of one material: indices into pm_scene_t.textures, -1 for none. The texel
+ * scales the material's own value (MTL and glTF both say so): kd = Kd map_Kd, ks = Ks map_Ks;
+ * alpha (map_d) below 0.5 makes a hit no hit, for every ray. */
+typedef struct {
+    int32_t kd, ks, alpha;
+} pm_material_maps_t;
+
+/* Where one mesh entry of the scene file put its triangles. Every triangle is also in the
+ * flattened arrays (verts, tris, tri_material) that the tracers read; a mesh file placed by
+ * several entries is, in addition, built into Embree once and placed by instances (rt.c). */
+typedef struct {
+    uint64_t key;                        /* mesh file, faces kept, winding: equal keys, same triangles */
+    float xf[12];                        /* mesh units -> m, rows of [3 x 3 | translation] */
+    uint32_t tri0, ntris, vert0, nverts; /* its range in tris and verts */
+    int32_t proto;                       /* the placement Embree holds its triangles from; -1: built flat */
+    uint32_t local0;                     /* when proto is itself: its first vertex in local_verts */
+} pm_placement_t;
 
 typedef struct {
     char name[128];  /* "cornell-box" */
@@ -65,8 +85,18 @@ typedef struct {
     pm_render_defaults_t defaults;
     float bounds[6];                     /* min xyz, max xyz of all triangles and point lights, m */
     int any_glossy;                      /* 1 when some material has ks > 0: direction channels are needed */
+    int any_specular;                    /* 1 when some material is a mirror or glass */
     pm_scene_unsupported_t *unsupported; /* of the materials kept, in material order */
     size_t nunsupported;
+    /* Textures: all NULL and 0 in a scene without any (it pays nothing for the feature). */
+    pm_material_maps_t *maps; /* nmaterials, or NULL when no material has a texture */
+    float *uvs;               /* nverts * 2 texture coordinates (u, v), or NULL with maps */
+    pm_texture_t *textures;   /* each file once, however many materials use it */
+    size_t ntextures;
+    int any_alpha;              /* some material has map_d: render/rt.c installs the cut-out filter */
+    pm_placement_t *placements; /* one per mesh entry */
+    size_t nplacements;
+    float *local_verts; /* prototypes' vertices in mesh units; NULL when no mesh is instanced */
 } pm_scene_t;
 
 /* Loads and checks a scene file. Errors name the file and the line (JSON syntax) or the
@@ -88,6 +118,31 @@ void pm_scene_power(const pm_scene_t *s, double power_out[3]);
 
 /* Area of triangle t, m^2. */
 double pm_scene_triangle_area(const pm_scene_t *s, size_t t);
+
+/* The material at point p (m, on or near triangle tri) with its Kd and Ks scaled by their
+ * textures there: the scene's own material when it has no texture (no copy, no cost), else
+ * *scratch filled and returned. Every tracer reads a hit's reflectance through this. */
+const pm_material_t *pm_scene_material_textured(const pm_scene_t *s, uint32_t tri, const float p[3],
+                                                pm_material_t *scratch);
+static inline const pm_material_t *pm_scene_material_at(const pm_scene_t *s, uint32_t tri, const float p[3],
+                                                        pm_material_t *scratch)
+{
+    uint32_t mi = s->tri_material[tri];
+    if (!s->maps || (s->maps[mi].kd < 0 && s->maps[mi].ks < 0))
+        return &s->materials[mi];
+    return pm_scene_material_textured(s, tri, p, scratch);
+}
+
+/* Texture coordinates of triangle tri at barycentrics (b1, b2) of its second and third vertex
+ * (Embree's u, v); (0, 0) in a scene without textures. */
+void pm_scene_uv(const pm_scene_t *s, uint32_t tri, float b1, float b2, float uv_out[2]);
+
+/* Barycentrics (b1, b2) of point p projected onto triangle tri, clamped into the triangle. */
+void pm_scene_barycentrics(const pm_scene_t *s, uint32_t tri, const float p[3], float b_out[2]);
+
+/* 1 when the hit at barycentrics (b1, b2) of triangle tri is cut out (its material's map_d
+ * below 0.5 there). */
+int pm_scene_cut_out(const pm_scene_t *s, uint32_t tri, float b1, float b2);
 
 /* "NAME xxh3:HASH", the value of a file header's SCENE key. */
 void pm_scene_id(const pm_scene_t *s, char *out, size_t cap);

@@ -23,7 +23,8 @@ pm_scene_needs_t pm_scene_needs(const pm_scene_t *s)
 /* ------------------------------------------------------------------ the probe */
 
 /* Eye-light shading of colour component k of a primary ray d that hit triangle tri with
- * geometric normal ng (neither need be unit): the albedo (kd + ks) times 0.2 + 0.8 |cos|, so
+ * geometric normal ng (neither need be unit): the albedo (kd + ks; a mirror's kr, a glass's
+ * tf) times 0.2 + 0.8 |cos|, so
  * that surfaces seen edge-on stay visible; an emitter in its emission colour scaled to a
  * maximum of 1; a miss black. */
 static float preview_shade(const pm_scene_t *s, uint32_t tri, const float ng[3], const float d[3], int k)
@@ -37,7 +38,8 @@ static float preview_shade(const pm_scene_t *s, uint32_t tri, const float ng[3],
     }
     float nn = sqrtf(pm_dot3(ng, ng)), dd = sqrtf(pm_dot3(d, d));
     float c = fabsf(pm_dot3(ng, d)) / (nn * dd);
-    return (m->kd[k] + m->ks[k]) * (0.2f + 0.8f * c);
+    float albedo = m->kind == PM_MAT_MIRROR ? m->kr[k] : m->kind == PM_MAT_GLASS ? m->tf[k] : m->kd[k] + m->ks[k];
+    return albedo * (0.2f + 0.8f * c);
 }
 
 pm_result_t pm_scene_probe(const pm_scene_t *s, const pm_rt_t *rt, int progress, uint8_t *preview_rgb,
@@ -94,11 +96,20 @@ static void print_text(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, double
     fprintf(out, "file: %s\n", s->path);
     fprintf(out, "triangles: %zu (%zu degenerate left out)\n", s->ntris, s->ndropped);
     fprintf(out, "vertices: %zu\n", s->nverts);
-    fprintf(out, "materials: %zu%s\n", s->nmaterials, s->any_glossy ? " (some glossy)" : " (all Lambertian)");
+    fprintf(out, "materials: %zu%s\n", s->nmaterials,
+            s->any_glossy && s->any_specular ? " (some glossy, some specular)"
+            : s->any_specular                ? " (some specular)"
+            : s->any_glossy                  ? " (some glossy)"
+                                             : " (all Lambertian)");
     for (size_t i = 0; i < s->nmaterials; i++) {
         const pm_material_t *m = &s->materials[i];
-        fprintf(out, "  %zu %s kd %.4g %.4g %.4g ks %.4g %.4g %.4g ns %.4g ke %.4g %.4g %.4g\n", i, m->name, m->kd[0],
-                m->kd[1], m->kd[2], m->ks[0], m->ks[1], m->ks[2], m->ns, m->ke[0], m->ke[1], m->ke[2]);
+        char extra[96] = "";
+        if (m->kind == PM_MAT_MIRROR)
+            snprintf(extra, sizeof extra, " mirror kr %.4g %.4g %.4g", m->kr[0], m->kr[1], m->kr[2]);
+        else if (m->kind == PM_MAT_GLASS)
+            snprintf(extra, sizeof extra, " glass ior %.4g tf %.4g %.4g %.4g", m->ior, m->tf[0], m->tf[1], m->tf[2]);
+        fprintf(out, "  %zu %s kd %.4g %.4g %.4g ks %.4g %.4g %.4g ns %.4g ke %.4g %.4g %.4g%s\n", i, m->name, m->kd[0],
+                m->kd[1], m->kd[2], m->ks[0], m->ks[1], m->ks[2], m->ns, m->ke[0], m->ke[1], m->ke[2], extra);
         /* Only for a material that sets something pmtk ignores, so that other summaries keep their lines. */
         const char *sep = "    unsupported (ignored): ";
         for (size_t u = 0; u < s->nunsupported; u++)
@@ -111,6 +122,8 @@ static void print_text(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, double
         if (sep[0] == ',')
             fprintf(out, "\n");
     }
+    /* the caustic branch of pipelines/render runs only where this says yes */
+    fprintf(out, "specular: %s\n", s->any_specular ? "yes (mirror or glass: caustic paths)" : "no");
     fprintf(out, "point lights: %zu\n", s->nlights);
     fprintf(out, "emissive triangles: %zu\n", s->nemissive);
     fprintf(out, "emitted power: %.6g %.6g %.6g W\n", p[0], p[1], p[2]);
@@ -158,6 +171,7 @@ pm_result_t pm_summary_json(const pm_scene_t *s, const pm_rt_t *rt, const pm_sum
     json_object_set_new(j, "degenerate_triangles", json_integer((json_int_t)s->ndropped));
     json_object_set_new(j, "vertices", json_integer((json_int_t)s->nverts));
     json_object_set_new(j, "glossy", json_boolean(s->any_glossy));
+    json_object_set_new(j, "any_specular", json_boolean(s->any_specular));
     for (size_t i = 0; i < s->nmaterials; i++) {
         const pm_material_t *m = &s->materials[i];
         json_t *mj = json_object();
@@ -166,6 +180,16 @@ pm_result_t pm_summary_json(const pm_scene_t *s, const pm_rt_t *rt, const pm_sum
         json_object_set_new(mj, "ks", floats_json(m->ks, 3));
         json_object_set_new(mj, "ns", json_real(m->ns));
         json_object_set_new(mj, "ke", floats_json(m->ke, 3));
+        json_object_set_new(mj, "kind",
+                            json_string(m->kind == PM_MAT_MIRROR  ? "mirror"
+                                        : m->kind == PM_MAT_GLASS ? "glass"
+                                                                  : "standard"));
+        if (m->kind == PM_MAT_MIRROR)
+            json_object_set_new(mj, "kr", floats_json(m->kr, 3));
+        if (m->kind == PM_MAT_GLASS) {
+            json_object_set_new(mj, "ior", json_real(m->ior));
+            json_object_set_new(mj, "tf", floats_json(m->tf, 3));
+        }
         json_t *un = json_array();
         for (size_t u = 0; u < s->nunsupported; u++)
             if (s->unsupported[u].material == i)

@@ -1,5 +1,6 @@
-/* transport.c: the BSDF (evaluation, lobe sampling and pdfs, the mixture) and the light
- * samplers (point lights, area lights uniform by area) that every tracer shares (transport.h).
+/* transport.c: the BSDF (evaluation, lobe sampling and pdfs, the mixture), the delta BSDFs
+ * of mirrors and glass (Fresnel, reflection and refraction), and the light samplers (point lights, area lights uniform
+ * by area) that every tracer shares (transport.h).
  *
  * The arithmetic keeps the order of operations the tracers had before they shared it (the
  * glossy pdf weighted before it is multiplied out, the mirror direction left unnormalized
@@ -86,6 +87,75 @@ float pm_bsdf_pdf(const pm_material_t *m, const float n[3], const float wi[3], c
     if (sd < 1.0f)
         p += glossy_pdf_w(m, 1.0f - sd, n, wi, wo);
     return p;
+}
+
+/* Index ratios beyond these are taken as these: their squares stay normal floats, and F and the
+ * directions are those of the limit to within float precision. */
+#define PM_ETA_MIN 1e-6f
+#define PM_ETA_MAX 1e6f
+
+float pm_fresnel_dielectric(float cos_i, float eta)
+{
+    float ci = fminf(fabsf(cos_i), 1.0f);
+    if (!(eta > 0.0f) || !(ci > 0.0f))
+        return 1.0f;
+    eta = fminf(fmaxf(eta, PM_ETA_MIN), PM_ETA_MAX);
+    float sin_t2 = (1.0f - ci * ci) / (eta * eta);
+    if (sin_t2 >= 1.0f)
+        return 1.0f;
+    float ct = sqrtf(1.0f - sin_t2);
+    /* Both denominators are > 0: ci > 0 and ct > 0 here. */
+    float rs = (ci - eta * ct) / (ci + eta * ct), rp = (eta * ci - ct) / (eta * ci + ct);
+    return fminf(1.0f, 0.5f * (rs * rs + rp * rp));
+}
+
+/* wi = v normalized, or the fallback when rounding left v too short to normalize. */
+static void store_unit(const float v[3], const float fallback[3], float wi_out[3])
+{
+    float l = sqrtf(pm_dot3(v, v));
+    for (int k = 0; k < 3; k++)
+        wi_out[k] = l > 1e-12f ? v[k] / l : fallback[k];
+}
+
+int pm_specular_sample(const pm_material_t *m, const float ng[3], const float wo[3], float u, int radiance,
+                       float wi_out[3], float weight_out[3])
+{
+    float cos_o = pm_dot3(ng, wo), n[3], r[3];
+    /* The normal on wo's side; reflection is the same about either. */
+    for (int k = 0; k < 3; k++)
+        n[k] = cos_o < 0.0f ? -ng[k] : ng[k];
+    cos_o = fminf(fabsf(cos_o), 1.0f);
+    pm_reflect(n, wo, r);
+    if (m->kind == PM_MAT_MIRROR) {
+        int black = !(m->kr[0] > 0.0f || m->kr[1] > 0.0f || m->kr[2] > 0.0f);
+        store_unit(r, n, wi_out);
+        for (int k = 0; k < 3; k++)
+            weight_out[k] = black ? 0.0f : m->kr[k], wi_out[k] = black ? 0.0f : wi_out[k];
+        return black ? -1 : 0;
+    }
+    if (m->kind != PM_MAT_GLASS) {
+        for (int k = 0; k < 3; k++)
+            wi_out[k] = weight_out[k] = 0.0f;
+        return -1;
+    }
+    float eta = fminf(fmaxf(pm_dot3(ng, wo) < 0.0f ? 1.0f / m->ior : m->ior, PM_ETA_MIN), PM_ETA_MAX);
+    float f = pm_fresnel_dielectric(cos_o, eta);
+    if (u < f) {
+        store_unit(r, n, wi_out);
+        for (int k = 0; k < 3; k++)
+            weight_out[k] = 1.0f;
+        return 0;
+    }
+    /* Snell: the tangential part of -wo shrinks by 1 / eta, the normal part is what is left
+     * of the unit length; f < 1 here, so 1 - sin_t^2 > 0 (clamped against rounding). */
+    float sin_t2 = (1.0f - cos_o * cos_o) / (eta * eta), ct = sqrtf(fmaxf(0.0f, 1.0f - sin_t2)), t[3], back[3];
+    for (int k = 0; k < 3; k++)
+        t[k] = -wo[k] / eta + (cos_o / eta - ct) * n[k], back[k] = -n[k];
+    store_unit(t, back, wi_out);
+    float scale = radiance ? 1.0f / (eta * eta) : 1.0f;
+    for (int k = 0; k < 3; k++)
+        weight_out[k] = m->tf[k] * scale;
+    return 1;
 }
 
 pm_result_t pm_shade_geom_init(const pm_scene_t *s, pm_shade_geom_t *g)

@@ -80,6 +80,31 @@ int pm_bsdf_sample(const pm_material_t *m, const float n[3], const float wo[3], 
  * mixture's pdf integrates to its probability of landing above the surface). */
 float pm_bsdf_pdf(const pm_material_t *m, const float n[3], const float wi[3], const float wo[3]);
 
+/* ---- specular materials (mirror, glass) ---- */
+
+/* Unpolarized Fresnel reflectance of a smooth dielectric boundary, the mean of the s and p
+ * reflectances, for light arriving at cosine cos_i (taken as |cos_i|, clamped to 1) to the
+ * normal on its own side, with eta = n_t / n_i the index beyond the boundary over the index on
+ * that side (> 0). 1 under total internal reflection (sin_t >= 1) and at cos_i = 0; 0 for
+ * eta = 1 up to rounding. Never NaN for eta > 0; a ratio beyond [1e-6, 1e6] is taken as that
+ * limit. */
+float pm_fresnel_dielectric(float cos_i, float eta);
+
+/* Samples the delta BSDF of a specular material (mirror or glass) at a hit with unit geometric
+ * normal ng, as the mesh stores it (either side: the side wo lies on, by the sign of
+ * dot(ng, wo), tells entering from leaving; dot 0 counts as the front), wo unit and pointing
+ * away from the surface, u one uniform in [0, 1). Writes wi (unit) and weight = f cos / pdf per
+ * channel:
+ *   mirror: wi the mirror direction of wo, weight kr;
+ *   glass: reflect when u < F = pm_fresnel_dielectric(|ng.wo|, eta) (eta = ior on the front,
+ *     1 / ior behind it), weight 1; else refract by Snell's law, weight tf, times 1 / eta^2
+ *     when `radiance` is 1 (eye paths carry radiance, whose density changes with the solid
+ *     angle a refraction squeezes; photons carry power: radiance 0).
+ * Returns 1 when wi was transmitted, 0 when reflected, -1 when nothing leaves (a black
+ * mirror, or a material that is not specular; wi and weight are then zero). */
+int pm_specular_sample(const pm_material_t *m, const float ng[3], const float wo[3], float u, int radiance,
+                       float wi_out[3], float weight_out[3]);
+
 /* ---- lights ---- */
 
 /* Per-triangle unit front normals and the area lights of a scene. */

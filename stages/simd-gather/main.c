@@ -6,7 +6,10 @@
  * queries (W = 16, 8, 4 or 1 by --isa) walk the KD-tree together; hilbert-sort is what
  * makes consecutive queries close, so that the lanes of a packet stay live together. The
  * sums per query are in double, and queries are added to pixels in file order, so the
- * buffer is the same for any thread count. common/photonmap/gather.c does the work. */
+ * buffer is the same for any thread count. common/photonmap/gather.c does the work. With a
+ * width known before the queries arrive (--radius, a later progressive pass, variable widths)
+ * they stream through a chunk at a time (gather_stage.h), gathered while the stage before
+ * writes the next. */
 #include <inttypes.h>
 #include <math.h>
 #include <stdlib.h>
@@ -45,9 +48,15 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *opt)
     if (o->pass && o->widths)
         return pm_error_set(PM_ERR_USAGE, "--pass %" PRId64 " needs fixed widths: the schedule shrinks one width",
                             o->pass);
-    if ((r = pm_gather_inputs_read(&in, st->args.args[0], st->args.args[1], o->range, o->widths)) != PM_OK)
+    /* The whole file is read for a shard; else the queries stream through a chunk at a time,
+     * unless --k must measure the width on all of them first. */
+    r = o->range ? pm_gather_inputs_read(&in, st->args.args[0], st->args.args[1], o->range, o->widths)
+                 : pm_gather_inputs_open(&in, st->args.args[0], st->args.args[1], o->widths);
+    if (r != PM_OK)
         goto done;
     if (!o->widths && (r = pm_gather_inputs_scene_kernel(&in, &st->args, &o->radius, &o->k, &width_from)) != PM_OK)
+        goto done;
+    if (in.stream && !o->widths && o->radius == 0.0 && (r = pm_gather_inputs_read_rest(&in, o->widths)) != PM_OK)
         goto done;
 
     /* The kernel width. */
@@ -67,13 +76,19 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *opt)
                             .variable = o->widths,
                             .normal_cos = (float)o->normal_cos,
                             .isa = isa};
-    uint64_t nq = in.q.n;
     pm_gather_stats_t gs;
-    t0 = pm_time_wall();
-    r = pm_gather_run(&in.map, &in.q, 0, nq, &p, in.per_query, &gs);
-    double t_gather = pm_time_wall() - t0;
-    if (r != PM_OK || (r = pm_gather_check_finite(&in, "the gather")) != PM_OK)
-        goto done;
+    double t_gather;
+    if (in.stream) {
+        if ((r = pm_gather_stream(&in, &p, &gs, &t_gather)) != PM_OK)
+            goto done;
+    } else {
+        t0 = pm_time_wall();
+        r = pm_gather_run(&in.map, &in.q, 0, in.q.n, &p, in.per_query, &gs);
+        t_gather = pm_time_wall() - t0;
+        if (r != PM_OK || (r = pm_gather_check_finite(&in, "the gather")) != PM_OK)
+            goto done;
+    }
+    uint64_t nq = in.q.n;
 
     pm_header_t *h = &out.hdr;
     if ((r = pm_gather_output_init(&out, &in, st->argc, st->argv, o->kernel, width_names[o->widths])) != PM_OK)

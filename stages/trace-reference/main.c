@@ -129,8 +129,8 @@ int main(int argc, char **argv)
          "trace-gather-points --pixel center",
          1, 0, pm_pixel_names},
         {"component", 0, PM_OPT_CHOICE, &o.component, "WHICH",
-         "total, or only direct (emission seen and direct light: trace-gather-points --direct) or indirect "
-         "(simd-gather's part)",
+         "total, or only direct (emission seen and direct light: trace-gather-points --direct), indirect "
+         "(simd-gather's part) or caustic (light through mirrors or glass onto the first diffuse surface seen)",
          1, 0, pm_pt_component_names},
         {"width", 0, PM_OPT_INT, &o.width, "N", "image width in pixels; 0 takes the scene camera's", 0, 65536, NULL},
         {"height", 0, PM_OPT_INT, &o.height, "N", "image height in pixels; 0 takes the scene camera's", 0, 65536, NULL},

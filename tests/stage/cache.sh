@@ -154,7 +154,7 @@ $R "$D/scene.json" "$TMP/hp #2" $TINY PASSES=2 >"$TMP/hp.out" 2>&1 && [ -s "$TMP
 # ---- the scene's warnings, once per render
 $R tests/scenes/unsupported-mtl/scene.json "$TMP/w" WIDTH=8 HEIGHT=8 SPP=4 GATHER=none >"$TMP/w.out" 2>"$TMP/w.err"
 status=$?
-if [ $status = 0 ] && [ "$(grep -c "^render: warning: material 'textured': map_Kd 'tex.png' is not supported (ignored)$" "$TMP/w.err")" = 1 ] &&
+if [ $status = 0 ] && [ "$(grep -c "^render: warning: material 'textured': map_Ka 'tex.png' is not supported (ignored)$" "$TMP/w.err")" = 1 ] &&
     grep -qx "render: warning: material 'textured': d 0.8 is not supported (ignored)" "$TMP/w.err" &&
     ! grep -q "material 'plain'" "$TMP/w.err"; then
     pass "the scene's unsupported material keys are reported once each"

@@ -98,7 +98,7 @@ expect_error "RECORD_SIZE spelled '52.0'" "RECORD_SIZE '52.0'" "$BIN/pm-info" "$
 sed '0,/^width=8$/s//width=8.0/' "$G/queries-all.pm" >"$TMP/spelled.pm"
 expect_error "width spelled '8.0'" "header key width='8.0' is not a decimal integer" "$BIN/pm-info" "$TMP/spelled.pm"
 sed '0,/^component=indirect$/s//component=glow/' "$G/radiance-all.pm" >"$TMP/comp.pm"
-expect_error "radiance component unknown" "component 'glow' is not direct, indirect or total" "$BIN/pm-info" "$TMP/comp.pm"
+expect_error "radiance component unknown" "component 'glow' is not direct, indirect, caustic or total" "$BIN/pm-info" "$TMP/comp.pm"
 sed '0,/RECORD_SIZE=52/s//RECORD_SIZE=48/' "$src" >"$TMP/rsize.pm"
 expect_error "record size disagrees with channels" "RECORD_SIZE '48' but its channels take 52 bytes" "$BIN/pm-info" "$TMP/rsize.pm"
 ch='position power normal direction depth'

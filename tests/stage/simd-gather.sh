@@ -86,3 +86,28 @@ expect_error "queries of another scene" "is of scene 'cornell-box .*but queries 
 expect_error "a photon map given as queries" "is a photon map, expected a queries" "$SG" "$MAP" "$MAP" -o "$TMP/x.pm"
 expect_exit "--k with --range from stdin is a usage error" 2 sh -c "'$SG' '$MAP' - --k 10 --range 0:10 -o '$TMP/x.pm' <'$Q'"
 [ -e "$TMP/x.pm" ] && fail "no output after an error" "$TMP/x.pm exists" || pass "no output after an error"
+
+# Streaming: with the width given, the queries go through a chunk at a time (PM_GATHER_STREAM_ROWS,
+# 131072); more than two chunks give the very bytes of the whole-file read (--range 0: reads it
+# whole), a bad value past the first chunk is named by its record, and a checksum that fails at
+# the end leaves no output although every chunk was gathered.
+"$BUILD/tests/pm-testgen" queries 300000 "$TMP/sq.pm" --set weights=lambertian-brdf-folded &&
+    "$BUILD/tests/pm-testgen" photonmap 20000 "$TMP/sm.pm" || fail "streaming inputs" "pm-testgen failed"
+"$SG" "$TMP/sm.pm" - --radius 0.05 -q -o "$TMP/s1.pm" <"$TMP/sq.pm" &&
+    "$SG" "$TMP/sm.pm" "$TMP/sq.pm" --radius 0.05 -q --range 0: -o "$TMP/s2.pm" &&
+    n=$(grep -a '^COUNT=' "$TMP/s1.pm" | cut -d= -f2) &&
+    cmp -s <(tail -c $((n * 24 + 8)) "$TMP/s1.pm" | head -c $((n * 24))) \
+        <(tail -c $((n * 24 + 8)) "$TMP/s2.pm" | head -c $((n * 24))) &&
+    "$BIN/pm-info" -r "$TMP/s1.pm" | awk '$1 ~ /^[0-9]+$/ && $2 > 0 { lit++ } END { exit lit < 1 }' &&
+    pass "300000 streamed queries give the whole-file gather's records, bit for bit" ||
+    fail "streaming" "the streamed gather differs from the whole-file one"
+hdr=$(($(head -c 100000 "$TMP/sq.pm" | grep -a -b -m 1 -x '' | cut -d: -f1) + 1))
+cp "$TMP/sq.pm" "$TMP/bad.pm"
+printf '\000\000\300\177' | dd of="$TMP/bad.pm" bs=1 seek=$((hdr + 4 + 200000 * 40)) conv=notrunc status=none
+expect_error "a NaN in record 200000 of a stream is named" "record 200000 channel 'position'\[0\] is nan" \
+    sh -c "'$SG' '$TMP/sm.pm' - --radius 0.05 -q -o '$TMP/s3.pm' <'$TMP/bad.pm'"
+cp "$TMP/sq.pm" "$TMP/bad.pm"
+printf '\001' | dd of="$TMP/bad.pm" bs=1 seek=$((hdr + 4 + 250000 * 40 + 36)) conv=notrunc status=none
+expect_error "a stream whose checksum fails at its end" "checksum mismatch" \
+    sh -c "'$SG' '$TMP/sm.pm' - --radius 0.05 -q -o '$TMP/s3.pm' <'$TMP/bad.pm'"
+[ -e "$TMP/s3.pm" ] && fail "no output from a bad stream" "$TMP/s3.pm exists" || pass "no output from a bad stream"

@@ -179,7 +179,7 @@ static void test_scene_unsupported(void **state)
 {
     char p[256];
     write_file("u.mtl",
-               "newmtl tex\nKd 0.5 0.5 0.5\nmap_Kd tex.png\nbump b.png\nd 0.5\nTr 0.25\nillum 7\nNi 1.5\n"
+               "newmtl tex\nKd 0.5 0.5 0.5\nmap_Ka tex.png\nbump b.png\nd 0.5\nTr 0.25\nillum 6\nNi 1.5\n"
                "Tf 0.9 0.8 0.7\nsharpness 60\nrefl -type sphere r.png\nnewmtl plain\nKd 0.5 0.5 0.5\nd 1\nillum "
                "2\nnewmtl unused\nKd 0.1 0.1 0.1\n"
                "map_Kd u.png\n",
@@ -194,7 +194,7 @@ static void test_scene_unsupported(void **state)
         fail_msg("%s", pm_error_message());
     assert_int_equal(s.nmaterials, 2);
     static const char *const want[][2] = {
-        {"map_Kd", "tex.png"}, {"bump", "b.png"},     {"d", "0.75"},       {"illum", "7"},
+        {"map_Ka", "tex.png"}, {"bump", "b.png"},     {"d", "0.75"},       {"illum", "6"},
         {"Ni", "1.5"},         {"Tf", "0.9 0.8 0.7"}, {"sharpness", "60"}, {"refl", "-type sphere r.png"}};
     assert_int_equal(s.nunsupported, sizeof want / sizeof want[0]);
     for (size_t i = 0; i < sizeof want / sizeof want[0]; i++) {
@@ -212,16 +212,17 @@ static void test_scene_unsupported(void **state)
     char text[300];
     for (size_t u = 0; u < s.nunsupported; u++) {
         pm_scene_unsupported_text(&s.unsupported[u], text, sizeof text);
-        if (strcmp(s.unsupported[u].key, "map_Kd") == 0)
-            assert_string_equal(text, "map_Kd 'tex.png'");
+        if (strcmp(s.unsupported[u].key, "map_Ka") == 0)
+            assert_string_equal(text, "map_Ka 'tex.png'");
         if (strcmp(s.unsupported[u].key, "illum") == 0)
-            assert_string_equal(text, "illum 7");
+            assert_string_equal(text, "illum 6");
     }
     pm_scene_free(&s);
 }
 
-/* A glTF material: base colour is Kd; its texture (in assimp's diffuse and base colour slots)
- * is reported once, roughness 0.5 is reported, metallic 0 and alphaMode OPAQUE are not. */
+/* A glTF material: base colour is Kd; its emissive texture (in assimp's emissive and emission
+ * colour slots) is reported once, roughness 0.5 is reported, metallic 0 and alphaMode OPAQUE
+ * are not. (A base colour texture is honoured: tests/unit/test_texture.c.) */
 static void test_scene_unsupported_gltf(void **state)
 {
     char p[256];
@@ -229,8 +230,8 @@ static void test_scene_unsupported_gltf(void **state)
                "{\"asset\": {\"version\": \"2.0\"}, \"scene\": 0, \"scenes\": [{\"nodes\": [0]}], \"nodes\": "
                "[{\"mesh\": 0}], \"meshes\": [{\"primitives\": [{\"attributes\": {\"POSITION\": 0}, \"indices\": 1, "
                "\"material\": 0}]}], \"materials\": [{\"name\": \"m\", \"pbrMetallicRoughness\": {\"baseColorFactor\": "
-               "[0.5, 0.4, 0.3, 1], \"metallicFactor\": 0, \"roughnessFactor\": 0.5, \"baseColorTexture\": "
-               "{\"index\": 0}}}], \"textures\": [{\"source\": 0}], \"images\": [{\"uri\": \"tex.png\"}], "
+               "[0.5, 0.4, 0.3, 1], \"metallicFactor\": 0, \"roughnessFactor\": 0.5}, \"emissiveTexture\": "
+               "{\"index\": 0}}], \"textures\": [{\"source\": 0}], \"images\": [{\"uri\": \"tex.png\"}], "
                "\"buffers\": [{\"byteLength\": 44, \"uri\": \"data:application/octet-stream;base64,"
                "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAAAAAAIA/AAABAAIAAAA=\"}], \"bufferViews\": [{\"buffer\": 0, "
                "\"byteOffset\": 0, \"byteLength\": 36}, {\"buffer\": 0, \"byteOffset\": 36, \"byteLength\": 6}], "
@@ -247,10 +248,10 @@ static void test_scene_unsupported_gltf(void **state)
     assert_int_equal(s.nmaterials, 1);
     assert_true(fabsf(s.materials[0].kd[1] - 0.4f) < 1e-6f);
     assert_int_equal(s.nunsupported, 2);
-    assert_string_equal(s.unsupported[0].key, "diffuse texture");
-    assert_string_equal(s.unsupported[0].value, "tex.png");
-    assert_string_equal(s.unsupported[1].key, "roughnessFactor");
-    assert_string_equal(s.unsupported[1].value, "0.5");
+    assert_string_equal(s.unsupported[0].key, "roughnessFactor");
+    assert_string_equal(s.unsupported[0].value, "0.5");
+    assert_string_equal(s.unsupported[1].key, "emissive texture");
+    assert_string_equal(s.unsupported[1].value, "tex.png");
     pm_scene_free(&s);
 }
 

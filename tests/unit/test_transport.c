@@ -5,6 +5,8 @@
  * matches its pdf (chi-square), the BSDF is reciprocal; the area-light sampler picks triangles
  * in proportion to their area and points uniformly on them, its solid-angle pdf gives the
  * solid angle of a known square, and a point light gives the right distance and cosines.
+ * Mirrors and glass: Fresnel against the angle form and its symmetries, Snell's law and the
+ * reflect/refract split of the specular sampler, its weights, and no NaN at grazing angles.
  * The random numbers are Philox streams of fixed seeds, so every run draws the same samples. */
 #include <math.h>
 #include <stdlib.h>
@@ -466,10 +468,223 @@ static void test_transport_rt_single_rays(void **state)
     pm_rt_destroy(&rt);
 }
 
+/* ---- specular materials ---- */
+
+static pm_material_t glass(float ior, float tf)
+{
+    pm_material_t m;
+    memset(&m, 0, sizeof m);
+    m.kind = PM_MAT_GLASS, m.ior = ior;
+    for (int k = 0; k < 3; k++)
+        m.tf[k] = tf;
+    return m;
+}
+
+/* Fresnel from the angles, in double, the textbook form (rs = -sin(ti - tt) / sin(ti + tt),
+ * rp = tan(ti - tt) / tan(ti + tt)): an independent check on the cosine form of transport.c. */
+static double fresnel_angles(double ti, double eta)
+{
+    double st = sin(ti) / eta;
+    if (st >= 1.0)
+        return 1.0;
+    double tt = asin(st);
+    if (ti == 0.0)
+        return pow((eta - 1.0) / (eta + 1.0), 2.0);
+    double rs = -sin(ti - tt) / sin(ti + tt), rp = tan(ti - tt) / tan(ti + tt);
+    return 0.5 * (rs * rs + rp * rp);
+}
+
+/* Normal incidence gives ((n - 1) / (n + 1))^2 from either side; every angle matches the
+ * angle form; eta and 1 / eta agree at Snell partner angles; beyond the critical angle F is 1;
+ * index 1 reflects nothing. */
+static void test_transport_fresnel(void **state)
+{
+    (void)state;
+    const float etas[] = {1.0f, 1.33f, 1.5f, 2.4f, 3.0f};
+    for (size_t e = 0; e < sizeof etas / sizeof etas[0]; e++) {
+        float n = etas[e], r0 = (n - 1.0f) * (n - 1.0f) / ((n + 1.0f) * (n + 1.0f));
+        assert_true(fabsf(pm_fresnel_dielectric(1.0f, n) - r0) < 1e-6f);
+        assert_true(fabsf(pm_fresnel_dielectric(1.0f, 1.0f / n) - r0) < 1e-6f);
+        for (int i = 0; i <= 90; i++) {
+            double ti = i * M_PI / 180.0;
+            for (int inv = 0; inv < 2; inv++) {
+                double eta = inv ? 1.0 / n : n;
+                float f = pm_fresnel_dielectric((float)cos(ti), (float)eta);
+                if (!(fabs(f - fresnel_angles(ti, eta)) < 2e-5))
+                    fail_msg("F(%d deg, eta %g) = %.7f, the angle form gives %.7f", i, eta, f, fresnel_angles(ti, eta));
+                double st = sin(ti) / eta;
+                if (st < 1.0 && i < 90) {
+                    /* the same boundary crossed the other way at the refracted angle */
+                    float back = pm_fresnel_dielectric((float)sqrt(1.0 - st * st), (float)(1.0 / eta));
+                    if (!(fabsf(back - f) < 1e-4f))
+                        fail_msg("F(%d deg, eta %g) = %.7f but %.7f back at the refracted angle", i, eta, f, back);
+                } else if (st >= 1.0) {
+                    assert_true(f == 1.0f);
+                }
+            }
+        }
+    }
+    for (int i = 1; i <= 100; i++)
+        assert_true(pm_fresnel_dielectric(i / 100.0f, 1.0f) < 1e-6f);
+    /* total internal reflection: glass of 1.5 from inside beyond asin(1 / 1.5) = 41.8 degrees */
+    assert_true(pm_fresnel_dielectric(cosf(42.0f * PM_PI / 180.0f), 1.0f / 1.5f) == 1.0f);
+    assert_true(pm_fresnel_dielectric(cosf(41.0f * PM_PI / 180.0f), 1.0f / 1.5f) < 0.9f);
+    assert_true(fabsf(pm_fresnel_dielectric(1.0f, 3.0f) - 0.25f) < 1e-6f);
+    /* anything a tracer can pass in: finite and within [0, 1] */
+    const float cs[] = {0.0f, -0.0f, 1e-30f, 1e-7f, 0.5f, 1.0f, 1.0000001f, 1.5f, -0.5f, -1.0f};
+    const float es[] = {1e-38f, 1e-6f, 1e-3f, 0.3333f, 0.999999f, 1.0f, 1.000001f, 3.0f, 1e3f, 1e6f, 1e30f, 3e38f};
+    for (size_t i = 0; i < sizeof cs / sizeof cs[0]; i++)
+        for (size_t j = 0; j < sizeof es / sizeof es[0]; j++) {
+            float f = pm_fresnel_dielectric(cs[i], es[j]);
+            if (!(f >= 0.0f && f <= 1.0f))
+                fail_msg("F(%g, %g) = %g", cs[i], es[j], f);
+        }
+}
+
+/* Unit wo at theta degrees from +z (theta > 90: below the surface) in the x-z plane. */
+static void unit_at(double theta_deg, float w[3])
+{
+    double t = theta_deg * M_PI / 180.0;
+    w[0] = (float)sin(t), w[1] = 0.0f, w[2] = (float)cos(t);
+}
+
+/* Reflection is the mirror direction; refraction obeys Snell's law (n_i sin_i = n_t sin_t, in
+ * the plane of wo and the normal, on the far side) from the front and from the back; a
+ * refracted ray sent back the way it came leaves along wo; weights are kr, 1 and tf (times
+ * 1 / eta^2 for radiance); index 1 passes straight through. */
+static void test_transport_specular_directions(void **state)
+{
+    (void)state;
+    const float ng[3] = {0.0f, 0.0f, 1.0f};
+    pm_material_t mirror;
+    memset(&mirror, 0, sizeof mirror);
+    mirror.kind = PM_MAT_MIRROR, mirror.kr[0] = 0.9f, mirror.kr[1] = 0.5f, mirror.kr[2] = 0.1f;
+    const float iors[] = {1.0f, 1.5f, 3.0f};
+    for (int th = 0; th <= 180; th += 5) {
+        if (th == 90)
+            continue;
+        float wo[3], wi[3], w[3];
+        unit_at(th, wo);
+        assert_int_equal(pm_specular_sample(&mirror, ng, wo, 0.5f, 1, wi, w), 0);
+        assert_true(fabsf(wi[0] + wo[0]) < 1e-6f && fabsf(wi[1]) < 1e-6f && fabsf(wi[2] - wo[2]) < 1e-6f);
+        assert_true(w[0] == 0.9f && w[1] == 0.5f && w[2] == 0.1f);
+        for (size_t g = 0; g < sizeof iors / sizeof iors[0]; g++) {
+            pm_material_t m = glass(iors[g], 0.8f);
+            int front = wo[2] > 0.0f;
+            float eta = front ? m.ior : 1.0f / m.ior, cos_o = fabsf(wo[2]);
+            float f = pm_fresnel_dielectric(cos_o, eta);
+            /* u just below F reflects, u at F refracts (when F < 1) */
+            if (f > 0.0f) {
+                assert_int_equal(pm_specular_sample(&m, ng, wo, nextafterf(f, 0.0f), 1, wi, w), 0);
+                assert_true(fabsf(wi[0] + wo[0]) < 1e-6f && fabsf(wi[2] - wo[2]) < 1e-6f);
+                assert_true(w[0] == 1.0f && w[1] == 1.0f && w[2] == 1.0f);
+            }
+            if (f >= 1.0f)
+                continue;
+            int t = pm_specular_sample(&m, ng, wo, f, 1, wi, w);
+            assert_int_equal(t, 1);
+            assert_true(fabsf(pm_dot3(wi, wi) - 1.0f) < 1e-5f && fabsf(wi[1]) < 1e-6f);
+            assert_true(front ? wi[2] < 0.0f : wi[2] > 0.0f); /* the far side */
+            /* Snell, with signs: the tangential parts point the same way round (wo's is reversed) */
+            float lhs = -wo[0], rhs = eta * wi[0];
+            if (!(fabsf(lhs - rhs) < 2e-6f * (1.0f + eta)))
+                fail_msg("Snell at %d deg, ior %g: sin_i %g but eta sin_t %g", th, m.ior, lhs, rhs);
+            float expect = 0.8f / (eta * eta);
+            assert_true(fabsf(w[0] - expect) < 1e-6f * expect && w[0] == w[1] && w[1] == w[2]);
+            float wp[3];
+            assert_int_equal(pm_specular_sample(&m, ng, wo, f, 0, wi, wp), 1);
+            assert_true(wp[0] == 0.8f); /* power: tf alone */
+            /* wi seen from the far side is a wo there; its refraction is the original wo */
+            float back[3] = {wi[0], wi[1], wi[2]}, wi2[3];
+            float f2 = pm_fresnel_dielectric(fabsf(back[2]), 1.0f / eta);
+            assert_true(fabsf(f2 - f) < 2e-5f); /* the same boundary, either way */
+            assert_int_equal(pm_specular_sample(&m, ng, back, 0.999999f, 1, wi2, w), 1);
+            for (int k = 0; k < 3; k++)
+                if (!(fabsf(wi2[k] - wo[k]) < 2e-5f))
+                    fail_msg("ior %g at %d deg: the refracted ray sent back leaves along (%g %g %g), not wo", m.ior, th,
+                             wi2[0], wi2[1], wi2[2]);
+            if (m.ior == 1.0f) {
+                assert_true(f < 1e-6f);
+                for (int k = 0; k < 3; k++)
+                    assert_true(fabsf(wi[k] + wo[k]) < 1e-6f);
+            }
+        }
+    }
+    /* a black mirror sends nothing on; a standard material is not sampled here */
+    pm_material_t black = mirror, plain = material(0.5f, 0.0f, 0.0f);
+    black.kr[0] = black.kr[1] = black.kr[2] = 0.0f;
+    float wo[3], wi[3], w[3];
+    unit_at(30.0, wo);
+    assert_int_equal(pm_specular_sample(&black, ng, wo, 0.5f, 0, wi, w), -1);
+    assert_true(w[0] == 0.0f && w[1] == 0.0f && w[2] == 0.0f);
+    assert_int_equal(pm_specular_sample(&plain, ng, wo, 0.5f, 0, wi, w), -1);
+}
+
+/* The reflect/refract split of the glass sampler is F: a histogram of 200000 uniforms at each
+ * angle, from both sides, within 5 standard deviations of the binomial. Under total internal
+ * reflection every sample reflects. Photons never gain power: every weight is in [0, 1] and
+ * the mean of the weight is F + (1 - F) tf. */
+static void test_transport_specular_split(void **state)
+{
+    (void)state;
+    const float ng[3] = {0.0f, 0.0f, 1.0f};
+    pm_material_t m = glass(1.5f, 0.7f);
+    pm_rng_t rng;
+    pm_rng_init(&rng, 18, 0);
+    const int n = 200000;
+    const double thetas[] = {0.0, 30.0, 60.0, 80.0, 89.0, 120.0, 135.0, 140.0, 150.0, 180.0};
+    for (size_t a = 0; a < sizeof thetas / sizeof thetas[0]; a++) {
+        float wo[3], wi[3], w[3];
+        unit_at(thetas[a], wo);
+        double f = pm_fresnel_dielectric(fabsf(wo[2]), wo[2] > 0.0f ? 1.5f : 1.0f / 1.5f);
+        int refl = 0;
+        double wsum = 0.0;
+        for (int i = 0; i < n; i++) {
+            int t = pm_specular_sample(&m, ng, wo, pm_rng_float(&rng), 0, wi, w);
+            assert_true(t == 0 || t == 1);
+            refl += t == 0;
+            assert_true(w[0] >= 0.0f && w[0] <= 1.0f);
+            wsum += w[0];
+        }
+        double sd = sqrt(n * f * (1.0 - f)), mean = f + (1.0 - f) * 0.7;
+        if (!(fabs(refl - n * f) <= 5.0 * sd + 1e-9))
+            fail_msg("at %g deg: %d of %d reflected, F = %.5f expects %.0f +- %.0f", thetas[a], refl, n, f, n * f, sd);
+        if (!(fabs(wsum / n - mean) <= 5.0 * 0.3 * sd / n + 1e-6))
+            fail_msg("at %g deg: mean photon weight %.5f, expected F + (1 - F) tf = %.5f", thetas[a], wsum / n, mean);
+    }
+}
+
+/* No direction a tracer can meet gives a NaN, an Inf or a non-unit wi: grazing on both sides
+ * (cos 0, 1e-8, denormal), directions a little off unit length, the inverted normal, indices
+ * from 1 to 3 and the extremes the loader allows (any finite float > 0). */
+static void test_transport_specular_stiff(void **state)
+{
+    (void)state;
+    const float iors[] = {1e-30f, 1e-3f, 0.5f, 1.0f, 1.0001f, 1.5f, 3.0f, 1e3f, 1e30f, 3e38f};
+    const float zs[] = {0.0f, -0.0f, 1e-38f, -1e-38f, 1e-8f, -1e-8f, 1e-4f, -1e-4f, 0.5f, -0.5f, 1.0f, -1.0f};
+    const float us[] = {0.0f, 0.25f, 0.5f, 0.9999999f};
+    for (size_t g = 0; g < sizeof iors / sizeof iors[0]; g++)
+        for (size_t z = 0; z < sizeof zs / sizeof zs[0]; z++)
+            for (int flip = 0; flip < 2; flip++)
+                for (size_t ui = 0; ui < sizeof us / sizeof us[0]; ui++) {
+                    pm_material_t m = glass(iors[g], 1.0f);
+                    float ng[3] = {0.0f, 0.0f, flip ? -1.0f : 1.0f}, wo[3], wi[3], w[3];
+                    float zz = zs[z], x = sqrtf(fmaxf(0.0f, 1.0f - zz * zz)) * 1.0000001f;
+                    wo[0] = x, wo[1] = 0.0f, wo[2] = zz;
+                    int t = pm_specular_sample(&m, ng, wo, us[ui], 1, wi, w);
+                    float len = pm_dot3(wi, wi);
+                    if (!(t == 0 || t == 1) || !(fabsf(len - 1.0f) < 1e-5f) || !isfinite(w[0]) || !(w[0] >= 0.0f))
+                        fail_msg("ior %g, wo z %g, normal %s, u %g: returned %d, |wi|^2 %g, weight %g", iors[g], zz,
+                                 flip ? "down" : "up", us[ui], t, len, w[0]);
+                }
+}
+
 static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_transport_pdf_integrates_to_one), cmocka_unit_test(test_transport_sampler_matches_pdf),
     cmocka_unit_test(test_transport_brdf_reciprocal),       cmocka_unit_test(test_transport_area_light_uniform),
     cmocka_unit_test(test_transport_area_light_pdf),        cmocka_unit_test(test_transport_point_light),
-    cmocka_unit_test(test_transport_rt_single_rays),
+    cmocka_unit_test(test_transport_rt_single_rays),        cmocka_unit_test(test_transport_fresnel),
+    cmocka_unit_test(test_transport_specular_directions),   cmocka_unit_test(test_transport_specular_split),
+    cmocka_unit_test(test_transport_specular_stiff),
 };
 UNIT_GROUP(transport_group, "transport", tests)

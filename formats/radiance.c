@@ -1,6 +1,6 @@
 /* radiance.c: per-pixel radiance buffers, written by trace-gather-points (direct light)
  * and simd-gather (indirect), added by composite. Records are pixels in row order from
- * the top-left; header keys width, height and component (direct, indirect or total). The
+ * the top-left; header keys width, height and component (direct, indirect, caustic or total). The
  * optional variance channel is the estimate's own squared standard error per pixel:
  * trace-reference writes it so that a reference says how wrong it is. */
 #include <inttypes.h>

@@ -18,7 +18,7 @@
 
 #define CHUNK_PIXELS 65536 /* records read at a time: 1.5 MB of f64 RGB */
 
-const char *const pm_composite_only_names[] = {"all", "direct", "indirect", NULL};
+const char *const pm_composite_only_names[] = {"all", "direct", "indirect", "caustic", NULL};
 
 /* One buffer: a path with its scale. */
 typedef struct {
@@ -90,7 +90,7 @@ pm_result_t pm_composite_open(pm_composite_t **c_out, char *const *args, int nin
     pm_header_init(&c->hdr, &pm_radiance_schema);
     input_t *in = c->in;
     pm_result_t r = PM_OK;
-    int nstdin = 0, ndirect = 0, nindirect = 0, ntotal = 0;
+    int nstdin = 0, ndirect = 0, nindirect = 0, ncaustic = 0, ntotal = 0;
     for (int i = 0; i < nin && r == PM_OK; i++)
         if ((r = pm_composite_parse_input(args[i], &in[i].path, &in[i].scale)) == PM_OK && !strcmp(in[i].path, "-") &&
             ++nstdin > 1)
@@ -100,25 +100,29 @@ pm_result_t pm_composite_open(pm_composite_t **c_out, char *const *args, int nin
             break;
         const pm_header_t *hi = pm_reader_header(in[i].rd);
         in[i].component = pm_header_get(hi, "component");
-        int is_direct = !strcmp(in[i].component, "direct"), is_indirect = !strcmp(in[i].component, "indirect");
-        if (only != PM_ONLY_ALL && !is_direct && !is_indirect) {
+        int is_direct = !strcmp(in[i].component, "direct"), is_indirect = !strcmp(in[i].component, "indirect"),
+            is_caustic = !strcmp(in[i].component, "caustic");
+        if (only != PM_ONLY_ALL && !is_direct && !is_indirect && !is_caustic) {
             r = pm_error_set(PM_ERR_INPUT,
-                             "--only %s: radiance buffer '%s' is component=%s, direct and indirect "
+                             "--only %s: radiance buffer '%s' is component=%s, direct, indirect and caustic "
                              "together",
                              pm_composite_only_names[only], in[i].path, in[i].component);
             break;
         }
-        in[i].used = only == PM_ONLY_ALL || (only == PM_ONLY_DIRECT ? is_direct : is_indirect);
+        in[i].used = only == PM_ONLY_ALL || (only == PM_ONLY_DIRECT     ? is_direct
+                                             : only == PM_ONLY_INDIRECT ? is_indirect
+                                                                        : is_caustic);
         if (c->first < 0)
             c->first = i;
         else if ((r = check_same(in[c->first].path, pm_reader_header(in[c->first].rd), in[i].path, hi)) != PM_OK)
             break;
         if (in[i].used)
-            ndirect += is_direct, nindirect += is_indirect, ntotal += !is_direct && !is_indirect;
+            ndirect += is_direct, nindirect += is_indirect, ncaustic += is_caustic,
+                ntotal += !is_direct && !is_indirect && !is_caustic;
     }
     if (r != PM_OK)
         return r;
-    if (ndirect + nindirect + ntotal == 0)
+    if (ndirect + nindirect + ncaustic + ntotal == 0)
         return pm_error_set(PM_ERR_INPUT, "--only %s: none of the %d buffers is %s", pm_composite_only_names[only], nin,
                             pm_composite_only_names[only]);
     pm_composite_info_t *info = &c->info;
@@ -126,8 +130,9 @@ pm_result_t pm_composite_open(pm_composite_t **c_out, char *const *args, int nin
                                       &info->height)) != PM_OK)
         return r;
     info->pixels = (uint64_t)info->width * info->height;
-    info->buffers = ndirect + nindirect + ntotal;
-    info->components = ntotal || (ndirect && nindirect) ? "total" : ndirect ? "direct" : "indirect";
+    info->buffers = ndirect + nindirect + ncaustic + ntotal;
+    int kinds = (ndirect > 0) + (nindirect > 0) + (ncaustic > 0);
+    info->components = ntotal || kinds > 1 ? "total" : ndirect ? "direct" : nindirect ? "indirect" : "caustic";
     return PM_OK;
 }
 
@@ -190,14 +195,16 @@ pm_result_t pm_composite_sum(pm_composite_t *c, int argc, char **argv, pm_compos
 }
 
 /* The schedule's key `key` of the pass (the first kept buffer that has it) into out: empty when
- * no buffer has it; two buffers that disagree are an error. */
+ * no buffer has it; two buffers that disagree are an error. A caustic buffer's radius1 is its
+ * own map's (the caustic map is far sparser than the global one): the running image keeps the
+ * global gather's. */
 static pm_result_t pass_key(const pm_composite_t *c, const char *key, char *out, size_t size)
 {
     out[0] = 0;
     const char *first = NULL;
     for (int i = 0; i < c->nin; i++) {
         const char *v = c->in[i].used ? pm_header_get(pm_reader_header(c->in[i].rd), key) : NULL;
-        if (!v)
+        if (!v || (!strcmp(key, "radius1") && !strcmp(c->in[i].component, "caustic")))
             continue;
         if (first && strcmp(v, out))
             return pm_error_set(PM_ERR_INPUT, "buffers of one pass disagree on %s: '%s' says %s, '%s' says %s", key,

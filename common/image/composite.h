@@ -24,9 +24,10 @@
 
 /* Which buffers are added, by their header's component key. */
 typedef enum {
-    PM_ONLY_ALL = 0,     /* every buffer */
-    PM_ONLY_DIRECT = 1,  /* only component=direct */
-    PM_ONLY_INDIRECT = 2 /* only component=indirect */
+    PM_ONLY_ALL = 0,      /* every buffer */
+    PM_ONLY_DIRECT = 1,   /* only component=direct */
+    PM_ONLY_INDIRECT = 2, /* only component=indirect */
+    PM_ONLY_CAUSTIC = 3   /* only component=caustic (the caustic map seen at the first diffuse hits) */
 } pm_composite_only_t;
 
 /* Words for the --only option, indexed by pm_composite_only_t, NULL-terminated. */
@@ -53,7 +54,7 @@ pm_result_t pm_composite_parse_input(const char *arg, char **path_out, double *s
 
 /* Opens the n buffers args[i] ("FILE[:SCALE]", "-" for stdin at most once) and checks every
  * header before any pixel is read: each must have the first's resolution and SCENE, and with
- * only != PM_ONLY_ALL each must be direct or indirect, and one at least of that component.
+ * only != PM_ONLY_ALL each must be direct, indirect or caustic, and one at least of that component.
  * Free with pm_composite_free, also after a failure (*c_out is then set or NULL). */
 pm_result_t pm_composite_open(pm_composite_t **c_out, char *const *args, int n, pm_composite_only_t only);
 

@@ -30,6 +30,17 @@ static pm_result_t inputs_setup(pm_gather_inputs_t *in, int variable, uint64_t r
     if (sm && sq && strcmp(sm, sq) != 0)
         return pm_error_set(PM_ERR_INPUT, "photon map '%s' is of scene '%s' but queries '%s' are of scene '%s'",
                             in->map_path, sm, in->q_path, sq);
+    /* Caustic queries (the first diffuse hits) gather the caustic map and nothing else does:
+     * either one against the other kind counts light twice or not at all (docs/accuracy.md). */
+    const char *mk = pm_header_get(mh, "map"), *qk = pm_header_get(qh, "kind");
+    int cmap = mk && !strcmp(mk, "caustic"), cq = qk && !strcmp(qk, "caustic");
+    if (cmap != cq)
+        return pm_error_set(PM_ERR_INPUT,
+                            "photon map '%s' is %s but queries '%s' are %s: a caustic map gathers the "
+                            "caustic queries (trace-gather-points --caustic-queries) and only them",
+                            in->map_path, cmap ? "a caustic map" : "not a caustic map", in->q_path,
+                            cq ? "caustic queries" : "not caustic queries");
+    in->caustic = cq;
     if ((r = pm_header_get_image_size(qh, in->q_path, &in->width, &in->height)) != PM_OK ||
         (map_too && (r = pm_gather_map_init(&in->map, &in->map_table, variable)) != PM_OK))
         return r;
@@ -360,7 +371,7 @@ pm_result_t pm_gather_output_init(pm_table_t *out, const pm_gather_inputs_t *in,
         (r = pm_header_add_command(h, argc, argv)) != PM_OK ||
         (r = pm_header_set(h, "width", "%" PRIu32, in->width)) != PM_OK ||
         (r = pm_header_set(h, "height", "%" PRIu32, in->height)) != PM_OK ||
-        (r = pm_header_set(h, "component", "indirect")) != PM_OK ||
+        (r = pm_header_set(h, "component", "%s", in->caustic ? "caustic" : "indirect")) != PM_OK ||
         (r = pm_header_set(h, "kernel", "%s", pm_kernel_names[kernel])) != PM_OK)
         return r;
     return pm_header_set(h, "widths", "%s", widths);

@@ -62,6 +62,7 @@ typedef struct {
     pm_material_t *materials;
     uint64_t begin, end, total; /* the range held, and the file's query count */
     int ranged;                 /* --range was given */
+    int caustic;                /* caustic queries against a caustic map: the output is component=caustic */
     uint32_t width, height;     /* image size, pixels */
     double read_s;              /* wall seconds spent reading and checking both files */
     double *per_query;          /* owned, 3 per row of q: for the gather's weighted radiance, W/(m^2 sr) */

@@ -14,7 +14,7 @@
 #include "base/timer.h"
 #include "photonmap/gather.h"
 
-const char *const pm_map_kind_names[] = {"global", "indirect", NULL};
+const char *const pm_map_kind_names[] = {"global", "indirect", "caustic", NULL};
 const char *const pm_split_names[] = {"median", "vvh", NULL};
 
 /* Kernel width of every photon: the radius of the disc around it that holds K photons
@@ -143,6 +143,17 @@ pm_result_t pm_map_build(const pm_table_t *ph, const char *path, const pm_map_bu
     memset(stats, 0, sizeof *stats);
     stats->photons_in = n_in;
 
+    /* A caustic map is made of caustic photons only, and they make nothing else: the header
+     * key kind=caustic that trace-photons --caustic-output writes tells them apart. */
+    const char *kind = pm_header_get(&ph->hdr, "kind");
+    int caustic_in = kind && !strcmp(kind, "caustic");
+    if ((p->map == PM_MAP_CAUSTIC) != caustic_in) {
+        r = pm_error_set(PM_ERR_INPUT, "%s '%s': a %s map needs %s (trace-photons %s)",
+                         caustic_in ? "caustic photons" : "not caustic photons", path, pm_map_kind_names[p->map],
+                         p->map == PM_MAP_CAUSTIC ? "a caustic photons file (kind=caustic)" : "the global photons",
+                         p->map == PM_MAP_CAUSTIC ? "--caustic-output" : "-o");
+        goto done;
+    }
     /* The photons this map holds: all, or those that bounced at least once. */
     const uint32_t *depth = ph->col[PM_PHOTON_DEPTH];
     const float *ppos = ph->col[PM_PHOTON_POSITION];

@@ -12,8 +12,9 @@
 #include "photonmap/kdtree.h"
 
 typedef enum {
-    PM_MAP_GLOBAL = 0,  /* every stored photon */
-    PM_MAP_INDIRECT = 1 /* only photons that bounced (depth > 0): direct light comes from shadow rays */
+    PM_MAP_GLOBAL = 0,   /* every stored photon */
+    PM_MAP_INDIRECT = 1, /* only photons that bounced (depth > 0): direct light comes from shadow rays */
+    PM_MAP_CAUSTIC = 2   /* every photon of a caustic photons file (kind=caustic: L S+ D, trace-photons) */
 } pm_map_kind_t;
 
 typedef enum {

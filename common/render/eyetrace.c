@@ -29,7 +29,14 @@
 
 /* RNG streams: pixel p draws from stream 4p + purpose, so each phase of a pixel is
  * reproducible on its own and no two pixels or phases share numbers. */
-enum { STREAM_JITTER = 0, STREAM_LIGHT = 1, STREAM_GATHER = 2 };
+enum { STREAM_JITTER = 0, STREAM_LIGHT = 1, STREAM_GATHER = 2, STREAM_SPECULAR = 3 };
+
+/* Eye paths through mirrors and glass: Russian roulette from this specular bounce on, survival
+ * the chain's largest channel of energy kept (the product of the weights photons would carry:
+ * kr, 1 for a Fresnel reflection, tf; not the radiance's 1/eta^2, which is no loss and would
+ * kill paths inside glass for nothing), capped at 1; and a hard stop after PM_EYE_MAX_SPECULAR
+ * bounces in a row, whose light is lost (the bias docs/accuracy.md states). */
+#define RR_SPECULAR 8
 
 const char *const pm_eye_mode_names[] = {"gather", "direct-vis", NULL};
 const char *const pm_eye_schedule_names[] = {"interleave", "tiles", "dynamic", NULL};
@@ -54,11 +61,13 @@ typedef struct {
     float *sh_c;      /* shadow ray -> RGB radiance it adds when unblocked, W/(m^2 sr) */
     uint32_t *sec_px; /* secondary ray -> pixel column */
     float *sec_w;     /* secondary ray -> RGB path weight (f cos / pdf / N / primary) */
-    float *sec_cos;   /* secondary ray -> cosine at the primary hit (its pdf is cos / pi), for MIS */
+    float *sec_cos;   /* secondary ray -> pi times its solid-angle pdf (a cosine sample: its cosine), for MIS */
     size_t sh_px_cap, sh_c_cap, sec_px_cap, sec_w_cap, sec_cos_cap; /* elements allocated */
     float *u1, *u2;                                                 /* spp stratified points */
     float *lx, *ly, *lz; /* their cosine-weighted directions in the local frame */
-    uint64_t n_primary, n_secondary, n_shadow, n_queries;
+    float *thr;          /* per primary ray: RGB throughput of its specular chain (1 1 1 without one) */
+    size_t thr_cap;
+    uint64_t n_primary, n_secondary, n_shadow, n_queries, n_caustic, n_specular, n_specular_cut;
     double t_secondary; /* s inside Embree for secondary rays */
     double cpu_rows;    /* s of this thread's CPU time in trace_row */
 } scratch_t;
@@ -73,6 +82,8 @@ struct pm_eye {
     unsigned spp, primary, light_samples, nx, ny;
     int pixel; /* PM_PIXEL_BOX or PM_PIXEL_CENTER */
     int mode, schedule, width, threads, progress, has_mat, has_dir;
+    int specular; /* the scene has mirrors or glass: eye paths follow them */
+    int caustics; /* also write the caustic queries (the first non-specular hits) */
     uint32_t record_size, off_pos, off_nor, off_w, off_pix, off_mat, off_dir; /* bytes */
     uint64_t seed;
     float eps; /* m, ray-origin offset along the normal */
@@ -104,7 +115,8 @@ static pm_result_t scratch_reserve(scratch_t *sc, uint32_t y, size_t nprim, size
         !grow((void **)&sc->sh_c, 3 * sizeof(float), &sc->sh_c_cap, nshadow) ||
         !grow((void **)&sc->sec_px, sizeof(uint32_t), &sc->sec_px_cap, nsec) ||
         !grow((void **)&sc->sec_w, 3 * sizeof(float), &sc->sec_w_cap, nsec) ||
-        !grow((void **)&sc->sec_cos, sizeof(float), &sc->sec_cos_cap, nsec))
+        !grow((void **)&sc->sec_cos, sizeof(float), &sc->sec_cos_cap, nsec) ||
+        !grow((void **)&sc->thr, 3 * sizeof(float), &sc->thr_cap, nprim))
         return pm_error_set(PM_ERR_NOMEM,
                             "out of memory for the rays of row %" PRIu32 ": %zu primary, %zu shadow, %zu secondary", y,
                             nprim, nshadow, nsec);
@@ -122,7 +134,7 @@ static void scratch_free(scratch_t *sc)
 {
     pm_rays_free(&sc->prim), pm_rays_free(&sc->shadow), pm_rays_free(&sc->sec);
     free(sc->hit), free(sc->sh_px), free(sc->sh_c), free(sc->sec_px), free(sc->sec_w), free(sc->sec_cos);
-    free(sc->u1), free(sc->u2), free(sc->lx), free(sc->ly), free(sc->lz);
+    free(sc->u1), free(sc->u2), free(sc->lx), free(sc->ly), free(sc->lz), free(sc->thr);
 }
 
 /* Appends one query record in file layout; 0 when out of memory. */
@@ -147,6 +159,69 @@ static inline int put_query(const pm_eye_t *c, bytebuf_t *out, const float p[3],
     return 1;
 }
 
+/* ------------------------------------------------------------------ specular chains */
+
+/* Sub-stream k of pixel p's STREAM_SPECULAR: its blocks from k * 2^32 on, so that the chains of
+ * the pixel's primary rays (k = 0) and of each of its secondary rays (k = 1 + the ray's index in
+ * the pixel) never share numbers. */
+static void specular_rng(pm_rng_t *r, uint64_t seed, uint64_t pixel, uint32_t k)
+{
+    pm_rng_init(r, seed, 4 * pixel + STREAM_SPECULAR);
+    r->ctr[1] = k;
+}
+
+/* Follows an eye path that hit mirror or glass triangle *tri along unit d from o at distance
+ * *t, through every specular bounce (pm_specular_sample with radiance weights), to the first
+ * hit on anything else: on return *tri, o, d and *t are that last ray's and its hit (*tri
+ * PM_RAY_MISS when the path escaped or ended), and thr has been multiplied by the chain's
+ * weights. u_first, when not negative, is the first bounce's choice between reflection and
+ * refraction instead of a fresh number (the primary rays of a pixel stratify it). Single rays:
+ * chains are rare and incoherent. */
+static void follow_specular(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContext *ctx, pm_rng_t *rng,
+                            float u_first, uint32_t *tri, float o[3], float d[3], float *t, float thr[3])
+{
+    const pm_scene_t *s = c->s;
+    float kept[3] = {1.0f, 1.0f, 1.0f}; /* energy the chain has kept, per channel */
+    for (unsigned bounce = 0;; bounce++) {
+        const pm_material_t *m = &s->materials[s->tri_material[*tri]];
+        if (!pm_material_is_specular(m))
+            return;
+        const float *ng = c->geom.tri_n + 3 * (size_t)*tri;
+        float p[3], wo[3], wi[3], wt[3];
+        for (int k = 0; k < 3; k++)
+            p[k] = o[k] + *t * d[k], wo[k] = -d[k];
+        float u = pm_rng_float(rng), v = pm_rng_float(rng);
+        if (bounce == 0 && u_first >= 0.0f)
+            u = u_first;
+        int how = bounce >= PM_EYE_MAX_SPECULAR ? -1 : pm_specular_sample(m, ng, wo, u, 1, wi, wt);
+        if (how < 0) {
+            sc->n_specular_cut += bounce >= PM_EYE_MAX_SPECULAR;
+            *tri = PM_RAY_MISS;
+            return;
+        }
+        for (int k = 0; k < 3; k++) {
+            thr[k] *= wt[k];
+            kept[k] *= how == 1 ? m->tf[k] : wt[k];
+        }
+        if (bounce >= RR_SPECULAR) {
+            float q = fminf(1.0f, fmaxf(kept[0], fmaxf(kept[1], kept[2])));
+            if (!(v < q)) {
+                *tri = PM_RAY_MISS;
+                return;
+            }
+            for (int k = 0; k < 3; k++)
+                thr[k] /= q, kept[k] /= q;
+        }
+        float side = pm_dot3(ng, wi) >= 0.0f ? c->eps : -c->eps;
+        for (int k = 0; k < 3; k++)
+            o[k] = p[k] + side * ng[k], d[k] = wi[k];
+        sc->n_specular++;
+        *tri = pm_rt_intersect1(c->rt, ctx, o, d, 0.0f, INFINITY, t, NULL);
+        if (*tri == PM_RAY_MISS)
+            return;
+    }
+}
+
 /* ------------------------------------------------------------------ shading */
 
 /* The query's weight from the path weight w: a Lambertian query surface has its BRDF kd/pi
@@ -159,10 +234,15 @@ static inline int query_weight(const pm_material_t *m, const float w[3], float o
     return out[0] > 0.0f || out[1] > 0.0f || out[2] > 0.0f;
 }
 
-/* Direct light and spawned rays of primary ray i (pixel column x); 0 when out of memory. */
+/* Direct light and spawned rays of primary ray i (pixel column x), and its caustic query into
+ * caus when asked for; 0 when out of memory. A primary ray that passed mirrors or glass arrives
+ * here as its last ray, with the chain's throughput in sc->thr: every contribution is multiplied
+ * by it last, so that without a chain (throughput exactly 1) every number is what it was. */
 static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x, uint32_t pixel, pm_rng_t *light_rng,
-                         pm_rng_t *gather_rng, double *direct, bytebuf_t *out)
+                         pm_rng_t *gather_rng, double *direct, bytebuf_t *out, bytebuf_t *caus)
 {
+    static const float one[3] = {1.0f, 1.0f, 1.0f};
+    const float *tp = c->specular ? sc->thr + 3 * i : one;
     const pm_scene_t *s = c->s;
     const pm_rays_t *pr = &sc->prim;
     uint32_t tri = pr->prim[i];
@@ -186,11 +266,23 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
     /* Emission seen directly: emitters radiate from their front side only. */
     if (side > 0.0f && pm_material_is_emissive(m))
         for (int k = 0; k < 3; k++)
-            direct[3 * x + k] += (double)(m->ke[k] * inv_p);
+            direct[3 * x + k] += (double)(m->ke[k] * inv_p * tp[k]);
 
-    int reflects = m->kd[0] > 0.0f || m->kd[1] > 0.0f || m->kd[2] > 0.0f || pm_material_is_glossy(m);
+    int glossy = pm_material_is_glossy(m);
+    int reflects = m->kd[0] > 0.0f || m->kd[1] > 0.0f || m->kd[2] > 0.0f || glossy;
     if (!reflects)
         return 1; /* black: reflects no light, direct or gathered */
+
+    /* The caustic query: this first non-specular hit itself, weighted like a direct-vis query,
+     * gathered against the caustic map (L S+ D seen from here). */
+    if (c->caustics) {
+        float w[3] = {inv_p * tp[0], inv_p * tp[1], inv_p * tp[2]}, qw[3];
+        if (query_weight(m, w, qw)) {
+            if (!put_query(c, caus, p, n, qw, pixel, s->tri_material[tri], wo))
+                return 0;
+            sc->n_caustic++;
+        }
+    }
 
     /* Point lights: intensity I (W/sr) at distance r gives irradiance I cos / r^2. */
     pm_light_sample_t ls;
@@ -202,7 +294,7 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
         pm_brdf(m, n, ls.wi, wo, f);
         size_t j = sc->shadow.n;
         for (int k = 0; k < 3; k++)
-            sc->sh_c[3 * j + k] = f[k] * L->intensity[k] * ls.cosx / ls.r2 * inv_p;
+            sc->sh_c[3 * j + k] = f[k] * L->intensity[k] * ls.cosx / ls.r2 * inv_p * tp[k];
         sc->sh_px[j] = x;
         pm_rays_push(&sc->shadow, o, ls.wi, 0.0f, ls.r - c->eps);
     }
@@ -225,11 +317,12 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
          * docs/programs/trace-gather-points.md. */
         if (c->mode == PM_EYE_GATHER) /* shared with the secondary rays that find the light (MIS) */
             g *= pm_power_heuristic((float)c->light_samples * ls.r2 / (ls.cosy * (float)c->geom.area),
-                                    (float)(c->spp / PER_CELL) * ls.cosx * (1.0f / PM_PI));
+                                    glossy ? (float)(c->spp / PER_CELL) * pm_bsdf_pdf(m, n, ls.wi, wo)
+                                           : (float)(c->spp / PER_CELL) * ls.cosx * (1.0f / PM_PI));
         pm_brdf(m, n, ls.wi, wo, f);
         size_t j = sc->shadow.n;
         for (int k = 0; k < 3; k++)
-            sc->sh_c[3 * j + k] = f[k] * lm->ke[k] * g;
+            sc->sh_c[3 * j + k] = f[k] * lm->ke[k] * g * tp[k];
         sc->sh_px[j] = x;
         /* Stop short of the light's own surface, by the offset and a relative margin. */
         pm_rays_push(&sc->shadow, o, ls.wi, 0.0f, ls.r * (1.0f - 1e-4f) - 2.0f * c->eps);
@@ -237,7 +330,7 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
 
     if (c->mode == PM_EYE_DIRECT_VIS) {
         /* The primary hit is the query: path weight 1 (over the primary rays of the pixel). */
-        float w[3] = {inv_p, inv_p, inv_p}, qw[3];
+        float w[3] = {inv_p * tp[0], inv_p * tp[1], inv_p * tp[2]}, qw[3];
         if (query_weight(m, w, qw)) {
             if (!put_query(c, out, p, n, qw, pixel, s->tri_material[tri], wo))
                 return 0;
@@ -255,7 +348,6 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
     }
     pm_strata_fill(gather_rng, c->nx, c->ny, PER_CELL, sc->u1, sc->u2);
     pm_strata_cosine(sc->u1, sc->u2, c->spp, sc->lx, sc->ly, sc->lz);
-    int glossy = pm_material_is_glossy(m);
     float scale = inv_p / (float)c->spp;
     if (!glossy) {
         /* Lambertian: (kd/pi) cos / (cos/pi) = kd for every ray; kd > 0 here. Whole
@@ -274,7 +366,8 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
             ox[q] = o[0], oy[q] = o[1], oz[q] = o[2];
             tn[q] = 0.0f, tf[q] = INFINITY;
         }
-        float w0 = m->kd[0] * scale, w1 = m->kd[1] * scale, w2 = m->kd[2] * scale, *w = sc->sec_w + 3 * j0;
+        float w0 = m->kd[0] * scale * tp[0], w1 = m->kd[1] * scale * tp[1], w2 = m->kd[2] * scale * tp[2],
+              *w = sc->sec_w + 3 * j0;
         uint32_t *px = sc->sec_px + j0;
         memcpy(sc->sec_cos + j0, lz, nq * sizeof *lz);
         for (unsigned q = 0; q < nq; q++) {
@@ -284,19 +377,32 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
         sr->n += nq;
         return 1;
     }
+    /* Glossy: directions drawn from the BSDF mixture (pm_bsdf_sample), the lobe chosen by the
+     * stratified u1 itself (rescaled into the chosen lobe's share), so that a sharp lobe gets
+     * its rays along the mirror direction and the strata survive. The weight is f cos / pdf
+     * over N with the mixture's pdf (one-sample MIS of the two lobes, balance heuristic); a
+     * glossy draw below the surface is the lobe's energy loss and carries nothing. */
+    float sd = pm_bsdf_diffuse_share(m);
     for (unsigned q = 0; q < c->spp; q++) {
-        float wi[3];
-        for (int k = 0; k < 3; k++)
-            wi[k] = sc->lx[q] * tb[k] + sc->ly[q] * bb[k] + sc->lz[q] * n[k];
+        float wi[3], u1 = sc->u1[q], u2 = sc->u2[q];
+        pm_lobe_t lobe = u1 < sd ? PM_LOBE_DIFFUSE : PM_LOBE_GLOSSY;
+        u1 = lobe == PM_LOBE_DIFFUSE ? u1 / sd : (u1 - sd) / (1.0f - sd);
+        if (!(u1 < 1.0f))
+            u1 = 0x1.fffffep-1f; /* the rescaling can round up to 1 */
+        if (!pm_bsdf_sample_lobe(m, lobe, n, wo, u1, u2, wi))
+            continue;
+        float pdf = pm_bsdf_pdf(m, n, wi, wo), cosi = pm_dot3(n, wi);
+        if (!(pdf > 0.0f))
+            continue;
         size_t j = sc->sec.n;
         float *w = sc->sec_w + 3 * j, f[3];
-        pm_brdf(m, n, wi, wo, f); /* glossy: weight pi f / N per ray */
+        pm_brdf(m, n, wi, wo, f);
         for (int k = 0; k < 3; k++)
-            w[k] = f[k] * PM_PI * scale;
+            w[k] = f[k] * cosi / pdf * scale * tp[k];
         if (!(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f))
             continue; /* carries nothing: not traced */
         sc->sec_px[j] = x;
-        sc->sec_cos[j] = sc->lz[q];
+        sc->sec_cos[j] = pdf * PM_PI; /* pi times the pdf: what a cosine sample's cosine is */
         pm_rays_push(&sc->sec, o, wi, 0.0f, INFINITY);
     }
     return 1;
@@ -304,8 +410,10 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
 
 /* ------------------------------------------------------------------ rows */
 
-/* Traces row y: direct radiance into direct[0 .. 3w), queries into out in pixel order. */
-static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, double *direct, bytebuf_t *out)
+/* Traces row y: direct radiance into direct[0 .. 3w), queries into out and caustic queries into
+ * caus, in pixel order. */
+static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, double *direct, bytebuf_t *out,
+                                  bytebuf_t *caus)
 {
     const pm_scene_t *s = c->s;
     size_t np = (size_t)c->w * c->primary;
@@ -317,6 +425,11 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
     memset(direct, 0, 3 * sizeof(double) * c->w);
     out->n = 0;
     out->count = 0;
+    caus->n = 0;
+    caus->count = 0;
+    struct RTCIntersectContext ctx; /* the specular chains' single rays */
+    rtcInitIntersectContext(&ctx);
+    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
 
     /* Primary rays, pixel by pixel along the row: coherent packets. */
     sc->prim.n = 0;
@@ -338,19 +451,50 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
 
     sc->shadow.n = 0;
     sc->sec.n = 0;
-    pm_rng_t light_rng, gather_rng;
+    pm_rng_t light_rng, gather_rng, spec_rng;
+    float spec_xi = 0.0f;                /* the pixel's rotation of its primary rays' first specular choices */
     pm_rng_init(&light_rng, c->seed, 0); /* re-keyed per pixel below */
     pm_rng_init(&gather_rng, c->seed, 0);
+    pm_rng_init(&spec_rng, c->seed, 0);
     for (size_t i = 0; i < np; i++) {
         uint32_t x = (uint32_t)(i / c->primary);
         uint32_t pixel = y * c->w + x;
         if (i % c->primary == 0) {
             pm_rng_init(&light_rng, c->seed, 4 * (uint64_t)pixel + STREAM_LIGHT);
             pm_rng_init(&gather_rng, c->seed, 4 * (uint64_t)pixel + STREAM_GATHER);
+            if (c->specular) {
+                specular_rng(&spec_rng, c->seed, pixel, 0);
+                spec_xi = pm_rng_float(&spec_rng);
+            }
+        }
+        if (c->specular && sc->prim.prim[i] != PM_RAY_MISS) {
+            /* Through mirrors and glass to the first other surface: the ray becomes the chain's last. */
+            pm_rays_t *pr = &sc->prim;
+            float *thr = sc->thr + 3 * i, o[3] = {pr->ox[i], pr->oy[i], pr->oz[i]},
+                  d[3] = {pr->dx[i], pr->dy[i], pr->dz[i]}, t = pr->tfar[i];
+            thr[0] = thr[1] = thr[2] = 1.0f;
+            uint32_t tri = pr->prim[i];
+            if (pm_material_is_specular(&s->materials[s->tri_material[tri]])) {
+                float l = sqrtf(pm_dot3(d, d));
+                for (int k = 0; k < 3; k++)
+                    d[k] /= l;
+                t *= l;
+                /* The pixel's primary rays take the first choice between reflection and refraction
+                 * from a rotated grid, {j / P + xi}, so that P rays split about F P to (1 - F) P
+                 * rather than at random: the glass seen directly is far less noisy. */
+                float u_first = fmodf((float)(i % c->primary) / (float)c->primary + spec_xi, 1.0f);
+                if (!(u_first < 1.0f))
+                    u_first = 0.0f;
+                follow_specular(c, sc, &ctx, &spec_rng, u_first, &tri, o, d, &t, thr);
+                pr->prim[i] = tri;
+                pr->ox[i] = o[0], pr->oy[i] = o[1], pr->oz[i] = o[2];
+                pr->dx[i] = d[0], pr->dy[i] = d[1], pr->dz[i] = d[2];
+                pr->tfar[i] = t;
+            }
         }
         if (sc->prim.prim[i] == PM_RAY_MISS)
             continue; /* sky: no query, no direct light */
-        if (!shade_primary(c, sc, i, x, pixel, &light_rng, &gather_rng, direct, out))
+        if (!shade_primary(c, sc, i, x, pixel, &light_rng, &gather_rng, direct, out, caus))
             return pm_error_set(PM_ERR_NOMEM, "out of memory for the queries of row %" PRIu32 ": %" PRIu64 " records",
                                 y, out->count + 1);
     }
@@ -375,12 +519,50 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
     if (!grow((void **)&out->p, 1, &out->cap, out->n + sr->n * c->record_size))
         return pm_error_set(PM_ERR_NOMEM, "out of memory for the queries of row %" PRIu32 ": %zu records", y,
                             out->count + sr->n);
+    uint32_t last_px = UINT32_MAX, in_px = 0;
     for (size_t j = 0; j < sr->n; j++) {
         uint32_t tri = sr->prim[j];
+        if (c->specular) {
+            /* Each secondary ray's chain draws from a sub-stream of its own (specular_rng). */
+            in_px = sc->sec_px[j] == last_px ? in_px + 1 : 0;
+            last_px = sc->sec_px[j];
+        }
         if (tri == PM_RAY_MISS)
             continue; /* escaped: no query */
         float d[3] = {sr->dx[j], sr->dy[j], sr->dz[j]}, t = sr->tfar[j];
-        float q[3] = {sr->ox[j] + t * d[0], sr->oy[j] + t * d[1], sr->oz[j] + t * d[2]};
+        float o[3] = {sr->ox[j], sr->oy[j], sr->oz[j]}, thr[3] = {1.0f, 1.0f, 1.0f};
+        if (c->specular && pm_material_is_specular(&s->materials[s->tri_material[tri]])) {
+            /* Through mirrors and glass to the first other surface. Light found at the end of
+             * such a chain is L S+ D at the primary hit, the caustic queries' (with the caustic
+             * map) or lost without them: never counted here. */
+            specular_rng(&spec_rng, c->seed, (uint64_t)y * c->w + last_px, 1 + in_px);
+            follow_specular(c, sc, &ctx, &spec_rng, -1.0f, &tri, o, d, &t, thr);
+            if (tri == PM_RAY_MISS)
+                continue;
+            uint32_t mi = s->tri_material[tri];
+            float w[3], *rw = sc->sec_w + 3 * j;
+            const float *fold = c->fold + 3 * (size_t)mi, *ng = c->geom.tri_n + 3 * (size_t)tri;
+            float wo[3] = {-d[0], -d[1], -d[2]}, n[3], q[3], fold_tex[3];
+            float side = pm_dot3(ng, wo) >= 0.0f ? 1.0f : -1.0f;
+            for (int k = 0; k < 3; k++)
+                q[k] = o[k] + t * d[k];
+            if (s->maps) { /* a textured scene: the fold of the material with its textures at q */
+                pm_material_t textured;
+                const float one[3] = {1.0f, 1.0f, 1.0f};
+                query_weight(pm_scene_material_at(s, tri, q, &textured), one, fold_tex);
+                fold = fold_tex;
+            }
+            for (int k = 0; k < 3; k++) {
+                n[k] = side * ng[k];
+                w[k] = rw[k] * thr[k] * fold[k];
+            }
+            if (!(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f) || !isfinite(w[0] + w[1] + w[2]))
+                continue;
+            put_query(c, out, q, n, w, y * c->w + sc->sec_px[j], mi, wo); /* room reserved above */
+            sc->n_queries++;
+            continue;
+        }
+        float q[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
         float wo[3] = {-d[0], -d[1], -d[2]}, n[3];
         const float *ng = c->geom.tri_n + 3 * (size_t)tri;
         float side = pm_dot3(ng, wo) >= 0.0f ? 1.0f : -1.0f; /* the side the query sees */
@@ -415,11 +597,11 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
 
 /* Row y on the calling worker, its CPU time counted; a failure goes into err, so that its
  * message outlives the worker's thread-local one. */
-static void trace_row(const pm_eye_t *c, scratch_t *sc, uint32_t y, double *direct, bytebuf_t *out,
+static void trace_row(const pm_eye_t *c, scratch_t *sc, uint32_t y, double *direct, bytebuf_t *out, bytebuf_t *caus,
                       pm_error_slot_t *err)
 {
     double t0 = pm_time_thread_cpu();
-    pm_result_t r = trace_row_body(c, sc, y, direct, out);
+    pm_result_t r = trace_row_body(c, sc, y, direct, out, caus);
     sc->cpu_rows += pm_time_thread_cpu() - t0;
     if (r != PM_OK)
         pm_error_slot_record(err, y, r);
@@ -446,8 +628,17 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
     c->progress = o->progress;
     c->eps = rt->epsilon;
     c->width = pm_packet_width(rt, o->isa);
+    c->specular = s->any_specular;
+    c->caustics = o->caustics;
     pm_result_t r = PM_OK;
-    if (c->mode == PM_EYE_GATHER) {
+    if (o->caustics && !s->any_specular)
+        r = pm_error_set(PM_ERR_INPUT, "scene '%s' has no mirror or glass: it has no caustic queries", s->path);
+    else if (o->caustics && o->mode != PM_EYE_GATHER)
+        r = pm_error_set(PM_ERR_USAGE,
+                         "caustic queries need --mode gather: in %s mode the queries at the primary hits "
+                         "gather caustic photons already",
+                         pm_eye_mode_names[o->mode]);
+    if (r == PM_OK && c->mode == PM_EYE_GATHER) {
         int64_t spp = o->spp ? (int64_t)o->spp : s->defaults.spp;
         if (spp <= 0 || spp % PER_CELL != 0 || spp > 65536)
             r = pm_error_set(o->spp ? PM_ERR_USAGE : PM_ERR_INPUT,
@@ -497,6 +688,8 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
                               .seed = c->seed,
                               .packet_width = c->width,
                               .channels = mask,
+                              .specular = c->specular,
+                              .caustics = c->caustics,
                               .record_size = c->record_size};
     *out = c;
     return PM_OK;
@@ -523,8 +716,9 @@ pm_result_t pm_eye_trace(pm_eye_t *c, const pm_eye_sink_t *sink, pm_eye_stats_t 
     scratch_t *scr = aligned_alloc(64, (size_t)nthreads * sizeof *scr);
     uint32_t band = c->h < BAND_ROWS ? c->h : BAND_ROWS;
     double *direct = malloc(((size_t)band * c->w * 3 + 1) * sizeof(double));
-    bytebuf_t rows[BAND_ROWS];
+    bytebuf_t rows[BAND_ROWS], crows[BAND_ROWS]; /* a row's queries and caustic queries */
     memset(rows, 0, sizeof rows);
+    memset(crows, 0, sizeof crows);
     if (scr)
         memset(scr, 0, (size_t)nthreads * sizeof *scr);
     if (!scr || !direct)
@@ -548,19 +742,19 @@ pm_result_t pm_eye_trace(pm_eye_t *c, const pm_eye_sink_t *sink, pm_eye_stats_t 
             if (c->schedule == PM_EYE_INTERLEAVE) {
 #pragma omp for schedule(static, 1)
                 for (int b = 0; b < nb; b++) {
-                    trace_row(c, sc, y0 + (uint32_t)b, direct + (size_t)b * c->w * 3, &rows[b], &err);
+                    trace_row(c, sc, y0 + (uint32_t)b, direct + (size_t)b * c->w * 3, &rows[b], &crows[b], &err);
                     pm_progress_add(&prog, 1);
                 }
             } else if (c->schedule == PM_EYE_TILES) {
 #pragma omp for schedule(static)
                 for (int b = 0; b < nb; b++) {
-                    trace_row(c, sc, y0 + (uint32_t)b, direct + (size_t)b * c->w * 3, &rows[b], &err);
+                    trace_row(c, sc, y0 + (uint32_t)b, direct + (size_t)b * c->w * 3, &rows[b], &crows[b], &err);
                     pm_progress_add(&prog, 1);
                 }
             } else {
 #pragma omp for schedule(dynamic, 1)
                 for (int b = 0; b < nb; b++) {
-                    trace_row(c, sc, y0 + (uint32_t)b, direct + (size_t)b * c->w * 3, &rows[b], &err);
+                    trace_row(c, sc, y0 + (uint32_t)b, direct + (size_t)b * c->w * 3, &rows[b], &crows[b], &err);
                     pm_progress_add(&prog, 1);
                 }
             }
@@ -572,6 +766,9 @@ pm_result_t pm_eye_trace(pm_eye_t *c, const pm_eye_sink_t *sink, pm_eye_stats_t 
                 r = sink->queries(sink->user, rows[b].p, rows[b].count);
                 delivered += rows[b].count;
             }
+        for (int b = 0; b < nb && r == PM_OK && c->caustics; b++)
+            if (crows[b].count)
+                r = sink->caustic(sink->user, crows[b].p, crows[b].count);
         if (r == PM_OK && sink->direct)
             r = sink->direct(sink->user, y0, (uint32_t)nb, direct);
         t_sink += pm_time_wall() - t1;
@@ -587,6 +784,9 @@ pm_result_t pm_eye_trace(pm_eye_t *c, const pm_eye_sink_t *sink, pm_eye_stats_t 
         stats_out->secondary_rays += scr[t].n_secondary;
         stats_out->shadow_rays += scr[t].n_shadow;
         stats_out->queries += scr[t].n_queries;
+        stats_out->caustic_queries += scr[t].n_caustic;
+        stats_out->specular_rays += scr[t].n_specular;
+        stats_out->specular_cut += scr[t].n_specular_cut;
         stats_out->secondary_embree_s += scr[t].t_secondary;
     }
     if (r == PM_OK && stats_out->queries != delivered)
@@ -595,7 +795,7 @@ pm_result_t pm_eye_trace(pm_eye_t *c, const pm_eye_sink_t *sink, pm_eye_stats_t 
     for (int t = 0; t < nthreads && scr; t++)
         scratch_free(&scr[t]);
     for (int b = 0; b < BAND_ROWS; b++)
-        free(rows[b].p);
+        free(rows[b].p), free(crows[b].p);
     free(scr);
     free(direct);
     return r;
@@ -681,6 +881,12 @@ void pm_eye_report(pm_stage_t *st, const pm_eye_info_t *in, const pm_eye_stats_t
     pm_stage_stat_int(st, "shadow_rays", (int64_t)x->shadow_rays);
     pm_stage_stat_int(st, "queries", (int64_t)x->queries);
     pm_stage_stat_int(st, "spooled_to_file", spilled);
+    if (in->specular) {
+        pm_stage_stat_int(st, "specular_rays", (int64_t)x->specular_rays);
+        pm_stage_stat_int(st, "specular_chains_cut", (int64_t)x->specular_cut);
+    }
+    if (in->caustics)
+        pm_stage_stat_int(st, "caustic_queries", (int64_t)x->caustic_queries);
     pm_stage_stat_double(st, "trace_s", tt);
     pm_stage_stat_double(st, "spool_s", x->sink_s);
     pm_stage_stat_double(st, "rays_per_s", tt > 0 ? (double)rays / tt : 0.0);
@@ -690,6 +896,9 @@ void pm_eye_report(pm_stage_t *st, const pm_eye_info_t *in, const pm_eye_stats_t
     pm_stage_stat_double(st, "secondary_embree_s", te);
     pm_stage_stat_double(st, "secondary_embree_rays_per_core_s", te > 0 ? (double)x->secondary_rays / te : 0.0);
     st->items = x->queries;
+    if (in->caustics)
+        pm_stage_note(st, "%" PRIu64 " caustic queries, %" PRIu64 " rays through mirrors and glass", x->caustic_queries,
+                      x->specular_rays);
     pm_stage_note(st,
                   "%" PRIu64 " primary, %" PRIu64 " secondary, %" PRIu64 " shadow rays in %.3f s (%.2f Mrays/s, %s "
                   "packets of %d); %" PRIu64 " queries",

@@ -6,7 +6,8 @@
  * filter), or all through its centre (PM_PIXEL_CENTER). At each
  * primary hit adds emission seen directly and direct light (shadow rays to point lights and to
  * sampled points of emissive triangles) into the direct radiance buffer; and spawns `spp`
- * cosine-weighted secondary rays, stratified with PM_EYE_PER_CELL samples per cell so that
+ * secondary rays (cosine-weighted at a Lambertian surface, drawn from the BSDF mixture at a
+ * glossy one), stratified with PM_EYE_PER_CELL samples per cell so that
  * groups of four share origin and direction, also traced as packets. Each secondary hit becomes
  * one gather point, a record of the queries format (formats/formats.h) with the weight contract
  * of docs/formats.md. PM_EYE_DIRECT_VIS makes the primary hits themselves the queries (the
@@ -28,7 +29,8 @@
 #include "render/rt.h"
 #include "render/scene.h"
 
-#define PM_EYE_PER_CELL 4 /* secondary samples per stratum cell: the paper's four */
+#define PM_EYE_PER_CELL 4       /* secondary samples per stratum cell: the paper's four */
+#define PM_EYE_MAX_SPECULAR 256 /* specular bounces in a row an eye path may take; more are cut (lost light) */
 
 enum { PM_EYE_GATHER = 0, PM_EYE_DIRECT_VIS = 1 };                    /* where the queries are */
 enum { PM_EYE_INTERLEAVE = 0, PM_EYE_TILES = 1, PM_EYE_DYNAMIC = 2 }; /* rows of a band to threads */
@@ -48,6 +50,7 @@ typedef struct {
     pm_isa_t isa; /* packet width (narrowed to what Embree runs natively) */
     int threads;  /* worker threads, >= 1 */
     int progress; /* a progress line on a terminal */
+    int caustics; /* also deliver the caustic queries (sink->caustic); a scene with mirrors or glass, gather mode */
 } pm_eye_options_t;
 
 /* What a context settled on: sizes, the effective spp, the queries' record layout. */
@@ -61,11 +64,16 @@ typedef struct {
     int packet_width;     /* lanes: 1, 4, 8 or 16 */
     uint32_t channels;    /* mask of the queries channels written (direction, material only when needed) */
     uint32_t record_size; /* bytes per query record */
+    int specular;         /* the scene has mirrors or glass: eye paths pass through them */
+    int caustics;         /* caustic queries are delivered */
 } pm_eye_info_t;
 
 /* Counters of one pm_eye_trace. */
 typedef struct {
     uint64_t primary_rays, secondary_rays, shadow_rays, queries;
+    uint64_t caustic_queries;  /* records delivered to sink->caustic */
+    uint64_t specular_rays;    /* single rays of the chains through mirrors and glass */
+    uint64_t specular_cut;     /* chains cut at PM_EYE_MAX_SPECULAR bounces */
     double trace_s;            /* wall s of the row loop, without the time spent in the sink */
     double sink_s;             /* wall s spent in the sink (the caller's output cost) */
     double trace_cpu_s;        /* CPU s the threads spent tracing rows: immune to other processes' load */
@@ -80,6 +88,9 @@ typedef struct {
     pm_result_t (*queries)(void *user, const void *records, uint64_t count);
     /* Direct radiance of rows [y0, y0 + rows): width * rows RGB triples, W/(m^2 sr). */
     pm_result_t (*direct)(void *user, uint32_t y0, uint32_t rows, const double *rgb);
+    /* With pm_eye_options_t caustics: count caustic query records, as queries, in pixel order
+     * (each row's after that row's queries). */
+    pm_result_t (*caustic)(void *user, const void *records, uint64_t count);
     void *user;
 } pm_eye_sink_t;
 

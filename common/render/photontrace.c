@@ -49,14 +49,22 @@ struct pm_trace_arena {
 
 enum { ARENA_BLOCK = 16 << 20 };
 
+/* One output of a chunk: its records, contiguous inside its arena's current block. */
 typedef struct {
-    _Alignas(64) pm_trace_arena_t *arena;
-    unsigned char *buf; /* this chunk's records, inside the arena's current block */
-    size_t n;           /* photons stored */
+    pm_trace_arena_t *arena;
+    unsigned char *buf;
+    size_t n; /* photons stored */
+} run_t;
+
+/* The outputs of a chunk: every stored photon, and the caustic photons (L S+ D). */
+enum { OUT_GLOBAL = 0, OUT_CAUSTIC = 1, NOUT = 2 };
+
+typedef struct {
+    _Alignas(64) run_t out[NOUT];
     float *rays;
     size_t nrays, rays_cap;
-    uint64_t rays_traced, escaped, absorbed, capped, first, longest;
-    double power_emitted[3], power_first[3];
+    uint64_t rays_traced, escaped, absorbed, capped, first, longest, specular;
+    double power_emitted[3], power_first[3], power_caustic[3];
     int failed;
 } chunk_t;
 
@@ -114,8 +122,8 @@ static int build_lights(tracer_t *t, const pm_scene_t *s)
     return 0;
 }
 
-/* Room for one more record of rs bytes at the end of chunk c. */
-static int chunk_reserve(chunk_t *c, size_t rs)
+/* Room for one more record of rs bytes at the end of run c. */
+static int run_reserve(run_t *c, size_t rs)
 {
     pm_trace_arena_t *a = c->arena;
     if (a->used + rs <= a->cap)
@@ -156,16 +164,18 @@ static int keep_ray(chunk_t *c, const float o[3], const float d[3], float tnear)
     return 0;
 }
 
-/* A photon at p (m) of `power` (W) on the side n faces, arrived from direction back. */
-static void store_photon(const tracer_t *t, chunk_t *c, const float p[3], const double power[3], const float n[3],
-                         const float back[3], uint32_t depth)
+/* A photon at p (m) of `power` (W) on the side n faces, arrived from direction back, into
+ * output `which` of chunk c. */
+static void store_photon(const tracer_t *t, chunk_t *c, int which, const float p[3], const double power[3],
+                         const float n[3], const float back[3], uint32_t depth)
 {
-    if (chunk_reserve(c, t->rs) != 0) {
+    run_t *run = &c->out[which];
+    if (run_reserve(run, t->rs) != 0) {
         c->failed = 1;
         return;
     }
-    unsigned char *rec = c->buf + c->n++ * t->rs;
-    c->arena->used += t->rs;
+    unsigned char *rec = run->buf + run->n++ * t->rs;
+    run->arena->used += t->rs;
     float pw[3] = {(float)power[0], (float)power[1], (float)power[2]};
     memcpy(rec + t->off_pos, p, 12);
     memcpy(rec + t->off_pow, pw, 12);
@@ -173,11 +183,49 @@ static void store_photon(const tracer_t *t, chunk_t *c, const float p[3], const 
     if (t->o->direction)
         memcpy(rec + t->off_dir, back, 12);
     memcpy(rec + t->off_depth, &depth, 4);
+    if (which == OUT_CAUSTIC) {
+        for (int k = 0; k < 3; k++)
+            c->power_caustic[k] += pw[k];
+        return;
+    }
     if (depth == 0) {
         c->first++;
         for (int k = 0; k < 3; k++)
             c->power_first[k] += pw[k];
     }
+}
+
+/* A photon at a mirror or glass (unit mesh normal ng, either side): the delta BSDF gives the
+ * new direction and its weight (pm_specular_sample; photons carry power, so no 1 / eta^2),
+ * Russian roulette on that weight as at the other bounces (survive with min(max weight,
+ * rr_max), power divided by it), and the photon leaves from the side its new direction points
+ * to. Nothing is stored on a specular surface: its BSDF is a delta, which no density estimate
+ * can use. Returns 0 when the path ends here. */
+static int specular_bounce(const tracer_t *t, chunk_t *c, const pm_material_t *m, pm_rng_t *rng, const float p[3],
+                           const float ng[3], const float wo[3], uint32_t depth, double power[3], float org[3],
+                           float dir[3])
+{
+    c->specular++;
+    if (depth + 1 >= t->o->max_bounces) {
+        c->capped++;
+        return 0;
+    }
+    float wt[3], u = pm_rng_float(rng), v = pm_rng_float(rng);
+    if (pm_specular_sample(m, ng, wo, u, 0, dir, wt) < 0) {
+        c->absorbed++;
+        return 0;
+    }
+    float q = fminf(fmaxf(wt[0], fmaxf(wt[1], wt[2])), (float)t->o->rr_max);
+    if (!(v < q)) {
+        c->absorbed++;
+        return 0;
+    }
+    for (int k = 0; k < 3; k++)
+        power[k] *= (double)wt[k] / q;
+    float side = pm_dot3(ng, dir) >= 0.0f ? t->rt->epsilon : -t->rt->epsilon;
+    for (int k = 0; k < 3; k++)
+        org[k] = p[k] + side * ng[k];
+    return 1;
 }
 
 /* Traces photon `index` into chunk c. */
@@ -218,6 +266,9 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
         c->power_emitted[k] += power[k];
     }
 
+    /* spec_only: no diffuse or glossy bounce since the light; caustic: that, and at least one
+     * specular bounce (the path so far is L S+, so a photon stored next is a caustic one). */
+    int spec_only = 1, caustic = 0;
     for (uint32_t depth = 0;; depth++) {
         if (t->o->record_rays && keep_ray(c, org, dir, 0.0f) != 0) {
             c->failed = 1;
@@ -235,14 +286,25 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
         float p[3], n[3], wo[3] = {-dir[0], -dir[1], -dir[2]};
         pm_v3_store(p, pm_v3_add(pm_v3_load(org), pm_v3_scale(pm_v3_load(dir), tfar)));
         pm_v3_store(n, pm_v3_normalize(pm_v3_load(ng)));
+        const pm_material_t *m = &s->materials[s->tri_material[hit]];
+        if (pm_material_is_specular(m)) {
+            if (!specular_bounce(t, c, m, &rng, p, n, wo, depth, power, org, dir))
+                return;
+            caustic = spec_only;
+            continue;
+        }
         if (pm_dot3(n, dir) > 0.0f) /* the side the photon arrived from */
             pm_v3_store(n, pm_v3_scale(pm_v3_load(n), -1.0f));
         pm_material_t textured; /* the material with its textures at p (render/scene.h) */
-        const pm_material_t *m = pm_scene_material_at(s, hit, p, &textured);
+        m = pm_scene_material_at(s, hit, p, &textured);
         float pd, ps;
         pm_bsdf_albedo(m, &pd, &ps);
-        if (pd + ps > 0.0f)
-            store_photon(t, c, p, power, n, wo, depth);
+        if (pd + ps > 0.0f) {
+            store_photon(t, c, OUT_GLOBAL, p, power, n, wo, depth);
+            if (caustic && t->o->caustics)
+                store_photon(t, c, OUT_CAUSTIC, p, power, n, wo, depth);
+        }
+        spec_only = caustic = 0;
         if (c->failed)
             return;
         if (depth + 1 >= t->o->max_bounces) {
@@ -337,9 +399,10 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
     pm_error_slot_t err;
     pm_error_slot_init(&err);
     int nthreads = omp_get_max_threads();
-    pm_trace_arena_t *arenas = aligned_alloc(64, (size_t)nthreads * sizeof *arenas);
+    /* Two arenas a thread: each output's runs stay contiguous in their own. */
+    pm_trace_arena_t *arenas = aligned_alloc(64, (size_t)nthreads * NOUT * sizeof *arenas);
     if (arenas)
-        memset(arenas, 0, (size_t)nthreads * sizeof *arenas);
+        memset(arenas, 0, (size_t)nthreads * NOUT * sizeof *arenas);
     if (!arenas) {
         free(chunks);
         free(t.lights);
@@ -348,15 +411,17 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
     }
 #pragma omp parallel reduction(| : failed)
     {
-        pm_trace_arena_t *arena = &arenas[omp_get_thread_num()];
+        pm_trace_arena_t *arena = &arenas[NOUT * omp_get_thread_num()];
         struct RTCIntersectContext ctx;
         rtcInitIntersectContext(&ctx);
         ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
 #pragma omp for schedule(dynamic, 1)
         for (uint64_t ci = 0; ci < nchunks; ci++) {
             chunk_t *c = &chunks[ci];
-            c->arena = arena;
-            c->buf = arena->cur + arena->used;
+            for (int w = 0; w < NOUT; w++) {
+                c->out[w].arena = &arena[w];
+                c->out[w].buf = arena[w].cur + arena[w].used;
+            }
             uint64_t b = ci * CHUNK, e = b + CHUNK < o->photons ? b + CHUNK : o->photons;
             for (uint64_t i = b; i < e && !c->failed; i++)
                 trace_one(&t, c, i, &ctx);
@@ -373,10 +438,12 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
 
     /* The chunks in index order are the output; add up their counters the same way. */
     out->arenas = arenas;
-    out->narenas = nthreads;
+    out->narenas = NOUT * nthreads;
     out->nchunks = nchunks;
     out->chunk_data = malloc(nchunks * sizeof *out->chunk_data);
     out->chunk_count = malloc(nchunks * sizeof *out->chunk_count);
+    out->caustic_data = malloc(nchunks * sizeof *out->caustic_data);
+    out->caustic_count = malloc(nchunks * sizeof *out->caustic_count);
     uint64_t nrays = 0;
     for (uint64_t ci = 0; ci < nchunks; ci++)
         nrays += chunks[ci].nrays;
@@ -384,17 +451,21 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
         out->rays_kept = malloc(nrays ? nrays * 7 * sizeof(float) : 1);
         failed |= !out->rays_kept;
     }
-    failed |= !out->chunk_data || !out->chunk_count;
+    failed |= !out->chunk_data || !out->chunk_count || !out->caustic_data || !out->caustic_count;
     uint64_t total = 0, rat = 0;
     for (uint64_t ci = 0; ci < nchunks; ci++) {
         chunk_t *c = &chunks[ci];
         if (!failed) {
-            out->chunk_data[ci] = c->buf;
-            out->chunk_count[ci] = c->n;
+            out->chunk_data[ci] = c->out[OUT_GLOBAL].buf;
+            out->chunk_count[ci] = c->out[OUT_GLOBAL].n;
+            out->caustic_data[ci] = c->out[OUT_CAUSTIC].buf;
+            out->caustic_count[ci] = c->out[OUT_CAUSTIC].n;
             if (o->record_rays)
                 memcpy(out->rays_kept + 7 * rat, c->rays, c->nrays * 7 * sizeof(float));
         }
-        total += c->n;
+        total += c->out[OUT_GLOBAL].n;
+        out->caustic += c->out[OUT_CAUSTIC].n;
+        out->specular_bounces += c->specular;
         rat += c->nrays;
         out->rays += c->rays_traced;
         out->escaped += c->escaped;
@@ -406,6 +477,7 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
         for (int k = 0; k < 3; k++) {
             out->power_emitted[k] += c->power_emitted[k];
             out->power_first[k] += c->power_first[k];
+            out->power_caustic[k] += c->power_caustic[k];
         }
         free(c->rays);
     }
@@ -457,6 +529,8 @@ void pm_trace_free(pm_trace_result_t *r)
     free(r->arenas);
     free(r->chunk_data);
     free(r->chunk_count);
+    free(r->caustic_data);
+    free(r->caustic_count);
     free(r->rays_kept);
     memset(r, 0, sizeof *r);
 }

@@ -4,7 +4,10 @@
  * Photon i is emitted from a light chosen in proportion to its power (point lights in all
  * directions, emissive triangles from a uniform point, cosine-weighted about the front
  * face), traced with single Embree rays (pm_rt_intersect1), and stored at every hit on a
- * surface that reflects (first hits too, marked depth 0). Each bounce samples one lobe of the
+ * surface that reflects diffusely or glossily (first hits too, marked depth 0). Mirrors and glass
+ * (pm_specular_sample) redirect a photon and never store it; a photon that reaches a diffuse or
+ * glossy surface through one or more specular bounces and nothing else since the light
+ * (L S+ D) is also a caustic photon, the second output when asked for. Each bounce samples one lobe of the
  * BRDF (render/transport.h: cosine for the Lambertian part, the Phong lobe for the glossy part)
  * and Russian roulette ends the path
  * without bias: the photon survives with probability q (its albedo, capped at rr_max) and
@@ -29,6 +32,7 @@ typedef struct {
     uint32_t max_bounces; /* safety cap on a path's bounces (paths cut there are counted) */
     double rr_max;        /* highest survival probability of Russian roulette, in (0, 1] */
     int direction;        /* store the direction channel (scenes with glossy materials) */
+    int caustics;         /* also collect the caustic photons (L S+ D) as a second output */
     int record_rays;      /* keep every ray for pm_trace_replay (benchmark baseline) */
     int progress;         /* progress bar on a terminal */
 } pm_trace_options_t;
@@ -56,16 +60,24 @@ typedef struct {
      * order: run i is chunk_count[i] records at chunk_data[i]. */
     const unsigned char **chunk_data;
     uint64_t *chunk_count;
+    /* With o->caustics, the caustic photons (stored after one or more specular bounces and no
+     * other since the light: Jensen's caustic map) in the same layout and chunking; every one
+     * of them is among the runs above too. Empty runs without o->caustics. */
+    const unsigned char **caustic_data;
+    uint64_t *caustic_count;
+    uint64_t caustic; /* caustic photons in all */
     uint64_t nchunks;
     pm_trace_arena_t *arenas; /* where the runs live */
     int narenas;
     uint64_t count;
     uint32_t channels, record_size;
     uint64_t emitted, first_hits, rays, escaped, absorbed, capped, longest;
-    double power_emitted[3]; /* W: sum over emitted photons */
-    double power_first[3];   /* W: sum over stored first hits */
-    double trace_s;          /* wall seconds of the tracing loop */
-    float *rays_kept;        /* record_rays: 7 floats per ray (origin, direction, tnear) */
+    double power_emitted[3];   /* W: sum over emitted photons */
+    double power_first[3];     /* W: sum over stored first hits */
+    double power_caustic[3];   /* W: sum over the caustic photons */
+    uint64_t specular_bounces; /* hits on mirrors and glass (never stored) */
+    double trace_s;            /* wall seconds of the tracing loop */
+    float *rays_kept;          /* record_rays: 7 floats per ray (origin, direction, tnear) */
 } pm_trace_result_t;
 
 /* Traces o->photons photons through s and rt. Fails with a clear message when the scene

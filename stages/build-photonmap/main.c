@@ -5,9 +5,9 @@
  * nodes and positions are the hot channels a gather reads on every visit, power and normal
  * the cold ones read only when a photon is shaded, and direction only when the photons file
  * has it (scenes with glossy materials). `--map indirect` leaves out first-hit photons, for
- * renders whose direct light comes from shadow rays. `--width-k K` adds each photon's kernel
- * width for the variable-width estimator: the radius of the disc around it that holds K
- * photons. */
+ * renders whose direct light comes from shadow rays; `--map caustic` builds the caustic map
+ * from the caustic photons file of trace-photons --caustic-output, and nothing else does. `--width-k K` adds each
+ * photon's kernel width for the variable-width estimator: the radius of the disc around it that holds K photons. */
 #include <inttypes.h>
 
 #include "base/stage.h"
@@ -82,8 +82,9 @@ int main(int argc, char **argv)
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
         {"map", 0, PM_OPT_CHOICE, &o.map, "KIND",
-         "global: every stored photon; indirect: only photons that bounced (direct light from shadow rays)", 0, 0,
-         pm_map_kind_names},
+         "global: every stored photon; indirect: only photons that bounced (direct light from shadow rays); "
+         "caustic: a caustic photons file (trace-photons --caustic-output), every photon",
+         0, 0, pm_map_kind_names},
         {"split", 0, PM_OPT_CHOICE, &o.split, "RULE",
          "median: balanced, the paper's; vvh: the voxel-volume heuristic for searches of one radius", 0, 0,
          pm_split_names},

@@ -102,7 +102,8 @@ int main(int argc, char **argv)
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
         {"only", 0, PM_OPT_CHOICE, &o.only, "WHICH",
-         "add every buffer (all), or only those whose component is direct or indirect", 1, 0, pm_composite_only_names},
+         "add every buffer (all), or only those whose component is direct, indirect or caustic", 1, 0,
+         pm_composite_only_names},
         {"half", 0, PM_OPT_FLAG, &o.half, NULL, "write the EXR as half floats (16-bit) instead of float (32-bit)", 1, 0,
          NULL},
         {"compression", 0, PM_OPT_CHOICE, &o.compression, "HOW", "EXR compression: zip (lossless), none or piz", 1, 0,

@@ -3,8 +3,10 @@
  * Reads a scene; traces primary, shadow and stratified secondary rays with the eye tracer
  * (common/render/eyetrace.h); writes a queries file (-o), one gather point per secondary hit
  * for hilbert-sort and simd-gather, and with --direct the direct radiance buffer
- * (component=direct). docs/programs/trace-gather-points.md and docs/formats.md (queries) give
- * the weight contract.
+ * (component=direct). In a scene with mirrors or glass, eye paths pass through them to the first
+ * other surface, and --caustic-queries writes those first hits as queries of their own
+ * (kind=caustic), for simd-gather against the caustic map. docs/programs/trace-gather-points.md
+ * and docs/formats.md (queries) give the weight contract.
  *
  * The queries header's COUNT must be known before the first record, so records are spooled
  * (common/base/spool.h: memory, then an unlinked temporary file past --spool-mem) and copied
@@ -26,6 +28,7 @@
 
 typedef struct {
     const char *direct;    /* --direct FILE, NULL for none */
+    const char *caustic;   /* --caustic-queries FILE, NULL for none */
     int64_t spp;           /* secondary rays per primary hit; 0: the scene's render.spp */
     int64_t primary;       /* primary rays per pixel */
     int64_t light_samples; /* area-light samples per primary hit */
@@ -40,14 +43,19 @@ typedef struct {
 /* Where the eye tracer's results go: the queries into the spool, the direct rows into one
  * image-sized buffer. */
 typedef struct {
-    pm_spool_t spool;
-    double *direct; /* width * height RGB, W/(m^2 sr) */
+    pm_spool_t spool, cspool; /* queries, caustic queries */
+    double *direct;           /* width * height RGB, W/(m^2 sr) */
     uint32_t width;
 } tgp_sink_t;
 
 static pm_result_t sink_queries(void *user, const void *records, uint64_t count)
 {
     return pm_spool_add(&((tgp_sink_t *)user)->spool, records, count);
+}
+
+static pm_result_t sink_caustic(void *user, const void *records, uint64_t count)
+{
+    return pm_spool_add(&((tgp_sink_t *)user)->cspool, records, count);
 }
 
 static pm_result_t sink_direct(void *user, uint32_t y0, uint32_t rows, const double *rgb)
@@ -65,7 +73,30 @@ static pm_result_t write_records(void *writer, const void *records, uint64_t cou
 /* A writable output path is checked before minutes of tracing, not after. */
 static pm_result_t check_writable(const char *path) { return path ? pm_atomic_check(path) : PM_OK; }
 
-/* Both outputs: headers, then records; both renamed into place together by pm_stage_end. */
+/* The caustic queries: their header (the queries header, kind=caustic) and records. */
+static pm_result_t write_caustic(pm_stage_t *st, const tgp_options_t *o, const pm_eye_t *e, tgp_sink_t *k)
+{
+    pm_header_t h;
+    pm_writer_t *w = NULL;
+    pm_result_t r = pm_eye_queries_header(e, st->argc, st->argv, k->cspool.count, &h);
+    if (r == PM_OK)
+        r = pm_header_set(&h, "kind", "caustic");
+    if (r == PM_OK && o->pass)
+        r = pm_header_set(&h, "pass", "%" PRId64, o->pass);
+    if (r == PM_OK)
+        r = pm_writer_open(o->caustic, &h, &w);
+    if (r == PM_OK)
+        r = pm_spool_replay(&k->cspool, write_records, w);
+    if (r == PM_OK) {
+        r = pm_writer_commit(w);
+        w = NULL;
+    }
+    pm_writer_abort(w);
+    pm_header_free(&h);
+    return r;
+}
+
+/* Every output: headers, then records; all renamed into place together by pm_stage_end. */
 static pm_result_t write_outputs(pm_stage_t *st, const tgp_options_t *o, const pm_eye_t *e, tgp_sink_t *k)
 {
     pm_stage_output_set(st);
@@ -101,6 +132,8 @@ static pm_result_t write_outputs(pm_stage_t *st, const tgp_options_t *o, const p
     pm_writer_abort(dw);
     pm_header_free(&qh);
     pm_header_free(&dh);
+    if (r == PM_OK && o->caustic)
+        r = write_caustic(st, o, e, k);
     return r;
 }
 
@@ -121,7 +154,8 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
             pm_trace_pass_seed((uint64_t)(pm_args_given(a, "seed") ? st->seed : s->defaults.seed), (uint64_t)o->pass),
         .isa = isa,
         .threads = st->threads_used,
-        .progress = pm_stage_progress(st)};
+        .progress = pm_stage_progress(st),
+        .caustics = o->caustic != NULL};
     /* The scene's own camera is within the image limits (scene.c): only --width or --height
      * can take it beyond them, a usage error. */
     if (pm_image_size_check(o->width ? (uint64_t)o->width : s->camera.width,
@@ -140,11 +174,12 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
     char dir[1024];
     pm_spool_dir_for(st->output, dir, sizeof dir);
     pm_spool_init(&k.spool, in->record_size, (size_t)o->spool_mb << 20, dir);
+    pm_spool_init(&k.cspool, in->record_size, (size_t)o->spool_mb << 20, dir);
     if (!(k.direct = malloc((size_t)in->width * in->height * 3 * sizeof(double))))
         r = pm_error_set(PM_ERR_NOMEM, "out of memory for a %" PRIu32 "x%" PRIu32 " direct buffer", in->width,
                          in->height);
     pm_eye_stats_t x;
-    const pm_eye_sink_t sink = {sink_queries, sink_direct, &k};
+    const pm_eye_sink_t sink = {sink_queries, sink_direct, sink_caustic, &k};
     if (r == PM_OK)
         r = pm_eye_trace(e, &sink, &x);
     if (r == PM_OK)
@@ -152,6 +187,7 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
     if (r == PM_OK)
         pm_eye_report(st, in, &x, o->schedule, pm_spool_spilled(&k.spool), isa);
     pm_spool_free(&k.spool);
+    pm_spool_free(&k.cspool);
     free(k.direct);
     pm_eye_destroy(e);
     return r;
@@ -166,6 +202,10 @@ int main(int argc, char **argv)
         PM_STAGE_COMMON_OPTIONS(st),
         {"direct", 0, PM_OPT_OUTPUT, &o.direct, "FILE",
          "also write the direct radiance buffer (emission seen directly plus direct light) here", 1, 0, NULL},
+        {"caustic-queries", 0, PM_OPT_OUTPUT, &o.caustic, "FILE",
+         "also write the caustic queries here: the first hit past mirrors and glass of every primary ray, for "
+         "simd-gather against the caustic map (a scene with mirrors or glass; --mode gather)",
+         1, 0, NULL},
         {"mode", 0, PM_OPT_CHOICE, &o.mode, "MODE",
          "gather: queries at secondary hits; direct-vis: the primary hits are the queries", 1, 0, pm_eye_mode_names},
         {"spp", 0, PM_OPT_INT, &o.spp, "N",
@@ -196,8 +236,13 @@ int main(int argc, char **argv)
     };
     static const char about[] =
         "Trace primary and stratified secondary rays as packets; write gather points and direct light.";
-    const pm_cli_t cli = {
-        "trace-gather-points", "[options] SCENE -o QUERIES [--direct RADIANCE]", about, options, 1, 1, "queries"};
+    const pm_cli_t cli = {"trace-gather-points",
+                          "[options] SCENE -o QUERIES [--direct RADIANCE] [--caustic-queries QUERIES]",
+                          about,
+                          options,
+                          1,
+                          1,
+                          "queries"};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;
@@ -207,11 +252,15 @@ int main(int argc, char **argv)
         return pm_stage_end(&st, r);
     if (o.direct && !strcmp(o.direct, "-") && !strcmp(st.output, "-"))
         return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "-o and --direct cannot both be stdout"));
+    if (o.caustic && !strcmp(o.caustic, "-") && (!strcmp(st.output, "-") || (o.direct && !strcmp(o.direct, "-"))))
+        return pm_stage_end(&st,
+                            pm_error_set(PM_ERR_USAGE, "--caustic-queries and another output cannot both be stdout"));
     if (o.spp % PM_EYE_PER_CELL != 0)
         return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE,
                                               "--spp %" PRId64 " is not a multiple of %d (%d samples per stratum cell)",
                                               o.spp, PM_EYE_PER_CELL, PM_EYE_PER_CELL));
-    if ((r = check_writable(st.output)) != PM_OK || (r = check_writable(o.direct)) != PM_OK)
+    if ((r = check_writable(st.output)) != PM_OK || (r = check_writable(o.direct)) != PM_OK ||
+        (r = check_writable(o.caustic)) != PM_OK)
         return pm_stage_end(&st, r);
     pm_scene_t s;
     if ((r = pm_scene_load(st.args.args[0], &s)) != PM_OK)

@@ -4,8 +4,12 @@
  * single Embree rays (packets would bias which photons travel together; the paper keeps
  * single rays for that reason) and writes every photon stored at a reflecting surface,
  * first hits included with depth 0, in watts. The direction channel is written only for
- * scenes with glossy materials, where the gather needs it. common/render/photontrace.c does the
- * work; this main reads options, loads the scene and writes the file. */
+ * scenes with glossy materials, where the gather needs it. Photons pass mirrors and glass
+ * without being stored there; with --caustic-output (a scene with mirrors or glass only) the
+ * caustic photons, those that reached a diffuse or glossy surface through specular bounces
+ * alone (L S+ D), go to a second photons file (kind=caustic) as well, and both files are
+ * committed together. common/render/photontrace.c does the work; this main reads options,
+ * loads the scene and writes the files. */
 #include <inttypes.h>
 #include <math.h>
 #include <stdio.h>
@@ -21,15 +25,18 @@ typedef struct {
     int64_t max_bounces;
     double rr_max;
     int baseline;
-    int64_t pass; /* progressive pass, 1-based; 0: none */
+    int64_t pass;        /* progressive pass, 1-based; 0: none */
+    const char *caustic; /* --caustic-output FILE, NULL for none */
 } trace_options_t;
 
+/* One photons file: the global photons (caustic 0) or the caustic ones (caustic 1), whose
+ * header says kind=caustic so that build-photonmap --map caustic can insist on it. */
 static pm_result_t write_photons(pm_stage_t *st, const trace_options_t *o, const pm_scene_t *s,
-                                 const pm_trace_result_t *tr)
+                                 const pm_trace_result_t *tr, int caustic)
 {
     pm_header_t h;
     pm_header_init(&h, &pm_photons_schema);
-    h.count = tr->count;
+    h.count = caustic ? tr->caustic : tr->count;
     h.channels = tr->channels;
     h.record_size = tr->record_size;
     memcpy(h.bounds, s->bounds, sizeof h.bounds);
@@ -41,9 +48,12 @@ static pm_result_t write_photons(pm_stage_t *st, const trace_options_t *o, const
         (r = pm_header_set(&h, "SCENE", "%s", id)) == PM_OK &&
         (r = pm_header_set(&h, "emitted", "%" PRIu64, tr->emitted)) == PM_OK &&
         (!o->pass || (r = pm_header_set(&h, "pass", "%" PRId64, o->pass)) == PM_OK) &&
-        (r = pm_writer_open(st->output, &h, &w)) == PM_OK) {
+        (!caustic || (r = pm_header_set(&h, "kind", "caustic")) == PM_OK) &&
+        (r = pm_writer_open(caustic ? o->caustic : st->output, &h, &w)) == PM_OK) {
+        const unsigned char **data = caustic ? tr->caustic_data : tr->chunk_data;
+        const uint64_t *count = caustic ? tr->caustic_count : tr->chunk_count;
         for (uint64_t c = 0; c < tr->nchunks && r == PM_OK; c++)
-            r = pm_writer_write(w, tr->chunk_data[c], tr->chunk_count[c]);
+            r = pm_writer_write(w, data[c], count[c]);
         if (r == PM_OK)
             r = pm_writer_commit(w); /* frees the writer, committed or not */
         else
@@ -61,6 +71,13 @@ static pm_result_t run(pm_stage_t *st, const trace_options_t *o)
     if (r != PM_OK)
         return r;
     pm_scene_warn_unsupported(&s, st);
+    if (o->caustic && !s.any_specular) {
+        r = pm_error_set(PM_ERR_INPUT,
+                         "scene '%s' has no mirror or glass: no caustic photons for --caustic-output '%s'", s.path,
+                         o->caustic);
+        pm_scene_free(&s);
+        return r;
+    }
     r = pm_rt_create(&s, 1, st->threads_used, &rt);
     if (r != PM_OK) {
         pm_scene_free(&s);
@@ -73,6 +90,7 @@ static pm_result_t run(pm_stage_t *st, const trace_options_t *o)
         .max_bounces = (uint32_t)o->max_bounces,
         .rr_max = o->rr_max,
         .direction = s.any_glossy,
+        .caustics = o->caustic != NULL,
         .record_rays = o->baseline,
         .progress = pm_stage_progress(st),
     };
@@ -80,7 +98,11 @@ static pm_result_t run(pm_stage_t *st, const trace_options_t *o)
     r = pm_trace_photons(&s, &rt, &to, &tr);
     if (r == PM_OK) {
         double t0 = pm_time_wall();
-        r = write_photons(st, o, &s, &tr);
+        if (o->caustic)
+            pm_stage_output_set(st); /* both files or neither */
+        r = write_photons(st, o, &s, &tr, 0);
+        if (r == PM_OK && o->caustic)
+            r = write_photons(st, o, &s, &tr, 1);
         double t_write = pm_time_wall() - t0;
         if (r == PM_OK) {
             double rays_s = tr.trace_s > 0 ? (double)tr.rays / tr.trace_s : 0.0;
@@ -98,6 +120,13 @@ static pm_result_t run(pm_stage_t *st, const trace_options_t *o)
             pm_stage_stat_double(st, "power_emitted_w",
                                  tr.power_emitted[0] + tr.power_emitted[1] + tr.power_emitted[2]);
             pm_stage_stat_double(st, "power_first_hits_w", tr.power_first[0] + tr.power_first[1] + tr.power_first[2]);
+            if (s.any_specular)
+                pm_stage_stat_int(st, "specular_bounces", (int64_t)tr.specular_bounces);
+            if (o->caustic) {
+                pm_stage_stat_int(st, "caustic", (int64_t)tr.caustic);
+                pm_stage_stat_double(st, "power_caustic_w",
+                                     tr.power_caustic[0] + tr.power_caustic[1] + tr.power_caustic[2]);
+            }
             if (o->pass)
                 pm_stage_stat_int(st, "pass", o->pass);
             pm_stage_stat_double(st, "trace_s", tr.trace_s);
@@ -109,6 +138,8 @@ static pm_result_t run(pm_stage_t *st, const trace_options_t *o)
             }
             pm_stage_note(st, "%" PRIu64 " photons emitted, %" PRIu64 " stored (%" PRIu64 " first hits), %.2f Mrays/s",
                           tr.emitted, tr.count, tr.first_hits, rays_s * 1e-6);
+            if (o->caustic)
+                pm_stage_note(st, "%" PRIu64 " caustic photons (L S+ D) to '%s'", tr.caustic, o->caustic);
             if (tr.capped)
                 pm_stage_note(st, "%" PRIu64 " paths reached --max-bounces %" PRId64 " and were cut (a small bias)",
                               tr.capped, o->max_bounces);
@@ -124,7 +155,7 @@ int main(int argc, char **argv)
 {
     pm_stage_t st;
     pm_stage_defaults(&st);
-    trace_options_t o = {.photons = 0, .max_bounces = 16384, .rr_max = 1.0, .baseline = 0, .pass = 0};
+    trace_options_t o = {.photons = 0, .max_bounces = 16384, .rr_max = 1.0, .baseline = 0, .pass = 0, .caustic = NULL};
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
         {"photons", 'n', PM_OPT_INT, &o.photons, "N", "photon paths to emit; 0: the scene's render.photons", 0,
@@ -137,6 +168,10 @@ int main(int argc, char **argv)
          "highest Russian-roulette survival probability; below albedo^2 the photons' powers grow from bounce to "
          "bounce and the total's variance is unbounded (1: survival is the albedo, powers stay equal)",
          0.01, 1.0, NULL},
+        {"caustic-output", 0, PM_OPT_OUTPUT, &o.caustic, "FILE",
+         "also write the caustic photons (reached a diffuse or glossy surface through mirrors or glass alone since "
+         "the light) here, for build-photonmap --map caustic; only for a scene with mirrors or glass",
+         1, 0, NULL},
         {"baseline", 0, PM_OPT_FLAG, &o.baseline, NULL,
          "also re-trace every ray with bare rtcIntersect1 and report Embree's rate (for benchmarks)", 1, 0, NULL},
         {"pass", 0, PM_OPT_INT, &o.pass, "N",

@@ -76,7 +76,7 @@ static void trace(const pm_scene_t *s, const pm_rt_t *rt, int threads, int sched
     memset(k, 0, sizeof *k);
     k->record_size = in->record_size;
     k->off_pixel = pm_schema_offset(&pm_queries_schema, in->channels, PM_QUERY_PIXEL);
-    const pm_eye_sink_t sink = {got_queries, got_direct, k};
+    const pm_eye_sink_t sink = {got_queries, got_direct, NULL, k};
     if (pm_eye_trace(e, &sink, x) != PM_OK)
         fail_msg("%s", pm_error_message());
     pm_eye_destroy(e);
@@ -132,7 +132,7 @@ static void test_eyetrace_failures(void **state)
     o.spp = 0;
     assert_int_equal(pm_eye_create(&s, &rt, &o, &e), PM_OK);
     sink_t k = {.record_size = pm_eye_info(e)->record_size, .fail_after = 200};
-    const pm_eye_sink_t sink = {got_queries, got_direct, &k};
+    const pm_eye_sink_t sink = {got_queries, got_direct, NULL, &k};
     pm_eye_stats_t x;
     assert_int_equal(pm_eye_trace(e, &sink, &x), PM_ERR_IO);
     assert_string_equal(pm_error_message(), "cannot write 'test sink': 128 records in");

@@ -80,7 +80,7 @@ CAUSTIC_OBJ := scenes/caustic/caustic.obj
 # The C sources clang-format keeps (.clang-format); the generated and fuzz-regression files are not C.
 FORMAT_SRC = $(shell git ls-files '*.c' '*.h' 2>/dev/null)
 
-.PHONY: format format-check all test test-run test-extreme asan test-asan demo bench bench-quick fuzz deps clean check-deps
+.PHONY: format format-check all test test-run test-extreme test-slurm asan test-asan demo bench bench-quick fuzz deps clean check-deps
 # Keep the stages' objects: they are intermediate to the pattern rule, and make would
 # otherwise delete them and rebuild them next time.
 .SECONDARY:
@@ -163,10 +163,18 @@ format:
 test: check-deps
 	$(Q)$(MAKE) --no-print-directory format-check
 	$(Q)$(MAKE) --no-print-directory test-run
+	$(Q)$(MAKE) --no-print-directory test-slurm
 	$(Q)$(MAKE) --no-print-directory test-asan
 
 test-run: all $(UNIT) $(TESTGEN) $(EXRDUMP)
 	$(Q)BIN=$(abspath $(BIN)) BUILD=$(abspath $(BUILD)) bash tests/run
+
+# pipelines/slurm on a one-node Slurm cluster started on this machine (tests/slurm/cluster:
+# munged, slurmctld and slurmd as root, torn down after); it fails when they cannot start.
+SLURM_DEBS := slurm-wlm slurm-client munge iproute2
+test-slurm: all
+	@sh tests/install-deps.sh $(SLURM_DEBS)
+	$(Q)BIN=$(abspath $(BIN)) bash tests/slurm/cluster run bash tests/slurm/run.sh
 
 # The stiff and extreme cases alone (docs/extreme-cases.md; tests/run's pattern also selects
 # any unit test named for them); `make test` runs them too.

@@ -1,0 +1,160 @@
+#!/usr/bin/env bash
+# tests/slurm/run.sh: pipelines/slurm on a real Slurm, the one-node cluster of
+# tests/slurm/cluster (make test-slurm runs `tests/slurm/cluster run bash tests/slurm/run.sh`).
+# A small progressive render through the cluster against the same passes by pipelines/render
+# (byte for byte), a task killed with scancel while it runs, a task that fails once and one
+# that keeps failing, two renders into two OUTDIRs at once, the cache (nothing resubmitted,
+# then only the new passes), and the bad input refused before anything is submitted.
+# The last line is "slurm: N passed, N failed"; the exit status is 1 when any check failed.
+set -u
+cd "$(dirname "$0")/../.."
+BIN=${BIN:-$PWD/bin}
+export BIN
+[ -n "${SLURM_CONF:-}" ] && sinfo -h >/dev/null 2>&1 || {
+    echo "FAIL slurm: no cluster (run through tests/slurm/cluster run)"
+    exit 1
+}
+TMP=$(mktemp -d "${TMPDIR:-/tmp}"/pmtk-slurm-XXXXXX)
+trap 'rm -rf "$TMP"' EXIT
+source tests/lib.sh
+
+SCENE=scenes/cornell-box/scene.json
+# passes of about a third of a second here: the checks are about the jobs, not the image
+PR=(WIDTH=48 HEIGHT=48 PHOTONS=20000 PRIMARY=4 SPP=4 PASSES=6)
+SL=(POLL=0.3)
+same_image() { # same_image NAME DIR REFDIR: the images, the running image and passes.txt, byte for byte
+    local f bad=""
+    for f in image.exr image.png running.pm passes.txt; do cmp -s "$2/$f" "$3/$f" || bad+=" $f"; done
+    if [ -z "$bad" ]; then pass "$1"; else fail "$1" "differ from the local render's:$bad"; fi
+}
+queue_empty() { [ -z "$(squeue -h -o %i 2>/dev/null)" ]; }
+
+# ---- the local references ----
+pipelines/render "$SCENE" "$TMP/local" "${PR[@]}" >"$TMP/local.log" 2>&1 || fail "local render" "$(tail -n 3 "$TMP/local.log")"
+pipelines/render "$SCENE" "$TMP/local7" "${PR[@]}" SEED=7 >"$TMP/local7.log" 2>&1 || fail "local render SEED=7" "$(tail -n 3 "$TMP/local7.log")"
+
+# ---- a render through the cluster, with one task killed while it runs ----
+pipelines/slurm "$SCENE" "$TMP/a" "${PR[@]}" "${SL[@]}" >"$TMP/a.log" 2>&1 &
+pid=$!
+killed=""
+for ((i = 0; i < 600; i++)); do # up to 60 s
+    j=$(squeue -h -r -n pm-pass -t RUNNING -o %i 2>/dev/null | grep -E '_[1-9][0-9]*$' | head -n 1)
+    if [ -n "$j" ]; then scancel "$j" && killed=$j && break; fi
+    kill -0 $pid 2>/dev/null || break
+    sleep 0.1
+done
+wait $pid
+rc=$?
+if [ $rc = 0 ] && [ -n "$killed" ] && grep -q "ended without its passes.*resubmitting" "$TMP/a.log"; then
+    pass "a task killed while running ($killed) is resubmitted and the render finishes"
+else
+    fail "killed task" "exit $rc, killed '${killed:-none}': $(tail -n 5 "$TMP/a.log")"
+fi
+same_image "cluster image = pipelines/render's, after a killed task" "$TMP/a" "$TMP/local"
+grep -q 'tasks: [0-9]* pending, [0-9]* running, [0-9]* done, [0-9]* failed' "$TMP/a.log" &&
+    grep -qE 'image: [1-5] of 6 passes' "$TMP/a.log" &&
+    pass "progress: pending, running, done, failed counts, and the running image before the end" ||
+    fail "progress" "no counts or no partial image in the log: $(head -n 5 "$TMP/a.log")"
+[ "$(jq -r .total.passes "$TMP/a/stats.json" 2>/dev/null)" = 6 ] && pass "stats.json from the composite job" ||
+    fail "stats.json" "$(head -c 200 "$TMP/a/stats.json" 2>&1)"
+
+# ---- the cache: nothing is resubmitted, then only the new passes ----
+pipelines/slurm "$SCENE" "$TMP/a" "${PR[@]}" "${SL[@]}" >"$TMP/a2.log" 2>&1
+rc=$?
+if [ $rc = 0 ] && grep -q '6 made before; submitted 0 task' "$TMP/a2.log"; then
+    pass "a rerun submits no pass"
+else
+    fail "rerun" "exit $rc: $(head -n 2 "$TMP/a2.log")"
+fi
+same_image "a rerun leaves the same image" "$TMP/a" "$TMP/local"
+PR8=("${PR[@]/PASSES=6/PASSES=8}")
+pipelines/slurm "$SCENE" "$TMP/a" "${PR8[@]}" "${SL[@]}" TASK_PASSES=2 >"$TMP/a3.log" 2>&1
+rc=$?
+pipelines/render "$SCENE" "$TMP/local" "${PR8[@]}" >"$TMP/local8.log" 2>&1
+if [ $rc = 0 ] && grep -q '8 passes, 6 made before; submitted 1 task' "$TMP/a3.log"; then
+    pass "PASSES=8 after 6 submits one task of passes 7 and 8"
+else
+    fail "PASSES=8 after 6" "exit $rc: $(head -n 2 "$TMP/a3.log")"
+fi
+same_image "8 passes: the same image as pipelines/render's" "$TMP/a" "$TMP/local"
+PR=("${PR8[@]}")
+
+# ---- two renders into two OUTDIRs at once ----
+pipelines/slurm "$SCENE" "$TMP/b" "${PR[@]}" "${SL[@]}" CPUS=2 >"$TMP/b.log" 2>&1 &
+pb=$!
+pipelines/slurm "$SCENE" "$TMP/c" "${PR[@]}" "${SL[@]}" SEED=7 TASK_PASSES=3 >"$TMP/c.log" 2>&1 &
+pc=$!
+wait $pb
+rb=$?
+wait $pc
+rc=$?
+pipelines/render "$SCENE" "$TMP/local7" "${PR[@]}" SEED=7 >"$TMP/local7b.log" 2>&1
+[ $rb = 0 ] && [ $rc = 0 ] && pass "two renders at once, two OUTDIRs" ||
+    fail "two renders" "exits $rb $rc: $(tail -n 2 "$TMP/b.log" "$TMP/c.log")"
+same_image "two at once: the first's image (CPUS=2)" "$TMP/b" "$TMP/local"
+same_image "two at once: the second's image (SEED=7, 3 passes a task)" "$TMP/c" "$TMP/local7"
+
+# ---- a task that fails once, and one that keeps failing (a gather that refuses pass 3) ----
+cat >"$TMP/flaky-gather" <<EOF
+#!/usr/bin/env bash
+# simd-gather, but pass 3 fails while the flag file is there (and the flag 'once' removes it)
+case " \$* " in
+*" --pass 3 "*)
+    if [ -e "$TMP/fail-3" ]; then
+        grep -q once "$TMP/fail-3" && rm -f "$TMP/fail-3"
+        echo "flaky-gather: pass 3 fails on purpose" >&2
+        exit 1
+    fi ;;
+esac
+exec "$BIN/simd-gather" "\$@"
+EOF
+chmod +x "$TMP/flaky-gather"
+rm -f "$TMP/fail-3"
+pipelines/render "$SCENE" "$TMP/localf" "${PR[@]}" GATHER="$TMP/flaky-gather" >"$TMP/localf.log" 2>&1 ||
+    fail "local render with the flaky gather" "$(tail -n 2 "$TMP/localf.log")"
+echo once >"$TMP/fail-3"
+pipelines/slurm "$SCENE" "$TMP/f" "${PR[@]}" "${SL[@]}" GATHER="$TMP/flaky-gather" >"$TMP/f.log" 2>&1
+rc=$?
+if [ $rc = 0 ] && grep -q "task 2 (passes 3 to 3) ended without its passes" "$TMP/f.log"; then
+    pass "a task that fails once is resubmitted"
+else
+    fail "a task failing once" "exit $rc: $(tail -n 4 "$TMP/f.log")"
+fi
+same_image "after a failed task, the image is the local render's" "$TMP/f" "$TMP/localf"
+echo always >"$TMP/fail-3"
+pipelines/slurm "$SCENE" "$TMP/g" "${PR[@]}" "${SL[@]}" GATHER="$TMP/flaky-gather" RETRIES=1 >"$TMP/g.out" 2>"$TMP/g.err"
+rc=$?
+log=$(sed -n 's/.*; log: \(.*\)$/\1/p' "$TMP/g.err")
+if [ $rc = 1 ] && [ "$(wc -l <"$TMP/g.err")" = 1 ] &&
+    grep -q "task 2 (passes 3 to 3) failed 2 times (last: .*); log: " "$TMP/g.err" &&
+    [ -f "$log" ] && grep -q 'fails on purpose' "$log"; then
+    pass "a task that keeps failing stops the render, one line with its log"
+else
+    fail "a task that keeps failing" "exit $rc: $(cat "$TMP/g.err")"
+fi
+sleep 1
+queue_empty && pass "nothing of the stopped render left in the queue" || fail "queue after a stop" "$(squeue -h)"
+
+# ---- bad input: refused before anything is submitted ----
+before=$(squeue -h -o %i | wc -l)
+expect_error "unknown partition" "unknown partition 'nosuch'" pipelines/slurm "$SCENE" "$TMP/h" "${PR[@]}" PARTITION=nosuch
+mkdir -p "$TMP/nopath"
+for f in /usr/bin/* /bin/*; do
+    case "${f##*/}" in sbatch | squeue | scancel | sinfo | srun | scontrol | sacct) continue ;; esac
+    [ -e "$TMP/nopath/${f##*/}" ] || ln -s "$f" "$TMP/nopath/${f##*/}"
+done
+expect_error "no sbatch on PATH" "no 'sbatch' on PATH" env PATH="$TMP/nopath" pipelines/slurm "$SCENE" "$TMP/h" "${PR[@]}"
+# an OUTDIR the nodes do not see: a tmpfs mounted in a mount namespace of the submitting side alone
+mkdir -p "$TMP/private"
+expect_error "an OUTDIR the tasks cannot see" "OUTDIR must be on a filesystem the compute nodes share" \
+    unshare -m --propagation private bash -c 'mount -t tmpfs pmtk "$1" && shift && exec "$@"' - "$TMP/private" \
+    pipelines/slurm "$SCENE" "$TMP/private/out" "${PR[@]}"
+expect_exit "PASSES missing" 2 pipelines/slurm "$SCENE" "$TMP/h" WIDTH=48
+expect_exit "TIME refused" 2 pipelines/slurm "$SCENE" "$TMP/h" PASSES=4 TIME=10
+expect_exit "unknown parameter" 2 pipelines/slurm "$SCENE" "$TMP/h" PASSES=4 NOSUCH=1
+[ ! -e "$TMP/h" ] && pass "bad input: no OUTDIR made" || fail "bad input" "'$TMP/h' was made"
+[ "$(squeue -h -o %i | wc -l)" = "$before" ] && [ "$(squeue -h -o %i | wc -l)" = 0 ] &&
+    pass "bad input: nothing submitted" || fail "bad input" "jobs in the queue: $(squeue -h)"
+
+echo "slurm: $PASS passed, $FAIL failed"
+[ "$FAIL" = 0 ]

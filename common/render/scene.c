@@ -1350,9 +1350,15 @@ void pm_scene_power(const pm_scene_t *s, double p[3])
     }
 }
 
-void pm_scene_id(const pm_scene_t *s, char *out, size_t cap)
+void pm_scene_id(const pm_scene_t *s, char *out, size_t cap) { pm_scene_id_part(s, PM_SCENE_ALL, out, cap); }
+
+void pm_scene_id_part(const pm_scene_t *s, pm_scene_part_t part, char *out, size_t cap)
 {
-    snprintf(out, cap, "%s xxh3:%016llx", s->name, (unsigned long long)s->hash);
+    int n = snprintf(out, cap, "%s xxh3:%016llx", s->name, (unsigned long long)s->parts.geometry);
+    if (n >= 0 && (size_t)n < cap && part != PM_SCENE_VIEW)
+        n += snprintf(out + n, cap - (size_t)n, " photons:xxh3:%016llx", (unsigned long long)s->parts.photons);
+    if (n >= 0 && (size_t)n < cap && part != PM_SCENE_PHOTONS)
+        snprintf(out + n, cap - (size_t)n, " view:xxh3:%016llx", (unsigned long long)s->parts.view);
 }
 
 /* Keeps only materials some triangle uses (assimp adds a default one to every OBJ),
@@ -1482,6 +1488,41 @@ static pm_result_t check_size(const ctx_t *c)
     return PM_OK;
 }
 
+/* The scene's parts (scene.h, pm_scene_hash_t), from what was loaded rather than the scene
+ * file's bytes, so that an edit to the camera leaves the photons' part alone. h: the hashes
+ * of the geometry, triangle materials, materials and point lights the whole hash took. */
+static void hash_parts(pm_scene_t *s, const uint64_t h[6])
+{
+    uint64_t g[6] = {h[1], h[2], h[3], h[4], 0, 0};
+    if (s->maps) {
+        g[4] = pm_hash_bytes(s->uvs, 2 * s->nverts * sizeof(float));
+        g[5] = pm_hash_bytes(s->maps, s->nmaterials * sizeof *s->maps);
+        for (size_t i = 0; i < s->ntextures; i++)
+            g[5] = pm_hash_bytes((uint64_t[2]){g[5], s->textures[i].hash}, 2 * sizeof(uint64_t));
+    }
+    s->parts.geometry = pm_hash_bytes(g, sizeof g);
+    /* The render block's keys each side reads as a default: the photons' count and seed,
+     * the eye side's rays, seed and the query order's leaf; the gather's width (radius, k)
+     * goes with both, as the map and the queries both carry it on. */
+    const pm_render_defaults_t *d = &s->defaults;
+    int64_t pk[4] = {d->photons, d->seed, d->k, 0},
+            ek[6] = {d->spp, d->primary, d->light_samples, d->seed, d->leaf, d->k};
+    memcpy(&pk[3], &d->radius, sizeof pk[3]);
+    uint64_t p[4] = {s->parts.geometry, h[5], pm_hash_bytes(pk, sizeof pk), 0};
+    s->parts.photons = pm_hash_bytes(p, sizeof p);
+    const pm_camera_t *c = &s->camera;
+    float cam[12] = {c->eye[0],     c->eye[1],     c->eye[2], c->look_at[0],
+                     c->look_at[1], c->look_at[2], c->up[0],  c->up[1],
+                     c->up[2],      c->fov_y,      0,         0};
+    uint32_t size[2] = {c->width, c->height};
+    uint64_t v[5] = {s->parts.geometry, pm_hash_bytes(cam, sizeof cam), pm_hash_bytes(size, sizeof size),
+                     pm_hash_bytes(ek, sizeof ek), 0};
+    memcpy(&v[4], &d->radius, sizeof v[4]);
+    s->parts.view = pm_hash_bytes(v, sizeof v);
+    uint64_t e[2] = {s->parts.photons, s->parts.view};
+    s->parts.eye = pm_hash_bytes(e, sizeof e);
+}
+
 pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
 {
     memset(s, 0, sizeof *s);
@@ -1576,6 +1617,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
                 t[3] = pm_hash_bytes((uint64_t[2]){t[3], s->textures[i].hash}, 2 * sizeof(uint64_t));
             s->hash = pm_hash_bytes(t, sizeof t);
         }
+        if (r == PM_OK)
+            hash_parts(s, h);
     }
     if (r == PM_OK)
         finish(s);

@@ -93,6 +93,10 @@ static void print_text(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, double
     pm_scene_id(s, id, sizeof id);
     pm_scene_needs_t need = pm_scene_needs(s);
     fprintf(out, "scene: %s\n", id);
+    fprintf(out, "hash: xxh3:%016llx (the scene file and everything it loads)\n", (unsigned long long)s->hash);
+    fprintf(out, "hash parts: geometry xxh3:%016llx, photons xxh3:%016llx, view xxh3:%016llx, eye xxh3:%016llx\n",
+            (unsigned long long)s->parts.geometry, (unsigned long long)s->parts.photons,
+            (unsigned long long)s->parts.view, (unsigned long long)s->parts.eye);
     fprintf(out, "file: %s\n", s->path);
     fprintf(out, "triangles: %zu (%zu degenerate left out)\n", s->ntris, s->ndropped);
     fprintf(out, "vertices: %zu\n", s->nverts);
@@ -166,6 +170,18 @@ pm_result_t pm_summary_json(const pm_scene_t *s, const pm_rt_t *rt, const pm_sum
            *needs = json_object();
     json_object_set_new(j, "scene", jstr(&js, "the scene's name", id));
     json_object_set_new(j, "name", jstr(&js, "the scene's name", s->name));
+    {
+        /* Each part of the hash by what reads it (scene.h, pm_scene_t.parts). */
+        char hx[5][32];
+        const uint64_t v[5] = {s->hash, s->parts.geometry, s->parts.photons, s->parts.view, s->parts.eye};
+        const char *names[5] = {"all", "geometry", "photons", "view", "eye"};
+        json_t *hashes = json_object();
+        for (int i = 0; i < 5; i++) {
+            snprintf(hx[i], sizeof hx[i], "xxh3:%016llx", (unsigned long long)v[i]);
+            json_object_set_new(hashes, names[i], json_string(hx[i]));
+        }
+        json_object_set_new(j, "hashes", hashes);
+    }
     json_object_set_new(j, "file", jstr(&js, "the scene's path", s->path));
     json_object_set_new(j, "triangles", json_integer((json_int_t)s->ntris));
     json_object_set_new(j, "degenerate_triangles", json_integer((json_int_t)s->ndropped));

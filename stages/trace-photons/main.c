@@ -34,7 +34,7 @@ static pm_result_t write_photons(pm_stage_t *st, const trace_options_t *o, const
     h.record_size = tr->record_size;
     memcpy(h.bounds, s->bounds, sizeof h.bounds);
     char id[256];
-    pm_scene_id(s, id, sizeof id);
+    pm_scene_id_part(s, PM_SCENE_PHOTONS, id, sizeof id);
     pm_writer_t *w = NULL;
     pm_result_t r;
     if ((r = pm_header_add_command(&h, st->argc, st->argv)) == PM_OK &&

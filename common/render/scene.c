@@ -1350,6 +1350,33 @@ void pm_scene_power(const pm_scene_t *s, double p[3])
     }
 }
 
+size_t pm_scene_flipped_emitters(const pm_scene_t *s, uint32_t *first_out)
+{
+    float ext[3] = {s->bounds[3] - s->bounds[0], s->bounds[4] - s->bounds[1], s->bounds[5] - s->bounds[2]};
+    float eps = 1e-3f * sqrtf(pm_dot3(ext, ext)); /* m */
+    size_t n = 0;
+    *first_out = 0;
+    for (size_t i = 0; i < s->nemissive; i++) {
+        const uint32_t *t = &s->tris[3 * (size_t)s->emissive[i]];
+        const float *a = &s->verts[3 * (size_t)t[0]], *b = &s->verts[3 * (size_t)t[1]],
+                    *c = &s->verts[3 * (size_t)t[2]];
+        float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        float nrm[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+        float len = sqrtf(pm_dot3(nrm, nrm));
+        if (!(len > 0.0f))
+            continue;
+        int sees = 0;
+        for (size_t v = 0; v < s->nverts && !sees; v++) {
+            const float *p = &s->verts[3 * v];
+            float d[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
+            sees = pm_dot3(d, nrm) > eps * len;
+        }
+        if (!sees && n++ == 0)
+            *first_out = s->emissive[i];
+    }
+    return n;
+}
+
 void pm_scene_id(const pm_scene_t *s, char *out, size_t cap) { pm_scene_id_part(s, PM_SCENE_ALL, out, cap); }
 
 void pm_scene_id_part(const pm_scene_t *s, pm_scene_part_t part, char *out, size_t cap)

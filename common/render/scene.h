@@ -152,6 +152,13 @@ void pm_scene_barycentrics(const pm_scene_t *s, uint32_t tri, const float p[3], 
  * below 0.5 there). */
 int pm_scene_cut_out(const pm_scene_t *s, uint32_t tri, float b1, float b2);
 
+/* The emissive triangles whose front face (the side their winding's normal points to, the
+ * only side that emits) sees none of the scene: no vertex of the scene lies in front of
+ * their plane by more than 1e-3 of the bounds' diagonal (a light wound the wrong way under
+ * a ceiling sees only the ceiling's underside a hair above it, and its light leaks out as
+ * sparse fireflies). Returns how many; *first_out the first of them (a triangle index). */
+size_t pm_scene_flipped_emitters(const pm_scene_t *s, uint32_t *first_out);
+
 /* Which parts of the scene a file's SCENE key names (docs/formats.md, SCENE): what photon
  * tracing and the map read, what the eye side's queries read, or both. */
 typedef enum { PM_SCENE_ALL, PM_SCENE_PHOTONS, PM_SCENE_VIEW } pm_scene_part_t;

@@ -129,7 +129,12 @@ static void print_text(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, double
     /* the caustic branch of pipelines/render runs only where this says yes */
     fprintf(out, "specular: %s\n", s->any_specular ? "yes (mirror or glass: caustic paths)" : "no");
     fprintf(out, "point lights: %zu\n", s->nlights);
-    fprintf(out, "emissive triangles: %zu\n", s->nemissive);
+    uint32_t ft;
+    size_t nf = pm_scene_flipped_emitters(s, &ft);
+    fprintf(out, "emissive triangles: %zu", s->nemissive);
+    if (nf)
+        fprintf(out, " (%zu facing away from the whole scene, first triangle %" PRIu32 ")", nf, ft);
+    fprintf(out, "\n");
     fprintf(out, "emitted power: %.6g %.6g %.6g W\n", p[0], p[1], p[2]);
     fprintf(out, "bounds: %.9g %.9g %.9g  %.9g %.9g %.9g m\n", s->bounds[0], s->bounds[1], s->bounds[2], s->bounds[3],
             s->bounds[4], s->bounds[5]);
@@ -218,6 +223,10 @@ pm_result_t pm_summary_json(const pm_scene_t *s, const pm_rt_t *rt, const pm_sum
     }
     json_object_set_new(j, "materials", mats);
     json_object_set_new(j, "point_lights", json_integer((json_int_t)s->nlights));
+    {
+        uint32_t ft;
+        json_object_set_new(j, "flipped_emitters", json_integer((json_int_t)pm_scene_flipped_emitters(s, &ft)));
+    }
     json_object_set_new(j, "emissive_triangles", json_integer((json_int_t)s->nemissive));
     for (int k = 0; k < 3; k++)
         json_array_append_new(power, json_real(p[k]));

@@ -168,4 +168,9 @@ typedef enum { PM_SCENE_ALL, PM_SCENE_PHOTONS, PM_SCENE_VIEW } pm_scene_part_t;
 void pm_scene_id(const pm_scene_t *s, char *out, size_t cap);
 void pm_scene_id_part(const pm_scene_t *s, pm_scene_part_t part, char *out, size_t cap);
 
+/* 1 when SCENE value key is this scene whole: pm_scene_id's value, or the one-hash form
+ * "NAME xxh3:HASH" of pm_scene_t.hash that files written before the parts carry (so that
+ * trace-reference resumes them). */
+int pm_scene_id_matches(const pm_scene_t *s, const char *key);
+
 #endif

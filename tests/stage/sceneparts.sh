@@ -114,3 +114,20 @@ else
     fail "frames from the kept map" "frame 2 differs from REUSE=0's, or frames 0 and 2 are the same"
 fi
 expect_exit "frames REUSE=2 is bad usage" 2 pipelines/frames scenes/cornell-box/scene.json "$TMP/fr2" REUSE=2
+
+# A file of the one-hash form (written before the parts: the golden reference as of commit
+# fc104bf, 8 samples)
+# is still resumed by trace-reference, and a file of another scene is not.
+if git show fc104bf:tests/golden/trace-reference-cornell.pm >"$TMP/oldref.pm" 2>/dev/null &&
+    grep -aq '^SCENE=cornell-box xxh3:[0-9a-f]*$' "$TMP/oldref.pm"; then
+    "$BIN/trace-reference" scenes/cornell-box/scene.json -q --width 16 --height 16 --spp 16 --resume "$TMP/oldref.pm" \
+        --radiance "$TMP/newref.pm" -o "$TMP/newref.exr" 2>"$TMP/res.err"
+    status=$?
+    [ $status = 0 ] && "$BIN/pm-info" --header "$TMP/newref.pm" | grep -q '^samples=16$' &&
+        pass "trace-reference resumes a buffer whose SCENE is of the one-hash form" ||
+        fail "resume of a one-hash SCENE" "exit $status: $(head -c 300 "$TMP/res.err")"
+    expect_exit "... but not one of another scene" 1 "$BIN/trace-reference" scenes/caustic/scene.json -q --width 16 \
+        --height 16 --spp 16 --resume "$TMP/oldref.pm" -o "$TMP/x.exr"
+else
+    skip "resume of a one-hash SCENE: commit fc104bf is not in this checkout"
+fi

@@ -288,6 +288,40 @@ pm_result_t pm_header_add_command(pm_header_t *h, int argc, char *const *argv)
     return pmfile_command_append(h, s);
 }
 
+/* The length of a SCENE value's "NAME xxh3:HASH", before its parts. */
+static size_t scene_head(const char *v)
+{
+    const char *sp = strchr(v, ' ');
+    if (!sp)
+        return strlen(v);
+    const char *sp2 = strchr(sp + 1, ' ');
+    return sp2 ? (size_t)(sp2 - v) : strlen(v);
+}
+
+int pm_scene_key_same_scene(const char *a, const char *b)
+{
+    size_t n = scene_head(a);
+    return n == scene_head(b) && strncmp(a, b, n) == 0;
+}
+
+/* The word of SCENE value v that starts with label ("photons:xxh3:..."), into out (64
+ * bytes); out untouched when v has none. */
+static void scene_part(const char *v, const char *label, char out[64])
+{
+    size_t n = strlen(label);
+    for (const char *w = v + scene_head(v); *w;) {
+        while (*w == ' ')
+            w++;
+        size_t len = strcspn(w, " ");
+        if (len > n && len < 64 && strncmp(w, label, n) == 0) {
+            memcpy(out, w, len);
+            out[len] = 0;
+            return;
+        }
+        w += len;
+    }
+}
+
 pm_result_t pm_header_inherit(pm_header_t *h, const pm_header_t *src)
 {
     for (size_t i = 0; i < src->ncommands; i++) {
@@ -303,9 +337,23 @@ pm_result_t pm_header_inherit(pm_header_t *h, const pm_header_t *src)
         if (r != PM_OK)
             return r;
     }
-    const char *scene = pm_header_get(src, "SCENE");
-    if (scene && !pm_header_get(h, "SCENE"))
+    const char *scene = pm_header_get(src, "SCENE"), *mine = pm_header_get(h, "SCENE");
+    if (scene && !mine)
         return pm_header_set(h, "SCENE", "%s", scene);
+    if (scene && pm_scene_key_same_scene(mine, scene)) {
+        /* Parts of the same scene: the result names each part either names, in the order
+         * photons then view, so that the gather's output and the direct light agree. */
+        char photons[64] = "", view[64] = "";
+        scene_part(mine, "photons:", photons);
+        scene_part(mine, "view:", view);
+        if (!photons[0])
+            scene_part(scene, "photons:", photons);
+        if (!view[0])
+            scene_part(scene, "view:", view);
+        if (photons[0] || view[0])
+            return pm_header_set(h, "SCENE", "%.*s%s%s%s%s", (int)scene_head(mine), mine, photons[0] ? " " : "",
+                                 photons, view[0] ? " " : "", view);
+    }
     return PM_OK;
 }
 

@@ -122,7 +122,14 @@ const char *pm_header_get(const pm_header_t *h, const char *key);
 pm_result_t pm_header_get_u64(const pm_header_t *h, const char *path, const char *key, uint64_t *out);
 /* Appends a COMMAND line made of argv, shell-quoted where needed. */
 pm_result_t pm_header_add_command(pm_header_t *h, int argc, char *const *argv);
-/* Appends src's COMMAND lines not already present, and src's SCENE when h has none. */
+/* Appends src's COMMAND lines not already present, and src's SCENE when h has none; when
+ * h's SCENE is of the same scene and names other parts (the map's photons, the queries'
+ * view), the two are joined into one that names both (docs/formats.md, SCENE). */
+/* 1 when two SCENE values are of the same scene: equal up to their parts ("NAME xxh3:HASH"
+ * alike), so a map that names the photons' part and queries that name the view's match; a
+ * key of the one-hash form matches only itself. */
+int pm_scene_key_same_scene(const char *a, const char *b);
+
 pm_result_t pm_header_inherit(pm_header_t *h, const pm_header_t *src);
 /* Appends INPUT=<path> xxh3:<hash>. */
 pm_result_t pm_header_add_input(pm_header_t *h, const char *path, uint64_t hash);

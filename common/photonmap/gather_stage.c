@@ -27,7 +27,7 @@ static pm_result_t inputs_setup(pm_gather_inputs_t *in, int variable, uint64_t r
                             "expected lambertian-brdf-folded, docs/formats.md 3.3)",
                             in->q_path, wk ? wk : "missing");
     const char *sm = pm_header_get(mh, "SCENE"), *sq = pm_header_get(qh, "SCENE");
-    if (sm && sq && strcmp(sm, sq) != 0)
+    if (sm && sq && !pm_scene_key_same_scene(sm, sq))
         return pm_error_set(PM_ERR_INPUT, "photon map '%s' is of scene '%s' but queries '%s' are of scene '%s'",
                             in->map_path, sm, in->q_path, sq);
     /* Caustic queries (the first diffuse hits) gather the caustic map and nothing else does:

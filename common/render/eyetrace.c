@@ -871,6 +871,10 @@ pm_result_t pm_eye_queries_header(const pm_eye_t *c, int argc, char **argv, uint
     h->count = count;
     h->channels = c->info.channels;
     pm_result_t r = header_common(c, argc, argv, h);
+    char id[256]; /* the queries read no point light: a light move keeps them (docs/formats.md, SCENE) */
+    pm_scene_id_part(s, PM_SCENE_VIEW, id, sizeof id);
+    if (r == PM_OK)
+        r = pm_header_set(h, "SCENE", "%s", id);
     if (r == PM_OK && s->any_glossy) {
         r = pm_queries_set_materials(h, s->materials, s->nmaterials);
     } else if (r == PM_OK) {

@@ -443,7 +443,7 @@ pm_result_t pm_pathtrace_resume(pm_pathtracer_t *pt, const char *path)
     if (!est || strcmp(est, "path-tracer"))
         r = pm_error_set(PM_ERR_INPUT, "--resume '%s' was not written by trace-reference (estimator '%s')", path,
                          est ? est : "(missing)");
-    else if (!scene || strcmp(scene, id))
+    else if (!scene || !pm_scene_id_matches(pt->s, scene))
         r = pm_error_set(PM_ERR_INPUT, "--resume '%s' is of scene '%s', not '%s'", path, scene ? scene : "(missing)",
                          id);
     else if (w != c->width || h != c->height)

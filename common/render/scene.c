@@ -1576,9 +1576,52 @@ void pm_scene_power(const pm_scene_t *s, double p[3])
         p[k] += pm_sky_power(s, k);
 }
 
-void pm_scene_id(const pm_scene_t *s, char *out, size_t cap)
+size_t pm_scene_flipped_emitters(const pm_scene_t *s, uint32_t *first_out)
 {
-    snprintf(out, cap, "%s xxh3:%016llx", s->name, (unsigned long long)s->hash);
+    float ext[3] = {s->bounds[3] - s->bounds[0], s->bounds[4] - s->bounds[1], s->bounds[5] - s->bounds[2]};
+    float eps = 1e-3f * sqrtf(pm_dot3(ext, ext)); /* m */
+    size_t n = 0;
+    *first_out = 0;
+    if (s->two_sided_lights)
+        return 0; /* both faces emit: no winding faces away */
+    for (size_t i = 0; i < s->nemissive; i++) {
+        const uint32_t *t = &s->tris[3 * (size_t)s->emissive[i]];
+        const float *a = &s->verts[3 * (size_t)t[0]], *b = &s->verts[3 * (size_t)t[1]],
+                    *c = &s->verts[3 * (size_t)t[2]];
+        float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        float nrm[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+        float len = sqrtf(pm_dot3(nrm, nrm));
+        if (!(len > 0.0f))
+            continue;
+        int sees = 0;
+        for (size_t v = 0; v < s->nverts && !sees; v++) {
+            const float *p = &s->verts[3 * v];
+            float d[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
+            sees = pm_dot3(d, nrm) > eps * len;
+        }
+        if (!sees && n++ == 0)
+            *first_out = s->emissive[i];
+    }
+    return n;
+}
+
+void pm_scene_id(const pm_scene_t *s, char *out, size_t cap) { pm_scene_id_part(s, PM_SCENE_ALL, out, cap); }
+
+int pm_scene_id_matches(const pm_scene_t *s, const char *key)
+{
+    char id[300], old[200];
+    pm_scene_id(s, id, sizeof id);
+    snprintf(old, sizeof old, "%s xxh3:%016llx", s->name, (unsigned long long)s->hash);
+    return strcmp(key, id) == 0 || strcmp(key, old) == 0;
+}
+
+void pm_scene_id_part(const pm_scene_t *s, pm_scene_part_t part, char *out, size_t cap)
+{
+    int n = snprintf(out, cap, "%s xxh3:%016llx", s->name, (unsigned long long)s->parts.geometry);
+    if (n >= 0 && (size_t)n < cap && part != PM_SCENE_VIEW)
+        n += snprintf(out + n, cap - (size_t)n, " photons:xxh3:%016llx", (unsigned long long)s->parts.photons);
+    if (n >= 0 && (size_t)n < cap && part != PM_SCENE_PHOTONS)
+        snprintf(out + n, cap - (size_t)n, " view:xxh3:%016llx", (unsigned long long)s->parts.view);
 }
 
 /* Keeps only materials some triangle uses (assimp adds a default one to every OBJ),
@@ -1736,6 +1779,41 @@ static pm_result_t hash_lights(const pm_scene_t *s, uint64_t *hash_out)
     return PM_OK;
 }
 
+/* The scene's parts (scene.h, pm_scene_hash_t), from what was loaded rather than the scene
+ * file's bytes, so that an edit to the camera leaves the photons' part alone. h: the hashes
+ * of the geometry, triangle materials, materials and point lights the whole hash took. */
+static void hash_parts(pm_scene_t *s, const uint64_t h[6])
+{
+    uint64_t g[6] = {h[1], h[2], h[3], h[4], 0, 0};
+    if (s->maps) {
+        g[4] = pm_hash_bytes(s->uvs, 2 * s->nverts * sizeof(float));
+        g[5] = pm_hash_bytes(s->maps, s->nmaterials * sizeof *s->maps);
+        for (size_t i = 0; i < s->ntextures; i++)
+            g[5] = pm_hash_bytes((uint64_t[2]){g[5], s->textures[i].hash}, 2 * sizeof(uint64_t));
+    }
+    s->parts.geometry = pm_hash_bytes(g, sizeof g);
+    /* The render block's keys each side reads as a default: the photons' count and seed,
+     * the eye side's rays, seed and the query order's leaf; the gather's width (radius, k)
+     * goes with both, as the map and the queries both carry it on. */
+    const pm_render_defaults_t *d = &s->defaults;
+    int64_t pk[4] = {d->photons, d->seed, d->k, 0},
+            ek[6] = {d->spp, d->primary, d->light_samples, d->seed, d->leaf, d->k};
+    memcpy(&pk[3], &d->radius, sizeof pk[3]);
+    uint64_t p[4] = {s->parts.geometry, h[5], pm_hash_bytes(pk, sizeof pk), 0};
+    s->parts.photons = pm_hash_bytes(p, sizeof p);
+    const pm_camera_t *c = &s->camera;
+    float cam[12] = {c->eye[0],     c->eye[1],     c->eye[2], c->look_at[0],
+                     c->look_at[1], c->look_at[2], c->up[0],  c->up[1],
+                     c->up[2],      c->fov_y,      0,         0};
+    uint32_t size[2] = {c->width, c->height};
+    uint64_t v[5] = {s->parts.geometry, pm_hash_bytes(cam, sizeof cam), pm_hash_bytes(size, sizeof size),
+                     pm_hash_bytes(ek, sizeof ek), 0};
+    memcpy(&v[4], &d->radius, sizeof v[4]);
+    s->parts.view = pm_hash_bytes(v, sizeof v);
+    uint64_t e[2] = {s->parts.photons, s->parts.view};
+    s->parts.eye = pm_hash_bytes(e, sizeof e);
+}
+
 pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
 {
     memset(s, 0, sizeof *s);
@@ -1838,6 +1916,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
                 t[3] = pm_hash_bytes((uint64_t[2]){t[3], s->textures[i].hash}, 2 * sizeof(uint64_t));
             s->hash = pm_hash_bytes(t, sizeof t);
         }
+        if (r == PM_OK)
+            hash_parts(s, h);
     }
     if (r == PM_OK && s->two_sided_lights) /* folded in only when set: other scenes keep their hash */
         s->hash = pm_hash_bytes((uint64_t[2]){s->hash, 2}, 2 * sizeof(uint64_t));
@@ -1852,6 +1932,19 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
                               (uint64_t)s->envmap->w << 32 | s->envmap->h},
                 3 * sizeof(uint64_t));
         s->hash = pm_hash_bytes(e, sizeof e);
+    }
+    if (r == PM_OK && (s->two_sided_lights || s->has_sun || s->has_sky)) {
+        /* Two-sided emitters, a sun or a sky are the photons' part (and the direct light's,
+         * which names both parts); the queries do not read them, so the view keeps its hash. */
+        uint64_t x[4] = {s->parts.photons, (uint64_t)s->two_sided_lights,
+                         s->has_sun ? pm_hash_bytes(&s->sun, sizeof s->sun) : 0,
+                         s->has_sky ? pm_hash_bytes(s->sky, sizeof s->sky) : 0};
+        if (s->envmap)
+            x[3] = pm_hash_bytes((uint64_t[2]){x[3], pm_hash_bytes(s->envmap->rgb, 3 * sizeof(float) * s->envmap->w *
+                                                                                       (size_t)s->envmap->h)},
+                                 2 * sizeof(uint64_t));
+        s->parts.photons = pm_hash_bytes(x, sizeof x);
+        s->parts.eye = pm_hash_bytes((uint64_t[2]){s->parts.photons, s->parts.view}, 2 * sizeof(uint64_t));
     }
     if (r == PM_OK)
         finish(s);

@@ -113,6 +113,14 @@ typedef struct {
     char name[128];  /* "cornell-box" */
     char path[1024]; /* the scene file */
     uint64_t hash;   /* XXH3-64 of the scene file and everything loaded from it */
+    /* The hash's parts by what reads them (XXH3-64 of the loaded content, not of the file):
+     * geometry: triangles, materials, textures; photons: that, the point lights and the
+     * render block's photon keys (photon tracing and the map); view: the geometry part,
+     * the camera, the image size and the render block's eye keys (the eye side's queries,
+     * which no point light changes); eye: photons and view (the direct light, the image). */
+    struct {
+        uint64_t geometry, photons, view, eye;
+    } parts;
     size_t nverts, ntris;
     float *verts;           /* nverts * 3, m */
     uint32_t *tris;         /* ntris * 3 vertex indices */
@@ -206,7 +214,25 @@ void pm_scene_barycentrics(const pm_scene_t *s, uint32_t tri, const float p[3], 
  * below 0.5 there). */
 int pm_scene_cut_out(const pm_scene_t *s, uint32_t tri, float b1, float b2);
 
-/* "NAME xxh3:HASH", the value of a file header's SCENE key. */
+/* The emissive triangles whose front face (the side their winding's normal points to, the
+ * only side that emits) sees none of the scene: no vertex of the scene lies in front of
+ * their plane by more than 1e-3 of the bounds' diagonal (a light wound the wrong way under
+ * a ceiling sees only the ceiling's underside a hair above it, and its light leaks out as
+ * sparse fireflies). Returns how many; *first_out the first of them (a triangle index). */
+size_t pm_scene_flipped_emitters(const pm_scene_t *s, uint32_t *first_out);
+
+/* Which parts of the scene a file's SCENE key names (docs/formats.md, SCENE): what photon
+ * tracing and the map read, what the eye side's queries read, or both. */
+typedef enum { PM_SCENE_ALL, PM_SCENE_PHOTONS, PM_SCENE_VIEW } pm_scene_part_t;
+
+/* The value of a file header's SCENE key for a file made from part of the scene:
+ * "NAME xxh3:GEOMETRY[ photons:xxh3:PHOTONS][ view:xxh3:VIEW]" (PM_SCENE_ALL names both). */
 void pm_scene_id(const pm_scene_t *s, char *out, size_t cap);
+void pm_scene_id_part(const pm_scene_t *s, pm_scene_part_t part, char *out, size_t cap);
+
+/* 1 when SCENE value key is this scene whole: pm_scene_id's value, or the one-hash form
+ * "NAME xxh3:HASH" of pm_scene_t.hash that files written before the parts carry (so that
+ * trace-reference resumes them). */
+int pm_scene_id_matches(const pm_scene_t *s, const char *key);
 
 #endif

@@ -95,6 +95,10 @@ static void print_text(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, double
     pm_scene_id(s, id, sizeof id);
     pm_scene_needs_t need = pm_scene_needs(s);
     fprintf(out, "scene: %s\n", id);
+    fprintf(out, "hash: xxh3:%016llx (the scene file and everything it loads)\n", (unsigned long long)s->hash);
+    fprintf(out, "hash parts: geometry xxh3:%016llx, photons xxh3:%016llx, view xxh3:%016llx, eye xxh3:%016llx\n",
+            (unsigned long long)s->parts.geometry, (unsigned long long)s->parts.photons,
+            (unsigned long long)s->parts.view, (unsigned long long)s->parts.eye);
     fprintf(out, "file: %s\n", s->path);
     fprintf(out, "triangles: %zu (%zu degenerate left out)\n", s->ntris, s->ndropped);
     fprintf(out, "vertices: %zu\n", s->nverts);
@@ -146,7 +150,12 @@ static void print_text(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, double
                 s->envmap->integral[1] / (4.0 * M_PI), s->envmap->integral[2] / (4.0 * M_PI));
     else if (s->has_sky)
         fprintf(out, "sky: radiance %.6g %.6g %.6g W/(m^2 sr)\n", s->sky[0], s->sky[1], s->sky[2]);
-    fprintf(out, "emissive triangles: %zu\n", s->nemissive);
+    uint32_t ft;
+    size_t nf = pm_scene_flipped_emitters(s, &ft);
+    fprintf(out, "emissive triangles: %zu", s->nemissive);
+    if (nf)
+        fprintf(out, " (%zu facing away from the whole scene, first triangle %" PRIu32 ")", nf, ft);
+    fprintf(out, "\n");
     if (s->two_sided_lights)
         fprintf(out, "two-sided area lights: yes\n");
     fprintf(out, "emitted power: %.6g %.6g %.6g W\n", p[0], p[1], p[2]);
@@ -189,6 +198,18 @@ pm_result_t pm_summary_json(const pm_scene_t *s, const pm_rt_t *rt, const pm_sum
            *needs = json_object();
     json_object_set_new(j, "scene", jstr(&js, "the scene's name", id));
     json_object_set_new(j, "name", jstr(&js, "the scene's name", s->name));
+    {
+        /* Each part of the hash by what reads it (scene.h, pm_scene_t.parts). */
+        char hx[5][32];
+        const uint64_t v[5] = {s->hash, s->parts.geometry, s->parts.photons, s->parts.view, s->parts.eye};
+        const char *names[5] = {"all", "geometry", "photons", "view", "eye"};
+        json_t *hashes = json_object();
+        for (int i = 0; i < 5; i++) {
+            snprintf(hx[i], sizeof hx[i], "xxh3:%016llx", (unsigned long long)v[i]);
+            json_object_set_new(hashes, names[i], json_string(hx[i]));
+        }
+        json_object_set_new(j, "hashes", hashes);
+    }
     json_object_set_new(j, "file", jstr(&js, "the scene's path", s->path));
     json_object_set_new(j, "triangles", json_integer((json_int_t)s->ntris));
     json_object_set_new(j, "degenerate_triangles", json_integer((json_int_t)s->ndropped));
@@ -250,6 +271,10 @@ pm_result_t pm_summary_json(const pm_scene_t *s, const pm_rt_t *rt, const pm_sum
         json_array_append_new(lights, sj);
     }
     json_object_set_new(j, "lights", lights);
+    {
+        uint32_t ft;
+        json_object_set_new(j, "flipped_emitters", json_integer((json_int_t)pm_scene_flipped_emitters(s, &ft)));
+    }
     json_object_set_new(j, "emissive_triangles", json_integer((json_int_t)s->nemissive));
     if (s->two_sided_lights)
         json_object_set_new(j, "two_sided_lights", json_true());

@@ -14,13 +14,20 @@
  * image held in STATE (mean and variance of the passes so far), the outputs show the new
  * mean; every output, STATE included, is one output set (renamed into place together at
  * the end, or none), so that a failure anywhere leaves the earlier passes' image and state
- * as they were. */
+ * as they were.
+ *
+ * An OpenEXR input (trace-reference's or measure-error's images) is previewed instead: the
+ * one image, times its SCALE, tone-mapped into the --png PNG. */
 #include <inttypes.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "base/exr.h"
 #include "base/stage.h"
 #include "image/composite.h"
+#include "image/rgb.h"
+#include "image/tone.h"
 
 static const char *const compression_names[] = {"zip", "none", "piz", NULL}; /* pm_exr_compression_t order */
 
@@ -40,8 +47,67 @@ static void note_repeat(void *ctx, const char *path, const char *same_as, uint64
                   hash);
 }
 
+/* 1 when path starts with OpenEXR's magic number (0x762f3101, little-endian). */
+static int is_exr(const char *path)
+{
+    unsigned char m[4] = {0};
+    FILE *f = strcmp(path, "-") ? fopen(path, "rb") : NULL;
+    size_t n = f ? fread(m, 1, sizeof m, f) : 0;
+    if (f)
+        fclose(f);
+    return n == 4 && m[0] == 0x76 && m[1] == 0x2f && m[2] == 0x31 && m[3] == 0x01;
+}
+
+/* The PNG preview of one OpenEXR image, times its scale: the only output it makes. */
+static pm_result_t preview_exr(pm_stage_t *st, const composite_options_t *o)
+{
+    char *path = NULL;
+    double scale = 1.0, clipped = 0.0;
+    pm_result_t r = pm_composite_parse_input(st->args.args[0], &path, &scale);
+    if (r != PM_OK)
+        return r;
+    if (st->args.nargs != 1 || strcmp(st->output, "-") != 0 || o->radiance || o->state || !o->png ||
+        o->only != PM_ONLY_ALL) {
+        r = pm_error_set(PM_ERR_USAGE,
+                         "'%s' is an OpenEXR image: composite makes its PNG preview alone (one input, --png FILE, "
+                         "no -o, --radiance, --accumulate or --only)",
+                         path);
+        free(path);
+        return r;
+    }
+    pm_stage_output_set(st);
+    pm_rgb_image_t im;
+    r = pm_rgb_image_read(path, &im);
+    free(path);
+    if (r != PM_OK)
+        return r;
+    size_t n = (size_t)im.w * im.h * 3;
+    for (size_t i = 0; i < n; i++)
+        im.rgb[i] *= scale;
+    r = pm_tone_write_png(o->png, im.rgb, im.w, im.h, o->exposure, (pm_tone_t)o->tone, &clipped);
+    if (r == PM_OK) {
+        st->items = (uint64_t)im.w * im.h;
+        pm_stage_stat_int(st, "pixels", (int64_t)im.w * im.h);
+        pm_stage_stat_int(st, "width", im.w);
+        pm_stage_stat_int(st, "height", im.h);
+        pm_stage_stat_string(st, "input", "exr");
+        pm_stage_stat_double(st, "png_clipped_fraction", clipped);
+    }
+    pm_rgb_image_free(&im);
+    return r;
+}
+
 static pm_result_t run(pm_stage_t *st, const composite_options_t *o)
 {
+    for (int i = 0; i < st->args.nargs; i++) {
+        char *path = NULL;
+        double scale;
+        if (pm_composite_parse_input(st->args.args[i], &path, &scale) == PM_OK && is_exr(path)) {
+            free(path);
+            return preview_exr(st, o);
+        }
+        free(path);
+    }
     int to_exr = strcmp(st->output, "-") != 0;
     if (!to_exr && !o->png && !o->radiance && !o->state)
         return pm_error_set(PM_ERR_USAGE, "no output: give -o IMAGE.exr (OpenEXR cannot write to a pipe), --png, "
@@ -125,7 +191,7 @@ int main(int argc, char **argv)
     };
     static const char about[] =
         "Add radiance buffers (direct, indirect, shards), each times its SCALE, into an OpenEXR "
-        "image and a PNG preview.";
+        "image and a PNG preview; or make the PNG preview of one OpenEXR image (IMAGE.exr[:SCALE] --png FILE).";
     const pm_cli_t cli = {
         "composite", "[options] BUFFER[:SCALE]... -o IMAGE.exr [--png PREVIEW.png]", about, options, 1, -1, NULL};
     int rc = pm_stage_begin(&st, &cli, argc, argv);

@@ -41,7 +41,7 @@ static pm_result_t write_photons(pm_stage_t *st, const trace_options_t *o, const
     h.record_size = tr->record_size;
     memcpy(h.bounds, s->bounds, sizeof h.bounds);
     char id[256];
-    pm_scene_id(s, id, sizeof id);
+    pm_scene_id_part(s, PM_SCENE_PHOTONS, id, sizeof id);
     pm_writer_t *w = NULL;
     pm_result_t r;
     if ((r = pm_header_add_command(&h, st->argc, st->argv)) == PM_OK &&
@@ -77,6 +77,17 @@ static pm_result_t run(pm_stage_t *st, const trace_options_t *o)
                          o->caustic);
         pm_scene_free(&s);
         return r;
+    }
+    {
+        uint32_t ft;
+        size_t nf = pm_scene_flipped_emitters(&s, &ft);
+        if (nf)
+            pm_stage_note(st,
+                          "warning: %zu emissive triangle%s face%s away from the whole scene (first: triangle %" PRIu32
+                          ", material '%s'): %s light reaches nothing but leaks out as fireflies; reverse the "
+                          "winding in the mesh file",
+                          nf, nf == 1 ? "" : "s", nf == 1 ? "s" : "", ft, s.materials[s.tri_material[ft]].name,
+                          nf == 1 ? "its" : "their");
     }
     r = pm_rt_create(&s, 1, st->threads_used, &rt);
     if (r != PM_OK) {

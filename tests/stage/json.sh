@@ -104,7 +104,7 @@ done
 
 # Known values of the Cornell box, written out.
 "$SI" -q --json --probe --stats "$TMP/st.json" scenes/cornell-box/scene.json >"$TMP/cb.json"
-jq -e '.name == "cornell-box" and (.scene | test("^cornell-box xxh3:[0-9a-f]{16}$")) and .triangles == 32 and
+jq -e '.name == "cornell-box" and (.scene | test("^cornell-box xxh3:[0-9a-f]{16} photons:xxh3:[0-9a-f]{16} view:xxh3:[0-9a-f]{16}$")) and (.hashes | keys) == ["all", "eye", "geometry", "photons", "view"] and .triangles == 32 and
     .vertices == 36 and .degenerate_triangles == 0 and .glossy == false and .point_lights == 0 and
     .emissive_triangles == 2 and (.materials | length) >= 2 and
     .needs == {"direction_channels": false, "material_ids": false, "area_light_sampling": true} and

@@ -204,6 +204,29 @@ static void test_pmfile_provenance(void **state)
     assert_int_equal(pm_header_set(&b, "bad key", "x"), PM_ERR_INTERNAL);
     pm_header_free(&a);
     pm_header_free(&b);
+    /* SCENE by parts: a map's photons and queries' view of one scene join into both; another
+     * scene, or the one-hash form, does not join and matches only itself. */
+    const char *map = "s xxh3:01 photons:xxh3:02", *q = "s xxh3:01 view:xxh3:03";
+    assert_true(pm_scene_key_same_scene(map, q));
+    assert_false(pm_scene_key_same_scene(map, "s xxh3:09 view:xxh3:03"));
+    assert_false(pm_scene_key_same_scene(map, "t xxh3:01 view:xxh3:03"));
+    assert_true(pm_scene_key_same_scene("s xxh3:00", "s xxh3:00"));
+    assert_false(pm_scene_key_same_scene("s xxh3:00", "s xxh3:01"));
+    pm_header_init(&a, &pm_photonmap_schema);
+    pm_header_init(&b, &pm_queries_schema);
+    pm_header_set(&a, "SCENE", "%s", map);
+    pm_header_set(&b, "SCENE", "%s", q);
+    pm_header_t out;
+    pm_header_init(&out, &pm_radiance_schema);
+    assert_int_equal(pm_header_inherit(&out, &a), PM_OK);
+    assert_int_equal(pm_header_inherit(&out, &b), PM_OK);
+    assert_string_equal(pm_header_get(&out, "SCENE"), "s xxh3:01 photons:xxh3:02 view:xxh3:03");
+    pm_header_set(&b, "SCENE", "t xxh3:01 view:xxh3:03");
+    assert_int_equal(pm_header_inherit(&out, &b), PM_OK);
+    assert_string_equal(pm_header_get(&out, "SCENE"), "s xxh3:01 photons:xxh3:02 view:xxh3:03");
+    pm_header_free(&out);
+    pm_header_free(&a);
+    pm_header_free(&b);
 }
 
 static void test_pmfile_kdnode(void **state)

@@ -131,3 +131,25 @@ if git show fc104bf:tests/golden/trace-reference-cornell.pm >"$TMP/oldref.pm" 2>
 else
     skip "resume of a one-hash SCENE: commit fc104bf is not in this checkout"
 fi
+
+# A sky, a sun or two-sided emitters are lights: they change the photons' part (and the
+# whole hash), not the view's, and not each other's.
+sky() { # sky JSON-MEMBERS: the Cornell box with these top-level members added
+    jq ". + {$1}" scenes/cornell-box/scene.json >"$D/scene.json"
+}
+sky '"sky": {"radiance": [1, 1, 1]}'
+p1=$(part photons) v1=$(part view) a1=$(part all)
+sky '"sky": {"radiance": [2, 2, 2]}'
+p2=$(part photons) v2=$(part view) a2=$(part all)
+sky '"sun": {"direction": [0, 1, 0], "radiance": [9, 9, 9], "solid_angle": 0.01}'
+p3=$(part photons) v3=$(part view)
+sky '"two_sided_lights": true'
+p4=$(part photons) v4=$(part view)
+sky '"two_sided_lights": false'
+p5=$(part photons)
+if [ "$p1" != "$p2" ] && [ "$a1" != "$a2" ] && [ "$v1" = "$v2" ] && [ "$v2" = "$v3" ] && [ "$v3" = "$v4" ] &&
+    [ "$p3" != "$p1" ] && [ "$p4" != "$p5" ] && [ "$p4" != "$p3" ]; then
+    pass "a sky, a sun and two-sided lights change the photons' part, not the view's"
+else
+    fail "sky/sun/two-sided parts" "photons $p1 $p2 $p3 $p4 $p5, view $v1 $v2 $v3 $v4"
+fi

@@ -180,3 +180,12 @@ fi
 # Bad value of the key: one line, exit 1.
 scene "$TMP/smooth" "$LIGHT" '"shading_normals": 1'
 expect_error "shading_normals must be a boolean" "shading_normals: must be true" "$BIN/trace-reference" "$TMP/smooth/scene.json" -q --spp 1 -o "$TMP/bad.exr"
+
+# The atrium's sky-lit, textured variant (scenes/atrium/README.md) loads with its two textures
+# and its sun and sky, without a warning (a texture file missing or a key unread would warn).
+if "$BIN/scene-info" --json scenes/atrium/textured.json >"$TMP/atr.json" 2>"$TMP/atr.err" && [ ! -s "$TMP/atr.err" ] &&
+    [ "$(jq -r '[.emissive_triangles, (.lights | map(.kind) | join(" "))] | join(" ")' "$TMP/atr.json")" = "0 sun sky" ]; then
+    pass "scenes/atrium/textured.json: no emitter, a sun and a sky, no warning"
+else
+    fail "scenes/atrium/textured.json" "$(head -c 300 "$TMP/atr.err") $(jq -c '[.emissive_triangles, .lights]' "$TMP/atr.json" 2>/dev/null)"
+fi

@@ -148,6 +148,25 @@ else
     fail "plane with tilted normals" "a stage failed"
 fi
 
+# The same tilted plane as glTF (vertex normals in its NORMAL attribute, a base colour of 0.6,
+# not metallic, fully rough): assimp reads them as it reads OBJ's vn, and the direct buffer
+# and trace-reference match the same closed form.
+mkdir -p "$TMP/tiltgl"
+printf '{"asset":{"version":"2.0"},"scenes":[{"nodes":[0]}],"scene":0,"nodes":[{"mesh":0}],
+"meshes":[{"primitives":[{"attributes":{"POSITION":0,"NORMAL":1},"indices":2,"material":0}]}],
+"materials":[{"name":"white","pbrMetallicRoughness":{"baseColorFactor":[0.6,0.6,0.6,1],"metallicFactor":0,"roughnessFactor":1}}],
+"buffers":[{"byteLength":108,"uri":"data:application/octet-stream;base64,AABAwAAAAAAAAEDAAABAQAAAAAAAAEDAAABAQAAAAAAAAEBAAABAwAAAAAAAAEBAAAAAP9ezXT8AAAAAAAAAP9ezXT8AAAAAAAAAP9ezXT8AAAAAAAAAP9ezXT8AAAAAAAADAAIAAAACAAEA"}],
+"bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":48},{"buffer":0,"byteOffset":48,"byteLength":48},{"buffer":0,"byteOffset":96,"byteLength":12}],
+"accessors":[{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-3,0,-3],"max":[3,0,3]},
+{"bufferView":1,"componentType":5126,"count":4,"type":"VEC3"},{"bufferView":2,"componentType":5123,"count":6,"type":"SCALAR"}]}\n' >"$TMP/tiltgl/s.gltf"
+sed 's/"s.obj"/"s.gltf"/' "$TMP/tilt/scene.json" >"$TMP/tiltgl/scene.json"
+if render tiltgl "$TMP/tiltgl/scene.json"; then
+    judge "glTF plane with normals tilted 30 degrees, direct buffer" "$TMP/tiltgl.hits" "$TMP/tiltgl.d.txt" $TV -v tmean=1e-3 -v trms=1e-3 -v tmax=1e-3
+    judge "glTF plane with normals tilted 30 degrees, trace-reference" "$TMP/tiltgl.hits" "$TMP/tiltgl.r.txt" $TV -v tmean=1e-3 -v trms=1e-3 -v tmax=1e-3
+else
+    fail "glTF plane with tilted normals" "a stage failed: $("$BIN/scene-info" "$TMP/tiltgl/scene.json" 2>&1 >/dev/null | head -c 300)"
+fi
+
 # Bounces: a floor y = 0 (x in [-2, 1], kd 0.8) whose vertex normals lean 30 degrees toward the
 # wall x = 1 (facing -x, kd 0.8, no vertex normals), lit by a spot at (-1, 1.5, 0) pointing
 # down with a 40 degree cone, which never reaches the wall: all the wall's light has bounced

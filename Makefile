@@ -74,6 +74,7 @@ TESTGEN := $(BUILD)/tests/pm-testgen
 EXRDUMP := $(BUILD)/tests/pm-exrdump
 ATRIUM_GEN := $(BUILD)/scenes/make-atrium
 ATRIUM_OBJ := scenes/atrium/atrium.obj
+ATRIUM_SKY := scenes/atrium/atrium-sky.obj scenes/atrium/atrium-sky.mtl scenes/atrium/stone.png scenes/atrium/floor.png
 CAUSTIC_GEN := $(BUILD)/scenes/make-caustic
 CAUSTIC_OBJ := scenes/caustic/caustic.obj
 
@@ -84,7 +85,7 @@ FORMAT_SRC = $(shell git ls-files '*.c' '*.h' 2>/dev/null)
 # Keep the stages' objects: they are intermediate to the pattern rule, and make would
 # otherwise delete them and rebuild them next time.
 .SECONDARY:
-all: $(PROGS) $(ATRIUM_OBJ) $(CAUSTIC_OBJ)
+all: $(PROGS) $(ATRIUM_OBJ) $(ATRIUM_SKY) $(CAUSTIC_OBJ)
 
 # Rebuild everything when the flags change.
 FLAGS_FILE := $(BUILD)/.flags
@@ -125,9 +126,9 @@ $(EXRDUMP): $(BUILD)/tests/pm-exrdump.o $(LIB)
 $(ATRIUM_GEN): scenes/atrium/make-atrium.c
 	@mkdir -p $(@D)
 	@$(if $(Q),echo "  CC      $<",true)
-	$(Q)$(CC) -std=c17 -O2 $(WARN) $(if $(WERROR),-Werror,) $< -lm -o $@
+	$(Q)$(CC) -std=c17 -O2 $(WARN) $(if $(WERROR),-Werror,) $< -lpng -lm -o $@
 
-$(ATRIUM_OBJ) scenes/atrium/atrium.mtl &: $(ATRIUM_GEN)
+$(ATRIUM_OBJ) scenes/atrium/atrium.mtl $(ATRIUM_SKY) &: $(ATRIUM_GEN)
 	@$(if $(Q),echo "  GEN     $@",true)
 	$(Q)$(ATRIUM_GEN) -o scenes/atrium
 
@@ -239,6 +240,6 @@ deps:
 	@sh tests/install-deps.sh $(DEBS)
 
 clean:
-	rm -rf $(BUILD) $(BIN) $(ATRIUM_OBJ) scenes/atrium/atrium.mtl $(CAUSTIC_OBJ) scenes/caustic/caustic.mtl
+	rm -rf $(BUILD) $(BIN) $(ATRIUM_OBJ) scenes/atrium/atrium.mtl $(ATRIUM_SKY) $(CAUSTIC_OBJ) scenes/caustic/caustic.mtl
 
 -include $(LIB_OBJ:.o=.d) $(UNIT_OBJ:.o=.d) $(STAGES:%=$(BUILD)/stages/%/main.d) $(BUILD)/tests/pm-testgen.d $(BUILD)/tests/pm-exrdump.d

@@ -255,13 +255,16 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
         wo[k] = -d[k];
     }
     float side = pm_dot3(ng, wo) >= 0.0f ? 1.0f : -1.0f; /* both sides reflect: face the viewer */
+    float gn[3]; /* the geometric normal on the viewer's side: which side a ray leaves from */
     for (int k = 0; k < 3; k++)
-        n[k] = side * ng[k];
+        gn[k] = side * ng[k];
     pm_material_t textured; /* the material with its textures at p (render/scene.h) */
     const pm_material_t *m = pm_scene_material_at(s, tri, p, &textured);
+    /* n: the shading normal (render/transport.h), gn itself in a scene without vertex normals */
+    int shaded = pm_scene_shading_normal(s, tri, p, gn, n);
     float o[3];
     for (int k = 0; k < 3; k++)
-        o[k] = p[k] + c->eps * n[k];
+        o[k] = p[k] + c->eps * gn[k];
 
     /* Emission seen directly: emitters radiate from their front side only. */
     if ((side > 0.0f || s->two_sided_lights) && pm_material_is_emissive(m))
@@ -288,8 +291,8 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
     pm_light_sample_t ls;
     for (size_t l = 0; l < s->nlights; l++) {
         const pm_point_light_t *L = &s->lights[l];
-        if (!pm_point_light_toward(L, p, n, &ls))
-            continue;
+        if (!pm_point_light_toward(L, p, n, &ls) || (shaded && !(pm_dot3(gn, ls.wi) > 0.0f)))
+            continue; /* behind the shading or the geometric surface */
         float f[3], il[3] = {pm_point_light_intensity(L, &ls, 0), pm_point_light_intensity(L, &ls, 1),
                              pm_point_light_intensity(L, &ls, 2)};
         if (!(il[0] > 0.0f || il[1] > 0.0f || il[2] > 0.0f))
@@ -304,7 +307,7 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
     /* Area lights: points uniform over the total emissive area A, pdf 1/A per m^2;
      * L = f Ke cos_x cos_y / r^2 * A, averaged over the samples. */
     for (unsigned q = 0; q < c->light_samples && s->nemissive; q++) {
-        if (!pm_area_light_sample(s, &c->geom, light_rng, p, n, &ls))
+        if (!pm_area_light_sample(s, &c->geom, light_rng, p, n, &ls) || (shaded && !(pm_dot3(gn, ls.wi) > 0.0f)))
             continue;
         const pm_material_t *lm = &s->materials[s->tri_material[ls.tri]];
         float f[3], g = ls.cosx * ls.cosy / ls.r2 * (float)c->geom.area / (float)c->light_samples * inv_p;
@@ -343,7 +346,7 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
             else
                 pm_sky_sample(s, n, u1, u2, wi);
             float cosi = pm_dot3(n, wi), pl = e == 0 ? pm_sun_pdf(&s->sun, wi) : pm_sky_pdf(s, n, wi), f[3], le[3];
-            if (!(cosi > 0.0f && pl > 0.0f))
+            if (!(cosi > 0.0f && pl > 0.0f) || (shaded && !(pm_dot3(gn, wi) > 0.0f)))
                 continue;
             if (e == 0)
                 memcpy(le, s->sun.radiance, sizeof le);
@@ -405,6 +408,10 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
             w[3 * q] = w0, w[3 * q + 1] = w1, w[3 * q + 2] = w2;
             px[q] = x;
         }
+        if (shaded) /* drawn about the shading normal: one below the geometric surface is not taken */
+            for (unsigned q = 0; q < nq; q++)
+                if (!(dx[q] * gn[0] + dy[q] * gn[1] + dz[q] * gn[2] > 0.0f))
+                    w[3 * q] = w[3 * q + 1] = w[3 * q + 2] = 0.0f, tf[q] = 0.0f;
         sr->n += nq;
         return 1;
     }
@@ -420,7 +427,7 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
         u1 = lobe == PM_LOBE_DIFFUSE ? u1 / sd : (u1 - sd) / (1.0f - sd);
         if (!(u1 < 1.0f))
             u1 = 0x1.fffffep-1f; /* the rescaling can round up to 1 */
-        if (!pm_bsdf_sample_lobe(m, lobe, n, wo, u1, u2, wi))
+        if (!pm_bsdf_sample_lobe(m, lobe, n, wo, u1, u2, wi) || (shaded && !(pm_dot3(gn, wi) > 0.0f)))
             continue;
         float pdf = pm_bsdf_pdf(m, n, wi, wo), cosi = pm_dot3(n, wi);
         if (!(pdf > 0.0f))
@@ -600,6 +607,10 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
                 n[k] = side * ng[k];
                 w[k] = rw[k] * thr[k] * fold[k];
             }
+            if (s->normals) { /* the query's normal is the shading normal (render/transport.h) */
+                float gn[3] = {n[0], n[1], n[2]};
+                pm_scene_shading_normal(s, tri, q, gn, n);
+            }
             if (!(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f) || !isfinite(w[0] + w[1] + w[2]))
                 continue;
             put_query(c, out, q, n, w, y * c->w + sc->sec_px[j], mi, wo); /* room reserved above */
@@ -612,6 +623,10 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
         float side = pm_dot3(ng, wo) >= 0.0f ? 1.0f : -1.0f; /* the side the query sees */
         for (int k = 0; k < 3; k++)
             n[k] = side * ng[k];
+        if (s->normals) { /* the query's normal is the shading normal (render/transport.h) */
+            float gn[3] = {n[0], n[1], n[2]};
+            pm_scene_shading_normal(s, tri, q, gn, n);
+        }
         uint32_t mi = s->tri_material[tri];
         const float *fold = c->fold + 3 * (size_t)mi, *rw = sc->sec_w + 3 * j;
         float fold_tex[3];

@@ -180,29 +180,34 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
             if (depth + 1 > cnt->longest)
                 cnt->longest = depth + 1;
             float org[3] = {p[0] + eps * n[0], p[1] + eps * n[1], p[2] + eps * n[2]};
+            /* sn: the shading normal (render/transport.h), n itself without vertex normals; n
+             * still decides the side a ray leaves from, and no direction below it is taken. */
+            float sn[3];
+            int shaded = pm_scene_shading_normal(s, tri, p, n, sn);
 
             /* Point lights and spots: I s cos / r^2, each one every vertex. */
             pm_light_sample_t ls;
             for (size_t l = 0; l < s->nlights && wanted(pt, nd + 1, 0); l++) {
                 const pm_point_light_t *pl = &s->lights[l];
-                if (!pm_point_light_toward(pl, p, n, &ls))
+                if (!pm_point_light_toward(pl, p, sn, &ls) || (shaded && !(pm_dot3(n, ls.wi) > 0.0f)))
                     continue;
                 cnt->shadow_rays++;
                 if (pm_rt_occluded1(pt->rt, ctx, org, ls.wi, 0.0f, ls.r - eps))
                     continue;
                 float f[3];
-                pm_brdf(m, n, ls.wi, wo, f);
+                pm_brdf(m, sn, ls.wi, wo, f);
                 for (int q = 0; q < 3; q++)
                     L[q] += beta[q] * (double)f[q] * pm_point_light_intensity(pl, &ls, q) * ls.cosx / ls.r2;
             }
             /* One point on the area lights, pdf 1/A per m^2, weighted against BSDF sampling. */
-            if (g->nemissive && pm_area_light_sample(s, g, &rng, p, n, &ls) && wanted(pt, nd + 1, 0)) {
+            if (g->nemissive && pm_area_light_sample(s, g, &rng, p, sn, &ls) && wanted(pt, nd + 1, 0) &&
+                (!shaded || pm_dot3(n, ls.wi) > 0.0f)) {
                 cnt->shadow_rays++;
                 /* Stop short of the light's own surface, by the offset and a relative margin. */
                 if (!pm_rt_occluded1(pt->rt, ctx, org, ls.wi, 0.0f, ls.r * (1.0f - 1e-4f) - 2.0f * eps)) {
                     const pm_material_t *lm = &s->materials[s->tri_material[ls.tri]];
-                    float pl = pm_area_light_pdf(g, ls.r2, ls.cosy), pb = pm_bsdf_pdf(m, n, ls.wi, wo), f[3];
-                    pm_brdf(m, n, ls.wi, wo, f);
+                    float pl = pm_area_light_pdf(g, ls.r2, ls.cosy), pb = pm_bsdf_pdf(m, sn, ls.wi, wo), f[3];
+                    pm_brdf(m, sn, ls.wi, wo, f);
                     double gw = (double)ls.cosx / pl * pm_power_heuristic(pl, pb);
                     for (int q = 0; q < 3; q++)
                         L[q] += beta[q] * (double)f[q] * lm->ke[q] * gw;
@@ -219,19 +224,19 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
                 if (e == 0)
                     pm_sun_sample(&s->sun, u1, u2, wi);
                 else
-                    pm_sky_sample(s, n, u1, u2, wi);
-                float cosi = pm_dot3(n, wi), pl = e == 0 ? pm_sun_pdf(&s->sun, wi) : pm_sky_pdf(s, n, wi);
-                if (!(cosi > 0.0f && pl > 0.0f))
+                    pm_sky_sample(s, sn, u1, u2, wi);
+                float cosi = pm_dot3(sn, wi), pl = e == 0 ? pm_sun_pdf(&s->sun, wi) : pm_sky_pdf(s, sn, wi);
+                if (!(cosi > 0.0f && pl > 0.0f) || (shaded && !(pm_dot3(n, wi) > 0.0f)))
                     continue;
                 cnt->shadow_rays++;
                 if (pm_rt_occluded1(pt->rt, ctx, org, wi, 0.0f, INFINITY))
                     continue;
-                float f[3], pb = pm_bsdf_pdf(m, n, wi, wo), le[3];
+                float f[3], pb = pm_bsdf_pdf(m, sn, wi, wo), le[3];
                 if (e == 0)
                     memcpy(le, s->sun.radiance, sizeof le);
                 else
                     pm_sky_radiance(s, wi, le);
-                pm_brdf(m, n, wi, wo, f);
+                pm_brdf(m, sn, wi, wo, f);
                 double gw = (double)cosi / pl * pm_power_heuristic(pl, pb);
                 for (int q = 0; q < 3; q++)
                     L[q] += beta[q] * (double)f[q] * le[q] * gw;
@@ -239,17 +244,19 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
 
             /* Continue along a BSDF sample: the lobe, then two numbers for the direction. */
             float wi[3], u = pm_rng_float(&rng), u1 = pm_rng_float(&rng), u2 = pm_rng_float(&rng);
-            if (!pm_bsdf_sample(m, n, wo, u, u1, u2, wi))
+            if (!pm_bsdf_sample(m, sn, wo, u, u1, u2, wi))
                 break; /* the Phong lobe's share below the surface: its energy loss */
-            float pdf = pm_bsdf_pdf(m, n, wi, wo), f[3];
+            if (shaded && !(pm_dot3(n, wi) > 0.0f))
+                break; /* below the geometric surface: not taken (it would leak light through) */
+            float pdf = pm_bsdf_pdf(m, sn, wi, wo), f[3];
             if (!(pdf > 0.0f))
                 break;
-            pm_brdf(m, n, wi, wo, f);
-            float cosi = pm_dot3(n, wi);
+            pm_brdf(m, sn, wi, wo, f);
+            float cosi = pm_dot3(sn, wi);
             for (int q = 0; q < 3; q++)
                 beta[q] *= (double)f[q] * cosi / pdf;
             bsdf_pdf_prev = pdf;
-            memcpy(n_prev, n, sizeof n_prev);
+            memcpy(n_prev, sn, sizeof n_prev);
             memcpy(o, org, sizeof o);
             memcpy(d, wi, sizeof d);
             nd++;

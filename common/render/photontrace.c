@@ -317,12 +317,22 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
             pm_v3_store(n, pm_v3_scale(pm_v3_load(n), -1.0f));
         pm_material_t textured; /* the material with its textures at p (render/scene.h) */
         m = pm_scene_material_at(s, hit, p, &textured);
+        /* Shading normals (render/transport.h, pm_shading_adjoint): the photon's power becomes
+         * what the shading normal's cosine makes of it, ns.wo / ng.wo, so that a density
+         * estimate and an eye ray's direct light agree; it is stored with ns, the normal the
+         * gather tests it against, and bounces about ns. */
+        float ns[3];
+        int shaded = pm_scene_shading_normal(s, hit, p, n, ns);
+        if (shaded && !pm_shading_adjoint(n, ns, wo, power)) {
+            c->absorbed++; /* arrived from below the shading surface: reflects nothing */
+            return;
+        }
         float pd, ps;
         pm_bsdf_albedo(m, &pd, &ps);
         if (pd + ps > 0.0f) {
-            store_photon(t, c, OUT_GLOBAL, p, power, n, wo, depth);
+            store_photon(t, c, OUT_GLOBAL, p, power, ns, wo, depth);
             if (caustic && t->o->caustics)
-                store_photon(t, c, OUT_CAUSTIC, p, power, n, wo, depth);
+                store_photon(t, c, OUT_CAUSTIC, p, power, ns, wo, depth);
         }
         spec_only = caustic = 0;
         if (c->failed)
@@ -347,19 +357,23 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
         if (u < pdq) {
             /* f cos / pdf of the diffuse lobe is kd; a cosine sample is above the surface up to
              * rounding and is kept as drawn. */
-            pm_bsdf_sample_lobe(m, PM_LOBE_DIFFUSE, n, wo, v1, v2, dir);
+            pm_bsdf_sample_lobe(m, PM_LOBE_DIFFUSE, ns, wo, v1, v2, dir);
             for (int k = 0; k < 3; k++)
                 power[k] *= (double)m->kd[k] / pdq;
         } else if (u < pdq + psq) {
-            if (!pm_bsdf_sample_lobe(m, PM_LOBE_GLOSSY, n, wo, v1, v2, dir)) {
+            if (!pm_bsdf_sample_lobe(m, PM_LOBE_GLOSSY, ns, wo, v1, v2, dir)) {
                 c->absorbed++; /* below the surface: the lobe's energy loss */
                 return;
             }
-            double w = pm_phong_weight(m, pm_dot3(dir, n)) / psq;
+            double w = pm_phong_weight(m, pm_dot3(dir, ns)) / psq;
             for (int k = 0; k < 3; k++)
                 power[k] *= m->ks[k] * w;
         } else {
             c->absorbed++;
+            return;
+        }
+        if (shaded && !pm_shading_leave(n, ns, dir, power)) {
+            c->absorbed++; /* below the geometric surface: not taken (no light leaks through) */
             return;
         }
         pm_v3_store(org, pm_v3_add(pm_v3_load(p), pm_v3_scale(pm_v3_load(n), eps)));

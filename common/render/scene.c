@@ -49,7 +49,8 @@ typedef struct {
     int missing_magenta; /* missing_textures "magenta": a missing texture file is a warning */
     import_t *imports;   /* the mesh files imported so far */
     size_t nimports;
-    float *local; /* every vertex loaded, in its mesh's own units (placements share them) */
+    float *local;    /* every vertex loaded, in its mesh's own units (placements share them) */
+    int any_normals; /* some mesh loaded has vertex normals */
 } ctx_t;
 
 static pm_result_t bad(const ctx_t *c, const char *key, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
@@ -1272,7 +1273,7 @@ static pm_result_t load_mesh(ctx_t *c, json_t *mj, size_t index)
         if ((r = grow((void **)&c->imports, c->nimports + 1, sizeof *c->imports)) != PM_OK)
             return r;
         /* Triangulate polygons, merge shared vertices, flatten node transforms, drop points
-         * and lines; normals are not needed: pmtk shades with geometric normals. */
+         * and lines; vertex normals come as the file has them (none are made up). */
         struct aiLogStream log = {on_assimp_log, NULL};
         ai_first_error[0] = '\0';
         aiAttachLogStream(&log);
@@ -1364,6 +1365,7 @@ static pm_result_t load_mesh(ctx_t *c, json_t *mj, size_t index)
         }
         if ((r = grow((void **)&s->verts, 3 * (v0 + m->mNumVertices), sizeof(float))) != PM_OK ||
             (r = grow((void **)&s->uvs, 2 * (v0 + m->mNumVertices), sizeof(float))) != PM_OK ||
+            (r = grow((void **)&s->normals, 3 * (v0 + m->mNumVertices), sizeof(float))) != PM_OK ||
             (r = grow((void **)&c->local, 3 * (v0 + m->mNumVertices), sizeof(float))) != PM_OK ||
             (r = grow((void **)&s->tris, 3 * (s->ntris + m->mNumFaces), sizeof(uint32_t))) != PM_OK ||
             (r = grow((void **)&s->tri_material, s->ntris + m->mNumFaces, sizeof(uint32_t))) != PM_OK)
@@ -1387,6 +1389,27 @@ static pm_result_t load_mesh(ctx_t *c, json_t *mj, size_t index)
             float uu = uv ? uv->x : 0.0f, vv = uv ? uv->y : 0.0f;
             s->uvs[2 * (v0 + v)] = isfinite(uu) ? uu : 0.0f;
             s->uvs[2 * (v0 + v) + 1] = isfinite(vv) ? vv : 0.0f;
+            /* The vertex normal by the cofactor matrix of the map (normals transform by the
+             * inverse transpose; its scale and sign do not matter: pm_scene_shading_normal
+             * normalizes it and turns it to the side the ray came from). None, or one that is
+             * not finite: zero, which falls back to the geometric normal. */
+            float *nv = &s->normals[3 * (v0 + v)];
+            nv[0] = nv[1] = nv[2] = 0.0f;
+            if (m->mNormals) {
+                double a[3] = {m->mNormals[v].x, m->mNormals[v].y, m->mNormals[v].z}, q[3];
+                for (int k = 0; k < 3; k++) {
+                    int k1 = (k + 1) % 3, k2 = (k + 2) % 3;
+                    double c0 = xf[k1][1] * xf[k2][2] - xf[k1][2] * xf[k2][1],
+                           c1 = xf[k1][2] * xf[k2][0] - xf[k1][0] * xf[k2][2],
+                           c2 = xf[k1][0] * xf[k2][1] - xf[k1][1] * xf[k2][0];
+                    q[k] = c0 * a[0] + c1 * a[1] + c2 * a[2];
+                }
+                double len = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
+                if (isfinite(len) && len > 0.0)
+                    for (int k = 0; k < 3; k++)
+                        nv[k] = (float)(q[k] / len);
+                c->any_normals = 1;
+            }
             if (r != PM_OK)
                 break;
         }
@@ -1792,6 +1815,10 @@ static void hash_parts(pm_scene_t *s, const uint64_t h[6])
             g[5] = pm_hash_bytes((uint64_t[2]){g[5], s->textures[i].hash}, 2 * sizeof(uint64_t));
     }
     s->parts.geometry = pm_hash_bytes(g, sizeof g);
+    if (s->normals) /* shading normals shade both sides' files; a scene without them keeps its hash */
+        s->parts.geometry =
+            pm_hash_bytes((uint64_t[2]){s->parts.geometry, pm_hash_bytes(s->normals, 3 * s->nverts * sizeof(float))},
+                          2 * sizeof(uint64_t));
     /* The render block's keys each side reads as a default: the photons' count and seed,
      * the eye side's rays, seed and the query order's leaf; the gather's width (radius, k)
      * goes with both, as the map and the queries both carry it on. */
@@ -1817,7 +1844,7 @@ static void hash_parts(pm_scene_t *s, const uint64_t h[6])
 pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
 {
     memset(s, 0, sizeof *s);
-    ctx_t c = {path, s, 0, NULL, 0, NULL};
+    ctx_t c = {path, s, 0, NULL, 0, NULL, 0};
     snprintf(s->path, sizeof s->path, "%s", path);
     json_error_t je;
     FILE *f = fopen(path, "rb");
@@ -1830,7 +1857,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         return pm_error_set(PM_ERR_INPUT, "scene '%s' line %d column %d: %s", path, je.line, je.column, je.text);
     static const char *const keys[] = {
         "pmtk_scene", "name",   "meshes",           "camera",     "point_lights",     "sun",
-        "sky",        "render", "missing_textures", "instancing", "two_sided_lights", NULL};
+        "sky",        "render", "missing_textures", "instancing", "two_sided_lights", "shading_normals",
+        NULL};
     pm_result_t r =
         json_is_object(root) ? only_keys(&c, root, "top level", keys) : bad(&c, "top level", "must be a JSON object");
     int64_t version = 0;
@@ -1863,6 +1891,14 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     if (r == PM_OK && two && !json_is_boolean(two))
         r = bad(&c, "two_sided_lights", "must be true or false (the default: emitters light from their front face)");
     s->two_sided_lights = two && json_is_true(two);
+    json_t *shn = json_object_get(root, "shading_normals");
+    if (r == PM_OK && shn && !json_is_boolean(shn))
+        r = bad(&c, "shading_normals", "must be true (the default: the meshes' vertex normals shade) or false");
+    if (r == PM_OK && ((shn && json_is_false(shn)) || !c.any_normals)) {
+        /* Ignored, or no mesh has any: geometric normals, and nothing to pay for the feature. */
+        free(s->normals);
+        s->normals = NULL;
+    }
     json_t *inst = json_object_get(root, "instancing");
     if (r == PM_OK && inst && !json_is_boolean(inst))
         r = bad(&c, "instancing", "must be true (the default) or false");
@@ -1919,6 +1955,9 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         if (r == PM_OK)
             hash_parts(s, h);
     }
+    if (r == PM_OK && s->normals) /* shading normals: folded in only when used, other scenes keep their hash */
+        s->hash = pm_hash_bytes((uint64_t[2]){s->hash, pm_hash_bytes(s->normals, 3 * s->nverts * sizeof(float))},
+                                2 * sizeof(uint64_t));
     if (r == PM_OK && s->two_sided_lights) /* folded in only when set: other scenes keep their hash */
         s->hash = pm_hash_bytes((uint64_t[2]){s->hash, 2}, 2 * sizeof(uint64_t));
     if (r == PM_OK && (s->has_sun || s->has_sky)) {
@@ -1967,6 +2006,7 @@ void pm_scene_free(pm_scene_t *s)
     free(s->unsupported);
     free(s->maps);
     free(s->uvs);
+    free(s->normals);
     free(s->placements);
     free(s->local_verts);
     for (size_t i = 0; i < s->ntextures; i++)
@@ -2059,4 +2099,28 @@ int pm_scene_cut_out(const pm_scene_t *s, uint32_t tri, float b1, float b2)
     pm_texture_lookup(t, uv[0], uv[1], 0, texel);
     /* the alpha channel when the image has one, else its grey (a mask image) */
     return (t->has_alpha ? texel[3] : texel[0]) < 0.5f;
+}
+
+int pm_scene_shading_normal(const pm_scene_t *s, uint32_t tri, const float p[3], const float n[3], float ns_out[3])
+{
+    ns_out[0] = n[0], ns_out[1] = n[1], ns_out[2] = n[2];
+    if (!s->normals)
+        return 0;
+    const float *n0 = &s->normals[3 * s->tris[3 * tri]], *n1 = &s->normals[3 * s->tris[3 * tri + 1]],
+                *n2 = &s->normals[3 * s->tris[3 * tri + 2]];
+    float b[2], q[3];
+    pm_scene_barycentrics(s, tri, p, b);
+    float b0 = 1.0f - b[0] - b[1];
+    for (int k = 0; k < 3; k++)
+        q[k] = b0 * n0[k] + b[0] * n1[k] + b[1] * n2[k];
+    float len2 = pm_dot3(q, q);
+    /* No normals at this triangle (zero), or ones that cancel: the geometric normal. */
+    if (!(len2 > 1e-12f) || !isfinite(len2))
+        return 0;
+    float inv = 1.0f / sqrtf(len2);
+    if (pm_dot3(q, n) < 0.0f) /* the side n is on: the mesh's normals may face the other way */
+        inv = -inv;
+    for (int k = 0; k < 3; k++)
+        ns_out[k] = q[k] * inv;
+    return 1;
 }

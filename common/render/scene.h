@@ -147,6 +147,8 @@ typedef struct {
     /* Textures: all NULL and 0 in a scene without any (it pays nothing for the feature). */
     pm_material_maps_t *maps; /* nmaterials, or NULL when no material has a texture */
     float *uvs;               /* nverts * 2 texture coordinates (u, v), or NULL with maps */
+    float *normals;           /* nverts * 3 unit vertex normals in scene space (zero where a mesh has none), or
+                                 NULL: no mesh has any, or the scene key shading_normals is false */
     pm_texture_t *textures;   /* each file once, however many materials use it */
     size_t ntextures;
     int any_alpha;              /* some material has map_d: render/rt.c installs the cut-out filter */
@@ -213,6 +215,12 @@ void pm_scene_barycentrics(const pm_scene_t *s, uint32_t tri, const float p[3], 
 /* 1 when the hit at barycentrics (b1, b2) of triangle tri is cut out (its material's map_d
  * below 0.5 there). */
 int pm_scene_cut_out(const pm_scene_t *s, uint32_t tri, float b1, float b2);
+
+/* The shading normal at point p (m, on triangle tri): the vertex normals interpolated at p's
+ * barycentrics and normalized, turned to the side of n (the unit geometric normal on the side
+ * the ray came from). Returns 1 then; 0 with n itself copied, bit for bit, when the scene or
+ * the triangle has no vertex normals (or they cancel at p). */
+int pm_scene_shading_normal(const pm_scene_t *s, uint32_t tri, const float p[3], const float n[3], float ns_out[3]);
 
 /* The emissive triangles whose front face (the side their winding's normal points to, the
  * only side that emits) sees none of the scene: no vertex of the scene lies in front of

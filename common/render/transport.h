@@ -81,6 +81,50 @@ int pm_bsdf_sample(const pm_material_t *m, const float n[3], const float wo[3], 
  * mixture's pdf integrates to its probability of landing above the surface). */
 float pm_bsdf_pdf(const pm_material_t *m, const float n[3], const float wi[3], const float wo[3]);
 
+/* ---- shading normals ----
+ *
+ * A mesh's vertex normals, interpolated (pm_scene_shading_normal), shade: the BSDF, its
+ * sampling and every cosine of the rendering equation use the shading normal ns, while the
+ * geometric normal ng still decides which side is which: a direction below the geometric
+ * surface is never taken (it would leak light through it), and a ray leaves from ng's side.
+ * The rendering equation then has the kernel f(wi, wo) |ns.wi| over directions, that is, the
+ * BSDF with respect to the geometric cosine is F(wi -> wo) = f(wi, wo) |ns.wi| / |ng.wi| for
+ * light arriving along wi. That F is not symmetric, so the adjoint equation photons follow is
+ * not the one radiance follows: a photon arriving from wi and leaving along wo is weighted by
+ * F(wi -> wo) |ng.wo| / pdf(wo) = (|ns.wi| / |ng.wi|) f |ng.wo| / pdf(wo), not by f |ns.wo| /
+ * pdf(wo) as an eye ray would be (Veach's thesis, 5.3, on the non-symmetric scattering that
+ * shading normals make). The first factor is also what a stored photon needs: a density
+ * estimate counts flux through the geometric area, so f sum(Phi) / (pi r^2) estimates the
+ * integral of f L cos_g, where the eye side's integrand is f L cos_s. Both helpers take ng unit
+ * on the side the ray came from and ns on that side too; both return 0 when the path must end. */
+
+/* At a photon's arrival from direction wi (unit, pointing back along its path): power *=
+ * ns.wi / ng.wi. 0 when wi is below the shading surface or grazes the geometric one (the
+ * photon reflects nothing there: an eye ray sees a zero cosine toward it). */
+static inline int pm_shading_adjoint(const float ng[3], const float ns[3], const float wi[3], double power[3])
+{
+    float cs = pm_dot3(ns, wi), cg = pm_dot3(ng, wi);
+    if (!(cs > 0.0f && cg > 1e-6f))
+        return 0;
+    double a = (double)cs / (double)cg;
+    for (int k = 0; k < 3; k++)
+        power[k] *= a;
+    return 1;
+}
+
+/* At a photon's departure along wo (unit), sampled about ns with weight f ns.wo / pdf:
+ * power *= ng.wo / ns.wo. 0 when wo is below the geometric surface (not taken). */
+static inline int pm_shading_leave(const float ng[3], const float ns[3], const float wo[3], double power[3])
+{
+    float cs = pm_dot3(ns, wo), cg = pm_dot3(ng, wo);
+    if (!(cg > 0.0f && cs > 1e-6f))
+        return 0;
+    double a = (double)cg / (double)cs;
+    for (int k = 0; k < 3; k++)
+        power[k] *= a;
+    return 1;
+}
+
 /* ---- specular materials (mirror, glass) ---- */
 
 /* Unpolarized Fresnel reflectance of a smooth dielectric boundary, the mean of the s and p

@@ -41,14 +41,26 @@
  *     sin/cos): fixed "%.6f" formatting, no time stamps, no randomness, so
  *     every run produces the same bytes.
  *
- * Usage: make-atrium [-o DIR]    writes DIR/atrium.obj and DIR/atrium.mtl
+ * The sky-lit, textured variant (textured.json) is written beside it from the
+ * same geometry: atrium-sky.obj leaves out the emissive sky quad, so the court
+ * is open to the scene's sky and sun, and gives every face texture
+ * coordinates by projecting its vertices along the axis its normal is closest
+ * to (TEX_SCALE metres per repeat); atrium-sky.mtl names two procedural
+ * textures, stone.png (ashlar courses) and floor.png (a checker of flags),
+ * written here with libpng.  atrium.obj and atrium.mtl stay as they were.
  *
- * Build: cc -std=c17 -O2 -Wall -Wextra -Wpedantic -o make-atrium make-atrium.c -lm
+ * Usage: make-atrium [-o DIR]    writes DIR/atrium.obj and DIR/atrium.mtl,
+ *                                DIR/atrium-sky.obj, DIR/atrium-sky.mtl,
+ *                                DIR/stone.png and DIR/floor.png
+ *
+ * Build: cc -std=c17 -O2 -Wall -Wextra -Wpedantic -o make-atrium make-atrium.c -lpng -lm
  */
 
 #include <errno.h>
 #include <math.h>
+#include <png.h>
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -801,6 +813,177 @@ static void write_obj(writer *w)
     }
 }
 
+static void report(const char *what, const char *path, int err);
+
+/* ------------------------------------------------------------------------ */
+/* The sky-lit, textured variant                                            */
+/* ------------------------------------------------------------------------ */
+
+static const double TEX_SCALE = 2.0; /* metres covered by one repeat of a texture */
+enum { TEX_SIZE = 256 };             /* pixels per side of each texture           */
+
+/* Axis (0 x, 1 y, 2 z) the normal of triangle t is closest to. */
+static int tri_axis(const triangle *t)
+{
+    vec3 n = v_cross(v_sub(mesh.v[t->b], mesh.v[t->a]), v_sub(mesh.v[t->c], mesh.v[t->a]));
+    double ax = fabs(n.x), ay = fabs(n.y), az = fabs(n.z);
+    return ay >= ax && ay >= az ? 1 : ax >= az ? 0 : 2;
+}
+
+static void write_sky_mtl(writer *w)
+{
+    out(w, "# atrium-sky.mtl -- materials for atrium-sky.obj, written by " PROG "\n"
+           "#\n"
+           "# Kd diffuse reflectance, scaled by the map_Kd texture (its texels are\n"
+           "# at most 1); nothing emits: the scene's sky and sun light the court.\n"
+           "\n"
+           "newmtl floor\n"
+           "Kd 0.55 0.5 0.45\n"
+           "Ks 0 0 0\n"
+           "map_Kd floor.png\n"
+           "\n"
+           "newmtl stone\n"
+           "Kd 0.7 0.65 0.55\n"
+           "Ks 0 0 0\n"
+           "map_Kd stone.png\n"
+           "\n"
+           "newmtl drape\n"
+           "Kd 0.6 0.1 0.1\n"
+           "Ks 0 0 0\n");
+}
+
+/*
+ * Every vertex gets three texture coordinates, its projections along x, y
+ * and z (vt 3 i + 1, 3 i + 2, 3 i + 3 for vertex i + 1); a face uses the one
+ * of the axis its normal is closest to, so walls, floors and ceilings all
+ * see the texture undistorted at TEX_SCALE metres per repeat.
+ */
+static void write_sky_obj(writer *w)
+{
+    size_t nt = 0;
+    for (size_t i = 0; i < mesh.nt; i++)
+        nt += mesh.t[i].group != G_SKY;
+    out(w,
+        "# atrium-sky.obj -- the atrium open to the sky, textured, written by " PROG "\n"
+        "#\n"
+        "# atrium.obj without its emissive sky quad, with texture coordinates.\n"
+        "# Units: metres.  y is up, the floor is at y = 0.\n"
+        "# %zu vertices, %zu triangles.\n"
+        "\n"
+        "mtllib atrium-sky.mtl\n"
+        "\n",
+        mesh.nv, nt);
+    for (size_t i = 0; i < mesh.nv; i++)
+        out(w, "v %.6f %.6f %.6f\n", clean(mesh.v[i].x), clean(mesh.v[i].y), clean(mesh.v[i].z));
+    for (size_t i = 0; i < mesh.nv; i++) {
+        vec3 p = mesh.v[i];
+        out(w, "vt %.6f %.6f\nvt %.6f %.6f\nvt %.6f %.6f\n", clean(p.z / TEX_SCALE), clean(p.y / TEX_SCALE),
+            clean(p.x / TEX_SCALE), clean(p.z / TEX_SCALE), clean(p.x / TEX_SCALE), clean(p.y / TEX_SCALE));
+    }
+    for (int g = 0; g < G_COUNT; g++) {
+        if (g == G_SKY)
+            continue;
+        out(w, "\ng %s\nusemtl %s\n", GROUPS[g].name, GROUPS[g].material);
+        for (size_t i = 0; i < mesh.nt; i++)
+            if (mesh.t[i].group == g) {
+                const triangle *t = &mesh.t[i];
+                size_t k = (size_t)tri_axis(t) + 1;
+                out(w, "f %zu/%zu %zu/%zu %zu/%zu\n", t->a + 1, 3 * t->a + k, t->b + 1, 3 * t->b + k, t->c + 1,
+                    3 * t->c + k);
+            }
+    }
+}
+
+/* A hash of (a, b, c) in [0, 1): the variation of a block or a pixel. */
+static double hash01(uint32_t a, uint32_t b, uint32_t c)
+{
+    uint32_t h = a * 0x9e3779b1u ^ (b + 0x7f4a7c15u) * 0x85ebca77u ^ (c + 0x165667b1u) * 0xc2b2ae3du;
+    h ^= h >> 15;
+    h *= 0x2c1b3c6du;
+    h ^= h >> 12;
+    h *= 0x297a2d39u;
+    h ^= h >> 15;
+    return (h >> 8) / 16777216.0;
+}
+
+/* Linear reflectance scale in [0, 1] to an 8-bit sRGB code (the loader decodes sRGB). */
+static unsigned char srgb8(double v)
+{
+    v = v < 0.0 ? 0.0 : v > 1.0 ? 1.0 : v;
+    double e = v <= 0.0031308 ? 12.92 * v : 1.055 * pow(v, 1.0 / 2.4) - 0.055;
+    return (unsigned char)lround(255.0 * e);
+}
+
+/*
+ * stone.png: ashlar, 4 courses of 0.5 m per repeat, blocks 1 m long, every
+ * other course shifted by half a block; mortar joints 3 px; each block a
+ * little lighter or darker and warmer or cooler, with a fine grain.
+ * floor.png: square flags of 0.5 m in two tones, joints 2 px, a fine grain.
+ * Both repeat seamlessly.  Values are scales of the material's Kd.
+ */
+static void texel(int floor, int x, int y, double rgb[3])
+{
+    double grain = 0.06 * (hash01((uint32_t)x, (uint32_t)y, floor ? 7u : 3u) - 0.5);
+    if (floor) {
+        int tx = x / 64, ty = y / 64, jx = x % 64, jy = y % 64;
+        int joint = jx < 2 || jy < 2;
+        double tone = (tx + ty) % 2 ? 0.95 : 0.62;
+        tone += 0.08 * (hash01((uint32_t)tx, (uint32_t)ty, 11u) - 0.5);
+        double v = joint ? 0.35 : tone + grain;
+        rgb[0] = v, rgb[1] = v * 0.97, rgb[2] = v * 0.93;
+        return;
+    }
+    int course = y / 64, shift = course % 2 ? 64 : 0;
+    int bx = ((x + shift) % TEX_SIZE) / 128, jx = (x + shift) % 128, jy = y % 64;
+    int joint = jx < 3 || jy < 3;
+    double h1 = hash01((uint32_t)bx, (uint32_t)course, 5u), h2 = hash01((uint32_t)bx, (uint32_t)course, 9u);
+    double v = joint ? 0.45 : 0.86 + 0.14 * (h1 - 0.5) + grain;
+    double warm = 0.06 * (h2 - 0.5);
+    rgb[0] = v * (1.0 + warm), rgb[1] = v, rgb[2] = v * (1.0 - warm);
+}
+
+/* Writes texture `floor` (0 stone, 1 floor) as an 8-bit RGB PNG; 0 on success. */
+static int write_png(const char *path, int floor)
+{
+    static unsigned char rows[TEX_SIZE][3 * TEX_SIZE];
+    for (int y = 0; y < TEX_SIZE; y++)
+        for (int x = 0; x < TEX_SIZE; x++) {
+            double c[3];
+            texel(floor, x, y, c);
+            for (int k = 0; k < 3; k++)
+                rows[y][3 * x + k] = srgb8(c[k]);
+        }
+    errno = 0;
+    FILE *fp = fopen(path, "wb");
+    if (!fp) {
+        report("cannot create", path, errno ? errno : EIO);
+        return -1;
+    }
+    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, NULL, NULL);
+    png_infop info = png ? png_create_info_struct(png) : NULL;
+    if (!png || !info || setjmp(png_jmpbuf(png))) {
+        png_destroy_write_struct(&png, &info);
+        fclose(fp);
+        report("cannot write", path, EIO);
+        remove(path);
+        return -1;
+    }
+    png_init_io(png, fp);
+    png_set_IHDR(png, info, TEX_SIZE, TEX_SIZE, 8, PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT,
+                 PNG_FILTER_TYPE_DEFAULT);
+    png_write_info(png, info);
+    for (int y = 0; y < TEX_SIZE; y++)
+        png_write_row(png, rows[y]);
+    png_write_end(png, NULL);
+    png_destroy_write_struct(&png, &info);
+    if (fclose(fp) != 0) {
+        report("cannot write", path, errno ? errno : EIO);
+        remove(path);
+        return -1;
+    }
+    return 0;
+}
+
 static void report(const char *what, const char *path, int err)
 {
     fprintf(stderr, PROG ": %s '%s': %s\n", what, path, strerror(err));
@@ -847,7 +1030,8 @@ static void usage(FILE *fp)
 {
     fprintf(fp, "usage: " PROG " [-o DIR]\n"
                 "Generate a Sponza-like atrium (units: metres, y up) and write it as\n"
-                "DIR/atrium.obj and DIR/atrium.mtl (DIR defaults to \".\").\n"
+                "DIR/atrium.obj and DIR/atrium.mtl (DIR defaults to \".\"), and its sky-lit,\n"
+                "textured variant as DIR/atrium-sky.obj, atrium-sky.mtl, stone.png and floor.png.\n"
                 "\n"
                 "  -o DIR   write the files into DIR, which must exist\n"
                 "  --help   show this help and exit\n");
@@ -903,6 +1087,29 @@ int main(int argc, char **argv)
         return 1;
     }
     fprintf(stderr, PROG ": wrote %zu triangles to '%s'\n", mesh.nt, obj);
+
+    /* The sky-lit, textured variant: each file to a temporary name, then renamed. */
+    {
+        static const char *const names[4] = {"atrium-sky.mtl", "atrium-sky.obj", "stone.png", "floor.png"};
+        for (int i = 0; i < 4; i++) {
+            char tmpname[64];
+            snprintf(tmpname, sizeof tmpname, ".%s.tmp", names[i]);
+            char *dst = join(dir, names[i]), *tmp = join(dir, tmpname);
+            int bad = i == 0   ? write_file(tmp, write_sky_mtl)
+                      : i == 1 ? write_file(tmp, write_sky_obj)
+                               : write_png(tmp, i == 3);
+            errno = 0;
+            if (!bad && rename(tmp, dst) != 0) {
+                report("cannot rename to", dst, errno ? errno : EIO);
+                remove(tmp);
+                bad = 1;
+            }
+            free(dst);
+            free(tmp);
+            if (bad)
+                return 1;
+        }
+    }
 
     free(obj);
     free(mtl);

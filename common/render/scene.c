@@ -2020,6 +2020,19 @@ void pm_scene_unsupported_text(const pm_scene_unsupported_t *u, char *out, size_
     snprintf(out, cap, u->is_file ? "%s '%s'" : "%s %s", u->key, u->value);
 }
 
+void pm_scene_warn_flipped(const pm_scene_t *s, const pm_stage_t *st)
+{
+    uint32_t ft;
+    size_t nf = pm_scene_flipped_emitters(s, &ft);
+    if (nf)
+        pm_stage_note(st,
+                      "warning: %zu emissive triangle%s face%s away from the whole scene (first: triangle %" PRIu32
+                      ", material '%s'): %s light reaches nothing but leaks out as fireflies; reverse the winding "
+                      "in the mesh file",
+                      nf, nf == 1 ? "" : "s", nf == 1 ? "s" : "", ft, s->materials[s->tri_material[ft]].name,
+                      nf == 1 ? "its" : "their");
+}
+
 void pm_scene_warn_unsupported(const pm_scene_t *s, const pm_stage_t *st)
 {
     for (size_t i = 0; i < s->nunsupported; i++) {

@@ -167,6 +167,11 @@ void pm_scene_free(pm_scene_t *s);
  * stage that loads a scene calls it once after pm_scene_load. */
 void pm_scene_warn_unsupported(const pm_scene_t *s, const pm_stage_t *st);
 
+/* Warns once on stderr through pm_stage_note (nothing under --quiet) when emissive triangles
+ * face away from the whole scene (pm_scene_flipped_emitters): their light leaks out as
+ * fireflies. scene-info and trace-photons call it after pm_scene_load. */
+void pm_scene_warn_flipped(const pm_scene_t *s, const pm_stage_t *st);
+
 /* "map_Kd 'tex.png'" or "illum 7": one unsupported property as the warnings and scene-info
  * print it. */
 void pm_scene_unsupported_text(const pm_scene_unsupported_t *u, char *out, size_t cap);

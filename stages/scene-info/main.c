@@ -33,17 +33,7 @@ static pm_result_t run(pm_stage_t *st, const scene_info_options_t *o)
         return r;
     double t_load = pm_time_wall() - t0;
     pm_scene_warn_unsupported(&s, st);
-    {
-        uint32_t ft;
-        size_t nf = pm_scene_flipped_emitters(&s, &ft);
-        if (nf)
-            pm_stage_note(st,
-                          "warning: %zu emissive triangle%s face%s away from the whole scene (first: triangle %" PRIu32
-                          ", material '%s'): %s light reaches nothing but leaks out as fireflies; reverse the "
-                          "winding in the mesh file",
-                          nf, nf == 1 ? "" : "s", nf == 1 ? "s" : "", ft, s.materials[s.tri_material[ft]].name,
-                          nf == 1 ? "its" : "their");
-    }
+    pm_scene_warn_flipped(&s, st);
     t0 = pm_time_wall();
     r = pm_rt_create(&s, 0, st->threads_used, &rt);
     double t_bvh = pm_time_wall() - t0;

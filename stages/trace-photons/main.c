@@ -78,17 +78,7 @@ static pm_result_t run(pm_stage_t *st, const trace_options_t *o)
         pm_scene_free(&s);
         return r;
     }
-    {
-        uint32_t ft;
-        size_t nf = pm_scene_flipped_emitters(&s, &ft);
-        if (nf)
-            pm_stage_note(st,
-                          "warning: %zu emissive triangle%s face%s away from the whole scene (first: triangle %" PRIu32
-                          ", material '%s'): %s light reaches nothing but leaks out as fireflies; reverse the "
-                          "winding in the mesh file",
-                          nf, nf == 1 ? "" : "s", nf == 1 ? "s" : "", ft, s.materials[s.tri_material[ft]].name,
-                          nf == 1 ? "its" : "their");
-    }
+    pm_scene_warn_flipped(&s, st);
     r = pm_rt_create(&s, 1, st->threads_used, &rt);
     if (r != PM_OK) {
         pm_scene_free(&s);

@@ -517,6 +517,42 @@ static pm_result_t load_specular(const char *mesh, int is_obj, const struct aiMa
     return PM_OK;
 }
 
+/* A material name as pmtk keeps it: spaces and control characters become '_', since names
+ * travel as one word in file headers (load_material, and the .mtl scans that match names). */
+static void material_word(char *name)
+{
+    for (char *p = name; *p; p++)
+        if (*p == ' ' || (unsigned char)*p < 0x20 || *p == 0x7f)
+            *p = '_';
+}
+
+/* The next library of libs (mtllib names, one a line, as check_obj_materials lists them) that
+ * opens, resolved against the OBJ's path into path; NULL when none is left. *lib moves past
+ * it. A file that cannot be opened is left to assimp, which has said so already. */
+static FILE *next_mtl(const char *obj, const char **lib, char *path, size_t cap)
+{
+    while (**lib) {
+        const char *eol = strchr(*lib, '\n');
+        char name[1024];
+        snprintf(name, sizeof name, "%.*s", (int)(eol - *lib), *lib);
+        *lib = eol + 1;
+        resolve(obj, name, path, cap);
+        FILE *f = fopen(path, "rb");
+        if (f)
+            return f;
+    }
+    return NULL;
+}
+
+/* One line of an .mtl without its line end and trailing spaces; -1 at the end of f. */
+static ssize_t mtl_getline(char **line, size_t *cap, FILE *f)
+{
+    ssize_t len = getline(line, cap, f);
+    while (len > 0 && ((*line)[len - 1] == '\n' || (*line)[len - 1] == '\r' || (*line)[len - 1] == ' '))
+        (*line)[--len] = '\0';
+    return len;
+}
+
 /* Reads one material's reflectance from assimp and checks it is physical. */
 static pm_result_t load_material(const ctx_t *c, const char *mesh, int is_obj, const struct aiMaterial *am,
                                  pm_material_t *m)
@@ -527,10 +563,7 @@ static pm_result_t load_material(const ctx_t *c, const char *mesh, int is_obj, c
     memset(m, 0, sizeof *m);
     if (aiGetMaterialString(am, AI_MATKEY_NAME, &name) == aiReturn_SUCCESS)
         snprintf(m->name, sizeof m->name, "%s", name.data);
-    /* Names travel as one word in file headers. */
-    for (char *p = m->name; *p; p++)
-        if (*p == ' ' || (unsigned char)*p < 0x20 || *p == 0x7f)
-            *p = '_';
+    material_word(m->name);
     aiGetMaterialColor(am, AI_MATKEY_COLOR_DIFFUSE, &kd);
     aiGetMaterialColor(am, AI_MATKEY_COLOR_SPECULAR, &ks);
     aiGetMaterialColor(am, AI_MATKEY_COLOR_EMISSIVE, &ke);
@@ -941,31 +974,20 @@ static int unused_colour(const pm_material_t *m, const char *word, const char *r
 static pm_result_t scan_mtl_dropped(pm_scene_t *s, const char *obj, const char *libs, size_t mat0, size_t n)
 {
     pm_result_t r = PM_OK;
-    for (const char *lib = libs; r == PM_OK && *lib;) {
-        const char *eol = strchr(lib, '\n');
-        char name[1024], path[1200];
-        snprintf(name, sizeof name, "%.*s", (int)(eol - lib), lib);
-        lib = eol + 1;
-        resolve(obj, name, path, sizeof path);
-        FILE *f = fopen(path, "rb");
-        if (!f)
-            continue;
+    char path[1200];
+    const char *lib = libs;
+    for (FILE *f; r == PM_OK && (f = next_mtl(obj, &lib, path, sizeof path));) {
         char *line = NULL, word[64];
         size_t cap = 0;
         uint32_t current = UINT32_MAX; /* the material the lines belong to, none before newmtl */
-        for (ssize_t len; r == PM_OK && (len = getline(&line, &cap, f)) >= 0;) {
-            while (len > 0 && (line[len - 1] == '\n' || line[len - 1] == '\r' || line[len - 1] == ' '))
-                line[--len] = '\0';
+        while (r == PM_OK && mtl_getline(&line, &cap, f) >= 0) {
             const char *rest = obj_word(line, word, sizeof word);
             if (!word[0] || word[0] == '#')
                 continue;
             if (strcmp(word, "newmtl") == 0) {
-                /* named as load_material names it: spaces and control characters become '_' */
-                char mname[sizeof s->materials[0].name];
+                char mname[sizeof s->materials[0].name]; /* named as load_material names it */
                 snprintf(mname, sizeof mname, "%s", rest);
-                for (char *q = mname; *q; q++)
-                    if (*q == ' ' || (unsigned char)*q < 0x20 || *q == 0x7f)
-                        *q = '_';
+                material_word(mname);
                 current = UINT32_MAX;
                 for (size_t m = mat0; m < mat0 + n && current == UINT32_MAX; m++)
                     if (strcmp(s->materials[m].name, mname) == 0)
@@ -994,29 +1016,19 @@ static pm_result_t scan_mtl_dropped(pm_scene_t *s, const char *obj, const char *
 static void texture_base(const char *mesh, int is_obj, const char *libs, const char *name, char *out, size_t cap)
 {
     snprintf(out, cap, "%s", mesh);
-    for (const char *lib = libs; is_obj && *lib;) {
-        const char *eol = strchr(lib, '\n');
-        char lname[1024], lpath[1200];
-        snprintf(lname, sizeof lname, "%.*s", (int)(eol - lib), lib);
-        lib = eol + 1;
-        resolve(mesh, lname, lpath, sizeof lpath);
-        FILE *f = fopen(lpath, "rb");
-        if (!f)
-            continue;
+    char lpath[1200];
+    const char *lib = libs;
+    for (FILE *f; is_obj && (f = next_mtl(mesh, &lib, lpath, sizeof lpath));) {
         char *line = NULL, word[16];
         size_t lcap = 0;
         int found = 0;
-        for (ssize_t len; !found && (len = getline(&line, &lcap, f)) >= 0;) {
-            while (len > 0 && (line[len - 1] == '\n' || line[len - 1] == '\r' || line[len - 1] == ' '))
-                line[--len] = '\0';
+        while (!found && mtl_getline(&line, &lcap, f) >= 0) {
             const char *rest = obj_word(line, word, sizeof word);
             if (strcmp(word, "newmtl") != 0)
                 continue;
             char mname[64];
             snprintf(mname, sizeof mname, "%s", rest);
-            for (char *q = mname; *q; q++)
-                if (*q == ' ' || (unsigned char)*q < 0x20 || *q == 0x7f)
-                    *q = '_';
+            material_word(mname);
             found = strcmp(mname, name) == 0;
         }
         free(line);

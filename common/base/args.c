@@ -145,13 +145,15 @@ static pm_result_t set_value(const pm_option_t *o, const char *v)
     return pm_error_set(PM_ERR_INTERNAL, "option --%s has an unknown kind", o->name);
 }
 
-/* Growable vector of words: the argv after @file expansion. */
+/* Growable vector of words: the argv after @file expansion. from (the expanded argv alone)
+ * says where each word came from: its index in argv, or -1 for a word read from an @file. */
 typedef struct {
     char **v;
+    int *from;
     size_t n, cap;
 } words_t;
 
-static pm_result_t words_push(words_t *w, char *s)
+static pm_result_t words_push_from(words_t *w, char *s, int from)
 {
     if (w->n == w->cap) {
         size_t cap = w->cap ? 2 * w->cap : 16;
@@ -159,11 +161,18 @@ static pm_result_t words_push(words_t *w, char *s)
         if (!v)
             return pm_error_set(PM_ERR_NOMEM, "out of memory expanding arguments");
         w->v = v;
+        int *f = realloc(w->from, cap * sizeof *f);
+        if (!f)
+            return pm_error_set(PM_ERR_NOMEM, "out of memory expanding arguments");
+        w->from = f;
         w->cap = cap;
     }
+    w->from[w->n] = from;
     w->v[w->n++] = s;
     return PM_OK;
 }
+
+static pm_result_t words_push(words_t *w, char *s) { return words_push_from(w, s, -1); }
 
 /* Splits an options file into words: blanks separate words, # starts a comment, '...'
  * quotes literally, a backslash escapes the next character (so '\'' is a quote). */
@@ -241,20 +250,32 @@ static pm_result_t splice_file(words_t *w, size_t i, words_t *owned)
     if (r == PM_OK && file.n != 1) {
         size_t n = w->n - 1 + file.n;
         char **v = malloc((n ? n : 1) * sizeof *v);
-        if (!v) {
+        int *from = malloc((n ? n : 1) * sizeof *from);
+        if (!v || !from) {
+            free(v);
+            free(from);
             free(file.v);
+            free(file.from);
             return pm_error_set(PM_ERR_NOMEM, "out of memory expanding arguments");
         }
         memcpy(v, w->v, i * sizeof *v);
         memcpy(v + i, file.v, file.n * sizeof *v);
         memcpy(v + i + file.n, w->v + i + 1, (w->n - i - 1) * sizeof *v);
+        memcpy(from, w->from, i * sizeof *from);
+        for (size_t k = 0; k < file.n; k++)
+            from[i + k] = -1;
+        memcpy(from + i + file.n, w->from + i + 1, (w->n - i - 1) * sizeof *from);
         free(w->v);
+        free(w->from);
         w->v = v;
+        w->from = from;
         w->n = w->cap = n;
     } else if (r == PM_OK) {
         w->v[i] = file.v[0];
+        w->from[i] = -1;
     }
     free(file.v);
+    free(file.from);
     return r;
 }
 
@@ -266,6 +287,8 @@ void pm_args_free(pm_args_t *a)
     free(a->argv);
     free(a->args);
     free(a->given);
+    free(a->argv_option);
+    free(a->recorded);
     memset(a, 0, sizeof *a);
 }
 
@@ -288,8 +311,13 @@ pm_result_t pm_args_parse(const pm_cli_t *cli, int argc, char **argv, pm_args_t 
     out->options = cli->options;
     if (!(out->given = calloc(nopt ? nopt : 1, 1)))
         r = pm_error_set(PM_ERR_NOMEM, "out of memory for %zu options", nopt);
+    if (r == PM_OK && !(out->argv_option = malloc((argc > 0 ? (size_t)argc : 1) * sizeof *out->argv_option)))
+        r = pm_error_set(PM_ERR_NOMEM, "out of memory for %d arguments", argc);
+    for (int i = 0; i < argc && r == PM_OK; i++)
+        out->argv_option[i] = -1;
+    out->argc = argc;
     for (int i = 1; i < argc && r == PM_OK; i++)
-        r = words_push(&w, argv[i]);
+        r = words_push_from(&w, argv[i], i);
     int only_positional = 0, expansions = 0;
     for (size_t i = 0; r == PM_OK && i < w.n; i++) {
         /* @FILE expands where an option or argument may stand: not after "--", not as an
@@ -341,6 +369,9 @@ pm_result_t pm_args_parse(const pm_cli_t *cli, int argc, char **argv, pm_args_t 
             if (a[2])
                 value = a + 2;
         }
+        int oi = (int)(o - cli->options);
+        if (w.from[i] >= 0)
+            out->argv_option[w.from[i]] = oi;
         if (o->kind != PM_OPT_FLAG && !value) {
             if (i + 1 >= w.n) {
                 r = pm_error_set(PM_ERR_USAGE, "option --%s needs a value (%s)", o->name,
@@ -348,16 +379,42 @@ pm_result_t pm_args_parse(const pm_cli_t *cli, int argc, char **argv, pm_args_t 
                 break;
             }
             value = w.v[++i];
+            if (w.from[i] >= 0)
+                out->argv_option[w.from[i]] = oi;
         }
         if ((r = set_value(o, value)) == PM_OK)
             out->given[o - cli->options] = 1;
     }
     out->argv = w.v;
+    free(w.from);
+    free(owned.from);
+    free(pos.from);
     out->owned = owned.v;
     out->nowned = owned.n;
     out->args = pos.v;
     out->nargs = (int)pos.n;
     return r;
+}
+
+pm_result_t pm_args_record(pm_args_t *a, char **argv, const void *const *dests, size_t ndests, int *argc_out,
+                           char ***argv_out)
+{
+    free(a->recorded);
+    a->recorded = malloc((a->argc > 0 ? (size_t)a->argc : 1) * sizeof *a->recorded);
+    if (!a->recorded)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory recording %d arguments", a->argc);
+    int n = 0;
+    for (int i = 0; i < a->argc; i++) {
+        int skip = 0;
+        int oi = a->argv_option ? a->argv_option[i] : -1;
+        for (size_t k = 0; oi >= 0 && k < ndests && !skip; k++)
+            skip = a->options[oi].dest == dests[k];
+        if (!skip)
+            a->recorded[n++] = argv[i];
+    }
+    *argc_out = n;
+    *argv_out = a->recorded;
+    return PM_OK;
 }
 
 /* A word as an options file reads it back: quoted when it holds a blank, a quote, a

@@ -52,6 +52,9 @@ typedef struct {
     char **argv;                /* the expanded argument vector */
     const pm_option_t *options; /* the table parsed */
     unsigned char *given;       /* per option of the table: 1 when the words (argv or an @file) set it */
+    int argc;                   /* the words of the argv parsed */
+    int *argv_option;           /* per word of that argv: the option it names or gives the value of, -1 none */
+    char **recorded;            /* pm_args_record's words */
 } pm_args_t;
 
 /* Parses argv[1..] into the table's destinations and the positional arguments.
@@ -65,6 +68,14 @@ void pm_args_free(pm_args_t *a);
  * scene's render block, an input's header) applies only when it was not: the command line
  * wins. 0 for a name the table does not have. */
 int pm_args_given(const pm_args_t *a, const char *name);
+
+/* The words of argv (the vector a parsed) without those of the options whose destination is
+ * one of dests: the command line an output records, left without options that change no
+ * output (--threads), so that a file does not depend on the machine that made it. An option
+ * given inside an @FILE is not in argv and stays as the @FILE word. The array points into
+ * argv and lives until pm_args_free. */
+pm_result_t pm_args_record(pm_args_t *a, char **argv, const void *const *dests, size_t ndests, int *argc_out,
+                           char ***argv_out);
 
 /* Usage: synopsis, summary and every option with its help and current (default) value. */
 void pm_args_usage(const pm_cli_t *cli, FILE *f);

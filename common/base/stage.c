@@ -107,6 +107,13 @@ int pm_stage_begin(pm_stage_t *st, const pm_cli_t *cli, int argc, char **argv)
         return 0;
     }
     st->threads_used = pm_threads_use(st->threads);
+    /* What the outputs record as their command line: without --threads, which changes no
+     * output (threads.h), so that a file is the same bytes whatever the machine's cores or a
+     * cluster's CPUs per task (docs/cli.md). */
+    const void *unrecorded[] = {&st->threads};
+    if (pm_args_record(&st->args, argv, unrecorded, sizeof unrecorded / sizeof *unrecorded, &st->argc, &st->argv) !=
+        PM_OK)
+        return begin_fail(st, PM_ERR_NOMEM, 0);
     int n = st->args.nargs;
     if (n < cli->min_args || (cli->max_args >= 0 && n > cli->max_args)) {
         if (cli->min_args == cli->max_args)

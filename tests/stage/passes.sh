@@ -248,3 +248,19 @@ printf '\001' | dd of="$I/running.pm" bs=1 seek=$((sz - 100)) conv=notrunc statu
 "$R" "$CORNELL" "$O" $SMALL TARGET_ERROR=10 PASSES=5 >"$TMP/e.out" 2>&1 && [ "$(hdr "$O/running.pm" passes)" = 2 ] &&
     grep -q "stopped by TARGET_ERROR=10" "$TMP/e.out" &&
     pass "TARGET_ERROR=10: stops after pass 2, the first with an error estimate" || fail "TARGET_ERROR" "$(tail -4 "$TMP/e.out")"
+
+# ---- THREADS changes no byte: every file a pass makes, the running image, its list and the
+# images are the same for THREADS=1 and THREADS=2 (the stages record no --threads), here with
+# the gather in shards, as pipelines/slurm runs them on nodes of any size
+for t in 1 2; do
+    "$R" "$CORNELL" "$TMP/th$t" $SMALL PASSES=2 SHARDS=2 THREADS=$t >"$TMP/th$t.out" 2>&1 ||
+        fail "THREADS=$t render" "$(tail -3 "$TMP/th$t.out")"
+done
+files=$(cd "$TMP/th1" && ls pass-000?/*.pm running.pm passes.txt image.exr image.png 2>/dev/null)
+bad=""
+for f in $files; do cmp -s "$TMP/th1/$f" "$TMP/th2/$f" || bad+=" $f"; done
+if [ -z "$bad" ] && [ "$(wc -w <<<"$files")" -ge 12 ] && [ -e "$TMP/th1/pass-0002/indirect.1.pm" ]; then
+    pass "THREADS=1 and THREADS=2 (SHARDS=2): $(wc -w <<<"$files") files, byte for byte the same"
+else
+    fail "THREADS=1 against 2" "differ:${bad:- none, but only $(wc -w <<<"$files") files}"
+fi

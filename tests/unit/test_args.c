@@ -109,6 +109,36 @@ static void test_args_atfile(void **state)
     pm_args_free(&a);
 }
 
+/* pm_args_record leaves out exactly the words of the options named, by where they stand (the
+ * same text as another option's value stays), and keeps an @FILE word whole. */
+static void test_args_record(void **state)
+{
+    char path[256], at[260];
+    snprintf(path, sizeof path, "%s/rec", unit_tmpdir());
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs("--count 9\n", f);
+    fclose(f);
+    snprintf(at, sizeof at, "@%s", path);
+    opts_t o = {0};
+    pm_args_t a;
+    char *argv[] = {"t", "--count", "5", "pos", "--count=6", "-n", "7", "-n8", "--radius", "5", at, "--", "--count"};
+    assert_int_equal(parse(&o, &a, 13, argv), PM_OK);
+    assert_int_equal(o.n, 9);
+    const void *skip[] = {&o.n};
+    int rc = 0;
+    char **rv = NULL;
+    assert_int_equal(pm_args_record(&a, argv, skip, 1, &rc, &rv), PM_OK);
+    const char *want[] = {"t", "pos", "--radius", "5", at, "--", "--count"};
+    assert_int_equal(rc, 7);
+    for (int i = 0; i < rc; i++)
+        assert_string_equal(rv[i], want[i]);
+    assert_ptr_equal(rv[3], argv[9]); /* the radius's "5", not the count's */
+    assert_int_equal(pm_args_record(&a, argv, skip, 0, &rc, &rv), PM_OK);
+    assert_int_equal(rc, 13);
+    pm_args_free(&a);
+}
+
 static void test_args_settings_round_trip(void **state)
 {
     opts_t o = {0};
@@ -156,10 +186,8 @@ static void test_args_range(void **state)
 }
 
 static const struct CMUnitTest tests[] = {
-    cmocka_unit_test(test_args_types),
-    cmocka_unit_test(test_args_errors),
-    cmocka_unit_test(test_args_atfile),
-    cmocka_unit_test(test_args_range),
-    cmocka_unit_test(test_args_settings_round_trip),
+    cmocka_unit_test(test_args_types),  cmocka_unit_test(test_args_errors),
+    cmocka_unit_test(test_args_atfile), cmocka_unit_test(test_args_range),
+    cmocka_unit_test(test_args_record), cmocka_unit_test(test_args_settings_round_trip),
 };
 UNIT_GROUP(unit_args, "args", tests);

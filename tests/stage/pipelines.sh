@@ -196,3 +196,33 @@ else
     grep -q 'hilbert-sort: command not found' "$TMP/exp.out" && pass "examples.sh: a missing program stops it with a failure" ||
         fail "examples.sh without hilbert-sort" "$(tail -3 "$TMP/exp.out")"
 fi
+
+# ---- KEEP: after a render that succeeded, OUTDIR holds what was asked for and nothing else
+# render made; the image is the one KEEP=all makes; a file of the user's in OUTDIR stays
+keep_ls() { (cd "$1" && find . -mindepth 1 ! -name .lock | sed 's|^\./||' | sort | tr '\n' ' ' | sed 's/ $//'); }
+"$R" "$CORNELL" "$TMP/ka" $SMALL >/dev/null 2>&1 && "$R" "$CORNELL" "$TMP/kpa" $SMALL PASSES=2 >/dev/null 2>&1 ||
+    fail "KEEP=all renders" "a render failed"
+for k in image buffers; do
+    mkdir -p "$TMP/k$k" "$TMP/kp$k" && echo mine >"$TMP/k$k/notes.txt" && echo mine >"$TMP/kp$k/notes.txt"
+    "$R" "$CORNELL" "$TMP/k$k" $SMALL KEEP=$k >"$TMP/k$k.out" 2>&1 || fail "KEEP=$k" "$(tail -2 "$TMP/k$k.out")"
+    "$R" "$CORNELL" "$TMP/kp$k" $SMALL PASSES=2 KEEP=$k >"$TMP/kp$k.out" 2>&1 || fail "KEEP=$k PASSES=2" "$(tail -2 "$TMP/kp$k.out")"
+done
+want_s="image.exr image.png notes.txt stats.json"
+want_b="direct.pm image.exr image.png indirect.pm notes.txt stats.json"
+want_pb="image.exr image.png notes.txt pass-0001 pass-0001/direct.pm pass-0001/indirect.pm pass-0002 pass-0002/direct.pm pass-0002/indirect.pm passes.txt running.pm stats.json"
+if [ "$(keep_ls "$TMP/kimage")" = "$want_s" ] && [ "$(keep_ls "$TMP/kpimage")" = "$want_s" ] &&
+    [ "$(keep_ls "$TMP/kbuffers")" = "$want_b" ] && [ "$(keep_ls "$TMP/kpbuffers")" = "$want_pb" ]; then
+    pass "KEEP=image and KEEP=buffers keep exactly their files (single render and passes), and the user's"
+else
+    fail "KEEP contents" "image '$(keep_ls "$TMP/kimage")' / '$(keep_ls "$TMP/kpimage")'; buffers '$(keep_ls "$TMP/kbuffers")' / '$(keep_ls "$TMP/kpbuffers")'"
+fi
+bad=""
+for d in kimage kbuffers; do cmp -s "$TMP/$d/image.exr" "$TMP/ka/image.exr" || bad+=" $d"; done
+for d in kpimage kpbuffers; do cmp -s "$TMP/$d/image.exr" "$TMP/kpa/image.exr" || bad+=" $d"; done
+cmp -s "$TMP/kpbuffers/running.pm" "$TMP/kpa/running.pm" && cmp -s "$TMP/kbuffers/indirect.pm" "$TMP/ka/indirect.pm" || bad+=" buffers"
+[ -z "$bad" ] && pass "KEEP: the images (and kept buffers) are KEEP=all's, byte for byte" || fail "KEEP images" "differ:$bad"
+"$R" "$CORNELL" "$TMP/kimage" $SMALL >"$TMP/kr.out" 2>&1 && [ -s "$TMP/kimage/photonmap.pm" ] &&
+    cmp -s "$TMP/kimage/image.exr" "$TMP/ka/image.exr" && pass "after KEEP=image, a render with KEEP=all makes it all again" ||
+    fail "rerun after KEEP=image" "$(tail -2 "$TMP/kr.out")"
+expect_exit "KEEP=everything is refused" 2 "$R" "$CORNELL" "$TMP/kx" KEEP=everything
+expect_exit "KEEP=image with a TARGET is refused" 2 "$R" "$CORNELL" "$TMP/kx" KEEP=image photonmap.pm

@@ -4,7 +4,9 @@
 # A small progressive render through the cluster against the same passes by pipelines/render
 # (byte for byte), a task killed with scancel while it runs, a task that fails once and one
 # that keeps failing, two renders into two OUTDIRs at once, the cache (nothing resubmitted,
-# then only the new passes), and the bad input refused before anything is submitted.
+# then only the new passes), the gather in shard tasks (one killed, one missing shard alone
+# resubmitted), the same bytes for any CPUS and THREADS, TARGET_ERROR and TIME in waves,
+# KEEP=image, and the bad input refused before anything is submitted.
 # The last line is "slurm: N passed, N failed"; the exit status is 1 when any check failed.
 set -u
 cd "$(dirname "$0")/../.."
@@ -135,6 +137,101 @@ fi
 sleep 1
 queue_empty && pass "nothing of the stopped render left in the queue" || fail "queue after a stop" "$(squeue -h)"
 
+# ---- the gather of a pass in shards, as array tasks after the pass's map and sorted queries:
+# a shard task killed while it runs is resubmitted; every file of every pass is the local
+# render's, byte for byte; a shard already landed is not submitted again ----
+PS=("${PR[@]/PASSES=8/PASSES=4}" SHARDS=3)
+all_same() { # all_same NAME DIR REFDIR: every file of every pass, and the images, byte for byte
+    local f bad="" n=0
+    for f in $(cd "$3" && ls pass-*/*.pm running.pm passes.txt image.exr image.png); do
+        n=$((n + 1))
+        cmp -s "$2/$f" "$3/$f" || bad+=" $f"
+    done
+    if [ -z "$bad" ] && [ $n -gt 4 ]; then pass "$1 ($n files)"; else fail "$1" "differ:${bad:- none, but $n files}"; fi
+}
+pipelines/render "$SCENE" "$TMP/locals" "${PS[@]}" THREADS=1 >"$TMP/locals.log" 2>&1 || fail "local render SHARDS=3" "$(tail -n 3 "$TMP/locals.log")"
+pipelines/slurm "$SCENE" "$TMP/s" "${PS[@]}" "${SL[@]}" CPUS=2 THREADS=2 >"$TMP/s.log" 2>&1 &
+pid=$!
+killed=""
+for ((i = 0; i < 600; i++)); do # up to 60 s
+    j=$(squeue -h -r -n pm-shard -t RUNNING -o %i 2>/dev/null | head -n 1)
+    if [ -n "$j" ]; then scancel "$j" && killed=$j && break; fi
+    kill -0 $pid 2>/dev/null || break
+    sleep 0.1
+done
+wait $pid
+rc=$?
+if [ $rc = 0 ] && [ -n "$killed" ] && grep -q "shard task .* ended without its passes.*resubmitting" "$TMP/s.log" &&
+    grep -q "the gather in 3 shard tasks a pass" "$TMP/s.log" && [ "$(ls "$TMP/s/.slurm/logs" | grep -c '^shard-')" -ge 13 ]; then
+    pass "SHARDS=3: 3 shard tasks a pass; one killed while running ($killed) is resubmitted and the render finishes"
+else
+    fail "SHARDS=3 with a killed shard" "exit $rc, killed '${killed:-none}': $(tail -n 5 "$TMP/s.log")"
+fi
+all_same "SHARDS=3 through Slurm, CPUS=2 THREADS=2 = pipelines/render THREADS=1" "$TMP/s" "$TMP/locals"
+# pass 3 back to the stage with shard 1 missing, as if its task had been killed: only it goes again
+mv "$TMP/s/pass-0003" "$TMP/s/.slurm/stage/pass-0003" && rm "$TMP/s/.slurm/stage/pass-0003/indirect.1.pm" &&
+    mv "$TMP/s/.slurm/done/pass-0003" "$TMP/s/.slurm/done/prep-pass-0003"
+before=$(ls "$TMP/s/.slurm/logs" | grep -E '^(shard|task)-')
+pipelines/slurm "$SCENE" "$TMP/s" "${PS[@]}" "${SL[@]}" CPUS=2 THREADS=2 >"$TMP/s2.log" 2>&1
+rc=$?
+if [ $rc = 0 ] && grep -q "3 made before; submitted 1 task(s)" "$TMP/s2.log" &&
+    new=$(ls "$TMP/s/.slurm/logs" | grep -E '^(shard|task)-' | grep -vxF "$before") &&
+    [[ $new =~ ^shard-1\.1\.[0-9]+\.out$ ]] && [ -e "$TMP/s/pass-0003/indirect.1.pm" ]; then
+    pass "a pass's landed shards are not resubmitted: one shard task, for the missing shard"
+else
+    fail "landed shards kept" "exit $rc: $(head -n 1 "$TMP/s2.log"); new logs: $(echo $new)"
+fi
+all_same "after the one shard, the same files as pipelines/render's" "$TMP/s" "$TMP/locals"
+
+# ---- any number of CPUs a task, the same bytes: CPUS=1 (one thread a stage) against the
+# CPUS=2 THREADS=2 render above, every pass file included ----
+pipelines/slurm "$SCENE" "$TMP/s1" "${PS[@]}" "${SL[@]}" CPUS=1 >"$TMP/s1.log" 2>&1 || fail "CPUS=1 render" "$(tail -n 3 "$TMP/s1.log")"
+all_same "CPUS=1 and CPUS=2 THREADS=2 on the cluster: the same bytes" "$TMP/s1" "$TMP/s"
+
+# ---- TARGET_ERROR and TIME: passes in waves ----
+PT=("${PR[@]:0:5}") # PR without PASSES
+[ "${PT[*]}" = "WIDTH=48 HEIGHT=48 PHOTONS=20000 PRIMARY=4 SPP=4" ] || fail "test set-up" "PT is '${PT[*]}'"
+pipelines/render "$SCENE" "$TMP/locale" "${PT[@]}" PASSES=12 TARGET_ERROR=0.2 >"$TMP/locale.log" 2>&1
+pipelines/slurm "$SCENE" "$TMP/e" "${PT[@]}" PASSES=12 "${SL[@]}" TARGET_ERROR=0.2 >"$TMP/e.log" 2>&1
+rc=$?
+n=$(wc -l <"$TMP/locale/passes.txt")
+if [ $rc = 0 ] && grep -q "stopped by TARGET_ERROR=0.2" "$TMP/locale.log" && [ "$n" -ge 3 ] && [ "$n" -lt 12 ] &&
+    grep -q "stopped submitting (TARGET_ERROR=0.2 after pass $n)" "$TMP/e.log"; then
+    pass "TARGET_ERROR=0.2: the cluster stops after pass $n, where pipelines/render stops"
+else
+    fail "TARGET_ERROR on the cluster" "exit $rc, local $n passes: $(grep -v '^  ' "$TMP/e.log" | tail -n 3)"
+fi
+same_image "TARGET_ERROR: the image is pipelines/render's" "$TMP/e" "$TMP/locale"
+t0=$(date +%s)
+pipelines/slurm "$SCENE" "$TMP/t" "${PT[@]}" "${SL[@]}" TIME=6 >"$TMP/t.log" 2>&1
+rc=$?
+t1=$(date +%s)
+n=$(wc -l <"$TMP/t/passes.txt" 2>/dev/null)
+last=$(grep -o 'stopped submitting (TIME=6); composite of passes 1 to [0-9]*' "$TMP/t.log")
+pipelines/render "$SCENE" "$TMP/localt" "${PT[@]}" PASSES="${n:-2}" >/dev/null 2>&1
+# the passes' part: from the start to the line that says submitting stopped, at most the budget
+# and one wave's overrun (slurm prints the time on each line)
+spent=$(sed -n 's/^slurm: \([0-9.]*\) s: stopped submitting.*/\1/p' "$TMP/t.log")
+if [ $rc = 0 ] && [ -n "$last" ] && [ "${last##* }" = "$n" ] && [ "$n" -ge 3 ] &&
+    awk -v s="$spent" 'BEGIN { exit !(s > 3 && s < 12) }'; then
+    pass "TIME=6: passes submitted in waves for ${spent} s ($n passes), then composite ($((t1 - t0)) s in all)"
+else
+    fail "TIME on the cluster" "exit $rc, $n passes, '$last', stopped at '${spent}': $(grep -v '^  ' "$TMP/t.log" | tail -n 3)"
+fi
+same_image "TIME=6: the image is pipelines/render PASSES=$n's" "$TMP/t" "$TMP/localt"
+
+# ---- KEEP=image: the image and stats.json alone, and the logs ----
+pipelines/slurm "$SCENE" "$TMP/k" "${PT[@]}" PASSES=3 "${SL[@]}" KEEP=image >"$TMP/k.log" 2>&1
+rc=$?
+pipelines/render "$SCENE" "$TMP/localk" "${PT[@]}" PASSES=3 >/dev/null 2>&1
+left=$(cd "$TMP/k" && find . -mindepth 1 ! -path './.slurm/logs/*' | sort | tr '\n' ' ')
+if [ $rc = 0 ] && [ "$left" = "./.lock ./.slurm ./.slurm/lock ./.slurm/logs ./image.exr ./image.png ./stats.json " ] &&
+    cmp -s "$TMP/k/image.exr" "$TMP/localk/image.exr"; then
+    pass "KEEP=image: OUTDIR holds the image, stats.json and the logs; the image is pipelines/render's"
+else
+    fail "KEEP=image on the cluster" "exit $rc, left: $left"
+fi
+
 # ---- bad input: refused before anything is submitted ----
 before=$(squeue -h -o %i | wc -l)
 expect_error "unknown partition" "unknown partition 'nosuch'" pipelines/slurm "$SCENE" "$TMP/h" "${PR[@]}" PARTITION=nosuch
@@ -149,8 +246,11 @@ mkdir -p "$TMP/private"
 expect_error "an OUTDIR the tasks cannot see" "OUTDIR must be on a filesystem the compute nodes share" \
     unshare -m --propagation private bash -c 'mount -t tmpfs pmtk "$1" && shift && exec "$@"' - "$TMP/private" \
     pipelines/slurm "$SCENE" "$TMP/private/out" "${PR[@]}"
-expect_exit "PASSES missing" 2 pipelines/slurm "$SCENE" "$TMP/h" WIDTH=48
-expect_exit "TIME refused" 2 pipelines/slurm "$SCENE" "$TMP/h" PASSES=4 TIME=10
+expect_exit "PASSES, TIME and TARGET_ERROR all missing" 2 pipelines/slurm "$SCENE" "$TMP/h" WIDTH=48
+expect_exit "a bad TIME" 2 pipelines/slurm "$SCENE" "$TMP/h" TIME=soon
+expect_exit "TARGET_ERROR=0" 2 pipelines/slurm "$SCENE" "$TMP/h" TARGET_ERROR=0
+expect_exit "a bad KEEP" 2 pipelines/slurm "$SCENE" "$TMP/h" PASSES=4 KEEP=most
+expect_exit "PASS_RANGE is pipelines/slurm's own" 2 pipelines/slurm "$SCENE" "$TMP/h" PASSES=4 PASS_RANGE=1:2
 expect_exit "unknown parameter" 2 pipelines/slurm "$SCENE" "$TMP/h" PASSES=4 NOSUCH=1
 [ ! -e "$TMP/h" ] && pass "bad input: no OUTDIR made" || fail "bad input" "'$TMP/h' was made"
 [ "$(squeue -h -o %i | wc -l)" = "$before" ] && [ "$(squeue -h -o %i | wc -l)" = 0 ] &&

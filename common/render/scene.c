@@ -1759,6 +1759,7 @@ static void finish(pm_scene_t *s)
     for (size_t m = 0; m < s->nmaterials; m++) {
         s->any_glossy |= pm_material_is_glossy(&s->materials[m]);
         s->any_specular |= pm_material_is_specular(&s->materials[m]);
+        s->any_glossy_textured |= pm_scene_glossy_textured(s, (uint32_t)m);
     }
 }
 

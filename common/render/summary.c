@@ -18,7 +18,9 @@
 pm_scene_needs_t pm_scene_needs(const pm_scene_t *s)
 {
     /* Light samples are drawn for area lights and for the sun and the sky alike. */
-    return (pm_scene_needs_t){s->any_glossy, s->any_glossy && s->nmaterials > 1,
+    /* Material ids where the gather must tell materials apart: more than one with some glossy, or
+     * a glossy textured one, whose queries name its lobe apart (render/eyetrace.c). */
+    return (pm_scene_needs_t){s->any_glossy, s->any_glossy && (s->nmaterials > 1 || s->any_glossy_textured),
                               s->nemissive > 0 || s->has_sun || s->has_sky};
 }
 

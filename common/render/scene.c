@@ -1936,6 +1936,7 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     json_t *shn = json_object_get(root, "shading_normals");
     if (r == PM_OK && shn && !json_is_boolean(shn))
         r = bad(&c, "shading_normals", "must be true (the default: the meshes' vertex normals shade) or false");
+    s->normals_ignored = shn && json_is_false(shn) && c.any_normals;
     if (r == PM_OK && ((shn && json_is_false(shn)) || !c.any_normals)) {
         /* Ignored, or no mesh has any: geometric normals, and nothing to pay for the feature. */
         free(s->normals);

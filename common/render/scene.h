@@ -152,6 +152,7 @@ typedef struct {
                                  NULL: no mesh has any, or the scene key shading_normals is false */
     pm_texture_t *textures;   /* each file once, however many materials use it */
     size_t ntextures;
+    int normals_ignored;        /* 1: some mesh has vertex normals and the scene key shading_normals is false */
     int any_alpha;              /* some material has map_d: render/rt.c installs the cut-out filter */
     pm_placement_t *placements; /* one per mesh entry */
     size_t nplacements;

@@ -253,6 +253,19 @@ else
     fail "shading_normals false" "a stage failed"
 fi
 
+# scene-info says whether shading normals are in use: the sphere's 266 vertices (poles merged) all carry one;
+# with shading_normals false they are ignored; the sphere written without them has none.
+si_normals() { "$BIN/scene-info" -q "$1" | grep '^shading normals: '; }
+if [ "$(si_normals "$TMP/smooth/scene.json")" = "shading normals: yes (vertex normals at 266 of 266 vertices)" ] &&
+    [ "$(si_normals "$TMP/off/scene.json")" = "shading normals: no (shading_normals false: the meshes' vertex normals are ignored)" ] &&
+    [ "$(si_normals "$TMP/flat/scene.json")" = "shading normals: no (no mesh has vertex normals)" ] &&
+    [ "$("$BIN/scene-info" -q --json "$TMP/off/scene.json" | jq -c .shading_normals)" = '{"in_use":false,"vertices":0,"ignored":true}' ] &&
+    [ "$("$BIN/scene-info" -q --json "$TMP/smooth/scene.json" | jq -c .shading_normals)" = '{"in_use":true,"vertices":266,"ignored":false}' ]; then
+    pass "scene-info: shading normals in use (266 of 266 vertices), ignored by the scene key, or absent"
+else
+    fail "scene-info shading normals" "$(si_normals "$TMP/smooth/scene.json"); $(si_normals "$TMP/off/scene.json"); $(si_normals "$TMP/flat/scene.json")"
+fi
+
 # Grazing: the light in the plane z = 0 far to the side, so that every hit near x = 0 sees it at
 # the horizon of its shading or its geometric normal; every pixel finite, the three ways.
 mkdir -p "$TMP/graze" && cp "$TMP/smooth/s.obj" "$TMP/smooth/s.mtl" "$TMP/graze/"

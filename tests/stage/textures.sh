@@ -238,6 +238,24 @@ if "$BIN/scene-info" "$D/magenta.json" >"$TMP/ms.info" 2>"$TMP/ms.err" &&
 else
     fail "missing_textures magenta" "$(head -c 600 "$TMP/ms.err")"
 fi
+# scene-info lists each texture once (however many materials read it) with its size, channels
+# and decoding, the materials and maps that read it, and the magenta stand-in as missing.
+want="textures: 3
+  0 '$D/mats/textures/floor tile.png' 2x2 rgb, 8-bit sRGB: map_Kd of arch_stone, map_Kd of leaf
+  1 '$D/mats/textures/leaf mask.tga' 2x1 grey, 8-bit linear: map_d of leaf
+  2 '$D/mats/textures\\wall gone.png' 1x1 rgb, float linear (missing: magenta): map_Kd of plain_wall
+shading normals: no (no mesh has vertex normals)"
+if [ "$(sed -n '/^textures: /,/^shading normals: /p' "$TMP/ms.info")" = "$want" ] &&
+    "$BIN/scene-info" -q --json "$D/magenta.json" | jq -e '[.textures[] | [(.path | sub(".*/"; "")), .width, .height, .channels,
+        .encoding, .colour_space, .missing, [.used_by[] | "\(.map) of \(.material)"]]] ==
+        [["floor tile.png", 2, 2, "rgb", "8-bit", "srgb", false, ["map_Kd of arch_stone", "map_Kd of leaf"]],
+         ["leaf mask.tga", 2, 1, "grey", "8-bit", "linear", false, ["map_d of leaf"]],
+         ["textures\\wall gone.png", 1, 1, "rgb", "float", "linear", true, ["map_Kd of plain_wall"]]]
+        and .shading_normals == {"in_use": false, "vertices": 0, "ignored": false}' >/dev/null; then
+    pass "scene-info lists the textures, their users, a mask as linear and the missing one (text and --json)"
+else
+    fail "scene-info textures" "$(sed -n '/^textures: /,/^shading normals: /p' "$TMP/ms.info")"
+fi
 if BIN=$BIN pipelines/render "$D/magenta.json" "$TMP/ms-render" PHOTONS=50000 SPP=4 >"$TMP/ms.out" 2>"$TMP/ms.err" &&
     [ -s "$TMP/ms-render/image.png" ] && "$BUILD/tests/pm-exrdump" "$TMP/ms-render/image.exr" >"$TMP/ms.txt"; then
     # the wall is magenta (red and blue, no green) where it is lit; the floor's texture is warm

@@ -78,6 +78,15 @@ struct pm_eye {
     const pm_rt_t *rt;
     pm_shade_geom_t geom; /* front normals (the emitting side) and area lights */
     float *fold;          /* per material: kd/pi when Lambertian, 1 1 1 when glossy (the weight contract) */
+    /* Glossy materials with a texture (pm_scene_glossy_textured): a hit leaves two records, its
+     * diffuse part folded into the weight (material `folded`, kd 1) and its lobe alone (material
+     * lobe[mi], kd 0, ks 1, the material's ns) weighted by the textured ks, so that the gathers,
+     * which read a material from the header's table, evaluate the texture's albedo. NULL in a
+     * scene without such a material: one record per hit, as always. */
+    uint32_t *lobe;       /* per material: its lobe-only entry in table, 0 when not split */
+    uint32_t folded;      /* the folded entry's index in table */
+    pm_material_t *table; /* the queries' material table: the scene's, then folded and the lobes */
+    size_t ntable;
     uint32_t w, h;
     unsigned spp, primary, light_samples, nx, ny;
     int pixel; /* PM_PIXEL_BOX or PM_PIXEL_CENTER */
@@ -234,6 +243,33 @@ static inline int query_weight(const pm_material_t *m, const float w[3], float o
     return out[0] > 0.0f || out[1] > 0.0f || out[2] > 0.0f;
 }
 
+/* The records of a hit on material mi (m: that material with its textures at p) reached with
+ * path weight w: one (query_weight) or, for a glossy textured material (c->lobe), its diffuse
+ * part kd/pi folded into the weight and its lobe weighted by the textured ks, whose gathered
+ * sum is the textured f's. Returns the records written (0: a black surface), -1 when out of
+ * memory. */
+static inline int put_hit(const pm_eye_t *c, bytebuf_t *out, const float p[3], const float n[3], const float w[3],
+                          uint32_t pixel, uint32_t mi, const pm_material_t *m, const float wo[3])
+{
+    float qw[3];
+    if (!c->lobe || !c->lobe[mi]) {
+        if (!query_weight(m, w, qw))
+            return 0;
+        return put_query(c, out, p, n, qw, pixel, mi, wo) ? 1 : -1;
+    }
+    int written = 0;
+    for (int part = 0; part < 2; part++) {
+        for (int k = 0; k < 3; k++)
+            qw[k] = part == 0 ? w[k] * m->kd[k] * (1.0f / PM_PI) : w[k] * m->ks[k];
+        if (!(qw[0] > 0.0f || qw[1] > 0.0f || qw[2] > 0.0f))
+            continue;
+        if (!put_query(c, out, p, n, qw, pixel, part == 0 ? c->folded : c->lobe[mi], wo))
+            return -1;
+        written++;
+    }
+    return written;
+}
+
 /* Direct light and spawned rays of primary ray i (pixel column x), and its caustic query into
  * caus when asked for; 0 when out of memory. A primary ray that passed mirrors or glass arrives
  * here as its last ray, with the chain's throughput in sc->thr: every contribution is multiplied
@@ -279,12 +315,11 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
     /* The caustic query: this first non-specular hit itself, weighted like a direct-vis query,
      * gathered against the caustic map (L S+ D seen from here). */
     if (c->caustics) {
-        float w[3] = {inv_p * tp[0], inv_p * tp[1], inv_p * tp[2]}, qw[3];
-        if (query_weight(m, w, qw)) {
-            if (!put_query(c, caus, p, n, qw, pixel, s->tri_material[tri], wo))
-                return 0;
-            sc->n_caustic++;
-        }
+        float w[3] = {inv_p * tp[0], inv_p * tp[1], inv_p * tp[2]};
+        int put = put_hit(c, caus, p, n, w, pixel, s->tri_material[tri], m, wo);
+        if (put < 0)
+            return 0;
+        sc->n_caustic += (uint64_t)put;
     }
 
     /* Point lights and spots: intensity I s (W/sr) at distance r gives irradiance I s cos / r^2. */
@@ -364,12 +399,11 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
 
     if (c->mode == PM_EYE_DIRECT_VIS) {
         /* The primary hit is the query: path weight 1 (over the primary rays of the pixel). */
-        float w[3] = {inv_p * tp[0], inv_p * tp[1], inv_p * tp[2]}, qw[3];
-        if (query_weight(m, w, qw)) {
-            if (!put_query(c, out, p, n, qw, pixel, s->tri_material[tri], wo))
-                return 0;
-            sc->n_queries++;
-        }
+        float w[3] = {inv_p * tp[0], inv_p * tp[1], inv_p * tp[2]};
+        int put = put_hit(c, out, p, n, w, pixel, s->tri_material[tri], m, wo);
+        if (put < 0)
+            return 0;
+        sc->n_queries += (uint64_t)put;
         return 1;
     }
 
@@ -566,8 +600,9 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
     sc->t_secondary += pm_time_wall() - t0;
     sc->n_secondary += sc->sec.n;
     const pm_rays_t *sr = &sc->sec;
-    /* Room for every ray's record up front: the loop below then only stores. */
-    if (!grow((void **)&out->p, 1, &out->cap, out->n + sr->n * c->record_size))
+    /* Room for every ray's records up front (two where a glossy textured hit splits, put_hit):
+     * the loop below then only stores. */
+    if (!grow((void **)&out->p, 1, &out->cap, out->n + sr->n * c->record_size * (c->lobe ? 2 : 1)))
         return pm_error_set(PM_ERR_NOMEM, "out of memory for the queries of row %" PRIu32 ": %zu records", y,
                             out->count + sr->n);
     uint32_t last_px = UINT32_MAX, in_px = 0;
@@ -597,10 +632,12 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
             float side = pm_dot3(ng, wo) >= 0.0f ? 1.0f : -1.0f;
             for (int k = 0; k < 3; k++)
                 q[k] = o[k] + t * d[k];
+            pm_material_t textured;
+            const pm_material_t *mt = &s->materials[mi];
             if (s->maps) { /* a textured scene: the fold of the material with its textures at q */
-                pm_material_t textured;
                 const float one[3] = {1.0f, 1.0f, 1.0f};
-                query_weight(pm_scene_material_at(s, tri, q, &textured), one, fold_tex);
+                mt = pm_scene_material_at(s, tri, q, &textured);
+                query_weight(mt, one, fold_tex);
                 fold = fold_tex;
             }
             for (int k = 0; k < 3; k++) {
@@ -610,6 +647,16 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
             if (s->normals) { /* the query's normal is the shading normal (render/transport.h) */
                 float gn[3] = {n[0], n[1], n[2]};
                 pm_scene_shading_normal(s, tri, q, gn, n);
+            }
+            if (c->lobe && c->lobe[mi]) { /* glossy and textured: two records (put_hit) */
+                float pw[3] = {rw[0] * thr[0], rw[1] * thr[1], rw[2] * thr[2]};
+                int put = isfinite(pw[0] + pw[1] + pw[2])
+                              ? put_hit(c, out, q, n, pw, y * c->w + sc->sec_px[j], mi, mt, wo)
+                              : 0;
+                if (put < 0)
+                    return pm_error_set(PM_ERR_NOMEM, "out of memory for the queries of row %" PRIu32, y);
+                sc->n_queries += (uint64_t)put;
+                continue;
             }
             if (!(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f) || !isfinite(w[0] + w[1] + w[2]))
                 continue;
@@ -630,10 +677,12 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
         uint32_t mi = s->tri_material[tri];
         const float *fold = c->fold + 3 * (size_t)mi, *rw = sc->sec_w + 3 * j;
         float fold_tex[3];
+        pm_material_t textured;
+        const pm_material_t *mt = &s->materials[mi];
         if (s->maps) { /* a textured scene: the fold of the material with its textures at q */
-            pm_material_t textured;
             const float one[3] = {1.0f, 1.0f, 1.0f};
-            query_weight(pm_scene_material_at(s, tri, q, &textured), one, fold_tex);
+            mt = pm_scene_material_at(s, tri, q, &textured);
+            query_weight(mt, one, fold_tex);
             fold = fold_tex;
         }
         /* An emitter's front seen by a secondary ray: direct light of the primary hit, weighted
@@ -644,6 +693,13 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
                                           (float)c->light_samples * t * t / (cosy * (float)c->geom.area));
             for (int k = 0; k < 3; k++)
                 direct[3 * sc->sec_px[j] + (uint32_t)k] += (double)(rw[k] * ke[k] * wb);
+        }
+        if (c->lobe && c->lobe[mi]) { /* glossy and textured: two records (put_hit) */
+            int put = put_hit(c, out, q, n, rw, y * c->w + sc->sec_px[j], mi, mt, wo);
+            if (put < 0)
+                return pm_error_set(PM_ERR_NOMEM, "out of memory for the queries of row %" PRIu32, y);
+            sc->n_queries += (uint64_t)put;
+            continue;
         }
         float w[3] = {rw[0] * fold[0], rw[1] * fold[1], rw[2] * fold[2]};
         if (!(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f))
@@ -667,6 +723,40 @@ static void trace_row(const pm_eye_t *c, scratch_t *sc, uint32_t y, double *dire
 }
 
 /* ------------------------------------------------------------------ context */
+
+/* The queries' material table of a scene with glossy textured materials (c->lobe, put_hit):
+ * the scene's materials, then `folded` (kd 1: a weight that carries its BRDF), then per such
+ * material its lobe alone (kd 0, ks 1, its ns), named NAME.lobe. */
+static pm_result_t split_table(pm_eye_t *c)
+{
+    const pm_scene_t *s = c->s;
+    size_t n = s->nmaterials + 1;
+    for (size_t m = 0; m < s->nmaterials; m++)
+        n += pm_scene_glossy_textured(s, (uint32_t)m);
+    if (n > 65536) /* the material channel is 16 bits */
+        return pm_error_set(PM_ERR_INPUT,
+                            "scene '%s': %zu materials and their glossy textured lobes do not fit the queries' "
+                            "65536 material ids",
+                            s->path, n);
+    c->table = calloc(n, sizeof *c->table);
+    c->lobe = calloc(s->nmaterials, sizeof *c->lobe);
+    if (!c->table || !c->lobe)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for a table of %zu materials", n);
+    memcpy(c->table, s->materials, s->nmaterials * sizeof *c->table);
+    c->folded = (uint32_t)s->nmaterials;
+    c->table[c->folded] = (pm_material_t){.name = "folded", .kd = {1, 1, 1}};
+    size_t at = s->nmaterials + 1;
+    for (size_t m = 0; m < s->nmaterials; m++)
+        if (pm_scene_glossy_textured(s, (uint32_t)m)) {
+            pm_material_t *e = &c->table[at];
+            snprintf(e->name, sizeof e->name, "%.57s.lobe", s->materials[m].name);
+            e->ks[0] = e->ks[1] = e->ks[2] = 1.0f;
+            e->ns = s->materials[m].ns;
+            c->lobe[m] = (uint32_t)at++;
+        }
+    c->ntable = n;
+    return PM_OK;
+}
 
 pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_options_t *o, pm_eye_t **out)
 {
@@ -712,7 +802,7 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
     }
     /* Channels: leave out what the scene does not need (docs/formats.md). */
     c->has_dir = s->any_glossy;
-    c->has_mat = s->any_glossy && s->nmaterials > 1;
+    c->has_mat = s->any_glossy && (s->nmaterials > 1 || s->any_glossy_textured);
     uint32_t mask = pm_schema_required(&pm_queries_schema) | (c->has_mat ? 1u << PM_QUERY_MATERIAL : 0) |
                     (c->has_dir ? 1u << PM_QUERY_DIRECTION : 0);
     c->record_size = pm_schema_record_size(&pm_queries_schema, mask);
@@ -731,6 +821,8 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
         float one[3] = {1.0f, 1.0f, 1.0f};
         query_weight(&s->materials[m], one, c->fold + 3 * m);
     }
+    if (r == PM_OK && s->any_glossy_textured)
+        r = split_table(c);
     if (r == PM_OK)
         r = pm_shade_geom_init(s, &c->geom);
     if (r != PM_OK) {
@@ -762,6 +854,8 @@ void pm_eye_destroy(pm_eye_t *e)
         return;
     pm_shade_geom_free(&e->geom);
     free(e->fold);
+    free(e->lobe);
+    free(e->table);
     free(e);
 }
 
@@ -890,7 +984,9 @@ pm_result_t pm_eye_queries_header(const pm_eye_t *c, int argc, char **argv, uint
     pm_scene_id_part(s, PM_SCENE_VIEW, id, sizeof id);
     if (r == PM_OK)
         r = pm_header_set(h, "SCENE", "%s", id);
-    if (r == PM_OK && s->any_glossy) {
+    if (r == PM_OK && c->table) {
+        r = pm_queries_set_materials(h, c->table, c->ntable); /* the glossy textured lobes after the scene's */
+    } else if (r == PM_OK && s->any_glossy) {
         r = pm_queries_set_materials(h, s->materials, s->nmaterials);
     } else if (r == PM_OK) {
         /* No glossy material: every query has its BRDF in its weight (docs/formats.md). */

@@ -37,10 +37,19 @@
 #define PM_SCENE_SIZE_MIN 1e-8
 
 /* A mesh file imported once per scene, however many entries place it. */
+/* Where an OBJ's material is defined: the first .mtl of its libraries (in mtllib order) with a
+ * newmtl of that name, the folder its texture names are relative to. */
+typedef struct {
+    char name[64]; /* as load_material names it (material_word) */
+    char lib[1200];
+} mtl_home_t;
+
 typedef struct {
     char path[1200];
     const struct aiScene *as;
-    char libs[4096]; /* its .mtl files, one a line (check_obj_materials) */
+    char libs[4096];   /* its .mtl files, one a line (check_obj_materials) */
+    mtl_home_t *homes; /* each material its .mtl files define, read once at import (mtl_homes) */
+    size_t nhomes;
 } import_t;
 
 typedef struct {
@@ -1011,33 +1020,48 @@ static pm_result_t scan_mtl_dropped(pm_scene_t *s, const char *obj, const char *
     return r;
 }
 
-/* The folder texture names of material `name` are relative to: the .mtl that defines it (an
- * OBJ; libs as check_obj_materials lists them) or the mesh file itself (glTF and the rest). */
-static void texture_base(const char *mesh, int is_obj, const char *libs, const char *name, char *out, size_t cap)
+/* Reads the .mtl files an OBJ names (libs as check_obj_materials lists them), each once, into
+ * im->homes: every material name they define and the first library defining it. */
+static pm_result_t mtl_homes(const char *obj, const char *libs, import_t *im)
 {
-    snprintf(out, cap, "%s", mesh);
+    pm_result_t r = PM_OK;
     char lpath[1200];
     const char *lib = libs;
-    for (FILE *f; is_obj && (f = next_mtl(mesh, &lib, lpath, sizeof lpath));) {
+    for (FILE *f; r == PM_OK && (f = next_mtl(obj, &lib, lpath, sizeof lpath));) {
         char *line = NULL, word[16];
         size_t lcap = 0;
-        int found = 0;
-        while (!found && mtl_getline(&line, &lcap, f) >= 0) {
+        while (r == PM_OK && mtl_getline(&line, &lcap, f) >= 0) {
             const char *rest = obj_word(line, word, sizeof word);
             if (strcmp(word, "newmtl") != 0)
                 continue;
-            char mname[64];
+            char mname[sizeof im->homes[0].name];
             snprintf(mname, sizeof mname, "%s", rest);
             material_word(mname);
-            found = strcmp(mname, name) == 0;
+            int known = 0;
+            for (size_t i = 0; i < im->nhomes && !known; i++)
+                known = strcmp(im->homes[i].name, mname) == 0;
+            if (known || (r = grow((void **)&im->homes, im->nhomes + 1, sizeof *im->homes)) != PM_OK)
+                continue;
+            mtl_home_t *h = &im->homes[im->nhomes++];
+            snprintf(h->name, sizeof h->name, "%s", mname);
+            snprintf(h->lib, sizeof h->lib, "%s", lpath);
         }
         free(line);
         fclose(f);
-        if (found) {
-            snprintf(out, cap, "%s", lpath);
+    }
+    return r;
+}
+
+/* The folder texture names of material `name` are relative to: the .mtl that defines it (an
+ * OBJ; im->homes) or the mesh file itself (glTF and the rest, and a name no .mtl defines). */
+static void texture_base(const char *mesh, const import_t *im, const char *name, char *out, size_t cap)
+{
+    snprintf(out, cap, "%s", mesh);
+    for (size_t i = 0; i < im->nhomes; i++)
+        if (strcmp(im->homes[i].name, name) == 0) {
+            snprintf(out, cap, "%s", im->homes[i].lib);
             return;
         }
-    }
 }
 
 /* The texture file `name` (relative to the file base) as scene texture *index_out, loaded once
@@ -1093,7 +1117,7 @@ static pm_result_t scene_texture(const ctx_t *c, const char *base, const char *n
 
 /* The textures pmtk honours of assimp material am (scene material mi): map_Kd, map_Ks and map_d
  * of an MTL, the base colour of glTF and the rest (assimp's diffuse slot). */
-static pm_result_t load_material_maps(const ctx_t *c, const char *mesh, int is_obj, const char *libs,
+static pm_result_t load_material_maps(const ctx_t *c, const char *mesh, int is_obj, const import_t *im,
                                       const struct aiMaterial *am, uint32_t mi)
 {
     pm_scene_t *s = c->s;
@@ -1124,7 +1148,7 @@ static pm_result_t load_material_maps(const ctx_t *c, const char *mesh, int is_o
             continue;
         }
         if (!base[0])
-            texture_base(mesh, is_obj, libs, m->name, base, sizeof base);
+            texture_base(mesh, im, m->name, base, sizeof base);
         int32_t *slot = k == 0 ? &mm->kd : k == 1 ? &mm->ks : &mm->alpha;
         r = scene_texture(c, base, tp.data, mesh, m, mi, key, slot);
         if (r == PM_OK && k == 2)
@@ -1309,9 +1333,11 @@ static pm_result_t load_mesh(ctx_t *c, json_t *mj, size_t index)
             return r;
         }
         im = &c->imports[c->nimports++];
+        *im = (import_t){.as = imported};
         snprintf(im->path, sizeof im->path, "%s", path);
         snprintf(im->libs, sizeof im->libs, "%s", libs_read);
-        im->as = imported;
+        if (is_obj && (r = mtl_homes(path, libs_read, im)) != PM_OK)
+            return r;
     }
     /* the import is the scene's until pm_scene_load ends: it serves every entry placing it */
     const struct aiScene *as = im->as;
@@ -1349,7 +1375,7 @@ static pm_result_t load_mesh(ctx_t *c, json_t *mj, size_t index)
             used =
                 as->mMeshes[mi]->mMaterialIndex == i && (as->mMeshes[mi]->mPrimitiveTypes & aiPrimitiveType_TRIANGLE);
         if (r == PM_OK && !stand_in && used)
-            r = load_material_maps(c, path, is_obj, is_obj ? libs : "", as->mMaterials[i], (uint32_t)(mat0 + i));
+            r = load_material_maps(c, path, is_obj, im, as->mMaterials[i], (uint32_t)(mat0 + i));
     }
     if (r == PM_OK && is_obj)
         r = scan_mtl_dropped(s, path, libs, mat0, as->mNumMaterials);
@@ -1504,6 +1530,9 @@ static void release_import(ctx_t *c, json_t *meshes, size_t i)
             aiReleaseImport(c->imports[k].as);
             c->imports[k].as = NULL;
             c->imports[k].path[0] = '\0'; /* never found again */
+            free(c->imports[k].homes);
+            c->imports[k].homes = NULL;
+            c->imports[k].nhomes = 0;
         }
 }
 
@@ -1759,6 +1788,7 @@ static void finish(pm_scene_t *s)
     for (size_t m = 0; m < s->nmaterials; m++) {
         s->any_glossy |= pm_material_is_glossy(&s->materials[m]);
         s->any_specular |= pm_material_is_specular(&s->materials[m]);
+        s->any_glossy_textured |= pm_scene_glossy_textured(s, (uint32_t)m);
     }
 }
 
@@ -1906,6 +1936,7 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     json_t *shn = json_object_get(root, "shading_normals");
     if (r == PM_OK && shn && !json_is_boolean(shn))
         r = bad(&c, "shading_normals", "must be true (the default: the meshes' vertex normals shade) or false");
+    s->normals_ignored = shn && json_is_false(shn) && c.any_normals;
     if (r == PM_OK && ((shn && json_is_false(shn)) || !c.any_normals)) {
         /* Ignored, or no mesh has any: geometric normals, and nothing to pay for the feature. */
         free(s->normals);
@@ -1916,9 +1947,11 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         r = bad(&c, "instancing", "must be true (the default) or false");
     if (r == PM_OK)
         r = find_instances(&c, !inst || json_is_true(inst));
-    for (size_t i = 0; i < c.nimports; i++)
+    for (size_t i = 0; i < c.nimports; i++) {
         if (c.imports[i].as)
             aiReleaseImport(c.imports[i].as);
+        free(c.imports[i].homes);
+    }
     free(c.imports);
     free(c.local);
     if (r == PM_OK)

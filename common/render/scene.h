@@ -142,6 +142,7 @@ typedef struct {
     float bounds[6];                     /* min xyz, max xyz of all triangles and point lights, m */
     int any_glossy;                      /* 1 when some material has ks > 0: direction channels are needed */
     int any_specular;                    /* 1 when some material is a mirror or glass */
+    int any_glossy_textured;             /* 1 when some material is glossy and textured (pm_scene_glossy_textured) */
     pm_scene_unsupported_t *unsupported; /* of the materials kept, in material order */
     size_t nunsupported;
     /* Textures: all NULL and 0 in a scene without any (it pays nothing for the feature). */
@@ -151,6 +152,7 @@ typedef struct {
                                  NULL: no mesh has any, or the scene key shading_normals is false */
     pm_texture_t *textures;   /* each file once, however many materials use it */
     size_t ntextures;
+    int normals_ignored;        /* 1: some mesh has vertex normals and the scene key shading_normals is false */
     int any_alpha;              /* some material has map_d: render/rt.c installs the cut-out filter */
     pm_placement_t *placements; /* one per mesh entry */
     size_t nplacements;
@@ -208,6 +210,14 @@ static inline const pm_material_t *pm_scene_material_at(const pm_scene_t *s, uin
     if (!s->maps || (s->maps[mi].kd < 0 && s->maps[mi].ks < 0))
         return &s->materials[mi];
     return pm_scene_material_textured(s, tri, p, scratch);
+}
+
+/* 1 when material mi is glossy (ks > 0) and has a map_Kd or map_Ks: its reflectance varies over
+ * the surface in both lobes, so that the eye tracer's queries carry its diffuse part in the
+ * weight and its lobe apart (render/eyetrace.c, docs/formats.md 3.3). */
+static inline int pm_scene_glossy_textured(const pm_scene_t *s, uint32_t mi)
+{
+    return s->maps && pm_material_is_glossy(&s->materials[mi]) && (s->maps[mi].kd >= 0 || s->maps[mi].ks >= 0);
 }
 
 /* Texture coordinates of triangle tri at barycentrics (b1, b2) of its second and third vertex

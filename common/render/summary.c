@@ -18,8 +18,99 @@
 pm_scene_needs_t pm_scene_needs(const pm_scene_t *s)
 {
     /* Light samples are drawn for area lights and for the sun and the sky alike. */
-    return (pm_scene_needs_t){s->any_glossy, s->any_glossy && s->nmaterials > 1,
+    /* Material ids where the gather must tell materials apart: more than one with some glossy, or
+     * a glossy textured one, whose queries name its lobe apart (render/eyetrace.c). */
+    return (pm_scene_needs_t){s->any_glossy, s->any_glossy && (s->nmaterials > 1 || s->any_glossy_textured),
                               s->nemissive > 0 || s->has_sun || s->has_sky};
+}
+
+/* ------------------------------------------------------------------ textures and normals */
+
+static const char *const map_keys[3] = {"map_Kd", "map_Ks", "map_d"};
+
+/* Texture t's channels as the file has them. */
+static const char *texture_channels(const pm_texture_t *t)
+{
+    return t->grey ? (t->has_alpha ? "grey+alpha" : "grey") : (t->has_alpha ? "rgba" : "rgb");
+}
+
+/* 1 when texture t is the magenta stand-in for a missing file (missing_textures "magenta"). */
+static int texture_missing(const pm_scene_t *s, const pm_texture_t *t)
+{
+    for (size_t u = 0; u < s->nunsupported; u++)
+        if (s->unsupported[u].missing && strcmp(s->unsupported[u].value, t->path) == 0)
+            return 1;
+    return 0;
+}
+
+/* Calls use(material, key) for every slot of every material that reads texture i. */
+static void texture_users(const pm_scene_t *s, size_t i, void (*use)(void *, const char *, const char *), void *user)
+{
+    for (size_t m = 0; s->maps && m < s->nmaterials; m++) {
+        const int32_t slot[3] = {s->maps[m].kd, s->maps[m].ks, s->maps[m].alpha};
+        for (int k = 0; k < 3; k++)
+            if (slot[k] == (int32_t)i)
+                use(user, s->materials[m].name, map_keys[k]);
+    }
+}
+
+/* 1 when texture i is read as a colour (map_Kd, map_Ks), whose 8-bit values are sRGB-decoded;
+ * a texture read only as map_d is a mask, its values (or its alpha) linear. */
+static int texture_is_colour(const pm_scene_t *s, size_t i)
+{
+    for (size_t m = 0; s->maps && m < s->nmaterials; m++)
+        if (s->maps[m].kd == (int32_t)i || s->maps[m].ks == (int32_t)i)
+            return 1;
+    return 0;
+}
+
+/* How texture t (index i) is decoded: "srgb" for 8-bit colour, else "linear". */
+static const char *texture_space(const pm_scene_t *s, const pm_texture_t *t, size_t i)
+{
+    return t->u8 && texture_is_colour(s, i) ? "srgb" : "linear";
+}
+
+/* Vertices with a vertex normal (non-zero) while shading normals are in use, else 0. */
+static size_t normal_vertices(const pm_scene_t *s)
+{
+    size_t n = 0;
+    for (size_t v = 0; s->normals && v < s->nverts; v++)
+        n += s->normals[3 * v] != 0.0f || s->normals[3 * v + 1] != 0.0f || s->normals[3 * v + 2] != 0.0f;
+    return n;
+}
+
+typedef struct {
+    FILE *out;
+    const char *sep;
+} text_users_t;
+
+static void text_user(void *user, const char *material, const char *key)
+{
+    text_users_t *u = user;
+    fprintf(u->out, "%s%s of %s", u->sep, key, material);
+    u->sep = ", ";
+}
+
+/* The lines of the textures and of the shading normals (docs/programs/scene-info.md). */
+static void print_textures(FILE *out, const pm_scene_t *s)
+{
+    fprintf(out, "textures: %zu\n", s->ntextures);
+    for (size_t i = 0; i < s->ntextures; i++) {
+        const pm_texture_t *t = &s->textures[i];
+        fprintf(out, "  %zu '%s' %" PRIu32 "x%" PRIu32 " %s, %s %s%s", i, t->path, t->w, t->h, texture_channels(t),
+                t->u8 ? "8-bit" : "float", strcmp(texture_space(s, t, i), "srgb") == 0 ? "sRGB" : "linear",
+                texture_missing(s, t) ? " (missing: magenta)" : "");
+        text_users_t u = {out, ": "};
+        texture_users(s, i, text_user, &u);
+        fprintf(out, "\n");
+    }
+    size_t nv = normal_vertices(s);
+    if (s->normals)
+        fprintf(out, "shading normals: yes (vertex normals at %zu of %zu vertices)\n", nv, s->nverts);
+    else if (s->normals_ignored)
+        fprintf(out, "shading normals: no (shading_normals false: the meshes' vertex normals are ignored)\n");
+    else
+        fprintf(out, "shading normals: no (no mesh has vertex normals)\n");
 }
 
 /* ------------------------------------------------------------------ the probe */
@@ -130,6 +221,7 @@ static void print_text(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, double
     }
     /* the caustic branch of pipelines/render runs only where this says yes */
     fprintf(out, "specular: %s\n", s->any_specular ? "yes (mirror or glass: caustic paths)" : "no");
+    print_textures(out, s);
     fprintf(out, "point lights: %zu\n", s->nlights);
     for (size_t i = 0; i < s->nlights; i++) {
         const pm_point_light_t *l = &s->lights[i];
@@ -183,6 +275,18 @@ static json_t *floats_json(const float *v, size_t n)
 static json_t *jstr(pm_json_strings_t *js, const char *what, const char *s)
 {
     return pm_json_stringn(js, what, s, strlen(s));
+}
+
+typedef struct {
+    json_t *users;
+    pm_json_strings_t *js;
+} json_users_t;
+
+static void json_user(void *user, const char *material, const char *key)
+{
+    json_users_t *u = user;
+    json_array_append_new(u->users,
+                          json_pack("{s:o, s:s}", "material", jstr(u->js, "a material's name", material), "map", key));
 }
 
 pm_result_t pm_summary_json(const pm_scene_t *s, const pm_rt_t *rt, const pm_summary_options_t *o,
@@ -245,6 +349,22 @@ pm_result_t pm_summary_json(const pm_scene_t *s, const pm_rt_t *rt, const pm_sum
         json_array_append_new(mats, mj);
     }
     json_object_set_new(j, "materials", mats);
+    json_t *texs = json_array();
+    for (size_t i = 0; i < s->ntextures; i++) {
+        const pm_texture_t *t = &s->textures[i];
+        json_users_t u = {json_array(), &js};
+        texture_users(s, i, json_user, &u);
+        json_t *users = u.users;
+        json_array_append_new(texs, json_pack("{s:o, s:I, s:I, s:s, s:s, s:s, s:b, s:o}", "path",
+                                              jstr(&js, "a texture's path", t->path), "width", (json_int_t)t->w,
+                                              "height", (json_int_t)t->h, "channels", texture_channels(t), "encoding",
+                                              t->u8 ? "8-bit" : "float", "colour_space", texture_space(s, t, i),
+                                              "missing", texture_missing(s, t), "used_by", users));
+    }
+    json_object_set_new(j, "textures", texs);
+    json_object_set_new(j, "shading_normals",
+                        json_pack("{s:b, s:I, s:b}", "in_use", s->normals != NULL, "vertices",
+                                  (json_int_t)normal_vertices(s), "ignored", s->normals_ignored));
     json_object_set_new(j, "point_lights", json_integer((json_int_t)s->nlights));
     json_t *lights = json_array();
     for (size_t i = 0; i < s->nlights; i++) {

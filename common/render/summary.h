@@ -1,6 +1,7 @@
 /* summary.h: what a loaded scene holds and needs, the engine of scene-info.
  *
- * The summary (triangles, materials and the properties they set that pmtk ignores, lights and their power, bounds,
+ * The summary (triangles, materials and the properties they set that pmtk ignores, the textures and who reads
+ * them, whether shading normals are in use, lights and their power, bounds,
  * camera, what the stages downstream need of the scene, the ray epsilon, load and build times) as text or as one JSON
  * object (docs/programs/scene-info.md); the probe, one primary ray through each pixel's
  * centre, as a check that the camera sees the geometry; and the eye-light preview those rays

@@ -27,6 +27,18 @@ if [ "$(head -c 8 "$out/error-vs-time.png" 2>/dev/null | od -An -tx1 | tr -d ' \
 else
     fail "error-vs-time plot" "no PNG at $out/error-vs-time.png or no title: $(cat "$out/gnuplot.log" 2>/dev/null | head -3)"
 fi
+# The title and summary name the scene by its "name", not its folder: a copy of the Cornell box
+# named renamed-box in a folder called box-folder.
+mkdir -p "$TMP/box-folder" && cp scenes/cornell-box/* "$TMP/box-folder/" &&
+    jq '.name = "renamed-box"' scenes/cornell-box/scene.json >"$TMP/box-folder/scene.json"
+$E "$TMP/box-folder/scene.json" "$TMP/named" PHOTONS=10000 PRIMARY=1 SPP=4 K=40 LEAF=16 $SIZE PT_SPP= PROGRESSIVE=0 \
+    REFERENCE="$TMP/ref/image.exr" >"$TMP/named.log" 2>&1
+if grep -q '^set title "renamed-box: error against run time' "$TMP/named/error-vs-time.gp" 2>/dev/null &&
+    grep -q '^Scene: renamed-box\. ' "$TMP/named/summary.md" && ! grep -q 'box-folder' "$TMP/named/error-vs-time.gp"; then
+    pass "error-vs-time titles the plot and the summary with the scene's name, not its folder's"
+else
+    fail "error-vs-time scene name" "$(grep '^set title' "$TMP/named/error-vs-time.gp" 2>/dev/null) $(tail -2 "$TMP/named.log")"
+fi
 # column NAME: the column of NAME in results.csv
 column() { head -1 "$csv" | tr , '\n' | grep -nx "$1" | cut -d: -f1; }
 ct=$(column total_s) ce=$(column relmse) cp=$(column primary)

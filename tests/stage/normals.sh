@@ -12,7 +12,8 @@
 # hit has ns . w >= 0.3 (away from the terminator, where a kernel straddles the dark side).
 # Then: with "shading_normals": false the images equal, pixel for pixel, those of the same
 # sphere written without normals, and they are off the smooth closed form; a light at the
-# horizon of every hit (grazing) gives finite pixels everywhere.
+# horizon of every hit (grazing) gives finite pixels everywhere, and photons grazing a plane whose
+# normals lean 60 degrees carry the adjoint factor capped at 10.
 PI=3.141592653589793
 
 # sphere DIR WITH-VN: the sphere's OBJ and MTL (KD 0.6) in DIR.
@@ -205,6 +206,35 @@ else
     fail "photons bouncing off tilted normals" "a stage failed"
 fi
 
+# The cap on the adjoint factors (render/transport.h, PM_SHADING_FACTOR_MAX 10): a spot 0.1 m
+# above a plane whose normals lean 60 degrees toward it, 1 to 7 m away, so that every photon
+# arrives at a geometric cosine of 0.1 / r or less with a shading cosine near 0.87: ns.wi / ng.wi
+# is 8.7 to 60 (61 measured uncapped, mean 20). Every photon stored at its first hit carries at
+# most 10 times the power it was emitted with, and none is lost for it.
+mkdir -p "$TMP/graze60"
+printf 'mtllib s.mtl\nv -3 0 -3\nv 3 0 -3\nv 3 0 3\nv -3 0 3\nvn 0.8660254 0.5 0\nusemtl white\nf 1//1 4//1 3//1 2//1\n' >"$TMP/graze60/s.obj"
+printf 'newmtl white\nKd 0.6 0.6 0.6\n' >"$TMP/graze60/s.mtl"
+cat >"$TMP/graze60/scene.json" <<'JSON'
+{
+  "pmtk_scene": 1,
+  "name": "grazing",
+  "meshes": [ { "file": "s.obj" } ],
+  "camera": { "eye": [0, 1.5, 0], "look_at": [0, 0, 0], "up": [0, 0, 1], "fov_y": 90, "width": 16, "height": 16 },
+  "point_lights": [ { "position": [4, 0.1, 0], "intensity": [1, 1, 1], "direction": [-1, -0.03, 0], "cone": 30 } ],
+  "render": { "photons": 20000, "seed": 1 }
+}
+JSON
+if "$BIN/trace-photons" "$TMP/graze60/scene.json" -q -o "$TMP/g60.pm" &&
+    P=$("$BIN/scene-info" -q --json "$TMP/graze60/scene.json" | jq '.power_w[0]') &&
+    N=$("$BIN/pm-info" --header "$TMP/g60.pm" | sed -n 's/^emitted=//p') &&
+    "$BIN/pm-info" -r "$TMP/g60.pm" | awk -v P="$P" -v N="$N" 'NF == 11 && $1 ~ /^[0-9]+$/ && $11 == 0 {
+            r = $5 / (P / N); if (r > m) m = r; if (r < lo || n == 0) lo = r; n++ }
+        END { printf "%d photons, %.4g to %.4g times their emitted power\n", n, lo, m; exit !(n > 1000 && m <= 10 * (1 + 1e-6) && lo > 8) }' >"$TMP/why"; then
+    pass "grazing photons on normals leaning 60 degrees: the adjoint factor is capped at 10 ($(cat "$TMP/why"))"
+else
+    fail "adjoint factor cap" "$(cat "$TMP/why" 2>/dev/null)"
+fi
+
 # The same sphere with shading_normals false, and written without normals: the same pixels.
 mkdir -p "$TMP/off" && cp "$TMP/smooth/s.obj" "$TMP/smooth/s.mtl" "$TMP/off/"
 scene "$TMP/off" "$LIGHT" '"shading_normals": false'
@@ -221,6 +251,19 @@ if render off "$TMP/off/scene.json" && render flat "$TMP/flat/scene.json"; then
     judge "faceted sphere, direct buffer, off the smooth closed form" "$TMP/off.hits" "$TMP/off.d.txt" $LV -v faceted=1
 else
     fail "shading_normals false" "a stage failed"
+fi
+
+# scene-info says whether shading normals are in use: the sphere's 266 vertices (poles merged) all carry one;
+# with shading_normals false they are ignored; the sphere written without them has none.
+si_normals() { "$BIN/scene-info" -q "$1" | grep '^shading normals: '; }
+if [ "$(si_normals "$TMP/smooth/scene.json")" = "shading normals: yes (vertex normals at 266 of 266 vertices)" ] &&
+    [ "$(si_normals "$TMP/off/scene.json")" = "shading normals: no (shading_normals false: the meshes' vertex normals are ignored)" ] &&
+    [ "$(si_normals "$TMP/flat/scene.json")" = "shading normals: no (no mesh has vertex normals)" ] &&
+    [ "$("$BIN/scene-info" -q --json "$TMP/off/scene.json" | jq -c .shading_normals)" = '{"in_use":false,"vertices":0,"ignored":true}' ] &&
+    [ "$("$BIN/scene-info" -q --json "$TMP/smooth/scene.json" | jq -c .shading_normals)" = '{"in_use":true,"vertices":266,"ignored":false}' ]; then
+    pass "scene-info: shading normals in use (266 of 266 vertices), ignored by the scene key, or absent"
+else
+    fail "scene-info shading normals" "$(si_normals "$TMP/smooth/scene.json"); $(si_normals "$TMP/off/scene.json"); $(si_normals "$TMP/flat/scene.json")"
 fi
 
 # Grazing: the light in the plane z = 0 far to the side, so that every hit near x = 0 sees it at

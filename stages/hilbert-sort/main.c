@@ -87,9 +87,44 @@ static pm_result_t make_header(const pm_stage_t *st, const pm_header_t *in, cons
     return r;
 }
 
+/* The arrays a sort needs, kept from one document of a stream to the next so that a frame
+ * does not map and fault in fresh pages for its records. */
+typedef struct {
+    unsigned char *recs;
+    uint32_t *perm;
+    unsigned char *chunk[2];
+    uint64_t n; /* records they have room for */
+    size_t rs;  /* of this record size */
+} sort_bufs_t;
+
+static void bufs_free(sort_bufs_t *b)
+{
+    pm_free_aligned(b->recs);
+    pm_free_aligned(b->perm);
+    free(b->chunk[0]);
+    free(b->chunk[1]);
+    memset(b, 0, sizeof *b);
+}
+
+/* Room for n records of rs bytes (and the reorder's chunks when sorting); 0 when out of memory. */
+static int bufs_reserve(sort_bufs_t *b, uint64_t n, size_t rs)
+{
+    if (b->recs && n <= b->n && rs == b->rs)
+        return 1;
+    bufs_free(b);
+    b->recs = pm_alloc_aligned(n ? n * rs : 1);
+    b->perm = pm_alloc_aligned(n ? n * sizeof *b->perm : 1);
+    b->chunk[0] = malloc((size_t)PM_REORDER_CHUNK * rs), b->chunk[1] = malloc((size_t)PM_REORDER_CHUNK * rs);
+    b->n = n, b->rs = rs;
+    if (b->recs && b->perm && b->chunk[0] && b->chunk[1])
+        return 1;
+    bufs_free(b);
+    return 0;
+}
+
 /* Sorts the one document rd holds (its header read) and writes it to -o. */
 static pm_result_t sort_doc(pm_stage_t *st, const sort_options_t *o, pm_reader_t *rd, const char *in_name,
-                            sort_totals_t *tot)
+                            sort_bufs_t *bufs, sort_totals_t *tot)
 {
     uint64_t leaf = 16;
     int is_auto = 0;
@@ -109,18 +144,15 @@ static pm_result_t sort_doc(pm_stage_t *st, const sort_options_t *o, pm_reader_t
     if (n > UINT32_MAX)
         return pm_error_set(PM_ERR_INPUT, "queries '%s' has %" PRIu64 " records; hilbert-sort sorts at most %" PRIu32,
                             in_name, n, UINT32_MAX);
-    unsigned char *recs = pm_alloc_aligned(n ? n * rs : 1);
-    uint32_t *perm = pm_alloc_aligned(n ? n * sizeof *perm : 1);
-    unsigned char *chunk[2] = {NULL, NULL};
-    if (order != PM_ORDER_NONE)
-        chunk[0] = malloc((size_t)PM_REORDER_CHUNK * rs), chunk[1] = malloc((size_t)PM_REORDER_CHUNK * rs);
     pm_header_t h = {0};
     pm_writer_t *w = NULL;
-    if (!recs || !perm || (order != PM_ORDER_NONE && (!chunk[0] || !chunk[1]))) {
+    if (!bufs_reserve(bufs, n, rs)) {
         res = pm_error_set(PM_ERR_NOMEM, "out of memory for %" PRIu64 " queries of '%s' (%.0f MB)", n, in_name,
                            n * (rs + 20.0) / 1e6);
         goto done;
     }
+    unsigned char *recs = bufs->recs, **chunk = bufs->chunk;
+    uint32_t *perm = bufs->perm;
     uint64_t got, in_hash = 0;
     if ((res = pm_reader_read(rd, recs, n, &got)) != PM_OK || (res = pm_reader_finish(rd, &in_hash)) != PM_OK)
         goto done;
@@ -164,10 +196,6 @@ static pm_result_t sort_doc(pm_stage_t *st, const sort_options_t *o, pm_reader_t
 done:
     pm_writer_abort(w);
     pm_header_free(&h);
-    free(chunk[0]);
-    free(chunk[1]);
-    pm_free_aligned(perm);
-    pm_free_aligned(recs);
     return res;
 }
 
@@ -179,10 +207,11 @@ static pm_result_t run(pm_stage_t *st, const sort_options_t *o)
     double t0 = pm_time_wall();
     pm_reader_t *rd = NULL;
     pm_result_t res = PM_OK;
+    sort_bufs_t bufs = {0};
     if (!o->stream) {
         if ((res = pm_reader_open(path, &pm_queries_schema, 0, &rd)) != PM_OK)
             return res;
-        res = sort_doc(st, o, rd, in_name, &tot);
+        res = sort_doc(st, o, rd, in_name, &bufs, &tot);
         pm_reader_close(rd);
     } else {
         if (strcmp(st->output, "-") != 0)
@@ -197,7 +226,7 @@ static pm_result_t run(pm_stage_t *st, const sort_options_t *o)
             snprintf(name, sizeof name, "%s, frame %" PRIu64, in_name, tot.frames);
             if ((res = pm_reader_open_next(f, name, &pm_queries_schema, 0, &rd)) != PM_OK || !rd)
                 break;
-            res = sort_doc(st, o, rd, name, &tot);
+            res = sort_doc(st, o, rd, name, &bufs, &tot);
             pm_reader_close(rd);
             if (res != PM_OK)
                 break;
@@ -207,6 +236,7 @@ static pm_result_t run(pm_stage_t *st, const sort_options_t *o)
         if (res == PM_OK && tot.frames == 0)
             res = pm_error_set(PM_ERR_INPUT, "empty stream '%s': no queries document", in_name);
     }
+    bufs_free(&bufs);
     double t3 = pm_time_wall();
     if (res == PM_OK) {
         uint64_t n = tot.points;

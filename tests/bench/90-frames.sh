@@ -88,7 +88,8 @@ is one over it (median, min and max over the frames), and "steady" is the frames
 over the time from the first's end to the last's. One fixed radius per mode (\`--k 50\` once:
 ${f_radius[gather]} m, direct visualization ${f_radius[direct-vis]} m). The ISA is simd-gather's; the
 widest one this CPU runs is beside it. Load average (1, 5, 15 min) from other jobs: $load_before
-before, $load_after after; with other jobs on the cores every figure here falls. The paper: 4
+before, $load_after after (which counts this run's own stages, up to about 2); with other jobs on
+the cores every figure here falls. The paper: 4
 threads on a 2.66 GHz quad-core, 256x256, 1.14 frames per second at 16 spp and about 10 for
 direct visualization.
 

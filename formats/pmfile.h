@@ -147,6 +147,18 @@ pm_result_t pm_reader_open(const char *path, const pm_schema_t *schema, uint32_t
  * what messages call it. */
 pm_result_t pm_reader_open_stream(FILE *f, const char *name, const pm_schema_t *schema, uint32_t need,
                                   pm_reader_t **out);
+/* The next document of a stream of documents (docs/formats.md, "Streams": whole pmtk files one
+ * after another on one pipe or file, each with its own header and checksum) on f, which the
+ * caller opened and closes. At the clean end of the stream (end of file where a document would
+ * start) returns PM_OK with *out NULL. name is what messages call this document (say
+ * "stdin, frame 3"). Its pm_reader_finish stops after the checksum, leaving f at the next. */
+pm_result_t pm_reader_open_next(FILE *f, const char *name, const pm_schema_t *schema, uint32_t need, pm_reader_t **out);
+/* Reads the next document of the stream f whole into memory, its header parsed and checked,
+ * its records and checksum not (a reader of the copy checks them): *buf_out (malloc'd) holds
+ * *len_out bytes, a pmtk file of its own; NULL and 0 at the clean end of the stream. For a
+ * stage that must take a document off its pipe before it reads another input. */
+pm_result_t pm_reader_take_next(FILE *f, const char *name, const pm_schema_t *schema, unsigned char **buf_out,
+                                size_t *len_out);
 const pm_header_t *pm_reader_header(const pm_reader_t *r);
 /* The header text exactly as read, magic line to blank line. */
 const char *pm_reader_header_text(const pm_reader_t *r);

@@ -41,6 +41,7 @@ struct pm_reader {
     uint64_t payload_offset; /* bytes before the first record */
     unsigned char *scratch;  /* one chunk of raw records for validation */
     char *raw;               /* the header text as read */
+    int in_stream;           /* one document of a stream (pm_reader_open_next): more may follow it */
 };
 
 /* ---- header.c: the header model ---- */

@@ -140,12 +140,80 @@ pm_result_t pm_reader_open_stream(FILE *f, const char *name, const pm_schema_t *
     return reader_start(r, schema, need, out);
 }
 
+pm_result_t pm_reader_open_next(FILE *f, const char *name, const pm_schema_t *schema, uint32_t need, pm_reader_t **out)
+{
+    *out = NULL;
+    int c = getc(f);
+    if (c == EOF) {
+        if (ferror(f))
+            return pm_error_set(PM_ERR_IO, "cannot read '%s': %s", name, strerror(errno));
+        return PM_OK; /* the end of the stream, between documents */
+    }
+    ungetc(c, f);
+    pm_reader_t *r = calloc(1, sizeof *r);
+    if (!r)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory opening '%s'", name);
+    r->f = f;
+    r->in_stream = 1;
+    r->path = strdup(name);
+    r->hash = XXH3_createState();
+    if (!r->path || !r->hash) {
+        r->f = NULL;
+        pm_reader_close(r);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory opening '%s'", name);
+    }
+    pm_header_init(&r->hdr, schema);
+    XXH3_64bits_reset(r->hash);
+    return reader_start(r, schema, need, out);
+}
+
+pm_result_t pm_reader_take_next(FILE *f, const char *name, const pm_schema_t *schema, unsigned char **buf_out,
+                                size_t *len_out)
+{
+    *buf_out = NULL;
+    *len_out = 0;
+    pm_reader_t *r;
+    pm_result_t res = pm_reader_open_next(f, name, schema, 0, &r);
+    if (res != PM_OK || !r)
+        return res;
+    size_t head = strlen(r->raw), payload = (size_t)(r->hdr.count * r->hdr.record_size);
+    size_t len = head + 4 + payload + 8;
+    unsigned char *b = malloc(len);
+    if (!b) {
+        res = pm_error_set(PM_ERR_NOMEM, "out of memory for %s '%s' (%zu bytes)", reader_title(r), name, len);
+    } else {
+        memcpy(b, r->raw, head);
+        memcpy(b + head, pmfile_bom, 4);
+        size_t got = fread(b + head + 4, 1, payload + 8, f);
+        if (got < payload + 8) {
+            if (ferror(f))
+                res = pm_error_set(PM_ERR_IO, "cannot read %s '%s': %s", reader_title(r), name, strerror(errno));
+            else if (got < payload)
+                res = pm_error_set(PM_ERR_INPUT, "truncated %s '%s': ends in record %" PRIu64 " of %" PRIu64,
+                                   reader_title(r), name, r->hdr.record_size ? got / r->hdr.record_size : 0,
+                                   r->hdr.count);
+            else
+                res = pm_error_set(PM_ERR_INPUT, "truncated %s '%s': checksum missing after %" PRIu64 " records",
+                                   reader_title(r), name, r->hdr.count);
+        }
+    }
+    pm_reader_close(r);
+    if (res != PM_OK) {
+        free(b);
+        return res;
+    }
+    *buf_out = b;
+    *len_out = len;
+    return PM_OK;
+}
+
 /* Reads and checks the header of r's stream; on failure closes r (not the stream). */
 static pm_result_t reader_start(pm_reader_t *r, const pm_schema_t *schema, uint32_t need, pm_reader_t **out)
 {
     const char *path = r->path;
     struct stat st;
-    if (fstat(fileno(r->f), &st) == 0 && S_ISREG(st.st_mode))
+    /* A document of a stream shares its file with others: the file's size says nothing of it. */
+    if (!r->in_stream && fstat(fileno(r->f), &st) == 0 && S_ISREG(st.st_mode))
         r->file_size = (uint64_t)st.st_size;
     else if (fstat(fileno(r->f), &st) == 0 && S_ISDIR(st.st_mode)) {
         pm_result_t res = pm_error_set(PM_ERR_INPUT, "'%s' is a directory, not a pmtk file", path);
@@ -272,7 +340,7 @@ pm_result_t pm_reader_finish(pm_reader_t *r, uint64_t *checksum_out)
     if (stored != computed)
         return pm_error_set(PM_ERR_INPUT, "checksum mismatch in %s '%s': stored %016" PRIx64 ", computed %016" PRIx64,
                             reader_title(r), r->path, stored, computed);
-    int c = getc(r->f);
+    int c = r->in_stream ? EOF : getc(r->f);
     if (c != EOF) {
         uint64_t extra = 1;
         while (getc(r->f) != EOF && extra < (1u << 20))

@@ -81,6 +81,12 @@ static pm_result_t check_same(const char *first, const pm_header_t *h0, const ch
 
 pm_result_t pm_composite_open(pm_composite_t **c_out, char *const *args, int nin, pm_composite_only_t only)
 {
+    return pm_composite_open_streams(c_out, args, NULL, nin, only);
+}
+
+pm_result_t pm_composite_open_streams(pm_composite_t **c_out, char *const *args, FILE *const *files, int nin,
+                                      pm_composite_only_t only)
+{
     pm_composite_t *c = calloc(1, sizeof *c);
     *c_out = c;
     if (!c || !(c->in = calloc(nin > 0 ? (size_t)nin : 1, sizeof *c->in)))
@@ -96,8 +102,13 @@ pm_result_t pm_composite_open(pm_composite_t **c_out, char *const *args, int nin
             ++nstdin > 1)
             r = pm_error_set(PM_ERR_USAGE, "stdin ('-') given twice");
     for (int i = 0; i < nin && r == PM_OK; i++) {
-        if ((r = pm_reader_open(in[i].path, &pm_radiance_schema, 0, &in[i].rd)) != PM_OK)
+        if ((r = files ? pm_reader_open_next(files[i], in[i].path, &pm_radiance_schema, 0, &in[i].rd)
+                       : pm_reader_open(in[i].path, &pm_radiance_schema, 0, &in[i].rd)) != PM_OK)
             break;
+        if (!in[i].rd) {
+            r = pm_error_set(PM_ERR_INPUT, "stream '%s' has ended: no radiance buffer for this frame", in[i].path);
+            break;
+        }
         const pm_header_t *hi = pm_reader_header(in[i].rd);
         in[i].component = pm_header_get(hi, "component");
         int is_direct = !strcmp(in[i].component, "direct"), is_indirect = !strcmp(in[i].component, "indirect"),

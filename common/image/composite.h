@@ -17,6 +17,7 @@
 #define PM_IMAGE_COMPOSITE_H
 
 #include <stdint.h>
+#include <stdio.h>
 
 #include "base/error.h"
 #include "base/exr.h"
@@ -57,6 +58,10 @@ pm_result_t pm_composite_parse_input(const char *arg, char **path_out, double *s
  * only != PM_ONLY_ALL each must be direct, indirect or caustic, and one at least of that component.
  * Free with pm_composite_free, also after a failure (*c_out is then set or NULL). */
 pm_result_t pm_composite_open(pm_composite_t **c_out, char *const *args, int n, pm_composite_only_t only);
+/* The same with buffer i read as the next document of the stream files[i] (docs/formats.md,
+ * "Streams"; args[i] names it in messages, with its scale); a stream that has ended is an error. */
+pm_result_t pm_composite_open_streams(pm_composite_t **c_out, char *const *args, FILE *const *files, int n,
+                                      pm_composite_only_t only);
 
 /* Called for a buffer whose content equals an earlier one's, most likely a slip. */
 typedef void (*pm_composite_note_fn)(void *ctx, const char *path, const char *same_as, uint64_t hash);

@@ -120,6 +120,88 @@ pm_result_t pm_gather_inputs_read_rest(pm_gather_inputs_t *in, int variable)
     return inputs_setup(in, variable, in->q_table.count, 0);
 }
 
+pm_result_t pm_gather_inputs_read_map(pm_gather_inputs_t *in, const char *map_path, int variable)
+{
+    memset(in, 0, sizeof *in);
+    in->map_path = map_path;
+    double t0 = pm_time_wall();
+    pm_result_t r =
+        pm_table_read(map_path, &pm_photonmap_schema, pm_schema_required(&pm_photonmap_schema), &in->map_table);
+    if (r == PM_OK)
+        r = pm_gather_map_init(&in->map, &in->map_table, variable);
+    in->read_s = pm_time_wall() - t0;
+    return r;
+}
+
+pm_result_t pm_gather_inputs_next_queries(pm_gather_inputs_t *in, FILE *f, const char *name, int whole, int variable,
+                                          int *end_out)
+{
+    *end_out = 0;
+    /* What the last document left: its reader, sums and rows. */
+    pm_reader_close(in->stream);
+    in->stream = NULL;
+    free(in->pixels);
+    in->pixels = NULL;
+    pm_table_free(&in->q_table);
+    memset(&in->q, 0, sizeof in->q);
+    in->q_path = name;
+    in->begin = 0;
+    double t0 = pm_time_wall();
+    pm_reader_t *rd;
+    pm_result_t r = pm_reader_open_next(f, name, &pm_queries_schema, pm_schema_required(&pm_queries_schema), &rd);
+    if (r != PM_OK)
+        return r;
+    if (!rd) {
+        *end_out = 1;
+        return PM_OK;
+    }
+    in->total = in->end = pm_reader_header(rd)->count;
+    uint64_t rows = PM_GATHER_STREAM_ROWS;
+    if (whole) {
+        r = pm_table_read_from(rd, 0, UINT64_MAX, &in->q_table);
+        pm_reader_close(rd);
+        rows = in->q_table.count;
+    } else {
+        in->stream = rd;
+        r = pm_table_chunks_open(rd, PM_GATHER_STREAM_ROWS, &in->q_table);
+    }
+    in->read_s = pm_time_wall() - t0;
+    return r == PM_OK ? inputs_setup(in, variable, rows, 0) : r;
+}
+
+pm_result_t pm_gather_inputs_read_queries(pm_gather_inputs_t *in, const char *q_path)
+{
+    memset(in, 0, sizeof *in);
+    in->q_path = q_path;
+    double t0 = pm_time_wall();
+    pm_result_t r = pm_table_read(q_path, &pm_queries_schema, pm_schema_required(&pm_queries_schema), &in->q_table);
+    in->total = in->end = in->q_table.count;
+    in->read_s = pm_time_wall() - t0;
+    return r;
+}
+
+pm_result_t pm_gather_inputs_next_map(pm_gather_inputs_t *in, FILE *f, const char *name, int variable, int *end_out)
+{
+    *end_out = 0;
+    pm_gather_map_free(&in->map);
+    memset(&in->map, 0, sizeof in->map);
+    pm_table_free(&in->map_table);
+    in->map_path = name;
+    double t0 = pm_time_wall();
+    pm_reader_t *rd;
+    pm_result_t r = pm_reader_open_next(f, name, &pm_photonmap_schema, pm_schema_required(&pm_photonmap_schema), &rd);
+    if (r != PM_OK)
+        return r;
+    if (!rd) {
+        *end_out = 1;
+        return PM_OK;
+    }
+    r = pm_table_read_from(rd, 0, UINT64_MAX, &in->map_table);
+    pm_reader_close(rd);
+    in->read_s = pm_time_wall() - t0;
+    return r == PM_OK ? inputs_setup(in, variable, in->q_table.count, 1) : r;
+}
+
 pm_result_t pm_gather_stream(pm_gather_inputs_t *in, const pm_gather_params_t *p, pm_gather_stats_t *stats,
                              double *gather_s_out)
 {

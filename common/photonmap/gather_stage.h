@@ -6,6 +6,7 @@
 #define PM_GATHER_STAGE_H
 
 #include <stdint.h>
+#include <stdio.h>
 
 #include "base/args.h"
 #include "base/error.h"
@@ -94,6 +95,20 @@ pm_result_t pm_gather_inputs_read_rest(pm_gather_inputs_t *in, int variable);
  * the stats the sums of every chunk's (gather_s_out: wall seconds in pm_gather_run). */
 pm_result_t pm_gather_stream(pm_gather_inputs_t *in, const pm_gather_params_t *p, pm_gather_stats_t *stats,
                              double *gather_s_out);
+
+/* Streams of documents (docs/formats.md, "Streams"): a gather that keeps one input and takes
+ * the other one document at a time. pm_gather_inputs_read_map reads the map alone (the queries
+ * come from a stream); pm_gather_inputs_next_queries then reads the next queries document of f
+ * (name: what messages and the INPUT line call it), whole when `whole` (the width is measured on
+ * it) or opened to be gathered by pm_gather_stream, checked against the kept map as
+ * pm_gather_inputs_open checks them. pm_gather_inputs_read_queries reads a queries file whole
+ * (the map comes from a stream) and pm_gather_inputs_next_map reads the next map document of f
+ * in place of the last one. Both set *end_out (and read nothing) at the clean end of f. */
+pm_result_t pm_gather_inputs_read_map(pm_gather_inputs_t *in, const char *map_path, int variable);
+pm_result_t pm_gather_inputs_next_queries(pm_gather_inputs_t *in, FILE *f, const char *name, int whole, int variable,
+                                          int *end_out);
+pm_result_t pm_gather_inputs_read_queries(pm_gather_inputs_t *in, const char *q_path);
+pm_result_t pm_gather_inputs_next_map(pm_gather_inputs_t *in, FILE *f, const char *name, int variable, int *end_out);
 
 /* The kernel width options after the scene's suggestions. An option given on the command line
  * wins (a given --k alone also sets the width from k, leaving the scene's radius aside);

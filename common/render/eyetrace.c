@@ -91,8 +91,9 @@ struct pm_eye {
     unsigned spp, primary, light_samples, nx, ny;
     int pixel; /* PM_PIXEL_BOX or PM_PIXEL_CENTER */
     int mode, schedule, width, threads, progress, has_mat, has_dir;
-    int specular; /* the scene has mirrors or glass: eye paths follow them */
-    int caustics; /* also write the caustic queries (the first non-specular hits) */
+    int specular;    /* the scene has mirrors or glass: eye paths follow them */
+    int caustics;    /* also write the caustic queries (the first non-specular hits) */
+    int direct_only; /* pm_eye_options_t's: no queries, secondary rays only for emitters they find */
     uint32_t record_size, off_pos, off_nor, off_w, off_pix, off_mat, off_dir; /* bytes */
     uint64_t seed;
     float eps; /* m, ray-origin offset along the normal */
@@ -400,13 +401,17 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
     if (c->mode == PM_EYE_DIRECT_VIS) {
         /* The primary hit is the query: path weight 1 (over the primary rays of the pixel). */
         float w[3] = {inv_p * tp[0], inv_p * tp[1], inv_p * tp[2]};
-        int put = put_hit(c, out, p, n, w, pixel, s->tri_material[tri], m, wo);
-        if (put < 0)
-            return 0;
-        sc->n_queries += (uint64_t)put;
+        if (!c->direct_only) {
+            int put = put_hit(c, out, p, n, w, pixel, s->tri_material[tri], m, wo);
+            if (put < 0)
+                return 0;
+            sc->n_queries += (uint64_t)put;
+        }
         return 1;
     }
 
+    if (c->direct_only && !s->nemissive)
+        return 1; /* no emitter for a secondary ray to find: no secondary rays */
     /* Secondary rays: cosine-weighted (pdf cos/pi), so f cos / pdf = pi f, over N. */
     float tb[3], bb[3];
     {
@@ -592,7 +597,8 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
             for (int k = 0; k < 3; k++)
                 direct[3 * sc->sh_px[j] + k] += (double)sc->sh_c[3 * j + k];
 
-    if (c->mode != PM_EYE_GATHER)
+    /* The secondary rays' only part in the direct light is the emitters they find. */
+    if (c->mode != PM_EYE_GATHER || (c->direct_only && !s->nemissive))
         return PM_OK;
     /* Secondary rays: consecutive rays share a cell or a pixel, so packets stay coherent. */
     double t0 = pm_time_wall();
@@ -648,6 +654,8 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
                 float gn[3] = {n[0], n[1], n[2]};
                 pm_scene_shading_normal(s, tri, q, gn, n);
             }
+            if (c->direct_only)
+                continue;                 /* the direct buffer alone: no queries */
             if (c->lobe && c->lobe[mi]) { /* glossy and textured: two records (put_hit) */
                 float pw[3] = {rw[0] * thr[0], rw[1] * thr[1], rw[2] * thr[2]};
                 int put = isfinite(pw[0] + pw[1] + pw[2])
@@ -694,7 +702,7 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
             for (int k = 0; k < 3; k++)
                 direct[3 * sc->sec_px[j] + (uint32_t)k] += (double)(rw[k] * ke[k] * wb);
         }
-        if (c->lobe && c->lobe[mi]) { /* glossy and textured: two records (put_hit) */
+        if (!c->direct_only && c->lobe && c->lobe[mi]) { /* glossy and textured: two records (put_hit) */
             int put = put_hit(c, out, q, n, rw, y * c->w + sc->sec_px[j], mi, mt, wo);
             if (put < 0)
                 return pm_error_set(PM_ERR_NOMEM, "out of memory for the queries of row %" PRIu32, y);
@@ -702,7 +710,7 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
             continue;
         }
         float w[3] = {rw[0] * fold[0], rw[1] * fold[1], rw[2] * fold[2]};
-        if (!(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f))
+        if (c->direct_only || !(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f))
             continue;                                                 /* a black query surface */
         put_query(c, out, q, n, w, y * c->w + sc->sec_px[j], mi, wo); /* room reserved above */
         sc->n_queries++;
@@ -779,7 +787,12 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
     c->width = pm_packet_width(rt, o->isa);
     c->specular = s->any_specular;
     c->caustics = o->caustics;
+    c->direct_only = o->direct_only;
     pm_result_t r = PM_OK;
+    if (o->caustics && o->direct_only) {
+        pm_eye_destroy(c);
+        return pm_error_set(PM_ERR_USAGE, "caustic queries are queries: not with the direct light alone");
+    }
     if (o->caustics && !s->any_specular)
         r = pm_error_set(PM_ERR_INPUT, "scene '%s' has no mirror or glass: it has no caustic queries", s->path);
     else if (o->caustics && o->mode != PM_EYE_GATHER)

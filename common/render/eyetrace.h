@@ -47,10 +47,12 @@ typedef struct {
     int pixel;              /* PM_PIXEL_BOX (the default: rays stratified over the pixel) or PM_PIXEL_CENTER */
     uint32_t light_samples; /* area-light samples per primary hit */
     uint64_t seed;
-    pm_isa_t isa; /* packet width (narrowed to what Embree runs natively) */
-    int threads;  /* worker threads, >= 1 */
-    int progress; /* a progress line on a terminal */
-    int caustics; /* also deliver the caustic queries (sink->caustic); a scene with mirrors or glass, gather mode */
+    pm_isa_t isa;    /* packet width (narrowed to what Embree runs natively) */
+    int threads;     /* worker threads, >= 1 */
+    int progress;    /* a progress line on a terminal */
+    int caustics;    /* also deliver the caustic queries (sink->caustic); a scene with mirrors or glass, gather mode */
+    int direct_only; /* the direct radiance alone, no queries: secondary rays are traced only in a scene with
+                      * emissive triangles, for the light they find there (the same direct buffer, bit for bit) */
 } pm_eye_options_t;
 
 /* What a context settled on: sizes, the effective spp, the queries' record layout. */

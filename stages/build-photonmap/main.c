@@ -7,8 +7,13 @@
  * has it (scenes with glossy materials). `--map indirect` leaves out first-hit photons, for
  * renders whose direct light comes from shadow rays; `--map caustic` builds the caustic map
  * from the caustic photons file of trace-photons --caustic-output, and nothing else does. `--width-k K` adds each
- * photon's kernel width for the variable-width estimator: the radius of the disc around it that holds K photons. */
+ * photon's kernel width for the variable-width estimator: the radius of the disc around it that holds K photons.
+ * With --stream PHOTONS is a stream of photons documents (docs/formats.md, "Streams"), one per
+ * frame of a light path, and a map document is written to stdout for each until it ends. */
+#include <errno.h>
 #include <inttypes.h>
+#include <stdio.h>
+#include <string.h>
 
 #include "base/stage.h"
 #include "formats/formats.h"
@@ -21,10 +26,84 @@ typedef struct {
     double vvh_radius; /* m; 0: from vvh_k */
     int64_t vvh_k;
     double width_max; /* m; 0: no limit */
+    int stream;       /* --stream: PHOTONS is a stream of documents, a map written for each */
 } build_options_t;
+
+/* Builds the map of one photons document (rd: its header read; in names it) and writes it. */
+static pm_result_t build_doc(pm_stage_t *st, const build_options_t *o, pm_reader_t *rd, const char *in,
+                             pm_map_build_stats_t *bs_out, double *t_read_out, double *t_write_out)
+{
+    pm_table_t ph = {0}, map = {0};
+    pm_map_build_params_t p = {.map = (pm_map_kind_t)o->map,
+                               .split = (pm_split_t)o->split,
+                               .vvh_radius = o->vvh_radius,
+                               .vvh_k = (uint32_t)o->vvh_k,
+                               .width_k = (uint32_t)o->width_k,
+                               .width_max = o->width_max};
+    double t0 = pm_time_wall();
+    pm_result_t r = pm_table_read_from(rd, 0, UINT64_MAX, &ph);
+    *t_read_out += pm_time_wall() - t0;
+    if (r == PM_OK && (r = pm_map_build(&ph, in, &p, &map, bs_out)) == PM_OK &&
+        (r = pm_map_build_header(&map, &ph, in, st->argc, st->argv, &p, bs_out)) == PM_OK) {
+        t0 = pm_time_wall();
+        r = pm_table_write(&map, st->output);
+        *t_write_out += pm_time_wall() - t0;
+    }
+    pm_table_free(&map);
+    pm_table_free(&ph);
+    return r;
+}
+
+/* --stream: a map per photons document until the stream ends. */
+static pm_result_t run_stream(pm_stage_t *st, const build_options_t *o)
+{
+    const char *path = st->args.args[0], *sname = strcmp(path, "-") ? path : "stdin";
+    if (strcmp(st->output, "-") != 0)
+        return pm_error_set(PM_ERR_USAGE, "--stream writes one map document per frame to stdout: give -o - (not '%s')",
+                            st->output);
+    FILE *f = strcmp(path, "-") ? fopen(path, "rb") : stdin;
+    if (!f)
+        return pm_error_set(PM_ERR_INPUT, "cannot open '%s': %s", path, strerror(errno));
+    pm_result_t r = PM_OK;
+    pm_map_build_stats_t bs = {0};
+    double t_read = 0.0, t_write = 0.0, t_build = 0.0;
+    uint64_t frames = 0, photons = 0;
+    char name[1200];
+    for (;;) {
+        snprintf(name, sizeof name, "%s, frame %" PRIu64, sname, frames);
+        pm_reader_t *rd;
+        if ((r = pm_reader_open_next(f, name, &pm_photons_schema, pm_schema_required(&pm_photons_schema), &rd)) !=
+                PM_OK ||
+            !rd)
+            break;
+        r = build_doc(st, o, rd, name, &bs, &t_read, &t_write);
+        pm_reader_close(rd);
+        if (r != PM_OK)
+            break;
+        frames++;
+        photons += bs.photons;
+        t_build += bs.build_s;
+    }
+    if (f != stdin)
+        fclose(f);
+    if (r == PM_OK && frames == 0)
+        r = pm_error_set(PM_ERR_INPUT, "empty stream '%s': no photons document", sname);
+    if (r == PM_OK) {
+        st->items = photons;
+        pm_stage_stat_int(st, "frames", (int64_t)frames);
+        pm_stage_stat_int(st, "photons", (int64_t)photons);
+        pm_stage_stat_string(st, "map", pm_map_kind_names[o->map]);
+        pm_stage_stat_double(st, "read_s", t_read);
+        pm_stage_stat_double(st, "build_s", t_build);
+        pm_stage_stat_double(st, "write_s", t_write);
+    }
+    return r;
+}
 
 static pm_result_t run(pm_stage_t *st, const build_options_t *o)
 {
+    if (o->stream)
+        return run_stream(st, o);
     const char *in = st->args.args[0];
     pm_table_t ph = {0}, map = {0};
     pm_map_build_params_t p = {.map = (pm_map_kind_t)o->map,
@@ -95,6 +174,9 @@ int main(int argc, char **argv)
          "store each photon's kernel width: the radius holding K photons around it (0: none)", 0, 65536, NULL},
         {"width-max", 0, PM_OPT_DOUBLE, &o.width_max, "M", "largest kernel width, m, for --width-k (0: no limit)", 0,
          1e30, NULL},
+        {"stream", 0, PM_OPT_FLAG, &o.stream, NULL,
+         "PHOTONS is a stream of documents (a frame each): build a map of each, one document per frame to stdout", 1, 0,
+         NULL},
         {0},
     };
     static const char about[] = "Build the photon map KD-tree (one photon per node, 8-byte nodes) from a photons file; "

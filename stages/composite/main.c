@@ -17,14 +17,22 @@
  * as they were.
  *
  * An OpenEXR input (trace-reference's or measure-error's images) is previewed instead: the
- * one image, times its SCALE, tone-mapped into the --png PNG. */
+ * one image, times its SCALE, tone-mapped into the --png PNG.
+ *
+ * With --stream every input is a stream of radiance documents (docs/formats.md, "Streams"), one
+ * per frame, and each frame's documents are added into that frame's outputs, whose names are
+ * patterns holding the frame number (frame-%04d.exr), until the streams end together. Each
+ * frame's outputs appear together, or none of them. */
+#include <errno.h>
 #include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/atomic.h"
 #include "base/exr.h"
 #include "base/stage.h"
+#include "formats/formats.h"
 #include "image/composite.h"
 #include "image/rgb.h"
 #include "image/tone.h"
@@ -38,7 +46,41 @@ typedef struct {
     double exposure;      /* EV: the PNG shows radiance x 2^EV */
     const char *state;    /* --accumulate FILE: the running image of progressive passes */
     int64_t pass;         /* --pass N: the pass the sum is (0: the next one) */
+    int stream;           /* --stream: the inputs are streams of documents, one frame each */
 } composite_options_t;
+
+/* pattern with its one %d (or %0Nd, N < 10) replaced by frame; NULL pattern gives NULL. */
+static pm_result_t frame_path(const char *option, const char *pattern, uint64_t frame, char *out, size_t cap,
+                              const char **path_out)
+{
+    *path_out = NULL;
+    if (!pattern)
+        return PM_OK;
+    const char *pc = strchr(pattern, '%');
+    int width = 0;
+    const char *d = pc ? pc + 1 : NULL;
+    if (d && *d == '0' && d[1] >= '1' && d[1] <= '9')
+        width = d[1] - '0', d += 2;
+    if (!d || *d != 'd' || strchr(d, '%'))
+        return pm_error_set(PM_ERR_USAGE,
+                            "--stream: %s '%s' must hold one %%d or %%0Nd for the frame number (frame-%%04d.exr)",
+                            option, pattern);
+    int n = snprintf(out, cap, "%.*s%0*" PRIu64 "%s", (int)(pc - pattern), pattern, width, frame, d + 1);
+    if (n < 0 || (size_t)n >= cap)
+        return pm_error_set(PM_ERR_USAGE, "--stream: %s '%s' is too long", option, pattern);
+    *path_out = out;
+    return PM_OK;
+}
+
+/* 1 when f has nothing more to read (the clean end of its stream), 0 when a document follows. */
+static int stream_ended(FILE *f)
+{
+    int c = getc(f);
+    if (c == EOF)
+        return !ferror(f);
+    ungetc(c, f);
+    return 0;
+}
 
 /* The same content twice is most likely a slip: say so, and add both. */
 static void note_repeat(void *ctx, const char *path, const char *same_as, uint64_t hash)
@@ -97,8 +139,139 @@ static pm_result_t preview_exr(pm_stage_t *st, const composite_options_t *o)
     return r;
 }
 
+/* --stream: a frame per document of every input, written to the patterns' names. */
+static pm_result_t run_stream(pm_stage_t *st, const composite_options_t *o)
+{
+    int n = st->args.nargs, to_exr = strcmp(st->output, "-") != 0;
+    if (o->state || o->pass)
+        return pm_error_set(PM_ERR_USAGE, "--stream writes frames: --accumulate and --pass are for passes");
+    if (!to_exr && !o->png && !o->radiance)
+        return pm_error_set(PM_ERR_USAGE, "no output: give -o FRAME-%%04d.exr, --png or --radiance patterns");
+    FILE **files = calloc((size_t)n, sizeof *files);
+    char **paths = calloc((size_t)n, sizeof *paths), **names = calloc((size_t)n, sizeof *names);
+    double *scales = calloc((size_t)n, sizeof *scales);
+    pm_result_t r = files && paths && names && scales ? PM_OK : pm_error_set(PM_ERR_NOMEM, "out of memory");
+    int nstdin = 0;
+    for (int i = 0; i < n && r == PM_OK; i++) {
+        if ((r = pm_composite_parse_input(st->args.args[i], &paths[i], &scales[i])) != PM_OK)
+            break;
+        if (!strcmp(paths[i], "-"))
+            files[i] = nstdin++ ? NULL : stdin;
+        else
+            files[i] = fopen(paths[i], "rb");
+        if (!files[i])
+            r = nstdin > 1 ? pm_error_set(PM_ERR_USAGE, "stdin ('-') given twice")
+                           : pm_error_set(PM_ERR_INPUT, "cannot open '%s': %s", paths[i], strerror(errno));
+    }
+    uint64_t frame = 0;
+    double t_add = 0.0, t_write = 0.0;
+    pm_composite_info_t last = {0};
+    char exr[4096], png[4096], rad[4096];
+    FILE **mem = calloc((size_t)n, sizeof *mem);
+    unsigned char **doc = calloc((size_t)n, sizeof *doc);
+    if (r == PM_OK && (!mem || !doc))
+        r = pm_error_set(PM_ERR_NOMEM, "out of memory");
+    while (r == PM_OK) {
+        /* Each input's document is taken off its stream whole, in the order given, before the
+         * next input is waited on: the stage writing the first is never held up by the second. */
+        int ended = 0;
+        for (int i = 0; i < n && r == PM_OK; i++) {
+            char name[4200];
+            snprintf(name, sizeof name, "%s, frame %" PRIu64, strcmp(paths[i], "-") ? paths[i] : "stdin", frame);
+            size_t len;
+            free(doc[i]);
+            doc[i] = NULL;
+            if ((r = pm_reader_take_next(files[i], name, &pm_radiance_schema, &doc[i], &len)) != PM_OK)
+                break;
+            if (!doc[i] && i == 0) {
+                ended = 1;
+                break;
+            }
+            if (!doc[i]) {
+                r = pm_error_set(PM_ERR_INPUT, "stream '%s' has ended at frame %" PRIu64 " while '%s' goes on",
+                                 paths[i], frame, paths[0]);
+                break;
+            }
+            if (mem[i])
+                fclose(mem[i]);
+            if (!(mem[i] = fmemopen(doc[i], len, "rb")))
+                r = pm_error_set(PM_ERR_NOMEM, "out of memory");
+            snprintf(name + strlen(name), sizeof name - strlen(name), ":%.17g", scales[i]);
+            free(names[i]);
+            if (r == PM_OK && !(names[i] = strdup(name)))
+                r = pm_error_set(PM_ERR_NOMEM, "out of memory");
+        }
+        if (r == PM_OK && ended)
+            for (int i = 1; i < n && r == PM_OK; i++)
+                if (!stream_ended(files[i]))
+                    r = pm_error_set(PM_ERR_INPUT, "stream '%s' has ended at frame %" PRIu64 " while '%s' goes on",
+                                     paths[0], frame, paths[i]);
+        if (r != PM_OK || ended)
+            break;
+        const char *exr_path, *png_path, *rad_path;
+        if (r != PM_OK ||
+            (r = frame_path("-o", to_exr ? st->output : NULL, frame, exr, sizeof exr, &exr_path)) != PM_OK ||
+            (r = frame_path("--png", o->png, frame, png, sizeof png, &png_path)) != PM_OK ||
+            (r = frame_path("--radiance", o->radiance, frame, rad, sizeof rad, &rad_path)) != PM_OK)
+            break;
+        pm_atomic_set_t set;
+        pm_atomic_set_begin(&set); /* the frame's outputs appear together, or none */
+        pm_composite_t *c;
+        double t0 = pm_time_wall(), clipped = 0.0;
+        r = pm_composite_open_streams(&c, names, mem, n, (pm_composite_only_t)o->only);
+        if (r == PM_OK)
+            r = pm_composite_sum(c, st->argc, st->argv, note_repeat, st);
+        if (r == PM_OK)
+            r = pm_composite_finish(c, o->half);
+        double t1 = pm_time_wall();
+        if (r == PM_OK && exr_path)
+            r = pm_composite_write_exr(c, exr_path, (pm_exr_compression_t)o->compression);
+        if (r == PM_OK && png_path)
+            r = pm_composite_write_png(c, png_path, o->exposure, (pm_tone_t)o->tone, &clipped);
+        if (r == PM_OK && rad_path)
+            r = pm_composite_write_radiance(c, rad_path);
+        r = pm_atomic_set_end(&set, r);
+        t_add += t1 - t0;
+        t_write += pm_time_wall() - t1;
+        if (r == PM_OK)
+            last = *pm_composite_info(c);
+        pm_composite_free(c);
+        if (r == PM_OK)
+            frame++;
+    }
+    if (r == PM_OK && frame == 0)
+        r = pm_error_set(PM_ERR_INPUT, "empty streams: no radiance document");
+    if (r == PM_OK) {
+        st->items = last.pixels * frame;
+        pm_stage_stat_int(st, "frames", (int64_t)frame);
+        pm_stage_stat_int(st, "pixels", (int64_t)last.pixels);
+        pm_stage_stat_int(st, "width", last.width);
+        pm_stage_stat_int(st, "height", last.height);
+        pm_stage_stat_int(st, "buffers", last.buffers);
+        pm_stage_stat_string(st, "exr_pixel", o->half ? "half" : "float");
+        pm_stage_stat_double(st, "read_add_s", t_add);
+        pm_stage_stat_double(st, "write_s", t_write);
+    }
+    for (int i = 0; i < n; i++) {
+        if (files && files[i] && files[i] != stdin)
+            fclose(files[i]);
+        if (mem && mem[i])
+            fclose(mem[i]);
+        if (doc)
+            free(doc[i]);
+        if (paths)
+            free(paths[i]);
+        if (names)
+            free(names[i]);
+    }
+    free(files), free(paths), free(names), free(scales), free(mem), free(doc);
+    return r;
+}
+
 static pm_result_t run(pm_stage_t *st, const composite_options_t *o)
 {
+    if (o->stream)
+        return run_stream(st, o);
     for (int i = 0; i < st->args.nargs; i++) {
         char *path = NULL;
         double scale;
@@ -187,6 +360,10 @@ int main(int argc, char **argv)
         {"pass", 0, PM_OPT_INT, &o.pass, "N",
          "with --accumulate: the sum is pass N, which must be STATE's passes + 1 (0: the next, unchecked)", 0,
          (double)((int64_t)1 << 40), NULL},
+        {"stream", 0, PM_OPT_FLAG, &o.stream, NULL,
+         "every BUFFER is a stream of documents, one per frame: write a frame per document of each, to -o, --png and "
+         "--radiance names holding %04d (the frame number from 0)",
+         1, 0, NULL},
         {0},
     };
     static const char about[] =

@@ -7,8 +7,12 @@
  * Reads a queries file (or stdin) whole, computes the order with common/photonmap/hilbert.c (an octree
  * visited in curve order, stopping at cells of --leaf points), and writes the same records,
  * byte for byte, in that order (to a file or stdout). Memory: one copy of the records plus
- * 20 bytes per point of sort words and permutation. */
+ * 20 bytes per point of sort words and permutation. With --stream the input is a stream of
+ * queries documents (docs/formats.md, "Streams"), one frame each, and each is sorted and
+ * written to the output stream in turn, until the input ends. */
+#include <errno.h>
 #include <inttypes.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -23,7 +27,19 @@ typedef struct {
     int order;        /* pm_order_t */
     const char *leaf; /* "auto" or a count */
     int64_t cache;    /* bytes of cache --leaf auto assumes; 0 asks the system for L2 */
+    int stream;       /* the input is a stream of documents, the output one document for each */
 } sort_options_t;
+
+/* What the documents sorted so far took, for --stats (wall seconds). */
+typedef struct {
+    uint64_t points, frames;
+    double read_s, keys_s, sort_s, reorder_s, write_s;
+    uint64_t leaf;
+    int is_auto, depth;
+    uint64_t leaves;
+    const char *leaf_from;
+    size_t rs;
+} sort_totals_t;
 
 /* --leaf: a positive count or "auto". */
 static pm_result_t parse_leaf(const char *s, uint64_t *leaf_out, int *is_auto_out)
@@ -71,48 +87,72 @@ static pm_result_t make_header(const pm_stage_t *st, const pm_header_t *in, cons
     return r;
 }
 
-static pm_result_t run(pm_stage_t *st, const sort_options_t *o)
+/* The arrays a sort needs, kept from one document of a stream to the next so that a frame
+ * does not map and fault in fresh pages for its records. */
+typedef struct {
+    unsigned char *recs;
+    uint32_t *perm;
+    unsigned char *chunk[2];
+    uint64_t n; /* records they have room for */
+    size_t rs;  /* of this record size */
+} sort_bufs_t;
+
+static void bufs_free(sort_bufs_t *b)
+{
+    pm_free_aligned(b->recs);
+    pm_free_aligned(b->perm);
+    free(b->chunk[0]);
+    free(b->chunk[1]);
+    memset(b, 0, sizeof *b);
+}
+
+/* Room for n records of rs bytes (and the reorder's chunks when sorting); 0 when out of memory. */
+static int bufs_reserve(sort_bufs_t *b, uint64_t n, size_t rs)
+{
+    if (b->recs && n <= b->n && rs == b->rs)
+        return 1;
+    bufs_free(b);
+    b->recs = pm_alloc_aligned(n ? n * rs : 1);
+    b->perm = pm_alloc_aligned(n ? n * sizeof *b->perm : 1);
+    b->chunk[0] = malloc((size_t)PM_REORDER_CHUNK * rs), b->chunk[1] = malloc((size_t)PM_REORDER_CHUNK * rs);
+    b->n = n, b->rs = rs;
+    if (b->recs && b->perm && b->chunk[0] && b->chunk[1])
+        return 1;
+    bufs_free(b);
+    return 0;
+}
+
+/* Sorts the one document rd holds (its header read) and writes it to -o. */
+static pm_result_t sort_doc(pm_stage_t *st, const sort_options_t *o, pm_reader_t *rd, const char *in_name,
+                            sort_bufs_t *bufs, sort_totals_t *tot)
 {
     uint64_t leaf = 16;
     int is_auto = 0;
     pm_result_t res = parse_leaf(o->leaf, &leaf, &is_auto);
     if (res != PM_OK)
         return res;
-    const char *path = st->args.nargs ? st->args.args[0] : "-";
-    const char *in_name = strcmp(path, "-") == 0 ? "stdin" : path;
     pm_order_t order = (pm_order_t)o->order;
-
     double t0 = pm_time_wall();
-    pm_reader_t *rd;
-    if ((res = pm_reader_open(path, &pm_queries_schema, 0, &rd)) != PM_OK)
-        return res;
     const pm_header_t *in = pm_reader_header(rd);
     /* Without --leaf, the scene's render.leaf, which trace-gather-points copies into the header. */
     const char *scene_leaf = pm_args_given(&st->args, "leaf") ? NULL : pm_header_get(in, "render.leaf");
-    if (scene_leaf && (res = parse_leaf(scene_leaf, &leaf, &is_auto)) != PM_OK) {
-        pm_reader_close(rd);
+    if (scene_leaf && (res = parse_leaf(scene_leaf, &leaf, &is_auto)) != PM_OK)
         return pm_error_set(PM_ERR_INPUT, "queries '%s': header key render.leaf '%s' is not a count of at least 1",
                             in_name, scene_leaf);
-    }
     uint64_t n = in->count;
     size_t rs = in->record_size;
-    if (n > UINT32_MAX) {
-        pm_reader_close(rd);
+    if (n > UINT32_MAX)
         return pm_error_set(PM_ERR_INPUT, "queries '%s' has %" PRIu64 " records; hilbert-sort sorts at most %" PRIu32,
                             in_name, n, UINT32_MAX);
-    }
-    unsigned char *recs = pm_alloc_aligned(n ? n * rs : 1);
-    uint32_t *perm = pm_alloc_aligned(n ? n * sizeof *perm : 1);
-    unsigned char *chunk[2] = {NULL, NULL};
-    if (order != PM_ORDER_NONE)
-        chunk[0] = malloc((size_t)PM_REORDER_CHUNK * rs), chunk[1] = malloc((size_t)PM_REORDER_CHUNK * rs);
     pm_header_t h = {0};
     pm_writer_t *w = NULL;
-    if (!recs || !perm || (order != PM_ORDER_NONE && (!chunk[0] || !chunk[1]))) {
+    if (!bufs_reserve(bufs, n, rs)) {
         res = pm_error_set(PM_ERR_NOMEM, "out of memory for %" PRIu64 " queries of '%s' (%.0f MB)", n, in_name,
                            n * (rs + 20.0) / 1e6);
         goto done;
     }
+    unsigned char *recs = bufs->recs, **chunk = bufs->chunk;
+    uint32_t *perm = bufs->perm;
     uint64_t got, in_hash = 0;
     if ((res = pm_reader_read(rd, recs, n, &got)) != PM_OK || (res = pm_reader_finish(rd, &in_hash)) != PM_OK)
         goto done;
@@ -138,36 +178,87 @@ static pm_result_t run(pm_stage_t *st, const sort_options_t *o)
         pm_writer_abort(w);
     w = NULL;
     double t3 = pm_time_wall();
-
     if (res == PM_OK) {
-        st->items = n;
-        pm_stage_stat_int(st, "points", (int64_t)n);
-        pm_stage_stat_double(st, "points_per_s", t3 > t0 ? n / (t3 - t0) : 0.0);
-        pm_stage_stat_string(st, "order", pm_order_names[order]);
-        pm_stage_stat_int(st, "leaf", (int64_t)leaf);
-        pm_stage_stat_string(st, "leaf_rule", is_auto ? "auto" : "fixed");
-        pm_stage_stat_string(st, "leaf_from",
-                             scene_leaf                         ? "render.leaf"
-                             : pm_args_given(&st->args, "leaf") ? "--leaf"
-                                                                : "default");
-        pm_stage_stat_int(st, "octree_depth", info.depth);
-        pm_stage_stat_int(st, "leaves", (int64_t)info.leaves);
-        pm_stage_stat_int(st, "record_bytes", (int64_t)rs);
-        pm_stage_stat_double(st, "read_s", t1 - t0);
-        pm_stage_stat_double(st, "keys_s", info.keys_s);
-        pm_stage_stat_double(st, "sort_s", info.sort_s);
-        pm_stage_stat_double(st, "reorder_s", t2 - t1);
-        pm_stage_stat_double(st, "reorder_points_per_s", t2 > t1 ? n / (t2 - t1) : 0.0);
-        pm_stage_stat_double(st, "write_s", t3 - t2);
+        tot->points += n;
+        tot->frames++;
+        tot->read_s += t1 - t0;
+        tot->keys_s += info.keys_s;
+        tot->sort_s += info.sort_s;
+        tot->reorder_s += t2 - t1;
+        tot->write_s += t3 - t2;
+        tot->leaf = leaf;
+        tot->is_auto = is_auto;
+        tot->depth = info.depth;
+        tot->leaves += info.leaves;
+        tot->rs = rs;
+        tot->leaf_from = scene_leaf ? "render.leaf" : pm_args_given(&st->args, "leaf") ? "--leaf" : "default";
     }
 done:
     pm_writer_abort(w);
     pm_header_free(&h);
-    pm_reader_close(rd);
-    free(chunk[0]);
-    free(chunk[1]);
-    pm_free_aligned(perm);
-    pm_free_aligned(recs);
+    return res;
+}
+
+static pm_result_t run(pm_stage_t *st, const sort_options_t *o)
+{
+    const char *path = st->args.nargs ? st->args.args[0] : "-";
+    const char *in_name = strcmp(path, "-") == 0 ? "stdin" : path;
+    sort_totals_t tot = {0};
+    double t0 = pm_time_wall();
+    pm_reader_t *rd = NULL;
+    pm_result_t res = PM_OK;
+    sort_bufs_t bufs = {0};
+    if (!o->stream) {
+        if ((res = pm_reader_open(path, &pm_queries_schema, 0, &rd)) != PM_OK)
+            return res;
+        res = sort_doc(st, o, rd, in_name, &bufs, &tot);
+        pm_reader_close(rd);
+    } else {
+        if (strcmp(st->output, "-") != 0)
+            return pm_error_set(PM_ERR_USAGE,
+                                "--stream writes one queries document per frame to stdout: give -o - (not '%s')",
+                                st->output);
+        FILE *f = strcmp(path, "-") ? fopen(path, "rb") : stdin;
+        if (!f)
+            return pm_error_set(PM_ERR_INPUT, "cannot open '%s': %s", path, strerror(errno));
+        char name[1200];
+        for (;;) {
+            snprintf(name, sizeof name, "%s, frame %" PRIu64, in_name, tot.frames);
+            if ((res = pm_reader_open_next(f, name, &pm_queries_schema, 0, &rd)) != PM_OK || !rd)
+                break;
+            res = sort_doc(st, o, rd, name, &bufs, &tot);
+            pm_reader_close(rd);
+            if (res != PM_OK)
+                break;
+        }
+        if (f != stdin)
+            fclose(f);
+        if (res == PM_OK && tot.frames == 0)
+            res = pm_error_set(PM_ERR_INPUT, "empty stream '%s': no queries document", in_name);
+    }
+    bufs_free(&bufs);
+    double t3 = pm_time_wall();
+    if (res == PM_OK) {
+        uint64_t n = tot.points;
+        st->items = n;
+        pm_stage_stat_int(st, "points", (int64_t)n);
+        pm_stage_stat_double(st, "points_per_s", t3 > t0 ? n / (t3 - t0) : 0.0);
+        pm_stage_stat_string(st, "order", pm_order_names[o->order]);
+        pm_stage_stat_int(st, "leaf", (int64_t)tot.leaf);
+        pm_stage_stat_string(st, "leaf_rule", tot.is_auto ? "auto" : "fixed");
+        pm_stage_stat_string(st, "leaf_from", tot.leaf_from);
+        pm_stage_stat_int(st, "octree_depth", tot.depth);
+        pm_stage_stat_int(st, "leaves", (int64_t)tot.leaves);
+        pm_stage_stat_int(st, "record_bytes", (int64_t)tot.rs);
+        pm_stage_stat_double(st, "read_s", tot.read_s);
+        pm_stage_stat_double(st, "keys_s", tot.keys_s);
+        pm_stage_stat_double(st, "sort_s", tot.sort_s);
+        pm_stage_stat_double(st, "reorder_s", tot.reorder_s);
+        pm_stage_stat_double(st, "reorder_points_per_s", tot.reorder_s > 0 ? n / tot.reorder_s : 0.0);
+        pm_stage_stat_double(st, "write_s", tot.write_s);
+        if (o->stream)
+            pm_stage_stat_int(st, "frames", (int64_t)tot.frames);
+    }
     return res;
 }
 
@@ -185,6 +276,9 @@ int main(int argc, char **argv)
          "stop splitting cells of N points or fewer (1 sorts fully); auto picks N from the point count and cache", 1, 0,
          NULL},
         {"cache", 0, PM_OPT_INT, &o.cache, "BYTES", "cache size --leaf auto assumes; 0 asks the system (L2)", 0, 9e18,
+         NULL},
+        {"stream", 0, PM_OPT_FLAG, &o.stream, NULL,
+         "QUERIES is a stream of documents (a frame each): sort each in turn, one document per frame to stdout", 1, 0,
          NULL},
         {0},
     };

@@ -9,9 +9,18 @@
  * buffer is the same for any thread count. common/photonmap/gather.c does the work. With a
  * width known before the queries arrive (--radius, a later progressive pass, variable widths)
  * they stream through a chunk at a time (gather_stage.h), gathered while the stage before
- * writes the next. */
+ * writes the next.
+ *
+ * With --stream one input is kept in memory and the other is a stream of documents (docs/formats.md,
+ * "Streams"), one frame each: --stream queries keeps the map and gathers every queries document
+ * that arrives (a moving camera), --stream map keeps the queries and gathers them against every
+ * map document (moving lights); one radiance document per frame goes to stdout, each the bytes
+ * the same gather of that frame's two files would write but for its provenance. The kernel
+ * width is measured once, on the first frame, when not given. */
+#include <errno.h>
 #include <inttypes.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -21,6 +30,8 @@
 #include "photonmap/gather_stage.h"
 
 static const char *const width_names[] = {"fixed", "variable", NULL};
+static const char *const stream_names[] = {"none", "queries", "map", NULL};
+enum { STREAM_NONE = 0, STREAM_QUERIES = 1, STREAM_MAP = 2 };
 
 typedef struct {
     double radius;
@@ -31,7 +42,161 @@ typedef struct {
     const char *range;
     int64_t pass; /* progressive pass, 1-based; 0: none */
     double alpha; /* the schedule's alpha with pass */
+    int stream;   /* STREAM_*: which input is a stream of documents */
 } gather_options_t;
+
+/* The stats both paths report once the gather is done (t_* in wall seconds; with a stream,
+ * the sums over its frames). */
+static void report(pm_stage_t *st, const gather_options_t *o, const pm_gather_inputs_t *in, pm_isa_t isa,
+                   const pm_gather_stats_t *gs, double radius, double radius1, const char *width_from, double t_radius,
+                   double t_gather, double t_write)
+{
+    uint64_t nq = in->q.n;
+    int w = pm_isa_width(isa);
+    uint32_t np = in->map.n;
+    pm_gather_stage_stats(st, in, o->kernel, gs->shader_ops, t_gather, gs->cpu_s, t_write);
+    pm_stage_stat_string(st, "isa", pm_isa_name(isa));
+    pm_stage_stat_int(st, "packet_width", w);
+    if (!o->widths)
+        pm_stage_stat_double(st, "radius_m", radius);
+    pm_stage_stat_string(st, "radius_from", width_from);
+    if (!o->widths && o->radius == 0.0)
+        pm_stage_stat_double(st, "k", o->k);
+    pm_stage_stat_double(st, "shader_ops_per_s_per_thread",
+                         t_gather > 0 ? (double)gs->shader_ops / t_gather / st->threads_used : 0.0);
+    pm_stage_stat_int(st, "photons_visited", (int64_t)gs->nodes_visited);
+    pm_stage_stat_int(st, "shade_steps", (int64_t)gs->shade_steps);
+    pm_stage_stat_double(st, "active_lanes", gs->shade_steps ? (double)gs->active_lanes / gs->shade_steps : 0.0);
+    pm_stage_stat_double(st, "active_lane_fraction",
+                         gs->shade_steps ? (double)gs->active_lanes / gs->shade_steps / w : 0.0);
+    pm_stage_stat_double(st, "straddling_lanes",
+                         gs->shade_steps ? (double)gs->straddling_lanes / gs->shade_steps : 0.0);
+    pm_stage_stat_double(st, "useful_lanes", gs->shade_steps ? (double)gs->shader_ops / gs->shade_steps : 0.0);
+    pm_stage_stat_double(st, "radius_s", t_radius);
+    if (o->pass) {
+        pm_stage_stat_int(st, "pass", o->pass);
+        pm_stage_stat_double(st, "radius1_m", radius1);
+    }
+    pm_stage_stat_double(st, "gather_cpu_s", gs->cpu_s);
+    pm_stage_note(st,
+                  "%" PRIu64 " queries, %" PRIu32
+                  " photons, %s, %.3g shader ops/query, %.1f M shader ops/s, %.2f of %d lanes",
+                  nq, np, pm_isa_name(isa), nq ? (double)gs->shader_ops / nq : 0.0,
+                  t_gather > 0 ? gs->shader_ops / t_gather * 1e-6 : 0.0,
+                  gs->shade_steps ? (double)gs->active_lanes / gs->shade_steps : 0.0, w);
+}
+
+static void stats_add(pm_gather_stats_t *sum, const pm_gather_stats_t *gs)
+{
+    sum->shader_ops += gs->shader_ops;
+    sum->shade_steps += gs->shade_steps;
+    sum->active_lanes += gs->active_lanes;
+    sum->straddling_lanes += gs->straddling_lanes;
+    sum->nodes_visited += gs->nodes_visited;
+    sum->packets += gs->packets;
+    sum->cpu_s += gs->cpu_s;
+}
+
+/* --stream: one input kept, the other read a document (a frame) at a time until its end. */
+static pm_result_t run_stream(pm_stage_t *st, const gather_options_t *opt, pm_isa_t isa)
+{
+    gather_options_t oo = *opt, *o = &oo;
+    const char *width_from = "--widths";
+    if (o->widths)
+        return pm_error_set(PM_ERR_USAGE, "--stream needs fixed widths (variable widths are measured per map)");
+    if (o->range)
+        return pm_error_set(PM_ERR_USAGE, "--stream gathers whole frames: --range is for one file's shards");
+    if (strcmp(st->output, "-") != 0)
+        return pm_error_set(PM_ERR_USAGE,
+                            "--stream writes one radiance document per frame to stdout: give -o - (not '%s')",
+                            st->output);
+    int by_queries = o->stream == STREAM_QUERIES;
+    const char *spath = st->args.args[by_queries ? 1 : 0], *kept = st->args.args[by_queries ? 0 : 1];
+    const char *sname = strcmp(spath, "-") ? spath : "stdin";
+    if (!strcmp(kept, "-"))
+        return pm_error_set(PM_ERR_USAGE, "--stream %s: the kept %s must be a file, not stdin", stream_names[o->stream],
+                            by_queries ? "map" : "queries");
+    FILE *f = strcmp(spath, "-") ? fopen(spath, "rb") : stdin;
+    if (!f)
+        return pm_error_set(PM_ERR_INPUT, "cannot open '%s': %s", spath, strerror(errno));
+    pm_gather_inputs_t in;
+    pm_table_t out = {0};
+    pm_gather_stats_t sum = {0};
+    double t_radius = 0.0, t_gather = 0.0, t_write = 0.0, t_read = 0.0, radius = o->radius, radius1 = 0.0;
+    uint64_t frames = 0, queries = 0;
+    char name[1200];
+    pm_result_t r = by_queries ? pm_gather_inputs_read_map(&in, kept, 0) : pm_gather_inputs_read_queries(&in, kept);
+    t_read = in.read_s;
+    for (int end = 0; r == PM_OK;) {
+        snprintf(name, sizeof name, "%s, frame %" PRIu64, sname, frames);
+        if (by_queries)
+            r = pm_gather_inputs_next_queries(&in, f, name, frames == 0, 0, &end);
+        else
+            r = pm_gather_inputs_next_map(&in, f, name, 0, &end);
+        if (r != PM_OK || end)
+            break;
+        /* The first frame settles the width: the options, else the scene's, else --k measured
+         * on that frame (read whole for it); the later frames keep it. */
+        double t0 = pm_time_wall();
+        if (frames == 0) {
+            if ((r = pm_gather_inputs_scene_kernel(&in, &st->args, &radius, &o->k, &width_from)) != PM_OK)
+                break;
+            if (radius == 0.0 && (r = pm_gather_inputs_radius_for_k(&in, o->k, (float)o->normal_cos, &radius)) != PM_OK)
+                break;
+            t_radius = pm_time_wall() - t0;
+            radius1 = radius;
+            if (o->pass)
+                radius = pm_gather_pass_radius(radius1, (uint64_t)o->pass, o->alpha);
+        }
+        pm_gather_params_t p = {.radius = radius,
+                                .kernel = (pm_kernel_t)o->kernel,
+                                .variable = 0,
+                                .normal_cos = (float)o->normal_cos,
+                                .isa = isa};
+        pm_gather_stats_t gs;
+        double tg = 0.0;
+        if (in.stream) {
+            r = pm_gather_stream(&in, &p, &gs, &tg);
+        } else {
+            t0 = pm_time_wall();
+            r = pm_gather_run(&in.map, &in.q, 0, in.q.n, &p, in.per_query, &gs);
+            tg = pm_time_wall() - t0;
+            if (r == PM_OK)
+                r = pm_gather_check_finite(&in, "the gather");
+        }
+        if (r != PM_OK)
+            break;
+        t_gather += tg;
+        t_read += in.read_s;
+        stats_add(&sum, &gs);
+        queries += in.q.n;
+        pm_table_free(&out);
+        memset(&out, 0, sizeof out);
+        t0 = pm_time_wall();
+        if ((r = pm_gather_output_init(&out, &in, st->argc, st->argv, o->kernel, width_names[0])) != PM_OK ||
+            (r = pm_header_set(&out.hdr, "radius", "%.9g", radius)) != PM_OK ||
+            (r = pm_gather_pass_header(&out.hdr, (uint64_t)o->pass, o->alpha, radius1)) != PM_OK ||
+            (r = pm_table_write(&out, st->output)) != PM_OK)
+            break;
+        t_write += pm_time_wall() - t0;
+        frames++;
+    }
+    if (r == PM_OK && frames == 0)
+        r = pm_error_set(PM_ERR_INPUT, "empty stream '%s': no %s document", sname,
+                         by_queries ? "queries" : "photon map");
+    if (r == PM_OK) {
+        in.read_s = t_read;
+        in.q.n = queries;
+        report(st, o, &in, isa, &sum, radius, radius1, width_from, t_radius, t_gather, t_write);
+        pm_stage_stat_int(st, "frames", (int64_t)frames);
+        pm_stage_stat_string(st, "stream", stream_names[o->stream]);
+    }
+    if (f != stdin)
+        fclose(f);
+    pm_gather_inputs_free(&in);
+    pm_table_free(&out);
+    return r;
+}
 
 static pm_result_t run(pm_stage_t *st, const gather_options_t *opt)
 {
@@ -43,6 +208,8 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *opt)
     pm_result_t r = pm_isa_parse(o->isa, &isa);
     if (r != PM_OK)
         return r;
+    if (o->stream != STREAM_NONE)
+        return run_stream(st, o, isa);
     if (o->radius == 0.0 && o->k <= 0.0 && !o->widths)
         return pm_error_set(PM_ERR_USAGE, "give --radius R or --k K (photons per query) for a fixed kernel width");
     if (o->pass && o->widths)
@@ -88,8 +255,6 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *opt)
         if (r != PM_OK || (r = pm_gather_check_finite(&in, "the gather")) != PM_OK)
             goto done;
     }
-    uint64_t nq = in.q.n;
-
     pm_header_t *h = &out.hdr;
     if ((r = pm_gather_output_init(&out, &in, st->argc, st->argv, o->kernel, width_names[o->widths])) != PM_OK)
         goto done;
@@ -102,37 +267,7 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *opt)
         goto done;
     double t_write = pm_time_wall() - t0;
 
-    int w = pm_isa_width(isa);
-    uint32_t np = in.map.n;
-    pm_gather_stage_stats(st, &in, o->kernel, gs.shader_ops, t_gather, gs.cpu_s, t_write);
-    pm_stage_stat_string(st, "isa", pm_isa_name(isa));
-    pm_stage_stat_int(st, "packet_width", w);
-    if (!o->widths)
-        pm_stage_stat_double(st, "radius_m", radius);
-    pm_stage_stat_string(st, "radius_from", width_from);
-    if (!o->widths && o->radius == 0.0)
-        pm_stage_stat_double(st, "k", o->k);
-    pm_stage_stat_double(st, "shader_ops_per_s_per_thread",
-                         t_gather > 0 ? (double)gs.shader_ops / t_gather / st->threads_used : 0.0);
-    pm_stage_stat_int(st, "photons_visited", (int64_t)gs.nodes_visited);
-    pm_stage_stat_int(st, "shade_steps", (int64_t)gs.shade_steps);
-    pm_stage_stat_double(st, "active_lanes", gs.shade_steps ? (double)gs.active_lanes / gs.shade_steps : 0.0);
-    pm_stage_stat_double(st, "active_lane_fraction",
-                         gs.shade_steps ? (double)gs.active_lanes / gs.shade_steps / w : 0.0);
-    pm_stage_stat_double(st, "straddling_lanes", gs.shade_steps ? (double)gs.straddling_lanes / gs.shade_steps : 0.0);
-    pm_stage_stat_double(st, "useful_lanes", gs.shade_steps ? (double)gs.shader_ops / gs.shade_steps : 0.0);
-    pm_stage_stat_double(st, "radius_s", t_radius);
-    if (o->pass) {
-        pm_stage_stat_int(st, "pass", o->pass);
-        pm_stage_stat_double(st, "radius1_m", radius1);
-    }
-    pm_stage_stat_double(st, "gather_cpu_s", gs.cpu_s);
-    pm_stage_note(st,
-                  "%" PRIu64 " queries, %" PRIu32
-                  " photons, %s, %.3g shader ops/query, %.1f M shader ops/s, %.2f of %d lanes",
-                  nq, np, pm_isa_name(isa), nq ? (double)gs.shader_ops / nq : 0.0,
-                  t_gather > 0 ? gs.shader_ops / t_gather * 1e-6 : 0.0,
-                  gs.shade_steps ? (double)gs.active_lanes / gs.shade_steps : 0.0, w);
+    report(st, o, &in, isa, &gs, radius, radius1, width_from, t_radius, t_gather, t_write);
 done:
     pm_gather_inputs_free(&in);
     pm_table_free(&out);
@@ -161,6 +296,10 @@ int main(int argc, char **argv)
         {"isa", 0, PM_OPT_STRING, &o.isa, "ISA", "auto, scalar, sse4 (4 lanes), avx2 (8) or avx512 (16)", 1, 0, NULL},
         PM_GATHER_COMMON_OPTIONS(o.normal_cos, o.range),
         PM_GATHER_PASS_OPTIONS(o.pass, o.alpha),
+        {"stream", 0, PM_OPT_CHOICE, &o.stream, "WHICH",
+         "none; queries: keep MAP, gather each queries document of the stream QUERIES (a frame each); map: keep "
+         "QUERIES, gather them against each map document of the stream MAP; one radiance document per frame to stdout",
+         1, 0, stream_names},
         {0},
     };
     static const char about[] = "Gather photons at every query with SIMD packets and the sample-point estimator; write "

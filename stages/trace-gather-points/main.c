@@ -11,11 +11,18 @@
  * The queries header's COUNT must be known before the first record, so records are spooled
  * (common/base/spool.h: memory, then an unlinked temporary file past --spool-mem) and copied
  * into the output when tracing ends; the direct buffer is kept whole. Both outputs are
- * committed only when both are complete. */
+ * committed only when both are complete.
+ *
+ * Given several scenes (the frames of a camera or light path), it renders them one after the
+ * other and writes one document per scene to each output, a stream of documents
+ * (docs/formats.md, "Streams") for the resident stages downstream (hilbert-sort --stream,
+ * simd-gather --stream, composite --stream). --no-queries writes the direct buffer alone (a
+ * light path whose queries are kept from the still camera). */
 #include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "base/spool.h"
 #include "base/stage.h"
@@ -38,6 +45,7 @@ typedef struct {
     int mode, schedule;
     int pixel; /* PM_PIXEL_BOX or PM_PIXEL_CENTER */
     const char *isa;
+    int no_queries; /* --no-queries: the direct buffer alone */
 } tgp_options_t;
 
 /* Where the eye tracer's results go: the queries into the spool, the direct rows into one
@@ -73,6 +81,20 @@ static pm_result_t write_records(void *writer, const void *records, uint64_t cou
 /* A writable output path is checked before minutes of tracing, not after. */
 static pm_result_t check_writable(const char *path) { return path ? pm_atomic_check(path) : PM_OK; }
 
+/* Several scenes write a stream of documents to each output: stdout, a pipe or a descriptor
+ * (/dev/fd/N), never a regular file, which each document would replace. */
+static pm_result_t check_stream_output(const char *option, const char *path)
+{
+    struct stat sb;
+    if (!path || !strcmp(path, "-") || !strncmp(path, "/dev/fd/", 8) || !strcmp(path, "/dev/stdout") ||
+        (stat(path, &sb) == 0 && !S_ISREG(sb.st_mode) && !S_ISDIR(sb.st_mode)))
+        return PM_OK;
+    return pm_error_set(PM_ERR_USAGE,
+                        "several scenes write a stream of documents: %s must be - (stdout), a pipe or /dev/fd/N, "
+                        "not the file '%s'",
+                        option, path);
+}
+
 /* The caustic queries: their header (the queries header, kind=caustic) and records. */
 static pm_result_t write_caustic(pm_stage_t *st, const tgp_options_t *o, const pm_eye_t *e, tgp_sink_t *k)
 {
@@ -99,9 +121,10 @@ static pm_result_t write_caustic(pm_stage_t *st, const tgp_options_t *o, const p
 /* Every output: headers, then records; all renamed into place together by pm_stage_end. */
 static pm_result_t write_outputs(pm_stage_t *st, const tgp_options_t *o, const pm_eye_t *e, tgp_sink_t *k)
 {
-    pm_stage_output_set(st);
     pm_header_t qh, dh;
     pm_writer_t *qw = NULL, *dw = NULL;
+    if (st->args.nargs == 1)
+        pm_stage_output_set(st);
     pm_result_t r = pm_eye_queries_header(e, st->argc, st->argv, k->spool.count, &qh);
     pm_header_init(&dh, &pm_radiance_schema);
     if (r == PM_OK && o->direct) {
@@ -112,18 +135,20 @@ static pm_result_t write_outputs(pm_stage_t *st, const tgp_options_t *o, const p
         r = pm_header_set(&qh, "pass", "%" PRId64, o->pass);
     if (r == PM_OK && o->pass && o->direct)
         r = pm_header_set(&dh, "pass", "%" PRId64, o->pass);
-    if (r == PM_OK)
+    if (r == PM_OK && !o->no_queries)
         r = pm_writer_open(st->output, &qh, &qw);
     if (r == PM_OK && o->direct)
         r = pm_writer_open(o->direct, &dh, &dw);
-    if (r == PM_OK)
+    /* The queries are committed (flushed, on a stream) before the direct buffer is written: a
+     * reader of the two streams must find each document whole before it waits on the other. */
+    if (r == PM_OK && qw)
         r = pm_spool_replay(&k->spool, write_records, qw);
-    if (r == PM_OK && dw)
-        r = pm_writer_write(dw, k->direct, dh.count);
-    if (r == PM_OK) {
+    if (r == PM_OK && qw) {
         r = pm_writer_commit(qw);
         qw = NULL;
     }
+    if (r == PM_OK && dw)
+        r = pm_writer_write(dw, k->direct, dh.count);
     if (r == PM_OK && dw) {
         r = pm_writer_commit(dw);
         dw = NULL;
@@ -139,6 +164,7 @@ static pm_result_t write_outputs(pm_stage_t *st, const tgp_options_t *o, const p
 
 static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t *s, const pm_rt_t *rt, pm_isa_t isa)
 {
+    /* One scene or a frame of several: the settings are the same for each. */
     /* The scene's render block stands in for an option not given: the command line wins. */
     const pm_args_t *a = &st->args;
     const pm_eye_options_t eo = {
@@ -155,7 +181,8 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
         .isa = isa,
         .threads = st->threads_used,
         .progress = pm_stage_progress(st),
-        .caustics = o->caustic != NULL};
+        .caustics = o->caustic != NULL,
+        .direct_only = o->no_queries};
     /* The scene's own camera is within the image limits (scene.c): only --width or --height
      * can take it beyond them, a usage error. */
     if (pm_image_size_check(o->width ? (uint64_t)o->width : s->camera.width,
@@ -232,16 +259,20 @@ int main(int argc, char **argv)
         {"pass", 0, PM_OPT_INT, &o.pass, "N",
          "progressive pass N (1-based): eye rays from streams of their own, independent of other passes'; 0: none", 0,
          (double)((int64_t)1 << 40), NULL},
+        {"no-queries", 0, PM_OPT_FLAG, &o.no_queries, NULL,
+         "write the --direct buffer alone, no queries (no -o): secondary rays are traced only in a scene with "
+         "emissive triangles, for the light they find there; the buffer is the one a full run writes",
+         1, 0, NULL},
         {0},
     };
     static const char about[] =
         "Trace primary and stratified secondary rays as packets; write gather points and direct light.";
     const pm_cli_t cli = {"trace-gather-points",
-                          "[options] SCENE -o QUERIES [--direct RADIANCE] [--caustic-queries QUERIES]",
+                          "[options] SCENE... -o QUERIES [--direct RADIANCE] [--caustic-queries QUERIES]",
                           about,
                           options,
                           1,
-                          1,
+                          -1,
                           "queries"};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
@@ -259,18 +290,38 @@ int main(int argc, char **argv)
         return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE,
                                               "--spp %" PRId64 " is not a multiple of %d (%d samples per stratum cell)",
                                               o.spp, PM_EYE_PER_CELL, PM_EYE_PER_CELL));
-    if ((r = check_writable(st.output)) != PM_OK || (r = check_writable(o.direct)) != PM_OK ||
+    if (o.no_queries && (!o.direct || o.caustic || pm_args_given(&st.args, "output")))
+        return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "--no-queries writes the --direct buffer alone: give "
+                                                            "--direct FILE and neither -o nor --caustic-queries"));
+    const char *qout = o.no_queries ? NULL : st.output;
+    if ((r = check_writable(qout)) != PM_OK || (r = check_writable(o.direct)) != PM_OK ||
         (r = check_writable(o.caustic)) != PM_OK)
         return pm_stage_end(&st, r);
-    pm_scene_t s;
-    if ((r = pm_scene_load(st.args.args[0], &s)) != PM_OK)
+    int frames = st.args.nargs;
+    if (frames > 1 &&
+        ((r = check_stream_output("-o", qout)) != PM_OK || (r = check_stream_output("--direct", o.direct)) != PM_OK ||
+         (r = check_stream_output("--caustic-queries", o.caustic)) != PM_OK))
         return pm_stage_end(&st, r);
-    pm_scene_warn_unsupported(&s, &st);
-    pm_rt_t rt;
-    r = pm_rt_create(&s, 1, st.threads_used, &rt);
-    if (r == PM_OK)
-        r = run(&st, &o, &s, &rt, isa);
-    pm_rt_destroy(&rt);
-    pm_scene_free(&s);
+    /* A scene at a time, each with its own geometry: a frame may move anything. */
+    for (int i = 0; i < frames && r == PM_OK; i++) {
+        pm_scene_t s;
+        if ((r = pm_scene_load(st.args.args[i], &s)) == PM_OK) {
+            if (i == 0)
+                pm_scene_warn_unsupported(&s, &st);
+            pm_rt_t rt;
+            r = pm_rt_create(&s, 1, st.threads_used, &rt);
+            if (r == PM_OK)
+                r = run(&st, &o, &s, &rt, isa);
+            pm_rt_destroy(&rt);
+            pm_scene_free(&s);
+        }
+        if (r != PM_OK && frames > 1) { /* which frame of the stream failed */
+            char why[PM_ERROR_MAX];
+            snprintf(why, sizeof why, "%s", pm_error_message());
+            r = pm_error_set(r, "frame %d ('%s'): %s", i, st.args.args[i], why);
+        }
+    }
+    if (frames > 1)
+        pm_stage_stat_int(&st, "frames", frames);
     return pm_stage_end(&st, r);
 }

@@ -9,11 +9,15 @@
  * caustic photons, those that reached a diffuse or glossy surface through specular bounces
  * alone (L S+ D), go to a second photons file (kind=caustic) as well, and both files are
  * committed together. common/render/photontrace.c does the work; this main reads options,
- * loads the scene and writes the files. */
+ * loads the scene and writes the files. Given several scenes (the frames of a light path), it
+ * traces each in turn and writes one photons document per scene, a stream of documents
+ * (docs/formats.md, "Streams") for build-photonmap --stream. */
 #include <inttypes.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
 
 #include "base/stage.h"
 #include "formats/formats.h"
@@ -63,14 +67,15 @@ static pm_result_t write_photons(pm_stage_t *st, const trace_options_t *o, const
     return r;
 }
 
-static pm_result_t run(pm_stage_t *st, const trace_options_t *o)
+static pm_result_t run(pm_stage_t *st, const trace_options_t *o, int frame)
 {
     pm_scene_t s;
     pm_rt_t rt;
-    pm_result_t r = pm_scene_load(st->args.args[0], &s);
+    pm_result_t r = pm_scene_load(st->args.args[frame], &s);
     if (r != PM_OK)
         return r;
-    pm_scene_warn_unsupported(&s, st);
+    if (frame == 0)
+        pm_scene_warn_unsupported(&s, st);
     if (o->caustic && !s.any_specular) {
         r = pm_error_set(PM_ERR_INPUT,
                          "scene '%s' has no mirror or glass: no caustic photons for --caustic-output '%s'", s.path,
@@ -78,7 +83,8 @@ static pm_result_t run(pm_stage_t *st, const trace_options_t *o)
         pm_scene_free(&s);
         return r;
     }
-    pm_scene_warn_flipped(&s, st);
+    if (frame == 0)
+        pm_scene_warn_flipped(&s, st);
     r = pm_rt_create(&s, 1, st->threads_used, &rt);
     if (r != PM_OK) {
         pm_scene_free(&s);
@@ -99,7 +105,7 @@ static pm_result_t run(pm_stage_t *st, const trace_options_t *o)
     r = pm_trace_photons(&s, &rt, &to, &tr);
     if (r == PM_OK) {
         double t0 = pm_time_wall();
-        if (o->caustic)
+        if (o->caustic && st->args.nargs == 1)
             pm_stage_output_set(st); /* both files or neither */
         r = write_photons(st, o, &s, &tr, 0);
         if (r == PM_OK && o->caustic)
@@ -152,6 +158,20 @@ static pm_result_t run(pm_stage_t *st, const trace_options_t *o)
     return r;
 }
 
+/* Several scenes write a stream of documents to each output: stdout, a pipe or a descriptor
+ * (/dev/fd/N), never a regular file, which each document would replace. */
+static pm_result_t check_stream_output(const char *option, const char *path)
+{
+    struct stat sb;
+    if (!path || !strcmp(path, "-") || !strncmp(path, "/dev/fd/", 8) || !strcmp(path, "/dev/stdout") ||
+        (stat(path, &sb) == 0 && !S_ISREG(sb.st_mode) && !S_ISDIR(sb.st_mode)))
+        return PM_OK;
+    return pm_error_set(PM_ERR_USAGE,
+                        "several scenes write a stream of documents: %s must be - (stdout), a pipe or /dev/fd/N, "
+                        "not the file '%s'",
+                        option, path);
+}
+
 int main(int argc, char **argv)
 {
     pm_stage_t st;
@@ -182,9 +202,22 @@ int main(int argc, char **argv)
         {0},
     };
     static const char about[] = "Trace photons from the scene's lights and write where they land (watts).";
-    const pm_cli_t cli = {"trace-photons", "[options] SCENE -o PHOTONS", about, options, 1, 1, "photons"};
+    const pm_cli_t cli = {"trace-photons", "[options] SCENE... -o PHOTONS", about, options, 1, -1, "photons"};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;
-    return pm_stage_end(&st, run(&st, &o));
+    int frames = st.args.nargs;
+    pm_result_t r = PM_OK;
+    if (frames > 1 && ((r = check_stream_output("-o", st.output)) != PM_OK ||
+                       (r = check_stream_output("--caustic-output", o.caustic)) != PM_OK))
+        return pm_stage_end(&st, r);
+    for (int i = 0; i < frames && r == PM_OK; i++)
+        if ((r = run(&st, &o, i)) != PM_OK && frames > 1) { /* which frame of the stream failed */
+            char why[PM_ERROR_MAX];
+            snprintf(why, sizeof why, "%s", pm_error_message());
+            r = pm_error_set(r, "frame %d ('%s'): %s", i, st.args.args[i], why);
+        }
+    if (frames > 1)
+        pm_stage_stat_int(&st, "frames", frames);
+    return pm_stage_end(&st, r);
 }

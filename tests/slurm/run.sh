@@ -123,6 +123,24 @@ else
     fail "a task failing once" "exit $rc: $(tail -n 4 "$TMP/f.log")"
 fi
 same_image "after a failed task, the image is the local render's" "$TMP/f" "$TMP/localf"
+# A task of passes 2 to 4 lands pass 2 as soon as it is made; failing at pass 3, its next run
+# starts at pass 3. The task of passes 5 and 6 lands pass 5 a pass's time before pass 6.
+echo once >"$TMP/fail-3"
+pipelines/slurm "$SCENE" "$TMP/f3" "${PR[@]}" "${SL[@]}" GATHER="$TMP/flaky-gather" TASK_PASSES=3 >"$TMP/f3.log" 2>&1
+rc=$?
+logs=("$TMP/f3/.slurm/logs"/task-1.*.out)
+if [ $rc = 0 ] && [ ${#logs[@]} = 2 ] && grep -q '^slurm-task: passes 2 to 4 ' "${logs[0]}" &&
+    grep -q '^render: pass 2 made' "${logs[0]}" && grep -q '^slurm-task: passes 3 to 4 ' "${logs[1]}"; then
+    pass "a task that failed at its second pass runs again from that pass (the first had landed)"
+else
+    fail "a task resumed after its landed passes" "exit $rc, logs ${logs[*]##*/}: $(head -n 3 "${logs[@]}" 2>&1)"
+fi
+same_image "... and the image is the local render's" "$TMP/f3" "$TMP/localf"
+t5=$(stat -c %.9Y "$TMP/f3/.slurm/done/pass-0005") t6=$(stat -c %.9Y "$TMP/f3/.slurm/done/pass-0006")
+read -r ps6 <"$TMP/f3/pass-0006/pass_s"
+awk -v a="$t5" -v b="$t6" -v p="$ps6" 'BEGIN { exit !(b - a >= p / 2) }' &&
+    pass "a task lands each pass as it is made (pass 5's marker $(awk -v a="$t5" -v b="$t6" 'BEGIN { printf "%.2f", b - a }') s before pass 6's, a pass $ps6 s)" ||
+    fail "passes land as made" "pass 5 landed at $t5, pass 6 at $t6, a pass takes $ps6 s"
 echo always >"$TMP/fail-3"
 pipelines/slurm "$SCENE" "$TMP/g" "${PR[@]}" "${SL[@]}" GATHER="$TMP/flaky-gather" RETRIES=1 >"$TMP/g.out" 2>"$TMP/g.err"
 rc=$?

@@ -99,6 +99,21 @@ pm_result_t pm_writer_write(pm_writer_t *w, const void *records, uint64_t n)
     return pmfile_writer_write(w, records, n, NULL, 0);
 }
 
+pm_result_t pm_writer_write_checked(pm_writer_t *w, const void *records, uint64_t n)
+{
+    if (w->written + n > w->count)
+        return pm_error_set(PM_ERR_INTERNAL, "writer given %" PRIu64 " records, header says %" PRIu64, w->written + n,
+                            w->count);
+    size_t bytes = (size_t)(n * w->layout.record_size);
+    XXH3_64bits_update(w->hash, records, bytes);
+    if (!w->err && bytes && fwrite(records, 1, bytes, w->out.f) != bytes)
+        w->err = errno ? errno : EIO;
+    if (w->err)
+        return pm_error_set(PM_ERR_IO, "cannot write '%s': %s", w->name, strerror(w->err));
+    w->written += n;
+    return PM_OK;
+}
+
 pm_result_t pmfile_writer_write(pm_writer_t *w, const void *records, uint64_t n, const pm_table_t *t, uint64_t t_at)
 {
     if (w->written + n > w->count)

@@ -13,7 +13,10 @@
  * thread, so arrays of 64 MiB or more are populated on every thread (0.35-0.45 s on two),
  * against 0.26 s for 4 KiB pages, cold or warm. Back-to-back runs (a pipeline, a
  * benchmark) find them warm. Where the kernel gives no huge pages this is the 4 KiB
- * behaviour. Free with pm_free_aligned, never with free(). */
+ * behaviour. A freed mapping is kept for the next request it fits (a stage that takes a
+ * stream of documents allocates the same arrays for each), so a block's contents are
+ * undefined, as malloc's are: clear what must start at zero. Free with pm_free_aligned,
+ * never with free(). */
 #ifndef PM_MEMORY_H
 #define PM_MEMORY_H
 

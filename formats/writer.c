@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "base/atomic.h"
@@ -29,6 +30,18 @@ static void writer_free(pm_writer_t *w)
     XXH3_freeState(w->hash);
     free(w->name);
     free(w);
+}
+
+pm_result_t pm_writer_check_stream(const char *option, const char *path)
+{
+    struct stat sb;
+    if (!path || !strcmp(path, "-") || !strncmp(path, "/dev/fd/", 8) || !strcmp(path, "/dev/stdout") ||
+        (stat(path, &sb) == 0 && !S_ISREG(sb.st_mode) && !S_ISDIR(sb.st_mode)))
+        return PM_OK;
+    return pm_error_set(PM_ERR_USAGE,
+                        "several scenes write a stream of documents: %s must be - (stdout), a pipe or /dev/fd/N, "
+                        "not the file '%s'",
+                        option, path);
 }
 
 pm_result_t pm_writer_open(const char *path, const pm_header_t *h, pm_writer_t **out)

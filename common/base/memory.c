@@ -1,10 +1,11 @@
 /* memory.c: aligned allocation with populated large mappings (see memory.h).
  *
  * Every block starts with a 64-byte header that says how it was made, so that one free
- * function serves both kinds and a pointer that did not come from here is caught. Freed
- * mappings are kept in a small cache and handed out again to a request they fit: a resident
- * stage allocates the same arrays for every document of a stream, and a fresh mapping costs
- * a page fault and a page clearing per page, a reused one nothing. */
+ * function serves both kinds and a pointer that did not come from here is caught. A stage
+ * that takes a stream of documents turns on a cache of freed mappings (pm_memory_reuse), which
+ * hands them out again to a later request they fit: such a stage allocates the same arrays for
+ * every document, and a fresh mapping costs a page fault and a page clearing per page, a
+ * reused one nothing. */
 #include "base/memory.h"
 
 #include <errno.h>
@@ -13,6 +14,7 @@
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 #include <sys/mman.h>
 
 #ifndef MADV_POPULATE_WRITE
@@ -33,51 +35,66 @@ typedef struct {
     size_t length; /* of the mapping, bytes */
 } block_header_t;
 
-/* The cache of freed mappings. A request takes the smallest cached mapping at least its size
- * and at most a quarter larger; a request none fits first unmaps every cached one, so that a
- * process never holds more than it would without the cache plus that quarter. */
+/* The cache of freed mappings, oldest first; off (max 0) until pm_memory_reuse turns it on. A
+ * request takes the smallest cached mapping at least its size; a freed mapping past the
+ * cache's room pushes out the oldest. */
 #define PM_CACHE_SLOTS 64
-#define PM_CACHE_MAX ((size_t)2 << 30) /* bytes held at most */
 static struct {
     pthread_mutex_t lock;
     unsigned char *base[PM_CACHE_SLOTS];
     size_t length[PM_CACHE_SLOTS];
-    size_t n, bytes;
+    size_t n, bytes, max;
 } cache = {.lock = PTHREAD_MUTEX_INITIALIZER};
 
-/* A cached mapping of length in [len, len + len / 4], taken out of the cache, or NULL after
- * the cache is emptied. */
+/* Takes entry i out of the cache (the lock held). */
+static void cache_remove(size_t i)
+{
+    cache.bytes -= cache.length[i];
+    cache.n--;
+    memmove(&cache.base[i], &cache.base[i + 1], (cache.n - i) * sizeof cache.base[0]);
+    memmove(&cache.length[i], &cache.length[i + 1], (cache.n - i) * sizeof cache.length[0]);
+}
+
+void pm_memory_reuse(size_t max_bytes)
+{
+    pthread_mutex_lock(&cache.lock);
+    cache.max = max_bytes;
+    while (cache.n && cache.bytes > cache.max) {
+        munmap(cache.base[0], cache.length[0]);
+        cache_remove(0);
+    }
+    pthread_mutex_unlock(&cache.lock);
+}
+
+/* The smallest cached mapping of at least len bytes, taken out of the cache; NULL if none. */
 static unsigned char *cache_take(size_t len, size_t *len_out)
 {
     pthread_mutex_lock(&cache.lock);
     size_t best = cache.n;
     for (size_t i = 0; i < cache.n; i++)
-        if (cache.length[i] >= len && cache.length[i] - len <= len / 4 &&
-            (best == cache.n || cache.length[i] < cache.length[best]))
+        if (cache.length[i] >= len && (best == cache.n || cache.length[i] < cache.length[best]))
             best = i;
     unsigned char *b = NULL;
     if (best < cache.n) {
         b = cache.base[best];
         *len_out = cache.length[best];
-        cache.bytes -= cache.length[best];
-        cache.n--;
-        cache.base[best] = cache.base[cache.n];
-        cache.length[best] = cache.length[cache.n];
-    } else {
-        for (size_t i = 0; i < cache.n; i++)
-            munmap(cache.base[i], cache.length[i]);
-        cache.n = cache.bytes = 0;
+        cache_remove(best);
     }
     pthread_mutex_unlock(&cache.lock);
     return b;
 }
 
-/* Keeps a freed mapping for a later request; 0 when the cache is full (the caller unmaps it). */
+/* Keeps a freed mapping for a later request, pushing out the oldest to make room; 0 when it
+ * does not go in (the cache off, or the mapping larger than all of it): the caller unmaps it. */
 static int cache_put(unsigned char *base, size_t len)
 {
     int kept = 0;
     pthread_mutex_lock(&cache.lock);
-    if (cache.n < PM_CACHE_SLOTS && len <= PM_CACHE_MAX - cache.bytes) {
+    if (len <= cache.max) {
+        while (cache.n && (cache.n == PM_CACHE_SLOTS || cache.bytes + len > cache.max)) {
+            munmap(cache.base[0], cache.length[0]);
+            cache_remove(0);
+        }
         cache.base[cache.n] = base;
         cache.length[cache.n] = len;
         cache.n++;

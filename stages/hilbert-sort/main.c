@@ -220,6 +220,8 @@ static pm_result_t run(pm_stage_t *st, const sort_options_t *o)
             return pm_error_set(PM_ERR_USAGE,
                                 "--stream writes one queries document per frame to stdout: give -o - (not '%s')",
                                 st->output);
+        pm_memory_reuse(PM_MEMORY_STREAM_REUSE); /* a frame's arrays are allocated again for the next: its freed
+                                                    mappings serve them */
         FILE *f = strcmp(path, "-") ? fopen(path, "rb") : stdin;
         if (!f)
             return pm_error_set(PM_ERR_INPUT, "cannot open '%s': %s", path, strerror(errno));

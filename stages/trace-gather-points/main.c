@@ -23,6 +23,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/memory.h"
 #include "base/spool.h"
 #include "base/stage.h"
 #include "formats/formats.h"
@@ -287,6 +288,8 @@ int main(int argc, char **argv)
                        (r = pm_writer_check_stream("--direct", o.direct)) != PM_OK ||
                        (r = pm_writer_check_stream("--caustic-queries", o.caustic)) != PM_OK))
         return pm_stage_end(&st, r);
+    if (frames > 1) /* a frame's arrays are allocated again for the next: its freed mappings serve them */
+        pm_memory_reuse(PM_MEMORY_STREAM_REUSE);
     /* A scene at a time, each with its own geometry: a frame may move anything. */
     for (int i = 0; i < frames && r == PM_OK; i++) {
         pm_scene_t s;

@@ -18,6 +18,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/memory.h"
 #include "base/stage.h"
 #include "formats/formats.h"
 #include "render/photontrace.h"
@@ -196,6 +197,8 @@ int main(int argc, char **argv)
     if (frames > 1 && ((r = pm_writer_check_stream("-o", st.output)) != PM_OK ||
                        (r = pm_writer_check_stream("--caustic-output", o.caustic)) != PM_OK))
         return pm_stage_end(&st, r);
+    if (frames > 1) /* a frame's arrays are allocated again for the next: its freed mappings serve them */
+        pm_memory_reuse(PM_MEMORY_STREAM_REUSE);
     for (int i = 0; i < frames && r == PM_OK; i++)
         if ((r = run(&st, &o, i)) != PM_OK && frames > 1) { /* which frame of the stream failed */
             char why[PM_ERROR_MAX];

@@ -171,9 +171,17 @@ void pm_reader_close(pm_reader_t *r);
 
 /* ---- streaming writer ---- */
 typedef struct pm_writer pm_writer_t;
+/* For a stage that writes a stream of documents (one per frame) to an output given by the
+ * option named option: PM_OK for stdout ("-", /dev/stdout), /dev/fd/N or an existing file that
+ * is not a regular file or a folder (a FIFO, a device); a usage error for a regular file, which
+ * each document would replace. */
+pm_result_t pm_writer_check_stream(const char *option, const char *path);
 /* Creates path ("-" is stdout) through a temporary file and writes the header. */
 pm_result_t pm_writer_open(const char *path, const pm_header_t *h, pm_writer_t **out);
 pm_result_t pm_writer_write(pm_writer_t *w, const void *records, uint64_t n);
+/* As pm_writer_write, for records that a reader of this format has checked already and the
+ * caller only reorders or copies (hilbert-sort): hashed and written, not checked again. */
+pm_result_t pm_writer_write_checked(pm_writer_t *w, const void *records, uint64_t n);
 /* Checks that COUNT records were written, writes the checksum, renames into place. Frees
  * the writer whether it succeeds or not (on failure the temporary file is removed). */
 pm_result_t pm_writer_commit(pm_writer_t *w);

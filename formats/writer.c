@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "base/atomic.h"
@@ -29,6 +30,18 @@ static void writer_free(pm_writer_t *w)
     XXH3_freeState(w->hash);
     free(w->name);
     free(w);
+}
+
+pm_result_t pm_writer_check_stream(const char *option, const char *path)
+{
+    struct stat sb;
+    if (!path || !strcmp(path, "-") || !strncmp(path, "/dev/fd/", 8) || !strcmp(path, "/dev/stdout") ||
+        (stat(path, &sb) == 0 && !S_ISREG(sb.st_mode) && !S_ISDIR(sb.st_mode)))
+        return PM_OK;
+    return pm_error_set(PM_ERR_USAGE,
+                        "several scenes write a stream of documents: %s must be - (stdout), a pipe or /dev/fd/N, "
+                        "not the file '%s'",
+                        option, path);
 }
 
 pm_result_t pm_writer_open(const char *path, const pm_header_t *h, pm_writer_t **out)
@@ -97,6 +110,21 @@ pm_result_t pm_writer_open(const char *path, const pm_header_t *h, pm_writer_t *
 pm_result_t pm_writer_write(pm_writer_t *w, const void *records, uint64_t n)
 {
     return pmfile_writer_write(w, records, n, NULL, 0);
+}
+
+pm_result_t pm_writer_write_checked(pm_writer_t *w, const void *records, uint64_t n)
+{
+    if (w->written + n > w->count)
+        return pm_error_set(PM_ERR_INTERNAL, "writer given %" PRIu64 " records, header says %" PRIu64, w->written + n,
+                            w->count);
+    size_t bytes = (size_t)(n * w->layout.record_size);
+    XXH3_64bits_update(w->hash, records, bytes);
+    if (!w->err && bytes && fwrite(records, 1, bytes, w->out.f) != bytes)
+        w->err = errno ? errno : EIO;
+    if (w->err)
+        return pm_error_set(PM_ERR_IO, "cannot write '%s': %s", w->name, strerror(w->err));
+    w->written += n;
+    return PM_OK;
 }
 
 pm_result_t pmfile_writer_write(pm_writer_t *w, const void *records, uint64_t n, const pm_table_t *t, uint64_t t_at)

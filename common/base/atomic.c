@@ -210,6 +210,15 @@ static pm_result_t make_temp(pm_atomic_t *out, int *fd_out)
  * truncated it for '>' and did not for '>>'. */
 static int open_special(const char *path, int special)
 {
+    /* /dev/fd/N on a pipe or FIFO the caller's shell opened for writing: a copy of N. Opened
+     * anew, a FIFO's open would wait for a reader a second time, forever if the reader has
+     * died since the shell's open returned. */
+    char *end;
+    long n = strncmp(path, "/dev/fd/", 8) == 0 ? strtol(path + 8, &end, 10) : -1;
+    struct stat sb;
+    if (n >= 0 && n <= INT_MAX && end != path + 8 && !*end && fstat((int)n, &sb) == 0 && S_ISFIFO(sb.st_mode) &&
+        (fcntl((int)n, F_GETFL) & O_ACCMODE) != O_RDONLY)
+        return fcntl((int)n, F_DUPFD_CLOEXEC, 0);
     return open(path, O_WRONLY | O_NOCTTY | O_CLOEXEC | (special == 2 ? O_APPEND : 0));
 }
 

@@ -13,7 +13,8 @@
  * thread, so arrays of 64 MiB or more are populated on every thread (0.35-0.45 s on two),
  * against 0.26 s for 4 KiB pages, cold or warm. Back-to-back runs (a pipeline, a
  * benchmark) find them warm. Where the kernel gives no huge pages this is the 4 KiB
- * behaviour. Free with pm_free_aligned, never with free(). */
+ * behaviour. A block's contents are undefined, as malloc's are (a reused mapping holds what
+ * it held): clear what must start at zero. Free with pm_free_aligned, never with free(). */
 #ifndef PM_MEMORY_H
 #define PM_MEMORY_H
 
@@ -23,5 +24,12 @@
 void *pm_alloc_aligned(size_t bytes);
 /* Frees what pm_alloc_aligned returned; NULL is a no-op. */
 void pm_free_aligned(void *p);
+/* Keeps up to max_bytes of freed mappings (1 MiB and larger) for later requests, for a stage
+ * that takes a stream of documents and allocates the same arrays for each (0, the default:
+ * every freed mapping is unmapped at once, and no process holds more than it uses). */
+void pm_memory_reuse(size_t max_bytes);
+/* What a stage taking a stream keeps: more than the arrays of one frame of the interactive
+ * session (docs/pipelines.md, pipelines/frames), bytes. */
+#define PM_MEMORY_STREAM_REUSE ((size_t)1 << 30)
 
 #endif

@@ -61,7 +61,7 @@ pm_result_t pm_reorder_write(pm_writer_t *w, const unsigned char *recs, size_t r
 #pragma omp parallel sections num_threads(2)
         {
 #pragma omp section
-            pm_error_slot_record(&err, c, pm_writer_write(w, buf[c & 1], m));
+            pm_error_slot_record(&err, c, pm_writer_write_checked(w, buf[c & 1], m));
 #pragma omp section
             if (c + 1 < chunks)
                 next_m = gather_chunk(buf[(c + 1) & 1], recs, perm, n, c + 1, rs);

@@ -18,10 +18,10 @@ void pm_reorder_gather(unsigned char *dst, const unsigned char *src, const uint3
 
 /* Writes the n records of rs bytes at recs to w in perm's order, in chunks of
  * PM_REORDER_CHUNK records gathered into buf[0] and buf[1] (PM_REORDER_CHUNK * rs bytes
- * each): one thread writes a chunk (value checks, checksum, write) while another gathers the
- * next, so the gather's cache misses (the input is in any order) hide behind the writer. A
- * failed write, on whichever thread it ran, is this thread's error on return. Does not
- * commit w. */
+ * each): one thread writes a chunk (checksum and write; the records are ones a reader has
+ * checked, so they are not checked again) while another gathers the next, so the gather's
+ * cache misses (the input is in any order) hide behind the writer. A failed write, on
+ * whichever thread it ran, is this thread's error on return. Does not commit w. */
 pm_result_t pm_reorder_write(pm_writer_t *w, const unsigned char *recs, size_t rs, uint64_t n, const uint32_t *perm,
                              unsigned char *buf[2]);
 

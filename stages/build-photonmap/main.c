@@ -15,6 +15,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "base/memory.h"
 #include "base/stage.h"
 #include "formats/formats.h"
 #include "photonmap/mapbuild.h"
@@ -64,6 +65,8 @@ static pm_result_t run_stream(pm_stage_t *st, const build_options_t *o)
     FILE *f = strcmp(path, "-") ? fopen(path, "rb") : stdin;
     if (!f)
         return pm_error_set(PM_ERR_INPUT, "cannot open '%s': %s", path, strerror(errno));
+    pm_memory_reuse(
+        PM_MEMORY_STREAM_REUSE); /* a frame's arrays are allocated again for the next: its freed mappings serve them */
     pm_result_t r = PM_OK;
     pm_map_build_stats_t bs = {0};
     double t_read = 0.0, t_write = 0.0, t_build = 0.0;

@@ -31,6 +31,7 @@
 
 #include "base/atomic.h"
 #include "base/exr.h"
+#include "base/memory.h"
 #include "base/stage.h"
 #include "formats/formats.h"
 #include "image/composite.h"
@@ -147,6 +148,8 @@ static pm_result_t run_stream(pm_stage_t *st, const composite_options_t *o)
         return pm_error_set(PM_ERR_USAGE, "--stream writes frames: --accumulate and --pass are for passes");
     if (!to_exr && !o->png && !o->radiance)
         return pm_error_set(PM_ERR_USAGE, "no output: give -o FRAME-%%04d.exr, --png or --radiance patterns");
+    pm_memory_reuse(
+        PM_MEMORY_STREAM_REUSE); /* a frame's arrays are allocated again for the next: its freed mappings serve them */
     FILE **files = calloc((size_t)n, sizeof *files);
     char **paths = calloc((size_t)n, sizeof *paths), **names = calloc((size_t)n, sizeof *names);
     double *scales = calloc((size_t)n, sizeof *scales);

@@ -112,6 +112,8 @@ static int bufs_reserve(sort_bufs_t *b, uint64_t n, size_t rs)
     if (b->recs && n <= b->n && rs == b->rs)
         return 1;
     bufs_free(b);
+    /* An eighth more than asked: the next frame's count is seldom the same, often a little more. */
+    n += n / 8;
     b->recs = pm_alloc_aligned(n ? n * rs : 1);
     b->perm = pm_alloc_aligned(n ? n * sizeof *b->perm : 1);
     b->chunk[0] = malloc((size_t)PM_REORDER_CHUNK * rs), b->chunk[1] = malloc((size_t)PM_REORDER_CHUNK * rs);
@@ -169,7 +171,7 @@ static pm_result_t sort_doc(pm_stage_t *st, const sort_options_t *o, pm_reader_t
         (res = pm_writer_open(st->output, &h, &w)) != PM_OK)
         goto done;
     if (order == PM_ORDER_NONE)
-        res = pm_writer_write(w, recs, n);
+        res = pm_writer_write_checked(w, recs, n); /* the reader checked them */
     else
         res = pm_reorder_write(w, recs, rs, n, perm, chunk);
     if (res == PM_OK)
@@ -218,6 +220,8 @@ static pm_result_t run(pm_stage_t *st, const sort_options_t *o)
             return pm_error_set(PM_ERR_USAGE,
                                 "--stream writes one queries document per frame to stdout: give -o - (not '%s')",
                                 st->output);
+        pm_memory_reuse(PM_MEMORY_STREAM_REUSE); /* a frame's arrays are allocated again for the next: its freed
+                                                    mappings serve them */
         FILE *f = strcmp(path, "-") ? fopen(path, "rb") : stdin;
         if (!f)
             return pm_error_set(PM_ERR_INPUT, "cannot open '%s': %s", path, strerror(errno));

@@ -24,6 +24,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/memory.h"
 #include "base/stage.h"
 #include "formats/formats.h"
 #include "photonmap/gather.h"
@@ -119,6 +120,8 @@ static pm_result_t run_stream(pm_stage_t *st, const gather_options_t *opt, pm_is
     FILE *f = strcmp(spath, "-") ? fopen(spath, "rb") : stdin;
     if (!f)
         return pm_error_set(PM_ERR_INPUT, "cannot open '%s': %s", spath, strerror(errno));
+    pm_memory_reuse(
+        PM_MEMORY_STREAM_REUSE); /* a frame's arrays are allocated again for the next: its freed mappings serve them */
     pm_gather_inputs_t in;
     pm_table_t out = {0};
     pm_gather_stats_t sum = {0};

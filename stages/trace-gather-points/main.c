@@ -22,8 +22,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 
+#include "base/memory.h"
 #include "base/spool.h"
 #include "base/stage.h"
 #include "formats/formats.h"
@@ -80,20 +80,6 @@ static pm_result_t write_records(void *writer, const void *records, uint64_t cou
 
 /* A writable output path is checked before minutes of tracing, not after. */
 static pm_result_t check_writable(const char *path) { return path ? pm_atomic_check(path) : PM_OK; }
-
-/* Several scenes write a stream of documents to each output: stdout, a pipe or a descriptor
- * (/dev/fd/N), never a regular file, which each document would replace. */
-static pm_result_t check_stream_output(const char *option, const char *path)
-{
-    struct stat sb;
-    if (!path || !strcmp(path, "-") || !strncmp(path, "/dev/fd/", 8) || !strcmp(path, "/dev/stdout") ||
-        (stat(path, &sb) == 0 && !S_ISREG(sb.st_mode) && !S_ISDIR(sb.st_mode)))
-        return PM_OK;
-    return pm_error_set(PM_ERR_USAGE,
-                        "several scenes write a stream of documents: %s must be - (stdout), a pipe or /dev/fd/N, "
-                        "not the file '%s'",
-                        option, path);
-}
 
 /* The caustic queries: their header (the queries header, kind=caustic) and records. */
 static pm_result_t write_caustic(pm_stage_t *st, const tgp_options_t *o, const pm_eye_t *e, tgp_sink_t *k)
@@ -298,10 +284,12 @@ int main(int argc, char **argv)
         (r = check_writable(o.caustic)) != PM_OK)
         return pm_stage_end(&st, r);
     int frames = st.args.nargs;
-    if (frames > 1 &&
-        ((r = check_stream_output("-o", qout)) != PM_OK || (r = check_stream_output("--direct", o.direct)) != PM_OK ||
-         (r = check_stream_output("--caustic-queries", o.caustic)) != PM_OK))
+    if (frames > 1 && ((r = pm_writer_check_stream("-o", qout)) != PM_OK ||
+                       (r = pm_writer_check_stream("--direct", o.direct)) != PM_OK ||
+                       (r = pm_writer_check_stream("--caustic-queries", o.caustic)) != PM_OK))
         return pm_stage_end(&st, r);
+    if (frames > 1) /* a frame's arrays are allocated again for the next: its freed mappings serve them */
+        pm_memory_reuse(PM_MEMORY_STREAM_REUSE);
     /* A scene at a time, each with its own geometry: a frame may move anything. */
     for (int i = 0; i < frames && r == PM_OK; i++) {
         pm_scene_t s;

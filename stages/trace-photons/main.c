@@ -17,8 +17,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 
+#include "base/memory.h"
 #include "base/stage.h"
 #include "formats/formats.h"
 #include "render/photontrace.h"
@@ -158,20 +158,6 @@ static pm_result_t run(pm_stage_t *st, const trace_options_t *o, int frame)
     return r;
 }
 
-/* Several scenes write a stream of documents to each output: stdout, a pipe or a descriptor
- * (/dev/fd/N), never a regular file, which each document would replace. */
-static pm_result_t check_stream_output(const char *option, const char *path)
-{
-    struct stat sb;
-    if (!path || !strcmp(path, "-") || !strncmp(path, "/dev/fd/", 8) || !strcmp(path, "/dev/stdout") ||
-        (stat(path, &sb) == 0 && !S_ISREG(sb.st_mode) && !S_ISDIR(sb.st_mode)))
-        return PM_OK;
-    return pm_error_set(PM_ERR_USAGE,
-                        "several scenes write a stream of documents: %s must be - (stdout), a pipe or /dev/fd/N, "
-                        "not the file '%s'",
-                        option, path);
-}
-
 int main(int argc, char **argv)
 {
     pm_stage_t st;
@@ -208,9 +194,11 @@ int main(int argc, char **argv)
         return rc;
     int frames = st.args.nargs;
     pm_result_t r = PM_OK;
-    if (frames > 1 && ((r = check_stream_output("-o", st.output)) != PM_OK ||
-                       (r = check_stream_output("--caustic-output", o.caustic)) != PM_OK))
+    if (frames > 1 && ((r = pm_writer_check_stream("-o", st.output)) != PM_OK ||
+                       (r = pm_writer_check_stream("--caustic-output", o.caustic)) != PM_OK))
         return pm_stage_end(&st, r);
+    if (frames > 1) /* a frame's arrays are allocated again for the next: its freed mappings serve them */
+        pm_memory_reuse(PM_MEMORY_STREAM_REUSE);
     for (int i = 0; i < frames && r == PM_OK; i++)
         if ((r = run(&st, &o, i)) != PM_OK && frames > 1) { /* which frame of the stream failed */
             char why[PM_ERROR_MAX];

@@ -156,3 +156,22 @@ if [ $status = 1 ] && grep -q 'injected failure' "$TMP/fb.out" && grep -q 'frame
 else
     fail "frames failing stage" "exit $status: $(tail -3 "$TMP/fb.out")"
 fi
+# composite dying before it opens the direct FIFO (whose writer waits in open() for a reader):
+# the run still ends, with exit 1. timeout bounds the wait (124 is a hang), it times nothing.
+for move in camera light; do
+    mkdir -p "$TMP/bin-nocomp"
+    for p in "$BIN"/*; do ln -sf "$p" "$TMP/bin-nocomp/"; done
+    rm "$TMP/bin-nocomp/composite"
+    printf '#!/bin/sh\necho "composite: injected death" >&2\nkill -9 $$\n' >"$TMP/bin-nocomp/composite"
+    chmod +x "$TMP/bin-nocomp/composite"
+    scene=$CB
+    [ $move = light ] && scene=$D/scene.json
+    BIN="$TMP/bin-nocomp" timeout 120 pipelines/frames $scene "$TMP/fc" $F MOVE=$move >"$TMP/fc.out" 2>&1
+    status=$?
+    if [ $status = 1 ] && grep -q 'frame pipeline failed' "$TMP/fc.out" && [ ! -e "$TMP/fc/direct.fifo" ]; then
+        pass "frames MOVE=$move: composite dying before it opens the direct FIFO ends the run with exit 1"
+    else
+        fail "frames MOVE=$move composite dies early" "exit $status (124: it hung): $(tail -3 "$TMP/fc.out")"
+    fi
+    rm -rf "$TMP/fc"
+done

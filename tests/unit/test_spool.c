@@ -1,6 +1,7 @@
 /* test_spool.c: the record spool of common/base/spool.h: records come back in order and
  * whole from memory, across chunk boundaries, and from a spill file; a failing spill or emit
- * stops with its message; the folder a spool goes in. */
+ * stops with its message; the folder a spool goes in. Also base/memory.h's reuse of freed
+ * mappings, which a spool's chunks in a stream of frames rely on. */
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -8,6 +9,7 @@
 #include <sys/resource.h>
 
 #include "base/error.h"
+#include "base/memory.h"
 #include "base/spool.h"
 #include "unit.h"
 
@@ -143,10 +145,45 @@ static void test_spool_dir(void **state)
     free(saved);
 }
 
+/* With reuse on, a freed mapping serves the next request it fits (the same address, its
+ * contents kept) and not one larger; off, nothing is kept; a block past the room is unmapped. */
+static void test_memory_reuse(void **state)
+{
+    (void)state;
+    const size_t mib = (size_t)1 << 20;
+    pm_memory_reuse(16 * mib);
+    /* 64 bytes less than 6 MiB: with the block's header, a mapping of 6 MiB exactly */
+    unsigned char *a = pm_alloc_aligned(6 * mib - 64);
+    assert_non_null(a);
+    a[5 * mib] = 0xab;
+    pm_free_aligned(a);
+    unsigned char *b = pm_alloc_aligned(5 * mib); /* fits the 6 MiB mapping */
+    assert_ptr_equal(b, a);
+    assert_int_equal(b[5 * mib], 0xab);
+    b[0] = 1;
+    pm_free_aligned(b);
+    unsigned char *c = pm_alloc_aligned(7 * mib); /* larger than any kept: a new mapping */
+    assert_non_null(c);
+    assert_true(c != a);
+    c[7 * mib - 1] = 2;
+    unsigned char *d = pm_alloc_aligned(6 * mib - 64); /* the kept one, while c is held */
+    assert_ptr_equal(d, a);
+    pm_free_aligned(c);
+    pm_free_aligned(d);
+    unsigned char *big = pm_alloc_aligned(40 * mib); /* freed past the room: unmapped, not kept */
+    assert_non_null(big);
+    pm_free_aligned(big);
+    pm_memory_reuse(0);                                                       /* off: the kept ones go */
+    unsigned char *e = pm_alloc_aligned(2 * mib), *s = pm_alloc_aligned(100); /* small: the heap, never kept */
+    assert_non_null(e);
+    assert_non_null(s);
+    memset(e, 3, 2 * mib);
+    pm_free_aligned(s);
+    pm_free_aligned(e);
+}
+
 static const struct CMUnitTest tests[] = {
-    cmocka_unit_test(test_spool_memory),
-    cmocka_unit_test(test_spool_spill),
-    cmocka_unit_test(test_spool_failures),
-    cmocka_unit_test(test_spool_dir),
+    cmocka_unit_test(test_spool_memory), cmocka_unit_test(test_spool_spill),  cmocka_unit_test(test_spool_failures),
+    cmocka_unit_test(test_spool_dir),    cmocka_unit_test(test_memory_reuse),
 };
 UNIT_GROUP(unit_spool, "spool", tests);

@@ -107,10 +107,11 @@ int pm_stage_begin(pm_stage_t *st, const pm_cli_t *cli, int argc, char **argv)
         return 0;
     }
     st->threads_used = pm_threads_use(st->threads);
-    /* What the outputs record as their command line: without --threads, which changes no
-     * output (threads.h), so that a file is the same bytes whatever the machine's cores or a
-     * cluster's CPUs per task (docs/cli.md). */
-    const void *unrecorded[] = {&st->threads};
+    /* What the outputs record as their command line: without the options that change no
+     * output, so that a file is the same bytes however it was run: --threads (threads.h:
+     * whatever the machine's cores or a cluster's CPUs per task), --quiet (what stderr shows)
+     * and --stats (a report beside the outputs). docs/cli.md, "Determinism". */
+    const void *unrecorded[] = {&st->threads, &st->quiet, &st->stats_path};
     if (pm_args_record(&st->args, argv, unrecorded, sizeof unrecorded / sizeof *unrecorded, &st->argc, &st->argv) !=
         PM_OK)
         return begin_fail(st, PM_ERR_NOMEM, 0);

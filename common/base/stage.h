@@ -32,7 +32,7 @@ typedef struct {
     const pm_cli_t *cli;
     pm_args_t args; /* positional arguments after parsing */
     int argc;
-    char **argv; /* as given but for --threads (pm_args_record), for the COMMAND provenance line */
+    char **argv; /* as given but for --threads, --quiet, --stats (pm_args_record), for the COMMAND line */
     /* common option values */
     const char *output; /* -o; "-" means stdout */
     int64_t threads;    /* 0 = all cores, resolved into threads_used */

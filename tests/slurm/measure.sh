@@ -83,7 +83,9 @@ for c in "${cfgs[@]}"; do
     # task pending or running
     landed=$(grep -m 1 -E "tasks: 0 pending, 0 running, [0-9]+ done, 0 failed" "$d.log" | sed -n 's/^slurm: \([0-9.]*\) s:.*/\1/p')
     comp=$(sed -n 's/^  total *\([0-9.]*\) .*/\1/p' "$d.log" | tail -n 1)
-    say "pipelines/slurm PASSES=$PASSES $c: $T s: $(awk -v a="$T" -v b="$TL" 'BEGIN { printf "%+.1f%%", (a / b - 1) * 100 }') against pipelines/render (goal under +10%); every task done at ${landed:-?} s, the composite job's render ${comp:-?} s; ${same} files the same as the local render's$( [ ${#differ[@]} = 0 ] || echo ", DIFFERENT: ${differ[*]:0:5}") (load before $l0, after $(load))"
+    # what was submitted, as pipelines/slurm's start line says it (pass 1 is a task of its own)
+    tasks=$(sed -n 's/^slurm: .*; submitted \(.*\); logs in .*/\1/p' "$d.log" | head -n 1)
+    say "pipelines/slurm PASSES=$PASSES $c (${tasks:-? tasks}): $T s: $(awk -v a="$T" -v b="$TL" 'BEGIN { printf "%+.1f%%", (a / b - 1) * 100 }') against pipelines/render (goal under +10%); every task done at ${landed:-?} s, the composite job's render ${comp:-?} s; ${same} files the same as the local render's$( [ ${#differ[@]} = 0 ] || echo ", DIFFERENT: ${differ[*]:0:5}") (load before $l0, after $(load))"
     [ "$KEEP_RENDERS" = 1 ] || rm -rf "$d"/pass-* "$d/.slurm/stage" "$d/.slurm/work"
 done
 [ "$KEEP_RENDERS" = 1 ] || rm -rf "$OUT/local"/pass-*

@@ -180,12 +180,27 @@ done
 wait $pid
 rc=$?
 if [ $rc = 0 ] && [ -n "$killed" ] && grep -q "shard task .* ended without its passes.*resubmitting" "$TMP/s.log" &&
-    grep -q "the gather in 3 shard tasks a pass" "$TMP/s.log" && [ "$(ls "$TMP/s/.slurm/logs" | grep -c '^shard-')" -ge 13 ]; then
+    grep -q "shard task(s), 3 a pass" "$TMP/s.log" && [ "$(ls "$TMP/s/.slurm/logs" | grep -c '^shard-')" -ge 13 ]; then
     pass "SHARDS=3: 3 shard tasks a pass; one killed while running ($killed) is resubmitted and the render finishes"
 else
     fail "SHARDS=3 with a killed shard" "exit $rc, killed '${killed:-none}': $(tail -n 5 "$TMP/s.log")"
 fi
 all_same "SHARDS=3 through Slurm, CPUS=2 THREADS=2 = pipelines/render THREADS=1" "$TMP/s" "$TMP/locals"
+# the task that lands a pass's last shard seals the pass again (the prep task's seal has no
+# shards): every pass's seal names its three shards
+nseal=0
+for d in "$TMP/s"/pass-*; do
+    [ "$(grep -c '^stat indirect\.[0-2]\.pm ' "$d/.checked" 2>/dev/null)" = 3 ] && nseal=$((nseal + 1))
+done
+[ $nseal = 4 ] && pass "SHARDS=3: every pass sealed again with its 3 shards when the last one landed" ||
+    fail "SHARDS=3 seals" "$nseal of 4 passes' seals name their 3 shards"
+# ... and the composite job's render trusts those seals: a flipped byte in pass 2's map, its
+# date put back, which only a whole check would find, goes unread by the next run's composite
+# job (its buffers are read whole still: cache.sh flips a byte in a shard there)
+cp "$TMP/s/pass-0002/photonmap.pm" "$TMP/map2.pm"
+t=$(stat -c %.9Y "$TMP/s/pass-0002/photonmap.pm")
+printf '\x55' | dd of="$TMP/s/pass-0002/photonmap.pm" bs=1 seek=$(($(stat -c %s "$TMP/map2.pm") - 100)) conv=notrunc status=none
+touch -d "@$t" "$TMP/s/pass-0002/photonmap.pm"
 # pass 3 back to the stage with shard 1 missing, as if its task had been killed: only it goes again
 mv "$TMP/s/pass-0003" "$TMP/s/.slurm/stage/pass-0003" && rm "$TMP/s/.slurm/stage/pass-0003/indirect.1.pm" &&
     mv "$TMP/s/.slurm/done/pass-0003" "$TMP/s/.slurm/done/prep-pass-0003"
@@ -199,6 +214,14 @@ if [ $rc = 0 ] && grep -q "3 made before; submitted 1 task(s)" "$TMP/s2.log" &&
 else
     fail "landed shards kept" "exit $rc: $(head -n 1 "$TMP/s2.log"); new logs: $(echo $new)"
 fi
+clog=$(ls -t "$TMP/s/.slurm/logs"/composite.*.out | head -n 1)
+if [ $rc = 0 ] && ! grep -q 'corrupt' "$clog" && ! cmp -s "$TMP/s/pass-0002/photonmap.pm" "$TMP/map2.pm"; then
+    pass "the composite job trusts the seals of passes made in shard tasks (a flipped byte in a sealed map goes unread)"
+else
+    fail "composite job and shard seals" "$(grep -m 2 'corrupt\|  2 ' "$clog")"
+fi
+cp "$TMP/map2.pm" "$TMP/s/pass-0002/photonmap.pm" # cp keeps the inode
+touch -d "@$t" "$TMP/s/pass-0002/photonmap.pm"
 all_same "after the one shard, the same files as pipelines/render's" "$TMP/s" "$TMP/locals"
 
 # ---- any number of CPUs a task, the same bytes: CPUS=1 (one thread a stage) against the

@@ -171,7 +171,6 @@ status=$?
     fail "passes: truncated sealed map" "exit $status: $(head -c 400 "$TMP/p3.err")"
 # a buffer whose input changed: pass 3's map in pass 2's place (cp keeps the inode; its date
 # put back): the gather's buffer records another map, so the pass is remade
-# (VERBOSE would say so, but it also changes the files' bytes: their command lines keep -q)
 t=$(mtime "$P3/pass-0002/photonmap.pm")
 cp "$P3/pass-0002/photonmap.pm" "$TMP/p3-map2.pm"
 cp "$P3/pass-0003/photonmap.pm" "$P3/pass-0002/photonmap.pm"
@@ -200,6 +199,54 @@ status=$?
     cmp -s "$P4/image.exr" "$TMP/p4.exr" &&
     pass "passes: a sealed pass whose stage would read a flipped map is checked whole first, the map rebuilt" ||
     fail "passes: sealed map read by a shard" "exit $status: $(head -c 400 "$TMP/p4.err")"
+# pipelines/slurm's shard tasks (pipelines/lib/slurm-task, run here by hand, no Slurm needed: a
+# task is the script, its spec and SLURM_ARRAY_TASK_ID): the prep task's render seals a pass
+# before its shards exist, so the task that lands the last shard seals it again, and the
+# composite job's render trusts the seal. Seen by a flipped byte in the map, its date put back,
+# which only a whole check would find: the composite job finds none, and its files are the
+# local render's. A flipped byte in a sealed shard's buffer is still found (buffers are read
+# whole every time).
+P5=$TMP/p5
+mkdir -p "$P5/.slurm/logs" "$P5/.slurm/done"
+(
+    SCENE=$PWD/$CORNELL ROOT=$PWD OUT=$P5 KEY=cache-sh PASSES=2 RANGES=(1:1 2:2) SHARDS=2 GNAME=simd-gather KEEP=all
+    read -r -a RPARAMS <<<"$TINY SHARDS=2"
+    declare -p SCENE ROOT BIN OUT KEY PASSES RPARAMS RANGES SHARDS GNAME KEEP >"$P5/.slurm/spec"
+)
+task() { SLURM_ARRAY_TASK_ID=$1 SLURM_JOB_ID=$2 pipelines/lib/slurm-task "$3" "$P5/.slurm/spec" "${@:4}"; }
+{ task 0 11 prep && task 0 12 shard 0 && task 1 12 shard 0 && task 1 13 prep && task 1 14 shard 1 && task 0 14 shard 1; } \
+    >"$TMP/p5.tasks" 2>&1 || fail "slurm-task by hand" "$(tail -n 3 "$TMP/p5.tasks")"
+if grep -q '^stat indirect\.0\.pm ' "$P5/pass-0002/.checked" && grep -q '^stat indirect\.1\.pm ' "$P5/pass-0002/.checked" &&
+    [ "$(sorted <"$P5/pass-0002/ran.txt")" = "build-photonmap hilbert-sort simd-gather.0 simd-gather.1 trace-gather-points trace-photons" ] &&
+    [ -z "$(ls -A "$P5/.slurm/work")$(ls -A "$P5/.slurm/stage")" ]; then
+    pass "slurm shard tasks: the task landing a pass's last shard seals it again (its shards in the seal, ran.txt kept)"
+else
+    fail "slurm shard tasks: seal" "$(grep '^stat' "$P5/pass-0002/.checked" | cut -d' ' -f2 | paste -sd' '); ran $(paste -sd' ' "$P5/pass-0002/ran.txt"); left $(ls -A "$P5/.slurm/work" "$P5/.slurm/stage" | paste -sd' ')"
+fi
+cp "$P5/pass-0002/photonmap.pm" "$TMP/p5-map.pm"
+t=$(mtime "$P5/pass-0002/photonmap.pm")
+flip "$P5/pass-0002/photonmap.pm"
+redate "$t" "$P5/pass-0002/photonmap.pm"
+task 0 15 composite >"$TMP/p5.out" 2>&1
+status=$?
+bad=""
+for f in pass-0001/direct.pm pass-0002/indirect.0.pm pass-0002/indirect.1.pm running.pm passes.txt image.exr image.png; do
+    cmp -s "$P5/$f" "$P4/$f" || bad+=" $f"
+done
+[ $status = 0 ] && ! grep -q 'corrupt\|rebuilding' "$TMP/p5.out" && grep -qE '^  2 +cached, added' "$TMP/p5.out" && [ -z "$bad" ] &&
+    pass "... and the composite job's render trusts that seal (a flipped byte in the map, date put back, goes unread), its files the local render's" ||
+    fail "slurm composite job and the seal" "exit $status, differ:${bad:- none}: $(grep -m 3 'corrupt\|failed\|  2 ' "$TMP/p5.out")"
+cp "$TMP/p5-map.pm" "$P5/pass-0002/photonmap.pm" # cp keeps the inode
+redate "$t" "$P5/pass-0002/photonmap.pm"
+t=$(mtime "$P5/pass-0002/indirect.1.pm")
+flip "$P5/pass-0002/indirect.1.pm"
+redate "$t" "$P5/pass-0002/indirect.1.pm"
+task 0 16 composite >"$TMP/p5.out" 2>&1
+status=$?
+[ $status = 0 ] && grep -qx 'render: pass-0002/indirect.1.pm is corrupt (checksum mismatch): rebuilding it' "$TMP/p5.out" &&
+    cmp -s "$P5/pass-0002/indirect.1.pm" "$P4/pass-0002/indirect.1.pm" && cmp -s "$P5/image.exr" "$P4/image.exr" &&
+    pass "... and a flipped byte in a sealed shard's buffer (date put back) is named and remade, the image the same" ||
+    fail "slurm: corrupt sealed shard" "exit $status: $(grep -m 3 'corrupt\|failed' "$TMP/p5.out")"
 
 # ---- 11: '#', '$', ':' and spaces in the scene's path and in OUTDIR
 D="$TMP/a #b \$c: d"

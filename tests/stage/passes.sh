@@ -264,3 +264,25 @@ if [ -z "$bad" ] && [ "$(wc -w <<<"$files")" -ge 12 ] && [ -e "$TMP/th1/pass-000
 else
     fail "THREADS=1 against 2" "differ:${bad:- none, but only $(wc -w <<<"$files") files}"
 fi
+# VERBOSE=1 runs the stages without -q, which they leave out of the command line they record
+# as they do --threads: a VERBOSE render makes the same bytes, and a VERBOSE rerun that remakes
+# a pass's gather (a shard removed) leaves every file as it was
+"$R" "$CORNELL" "$TMP/th3" $SMALL PASSES=2 SHARDS=2 VERBOSE=1 >"$TMP/th3.out" 2>&1 ||
+    fail "VERBOSE=1 render" "$(tail -3 "$TMP/th3.out")"
+bad=""
+for f in $files; do cmp -s "$TMP/th1/$f" "$TMP/th3/$f" || bad+=" $f"; done
+if [ -z "$bad" ] && [ "$(wc -w <<<"$files")" -ge 12 ] && grep -q -- '--stats stats/trace-photons.json' "$TMP/th3.out"; then
+    pass "VERBOSE=1 and VERBOSE=0: $(wc -w <<<"$files") files, byte for byte the same"
+else
+    fail "VERBOSE=1 against VERBOSE=0" "differ:${bad:- none, but only $(wc -w <<<"$files") files, or no command lines shown}"
+fi
+rm "$TMP/th1/pass-0002/indirect.1.pm"
+"$R" "$CORNELL" "$TMP/th1" $SMALL PASSES=2 SHARDS=2 VERBOSE=1 >"$TMP/th4.out" 2>&1 ||
+    fail "VERBOSE=1 rerun" "$(tail -3 "$TMP/th4.out")"
+bad=""
+for f in $files; do cmp -s "$TMP/th1/$f" "$TMP/th2/$f" || bad+=" $f"; done
+if [ -z "$bad" ] && [ -e "$TMP/th1/pass-0002/indirect.1.pm" ] && grep -q '^  2 .*ran' "$TMP/th4.out"; then
+    pass "a VERBOSE=1 rerun that remakes a shard of a VERBOSE=0 render: every file the same"
+else
+    fail "VERBOSE=1 rerun" "differ:${bad:- none}; $(grep '^  [0-9] ' "$TMP/th4.out")"
+fi

@@ -137,6 +137,18 @@ static void test_args_record(void **state)
     assert_int_equal(pm_args_record(&a, argv, skip, 0, &rc, &rv), PM_OK);
     assert_int_equal(rc, 13);
     pm_args_free(&a);
+    /* a flag (as the stages leave out -q/--quiet) and an option of a value (--stats), each in
+     * both spellings, go with their words; the same text as a positional stays */
+    char *argv2[] = {"t", "-f", "pos", "--name", "s.json", "--flag", "--name=t.json", "--radius", "1", "--", "-f"};
+    assert_int_equal(parse(&o, &a, 11, argv2), PM_OK);
+    const void *skip2[] = {&o.flag, &o.s};
+    assert_int_equal(pm_args_record(&a, argv2, skip2, 2, &rc, &rv), PM_OK);
+    const char *want2[] = {"t", "pos", "--radius", "1", "--", "-f"};
+    assert_int_equal(rc, 6);
+    for (int i = 0; i < rc; i++)
+        assert_string_equal(rv[i], want2[i]);
+    assert_ptr_equal(rv[5], argv2[10]);
+    pm_args_free(&a);
 }
 
 static void test_args_settings_round_trip(void **state)

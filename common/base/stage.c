@@ -156,6 +156,15 @@ void pm_stage_stat_int(pm_stage_t *st, const char *key, int64_t v)
         json_object_set_new(st->stats->obj, key, json_integer(v));
 }
 
+pm_result_t pm_stage_frame_error(pm_result_t r, int frame, const char *name)
+{
+    if (r == PM_OK)
+        return r;
+    char why[PM_ERROR_MAX]; /* the message is rewritten from a copy of itself */
+    snprintf(why, sizeof why, "%s", pm_error_message());
+    return pm_error_set(r, "frame %d ('%s'): %s", frame, name, why);
+}
+
 void pm_stage_stat_double(pm_stage_t *st, const char *key, double v)
 {
     /* JSON has no NaN or Inf: a counter that is not finite is written as null. */

@@ -86,6 +86,9 @@ static inline int pm_stage_progress(const pm_stage_t *st) { return !st->quiet; }
 
 /* Stage counters for --stats (no-ops when --stats was not given). */
 void pm_stage_stat_int(pm_stage_t *st, const char *key, int64_t v);
+/* A stage given several inputs as a stream (one document each): r with the current error's
+ * message prefixed by which frame ('name') failed; r itself when it is PM_OK. */
+pm_result_t pm_stage_frame_error(pm_result_t r, int frame, const char *name);
 void pm_stage_stat_double(pm_stage_t *st, const char *key, double v);
 void pm_stage_stat_string(pm_stage_t *st, const char *key, const char *v);
 

@@ -30,17 +30,23 @@ typedef struct {
     int stream;       /* --stream: PHOTONS is a stream of documents, a map written for each */
 } build_options_t;
 
+/* The library's build parameters from the options (photonmap/mapbuild.h). */
+static pm_map_build_params_t build_params(const build_options_t *o)
+{
+    return (pm_map_build_params_t){.map = (pm_map_kind_t)o->map,
+                                   .split = (pm_split_t)o->split,
+                                   .vvh_radius = o->vvh_radius,
+                                   .vvh_k = (uint32_t)o->vvh_k,
+                                   .width_k = (uint32_t)o->width_k,
+                                   .width_max = o->width_max};
+}
+
 /* Builds the map of one photons document (rd: its header read; in names it) and writes it. */
 static pm_result_t build_doc(pm_stage_t *st, const build_options_t *o, pm_reader_t *rd, const char *in,
                              pm_map_build_stats_t *bs_out, double *t_read_out, double *t_write_out)
 {
     pm_table_t ph = {0}, map = {0};
-    pm_map_build_params_t p = {.map = (pm_map_kind_t)o->map,
-                               .split = (pm_split_t)o->split,
-                               .vvh_radius = o->vvh_radius,
-                               .vvh_k = (uint32_t)o->vvh_k,
-                               .width_k = (uint32_t)o->width_k,
-                               .width_max = o->width_max};
+    pm_map_build_params_t p = build_params(o);
     double t0 = pm_time_wall();
     pm_result_t r = pm_table_read_from(rd, 0, UINT64_MAX, &ph);
     *t_read_out += pm_time_wall() - t0;
@@ -109,12 +115,7 @@ static pm_result_t run(pm_stage_t *st, const build_options_t *o)
         return run_stream(st, o);
     const char *in = st->args.args[0];
     pm_table_t ph = {0}, map = {0};
-    pm_map_build_params_t p = {.map = (pm_map_kind_t)o->map,
-                               .split = (pm_split_t)o->split,
-                               .vvh_radius = o->vvh_radius,
-                               .vvh_k = (uint32_t)o->vvh_k,
-                               .width_k = (uint32_t)o->width_k,
-                               .width_max = o->width_max};
+    pm_map_build_params_t p = build_params(o);
     pm_map_build_stats_t bs;
     double t0 = pm_time_wall();
     pm_result_t r = pm_table_read(in, &pm_photons_schema, pm_schema_required(&pm_photons_schema), &ph);

@@ -303,11 +303,8 @@ int main(int argc, char **argv)
             pm_rt_destroy(&rt);
             pm_scene_free(&s);
         }
-        if (r != PM_OK && frames > 1) { /* which frame of the stream failed */
-            char why[PM_ERROR_MAX];
-            snprintf(why, sizeof why, "%s", pm_error_message());
-            r = pm_error_set(r, "frame %d ('%s'): %s", i, st.args.args[i], why);
-        }
+        if (r != PM_OK && frames > 1) /* which frame of the stream failed */
+            r = pm_stage_frame_error(r, i, st.args.args[i]);
     }
     if (frames > 1)
         pm_stage_stat_int(&st, "frames", frames);

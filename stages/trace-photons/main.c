@@ -200,11 +200,8 @@ int main(int argc, char **argv)
     if (frames > 1) /* a frame's arrays are allocated again for the next: its freed mappings serve them */
         pm_memory_reuse(PM_MEMORY_STREAM_REUSE);
     for (int i = 0; i < frames && r == PM_OK; i++)
-        if ((r = run(&st, &o, i)) != PM_OK && frames > 1) { /* which frame of the stream failed */
-            char why[PM_ERROR_MAX];
-            snprintf(why, sizeof why, "%s", pm_error_message());
-            r = pm_error_set(r, "frame %d ('%s'): %s", i, st.args.args[i], why);
-        }
+        if ((r = run(&st, &o, i)) != PM_OK && frames > 1) /* which frame of the stream failed */
+            r = pm_stage_frame_error(r, i, st.args.args[i]);
     if (frames > 1)
         pm_stage_stat_int(&st, "frames", frames);
     return pm_stage_end(&st, r);

@@ -247,7 +247,7 @@ t0=$(date +%s)
 pipelines/slurm "$SCENE" "$TMP/t" "${PT[@]}" "${SL[@]}" TIME=6 >"$TMP/t.log" 2>&1
 rc=$?
 t1=$(date +%s)
-n=$(wc -l <"$TMP/t/passes.txt" 2>/dev/null)
+n=$(wc -l 2>/dev/null <"$TMP/t/passes.txt")
 last=$(grep -o 'stopped submitting (TIME=6); composite of passes 1 to [0-9]*' "$TMP/t.log")
 pipelines/render "$SCENE" "$TMP/localt" "${PT[@]}" PASSES="${n:-2}" >/dev/null 2>&1
 # the passes' part: from the start to the line that says submitting stopped, at most the budget

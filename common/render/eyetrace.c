@@ -271,6 +271,34 @@ static inline int put_hit(const pm_eye_t *c, bytebuf_t *out, const float p[3], c
     return written;
 }
 
+/* The fold (query_weight of a unit path weight) of material mi at q on triangle tri, and in *mt
+ * the material as the records see it: in a textured scene both come from its textures at q,
+ * into the caller's textured and fold_tex; otherwise the untextured ones of c->fold. */
+static inline const float *hit_fold(const pm_eye_t *c, uint32_t tri, uint32_t mi, const float q[3],
+                                    pm_material_t *textured, float fold_tex[3], const pm_material_t **mt)
+{
+    *mt = &c->s->materials[mi];
+    if (!c->s->maps)
+        return c->fold + 3 * (size_t)mi;
+    static const float one[3] = {1.0f, 1.0f, 1.0f};
+    *mt = pm_scene_material_at(c->s, tri, q, textured);
+    query_weight(*mt, one, fold_tex);
+    return fold_tex;
+}
+
+/* A query's normal at q on triangle tri: the geometric normal ng turned to the side the query
+ * sees (side, +1 or -1), or the shading normal there when the scene has them (render/transport.h). */
+static inline void query_normal(const pm_scene_t *s, uint32_t tri, const float q[3], const float ng[3], float side,
+                                float n[3])
+{
+    for (int k = 0; k < 3; k++)
+        n[k] = side * ng[k];
+    if (s->normals) {
+        float gn[3] = {n[0], n[1], n[2]};
+        pm_scene_shading_normal(s, tri, q, gn, n);
+    }
+}
+
 /* Direct light and spawned rays of primary ray i (pixel column x), and its caustic query into
  * caus when asked for; 0 when out of memory. A primary ray that passed mirrors or glass arrives
  * here as its last ray, with the chain's throughput in sc->thr: every contribution is multiplied
@@ -608,7 +636,7 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
     const pm_rays_t *sr = &sc->sec;
     /* Room for every ray's records up front (two where a glossy textured hit splits, put_hit):
      * the loop below then only stores. */
-    if (!grow((void **)&out->p, 1, &out->cap, out->n + sr->n * c->record_size * (c->lobe ? 2 : 1)))
+    if (!c->direct_only && !grow((void **)&out->p, 1, &out->cap, out->n + sr->n * c->record_size * (c->lobe ? 2 : 1)))
         return pm_error_set(PM_ERR_NOMEM, "out of memory for the queries of row %" PRIu32 ": %zu records", y,
                             out->count + sr->n);
     uint32_t last_px = UINT32_MAX, in_px = 0;
@@ -626,36 +654,27 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
         if (c->specular && pm_material_is_specular(&s->materials[s->tri_material[tri]])) {
             /* Through mirrors and glass to the first other surface. Light found at the end of
              * such a chain is L S+ D at the primary hit, the caustic queries' (with the caustic
-             * map) or lost without them: never counted here. */
+             * map) or lost without them: never counted here, so a direct-only run, which makes
+             * no queries, need not follow the chain. */
+            if (c->direct_only)
+                continue;
             specular_rng(&spec_rng, c->seed, (uint64_t)y * c->w + last_px, 1 + in_px);
             follow_specular(c, sc, &ctx, &spec_rng, -1.0f, &tri, o, d, &t, thr);
             if (tri == PM_RAY_MISS)
                 continue;
             uint32_t mi = s->tri_material[tri];
             float w[3], *rw = sc->sec_w + 3 * j;
-            const float *fold = c->fold + 3 * (size_t)mi, *ng = c->geom.tri_n + 3 * (size_t)tri;
+            const float *ng = c->geom.tri_n + 3 * (size_t)tri;
             float wo[3] = {-d[0], -d[1], -d[2]}, n[3], q[3], fold_tex[3];
             float side = pm_dot3(ng, wo) >= 0.0f ? 1.0f : -1.0f;
             for (int k = 0; k < 3; k++)
                 q[k] = o[k] + t * d[k];
             pm_material_t textured;
-            const pm_material_t *mt = &s->materials[mi];
-            if (s->maps) { /* a textured scene: the fold of the material with its textures at q */
-                const float one[3] = {1.0f, 1.0f, 1.0f};
-                mt = pm_scene_material_at(s, tri, q, &textured);
-                query_weight(mt, one, fold_tex);
-                fold = fold_tex;
-            }
-            for (int k = 0; k < 3; k++) {
-                n[k] = side * ng[k];
+            const pm_material_t *mt;
+            const float *fold = hit_fold(c, tri, mi, q, &textured, fold_tex, &mt);
+            for (int k = 0; k < 3; k++)
                 w[k] = rw[k] * thr[k] * fold[k];
-            }
-            if (s->normals) { /* the query's normal is the shading normal (render/transport.h) */
-                float gn[3] = {n[0], n[1], n[2]};
-                pm_scene_shading_normal(s, tri, q, gn, n);
-            }
-            if (c->direct_only)
-                continue;                 /* the direct buffer alone: no queries */
+            query_normal(s, tri, q, ng, side, n);
             if (c->lobe && c->lobe[mi]) { /* glossy and textured: two records (put_hit) */
                 float pw[3] = {rw[0] * thr[0], rw[1] * thr[1], rw[2] * thr[2]};
                 int put = isfinite(pw[0] + pw[1] + pw[2])
@@ -676,23 +695,8 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
         float wo[3] = {-d[0], -d[1], -d[2]}, n[3];
         const float *ng = c->geom.tri_n + 3 * (size_t)tri;
         float side = pm_dot3(ng, wo) >= 0.0f ? 1.0f : -1.0f; /* the side the query sees */
-        for (int k = 0; k < 3; k++)
-            n[k] = side * ng[k];
-        if (s->normals) { /* the query's normal is the shading normal (render/transport.h) */
-            float gn[3] = {n[0], n[1], n[2]};
-            pm_scene_shading_normal(s, tri, q, gn, n);
-        }
         uint32_t mi = s->tri_material[tri];
-        const float *fold = c->fold + 3 * (size_t)mi, *rw = sc->sec_w + 3 * j;
-        float fold_tex[3];
-        pm_material_t textured;
-        const pm_material_t *mt = &s->materials[mi];
-        if (s->maps) { /* a textured scene: the fold of the material with its textures at q */
-            const float one[3] = {1.0f, 1.0f, 1.0f};
-            mt = pm_scene_material_at(s, tri, q, &textured);
-            query_weight(mt, one, fold_tex);
-            fold = fold_tex;
-        }
+        const float *rw = sc->sec_w + 3 * j;
         /* An emitter's front seen by a secondary ray: direct light of the primary hit, weighted
          * against the light samples that could have found the same point (MIS, power heuristic). */
         if ((side > 0.0f || s->two_sided_lights) && pm_material_is_emissive(&s->materials[mi])) {
@@ -702,7 +706,14 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
             for (int k = 0; k < 3; k++)
                 direct[3 * sc->sec_px[j] + (uint32_t)k] += (double)(rw[k] * ke[k] * wb);
         }
-        if (!c->direct_only && c->lobe && c->lobe[mi]) { /* glossy and textured: two records (put_hit) */
+        if (c->direct_only)
+            continue; /* the direct buffer alone: the query's normal and fold are not needed */
+        float fold_tex[3];
+        pm_material_t textured;
+        const pm_material_t *mt;
+        const float *fold = hit_fold(c, tri, mi, q, &textured, fold_tex, &mt);
+        query_normal(s, tri, q, ng, side, n);
+        if (c->lobe && c->lobe[mi]) { /* glossy and textured: two records (put_hit) */
             int put = put_hit(c, out, q, n, rw, y * c->w + sc->sec_px[j], mi, mt, wo);
             if (put < 0)
                 return pm_error_set(PM_ERR_NOMEM, "out of memory for the queries of row %" PRIu32, y);
@@ -710,7 +721,7 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
             continue;
         }
         float w[3] = {rw[0] * fold[0], rw[1] * fold[1], rw[2] * fold[2]};
-        if (c->direct_only || !(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f))
+        if (!(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f))
             continue;                                                 /* a black query surface */
         put_query(c, out, q, n, w, y * c->w + sc->sec_px[j], mi, wo); /* room reserved above */
         sc->n_queries++;

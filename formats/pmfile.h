@@ -153,6 +153,13 @@ pm_result_t pm_reader_open_stream(FILE *f, const char *name, const pm_schema_t *
  * start) returns PM_OK with *out NULL. name is what messages call this document (say
  * "stdin, frame 3"). Its pm_reader_finish stops after the checksum, leaving f at the next. */
 pm_result_t pm_reader_open_next(FILE *f, const char *name, const pm_schema_t *schema, uint32_t need, pm_reader_t **out);
+/* The input of a stream of documents: the file path, or stdin for "-"; a one-line error
+ * naming path when it cannot be opened. pm_stream_close closes it unless it is stdin (or NULL). */
+pm_result_t pm_stream_open(const char *path, FILE **out);
+void pm_stream_close(FILE *f);
+/* What messages call document frame of the stream at path ("PATH, frame N", "stdin, frame N"),
+ * into buf of size bytes; returns buf. */
+const char *pm_stream_frame_name(char *buf, size_t size, const char *path, uint64_t frame);
 /* Reads the next document of the stream f whole into memory, its header parsed and checked,
  * its records and checksum not (a reader of the copy checks them): *buf_out (malloc'd) holds
  * *len_out bytes, a pmtk file of its own; NULL and 0 at the clean end of the stream. For a

@@ -140,6 +140,24 @@ pm_result_t pm_reader_open_stream(FILE *f, const char *name, const pm_schema_t *
     return reader_start(r, schema, need, out);
 }
 
+pm_result_t pm_stream_open(const char *path, FILE **out)
+{
+    *out = strcmp(path, "-") ? fopen(path, "rb") : stdin;
+    return *out ? PM_OK : pm_error_set(PM_ERR_INPUT, "cannot open '%s': %s", path, strerror(errno));
+}
+
+void pm_stream_close(FILE *f)
+{
+    if (f && f != stdin)
+        fclose(f);
+}
+
+const char *pm_stream_frame_name(char *buf, size_t size, const char *path, uint64_t frame)
+{
+    snprintf(buf, size, "%s, frame %" PRIu64, strcmp(path, "-") ? path : "stdin", frame);
+    return buf;
+}
+
 pm_result_t pm_reader_open_next(FILE *f, const char *name, const pm_schema_t *schema, uint32_t need, pm_reader_t **out)
 {
     *out = NULL;

@@ -68,18 +68,18 @@ static pm_result_t run_stream(pm_stage_t *st, const build_options_t *o)
     if (strcmp(st->output, "-") != 0)
         return pm_error_set(PM_ERR_USAGE, "--stream writes one map document per frame to stdout: give -o - (not '%s')",
                             st->output);
-    FILE *f = strcmp(path, "-") ? fopen(path, "rb") : stdin;
-    if (!f)
-        return pm_error_set(PM_ERR_INPUT, "cannot open '%s': %s", path, strerror(errno));
+    FILE *f;
+    pm_result_t r = pm_stream_open(path, &f);
+    if (r != PM_OK)
+        return r;
     pm_memory_reuse(
         PM_MEMORY_STREAM_REUSE); /* a frame's arrays are allocated again for the next: its freed mappings serve them */
-    pm_result_t r = PM_OK;
     pm_map_build_stats_t bs = {0};
     double t_read = 0.0, t_write = 0.0, t_build = 0.0;
     uint64_t frames = 0, photons = 0;
     char name[1200];
     for (;;) {
-        snprintf(name, sizeof name, "%s, frame %" PRIu64, sname, frames);
+        pm_stream_frame_name(name, sizeof name, path, frames);
         pm_reader_t *rd;
         if ((r = pm_reader_open_next(f, name, &pm_photons_schema, pm_schema_required(&pm_photons_schema), &rd)) !=
                 PM_OK ||
@@ -93,8 +93,7 @@ static pm_result_t run_stream(pm_stage_t *st, const build_options_t *o)
         photons += bs.photons;
         t_build += bs.build_s;
     }
-    if (f != stdin)
-        fclose(f);
+    pm_stream_close(f);
     if (r == PM_OK && frames == 0)
         r = pm_error_set(PM_ERR_INPUT, "empty stream '%s': no photons document", sname);
     if (r == PM_OK) {

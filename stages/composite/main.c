@@ -180,7 +180,7 @@ static pm_result_t run_stream(pm_stage_t *st, const composite_options_t *o)
         int ended = 0;
         for (int i = 0; i < n && r == PM_OK; i++) {
             char name[4200];
-            snprintf(name, sizeof name, "%s, frame %" PRIu64, strcmp(paths[i], "-") ? paths[i] : "stdin", frame);
+            pm_stream_frame_name(name, sizeof name, paths[i], frame);
             size_t len;
             free(doc[i]);
             doc[i] = NULL;
@@ -256,8 +256,8 @@ static pm_result_t run_stream(pm_stage_t *st, const composite_options_t *o)
         pm_stage_stat_double(st, "write_s", t_write);
     }
     for (int i = 0; i < n; i++) {
-        if (files && files[i] && files[i] != stdin)
-            fclose(files[i]);
+        if (files)
+            pm_stream_close(files[i]);
         if (mem && mem[i])
             fclose(mem[i]);
         if (doc)

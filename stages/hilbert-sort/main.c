@@ -222,12 +222,12 @@ static pm_result_t run(pm_stage_t *st, const sort_options_t *o)
                                 st->output);
         pm_memory_reuse(PM_MEMORY_STREAM_REUSE); /* a frame's arrays are allocated again for the next: its freed
                                                     mappings serve them */
-        FILE *f = strcmp(path, "-") ? fopen(path, "rb") : stdin;
-        if (!f)
-            return pm_error_set(PM_ERR_INPUT, "cannot open '%s': %s", path, strerror(errno));
+        FILE *f;
+        if ((res = pm_stream_open(path, &f)) != PM_OK)
+            return res;
         char name[1200];
         for (;;) {
-            snprintf(name, sizeof name, "%s, frame %" PRIu64, in_name, tot.frames);
+            pm_stream_frame_name(name, sizeof name, path, tot.frames);
             if ((res = pm_reader_open_next(f, name, &pm_queries_schema, 0, &rd)) != PM_OK || !rd)
                 break;
             res = sort_doc(st, o, rd, name, &bufs, &tot);
@@ -235,8 +235,7 @@ static pm_result_t run(pm_stage_t *st, const sort_options_t *o)
             if (res != PM_OK)
                 break;
         }
-        if (f != stdin)
-            fclose(f);
+        pm_stream_close(f);
         if (res == PM_OK && tot.frames == 0)
             res = pm_error_set(PM_ERR_INPUT, "empty stream '%s': no queries document", in_name);
     }

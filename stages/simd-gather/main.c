@@ -117,9 +117,10 @@ static pm_result_t run_stream(pm_stage_t *st, const gather_options_t *opt, pm_is
     if (!strcmp(kept, "-"))
         return pm_error_set(PM_ERR_USAGE, "--stream %s: the kept %s must be a file, not stdin", stream_names[o->stream],
                             by_queries ? "map" : "queries");
-    FILE *f = strcmp(spath, "-") ? fopen(spath, "rb") : stdin;
-    if (!f)
-        return pm_error_set(PM_ERR_INPUT, "cannot open '%s': %s", spath, strerror(errno));
+    FILE *f;
+    pm_result_t r = pm_stream_open(spath, &f);
+    if (r != PM_OK)
+        return r;
     pm_memory_reuse(
         PM_MEMORY_STREAM_REUSE); /* a frame's arrays are allocated again for the next: its freed mappings serve them */
     pm_gather_inputs_t in;
@@ -128,10 +129,10 @@ static pm_result_t run_stream(pm_stage_t *st, const gather_options_t *opt, pm_is
     double t_radius = 0.0, t_gather = 0.0, t_write = 0.0, t_read = 0.0, radius = o->radius, radius1 = 0.0;
     uint64_t frames = 0, queries = 0;
     char name[1200];
-    pm_result_t r = by_queries ? pm_gather_inputs_read_map(&in, kept, 0) : pm_gather_inputs_read_queries(&in, kept);
+    r = by_queries ? pm_gather_inputs_read_map(&in, kept, 0) : pm_gather_inputs_read_queries(&in, kept);
     t_read = in.read_s;
     for (int end = 0; r == PM_OK;) {
-        snprintf(name, sizeof name, "%s, frame %" PRIu64, sname, frames);
+        pm_stream_frame_name(name, sizeof name, spath, frames);
         if (by_queries)
             r = pm_gather_inputs_next_queries(&in, f, name, frames == 0, 0, &end);
         else
@@ -194,8 +195,7 @@ static pm_result_t run_stream(pm_stage_t *st, const gather_options_t *opt, pm_is
         pm_stage_stat_int(st, "frames", (int64_t)frames);
         pm_stage_stat_string(st, "stream", stream_names[o->stream]);
     }
-    if (f != stdin)
-        fclose(f);
+    pm_stream_close(f);
     pm_gather_inputs_free(&in);
     pm_table_free(&out);
     return r;

@@ -43,7 +43,7 @@ static pm_result_t read_header_text(pm_reader_t *r, char **text_out, size_t *len
     /* A short read is an empty or foreign file only when the stream says so: a directory,
      * an I/O error or a closed descriptor also read nothing, and errno says which. */
     if (got < sizeof magic && ferror(r->f))
-        return pm_error_set(PM_ERR_IO, "cannot read '%s': %s", r->path, strerror(errno));
+        return pm_error_set(pm_result_of_errno(errno), "cannot read '%s': %s", r->path, strerror(errno));
     if (got < sizeof magic || memcmp(magic, PM_MAGIC "\n", sizeof magic) != 0) {
         if (got == 0)
             return pm_error_set(PM_ERR_INPUT, "empty input '%s': expected a pmtk file", r->path);
@@ -62,7 +62,8 @@ static pm_result_t read_header_text(pm_reader_t *r, char **text_out, size_t *len
         if (c == EOF) {
             free(t);
             if (ferror(r->f))
-                return pm_error_set(PM_ERR_IO, "cannot read the header of '%s': %s", r->path, strerror(errno));
+                return pm_error_set(pm_result_of_errno(errno), "cannot read the header of '%s': %s", r->path,
+                                    strerror(errno));
             return pm_error_set(PM_ERR_INPUT, "truncated header in '%s': no blank line ends it", r->path);
         }
         if (n >= PM_HEADER_MAX) {
@@ -110,7 +111,7 @@ pm_result_t pm_reader_open(const char *path, const pm_schema_t *schema, uint32_t
     FILE *f = fopen(path, "rb");
     if (!f) {
         int e = errno;
-        return pm_error_set(e == ENOENT ? PM_ERR_INPUT : PM_ERR_IO, "cannot open '%s': %s", path, strerror(e));
+        return pm_error_set(pm_result_of_errno(e), "cannot open '%s': %s", path, strerror(e));
     }
     pm_result_t res = pm_reader_open_stream(f, path, schema, need, out);
     if (res != PM_OK)
@@ -143,7 +144,7 @@ pm_result_t pm_reader_open_stream(FILE *f, const char *name, const pm_schema_t *
 pm_result_t pm_stream_open(const char *path, FILE **out)
 {
     *out = strcmp(path, "-") ? fopen(path, "rb") : stdin;
-    return *out ? PM_OK : pm_error_set(PM_ERR_INPUT, "cannot open '%s': %s", path, strerror(errno));
+    return *out ? PM_OK : pm_error_set(pm_result_of_errno(errno), "cannot open '%s': %s", path, strerror(errno));
 }
 
 void pm_stream_close(FILE *f)
@@ -164,7 +165,7 @@ pm_result_t pm_reader_open_next(FILE *f, const char *name, const pm_schema_t *sc
     int c = getc(f);
     if (c == EOF) {
         if (ferror(f))
-            return pm_error_set(PM_ERR_IO, "cannot read '%s': %s", name, strerror(errno));
+            return pm_error_set(pm_result_of_errno(errno), "cannot read '%s': %s", name, strerror(errno));
         return PM_OK; /* the end of the stream, between documents */
     }
     ungetc(c, f);
@@ -205,7 +206,8 @@ pm_result_t pm_reader_take_next(FILE *f, const char *name, const pm_schema_t *sc
         size_t got = fread(b + head + 4, 1, payload + 8, f);
         if (got < payload + 8) {
             if (ferror(f))
-                res = pm_error_set(PM_ERR_IO, "cannot read %s '%s': %s", reader_title(r), name, strerror(errno));
+                res = pm_error_set(pm_result_of_errno(errno), "cannot read %s '%s': %s", reader_title(r), name,
+                                   strerror(errno));
             else if (got < payload)
                 res = pm_error_set(PM_ERR_INPUT, "truncated %s '%s': ends in record %" PRIu64 " of %" PRIu64,
                                    reader_title(r), name, r->hdr.record_size ? got / r->hdr.record_size : 0,
@@ -256,7 +258,8 @@ static pm_result_t reader_start(pm_reader_t *r, const pm_schema_t *schema, uint3
         unsigned char bom[4];
         size_t got = fread(bom, 1, 4, r->f);
         if (got < 4 && ferror(r->f))
-            res = pm_error_set(PM_ERR_IO, "cannot read %s '%s': %s", reader_title(r), r->path, strerror(errno));
+            res = pm_error_set(pm_result_of_errno(errno), "cannot read %s '%s': %s", reader_title(r), r->path,
+                               strerror(errno));
         else if (got < 4)
             res = pm_error_set(PM_ERR_INPUT, "truncated %s '%s': no byte-order marker after the header",
                                reader_title(r), r->path);
@@ -322,7 +325,8 @@ pm_result_t pmfile_reader_read(pm_reader_t *r, void *records, uint64_t max, uint
         size_t got = rs ? fread(p, rs, (size_t)n, r->f) : (size_t)n;
         if (got < n) {
             if (ferror(r->f))
-                return pm_error_set(PM_ERR_IO, "cannot read %s '%s': %s", reader_title(r), r->path, strerror(errno));
+                return pm_error_set(pm_result_of_errno(errno), "cannot read %s '%s': %s", reader_title(r), r->path,
+                                    strerror(errno));
             return pm_error_set(PM_ERR_INPUT, "truncated %s '%s': ends in record %" PRIu64 " of %" PRIu64,
                                 reader_title(r), r->path, r->next + got, r->hdr.count);
         }
@@ -349,7 +353,8 @@ pm_result_t pm_reader_finish(pm_reader_t *r, uint64_t *checksum_out)
     size_t got = fread(tail, 1, 8, r->f);
     if (got < 8) {
         if (ferror(r->f))
-            return pm_error_set(PM_ERR_IO, "cannot read %s '%s': %s", reader_title(r), r->path, strerror(errno));
+            return pm_error_set(pm_result_of_errno(errno), "cannot read %s '%s': %s", reader_title(r), r->path,
+                                strerror(errno));
         return pm_error_set(PM_ERR_INPUT, "truncated %s '%s': checksum missing after %" PRIu64 " records",
                             reader_title(r), r->path, r->hdr.count);
     }

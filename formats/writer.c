@@ -122,7 +122,7 @@ pm_result_t pm_writer_write_checked(pm_writer_t *w, const void *records, uint64_
     if (!w->err && bytes && fwrite(records, 1, bytes, w->out.f) != bytes)
         w->err = errno ? errno : EIO;
     if (w->err)
-        return pm_error_set(PM_ERR_IO, "cannot write '%s': %s", w->name, strerror(w->err));
+        return pm_error_set(pm_result_of_errno(w->err), "cannot write '%s': %s", w->name, strerror(w->err));
     w->written += n;
     return PM_OK;
 }
@@ -155,7 +155,7 @@ pm_result_t pmfile_writer_write(pm_writer_t *w, const void *records, uint64_t n,
         if (!w->err && bytes && fwrite(rec + i * rs, 1, bytes, w->out.f) != bytes)
             w->err = errno ? errno : EIO;
         if (w->err) /* a full disk: stop now rather than after writing the rest into nothing */
-            return pm_error_set(PM_ERR_IO, "cannot write '%s': %s", w->name, strerror(w->err));
+            return pm_error_set(pm_result_of_errno(w->err), "cannot write '%s': %s", w->name, strerror(w->err));
         w->written += m;
         i += m;
     } while (i < n);
@@ -176,7 +176,7 @@ pm_result_t pm_writer_commit(pm_writer_t *w)
     if (!w->err && fwrite(tail, 1, 8, w->out.f) != 8)
         w->err = errno ? errno : EIO;
     if (w->err) {
-        pm_result_t r = pm_error_set(PM_ERR_IO, "cannot write '%s': %s", w->name, strerror(w->err));
+        pm_result_t r = pm_error_set(pm_result_of_errno(w->err), "cannot write '%s': %s", w->name, strerror(w->err));
         pm_writer_abort(w);
         return r;
     }

@@ -115,7 +115,7 @@ static pm_result_t resolve_links(const char *path, char **out, int *via_fd_out)
         if (n < 0) {
             int e = hops < PM_ATOMIC_HOPS ? errno : ELOOP;
             free(cur);
-            return pm_error_set(PM_ERR_IO, "cannot create output '%s': %s", path, strerror(e));
+            return pm_error_set(pm_result_of_errno(e), "cannot create output '%s': %s", path, strerror(e));
         }
         link[n] = '\0';
         /* A relative link is relative to the directory that holds it. */
@@ -192,8 +192,7 @@ static pm_result_t make_temp(pm_atomic_t *out, int *fd_out)
         int e = errno;
         free(out->tmp_path);
         out->tmp_path = NULL; /* nothing to remove */
-        return pm_error_set(e == ENOENT || e == ENOTDIR ? PM_ERR_INPUT : PM_ERR_IO, "cannot create output '%s': %s",
-                            out->path, strerror(e));
+        return pm_error_set(pm_result_of_errno(e), "cannot create output '%s': %s", out->path, strerror(e));
     }
     out->slot = register_path(out->tmp_path);
     /* mkstemp makes 0600; an output should get the permissions any new file would. */
@@ -252,7 +251,7 @@ pm_result_t pm_atomic_open(const char *path, pm_atomic_t *out)
         if ((fd = open_special(path, out->special)) < 0) {
             int e = errno;
             release(out);
-            return pm_error_set(PM_ERR_IO, "cannot open output '%s': %s", path, strerror(e));
+            return pm_error_set(pm_result_of_errno(e), "cannot open output '%s': %s", path, strerror(e));
         }
     } else if ((r = make_temp(out, &fd)) != PM_OK) {
         release(out);
@@ -263,7 +262,7 @@ pm_result_t pm_atomic_open(const char *path, pm_atomic_t *out)
         int e = errno;
         close(fd);
         pm_atomic_abort(out);
-        return pm_error_set(PM_ERR_IO, "cannot open output '%s': %s", path, strerror(e));
+        return pm_error_set(pm_result_of_errno(e), "cannot open output '%s': %s", path, strerror(e));
     }
     return PM_OK;
 }
@@ -278,7 +277,7 @@ pm_result_t pm_atomic_check(const char *path)
         return r;
     int fd;
     if (a.special && access(path, W_OK) != 0)
-        r = pm_error_set(PM_ERR_IO, "cannot open output '%s': %s", path, strerror(errno));
+        r = pm_error_set(pm_result_of_errno(errno), "cannot open output '%s': %s", path, strerror(errno));
     else if (!a.special && (r = make_temp(&a, &fd)) == PM_OK)
         close(fd);
     pm_atomic_abort(&a);
@@ -320,7 +319,7 @@ static pm_result_t prepare(pm_atomic_t *a)
             close(fd);
     }
     if (e)
-        return pm_error_set(PM_ERR_IO, "cannot write '%s': %s", a->path ? a->path : "stdout", strerror(e));
+        return pm_error_set(pm_result_of_errno(e), "cannot write '%s': %s", a->path ? a->path : "stdout", strerror(e));
     return PM_OK;
 }
 
@@ -345,7 +344,7 @@ static pm_result_t copy_to_special(const pm_atomic_t *a)
     if (in >= 0)
         close(in);
     if (e)
-        return pm_error_set(PM_ERR_IO, "cannot write '%s': %s", a->path, strerror(e));
+        return pm_error_set(pm_result_of_errno(e), "cannot write '%s': %s", a->path, strerror(e));
     return PM_OK;
 }
 
@@ -395,7 +394,7 @@ static pm_result_t finalize(pm_atomic_t *a, int *created_out)
     if (r != PM_OK)
         return r;
     if (rename(a->tmp_path, a->target) != 0)
-        return pm_error_set(PM_ERR_IO, "cannot rename output into '%s': %s", a->path, strerror(errno));
+        return pm_error_set(pm_result_of_errno(errno), "cannot rename output into '%s': %s", a->path, strerror(errno));
     sync_dir(a->target);
     return PM_OK;
 }

@@ -2,6 +2,7 @@
  * out of a parallel region. */
 #include "base/error.h"
 
+#include <errno.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
@@ -57,9 +58,35 @@ const char *pm_result_string(pm_result_t code)
 
 int pm_result_exit_code(pm_result_t code)
 {
-    if (code == PM_OK)
-        return 0;
-    return code == PM_ERR_USAGE ? 2 : 1;
+    /* The numbers of docs/cli.md's table; the enum's values are not exit statuses (PM_ERR_USAGE
+     * is 1, its status 2), so that the table can change without renumbering the library. */
+    switch (code) {
+    case PM_OK: return 0;
+    case PM_ERR_INPUT: return 1;
+    case PM_ERR_USAGE: return 2;
+    case PM_ERR_IO:
+    case PM_ERR_NOMEM: return 3;
+    default: return 4; /* PM_ERR_INTERNAL, and a code nobody defined: a bug either way */
+    }
+}
+
+pm_result_t pm_result_of_errno(int e)
+{
+    switch (e) {
+    case ENOENT:
+    case ENOTDIR:
+    case EISDIR:
+    case ELOOP:
+    case ENAMETOOLONG:
+    case EACCES:
+    case EPERM:
+    case EROFS:
+    case ENXIO:
+    case ENODEV:
+    case EBADF: return PM_ERR_INPUT;
+    case ENOMEM: return PM_ERR_NOMEM;
+    default: return PM_ERR_IO;
+    }
 }
 
 void pm_error_slot_init(pm_error_slot_t *slot)

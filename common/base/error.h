@@ -2,9 +2,11 @@
  *
  * Library functions never exit: they return a pm_result_t and, on failure, leave
  * a one-line message naming the subject and the values in a thread-local buffer
- * (pm_error_message). Only a stage's main decides the exit status, by class:
- * PM_ERR_USAGE exits 2, every other failure exits 1; the class's name (pm_result_string)
- * ends the printed message and is error.class in --stats (see docs/cli.md). */
+ * (pm_error_message). Only a stage's main decides the exit status, by class
+ * (pm_result_exit_code: 1 input, 2 usage, 3 io or nomem, 4 internal), so that a caller can
+ * retry what the system failed and not what the data or the command line got wrong; the
+ * class's name (pm_result_string) ends the printed message and is error.class in --stats
+ * (see docs/cli.md, "Exit status and errors"). */
 #ifndef PM_ERROR_H
 #define PM_ERROR_H
 
@@ -59,7 +61,17 @@ pm_result_t pm_error_slot_raise(const pm_error_slot_t *slot);
 /* A short name of a result code: "ok", "usage", "input", "io", "nomem", "internal". */
 const char *pm_result_string(pm_result_t code);
 
-/* Exit status for a result code: 0 ok, 2 usage, 1 anything else. */
+/* Exit status for a result code: 0 ok, 1 input, 2 usage, 3 io and nomem (the system failed:
+ * a retry may succeed), 4 internal and any code not in the enum (a bug). */
 int pm_result_exit_code(pm_result_t code);
+
+/* The class of a failed system call on a path or a descriptor the user gave, from its errno
+ * e. What a retry cannot fix is the user's input, PM_ERR_INPUT: the path is wrong or not
+ * theirs to use (ENOENT, ENOTDIR, EISDIR, ELOOP, ENAMETOOLONG, EACCES, EPERM, EROFS, ENXIO,
+ * ENODEV, EBADF). ENOMEM is PM_ERR_NOMEM. Everything else is PM_ERR_IO: the
+ * system failed, and the same command may succeed later or elsewhere (EIO, ENOSPC, EDQUOT,
+ * EFBIG, EMFILE, ENFILE, EAGAIN, EINTR, ESTALE, ETIMEDOUT, and errnos not listed). Use it
+ * with the errno of the call that failed, before anything else can change errno. */
+pm_result_t pm_result_of_errno(int e);
 
 #endif

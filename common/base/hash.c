@@ -18,7 +18,7 @@ pm_result_t pm_hash_file(const char *path, uint64_t *hash_out)
 {
     FILE *f = fopen(path, "rb");
     if (!f)
-        return pm_error_set(PM_ERR_IO, "cannot open '%s': %s", path, strerror(errno));
+        return pm_error_set(pm_result_of_errno(errno), "cannot open '%s': %s", path, strerror(errno));
     XXH3_state_t *st = XXH3_createState();
     unsigned char *buf = malloc(1 << 16);
     if (!st || !buf) {

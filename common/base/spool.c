@@ -42,11 +42,13 @@ static pm_result_t spill(pm_spool_t *sp)
     if (!sp->f)
         sp->f = tmpfile();
     if (!sp->f)
-        return pm_error_set(PM_ERR_IO, "cannot create a spool file in '%s': %s", sp->dir, strerror(errno));
+        return pm_error_set(pm_result_of_errno(errno), "cannot create a spool file in '%s': %s", sp->dir,
+                            strerror(errno));
     for (size_t i = 0; i < sp->nchunks; i++) {
         size_t n = i + 1 < sp->nchunks ? sp->chunk_bytes : sp->fill;
         if (n && fwrite(sp->chunk[i], 1, n, sp->f) != n)
-            return pm_error_set(PM_ERR_IO, "cannot write the spool file in '%s': %s", sp->dir, strerror(errno));
+            return pm_error_set(pm_result_of_errno(errno), "cannot write the spool file in '%s': %s", sp->dir,
+                                strerror(errno));
         pm_free_aligned(sp->chunk[i]);
         sp->chunk[i] = NULL;
     }
@@ -65,7 +67,8 @@ pm_result_t pm_spool_add(pm_spool_t *sp, const void *records, uint64_t count)
     }
     if (sp->f) {
         if (bytes && fwrite(src, 1, bytes, sp->f) != bytes)
-            return pm_error_set(PM_ERR_IO, "cannot write the spool file in '%s': %s", sp->dir, strerror(errno));
+            return pm_error_set(pm_result_of_errno(errno), "cannot write the spool file in '%s': %s", sp->dir,
+                                strerror(errno));
         sp->count += count;
         return PM_OK;
     }
@@ -105,7 +108,8 @@ pm_result_t pm_spool_replay(pm_spool_t *sp, pm_spool_emit_fn emit, void *user)
         return r;
     }
     if (fflush(sp->f) != 0 || fseek(sp->f, 0, SEEK_SET) != 0)
-        return pm_error_set(PM_ERR_IO, "cannot rewind the spool file in '%s': %s", sp->dir, strerror(errno));
+        return pm_error_set(pm_result_of_errno(errno), "cannot rewind the spool file in '%s': %s", sp->dir,
+                            strerror(errno));
     unsigned char *buf = malloc(REPLAY_RECORDS * sp->record_size);
     if (!buf)
         return pm_error_set(PM_ERR_NOMEM, "out of memory for %zu bytes of spool read buffer",
@@ -113,7 +117,8 @@ pm_result_t pm_spool_replay(pm_spool_t *sp, pm_spool_emit_fn emit, void *user)
     for (uint64_t at = 0; at < sp->count && r == PM_OK; at += REPLAY_RECORDS) {
         uint64_t n = sp->count - at < REPLAY_RECORDS ? sp->count - at : REPLAY_RECORDS;
         if (fread(buf, sp->record_size, n, sp->f) != n)
-            r = pm_error_set(PM_ERR_IO, "cannot read the spool file in '%s' back: record %llu of %llu: %s", sp->dir,
+            r = pm_error_set(pm_result_of_errno(errno),
+                             "cannot read the spool file in '%s' back: record %llu of %llu: %s", sp->dir,
                              (unsigned long long)at, (unsigned long long)sp->count,
                              ferror(sp->f) ? strerror(errno) : "it ends early");
         else

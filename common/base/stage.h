@@ -11,8 +11,9 @@
  *   }
  *
  * Common options: -o/--output, --threads, --seed, --stats, --quiet, --help, --version,
- * --print-settings. Exit status: 0 ok, 1 failure, 2 bad usage; the failure's class (usage,
- * input, io, nomem, internal) ends its one-line message and is in --stats (docs/cli.md). */
+ * --print-settings. Exit status by the failure's class (pm_result_exit_code): 0 ok, 1 bad
+ * input, 2 bad usage, 3 io or nomem, 4 internal; the class (usage, input, io, nomem,
+ * internal) ends its one-line message and is in --stats (docs/cli.md). */
 #ifndef PM_STAGE_H
 #define PM_STAGE_H
 
@@ -101,7 +102,7 @@ void pm_stage_note(const pm_stage_t *st, const char *fmt, ...) __attribute__((fo
 /* Finishes: writes --stats (stage, version, threads, wall_s, cpu_s, items, items_per_s, on
  * failure "error": {"class", "message"}, then the counters); on failure prints
  * "name: message (CLASS error)" with CLASS from pm_result_string, and returns the exit
- * status (0, 1, or 2 for a usage error). */
+ * status of the class (pm_result_exit_code: 0, 1 input, 2 usage, 3 io or nomem, 4 internal). */
 int pm_stage_end(pm_stage_t *st, pm_result_t result);
 
 #endif

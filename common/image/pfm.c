@@ -64,7 +64,7 @@ static pm_result_t read_pixels(FILE *f, const char *path, uint32_t w, uint32_t h
         size_t got = fread(row, 1, row_bytes, f);
         if (got != row_bytes) {
             if (ferror(f))
-                r = pm_error_set(PM_ERR_IO, "cannot read PFM image '%s': %s", path, strerror(errno));
+                r = pm_error_set(pm_result_of_errno(errno), "cannot read PFM image '%s': %s", path, strerror(errno));
             else
                 r = pm_error_set(PM_ERR_INPUT,
                                  "truncated PFM image '%s': %zu of %zu bytes of pixels (%" PRIu32 "x%" PRIu32
@@ -107,7 +107,7 @@ pm_result_t pm_pfm_read(const char *path, uint32_t *w_out, uint32_t *h_out, int 
     *channels_out = 0;
     FILE *f = fopen(path, "rb");
     if (!f) /* a missing file is the user's input, as the pmtk reader classes it */
-        return pm_error_set(errno == ENOENT ? PM_ERR_INPUT : PM_ERR_IO, "cannot open '%s': %s", path, strerror(errno));
+        return pm_error_set(pm_result_of_errno(errno), "cannot open '%s': %s", path, strerror(errno));
     unsigned char magic[3];
     char tw[16], th[16], ts[64];
     uint32_t w = 0, h = 0;
@@ -154,7 +154,7 @@ pm_result_t pm_pfm_read(const char *path, uint32_t *w_out, uint32_t *h_out, int 
     while (fgetc(f) != EOF)
         extra++;
     if (ferror(f)) {
-        r = pm_error_set(PM_ERR_IO, "cannot read PFM image '%s': %s", path, strerror(errno));
+        r = pm_error_set(pm_result_of_errno(errno), "cannot read PFM image '%s': %s", path, strerror(errno));
         goto done;
     }
     if (extra) {

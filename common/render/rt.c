@@ -170,8 +170,15 @@ pm_result_t pm_rt_create(const pm_scene_t *s, int high_quality, int threads, pm_
     char config[64];
     snprintf(config, sizeof config, "threads=%d", threads > 0 ? threads : 0); /* 0: Embree's own choice */
     out->device = rtcNewDevice(config);
-    if (!out->device)
-        return pm_error_set(PM_ERR_INTERNAL, "cannot create the embree device: error %d", (int)rtcGetDeviceError(NULL));
+    if (!out->device) {
+        /* Out of memory or a CPU Embree cannot run on is the machine's, not a bug: another
+         * node or a later run may succeed (exit 3). */
+        enum RTCError e = rtcGetDeviceError(NULL);
+        return pm_error_set(e == RTC_ERROR_OUT_OF_MEMORY     ? PM_ERR_NOMEM
+                            : e == RTC_ERROR_UNSUPPORTED_CPU ? PM_ERR_IO
+                                                             : PM_ERR_INTERNAL,
+                            "cannot create the embree device: error %d", (int)e);
+    }
     rtcSetDeviceErrorFunction(out->device, on_embree_error, NULL);
     out->scene = rtcNewScene(out->device);
     if (!out->scene)

@@ -690,7 +690,7 @@ static pm_result_t check_obj_materials(const char *path, char *libs_out, size_t 
     libs_out[0] = '\0';
     FILE *f = fopen(path, "rb");
     if (!f)
-        return pm_error_set(PM_ERR_IO, "cannot open mesh '%s': %s", path, strerror(errno));
+        return pm_error_set(pm_result_of_errno(errno), "cannot open mesh '%s': %s", path, strerror(errno));
     char *line = NULL, word[16], group[128] = "";
     size_t cap = 0;
     uint64_t lineno = 0, faces = 0, first_usemtl = 0;
@@ -740,7 +740,7 @@ static pm_result_t check_obj_materials(const char *path, char *libs_out, size_t 
         }
     }
     if (r == PM_OK && ferror(f))
-        r = pm_error_set(PM_ERR_IO, "cannot read mesh '%s': %s", path, strerror(errno));
+        r = pm_error_set(pm_result_of_errno(errno), "cannot read mesh '%s': %s", path, strerror(errno));
     free(line);
     fclose(f);
     return r;
@@ -1304,7 +1304,7 @@ static pm_result_t load_mesh(ctx_t *c, json_t *mj, size_t index)
     if (!im) {
         FILE *probe = fopen(path, "rb");
         if (!probe)
-            return pm_error_set(PM_ERR_INPUT, "cannot open mesh '%s': %s", path, strerror(errno));
+            return pm_error_set(pm_result_of_errno(errno), "cannot open mesh '%s': %s", path, strerror(errno));
         fclose(probe);
         if ((r = grow((void **)&c->imports, c->nimports + 1, sizeof *c->imports)) != PM_OK)
             return r;
@@ -1891,8 +1891,7 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     json_error_t je;
     FILE *f = fopen(path, "rb");
     if (!f)
-        return pm_error_set(errno == ENOENT ? PM_ERR_INPUT : PM_ERR_IO, "cannot open scene '%s': %s", path,
-                            strerror(errno));
+        return pm_error_set(pm_result_of_errno(errno), "cannot open scene '%s': %s", path, strerror(errno));
     json_t *root = json_loadf(f, JSON_REJECT_DUPLICATES, &je);
     fclose(f);
     if (!root)

@@ -219,7 +219,7 @@ pm_result_t pm_texture_load(const char *path, pm_texture_t *out)
     srgb_init();
     FILE *f = fopen(path, "rb");
     if (!f)
-        return pm_error_set(PM_ERR_INPUT, "cannot open texture '%s': %s", path, strerror(errno));
+        return pm_error_set(pm_result_of_errno(errno), "cannot open texture '%s': %s", path, strerror(errno));
     uint8_t magic[8] = {0};
     size_t n = fread(magic, 1, sizeof magic, f);
     pm_result_t r;

@@ -164,7 +164,7 @@ static pm_result_t run_stream(pm_stage_t *st, const composite_options_t *o)
             files[i] = fopen(paths[i], "rb");
         if (!files[i])
             r = nstdin > 1 ? pm_error_set(PM_ERR_USAGE, "stdin ('-') given twice")
-                           : pm_error_set(PM_ERR_INPUT, "cannot open '%s': %s", paths[i], strerror(errno));
+                           : pm_error_set(pm_result_of_errno(errno), "cannot open '%s': %s", paths[i], strerror(errno));
     }
     uint64_t frame = 0;
     double t_add = 0.0, t_write = 0.0;

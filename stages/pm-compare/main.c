@@ -3,9 +3,16 @@
  * header keys must agree, except the volatile ones that record who made the file and
  * when (SOFTWARE, COMMAND, INPUT); integer channels must agree exactly; float channels
  * within --max-abs / --max-rel per value and --rms per channel. Prints one line per
- * channel with the largest differences and where they are. */
+ * channel with the largest differences and where they are.
+ *
+ * It answers as cmp does: exit 0 when the files agree, 1 when they differ (one line on stderr
+ * says where first; not an error: the report is kept and --stats has no error key, "differ":
+ * 1), 2 when it cannot answer, whatever the failure's class (usage, a file that is not
+ * pmtk's or cannot be read, a full disk), so that a script's `if pm-compare A B` never takes
+ * trouble for a difference. */
 #include <inttypes.h>
 #include <math.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -33,22 +40,41 @@ static int ignored(const char *key, const char *list)
     return 0;
 }
 
-/* Every key of a (not ignored) must be in b with the same value. */
-static pm_result_t keys_subset(const pm_header_t *a, const pm_header_t *b, const char *an, const char *bn,
-                               const compare_options_t *o)
+/* Where two files differ first, in the words of the line pm-compare prints (not an error). */
+typedef struct {
+    int differ;
+    char why[PM_ERROR_MAX];
+} verdict_t;
+
+/* Records the first difference found; returns 1 so that a caller can stop at it. */
+static int differ(verdict_t *v, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static int differ(verdict_t *v, const char *fmt, ...)
+{
+    if (!v->differ) {
+        va_list ap;
+        va_start(ap, fmt);
+        vsnprintf(v->why, sizeof v->why, fmt, ap);
+        va_end(ap);
+        v->differ = 1;
+    }
+    return 1;
+}
+
+/* Every key of a (not ignored) must be in b with the same value; returns 1 when one is not. */
+static int keys_differ(const pm_header_t *a, const pm_header_t *b, const char *an, const char *bn,
+                       const compare_options_t *o, verdict_t *v)
 {
     for (size_t i = 0; i < a->nkeys; i++) {
         const char *k = a->keys[i].key;
         if (ignored(k, o->ignore))
             continue;
-        const char *v = pm_header_get(b, k);
-        if (!v)
-            return pm_error_set(PM_ERR_INPUT, "header key %s of '%s' is missing from '%s'", k, an, bn);
-        if (strcmp(v, pm_header_get(a, k)) != 0)
-            return pm_error_set(PM_ERR_INPUT, "header key %s differs: '%s' in '%s', '%s' in '%s'", k,
-                                pm_header_get(a, k), an, v, bn);
+        const char *val = pm_header_get(b, k);
+        if (!val)
+            return differ(v, "header key %s of '%s' is missing from '%s'", k, an, bn);
+        if (strcmp(val, pm_header_get(a, k)) != 0)
+            return differ(v, "header key %s differs: '%s' in '%s', '%s' in '%s'", k, pm_header_get(a, k), an, val, bn);
     }
-    return PM_OK;
+    return 0;
 }
 
 static double value_at(const pm_channel_t *c, const void *col, uint64_t j)
@@ -62,27 +88,30 @@ static double value_at(const pm_channel_t *c, const void *col, uint64_t j)
     return 0.0;
 }
 
-static pm_result_t compare(FILE *out, const pm_table_t *a, const pm_table_t *b, const char *an, const char *bn,
-                           const compare_options_t *o, pm_stage_t *st)
+/* Compares a and b, writing the per-channel report to out; a difference is recorded in *v. */
+static void compare(FILE *out, const pm_table_t *a, const pm_table_t *b, const char *an, const char *bn,
+                    const compare_options_t *o, pm_stage_t *st, verdict_t *v)
 {
     const pm_schema_t *s = a->hdr.schema;
-    if (s != b->hdr.schema)
-        return pm_error_set(PM_ERR_INPUT, "'%s' is a %s but '%s' is a %s", an, s->title, bn, b->hdr.schema->title);
-    if (a->count != b->count)
-        return pm_error_set(PM_ERR_INPUT, "'%s' has %" PRIu64 " records, '%s' has %" PRIu64, an, a->count, bn,
-                            b->count);
-    if (a->hdr.channels != b->hdr.channels)
-        return pm_error_set(PM_ERR_INPUT, "'%s' has channel mask 0x%08" PRIx32 ", '%s' has 0x%08" PRIx32, an,
-                            a->hdr.channels, bn, b->hdr.channels);
-    if (!ignored("BOUNDS", o->ignore) && memcmp(a->hdr.bounds, b->hdr.bounds, sizeof a->hdr.bounds) != 0)
-        return pm_error_set(PM_ERR_INPUT, "'%s' and '%s' have different BOUNDS", an, bn);
-    pm_result_t r = keys_subset(&a->hdr, &b->hdr, an, bn, o);
-    if (r == PM_OK)
-        r = keys_subset(&b->hdr, &a->hdr, bn, an, o);
-    if (r != PM_OK)
-        return r;
-    pm_result_t verdict = PM_OK;
-    char first_fault[512] = "";
+    if (s != b->hdr.schema) {
+        differ(v, "'%s' is a %s but '%s' is a %s", an, s->title, bn, b->hdr.schema->title);
+        return;
+    }
+    if (a->count != b->count) {
+        differ(v, "'%s' has %" PRIu64 " records, '%s' has %" PRIu64, an, a->count, bn, b->count);
+        return;
+    }
+    if (a->hdr.channels != b->hdr.channels) {
+        differ(v, "'%s' has channel mask 0x%08" PRIx32 ", '%s' has 0x%08" PRIx32, an, a->hdr.channels, bn,
+               b->hdr.channels);
+        return;
+    }
+    if (!ignored("BOUNDS", o->ignore) && memcmp(a->hdr.bounds, b->hdr.bounds, sizeof a->hdr.bounds) != 0) {
+        differ(v, "'%s' and '%s' have different BOUNDS", an, bn);
+        return;
+    }
+    if (keys_differ(&a->hdr, &b->hdr, an, bn, o, v) || keys_differ(&b->hdr, &a->hdr, bn, an, o, v))
+        return;
     for (unsigned ci = 0; ci < s->nchannels; ci++) {
         if (!a->col[ci])
             continue;
@@ -110,23 +139,17 @@ static pm_result_t compare(FILE *out, const pm_table_t *a, const pm_table_t *b, 
         pm_stage_stat_double(st, key, max_abs);
         snprintf(key, sizeof key, "%s_rms", c->name);
         pm_stage_stat_double(st, key, rms);
-        if ((mismatches || !rms_ok) && verdict == PM_OK) {
-            verdict = PM_ERR_INPUT;
-            snprintf(first_fault, sizeof first_fault,
-                     "'%s' and '%s' differ in channel '%s': %" PRIu64
-                     " values out of tolerance, max_abs %.6g at record "
-                     "%" PRIu64 ", rms %.6g",
-                     an, bn, c->name, mismatches, max_abs, worst / c->components, rms);
-        }
+        if (mismatches || !rms_ok)
+            differ(v,
+                   "'%s' and '%s' differ in channel '%s': %" PRIu64 " values out of tolerance, max_abs %.6g at record "
+                   "%" PRIu64 ", rms %.6g",
+                   an, bn, c->name, mismatches, max_abs, worst / c->components, rms);
     }
     st->items = a->count;
-    if (verdict != PM_OK)
-        return pm_error_set(verdict, "%s", first_fault);
-    return PM_OK;
 }
 
-/* Reads A and B whole and writes the per-channel report to -o. */
-static pm_result_t run(pm_stage_t *st, const compare_options_t *o)
+/* Reads A and B whole and writes the per-channel report to -o; *v says whether they differ. */
+static pm_result_t run(pm_stage_t *st, const compare_options_t *o, verdict_t *v)
 {
     const char *an = st->args.args[0], *bn = st->args.args[1];
     if (!strcmp(an, "-") && !strcmp(bn, "-"))
@@ -143,15 +166,8 @@ static pm_result_t run(pm_stage_t *st, const compare_options_t *o)
     }
     r = pm_stage_open_output(st, &out);
     if (r == PM_OK) {
-        r = compare(out, &a, &b, an, bn, o, st);
-        /* "they differ" is an answer, not a failure to answer: keep the report. */
-        if (r == PM_ERR_INPUT && st->out.f) {
-            char msg[1024];
-            snprintf(msg, sizeof msg, "%s", pm_error_message());
-            r = pm_atomic_commit(&st->out);
-            if (r == PM_OK)
-                r = pm_error_set(PM_ERR_INPUT, "%s", msg);
-        }
+        compare(out, &a, &b, an, bn, o, st, v);
+        pm_stage_stat_int(st, "differ", v->differ);
     }
     pm_table_free(&b);
     pm_table_free(&a);
@@ -175,10 +191,19 @@ int main(int argc, char **argv)
     };
     static const char about[] =
         "Compare two pmtk files of one format: structure and header keys exactly, values within "
-        "tolerances. Exit 0 when they agree, 1 when they differ.";
+        "tolerances. Exit 0 when they agree, 1 when they differ, 2 on any trouble (bad usage, a file that is not "
+        "pmtk's or cannot be read, a failed write).";
     const pm_cli_t cli = {"pm-compare", "[options] A B", about, options, 2, 2, NULL};
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
-        return rc;
-    return pm_stage_end(&st, run(&st, &o));
+        return rc ? 2 : 0;
+    verdict_t v = {0};
+    /* Trouble of any class is 2, as cmp's: 1 is kept for the answer "they differ". */
+    if (pm_stage_end(&st, run(&st, &o, &v)) != 0)
+        return 2;
+    if (v.differ) {
+        fprintf(stderr, "pm-compare: %s\n", v.why);
+        return 1;
+    }
+    return 0;
 }

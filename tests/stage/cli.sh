@@ -85,9 +85,10 @@ expect_class "usage: hilbert-sort --leaf x, in the message and in --stats" usage
 expect_class "usage: a wrong argument count, in the message and in --stats" usage 2 \
     "$BIN/pm-compare" tests/golden/photons-all.pm
 expect_class "input: pm-info on a file that is not pmtk's" input 1 "$BIN/pm-info" /etc/hostname
-expect_class "input: pm-compare's answer 'they differ'" input 1 "$BIN/pm-compare" "$TMP/r1.pm" "$TMP/r2.pm"
+expect_class "input: pm-compare on a file that is not pmtk's is trouble, 2 (cmp's)" input 2 \
+    "$BIN/pm-compare" "$TMP/r1.pm" /etc/hostname
 if [ -w /dev/full ]; then
-    expect_class "io: pm-info writing to a full disk (/dev/full)" io 1 \
+    expect_class "io: pm-info writing to a full disk (/dev/full), exit 3" io 3 \
         bash -c '"$0" "$@" >/dev/full' "$BIN/pm-info" tests/golden/photons-all.pm
 else
     skip "io: pm-info writing to a full disk" "no writable /dev/full"
@@ -117,14 +118,14 @@ if knn_under $hi 50; then
     for i in $(seq 1 10); do
         (ulimit -v $((hi + 12288)) && exec "$BIN/knn-gather" "${KNN_ARGS[@]}" --k 1000000) >/dev/null 2>"$TMP/knn.err"
         st=$?
-        if [ "$st" != 1 ] || ! grep -qx "knn-gather: out of memory for heaps of 1000000 photons (nomem error)" "$TMP/knn.err"; then
+        if [ "$st" != 3 ] || ! grep -qx "knn-gather: out of memory for heaps of 1000000 photons (nomem error)" "$TMP/knn.err"; then
             bad=$((bad + 1)) last="exit $st: $(cat "$TMP/knn.err")"
         fi
     done
     [ "$bad" = 0 ] && pass "nomem: knn-gather's heap failing on a thread gives the whole message, 10 of 10 runs" ||
         fail "knn-gather heap out of memory" "$bad of 10 runs wrong (limit $((hi + 12288)) KiB); last: $last"
     ulimit_v=$((hi + 12288))
-    expect_class "nomem: knn-gather under ulimit -v, in the message and in --stats" nomem 1 \
+    expect_class "nomem: knn-gather under ulimit -v, in the message and in --stats, exit 3" nomem 3 \
         bash -c 'ulimit -v "$0" && exec "$@"' "$ulimit_v" "$BIN/knn-gather" "${KNN_ARGS[@]}" --k 1000000
 else
     skip "nomem: knn-gather under ulimit -v" "knn-gather does not run under a 1 GiB address-space limit (sanitizer build?)"

@@ -208,9 +208,9 @@ done
 
 # ---- a read error is reported as one (issue 17, item 12) ---------------------------------
 # A stream that cannot be read (here stdin closed) is not an "empty input": the line says
-# what the system said, an io error.
+# what the system said; a closed descriptor is the caller's doing (EBADF), an input error.
 expect_error "closed stdin: the read error and errno, not 'empty input'" \
-    "^pm-info: cannot read 'stdin': Bad file descriptor \(io error\)$" bash -c "exec <&-; '$BIN/pm-info' -"
+    "^pm-info: cannot read 'stdin': Bad file descriptor \(input error\)$" bash -c "exec <&-; '$BIN/pm-info' -"
 expect_error "an empty file is still an empty input" "empty input '.*empty.pm'" \
     bash -c ": >'$TMP/empty.pm'; '$BIN/pm-info' '$TMP/empty.pm'"
 

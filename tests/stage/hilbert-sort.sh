@@ -162,7 +162,7 @@ if [ -w /dev/full ]; then
     for i in $(seq 1 20); do
         "$HS" -q --threads 2 "$TMP/big-in.pm" -o - >/dev/full 2>"$TMP/full.err"
         st=$?
-        if [ "$st" != 1 ] || ! grep -qx "hilbert-sort: cannot write 'stdout': No space left on device (io error)" "$TMP/full.err"; then
+        if [ "$st" != 3 ] || ! grep -qx "hilbert-sort: cannot write 'stdout': No space left on device (io error)" "$TMP/full.err"; then
             bad=$((bad + 1)) last="exit $st: $(cat "$TMP/full.err")"
         fi
     done

@@ -167,7 +167,7 @@ expect_exit "composite with its last output failing exits 1" 1 \
 if [ -n "$FULLDEV" ]; then
     "$C" -q "$TMP/r.pm" -o "$TMP/i.exr" --png "$TMP/i.png" --radiance "$FULLDEV" 2>"$TMP/err"
     rc=$?
-    if [ "$rc" = 1 ] && grep -q 'No space left on device (io error)$' "$TMP/err" && [ ! -e "$TMP/i.exr" ] &&
+    if [ "$rc" = 3 ] && grep -q 'No space left on device (io error)$' "$TMP/err" && [ ! -e "$TMP/i.exr" ] &&
         [ ! -e "$TMP/i.png" ] && [ -c "$FULLDEV" ]; then
         pass "composite onto a full device: io error, no EXR, no PNG, the device kept"
     else

@@ -185,13 +185,13 @@ else
             (ulimit -v 8000000 && exec "$T" -q "$CORNELL" --width 65536 --height 8 --spp 65536 --threads 2 \
                 --schedule $sched -o "$TMP/oom.pm" --direct "$TMP/oomd.pm") >/dev/null 2>"$TMP/oom.err"
             st=$?
-            if [ "$st" != 1 ] || [ "$(cat "$TMP/oom.err")" != "$want" ] || [ -e "$TMP/oom.pm" ] || [ -e "$TMP/oomd.pm" ]; then
+            if [ "$st" != 3 ] || [ "$(cat "$TMP/oom.err")" != "$want" ] || [ -e "$TMP/oom.pm" ] || [ -e "$TMP/oomd.pm" ]; then
                 bad=$((bad + 1)) last="--schedule $sched: exit $st: $(cat "$TMP/oom.err")"
             fi
         done
     done
     if [ "$bad" = 0 ]; then
-        pass "rows out of memory on two threads: row 0's whole message, status 1, no output, 20 of 20 runs"
+        pass "rows out of memory on two threads: row 0's whole message, status 3 (nomem), no output, 20 of 20 runs"
     else
         fail "row failure message" "$bad of 20 runs wrong; last: $last"
     fi
@@ -202,9 +202,9 @@ mkdir -p "$TMP/spill"
 (trap '' XFSZ && ulimit -f 64 && exec "$T" -q "$CORNELL" --width 40 --height 24 --spp 16 --spool-mem 0 \
     -o "$TMP/spill/q.pm") >/dev/null 2>"$TMP/spill.err"
 st=$?
-if [ "$st" = 1 ] && [ "$(cat "$TMP/spill.err")" = "trace-gather-points: cannot write the spool file in '$TMP/spill': File too large (io error)" ] &&
+if [ "$st" = 3 ] && [ "$(cat "$TMP/spill.err")" = "trace-gather-points: cannot write the spool file in '$TMP/spill': File too large (io error)" ] &&
     [ -z "$(ls -A "$TMP/spill")" ]; then
-    pass "a spill file that cannot grow: one whole line, status 1, nothing left in the output folder"
+    pass "a spill file that cannot grow: one whole line, status 3 (io), nothing left in the output folder"
 else
     fail "spool write failure" "exit $st: $(cat "$TMP/spill.err"); left: $(ls -A "$TMP/spill")"
 fi

@@ -1,0 +1,134 @@
+# exitcodes.sh: every program's exit status by the class of its failure (docs/cli.md, "Exit
+# status and errors"): 1 bad input (a corrupt file, a path that does not exist), 2 usage, 3 the
+# system failed (a full device, a file-size limit: a retry may succeed), and pm-compare's
+# answers as cmp's (0 agree, 1 differ, 2 trouble). Internal errors (4) cannot be provoked from
+# outside; the unit test of pm_result_exit_code covers their status. Tests run as root, so a
+# permission cannot be taken away: the system's failures are /dev/full (ENOSPC) on stdout and
+# `ulimit -f` (EFBIG, its SIGXFSZ ignored) for the outputs that need a path (OpenEXR).
+G=tests/golden
+CB=scenes/cornell-box/scene.json
+MAP=$G/build-photonmap-cornell.pm
+QUERIES=$G/gather-cornell-16x16-spp8.pm
+printf '{ "meshes": [ not json\n' >"$TMP/corrupt.json"
+head -c 300 "$G/photons-all.pm" >"$TMP/truncated.pm" # a header without its records and checksum
+
+# expect_status NAME STATUS CLASS CMD...: CMD exits STATUS and its failure's line (the stderr
+# line ending in "(... error)"; a usage hint may follow it) ends in "(CLASS error)"; nothing is
+# left at $TMP/out.* (outputs appear whole or not at all).
+expect_status() {
+    local name=$1 status=$2 class=$3
+    shift 3
+    rm -f "$TMP"/out.*
+    "$@" >/dev/null 2>"$TMP/err"
+    local got=$? line
+    line=$(grep -E ' \([a-z]+ error\)$' "$TMP/err" | head -n 1)
+    if [ "$got" != "$status" ]; then
+        fail "$name" "exit $got, expected $status: $(head -c 300 "$TMP/err")"
+    elif [[ "$line" != *" ($class error)" ]]; then
+        fail "$name" "'$line' does not end in '($class error)'"
+    elif [ -n "$(ls "$TMP"/out.* 2>/dev/null)" ]; then
+        fail "$name" "left $(ls "$TMP"/out.*)"
+    else
+        pass "$name"
+    fi
+}
+# full CMD...: CMD with its stdout on /dev/full (every write fails with ENOSPC)
+full() { "$@" >/dev/full; }
+# limited CMD...: CMD under a file-size limit of 0 blocks (every write to a file fails, EFBIG).
+# Its stderr goes through a pipe to a cat outside the limit: the limit would stop the message
+# itself on its way into a file.
+limited() {
+    { (trap '' XFSZ && ulimit -f 0 && exec "$@") 2>&1 >&3 | cat >&2; } 3>&1
+    return "${PIPESTATUS[0]}"
+}
+
+# One row per program: its arguments on a corrupt input, on a missing one, and a run whose
+# output the system refuses ('full' for stdout, 'limited' for a path). A program in bin/
+# without a row fails, so that a new program gets one.
+declare -A BAD MISSING SYSTEM
+BAD[trace-photons]="$TMP/corrupt.json -o -"
+MISSING[trace-photons]="$TMP/none.json -o -"
+SYSTEM[trace-photons]="full $CB --photons 1000 -o -"
+BAD[build-photonmap]="$TMP/truncated.pm -o -"
+MISSING[build-photonmap]="$TMP/none.pm -o -"
+SYSTEM[build-photonmap]="full $G/photons-all.pm -o -"
+BAD[trace-gather-points]="$TMP/corrupt.json -o -"
+MISSING[trace-gather-points]="$TMP/none.json -o -"
+SYSTEM[trace-gather-points]="full $CB --width 8 --height 8 --spp 4 -o -"
+BAD[hilbert-sort]="/etc/hostname -o -"
+MISSING[hilbert-sort]="$TMP/none.pm -o -"
+SYSTEM[hilbert-sort]="full $G/hilbert-input.pm -o -"
+BAD[simd-gather]="$TMP/truncated.pm $QUERIES -o -"
+MISSING[simd-gather]="$MAP $TMP/none.pm -o -"
+SYSTEM[simd-gather]="full $MAP $QUERIES -o -"
+BAD[knn-gather]="$TMP/truncated.pm $QUERIES -o -"
+MISSING[knn-gather]="$MAP $TMP/none.pm -o -"
+SYSTEM[knn-gather]="full $MAP $QUERIES --k 10 -o -"
+BAD[reverse-gather]="$TMP/truncated.pm $QUERIES -o -"
+MISSING[reverse-gather]="$MAP $TMP/none.pm -o -"
+SYSTEM[reverse-gather]="full $MAP $QUERIES -o -"
+BAD[composite]="/etc/hostname -o $TMP/out.exr"
+MISSING[composite]="$TMP/none.pm -o $TMP/out.exr"
+SYSTEM[composite]="limited $G/direct-cornell-16x16.pm -o $TMP/out.exr"
+BAD[pm-info]="/etc/hostname"
+MISSING[pm-info]="$TMP/none.pm"
+SYSTEM[pm-info]="full $G/photons-all.pm"
+BAD[trace-reference]="$TMP/corrupt.json -o $TMP/out.exr"
+MISSING[trace-reference]="$TMP/none.json -o $TMP/out.exr"
+SYSTEM[trace-reference]="limited $CB --width 4 --height 4 --spp 1 -o $TMP/out.exr"
+BAD[measure-error]="/etc/hostname $G/radiance-all.pm"
+MISSING[measure-error]="$TMP/none.pm $G/radiance-all.pm"
+SYSTEM[measure-error]="full $G/radiance-all.pm $G/radiance-all.pm"
+BAD[scene-info]="$TMP/corrupt.json"
+MISSING[scene-info]="$TMP/none.json"
+SYSTEM[scene-info]="full $CB"
+
+for p in "$BIN"/*; do
+    n=$(basename "$p")
+    [ "$n" = pm-compare ] && continue # below: it answers as cmp does
+    if [ -z "${BAD[$n]+set}" ]; then
+        fail "$n has a row in exitcodes.sh" "no corrupt input, missing input or system failure given for it"
+        continue
+    fi
+    expect_status "$n: usage (an unknown option) exits 2" 2 usage "$p" --no-such-option
+    # shellcheck disable=SC2086 # the rows are words
+    expect_status "$n: a corrupt input exits 1" 1 input "$p" -q ${BAD[$n]}
+    # shellcheck disable=SC2086
+    expect_status "$n: an input that does not exist exits 1 (ENOENT: no retry fixes it)" 1 input "$p" -q ${MISSING[$n]}
+    set -- ${SYSTEM[$n]}
+    how=$1
+    shift
+    expect_status "$n: an output the system refuses exits 3 ($how)" 3 io "$how" "$p" -q "$@"
+done
+
+# An output into a directory that does not exist is the user's path (1), not the system (3).
+expect_status "an output in a missing directory exits 1" 1 input \
+    "$BIN/hilbert-sort" -q "$G/hilbert-input.pm" -o "$TMP/no-such-dir/out.pm"
+# A file the system cannot extend, for a program writing a pmtk file by path (not stdout).
+expect_status "a pmtk file under a file-size limit exits 3" 3 io limited "$BIN/hilbert-sort" -q "$G/hilbert-input.pm" \
+    -o "$TMP/out.pm"
+
+# ---- pm-compare: 0 agree, 1 differ, 2 trouble of any class ----
+"$BUILD/tests/pm-testgen" radiance 1 "$TMP/r1.pm" && "$BUILD/tests/pm-testgen" radiance 1 "$TMP/r2.pm" --poison nudge
+PC=$BIN/pm-compare
+expect_exit "pm-compare: files that agree exit 0" 0 "$PC" "$TMP/r1.pm" "$TMP/r1.pm"
+"$PC" "$TMP/r1.pm" "$TMP/r2.pm" --stats "$TMP/differ.json" >/dev/null 2>"$TMP/err"
+st=$?
+line=$(cat "$TMP/err")
+if [ $st = 1 ] && [ "$(wc -l <"$TMP/err")" = 1 ] && [[ $line == "pm-compare: '$TMP/r1.pm' and '$TMP/r2.pm' differ in channel 'rgb': "* ]] &&
+    [[ $line != *" error)" ]] && [ "$(jq 'has("error")' "$TMP/differ.json")" = false ] &&
+    [ "$(jq .differ "$TMP/differ.json")" = 1 ]; then
+    pass "pm-compare: files that differ exit 1, one line that is no error, --stats differ 1 and no error key"
+else
+    fail "pm-compare differ" "exit $st, '$line', stats $(head -c 300 "$TMP/differ.json" 2>&1)"
+fi
+expect_exit "pm-compare: files of two formats differ (1)" 1 "$PC" "$G/photons-all.pm" "$G/queries-all.pm"
+expect_status "pm-compare: usage exits 2" 2 usage "$PC" --no-such-option "$TMP/r1.pm" "$TMP/r2.pm"
+expect_status "pm-compare: a wrong argument count exits 2" 2 usage "$PC" "$TMP/r1.pm"
+expect_status "pm-compare: a corrupt file exits 2, not 1 (trouble, not a difference)" 2 input "$PC" "$TMP/r1.pm" \
+    /etc/hostname
+expect_status "pm-compare: a truncated file exits 2" 2 input "$PC" "$G/photons-all.pm" "$TMP/truncated.pm"
+expect_status "pm-compare: a missing file exits 2" 2 input "$PC" "$TMP/r1.pm" "$TMP/none.pm"
+expect_status "pm-compare: a report the system cannot write exits 2" 2 io full "$PC" "$TMP/r1.pm" "$TMP/r1.pm"
+expect_status "pm-compare: a report the system cannot write exits 2, also when the files differ" 2 io full "$PC" \
+    "$TMP/r1.pm" "$TMP/r2.pm"

@@ -2,8 +2,9 @@
 # tests/slurm/run.sh: pipelines/slurm on a real Slurm, the one-node cluster of
 # tests/slurm/cluster (make test-slurm runs `tests/slurm/cluster run bash tests/slurm/run.sh`).
 # A small progressive render through the cluster against the same passes by pipelines/render
-# (byte for byte), a task killed with scancel while it runs, a task that fails once and one
-# that keeps failing, two renders into two OUTDIRs at once, the cache (nothing resubmitted,
+# (byte for byte), a task killed with scancel while it runs, a task that fails once for the
+# system and one that keeps failing so (resubmitted), one that fails on bad input (not
+# resubmitted), two renders into two OUTDIRs at once, the cache (nothing resubmitted,
 # then only the new passes), the gather in shard tasks (one killed, one missing shard alone
 # resubmitted), the same bytes for any CPUS and THREADS, TARGET_ERROR and TIME in waves,
 # KEEP=image, and the bad input refused before anything is submitted.
@@ -96,16 +97,22 @@ pipelines/render "$SCENE" "$TMP/local7" "${PR[@]}" SEED=7 >"$TMP/local7b.log" 2>
 same_image "two at once: the first's image (CPUS=2)" "$TMP/b" "$TMP/local"
 same_image "two at once: the second's image (SEED=7, 3 passes a task)" "$TMP/c" "$TMP/local7"
 
-# ---- a task that fails once, and one that keeps failing (a gather that refuses pass 3) ----
+# ---- a task that fails once, and one that keeps failing (a gather that refuses pass 3), for
+# the system (an io error, exit 3: resubmitted) or on bad input (exit 1: not resubmitted) ----
 cat >"$TMP/flaky-gather" <<EOF
 #!/usr/bin/env bash
-# simd-gather, but pass 3 fails while the flag file is there (and the flag 'once' removes it)
+# simd-gather, but pass 3 fails while the flag file is there (and the flag 'once' removes it),
+# as a stage fails for the system, or with the flag 'input' as one fails on bad data
 case " \$* " in
 *" --pass 3 "*)
     if [ -e "$TMP/fail-3" ]; then
+        if grep -q input "$TMP/fail-3"; then
+            echo "flaky-gather: pass 3 is bad on purpose (input error)" >&2
+            exit 1
+        fi
         grep -q once "$TMP/fail-3" && rm -f "$TMP/fail-3"
-        echo "flaky-gather: pass 3 fails on purpose" >&2
-        exit 1
+        echo "flaky-gather: pass 3 fails on purpose: Input/output error (io error)" >&2
+        exit 3
     fi ;;
 esac
 exec "$BIN/simd-gather" "\$@"
@@ -145,15 +152,29 @@ echo always >"$TMP/fail-3"
 pipelines/slurm "$SCENE" "$TMP/g" "${PR[@]}" "${SL[@]}" GATHER="$TMP/flaky-gather" RETRIES=1 >"$TMP/g.out" 2>"$TMP/g.err"
 rc=$?
 log=$(sed -n 's/.*; log: \(.*\)$/\1/p' "$TMP/g.err")
-if [ $rc = 1 ] && [ "$(wc -l <"$TMP/g.err")" = 1 ] &&
+if [ $rc = 3 ] && [ "$(wc -l <"$TMP/g.err")" = 1 ] &&
     grep -q "task 2 (passes 3 to 3) failed 2 times (last: .*); log: " "$TMP/g.err" &&
     [ -f "$log" ] && grep -q 'fails on purpose' "$log"; then
-    pass "a task that keeps failing stops the render, one line with its log"
+    pass "a task that keeps failing for the system stops the render, one line with its log, exit 3"
 else
     fail "a task that keeps failing" "exit $rc: $(cat "$TMP/g.err")"
 fi
 sleep 1
 queue_empty && pass "nothing of the stopped render left in the queue" || fail "queue after a stop" "$(squeue -h)"
+echo input >"$TMP/fail-3"
+pipelines/slurm "$SCENE" "$TMP/gi" "${PR[@]}" "${SL[@]}" GATHER="$TMP/flaky-gather" RETRIES=2 >"$TMP/gi.out" 2>"$TMP/gi.err"
+rc=$?
+logs=("$TMP/gi/.slurm/logs"/task-2.*.out)
+if [ $rc = 1 ] && [ "$(wc -l <"$TMP/gi.err")" = 1 ] && [ ${#logs[@]} = 1 ] &&
+    grep -q "task 2 (passes 3 to 3) failed with exit 1, which a retry would not fix .*; log: " "$TMP/gi.err" &&
+    ! grep -q 'resubmitting' "$TMP/gi.out"; then
+    pass "a task that fails on bad input is not resubmitted: the render stops at once, exit 1"
+else
+    fail "a task failing on bad input" "exit $rc, logs ${logs[*]##*/}: $(cat "$TMP/gi.err")"
+fi
+rm -f "$TMP/fail-3"
+sleep 1
+queue_empty && pass "... and nothing of it left in the queue" || fail "queue after a stop on bad input" "$(squeue -h)"
 
 # ---- the gather of a pass in shards, as array tasks after the pass's map and sorted queries:
 # a shard task killed while it runs is resubmitted; every file of every pass is the local

@@ -132,3 +132,81 @@ expect_status "pm-compare: a missing file exits 2" 2 input "$PC" "$TMP/r1.pm" "$
 expect_status "pm-compare: a report the system cannot write exits 2" 2 io full "$PC" "$TMP/r1.pm" "$TMP/r1.pm"
 expect_status "pm-compare: a report the system cannot write exits 2, also when the files differ" 2 io full "$PC" \
     "$TMP/r1.pm" "$TMP/r2.pm"
+
+# ---- the shell drivers: one scaffolding (pipelines/lib/common.sh), the stages' class passed through ----
+# pm_stage_status: the class of a step of stages, a pipe's statuses in order
+(
+    PM_NAME=test
+    source pipelines/lib/common.sh
+    bad=""
+    check() { # check WANT STATUS...
+        local want=$1
+        shift
+        pm_stage_status "$@"
+        local got=$?
+        [ "$got" = "$want" ] || bad+=" ($*: $got, expected $want)"
+    }
+    check 0 0 0 0
+    check 1 0 1 0        # bad data
+    check 3 3 1 1        # a full disk upstream, then the short stream downstream
+    check 3 141 3        # a full disk downstream, then the broken pipe upstream
+    check 4 1 4 3        # a bug wins
+    check 1 0 2          # a stage's usage error is the driver's command line: 1
+    check 1 137          # killed: not known to be the system's
+    pm_isint 12 && pm_isint 0 && pm_isint 007 1 && ! pm_isint 0 1 && ! pm_isint 1.5 && ! pm_isint "" && ! pm_isint -3 ||
+        bad+=" pm_isint"
+    pm_isnum 1.5 && pm_isnum .5 && pm_isnum 5e5 && pm_isnum 3 && ! pm_isnum x && ! pm_isnum "" && ! pm_isnum -1 ||
+        bad+=" pm_isnum"
+    [ -z "$bad" ] && echo ok || echo "$bad"
+) >"$TMP/common.out" 2>&1
+[ "$(cat "$TMP/common.out")" = ok ] && pass "common.sh: pm_stage_status, pm_isint and pm_isnum" ||
+    fail "common.sh" "$(cat "$TMP/common.out")"
+# pm_params: NAME=VALUE into a table, usage (2) for an unknown name or a bare word, one line each
+params() ( # a subshell: pm_die exits it, not this script
+    PM_NAME=test
+    source pipelines/lib/common.sh
+    declare -A T=([A]=1 [B]=) GIVEN=()
+    pm_params T GIVEN "" -- "$@"
+    echo "A=${T[A]} B=${T[B]} given=${!GIVEN[*]}"
+)
+[ "$(params B=x=y)" = "A=1 B=x=y given=B" ] && pass "common.sh: pm_params sets the table and what was given" ||
+    fail "pm_params" "$(params B=x=y 2>&1)"
+expect_exit "common.sh: pm_params refuses an unknown name (2)" 2 params C=1
+[ "$(cat "$TMP/err")" = "test: unknown parameter 'C' (known: A B )" ] && pass "... in one line naming the known ones" ||
+    fail "pm_params message" "$(cat "$TMP/err")"
+expect_exit "common.sh: pm_params refuses a word that is not NAME=VALUE (2)" 2 params word
+
+# a stage of the driver that fails for the system (3) or on bad input (1): fake programs in a BIN
+# whose stage prints a class and exits with it
+fake_bin() { # fake_bin DIR PROGRAM STATUS CLASS: BIN's programs, PROGRAM failing so
+    mkdir -p "$1"
+    for p in "$BIN"/*; do ln -sf "$p" "$1/"; done
+    rm -f "$1/$2"
+    printf '#!/bin/sh\necho "%s: injected failure (%s error)" >&2\nexit %s\n' "$2" "$4" "$3" >"$1/$2"
+    chmod +x "$1/$2"
+}
+FR="FRAMES=2 PHOTONS=2000 SPP=4 WIDTH=16 HEIGHT=16"
+fake_bin "$TMP/bin-io" hilbert-sort 3 io
+for stream in 1 0; do
+    # shellcheck disable=SC2086
+    BIN=$TMP/bin-io pipelines/frames $CB "$TMP/fio" $FR STREAM=$stream >"$TMP/fio.out" 2>&1
+    st=$?
+    [ $st = 3 ] && grep -q 'injected failure (io error)' "$TMP/fio.out" && pass "frames STREAM=$stream: a stage's io failure exits 3" ||
+        fail "frames STREAM=$stream io failure" "exit $st: $(tail -n 2 "$TMP/fio.out")"
+done
+fake_bin "$TMP/bin-bad" hilbert-sort 1 input
+BIN=$TMP/bin-bad pipelines/frames $CB "$TMP/fbad" $FR STREAM=0 >"$TMP/fbad.out" 2>&1
+st=$?
+[ $st = 1 ] && pass "frames STREAM=0: a stage's input failure exits 1" || fail "frames input failure" "exit $st: $(tail -n 2 "$TMP/fbad.out")"
+fake_bin "$TMP/bin-demo" trace-photons 3 io
+BIN=$TMP/bin-demo pipelines/demo "$TMP/demo" >"$TMP/demo.out" 2>&1
+st=$?
+[ $st = 3 ] && grep -q '^demo: stage trace-photons failed$' "$TMP/demo.out" && pass "demo: a stage's io failure exits 3" ||
+    fail "demo io failure" "exit $st: $(tail -n 2 "$TMP/demo.out")"
+fake_bin "$TMP/bin-evt" measure-error 3 io
+"$BUILD/tests/pm-testgen" radiance 1 "$TMP/ref.pm"
+BIN=$TMP/bin-evt pipelines/error-vs-time $CB "$TMP/evt" REFERENCE="$TMP/ref.pm" PT_SPP= PLOT=0 >"$TMP/evt.out" 2>&1
+st=$?
+[ $st = 3 ] && grep -q 'cannot use the reference: .*injected failure (io error)' "$TMP/evt.out" &&
+    pass "error-vs-time: measure-error's io failure on the reference exits 3" ||
+    fail "error-vs-time io failure" "exit $st: $(tail -n 2 "$TMP/evt.out")"

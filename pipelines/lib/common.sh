@@ -1,7 +1,8 @@
 # pipelines/lib/common.sh: the scaffolding the shell drivers share (sourced by pipelines/frames,
-# pipelines/slurm, pipelines/error-vs-time, pipelines/demo and pipelines/lib/slurm-task and
-# slurm-preview), so that each says a failure, checks a number, reads NAME=VALUE parameters and
-# prints its usage one way. The driver sets PM_NAME (the word its messages start with) first.
+# pipelines/slurm, pipelines/error-vs-time, pipelines/demo and pipelines/lib/slurm-task;
+# pipelines/lib/slurm-preview is sourced by pipelines/slurm and runs with it), so that each says
+# a failure, checks a number, reads NAME=VALUE parameters and prints its usage one way. The
+# driver sets PM_NAME (the word its messages start with) first.
 #
 # Exit statuses are the programs' classes (docs/cli.md, "Exit status and errors"): 1 bad input,
 # 2 usage, 3 the system failed (a retry may succeed), 4 a bug. A driver that runs stages passes

@@ -6,10 +6,13 @@
  *   - Directions are unit vectors pointing away from the surface point. wo is the direction
  *     that is known (an eye path: toward the camera, the previous vertex; a photon: back along
  *     the path it arrived by), wi the other one (the one sampled, or a light's direction).
- *   - n is the unit normal of the surface's front (outside) face. Reflective kinds (standard,
- *     mirror, conductor, plastic) are two-sided: they reflect on whichever side wo lies, as if n
- *     were flipped to that side. Dielectrics (glass, rough glass) read the side: wo on n's side
- *     is outside (index 1), behind it inside (index ior); n.wo = 0 counts as outside.
+ *   - n is the unit normal of the surface's front (outside) face. Reflective kinds (mirror,
+ *     conductor, plastic) are two-sided: they reflect on whichever side wo lies, as if n were
+ *     flipped to that side. Dielectrics (glass, rough glass) read the side: wo on n's side is
+ *     outside (index 1), behind it inside (index ior); n.wo = 0 counts as outside. The standard
+ *     kind reflects on n's side as given (callers pass it on wo's side; a shading normal may
+ *     leave wo below it, and f and the sampler are then what the tracers always made of them:
+ *     f is 0 only for n.wi <= 0).
  *   - A reflection has wi on wo's side of the surface; a transmission has it on the other.
  *   - Units: the BSDF f in 1/sr per RGB channel; pdfs over solid angle in 1/sr.
  *
@@ -154,5 +157,22 @@ float pm_bsdf_standard_lobe_pdf(const pm_material_t *m, int lobe, const float n[
 /* The standard kind's probability of drawing the Lambertian lobe: max(kd) / (max(kd) + max(ks)),
  * 1 when it reflects nothing. */
 float pm_bsdf_standard_diffuse_share(const pm_material_t *m);
+
+/* f cos / pdf of the standard kind's Phong lobe alone, over ks, at n.wi = cosi:
+ * (ns + 2) / (ns + 1) cosi, in double (the photon tracer's weight for a glossy bounce). */
+static inline double pm_bsdf_standard_phong_weight(const pm_material_t *m, float cosi)
+{
+    return (m->ns + 2.0) / (m->ns + 1.0) * cosi;
+}
+
+/* Where photons are stored and the gather estimates: a surface with a non-delta lobe that does
+ * not transmit (standard with kd or ks, rough conductor, plastic). Transmitting rough glass
+ * stores none: a density estimate on one side of it cannot see the photons that arrive from the
+ * other; photons pass it as they pass glass, and eye paths continue through it. */
+static inline int pm_bsdf_stores_photons(const pm_material_t *m)
+{
+    unsigned l = pm_bsdf_lobes(m);
+    return (l & (PM_BSDF_DIFFUSE | PM_BSDF_GLOSSY)) && !(l & PM_BSDF_TRANSMIT);
+}
 
 #endif

@@ -17,8 +17,11 @@
  * their closed forms. Samples come from Philox streams of fixed seeds: every run draws the same. */
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
+#include "base/error.h"
+#include "formats/formats.h"
 #include "math/rng.h"
 #include "math/sampling.h"
 #include "math/vec.h"
@@ -619,6 +622,67 @@ static void test_bsdf_standard_and_limits(void **state)
     assert_true(fabsf(r.weight[0] - 1.0f / 2.25f) < 1e-6f && p.weight[0] == 1.0f && r.eta == 1.5f);
 }
 
+/* (i) The queries header's material table carries every kind's fields, and its reader refuses
+ * an entry out of range or not a number with one line naming the key, the field and the value. */
+static void test_bsdf_queries_material_table(void **state)
+{
+    (void)state;
+    pm_material_t m[4] = {gold(0.3f), rough_glass(1.33f, 0.2f), plastic(0.6f, 1.5f, 0.05f), standard(0.5f, 0.2f, 9.0f)};
+    m[0].f0[1] = 0.5f, m[1].tf[2] = 0.25f;
+    snprintf(m[0].name, sizeof m[0].name, "gold");
+    pm_header_t h;
+    pm_header_init(&h, &pm_queries_schema);
+    assert_int_equal(pm_queries_set_materials(&h, m, 4), PM_OK);
+    pm_material_t *back;
+    size_t n;
+    assert_int_equal(pm_queries_get_materials(&h, "t.pm", &back, &n), PM_OK);
+    assert_int_equal(n, 4);
+    for (size_t i = 0; i < 4; i++) {
+        assert_int_equal(back[i].kind, m[i].kind);
+        assert_true(back[i].alpha == m[i].alpha &&
+                    (m[i].kind == PM_MAT_CONDUCTOR || m[i].kind == PM_MAT_STANDARD || back[i].ior == m[i].ior));
+        for (int k = 0; k < 3; k++)
+            assert_true(back[i].eta[k] == m[i].eta[k] && back[i].k[k] == m[i].k[k] && back[i].f0[k] == m[i].f0[k] &&
+                        back[i].tf[k] == m[i].tf[k] && back[i].kd[k] == m[i].kd[k]);
+    }
+    free(back);
+    /* each bad value refused, the message naming it */
+    const struct {
+        int which;
+        const char *from, *to, *want;
+    } bad[] = {
+        {0, "conductor alpha 0.300000012", "conductor alpha 1.5", "material.0 conductor alpha 1.5 outside [0, 1]"},
+        {0, "conductor alpha 0.300000012", "conductor alpha nan", "material.0 conductor alpha nan outside [0, 1]"},
+        {0, "k 3.42000008", "k -1", "material.0 conductor eta 0.18 k -1 (channel 0)"},
+        {0, "eta 0.180000007", "eta 0", "material.0 conductor eta 0.42 k 2.35 (channel 1)"},
+        {0, "f0 0 0.5", "f0 0 1.5", "material.0 conductor f0 1.5 (channel 1) outside [0, 1]"},
+        {1, "ior 1.33000004", "ior 0", "material.1 roughglass ior 0 outside (0, 1e6]"},
+        {1, "tf 1 1 0.25", "tf 1 1 inf", "material.1 roughglass tf inf (channel 2) outside [0, 1]"},
+        {2, "ks 0 0 0", "ks 0.1 0 0", "material.2 plastic has kd 0.6, ks 0.1 (channel 0); want ks 0"},
+        {2, "plastic alpha 0.0500000007", "plastic alpha -0.1", "material.2 plastic alpha -0.1 outside [0, 1]"},
+        {2, "plastic alpha 0.0500000007 ior 1.5", "plastic alpha 0.05", "header key material.2 is not"},
+    };
+    for (size_t b = 0; b < sizeof bad / sizeof bad[0]; b++) {
+        char key[32], val[512];
+        snprintf(key, sizeof key, "material.%d", bad[b].which);
+        const char *v = pm_header_get(&h, key);
+        const char *at = strstr(v, bad[b].from);
+        if (!at)
+            fail_msg("'%s' not in '%s'", bad[b].from, v);
+        snprintf(val, sizeof val, "%.*s%s%s", (int)(at - v), v, bad[b].to, at + strlen(bad[b].from));
+        pm_header_t h2;
+        pm_header_init(&h2, &pm_queries_schema);
+        assert_int_equal(pm_queries_set_materials(&h2, m, 4), PM_OK);
+        assert_int_equal(pm_header_set(&h2, key, "%s", val), PM_OK);
+        assert_int_equal(pm_queries_get_materials(&h2, "t.pm", &back, &n), PM_ERR_INPUT);
+        const char *msg = pm_error_message();
+        if (!strstr(msg, bad[b].want) || strchr(msg, '\n'))
+            fail_msg("'%s': message '%s', want '%s'", val, msg, bad[b].want);
+        pm_header_free(&h2);
+    }
+    pm_header_free(&h);
+}
+
 static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_bsdf_white_furnace),
     cmocka_unit_test(test_bsdf_reciprocity),
@@ -628,6 +692,7 @@ static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_bsdf_lobes),
     cmocka_unit_test(test_bsdf_microfacet_fresnel),
     cmocka_unit_test(test_bsdf_standard_and_limits),
+    cmocka_unit_test(test_bsdf_queries_material_table),
 };
 
 UNIT_GROUP(bsdf_group, "bsdf", tests)

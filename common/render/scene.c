@@ -457,61 +457,81 @@ static pm_result_t load_defaults(const ctx_t *c, json_t *d)
     return r;
 }
 
+/* The PBR inputs of assimp material am: 1 when it is a metallic-roughness material (every glTF
+ * material; an MTL material with a Pr or a Pm line, the PBR extension), with its metallic and
+ * roughness factors (glTF's defaults where one is absent: metallic 1 in glTF, 0 in an MTL,
+ * whose materials are dielectrics unless Pm says otherwise; roughness 1 in both). */
+static int pbr_inputs(int is_obj, const struct aiMaterial *am, float *metallic_out, float *roughness_out)
+{
+    ai_real metallic = is_obj ? 0 : 1, roughness = 1;
+    int has_m = aiGetMaterialFloatArray(am, AI_MATKEY_METALLIC_FACTOR, &metallic, NULL) == aiReturn_SUCCESS;
+    int has_r = aiGetMaterialFloatArray(am, AI_MATKEY_ROUGHNESS_FACTOR, &roughness, NULL) == aiReturn_SUCCESS;
+    *metallic_out = (float)metallic;
+    *roughness_out = (float)roughness;
+    return !is_obj || has_m || has_r;
+}
+
 /* The specular part of a material (docs/scene-format.md, "Mirrors and glass"): from an OBJ,
- * illum 7 is glass (Ni, Tf) and illum 3 or 5 with some Ks a mirror (Ks); from glTF, a
- * transmissionFactor above 0 is glass (ior, baseColorFactor as the filter) and metallicFactor 1
- * with roughnessFactor 0 a mirror (baseColorFactor). Sets m->kind, kr, ior and tf; refuses an
- * index that is not a finite number > 0, a filter outside [0, 1], and mirror and glass at once. */
+ * illum 7 is glass (Ni, Tf; rough glass of width Pr^2 with a Pr above 0) and illum 3 or 5 with
+ * some Ks a mirror (Ks); from glTF, a transmissionFactor above 0 is glass (ior, baseColorFactor
+ * as the filter), rough glass with a roughnessFactor above 0. Sets m->kind, kr, ior, tf and
+ * alpha; refuses an index that is not a finite number > 0, a filter outside [0, 1], a roughness
+ * outside [0, 1], and glass that is also a metal. */
 static pm_result_t load_specular(const char *mesh, int is_obj, const struct aiMaterial *am, const float kd[3],
                                  const float ks[3], pm_material_t *m)
 {
     int illum = 0, glass = 0, mirror = 0;
-    ai_real ior = 1, transmission = 0, metallic = 0, roughness = 1;
+    ai_real ior = 1, transmission = 0;
+    float metallic = 0, roughness = 0;
     struct aiColor4D tf = {1, 1, 1, 1};
     unsigned one = 1;
     m->ior = 1.0f;
     m->tf[0] = m->tf[1] = m->tf[2] = 1.0f;
     aiGetMaterialFloatArray(am, AI_MATKEY_REFRACTI, &ior, NULL);
+    int pbr = pbr_inputs(is_obj, am, &metallic, &roughness);
     if (is_obj) {
         aiGetMaterialIntegerArray(am, "$mat.illum", 0, 0, &illum, &one);
         aiGetMaterialColor(am, AI_MATKEY_COLOR_TRANSPARENT, &tf);
         glass = illum == 7;
-        mirror = (illum == 3 || illum == 5) && (ks[0] > 0.0f || ks[1] > 0.0f || ks[2] > 0.0f);
+        /* a PBR material's kind comes from Pm (load_pbr), not from illum */
+        mirror = !pbr && (illum == 3 || illum == 5) && (ks[0] > 0.0f || ks[1] > 0.0f || ks[2] > 0.0f);
         for (int k = 0; k < 3; k++)
             m->kr[k] = mirror ? ks[k] : 0.0f;
+        if (!pbr || !glass)
+            roughness = 0;
     } else {
         /* glTF's index defaults to 1.5 where KHR_materials_ior is absent */
         if (aiGetMaterialFloatArray(am, AI_MATKEY_REFRACTI, &ior, NULL) != aiReturn_SUCCESS)
             ior = 1.5f;
         aiGetMaterialFloatArray(am, AI_MATKEY_TRANSMISSION_FACTOR, &transmission, NULL);
-        aiGetMaterialFloatArray(am, AI_MATKEY_METALLIC_FACTOR, &metallic, NULL);
-        aiGetMaterialFloatArray(am, AI_MATKEY_ROUGHNESS_FACTOR, &roughness, NULL);
         if (!(transmission >= 0 && transmission <= 1))
             return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': transmissionFactor %g must lie in [0, 1]",
                                 mesh, m->name, transmission);
         glass = transmission > 0;
-        mirror = metallic == 1 && roughness == 0;
-        /* the base colour tints what a metal reflects and what glass transmits */
+        /* the base colour tints what glass transmits */
         tf = (struct aiColor4D){kd[0], kd[1], kd[2], 1};
-        for (int k = 0; k < 3; k++)
-            m->kr[k] = mirror ? kd[k] : 0.0f;
+        /* only glTF can say both (an OBJ material has one illum) */
+        if (glass && metallic == 1.0f)
+            return pm_error_set(PM_ERR_INPUT,
+                                "mesh '%s': material '%s': transmissionFactor %g makes it glass, and metallicFactor 1 "
+                                "with roughnessFactor %g a %s: it cannot be both",
+                                mesh, m->name, transmission, roughness, roughness == 0.0f ? "mirror" : "metal");
     }
-    /* only glTF can say both (an OBJ material has one illum) */
-    if (glass && mirror)
-        return pm_error_set(PM_ERR_INPUT,
-                            "mesh '%s': material '%s': transmissionFactor %g makes it glass, and metallicFactor 1 "
-                            "with roughnessFactor 0 a mirror: it cannot be both",
-                            mesh, m->name, transmission);
     if (glass) {
         if (!(isfinite(ior) && ior > 0))
             return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': %s %g must be a finite number > 0", mesh,
                                 m->name, is_obj ? "Ni" : "ior", ior);
+        if (!(roughness >= 0.0f && roughness <= 1.0f))
+            return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': %s %g must lie in [0, 1]", mesh, m->name,
+                                is_obj ? "Pr" : "roughnessFactor", roughness);
         float tv[3] = {tf.r, tf.g, tf.b};
         for (int k = 0; k < 3; k++)
             if (!(tv[k] >= 0.0f && tv[k] <= 1.0f))
                 return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': %s %g in channel %c must lie in [0, 1]",
                                     mesh, m->name, is_obj ? "Tf" : "baseColorFactor", tv[k], "rgb"[k]);
-        m->kind = PM_MAT_GLASS;
+        /* smooth glass stays the delta BSDF the tracers follow in specular chains */
+        m->kind = roughness > 0.0f ? PM_MAT_ROUGH_GLASS : PM_MAT_GLASS;
+        m->alpha = roughness * roughness;
         m->ior = (float)ior;
         for (int k = 0; k < 3; k++)
             m->tf[k] = tv[k];
@@ -520,9 +540,62 @@ static pm_result_t load_specular(const char *mesh, int is_obj, const struct aiMa
     }
     /* A specular material is its delta BSDF alone (the Kd and Ks it sets besides are
      * reported by scan_material and scan_mtl_dropped). */
-    if (pm_material_is_specular(m))
+    if (m->kind != PM_MAT_STANDARD)
         for (int k = 0; k < 3; k++)
             m->kd[k] = m->ks[k] = 0.0f;
+    return PM_OK;
+}
+
+/* glTF's F0 of a dielectric: an index of 1.5 reflects ((1.5 - 1) / (1.5 + 1))^2 = 0.04 at normal
+ * incidence, the value its metallic-roughness model mixes toward the base colour. */
+#define PM_PBR_DIELECTRIC_F0 0.04f
+
+/* The metallic-roughness part of a material that is not glass (docs/scene-format.md, "PBR
+ * materials"): metallic 1 is a conductor of F0 the base colour and GGX width roughness^2 (a
+ * mirror of reflectance the base colour at roughness 0, the delta the tracers follow); metallic
+ * 0 is plastic, the base colour under a dielectric coat of index 1.5 (glTF's ior when
+ * KHR_materials_ior gives one, an MTL's Ni when not 1; index 1 makes it Lambertian, exactly).
+ * A metallic strictly between is the nearer kind with glTF's mix of that kind's own lobe:
+ * F0 = lerp(0.04, base, metallic) for a metal, kd = (1 - metallic) base for plastic; the other
+ * lobe is lost, and scan_material says so. */
+static pm_result_t load_pbr(const char *mesh, int is_obj, const struct aiMaterial *am, const float base[3],
+                            pm_material_t *m)
+{
+    float metallic, roughness;
+    if (!pbr_inputs(is_obj, am, &metallic, &roughness))
+        return PM_OK;
+    if (!(metallic >= 0.0f && metallic <= 1.0f))
+        return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': %s %g must lie in [0, 1]", mesh, m->name,
+                            is_obj ? "Pm" : "metallicFactor", metallic);
+    if (!(roughness >= 0.0f && roughness <= 1.0f))
+        return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': %s %g must lie in [0, 1]", mesh, m->name,
+                            is_obj ? "Pr" : "roughnessFactor", roughness);
+    memset(m->kd, 0, sizeof m->kd);
+    memset(m->ks, 0, sizeof m->ks);
+    m->ns = 0.0f;
+    if (metallic >= 0.5f) {
+        for (int k = 0; k < 3; k++) {
+            float f0 = metallic * base[k] + (1.0f - metallic) * PM_PBR_DIELECTRIC_F0;
+            if (roughness == 0.0f)
+                m->kr[k] = f0;
+            else
+                m->f0[k] = f0;
+        }
+        m->kind = roughness == 0.0f ? PM_MAT_MIRROR : PM_MAT_CONDUCTOR;
+        m->alpha = roughness * roughness;
+        return PM_OK;
+    }
+    ai_real ior = 1.5f, given = 1;
+    if (aiGetMaterialFloatArray(am, AI_MATKEY_REFRACTI, &given, NULL) == aiReturn_SUCCESS && (!is_obj || given != 1))
+        ior = given; /* assimp gives an MTL without Ni the index 1: that is no coat index */
+    if (!(isfinite(ior) && ior >= 1 && ior <= 10))
+        return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': %s %g must lie in [1, 10] (the coat's index)",
+                            mesh, m->name, is_obj ? "Ni" : "ior", ior);
+    for (int k = 0; k < 3; k++)
+        m->kd[k] = (1.0f - metallic) * base[k];
+    m->kind = ior == 1 ? PM_MAT_STANDARD : PM_MAT_PLASTIC;
+    m->ior = (float)ior;
+    m->alpha = ior == 1 ? 0.0f : roughness * roughness;
     return PM_OK;
 }
 
@@ -586,17 +659,20 @@ static pm_result_t load_material(const ctx_t *c, const char *mesh, int is_obj, c
         snprintf(m->name, sizeof m->name, "default");
     }
     float kdv[3] = {kd.r, kd.g, kd.b}, ksv[3] = {ks.r, ks.g, ks.b}, kev[3] = {ke.r, ke.g, ke.b};
+    float metallic, roughness;
+    int pbr = !stand_in && pbr_inputs(is_obj, am, &metallic, &roughness);
     pm_result_t r = PM_OK;
     if (!stand_in && (r = load_specular(mesh, is_obj, am, kdv, ksv, m)) != PM_OK)
         return r;
-    int specular = pm_material_is_specular(m);
+    int specular = m->kind != PM_MAT_STANDARD;
     for (int i = 0; i < 3; i++) {
         if (!(kdv[i] >= 0.0f && kdv[i] <= 1.0f) || !(ksv[i] >= 0.0f && ksv[i] <= 1.0f))
             return pm_error_set(PM_ERR_INPUT,
                                 "mesh '%s': material '%s': Kd %g and Ks %g in channel %c must lie in [0, 1]", mesh,
                                 m->name, kdv[i], ksv[i], "rgb"[i]);
-        /* a mirror's Ks is its reflectance and its Kd unused: their sum is no constraint */
-        if (!specular && kdv[i] + ksv[i] > 1.0f + 1e-6f)
+        /* a mirror's Ks is its reflectance and its Kd unused; a PBR material's Ks is unused (its
+         * metal or its dielectric coat replaces the Phong lobe): their sum is no constraint */
+        if (!specular && !pbr && kdv[i] + ksv[i] > 1.0f + 1e-6f)
             return pm_error_set(
                 PM_ERR_INPUT, "mesh '%s': material '%s': Kd + Ks = %g in channel %c exceeds 1 (not energy conserving)",
                 mesh, m->name, kdv[i] + ksv[i], "rgb"[i]);
@@ -604,13 +680,15 @@ static pm_result_t load_material(const ctx_t *c, const char *mesh, int is_obj, c
             return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': Ke %g in channel %c must lie in [0, 1e30]",
                                 mesh, m->name, kev[i], "rgb"[i]);
         m->kd[i] = specular ? 0.0f : kdv[i];
-        m->ks[i] = specular ? 0.0f : ksv[i];
+        m->ks[i] = specular || pbr ? 0.0f : ksv[i];
         m->ke[i] = kev[i];
     }
     if (!(ns >= 0 && ns <= 1e6))
         return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': Ns %g must lie in [0, 1e6]", mesh, m->name, ns);
     /* a Phong exponent matters only where there is a Phong lobe */
-    m->ns = specular ? 0.0f : (float)ns;
+    m->ns = specular || pbr ? 0.0f : (float)ns;
+    if (pbr && !specular && (r = load_pbr(mesh, is_obj, am, kdv, m)) != PM_OK)
+        return r;
     (void)c;
     return PM_OK;
 }
@@ -756,6 +834,7 @@ enum {
     KEY_ANY,       /* ignored; always reported */
     KEY_ILLUM,     /* reported unless 1 or 2 (diffuse; diffuse and Phong highlight) */
     KEY_ALPHAMODE, /* reported unless OPAQUE */
+    KEY_APPROX,    /* honoured approximately; reported with a note saying how */
 };
 
 typedef struct {
@@ -879,6 +958,40 @@ static void property_text(const struct aiMaterialProperty *p, int kind, char *ou
     }
 }
 
+/* How scan_material treats assimp key (of table kind `kind`) of a material the loader made a
+ * mirror, glass or a metallic-roughness material: what made it so is honoured (load_specular,
+ * load_pbr). A glass is wholly transmissive (transmission 1) and not metallic; a PBR material's
+ * Ks and Ns are replaced by its metal or its coat; a metallic factor strictly between 0 and 1
+ * is approximated (KEY_APPROX). */
+static int honoured_kind(int is_obj, const struct aiMaterial *am, const pm_material_t *mat, const char *key, int kind)
+{
+    float metallic, roughness;
+    int pbr = pbr_inputs(is_obj, am, &metallic, &roughness);
+    int glass = mat->kind == PM_MAT_GLASS || mat->kind == PM_MAT_ROUGH_GLASS;
+    int is_illum = strcmp(key, "$mat.illum") == 0, is_ior = strcmp(key, "$mat.refracti") == 0,
+        is_metallic = strcmp(key, "$mat.metallicFactor") == 0, is_rough = strcmp(key, "$mat.roughnessFactor") == 0;
+    if (glass) {
+        if (is_illum || is_ior || is_rough || (is_obj && strcmp(key, "$clr.transparent") == 0))
+            return KEY_SKIP;
+        if (is_metallic)
+            return KEY_ZERO;
+        if (!is_obj && strcmp(key, "$mat.transmission.factor") == 0)
+            return KEY_ONE;
+        return kind;
+    }
+    if (!pbr)
+        return mat->kind == PM_MAT_MIRROR && is_illum ? KEY_SKIP : kind;
+    if (is_metallic)
+        return metallic > 0.0f && metallic < 1.0f ? KEY_APPROX : KEY_SKIP;
+    if (is_rough || strcmp(key, "$mat.shininess") == 0)
+        return KEY_SKIP;
+    if (is_ior) /* the coat's index of plastic; a metal has none (glTF's ior is the dielectric's) */
+        return mat->kind == PM_MAT_PLASTIC || !is_obj ? KEY_SKIP : kind;
+    if (is_obj && strcmp(key, "$clr.specular") == 0)
+        return KEY_ZERO;
+    return kind;
+}
+
 /* Every property of assimp material am that pmtk does not honour, noted against material m. */
 static pm_result_t scan_material(pm_scene_t *s, int is_obj, const struct aiMaterial *am, uint32_t m)
 {
@@ -920,20 +1033,16 @@ static pm_result_t scan_material(pm_scene_t *s, int is_obj, const struct aiMater
             if (strcmp(material_keys[j].ai_key, key) == 0)
                 k = &material_keys[j];
         int kind = k ? (is_obj ? k->obj_kind : k->other_kind) : KEY_ANY;
-        /* What makes a material a mirror or glass is honoured (load_specular); a glass is
-         * smooth (roughness 0) and wholly transmissive (transmission 1). */
-        const pm_material_t *mat = &s->materials[m];
-        if (pm_material_is_specular(mat)) {
-            int is_glass = mat->kind == PM_MAT_GLASS;
-            if (strcmp(key, "$mat.illum") == 0 || (is_glass && strcmp(key, "$mat.refracti") == 0) ||
-                (is_glass && is_obj && strcmp(key, "$clr.transparent") == 0))
-                continue;
-            if (!is_obj && strcmp(key, "$mat.metallicFactor") == 0)
-                kind = is_glass ? KEY_ZERO : KEY_SKIP;
-            if (!is_obj && strcmp(key, "$mat.roughnessFactor") == 0)
-                kind = KEY_ZERO;
-            if (!is_obj && strcmp(key, "$mat.transmission.factor") == 0)
-                kind = KEY_ONE;
+        kind = honoured_kind(is_obj, am, &s->materials[m], key, kind);
+        if (kind == KEY_APPROX) {
+            property_text(p, KEY_ANY, value, sizeof value, &neutral);
+            r = note_unsupported(s, m, is_obj ? "Pm" : "metallicFactor", 0, value);
+            if (r == PM_OK)
+                snprintf(s->unsupported[s->nunsupported - 1].note, sizeof s->unsupported[0].note,
+                         "rendered as %s, the nearer of dielectric and metal: the %s lobe is lost",
+                         s->materials[m].kind == PM_MAT_PLASTIC ? "plastic" : "metal",
+                         s->materials[m].kind == PM_MAT_PLASTIC ? "metallic" : "diffuse");
+            continue;
         }
         if (kind == KEY_HONOURED || kind == KEY_SKIP)
             continue;
@@ -965,12 +1074,13 @@ static int mtl_key_exposed(const char *word)
 }
 
 /* Whether an MTL line sets a colour a specular material does not use: a mirror's or a glass's
- * Kd, a glass's Ks, at a value other than 0. Read from the .mtl itself: assimp fills in a Kd of
- * 0.6 where the .mtl gives none. */
-static int unused_colour(const pm_material_t *m, const char *word, const char *rest)
+ * Kd, a glass's Ks, at a value other than 0 (a PBR mirror's Kd is its reflectance: pbr 1). Read
+ * from the .mtl itself: assimp fills in a Kd of 0.6 where the .mtl gives none. */
+static int unused_colour(const pm_material_t *m, int pbr, const char *word, const char *rest)
 {
     int kd = strcasecmp(word, "Kd") == 0, ks = strcasecmp(word, "Ks") == 0;
-    if (!pm_material_is_specular(m) || !(kd || (ks && m->kind == PM_MAT_GLASS)))
+    int glass = m->kind == PM_MAT_GLASS || m->kind == PM_MAT_ROUGH_GLASS;
+    if (!(glass && (kd || ks)) && !(m->kind == PM_MAT_MIRROR && !pbr && kd))
         return 0;
     float v[3] = {0, 0, 0};
     int n = sscanf(rest, "%f %f %f", &v[0], &v[1], &v[2]);
@@ -979,8 +1089,10 @@ static int unused_colour(const pm_material_t *m, const char *word, const char *r
 
 /* Reads the .mtl files an OBJ names (libs: one a line, relative to the OBJ) for the keys assimp
  * drops, and notes each against the material of this mesh (materials mat0 to mat0 + n - 1) its
- * newmtl names. A file that cannot be opened is left to assimp, which has said so already. */
-static pm_result_t scan_mtl_dropped(pm_scene_t *s, const char *obj, const char *libs, size_t mat0, size_t n)
+ * newmtl names; pbr[i] is 1 when material mat0 + i has a Pr or a Pm. A file that cannot be
+ * opened is left to assimp, which has said so already. */
+static pm_result_t scan_mtl_dropped(pm_scene_t *s, const char *obj, const char *libs, size_t mat0, size_t n,
+                                    const unsigned char *pbr)
 {
     pm_result_t r = PM_OK;
     char path[1200];
@@ -1010,7 +1122,8 @@ static pm_result_t scan_mtl_dropped(pm_scene_t *s, const char *obj, const char *
                 char key[64];
                 snprintf(key, sizeof key, "%s options", word);
                 r = note_unsupported(s, current, key, 0, rest);
-            } else if (current != UINT32_MAX && unused_colour(&s->materials[current], word, rest)) {
+            } else if (current != UINT32_MAX &&
+                       unused_colour(&s->materials[current], pbr[current - mat0], word, rest)) {
                 r = note_unsupported(s, current, word, 0, rest);
             }
         }
@@ -1377,8 +1490,16 @@ static pm_result_t load_mesh(ctx_t *c, json_t *mj, size_t index)
         if (r == PM_OK && !stand_in && used)
             r = load_material_maps(c, path, is_obj, im, as->mMaterials[i], (uint32_t)(mat0 + i));
     }
-    if (r == PM_OK && is_obj)
-        r = scan_mtl_dropped(s, path, libs, mat0, as->mNumMaterials);
+    if (r == PM_OK && is_obj) {
+        unsigned char *pbr = malloc(as->mNumMaterials ? as->mNumMaterials : 1);
+        float metallic, roughness;
+        if (!pbr)
+            return pm_error_set(PM_ERR_NOMEM, "out of memory");
+        for (unsigned i = 0; i < as->mNumMaterials; i++)
+            pbr[i] = (unsigned char)pbr_inputs(1, as->mMaterials[i], &metallic, &roughness);
+        r = scan_mtl_dropped(s, path, libs, mat0, as->mNumMaterials, pbr);
+        free(pbr);
+    }
     if (r != PM_OK)
         return r;
     s->nmaterials += as->mNumMaterials;
@@ -2062,7 +2183,9 @@ void pm_scene_free(pm_scene_t *s)
 
 void pm_scene_unsupported_text(const pm_scene_unsupported_t *u, char *out, size_t cap)
 {
-    snprintf(out, cap, u->is_file ? "%s '%s'" : "%s %s", u->key, u->value);
+    int n = snprintf(out, cap, u->is_file ? "%s '%s'" : "%s %s", u->key, u->value);
+    if (u->note[0] && n >= 0 && (size_t)n < cap)
+        snprintf(out + n, cap - (size_t)n, " (approximated: %s)", u->note);
 }
 
 void pm_scene_warn_flipped(const pm_scene_t *s, const pm_stage_t *st)
@@ -2083,7 +2206,11 @@ void pm_scene_warn_unsupported(const pm_scene_t *s, const pm_stage_t *st)
     for (size_t i = 0; i < s->nunsupported; i++) {
         char text[300];
         pm_scene_unsupported_text(&s->unsupported[i], text, sizeof text);
-        if (s->unsupported[i].missing)
+        const pm_scene_unsupported_t *u = &s->unsupported[i];
+        if (u->note[0])
+            pm_stage_note(st, "warning: material '%s': %s %s is approximated: %s", s->materials[u->material].name,
+                          u->key, u->value, u->note);
+        else if (s->unsupported[i].missing)
             pm_stage_note(st, "warning: material '%s': %s is missing: rendered magenta (missing_textures)",
                           s->materials[s->unsupported[i].material].name, text);
         else

@@ -263,9 +263,9 @@ void pm_scene_id_part(const pm_scene_t *s, pm_scene_part_t part, char *out, size
 uint64_t pm_scene_materials_hash(const pm_material_t *m, size_t n);
 uint64_t pm_scene_lights_hash(const pm_point_light_t *l, size_t n);
 
-/* 1 when SCENE value key is this scene whole: pm_scene_id's value, or the one-hash form
- * "NAME xxh3:HASH" of pm_scene_t.hash that files written before the parts carry (so that
- * trace-reference resumes them). */
+/* 1 when SCENE value key is this scene whole: pm_scene_id's value. A file written before the
+ * scene identity's version 2 (the one-hash form "NAME xxh3:HASH" before the parts, or the parts
+ * of the older identity) names another scene and is not matched. */
 int pm_scene_id_matches(const pm_scene_t *s, const char *key);
 
 #endif

@@ -341,10 +341,9 @@ void pm_scene_id(const pm_scene_t *s, char *out, size_t cap) { pm_scene_id_part(
 
 int pm_scene_id_matches(const pm_scene_t *s, const char *key)
 {
-    char id[300], old[200];
+    char id[300];
     pm_scene_id(s, id, sizeof id);
-    snprintf(old, sizeof old, "%s xxh3:%016llx", s->name, (unsigned long long)s->hash);
-    return strcmp(key, id) == 0 || strcmp(key, old) == 0;
+    return strcmp(key, id) == 0;
 }
 
 void pm_scene_id_part(const pm_scene_t *s, pm_scene_part_t part, char *out, size_t cap)

@@ -293,8 +293,8 @@ static void assert_rgb(const float got[3], float r, float g, float b)
             fail_msg("channel %d: %.9g, want %.9g", k, (double)got[k], (double)want[k]);
 }
 
-/* An OBJ whose .mtl has the PBR extension: Pm 1 is a conductor of F0 Kd and width Pr^2 (a mirror
- * of reflectance Kd at Pr 0), Pr without Pm plastic under a coat of index 1.5 (Ni when given),
+/* An OBJ whose .mtl has the PBR extension: Pm 1 is a conductor of F0 Kd and width Pr^2 (width 0,
+ * the smooth limit, at Pr 0), Pr without Pm plastic under a coat of index 1.5 (Ni when given),
  * Pm 0.7 the nearer kind (a metal of F0 lerp(0.04, Kd, 0.7)) with a note, illum 7 with Pr rough
  * glass; a material without Pr or Pm stays standard; a PBR material's Ks is reported. */
 static void test_scene_pbr_mtl(void **state)
@@ -325,10 +325,11 @@ static void test_scene_pbr_mtl(void **state)
     assert_rgb(m->f0, 0.9f, 0.6f, 0.3f);
     assert_rgb(m->kd, 0, 0, 0);
     assert_true(m->alpha == 0.25f && m->eta[0] == 0.0f);
-    m = material_named(&s, "polished");
-    assert_int_equal(m->kind, PM_MAT_MIRROR);
-    assert_rgb(m->kr, 0.9f, 0.6f, 0.3f);
-    assert_null(reported(&s, "polished", "Kd")); /* a PBR mirror's Kd is its reflectance */
+    m = material_named(&s, "polished"); /* the smooth limit: a delta conductor */
+    assert_int_equal(m->kind, PM_MAT_CONDUCTOR);
+    assert_rgb(m->f0, 0.9f, 0.6f, 0.3f);
+    assert_true(m->alpha == 0.0f);
+    assert_null(reported(&s, "polished", "Kd")); /* a PBR metal's Kd is its F0 */
     m = material_named(&s, "plastic");
     assert_int_equal(m->kind, PM_MAT_PLASTIC);
     assert_rgb(m->kd, 0.5f, 0.4f, 0.3f);

@@ -201,9 +201,9 @@ double pm_sky_power(const pm_scene_t *s, int k);
 /* Area of triangle t, m^2. */
 double pm_scene_triangle_area(const pm_scene_t *s, size_t t);
 
-/* The material at point p (m, on or near triangle tri) with its Kd and Ks scaled by their
- * textures there: the scene's own material when it has no texture (no copy, no cost), else
- * *scratch filled and returned. Every tracer reads a hit's reflectance through this. */
+/* The material at point p (m, on or near triangle tri) with its Kd and Ks (a conductor's F0 with
+ * Kd, its base colour) scaled by their textures there: the scene's own material when it has no texture (no copy, no
+ * cost), else *scratch filled and returned. Every tracer reads a hit's reflectance through this. */
 const pm_material_t *pm_scene_material_textured(const pm_scene_t *s, uint32_t tri, const float p[3],
                                                 pm_material_t *scratch);
 static inline const pm_material_t *pm_scene_material_at(const pm_scene_t *s, uint32_t tri, const float p[3],

@@ -376,6 +376,33 @@ static void test_scene_pbr_mtl(void **state)
     }
 }
 
+/* A PBR metal's base colour texture scales its F0 (map_Kd times Kd is the base colour): a 1 x 1
+ * TGA of (255, 0, 255), texel (1, 0, 1) after sRGB decoding, on F0 (0.9, 0.6, 0.3). */
+static void test_scene_pbr_texture(void **state)
+{
+    char p[256];
+    static const unsigned char tga[21] = {0, 0, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 1, 0, 24, 0, 255, 0, 255};
+    snprintf(p, sizeof p, "%s/m.tga", unit_tmpdir());
+    FILE *f = fopen(p, "wb");
+    assert_non_null(f);
+    assert_int_equal(fwrite(tga, 1, sizeof tga, f), sizeof tga);
+    fclose(f);
+    write_file("tm.mtl", "newmtl tm\nKd 0.9 0.6 0.3\nPm 1\nPr 0.5\nmap_Kd m.tga\n", p, sizeof p);
+    write_file("tm.obj", "mtllib tm.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nusemtl tm\nf 1/1 2/1 3/1\n", p, sizeof p);
+    write_file("tm.json", "{\"pmtk_scene\": 1, \"name\": \"tm\", \"meshes\": [{\"file\": \"tm.obj\"}], " CAM "}", p,
+               sizeof p);
+    pm_scene_t s;
+    if (pm_scene_load(p, &s) != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_int_equal(s.materials[0].kind, PM_MAT_CONDUCTOR);
+    pm_material_t scratch;
+    const float at[3] = {0.25f, 0.25f, 0.0f};
+    const pm_material_t *m = pm_scene_material_at(&s, 0, at, &scratch);
+    assert_rgb(m->f0, 0.9f, 0.0f, 0.3f);
+    assert_rgb(s.materials[0].f0, 0.9f, 0.6f, 0.3f); /* the scene's own material is not touched */
+    pm_scene_free(&s);
+}
+
 /* A glTF of one triangle per material (materials: the JSON array's body). */
 static void write_gltf(const char *name, const char *materials, size_t n, char *path_out, size_t cap)
 {
@@ -615,10 +642,11 @@ static void test_scene_identity_parts(void **state)
 }
 
 static const struct CMUnitTest tests[] = {
-    cmocka_unit_test(test_scene_cornell_box),     cmocka_unit_test(test_scene_bad_input),
-    cmocka_unit_test(test_scene_mesh_faults),     cmocka_unit_test(test_scene_degenerate_triangles),
-    cmocka_unit_test(test_scene_unsupported),     cmocka_unit_test(test_scene_unsupported_gltf),
-    cmocka_unit_test(test_scene_pbr_mtl),         cmocka_unit_test(test_scene_pbr_gltf),
-    cmocka_unit_test(test_scene_identity_fields), cmocka_unit_test(test_scene_identity_parts),
+    cmocka_unit_test(test_scene_cornell_box),    cmocka_unit_test(test_scene_bad_input),
+    cmocka_unit_test(test_scene_mesh_faults),    cmocka_unit_test(test_scene_degenerate_triangles),
+    cmocka_unit_test(test_scene_unsupported),    cmocka_unit_test(test_scene_unsupported_gltf),
+    cmocka_unit_test(test_scene_pbr_mtl),        cmocka_unit_test(test_scene_pbr_gltf),
+    cmocka_unit_test(test_scene_pbr_texture),    cmocka_unit_test(test_scene_identity_fields),
+    cmocka_unit_test(test_scene_identity_parts),
 };
 UNIT_GROUP(unit_scene, "scene", tests);

@@ -335,7 +335,7 @@ static void rough_glass_eval(const pm_material_t *m, const float n[3], const flo
             f_out[k] = v;
         return;
     }
-    float den = p.woh + p.e * p.wih; /* < 0 here... its square is what counts */
+    float den = p.woh + p.e * p.wih; /* of either sign; its square is the Jacobian's */
     if (!(den * den > 0.0f))
         return;
     float v = (1.0f - f) * d * g * fabsf(p.wih) * p.woh / (ci * co * den * den);

@@ -193,3 +193,15 @@ if [ -n "$mr" ] && awk -v b="$mr" 'BEGIN { exit !(b > 0.02) }'; then
 else
     fail "frosted lamp: no light through the slab" "reference mean '$mr'"
 fi
+
+# the same inputs and seed give the same values (pm-compare: exactly, header keys but the
+# command lines too) at one and two threads, through all three kinds
+if "$BIN/trace-photons" "$S" -q --photons 20000 --threads 1 -o "$B/p1.pm" &&
+    "$BIN/trace-photons" "$S" -q --photons 20000 --threads 2 -o "$B/p2.pm" &&
+    "$R" "$S" -q --spp 4 --threads 1 --radiance "$B/r1.pm" -o "$B/r1.exr" &&
+    "$R" "$S" -q --spp 4 --threads 2 --radiance "$B/r2.pm" -o "$B/r2.exr" &&
+    "$BIN/pm-compare" "$B/p1.pm" "$B/p2.pm" >"$B/cmp" 2>&1 && "$BIN/pm-compare" "$B/r1.pm" "$B/r2.pm" >>"$B/cmp" 2>&1; then
+    pass "frosted lamp: trace-photons and trace-reference give the same values at 1 and 2 threads"
+else
+    fail "frosted lamp: thread count changes the output" "$(head -c 300 "$B/cmp")"
+fi

@@ -39,7 +39,9 @@
  *   rough glass: GGX reflection F D G2 / (4 |n.wi| |n.wo|) and transmission (Walter et al. 2007,
  *              generalized half vector h along -(n_wo wo + n_wi wi)):
  *              (1 - F) tf D G2 |wi.h| |wo.h| / (|n.wi| |n.wo| (wo.h + e wi.h)^2), e = n_wi / n_wo,
- *              in radiance mode (times e^2 in importance mode); F = pm_fresnel_dielectric(wo.h).
+ *              in radiance mode (times e^2 in importance mode); F the dielectric Fresnel at the
+ *              microfacet (a transmission's taken from the outside, where no total internal
+ *              reflection makes it ill-conditioned; the same in exact arithmetic).
  *   plastic:   a GGX dielectric coat (index ior, width alpha) over a Lambertian base kd:
  *              F(wo.h) D G2 / (4 |n.wi| |n.wo|)
  *              + kd (1 - F(n.wi)) (1 - F(n.wo)) / (pi ior^2 (1 - kd Fdr_in)),
@@ -49,14 +51,17 @@
  *              summed as a geometric series; reciprocal, and at most 1 - F(n.wo) in albedo.
  *   G2 is Smith's height-correlated masking-shadowing 1 / (1 + Lambda(wo) + Lambda(wi)), for
  *   transmission too; the microfacet samplers draw h from the distribution of normals visible
- *   from wo (Heitz 2018), so the weight of a sample is F G2 / G1(wo) (physics/microfacet.h).
+ *   from wo (Heitz 2018), so a reflection's weight is F G2 / G1(wo) and a transmission's
+ *   (1 - F) tf G2 / G1(wo) / e^2 in radiance mode, each over the probability of its choice
+ *   (physics/microfacet.h).
  *
  * The smooth limit: alpha below PM_MAT_ALPHA_DELTA (formats/material.h, 1e-3) makes a conductor
  * a delta reflection (weight F(n.wo)), a rough glass the smooth glass (with its tf) and a
  * plastic's coat a delta reflection (probability and weight from F(n.wo)) over the same base, so
  * that no D of width 0 is ever evaluated. alpha is clamped to [PM_MAT_ALPHA_DELTA, 1] elsewhere.
  * Nothing here returns NaN or Inf for finite unit inputs, alpha in [0, 1], ior or eta in
- * (0, 1e6], k >= 0, grazing directions included (n.w = 0 gives f = 0 and no sample). */
+ * (0, 1e6], k >= 0, grazing directions included (n.w = 0 gives f = 0 and no sample, but for
+ * the standard kind's f, which asks only n.wi > 0). */
 #ifndef PM_PHYSICS_BSDF_H
 #define PM_PHYSICS_BSDF_H
 

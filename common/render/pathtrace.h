@@ -73,6 +73,7 @@ typedef struct {
     const pm_rt_t *rt;
     pm_pathtrace_settings_t set;
     pm_shade_geom_t geom;
+    pm_lights_t lights;
     pm_camera_rays_t cam;
     double *mean, *m2;
     uint64_t n;                   /* samples per pixel merged so far */

@@ -1,9 +1,8 @@
 /* photontrace.h: forward photon tracing (the paper, section 5.1), the engine of
  * trace-photons.
  *
- * Photon i is emitted from a light chosen in proportion to its power (point lights in all
- * directions, emissive triangles from a uniform point, cosine-weighted about the front
- * face), traced with single Embree rays (pm_rt_intersect1), and stored at every hit on a
+ * Photon i is emitted from a light chosen in proportion to its power (render/light.h,
+ * pm_light_sample_le), traced with single Embree rays (pm_rt_intersect1), and stored at every hit on a
  * surface that reflects diffusely or glossily (first hits too, marked depth 0). Mirrors and glass
  * (pm_specular_sample) redirect a photon and never store it; a photon that reaches a diffuse or
  * glossy surface through one or more specular bounces and nothing else since the light

@@ -91,7 +91,8 @@ pm_result_t pm_lights_init(const pm_scene_t *s, pm_lights_t *L)
         L->n += L->light[L->n].weight > 0.0;
     }
     L->ndirect = nd;
-    L->nlights = s->nlights + s->nemissive + (size_t)(s->has_sun != 0) + (size_t)(s->has_sky != 0);
+    size_t sampled;
+    pm_lights_count(s, &L->nlights, &sampled);
     L->total = 0.0;
     for (size_t i = 0; i < L->n; i++)
         L->total += L->light[i].weight;
@@ -137,6 +138,13 @@ void pm_lights_free(pm_lights_t *L)
     free(L->area_cdf);
     free(L->front);
     memset(L, 0, sizeof *L);
+}
+
+void pm_lights_count(const pm_scene_t *s, size_t *total_out, size_t *sampled_out)
+{
+    /* Point lights and spots are the delta kinds: one sample each, whatever light_samples says. */
+    *total_out = s->nlights + s->nemissive + (size_t)(s->has_sun != 0) + (size_t)(s->has_sky != 0);
+    *sampled_out = *total_out - s->nlights;
 }
 
 size_t pm_lights_pick(const pm_lights_t *L, double u) { return pm_cdf_pick(L->cdf, L->n, u); }

@@ -138,6 +138,12 @@ void pm_lights_le_escape(const pm_lights_t *L, const float w[3], float le_out[3]
  * W/(m^2 sr), and *cos_emit_out the cosine at the emitting face (>= 0). */
 int pm_lights_le_hit(const pm_lights_t *L, uint32_t tri, float cos_front, float le_out[3], float *cos_emit_out);
 
+/* Counts the lights of scene s without building a set: every light (point lights and spots,
+ * emissive triangles, sun, sky, whatever their power: scene-info's lights_total) and those that
+ * take light_samples direct-light samples at a shading point rather than one (all but the delta
+ * lights: scene-info's sampled_lights; 0 means light_samples changes nothing). */
+void pm_lights_count(const pm_scene_t *s, size_t *total_out, size_t *sampled_out);
+
 /* The lights that take LIGHT_SAMPLES direct-light samples a shading point (area lights, the sun,
  * the sky: scene-info's sampled_lights), and whether a ray can hit one (some triangle emits). */
 size_t pm_lights_sampled(const pm_lights_t *L);

@@ -146,7 +146,7 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
         const pm_material_t *m = pm_scene_material_at(s, tri, p, &textured);
         int specular = pm_material_is_specular(m);
 
-        /* Emission, front face only (both with two_sided_lights). Seen by the camera, or through mirrors and glass, it
+        /* Emission, front face only (both when two-sided). Seen by the camera, or through mirrors and glass, it
          * is taken whole; found by a BSDF sample it shares with the light sample of the vertex before (power
          * heuristic). */
         float le[3], cos_emit;

@@ -13,15 +13,18 @@
 #include "base/timer.h"
 #include "formats/describe.h"
 #include "math/vec.h"
+#include "render/light.h"
 #include "render/shade.h"
 
 pm_scene_needs_t pm_scene_needs(const pm_scene_t *s)
 {
-    /* Light samples are drawn for area lights and for the sun and the sky alike. */
+    /* Light samples are drawn for every light that is not a delta (render/light.h). */
+    size_t total, sampled;
+    pm_lights_count(s, &total, &sampled);
     /* Material ids where the gather must tell materials apart: more than one with some glossy, or
      * a glossy textured one, whose queries name its lobe apart (render/eyetrace.c). */
     return (pm_scene_needs_t){s->any_glossy, s->any_glossy && (s->nmaterials > 1 || s->any_glossy_textured),
-                              s->nemissive > 0 || s->has_sun || s->has_sky};
+                              sampled > 0};
 }
 
 /* ------------------------------------------------------------------ textures and normals */
@@ -250,6 +253,13 @@ static void print_text(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, double
     fprintf(out, "\n");
     if (s->two_sided_lights)
         fprintf(out, "two-sided area lights: yes\n");
+    {
+        /* Kind-free counts for drivers (render/light.h): whether the scene is lit at all, and
+         * whether light_samples matters. */
+        size_t total, sampled;
+        pm_lights_count(s, &total, &sampled);
+        fprintf(out, "lights: %zu in all, %zu sampled light_samples times per shading point\n", total, sampled);
+    }
     fprintf(out, "emitted power: %.6g %.6g %.6g W\n", p[0], p[1], p[2]);
     fprintf(out, "bounds: %.9g %.9g %.9g  %.9g %.9g %.9g m\n", s->bounds[0], s->bounds[1], s->bounds[2], s->bounds[3],
             s->bounds[4], s->bounds[5]);
@@ -396,6 +406,12 @@ pm_result_t pm_summary_json(const pm_scene_t *s, const pm_rt_t *rt, const pm_sum
         json_object_set_new(j, "flipped_emitters", json_integer((json_int_t)pm_scene_flipped_emitters(s, &ft)));
     }
     json_object_set_new(j, "emissive_triangles", json_integer((json_int_t)s->nemissive));
+    {
+        size_t total, sampled;
+        pm_lights_count(s, &total, &sampled);
+        json_object_set_new(j, "lights_total", json_integer((json_int_t)total));
+        json_object_set_new(j, "sampled_lights", json_integer((json_int_t)sampled));
+    }
     if (s->two_sided_lights)
         json_object_set_new(j, "two_sided_lights", json_true());
     for (int k = 0; k < 3; k++)

@@ -7,6 +7,7 @@
  * in render/photontrace.c, so that trace-photons' output is bit-identical across the move. */
 #include "render/light.h"
 
+#include <inttypes.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -497,4 +498,119 @@ int pm_lights_le_hit(const pm_lights_t *L, uint32_t tri, float cos_front, float 
     *cos_emit_out = fabsf(cos_front);
     memcpy(le_out, m->ke, 3 * sizeof(float));
     return 1;
+}
+
+/* ------------------------------------------------------------------ description */
+
+/* The lights scene-info describes one by one, in scene order: every point light and spot, the
+ * sun, the sky (not the triangles); kind_out and index_out of the i-th, 0 past the last. */
+static int described(const pm_scene_t *s, size_t i, pm_light_kind_t *kind_out, uint32_t *index_out)
+{
+    *index_out = 0;
+    if (i < s->nlights) {
+        *kind_out = pm_point_light_is_spot(&s->lights[i]) ? PM_LIGHT_SPOT : PM_LIGHT_POINT;
+        *index_out = (uint32_t)i;
+        return 1;
+    }
+    i -= s->nlights;
+    if (s->has_sun && i-- == 0) {
+        *kind_out = PM_LIGHT_SUN;
+        return 1;
+    }
+    if (s->has_sky && i == 0) {
+        *kind_out = PM_LIGHT_SKY;
+        return 1;
+    }
+    return 0;
+}
+
+/* A spot's cone half-angle, degrees. */
+static double cone_deg(const pm_point_light_t *l)
+{
+    return acos(fmax(-1.0, fmin(1.0, (double)l->cos_cone))) * 180.0 / M_PI;
+}
+
+void pm_lights_describe_text(const pm_scene_t *s, FILE *out)
+{
+    fprintf(out, "point lights: %zu\n", s->nlights);
+    pm_light_kind_t kind;
+    uint32_t i;
+    for (size_t d = 0; described(s, d, &kind, &i); d++) {
+        switch (kind) {
+        case PM_LIGHT_POINT:
+        case PM_LIGHT_SPOT: {
+            const pm_point_light_t *l = &s->lights[i];
+            fprintf(out, "  light %" PRIu32 " at %.6g %.6g %.6g intensity %.6g %.6g %.6g W/sr", i, l->position[0],
+                    l->position[1], l->position[2], l->intensity[0], l->intensity[1], l->intensity[2]);
+            if (kind == PM_LIGHT_SPOT)
+                fprintf(out, " spot toward %.6g %.6g %.6g cone %.6g deg falloff %.6g", l->axis[0], l->axis[1],
+                        l->axis[2], cone_deg(l), l->falloff);
+            fprintf(out, "\n");
+            break;
+        }
+        case PM_LIGHT_SUN:
+            fprintf(out, "sun: toward %.6g %.6g %.6g radiance %.6g %.6g %.6g W/(m^2 sr) solid angle %.6g sr\n",
+                    s->sun.direction[0], s->sun.direction[1], s->sun.direction[2], s->sun.radiance[0],
+                    s->sun.radiance[1], s->sun.radiance[2], s->sun.solid_angle);
+            break;
+        case PM_LIGHT_SKY:
+            if (s->envmap)
+                fprintf(
+                    out,
+                    "sky: map %" PRIu32 "x%" PRIu32 " times %.6g %.6g %.6g, mean radiance %.6g %.6g %.6g W/(m^2 sr)\n",
+                    s->envmap->w, s->envmap->h, s->sky[0], s->sky[1], s->sky[2], s->envmap->integral[0] / (4.0 * M_PI),
+                    s->envmap->integral[1] / (4.0 * M_PI), s->envmap->integral[2] / (4.0 * M_PI));
+            else
+                fprintf(out, "sky: radiance %.6g %.6g %.6g W/(m^2 sr)\n", s->sky[0], s->sky[1], s->sky[2]);
+            break;
+        default: break;
+        }
+    }
+}
+
+static json_t *floats_json(const float *v, size_t n)
+{
+    json_t *a = json_array();
+    for (size_t i = 0; i < n; i++)
+        json_array_append_new(a, json_real(v[i]));
+    return a;
+}
+
+json_t *pm_lights_describe_json(const pm_scene_t *s)
+{
+    json_t *lights = json_array();
+    pm_light_kind_t kind;
+    uint32_t i;
+    for (size_t d = 0; described(s, d, &kind, &i); d++) {
+        json_t *lj = NULL;
+        switch (kind) {
+        case PM_LIGHT_POINT:
+        case PM_LIGHT_SPOT: {
+            const pm_point_light_t *l = &s->lights[i];
+            lj = json_pack("{s:s, s:o, s:o}", "kind", pm_light_kind_name(kind), "position_m",
+                           floats_json(l->position, 3), "intensity_w_sr", floats_json(l->intensity, 3));
+            if (lj && kind == PM_LIGHT_SPOT) {
+                json_object_set_new(lj, "direction", floats_json(l->axis, 3));
+                json_object_set_new(lj, "cone_deg", json_real(cone_deg(l)));
+                json_object_set_new(lj, "falloff", json_real(l->falloff));
+            }
+            break;
+        }
+        case PM_LIGHT_SUN:
+            lj = json_pack("{s:s, s:o, s:o, s:f}", "kind", pm_light_kind_name(kind), "direction",
+                           floats_json(s->sun.direction, 3), "radiance_w_m2_sr", floats_json(s->sun.radiance, 3),
+                           "solid_angle_sr", s->sun.solid_angle);
+            break;
+        case PM_LIGHT_SKY:
+            lj = json_pack("{s:s, s:o}", "kind", pm_light_kind_name(kind), "radiance_w_m2_sr", floats_json(s->sky, 3));
+            if (lj && s->envmap) /* radiance is then the map's scale */
+                json_object_set_new(lj, "map_pixels",
+                                    json_pack("[I, I]", (json_int_t)s->envmap->w, (json_int_t)s->envmap->h));
+            break;
+        default: break;
+        }
+        if (lj)
+            json_array_append_new(lights, lj);
+    }
+    return lights;
 }

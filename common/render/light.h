@@ -15,8 +15,10 @@
 #ifndef PM_LIGHT_H
 #define PM_LIGHT_H
 
+#include <jansson.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 
 #include "base/error.h"
 #include "math/rng.h"
@@ -143,6 +145,13 @@ int pm_lights_le_hit(const pm_lights_t *L, uint32_t tri, float cos_front, float 
  * take light_samples direct-light samples at a shading point rather than one (all but the delta
  * lights: scene-info's sampled_lights; 0 means light_samples changes nothing). */
 void pm_lights_count(const pm_scene_t *s, size_t *total_out, size_t *sampled_out);
+
+/* scene-info's description of the lights that are not triangles (the emissive triangles are
+ * counted with the materials): as text, "point lights: N" then a line per point light or spot,
+ * then the sun's and the sky's lines; as a JSON array of one object per light, with "kind"
+ * (pm_light_kind_name) and its parameters, units in the keys (docs/programs/scene-info.md). */
+void pm_lights_describe_text(const pm_scene_t *s, FILE *out);
+json_t *pm_lights_describe_json(const pm_scene_t *s);
 
 /* The lights that take LIGHT_SAMPLES direct-light samples a shading point (area lights, the sun,
  * the sky: scene-info's sampled_lights), and whether a ray can hit one (some triangle emits). */

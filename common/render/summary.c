@@ -225,26 +225,7 @@ static void print_text(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, double
     /* the caustic branch of pipelines/render runs only where this says yes */
     fprintf(out, "specular: %s\n", s->any_specular ? "yes (mirror or glass: caustic paths)" : "no");
     print_textures(out, s);
-    fprintf(out, "point lights: %zu\n", s->nlights);
-    for (size_t i = 0; i < s->nlights; i++) {
-        const pm_point_light_t *l = &s->lights[i];
-        fprintf(out, "  light %zu at %.6g %.6g %.6g intensity %.6g %.6g %.6g W/sr", i, l->position[0], l->position[1],
-                l->position[2], l->intensity[0], l->intensity[1], l->intensity[2]);
-        if (pm_point_light_is_spot(l))
-            fprintf(out, " spot toward %.6g %.6g %.6g cone %.6g deg falloff %.6g", l->axis[0], l->axis[1], l->axis[2],
-                    acos(fmax(-1.0, fmin(1.0, (double)l->cos_cone))) * 180.0 / M_PI, l->falloff);
-        fprintf(out, "\n");
-    }
-    if (s->has_sun)
-        fprintf(out, "sun: toward %.6g %.6g %.6g radiance %.6g %.6g %.6g W/(m^2 sr) solid angle %.6g sr\n",
-                s->sun.direction[0], s->sun.direction[1], s->sun.direction[2], s->sun.radiance[0], s->sun.radiance[1],
-                s->sun.radiance[2], s->sun.solid_angle);
-    if (s->has_sky && s->envmap)
-        fprintf(out, "sky: map %" PRIu32 "x%" PRIu32 " times %.6g %.6g %.6g, mean radiance %.6g %.6g %.6g W/(m^2 sr)\n",
-                s->envmap->w, s->envmap->h, s->sky[0], s->sky[1], s->sky[2], s->envmap->integral[0] / (4.0 * M_PI),
-                s->envmap->integral[1] / (4.0 * M_PI), s->envmap->integral[2] / (4.0 * M_PI));
-    else if (s->has_sky)
-        fprintf(out, "sky: radiance %.6g %.6g %.6g W/(m^2 sr)\n", s->sky[0], s->sky[1], s->sky[2]);
+    pm_lights_describe_text(s, out);
     uint32_t ft;
     size_t nf = pm_scene_flipped_emitters(s, &ft);
     fprintf(out, "emissive triangles: %zu", s->nemissive);
@@ -376,31 +357,7 @@ pm_result_t pm_summary_json(const pm_scene_t *s, const pm_rt_t *rt, const pm_sum
                         json_pack("{s:b, s:I, s:b}", "in_use", s->normals != NULL, "vertices",
                                   (json_int_t)normal_vertices(s), "ignored", s->normals_ignored));
     json_object_set_new(j, "point_lights", json_integer((json_int_t)s->nlights));
-    json_t *lights = json_array();
-    for (size_t i = 0; i < s->nlights; i++) {
-        const pm_point_light_t *l = &s->lights[i];
-        json_t *lj = json_pack("{s:s, s:o, s:o}", "kind", pm_point_light_is_spot(l) ? "spot" : "point", "position_m",
-                               floats_json(l->position, 3), "intensity_w_sr", floats_json(l->intensity, 3));
-        if (pm_point_light_is_spot(l)) {
-            json_object_set_new(lj, "direction", floats_json(l->axis, 3));
-            json_object_set_new(lj, "cone_deg",
-                                json_real(acos(fmax(-1.0, fmin(1.0, (double)l->cos_cone))) * 180.0 / M_PI));
-            json_object_set_new(lj, "falloff", json_real(l->falloff));
-        }
-        json_array_append_new(lights, lj);
-    }
-    if (s->has_sun)
-        json_array_append_new(lights, json_pack("{s:s, s:o, s:o, s:f}", "kind", "sun", "direction",
-                                                floats_json(s->sun.direction, 3), "radiance_w_m2_sr",
-                                                floats_json(s->sun.radiance, 3), "solid_angle_sr", s->sun.solid_angle));
-    if (s->has_sky) {
-        json_t *sj = json_pack("{s:s, s:o}", "kind", "sky", "radiance_w_m2_sr", floats_json(s->sky, 3));
-        if (s->envmap) /* radiance is then the map's scale */
-            json_object_set_new(sj, "map_pixels",
-                                json_pack("[I, I]", (json_int_t)s->envmap->w, (json_int_t)s->envmap->h));
-        json_array_append_new(lights, sj);
-    }
-    json_object_set_new(j, "lights", lights);
+    json_object_set_new(j, "lights", pm_lights_describe_json(s));
     {
         uint32_t ft;
         json_object_set_new(j, "flipped_emitters", json_integer((json_int_t)pm_scene_flipped_emitters(s, &ft)));

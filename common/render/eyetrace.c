@@ -76,7 +76,8 @@ struct pm_eye {
     pm_eye_info_t info;
     const pm_scene_t *s;
     const pm_rt_t *rt;
-    pm_shade_geom_t geom; /* front normals (the emitting side) and area lights */
+    pm_shade_geom_t geom; /* front normals (the emitting side) */
+    pm_lights_t lights;   /* render/light.h: direct light and the emitters secondary rays find */
     float *fold;          /* per material: kd/pi when Lambertian, 1 1 1 when glossy (the weight contract) */
     /* Glossy materials with a texture (pm_scene_glossy_textured): a hit leaves two records, its
      * diffuse part folded into the weight (material `folded`, kd 1) and its lobe alone (material
@@ -331,10 +332,11 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
     for (int k = 0; k < 3; k++)
         o[k] = p[k] + c->eps * gn[k];
 
-    /* Emission seen directly: emitters radiate from their front side only. */
-    if ((side > 0.0f || s->two_sided_lights) && pm_material_is_emissive(m))
+    /* Emission seen directly: emitters radiate from their front side only (both when two-sided). */
+    float le[3], cos_emit;
+    if (pm_lights_le_hit(&c->lights, tri, pm_dot3(ng, wo), le, &cos_emit))
         for (int k = 0; k < 3; k++)
-            direct[3 * x + k] += (double)(m->ke[k] * inv_p * tp[k]);
+            direct[3 * x + k] += (double)(le[k] * inv_p * tp[k]);
 
     int glossy = pm_material_is_glossy(m);
     int reflects = m->kd[0] > 0.0f || m->kd[1] > 0.0f || m->kd[2] > 0.0f || glossy;
@@ -351,78 +353,38 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
         sc->n_caustic += (uint64_t)put;
     }
 
-    /* Point lights and spots: intensity I s (W/sr) at distance r gives irradiance I s cos / r^2. */
-    pm_light_sample_t ls;
-    for (size_t l = 0; l < s->nlights; l++) {
-        const pm_point_light_t *L = &s->lights[l];
-        if (!pm_point_light_toward(L, p, n, &ls) || (shaded && !(pm_dot3(gn, ls.wi) > 0.0f)))
-            continue; /* behind the shading or the geometric surface */
-        float f[3], il[3] = {pm_point_light_intensity(L, &ls, 0), pm_point_light_intensity(L, &ls, 1),
-                             pm_point_light_intensity(L, &ls, 2)};
-        if (!(il[0] > 0.0f || il[1] > 0.0f || il[2] > 0.0f))
-            continue; /* outside a spot's cone */
-        pm_brdf(m, n, ls.wi, wo, f);
-        size_t j = sc->shadow.n;
-        for (int k = 0; k < 3; k++)
-            sc->sh_c[3 * j + k] = f[k] * il[k] * ls.cosx / ls.r2 * inv_p * tp[k];
-        sc->sh_px[j] = x;
-        pm_rays_push(&sc->shadow, o, ls.wi, 0.0f, ls.r - c->eps);
-    }
-    /* Area lights: points uniform over the total emissive area A, pdf 1/A per m^2;
-     * L = f Ke cos_x cos_y / r^2 * A, averaged over the samples. */
-    for (unsigned q = 0; q < c->light_samples && s->nemissive; q++) {
-        if (!pm_area_light_sample(s, &c->geom, light_rng, p, n, &ls) || (shaded && !(pm_dot3(gn, ls.wi) > 0.0f)))
-            continue;
-        const pm_material_t *lm = &s->materials[s->tri_material[ls.tri]];
-        float f[3], g = ls.cosx * ls.cosy / ls.r2 * (float)c->geom.area / (float)c->light_samples * inv_p;
-        /* MIS of area lights (pm_power_heuristic, render/shade.h): a and b are sample counts
-         * times solid-angle pdfs at one direction. In gather mode the light samples and the
-         * secondary rays both find area lights. Any weights that sum to one at every direction
-         * keep the estimate unbiased; the counts only tune the variance. The secondary rays
-         * count as spp / PER_CELL, their stratum cells (the four rays of a cell land close
-         * together), not as spp: counting every ray hands the weight to the rays where a small
-         * light is far more often found by the light samples, and counting none leaves a large
-         * emitter to light samples alone, whose variance is unbounded next to it (the 1/r^2 of
-         * a sample landing beside the receiver). The measurements behind this choice are in
-         * docs/programs/trace-gather-points.md. */
-        if (c->mode == PM_EYE_GATHER) /* shared with the secondary rays that find the light (MIS) */
-            g *= pm_power_heuristic((float)c->light_samples * ls.r2 / (ls.cosy * (float)c->geom.area),
-                                    glossy ? (float)(c->spp / PER_CELL) * pm_bsdf_pdf(m, n, ls.wi, wo)
-                                           : (float)(c->spp / PER_CELL) * ls.cosx * (1.0f / PM_PI));
-        pm_brdf(m, n, ls.wi, wo, f);
-        size_t j = sc->shadow.n;
-        for (int k = 0; k < 3; k++)
-            sc->sh_c[3 * j + k] = f[k] * lm->ke[k] * g * tp[k];
-        sc->sh_px[j] = x;
-        /* Stop short of the light's own surface, by the offset and a relative margin. */
-        pm_rays_push(&sc->shadow, o, ls.wi, 0.0f, ls.r * (1.0f - 1e-4f) - 2.0f * c->eps);
-    }
-    /* The sun (directions uniform in its cone, pdf 1 / omega) and the sky (cosine-weighted,
-     * pdf cos / pi), light_samples each: L f cos / pdf, averaged. Secondary rays that escape
-     * add nothing, so these carry weight 1 (no MIS). */
-    for (int e = 0; e < 2; e++) {
-        if (!(e == 0 ? s->has_sun : s->has_sky))
-            continue;
-        for (unsigned q = 0; q < c->light_samples; q++) {
-            float wi[3], u1 = pm_rng_float(light_rng), u2 = pm_rng_float(light_rng);
-            if (e == 0)
-                pm_sun_sample(&s->sun, u1, u2, wi);
-            else
-                pm_sky_sample(s, n, u1, u2, wi);
-            float cosi = pm_dot3(n, wi), pl = e == 0 ? pm_sun_pdf(&s->sun, wi) : pm_sky_pdf(s, n, wi), f[3], le[3];
-            if (!(cosi > 0.0f && pl > 0.0f) || (shaded && !(pm_dot3(gn, wi) > 0.0f)))
-                continue;
-            if (e == 0)
-                memcpy(le, s->sun.radiance, sizeof le);
-            else
-                pm_sky_radiance(s, wi, le);
-            pm_brdf(m, n, wi, wo, f);
-            float g = cosi / pl / (float)c->light_samples * inv_p;
+    /* Direct light (render/light.h): each delta light once, every other light light_samples
+     * times, f Li cos / pdf averaged over its samples. */
+    const pm_lights_t *lights = &c->lights;
+    for (size_t l = 0; l < lights->ndirect; l++) {
+        unsigned nsamples = l < lights->ndelta ? 1 : c->light_samples;
+        for (unsigned q = 0; q < nsamples; q++) {
+            pm_light_li_t li;
+            if (!pm_lights_sample_li(lights, l, light_rng, p, n, &li) || (shaded && !(pm_dot3(gn, li.wi) > 0.0f)))
+                continue; /* behind the shading or the geometric surface */
+            float f[3], g = li.cosx / li.pdf / (float)nsamples * inv_p;
+            /* MIS (pm_power_heuristic, render/shade.h) of the lights that secondary rays can hit
+             * (emitters; those that escape add nothing, so the sun and the sky keep weight 1): a
+             * and b are sample counts times solid-angle pdfs at one direction. In gather mode the
+             * light samples and the secondary rays both find area lights. Any weights that sum to
+             * one at every direction keep the estimate unbiased; the counts only tune the
+             * variance. The secondary rays count as spp / PER_CELL, their stratum cells (the four
+             * rays of a cell land close together), not as spp: counting every ray hands the
+             * weight to the rays where a small light is far more often found by the light
+             * samples, and counting none leaves a large emitter to light samples alone, whose
+             * variance is unbounded next to it (the 1/r^2 of a sample landing beside the
+             * receiver). The measurements behind this choice are in
+             * docs/programs/trace-gather-points.md. */
+            if (c->mode == PM_EYE_GATHER && !li.delta && !li.infinite)
+                g *= pm_power_heuristic((float)nsamples * li.pdf,
+                                        glossy ? (float)(c->spp / PER_CELL) * pm_bsdf_pdf(m, n, li.wi, wo)
+                                               : (float)(c->spp / PER_CELL) * li.cosx * (1.0f / PM_PI));
+            pm_brdf(m, n, li.wi, wo, f);
             size_t j = sc->shadow.n;
             for (int k = 0; k < 3; k++)
-                sc->sh_c[3 * j + k] = f[k] * le[k] * g * tp[k];
+                sc->sh_c[3 * j + k] = f[k] * li.Li[k] * g * tp[k];
             sc->sh_px[j] = x;
-            pm_rays_push(&sc->shadow, o, wi, 0.0f, INFINITY);
+            pm_rays_push(&sc->shadow, o, li.wi, 0.0f, pm_light_shadow_tmax(&li, c->eps));
         }
     }
 
@@ -438,7 +400,7 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
         return 1;
     }
 
-    if (c->direct_only && !s->nemissive)
+    if (c->direct_only && !pm_lights_has_emitters(&c->lights))
         return 1; /* no emitter for a secondary ray to find: no secondary rays */
     /* Secondary rays: cosine-weighted (pdf cos/pi), so f cos / pdf = pi f, over N. */
     float tb[3], bb[3];
@@ -522,8 +484,8 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
 {
     const pm_scene_t *s = c->s;
     size_t np = (size_t)c->w * c->primary;
-    size_t nshadow = np * (s->nlights + (s->nemissive ? c->light_samples : 0) +
-                           (size_t)(s->has_sun + s->has_sky) * c->light_samples);
+    const pm_lights_t *lights = &c->lights;
+    size_t nshadow = np * (lights->ndelta + (lights->ndirect - lights->ndelta) * c->light_samples);
     size_t nsec = c->mode == PM_EYE_GATHER ? np * c->spp : 0;
     pm_result_t r = scratch_reserve(sc, y, np, nshadow, nsec, c->mode == PM_EYE_GATHER ? c->spp : 0);
     if (r != PM_OK)
@@ -607,7 +569,7 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
              * are direct light, times the chain's throughput. */
             float d[3] = {sc->prim.dx[i], sc->prim.dy[i], sc->prim.dz[i]}, le[3];
             const float *thr = c->specular ? sc->thr + 3 * i : NULL;
-            pm_env_radiance(s, d, le);
+            pm_lights_le_escape(&c->lights, d, le);
             for (int k = 0; k < 3; k++)
                 direct[3 * x + k] += (double)(le[k] * (thr ? thr[k] : 1.0f) / (float)c->primary);
             continue;
@@ -626,7 +588,7 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
                 direct[3 * sc->sh_px[j] + k] += (double)sc->sh_c[3 * j + k];
 
     /* The secondary rays' only part in the direct light is the emitters they find. */
-    if (c->mode != PM_EYE_GATHER || (c->direct_only && !s->nemissive))
+    if (c->mode != PM_EYE_GATHER || (c->direct_only && !pm_lights_has_emitters(&c->lights)))
         return PM_OK;
     /* Secondary rays: consecutive rays share a cell or a pixel, so packets stay coherent. */
     double t0 = pm_time_wall();
@@ -699,10 +661,10 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
         const float *rw = sc->sec_w + 3 * j;
         /* An emitter's front seen by a secondary ray: direct light of the primary hit, weighted
          * against the light samples that could have found the same point (MIS, power heuristic). */
-        if ((side > 0.0f || s->two_sided_lights) && pm_material_is_emissive(&s->materials[mi])) {
-            const float *ke = s->materials[mi].ke, cosy = fabsf(pm_dot3(ng, wo));
+        float ke[3], cosy;
+        if (pm_lights_le_hit(&c->lights, tri, pm_dot3(ng, wo), ke, &cosy)) {
             float wb = pm_power_heuristic((float)(c->spp / PER_CELL) * sc->sec_cos[j] * (1.0f / PM_PI),
-                                          (float)c->light_samples * t * t / (cosy * (float)c->geom.area));
+                                          (float)c->light_samples * pm_lights_pdf_li_hit(&c->lights, t, cosy));
             for (int k = 0; k < 3; k++)
                 direct[3 * sc->sec_px[j] + (uint32_t)k] += (double)(rw[k] * ke[k] * wb);
         }
@@ -849,6 +811,8 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
         r = split_table(c);
     if (r == PM_OK)
         r = pm_shade_geom_init(s, &c->geom);
+    if (r == PM_OK)
+        r = pm_lights_init(s, &c->lights);
     if (r != PM_OK) {
         pm_eye_destroy(c);
         return r;
@@ -877,6 +841,7 @@ void pm_eye_destroy(pm_eye_t *e)
     if (!e)
         return;
     pm_shade_geom_free(&e->geom);
+    pm_lights_free(&e->lights);
     free(e->fold);
     free(e->lobe);
     free(e->table);

@@ -2,8 +2,9 @@
  *
  * Reads a scene and its Embree scene; writes an OpenEXR image of the mean radiance and, when
  * asked, a radiance buffer (formats/formats.h) with each pixel's variance, which is also what
- * a later run resumes from. Every reflection, pdf and light sample is render/transport.h's, the
- * one the photon tracers use, so the reference and the estimate it judges share one physics. */
+ * a later run resumes from. Every reflection and pdf is render/transport.h's and every light
+ * sample render/light.h's, the ones the photon tracers use, so the reference and the estimate it judges share one
+ * physics. */
 #include "render/pathtrace.h"
 
 #include <float.h>
@@ -52,6 +53,11 @@ pm_result_t pm_pathtracer_init(pm_pathtracer_t *pt, const pm_scene_t *s, const p
     pm_result_t r = pm_shade_geom_init(s, &pt->geom);
     if (r != PM_OK)
         return r;
+    r = pm_lights_init(s, &pt->lights);
+    if (r != PM_OK) {
+        pm_shade_geom_free(&pt->geom);
+        return r;
+    }
     pt->mean = calloc(np * 3, sizeof(double));
     pt->m2 = calloc(np * 3, sizeof(double));
     pt->count = aligned_alloc(64, (size_t)pt->set.threads * sizeof *pt->count);
@@ -69,6 +75,7 @@ void pm_pathtracer_free(pm_pathtracer_t *pt)
     free(pt->m2);
     free(pt->count);
     pm_shade_geom_free(&pt->geom);
+    pm_lights_free(&pt->lights);
     pt->mean = pt->m2 = NULL, pt->count = NULL;
 }
 
@@ -77,6 +84,7 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
 {
     const pm_scene_t *s = pt->s;
     const pm_shade_geom_t *g = &pt->geom;
+    const pm_lights_t *lights = &pt->lights;
     const float eps = pt->rt->epsilon;
     uint64_t pixel = (uint64_t)(y * pt->set.width + x) << 32;
     pm_rng_t rng;
@@ -107,18 +115,26 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
         cnt->rays++;
         uint32_t tri = pm_rt_intersect1(pt->rt, ctx, o, d, 0.0f, INFINITY, &t, NULL);
         if (tri == PM_RAY_MISS) {
-            /* Escaped: the sky and the sun. Seen by the camera or through mirrors and glass
+            /* Escaped: the lights at infinity. Seen by the camera or through mirrors and glass
              * they are taken whole; found by a BSDF sample, each shares with its own light
              * sample of the vertex before (power heuristic). */
-            if ((s->has_sky || s->has_sun) && wanted(pt, nd, spec)) {
+            if (wanted(pt, nd, spec)) {
                 int mis = depth > 0 && !delta_prev;
-                float wsky = mis ? pm_power_heuristic(bsdf_pdf_prev, pm_sky_pdf(s, n_prev, d)) : 1.0f;
-                float wsun = mis && s->has_sun ? pm_power_heuristic(bsdf_pdf_prev, pm_sun_pdf(&s->sun, d)) : 1.0f;
-                int in_sun = s->has_sun && pm_dot3(s->sun.direction, d) >= s->sun.cos_max;
-                float ls[3];
-                pm_sky_radiance(s, d, ls);
-                for (int q = 0; q < 3; q++)
-                    L[q] += beta[q] * ((double)ls[q] * wsky + (in_sun ? (double)s->sun.radiance[q] * wsun : 0.0));
+                double le_sum[3] = {0.0, 0.0, 0.0};
+                int found = 0;
+                for (size_t i = lights->ndelta; i < lights->ndirect; i++) {
+                    if (!lights->direct[i].infinite)
+                        continue;
+                    found = 1;
+                    float le[3],
+                        w = mis ? pm_power_heuristic(bsdf_pdf_prev, pm_lights_pdf_li_escape(lights, i, n_prev, d))
+                                : 1.0f;
+                    pm_lights_le_escape_one(lights, i, d, le);
+                    for (int q = 0; q < 3; q++)
+                        le_sum[q] += (double)le[q] * w;
+                }
+                for (int q = 0; q < 3 && found; q++)
+                    L[q] += beta[q] * le_sum[q];
             }
             break;
         }
@@ -130,16 +146,16 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
         const pm_material_t *m = pm_scene_material_at(s, tri, p, &textured);
         int specular = pm_material_is_specular(m);
 
-        /* Emission, front face only (both with two_sided_lights). Seen by the camera, or through mirrors and glass, it
+        /* Emission, front face only (both when two-sided). Seen by the camera, or through mirrors and glass, it
          * is taken whole; found by a BSDF sample it shares with the light sample of the vertex before (power
          * heuristic). */
-        float cos_emit = s->two_sided_lights ? fabsf(cos_front) : cos_front; /* the emitting face's cosine */
-        if (cos_emit > 0.0f && pm_material_is_emissive(m) && wanted(pt, nd, spec)) {
+        float le[3], cos_emit;
+        if (pm_lights_le_hit(lights, tri, cos_front, le, &cos_emit) && cos_emit > 0.0f && wanted(pt, nd, spec)) {
             float w = 1.0f;
             if (depth > 0 && !delta_prev)
-                w = pm_power_heuristic(bsdf_pdf_prev, pm_area_light_pdf(g, t * t, cos_emit));
+                w = pm_power_heuristic(bsdf_pdf_prev, pm_lights_pdf_li_hit(lights, t, cos_emit));
             for (int q = 0; q < 3; q++)
-                L[q] += beta[q] * m->ke[q] * w;
+                L[q] += beta[q] * le[q] * w;
         }
         /* What lies beyond is of a component not asked for: not traced. Direct light ends at
          * the first non-specular vertex's light (nd 1, no mirror or glass after it); a caustic
@@ -190,61 +206,23 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
             int shaded = transmits ? (memcpy(sn, n, sizeof sn), 0) : pm_scene_shading_normal(s, tri, p, n, sn);
             const float *bn = transmits ? ng : sn;
 
-            /* Point lights and spots: I s cos / r^2, each one every vertex. */
-            pm_light_sample_t ls;
-            for (size_t l = 0; l < s->nlights && wanted(pt, nd + 1, 0); l++) {
-                const pm_point_light_t *pl = &s->lights[l];
-                if (!pm_point_light_toward(pl, p, sn, &ls) || (shaded && !(pm_dot3(n, ls.wi) > 0.0f)))
-                    continue;
+            /* Direct light, one sample of each light of the direct list (render/light.h): f Li
+             * cos / pdf, a light that a BSDF sample can also find weighted against it (power
+             * heuristic); a delta light alone. */
+            for (size_t i = 0; i < lights->ndirect && wanted(pt, nd + 1, 0); i++) {
+                pm_light_li_t li;
+                if (!pm_lights_sample_li(lights, i, &rng, p, sn, &li) || (shaded && !(pm_dot3(n, li.wi) > 0.0f)))
+                    continue; /* behind the shading or the geometric surface */
                 cnt->shadow_rays++;
-                if (pm_rt_occluded1(pt->rt, ctx, org, ls.wi, 0.0f, ls.r - eps))
+                if (pm_rt_occluded1(pt->rt, ctx, org, li.wi, 0.0f, pm_light_shadow_tmax(&li, eps)))
                     continue;
                 float f[3];
-                pm_brdf(m, bn, ls.wi, wo, f);
+                pm_brdf(m, bn, li.wi, wo, f);
+                double gw = (double)li.cosx / li.pdf;
+                if (!li.delta)
+                    gw *= pm_power_heuristic(li.pdf, pm_bsdf_pdf(m, bn, li.wi, wo));
                 for (int q = 0; q < 3; q++)
-                    L[q] += beta[q] * (double)f[q] * pm_point_light_intensity(pl, &ls, q) * ls.cosx / ls.r2;
-            }
-            /* One point on the area lights, pdf 1/A per m^2, weighted against BSDF sampling. */
-            if (g->nemissive && pm_area_light_sample(s, g, &rng, p, sn, &ls) && wanted(pt, nd + 1, 0) &&
-                (!shaded || pm_dot3(n, ls.wi) > 0.0f)) {
-                cnt->shadow_rays++;
-                /* Stop short of the light's own surface, by the offset and a relative margin. */
-                if (!pm_rt_occluded1(pt->rt, ctx, org, ls.wi, 0.0f, ls.r * (1.0f - 1e-4f) - 2.0f * eps)) {
-                    const pm_material_t *lm = &s->materials[s->tri_material[ls.tri]];
-                    float pl = pm_area_light_pdf(g, ls.r2, ls.cosy), pb = pm_bsdf_pdf(m, bn, ls.wi, wo), f[3];
-                    pm_brdf(m, bn, ls.wi, wo, f);
-                    double gw = (double)ls.cosx / pl * pm_power_heuristic(pl, pb);
-                    for (int q = 0; q < 3; q++)
-                        L[q] += beta[q] * (double)f[q] * lm->ke[q] * gw;
-                }
-            }
-
-            /* The sun, one direction in its cone (pdf 1 / omega), and the sky, one cosine-weighted
-             * direction (pdf cos / pi), each weighted against BSDF sampling; shadow rays to
-             * infinity. Drawn only in a scene that has them. */
-            for (int e = 0; e < 2 && wanted(pt, nd + 1, 0); e++) {
-                if (!(e == 0 ? s->has_sun : s->has_sky))
-                    continue;
-                float wi[3], u1 = pm_rng_float(&rng), u2 = pm_rng_float(&rng);
-                if (e == 0)
-                    pm_sun_sample(&s->sun, u1, u2, wi);
-                else
-                    pm_sky_sample(s, sn, u1, u2, wi);
-                float cosi = pm_dot3(sn, wi), pl = e == 0 ? pm_sun_pdf(&s->sun, wi) : pm_sky_pdf(s, sn, wi);
-                if (!(cosi > 0.0f && pl > 0.0f) || (shaded && !(pm_dot3(n, wi) > 0.0f)))
-                    continue;
-                cnt->shadow_rays++;
-                if (pm_rt_occluded1(pt->rt, ctx, org, wi, 0.0f, INFINITY))
-                    continue;
-                float f[3], pb = pm_bsdf_pdf(m, bn, wi, wo), le[3];
-                if (e == 0)
-                    memcpy(le, s->sun.radiance, sizeof le);
-                else
-                    pm_sky_radiance(s, wi, le);
-                pm_brdf(m, bn, wi, wo, f);
-                double gw = (double)cosi / pl * pm_power_heuristic(pl, pb);
-                for (int q = 0; q < 3; q++)
-                    L[q] += beta[q] * (double)f[q] * le[q] * gw;
+                    L[q] += beta[q] * (double)f[q] * li.Li[q] * gw;
             }
 
             /* Continue along a BSDF sample: the lobe, then two numbers for the direction. */

@@ -1,6 +1,6 @@
 /* pathtrace.h: the reference path tracer, the engine of trace-reference: ground truth for the
- * photon pipeline over the same scene model (render/shade.h camera, render/transport.h BSDF
- * and lights: point lights in W/sr, Ke in W/(m^2 sr), front-face emitters), so that
+ * photon pipeline over the same scene model (render/shade.h camera, render/transport.h BSDF,
+ * render/light.h lights: point lights in W/sr, Ke in W/(m^2 sr), front-face emitters), so that
  * measure-error can say how wrong a photon-mapped image is.
  *
  * Estimator: at every non-specular vertex, next-event estimation toward each point light
@@ -77,6 +77,7 @@ typedef struct {
     const pm_rt_t *rt;
     pm_pathtrace_settings_t set;
     pm_shade_geom_t geom;
+    pm_lights_t lights;
     pm_camera_rays_t cam;
     double *mean, *m2;
     uint64_t n;                   /* samples per pixel merged so far */

@@ -20,18 +20,12 @@
 #include "math/rng.h"
 #include "math/sampling.h"
 #include "math/vec.h"
+#include "render/light.h"
 #include "render/transport.h"
 
 /* Photons per chunk: large enough that the per-chunk bookkeeping vanishes, small enough
  * that two threads stay balanced on 100,000 photons. */
 enum { CHUNK = 2048 };
-
-typedef struct {
-    int kind;        /* 0 point light, 1 emissive triangle, 2 the sun, 3 the sky */
-    uint32_t index;  /* into s->lights or the triangle index */
-    double power[3]; /* W */
-    double scalar;   /* power[0] + power[1] + power[2] */
-} light_t;
 
 /* A thread's storage: big blocks (huge pages, see memory.h) that chunks append to, so
  * that storing a photon neither reallocates nor copies, and first-touch page faults come
@@ -72,67 +66,9 @@ typedef struct {
     const pm_scene_t *s;
     const pm_rt_t *rt;
     const pm_trace_options_t *o;
-    light_t *lights;
-    double *cdf; /* cdf[i]: probability of lights 0..i; the last is 1 */
-    size_t nlights;
-    double total; /* W, sum of the lights' scalar powers */
+    pm_lights_t lights; /* chosen in proportion to power (render/light.h) */
     uint32_t rs, off_pos, off_pow, off_nor, off_dir, off_depth;
 } tracer_t;
-
-static int build_lights(tracer_t *t, const pm_scene_t *s)
-{
-    size_t n = s->nlights + s->nemissive + 2;
-    t->lights = calloc(n ? n : 1, sizeof *t->lights);
-    t->cdf = calloc(n ? n : 1, sizeof *t->cdf);
-    if (!t->lights || !t->cdf)
-        return -1;
-    size_t k = 0;
-    for (size_t i = 0; i < s->nlights; i++) {
-        light_t *l = &t->lights[k];
-        l->kind = 0;
-        l->index = (uint32_t)i;
-        for (int c = 0; c < 3; c++)
-            l->power[c] = pm_point_light_power(&s->lights[i], c);
-        l->scalar = l->power[0] + l->power[1] + l->power[2];
-        k += l->scalar > 0.0;
-    }
-    for (size_t i = 0; i < s->nemissive; i++) {
-        light_t *l = &t->lights[k];
-        uint32_t tri = s->emissive[i];
-        const pm_material_t *m = &s->materials[s->tri_material[tri]];
-        double a = pm_scene_triangle_area(s, tri);
-        l->kind = 1;
-        l->index = tri;
-        for (int c = 0; c < 3; c++)
-            l->power[c] = (s->two_sided_lights ? 2.0 : 1.0) * M_PI * m->ke[c] * a;
-        l->scalar = l->power[0] + l->power[1] + l->power[2];
-        k += l->scalar > 0.0;
-    }
-    /* The sun (kind 2) and the sky (kind 3), last: a scene without them keeps its table. */
-    for (int e = 0; e < 2; e++) {
-        if (!(e == 0 ? s->has_sun : s->has_sky))
-            continue;
-        light_t *l = &t->lights[k];
-        l->kind = 2 + e;
-        l->index = 0;
-        for (int c = 0; c < 3; c++)
-            l->power[c] = e == 0 ? pm_sun_power(s, c) : pm_sky_power(s, c);
-        l->scalar = l->power[0] + l->power[1] + l->power[2];
-        k += l->scalar > 0.0;
-    }
-    t->nlights = k;
-    t->total = 0.0;
-    for (size_t i = 0; i < k; i++)
-        t->total += t->lights[i].scalar;
-    double acc = 0.0;
-    for (size_t i = 0; i < k; i++) {
-        acc += t->lights[i].scalar;
-        t->cdf[i] = acc / t->total;
-    }
-    if (k)
-        t->cdf[k - 1] = 1.0;
-    return 0;
-}
 
 /* Room for one more record of rs bytes at the end of run c. */
 static int run_reserve(run_t *c, size_t rs)
@@ -282,41 +218,17 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
     pm_rng_t rng;
     pm_rng_init(&rng, t->o->seed, index);
 
-    /* Emission: a light by power, then a point and a direction on it. */
-    const light_t *l = &t->lights[pm_cdf_pick(t->cdf, t->nlights, pm_rng_double(&rng))];
-    double power[3], flux[3] = {0.0, 0.0, 0.0};
+    /* Emission: a light by power, then a point and a direction on it (render/light.h). */
+    const pm_light_t *l = &t->lights.light[pm_lights_pick(&t->lights, pm_rng_double(&rng))];
+    double power[3], flux[3];
     float org[3], dir[3];
     float u1 = pm_rng_float(&rng), u2 = pm_rng_float(&rng), u3 = pm_rng_float(&rng), u4 = pm_rng_float(&rng);
-    if (l->kind == 0) {
-        const pm_point_light_t *pl = &s->lights[l->index];
-        memcpy(org, pl->position, sizeof org);
-        pm_point_light_emit(pl, u1, u2, dir);
-    } else if (l->kind >= 2) {
-        pm_env_emit(s, l->kind == 2, u1, u2, u3, u4, org, dir, flux); /* from the disc facing the sun or the sky */
-    } else {
-        const uint32_t *tri = &s->tris[3 * (size_t)l->index];
-        pm_vec3_t v0 = pm_v3_load(&s->verts[3 * (size_t)tri[0]]), v1 = pm_v3_load(&s->verts[3 * (size_t)tri[1]]),
-                  v2 = pm_v3_load(&s->verts[3 * (size_t)tri[2]]);
-        float b0, b1, p[3];
-        pm_sample_triangle(u1, u2, &b0, &b1);
-        pm_triangle_point(s, l->index, b0, b1, p);
-        /* Area lights emit from their front face: the right-hand-rule normal of (v0, v1, v2). */
-        pm_vec3_t n = pm_v3_normalize(pm_v3_cross(pm_v3_sub(v1, v0), pm_v3_sub(v2, v0))), tb, bb;
-        if (s->two_sided_lights) { /* either face, by half of u3; the other half stays uniform */
-            if (u3 < 0.5f)
-                n = pm_v3_scale(n, -1.0f), u3 = 2.0f * u3;
-            else
-                u3 = 2.0f * u3 - 1.0f;
-        }
-        pm_onb(n, &tb, &bb);
-        pm_v3_store(dir, pm_onb_to_world(pm_sample_cosine_hemisphere(u3, u4), tb, bb, n));
-        pm_v3_store(org, pm_v3_add(pm_v3_load(p), pm_v3_scale(n, eps)));
-    }
+    pm_light_sample_le(&t->lights, l, u1, u2, u3, u4, eps, org, dir, flux);
     /* Flux of one photon: the light's power over the probability of picking it and the
      * number of photons, so that summing all photons gives the lights' total power. */
-    double scale = t->total / (l->scalar * (double)t->o->photons);
+    double scale = t->lights.total / (l->weight * (double)t->o->photons);
     for (int k = 0; k < 3; k++) {
-        power[k] = (l->kind >= 2 ? flux[k] : l->power[k]) * scale; /* a map's photons differ by direction */
+        power[k] = flux[k] * scale; /* a map's photons differ by direction */
         c->power_emitted[k] += power[k];
     }
 
@@ -438,25 +350,24 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
     if (o->photons == 0)
         return pm_error_set(PM_ERR_USAGE, "--photons must be at least 1");
     tracer_t t = {.s = s, .rt = rt, .o = o};
-    if (build_lights(&t, s) != 0) {
-        free(t.lights);
-        free(t.cdf);
-        return pm_error_set(PM_ERR_NOMEM, "out of memory for the light table of scene '%s'", s->name);
-    }
-    pm_result_t res = PM_OK;
-    if (t.nlights == 0)
+    pm_result_t res = pm_lights_init(s, &t.lights);
+    if (res != PM_OK)
+        return res;
+    if (t.lights.n == 0)
         res = pm_error_set(PM_ERR_INPUT, "scene '%s' has no light with positive power: no photons to trace", s->name);
-    else if (!isfinite(t.total))
-        res = pm_error_set(PM_ERR_INPUT, "scene '%s': the lights' total power overflows (%g W)", s->name, t.total);
+    else if (!isfinite(t.lights.total))
+        res =
+            pm_error_set(PM_ERR_INPUT, "scene '%s': the lights' total power overflows (%g W)", s->name, t.lights.total);
     /* The largest and smallest channel a photon can start with must fit an f32. */
-    for (size_t i = 0; res == PM_OK && i < t.nlights; i++)
+    for (size_t i = 0; res == PM_OK && i < t.lights.n; i++)
         for (int k = 0; k < 3; k++) {
-            double p = t.lights[i].power[k] * t.total / (t.lights[i].scalar * (double)o->photons);
+            const pm_light_t *l = &t.lights.light[i];
+            double p = l->power[k] * t.lights.total / (l->weight * (double)o->photons);
             if (p > 1e37)
                 res = pm_error_set(PM_ERR_INPUT,
                                    "scene '%s': photons of %g W do not fit the f32 powers of the photons file; "
                                    "emit more photons or scale the lights (%g W in all)",
-                                   s->name, p, t.total);
+                                   s->name, p, t.lights.total);
         }
     uint64_t nchunks = (o->photons + CHUNK - 1) / CHUNK;
     chunk_t *chunks = res == PM_OK ? aligned_alloc(64, nchunks * sizeof *chunks) : NULL;
@@ -465,8 +376,7 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
     if (res == PM_OK && !chunks)
         res = pm_error_set(PM_ERR_NOMEM, "out of memory for %" PRIu64 " photon chunks", nchunks);
     if (res != PM_OK) {
-        free(t.lights);
-        free(t.cdf);
+        pm_lights_free(&t.lights);
         return res;
     }
     out->channels = pm_schema_required(&pm_photons_schema) | (o->direction ? 1u << PM_PHOTON_DIRECTION : 0u);
@@ -490,8 +400,7 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
         memset(arenas, 0, (size_t)nthreads * NOUT * sizeof *arenas);
     if (!arenas) {
         free(chunks);
-        free(t.lights);
-        free(t.cdf);
+        pm_lights_free(&t.lights);
         return pm_error_set(PM_ERR_NOMEM, "out of memory for %d photon arenas", nthreads);
     }
 #pragma omp parallel reduction(| : failed)
@@ -567,8 +476,7 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
         free(c->rays);
     }
     free(chunks);
-    free(t.lights);
-    free(t.cdf);
+    pm_lights_free(&t.lights);
     out->count = total;
     out->emitted = o->photons;
     if (failed) {

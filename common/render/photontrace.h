@@ -1,9 +1,8 @@
 /* photontrace.h: forward photon tracing (the paper, section 5.1), the engine of
  * trace-photons.
  *
- * Photon i is emitted from a light chosen in proportion to its power (point lights in all
- * directions, emissive triangles from a uniform point, cosine-weighted about the front
- * face), traced with single Embree rays (pm_rt_intersect1), and stored at every hit on a
+ * Photon i is emitted from a light chosen in proportion to its power (render/light.h,
+ * pm_light_sample_le), traced with single Embree rays (pm_rt_intersect1), and stored at every hit on a
  * surface where the gather estimates (physics/bsdf.h, pm_bsdf_stores_photons: a standard
  * material that reflects, a rough conductor, a plastic; first hits too, marked depth 0).
  * Delta-only surfaces (mirrors, glass, smooth conductors: pm_specular_sample) redirect a photon

@@ -1,5 +1,5 @@
 /* shade.c: camera rays through pixels and the header keys of image-shaped outputs (shade.h);
- * the BRDF and the lights are render/transport.c. */
+ * the BRDF is render/transport.c, the lights render/light.c. */
 #include "render/shade.h"
 
 #include <inttypes.h>

@@ -1,7 +1,7 @@
 /* shade.h: the eye side of the scene model that trace-gather-points and trace-reference share:
  * the pinhole camera and the keys an image-shaped output starts with. The physics (the BRDF,
- * per-triangle front normals, point and area lights, the MIS weight) is render/transport.h,
- * included here so that the eye tracers reach all of it through this header.
+ * per-triangle front normals, the MIS weight) is render/transport.h and the lights are
+ * render/light.h, both included here so that the eye tracers reach all of it through this header.
  *
  * Units: metres; radiance W/(m^2 sr). */
 #ifndef PM_SHADE_H
@@ -12,6 +12,7 @@
 
 #include "base/error.h"
 #include "formats/pmfile.h"
+#include "render/light.h"
 #include "render/scene.h"
 #include "render/transport.h"
 

@@ -13,15 +13,18 @@
 #include "base/timer.h"
 #include "formats/describe.h"
 #include "math/vec.h"
+#include "render/light.h"
 #include "render/shade.h"
 
 pm_scene_needs_t pm_scene_needs(const pm_scene_t *s)
 {
-    /* Light samples are drawn for area lights and for the sun and the sky alike. */
+    /* Light samples are drawn for every light that is not a delta (render/light.h). */
+    size_t total, sampled;
+    pm_lights_count(s, &total, &sampled);
     /* Material ids where the gather must tell materials apart: more than one with some glossy, or
      * a glossy textured one, whose queries name its lobe apart (render/eyetrace.c). */
     return (pm_scene_needs_t){s->any_glossy, s->any_glossy && (s->nmaterials > 1 || s->any_glossy_textured),
-                              s->nemissive > 0 || s->has_sun || s->has_sky};
+                              sampled > 0};
 }
 
 /* ------------------------------------------------------------------ textures and normals */
@@ -233,26 +236,7 @@ static void print_text(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, double
     /* the caustic branch of pipelines/render runs only where this says yes */
     fprintf(out, "specular: %s\n", s->any_specular ? "yes (mirror or glass: caustic paths)" : "no");
     print_textures(out, s);
-    fprintf(out, "point lights: %zu\n", s->nlights);
-    for (size_t i = 0; i < s->nlights; i++) {
-        const pm_point_light_t *l = &s->lights[i];
-        fprintf(out, "  light %zu at %.6g %.6g %.6g intensity %.6g %.6g %.6g W/sr", i, l->position[0], l->position[1],
-                l->position[2], l->intensity[0], l->intensity[1], l->intensity[2]);
-        if (pm_point_light_is_spot(l))
-            fprintf(out, " spot toward %.6g %.6g %.6g cone %.6g deg falloff %.6g", l->axis[0], l->axis[1], l->axis[2],
-                    acos(fmax(-1.0, fmin(1.0, (double)l->cos_cone))) * 180.0 / M_PI, l->falloff);
-        fprintf(out, "\n");
-    }
-    if (s->has_sun)
-        fprintf(out, "sun: toward %.6g %.6g %.6g radiance %.6g %.6g %.6g W/(m^2 sr) solid angle %.6g sr\n",
-                s->sun.direction[0], s->sun.direction[1], s->sun.direction[2], s->sun.radiance[0], s->sun.radiance[1],
-                s->sun.radiance[2], s->sun.solid_angle);
-    if (s->has_sky && s->envmap)
-        fprintf(out, "sky: map %" PRIu32 "x%" PRIu32 " times %.6g %.6g %.6g, mean radiance %.6g %.6g %.6g W/(m^2 sr)\n",
-                s->envmap->w, s->envmap->h, s->sky[0], s->sky[1], s->sky[2], s->envmap->integral[0] / (4.0 * M_PI),
-                s->envmap->integral[1] / (4.0 * M_PI), s->envmap->integral[2] / (4.0 * M_PI));
-    else if (s->has_sky)
-        fprintf(out, "sky: radiance %.6g %.6g %.6g W/(m^2 sr)\n", s->sky[0], s->sky[1], s->sky[2]);
+    pm_lights_describe_text(s, out);
     uint32_t ft;
     size_t nf = pm_scene_flipped_emitters(s, &ft);
     fprintf(out, "emissive triangles: %zu", s->nemissive);
@@ -261,6 +245,13 @@ static void print_text(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, double
     fprintf(out, "\n");
     if (s->two_sided_lights)
         fprintf(out, "two-sided area lights: yes\n");
+    {
+        /* Kind-free counts for drivers (render/light.h): whether the scene is lit at all, and
+         * whether light_samples matters. */
+        size_t total, sampled;
+        pm_lights_count(s, &total, &sampled);
+        fprintf(out, "lights: %zu in all, %zu sampled light_samples times per shading point\n", total, sampled);
+    }
     fprintf(out, "emitted power: %.6g %.6g %.6g W\n", p[0], p[1], p[2]);
     fprintf(out, "bounds: %.9g %.9g %.9g  %.9g %.9g %.9g m\n", s->bounds[0], s->bounds[1], s->bounds[2], s->bounds[3],
             s->bounds[4], s->bounds[5]);
@@ -389,36 +380,18 @@ pm_result_t pm_summary_json(const pm_scene_t *s, const pm_rt_t *rt, const pm_sum
                         json_pack("{s:b, s:I, s:b}", "in_use", s->normals != NULL, "vertices",
                                   (json_int_t)normal_vertices(s), "ignored", s->normals_ignored));
     json_object_set_new(j, "point_lights", json_integer((json_int_t)s->nlights));
-    json_t *lights = json_array();
-    for (size_t i = 0; i < s->nlights; i++) {
-        const pm_point_light_t *l = &s->lights[i];
-        json_t *lj = json_pack("{s:s, s:o, s:o}", "kind", pm_point_light_is_spot(l) ? "spot" : "point", "position_m",
-                               floats_json(l->position, 3), "intensity_w_sr", floats_json(l->intensity, 3));
-        if (pm_point_light_is_spot(l)) {
-            json_object_set_new(lj, "direction", floats_json(l->axis, 3));
-            json_object_set_new(lj, "cone_deg",
-                                json_real(acos(fmax(-1.0, fmin(1.0, (double)l->cos_cone))) * 180.0 / M_PI));
-            json_object_set_new(lj, "falloff", json_real(l->falloff));
-        }
-        json_array_append_new(lights, lj);
-    }
-    if (s->has_sun)
-        json_array_append_new(lights, json_pack("{s:s, s:o, s:o, s:f}", "kind", "sun", "direction",
-                                                floats_json(s->sun.direction, 3), "radiance_w_m2_sr",
-                                                floats_json(s->sun.radiance, 3), "solid_angle_sr", s->sun.solid_angle));
-    if (s->has_sky) {
-        json_t *sj = json_pack("{s:s, s:o}", "kind", "sky", "radiance_w_m2_sr", floats_json(s->sky, 3));
-        if (s->envmap) /* radiance is then the map's scale */
-            json_object_set_new(sj, "map_pixels",
-                                json_pack("[I, I]", (json_int_t)s->envmap->w, (json_int_t)s->envmap->h));
-        json_array_append_new(lights, sj);
-    }
-    json_object_set_new(j, "lights", lights);
+    json_object_set_new(j, "lights", pm_lights_describe_json(s));
     {
         uint32_t ft;
         json_object_set_new(j, "flipped_emitters", json_integer((json_int_t)pm_scene_flipped_emitters(s, &ft)));
     }
     json_object_set_new(j, "emissive_triangles", json_integer((json_int_t)s->nemissive));
+    {
+        size_t total, sampled;
+        pm_lights_count(s, &total, &sampled);
+        json_object_set_new(j, "lights_total", json_integer((json_int_t)total));
+        json_object_set_new(j, "sampled_lights", json_integer((json_int_t)sampled));
+    }
     if (s->two_sided_lights)
         json_object_set_new(j, "two_sided_lights", json_true());
     for (int k = 0; k < 3; k++)

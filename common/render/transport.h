@@ -4,10 +4,8 @@
  * only through these functions, so that an estimate and its ground truth cannot drift apart.
  *
  * The BSDF of every material kind is physics/bsdf.h's; this header keeps the names the tracers
- * call it by. Directions are unit vectors pointing away from the surface point; n is the unit normal on
- * the side that is lit. Lights: point lights of intensity I (W/sr) and emissive triangles of
- * radiance Ke (W/(m^2 sr)) that emit from their front face (right-hand rule), sampled uniformly
- * over their total area.
+ * call it by. Directions are unit vectors pointing away from the surface point; n is the unit
+ * normal on the side that is lit. The lights are render/light.h's.
  *
  * Units: metres; BSDF 1/sr; pdfs over solid angle 1/sr, over area 1/m^2. */
 #ifndef PM_TRANSPORT_H
@@ -165,116 +163,15 @@ static inline int pm_shading_leave(const float ng[3], const float ns[3], const f
 int pm_specular_sample(const pm_material_t *m, const float ng[3], const float wo[3], float u, int radiance,
                        float wi_out[3], float weight_out[3]);
 
-/* ---- lights ---- */
+/* ---- triangles ---- */
 
-/* Per-triangle unit front normals and the area lights of a scene. */
+/* Per-triangle unit front normals (the lights themselves are render/light.h's). */
 typedef struct {
     float *tri_n; /* ntris * 3: (v1 - v0) x (v2 - v0), normalized; the side that emits */
-    double *cdf;  /* nemissive: cumulative emissive area, ending at exactly 1 */
-    double area;  /* m^2, all emissive triangles */
-    size_t nemissive;
 } pm_shade_geom_t;
 
 pm_result_t pm_shade_geom_init(const pm_scene_t *s, pm_shade_geom_t *out);
 void pm_shade_geom_free(pm_shade_geom_t *g);
-/* Point of triangle t at barycentrics (b0, b1), b2 = 1 - b0 - b1. */
-void pm_triangle_point(const pm_scene_t *s, uint32_t t, float b0, float b1, float p_out[3]);
-
-/* A light as seen from a surface point: unit direction wi toward it, distance r (m), squared
- * distance r2 (m^2) and the cosine at the surface; for an area light also the triangle and the
- * cosine at the light (its front face toward the surface). */
-typedef struct {
-    float wi[3], r, r2, cosx, cosy;
-    uint32_t tri;
-} pm_light_sample_t;
-
-/* The spot factor s of point light l toward unit direction w (from the light outward):
- * ((cos - cos_cone) / (1 - cos_cone))^falloff inside the cone, 0 outside; exactly 1 for an
- * isotropic light, so that its products keep the bits they had. */
-static inline float pm_spot_factor(const pm_point_light_t *l, const float w[3])
-{
-    if (!pm_point_light_is_spot(l))
-        return 1.0f;
-    float c = pm_dot3(l->axis, w);
-    if (!(c > l->cos_cone))
-        return 0.0f;
-    float x = fminf(1.0f, (c - l->cos_cone) / (1.0f - l->cos_cone));
-    return l->falloff == 0.0f ? 1.0f : powf(x, l->falloff);
-}
-
-/* A photon direction of point light l from u1, u2 in [0, 1), distributed as its intensity:
- * uniform on the sphere for an isotropic light (pm_sample_sphere), for a spot cos(theta) to
- * the axis = cos_cone + (1 - cos_cone) u1^(1 / (falloff + 1)) and azimuth 2 pi u2. */
-void pm_point_light_emit(const pm_point_light_t *l, float u1, float u2, float dir_out[3]);
-
-/* The solid-angle pdf, 1/sr, of pm_point_light_emit at unit direction w: s(w) times
- * (falloff + 1) / (2 pi (1 - cos_cone)), 1 / (4 pi) for an isotropic light. */
-float pm_point_light_emit_pdf(const pm_point_light_t *l, const float w[3]);
-
-/* Point light l from p with normal n (geometry from p itself; only a shadow ray starts off the
- * surface); 0 when l is at p or behind the surface. */
-int pm_point_light_toward(const pm_point_light_t *l, const float p[3], const float n[3], pm_light_sample_t *out);
-/* Intensity of l toward the point its sample o was taken from, W/sr, channel k: I s. */
-static inline float pm_point_light_intensity(const pm_point_light_t *l, const pm_light_sample_t *o, int k)
-{
-    float w[3] = {-o->wi[0], -o->wi[1], -o->wi[2]};
-    return l->intensity[k] * pm_spot_factor(l, w);
-}
-/* One point on the area lights, uniform over their total area g->area (pdf 1/A per m^2), from
- * three numbers of rng: the triangle (a double), then two floats for the point. 0 when the point
- * is at p, behind the surface, or sees its back (unless s->two_sided_lights: cosy is then the
- * cosine at either face). The scene must have emissive triangles. */
-int pm_area_light_sample(const pm_scene_t *s, const pm_shade_geom_t *g, pm_rng_t *rng, const float p[3],
-                         const float n[3], pm_light_sample_t *out);
-/* The pdf of pm_area_light_sample over solid angle, 1/sr, at a light point r2 m^2 away whose
- * front face is at cosine cos_light to the direction: r2 / (cos_light A). */
-static inline float pm_area_light_pdf(const pm_shade_geom_t *g, float r2, float cos_light)
-{
-    return r2 / (cos_light * (float)g->area);
-}
-
-/* ---- the sun and the sky (lights at infinity) ---- */
-
-/* Radiance (W/(m^2 sr)) a ray that escapes along unit direction w brings back: the sky's, plus
- * the sun's when w lies within its cone; zero in a scene with neither. */
-void pm_env_radiance(const pm_scene_t *s, const float w[3], float L_out[3]);
-/* The sky's radiance alone along w (its map's pixel, or the constant); zero without a sky. */
-void pm_sky_radiance(const pm_scene_t *s, const float w[3], float L_out[3]);
-
-/* A direction in the sun's cone, uniform over its solid angle (pdf 1 / omega), from u1, u2 in
- * [0, 1): cos(theta) to the axis = 1 - u1 (1 - cos_max), azimuth 2 pi u2. */
-void pm_sun_sample(const pm_sun_t *sun, float u1, float u2, float wi_out[3]);
-/* The pdf of pm_sun_sample at unit direction w, 1/sr: 1 / omega inside the cone, 0 outside. */
-static inline float pm_sun_pdf(const pm_sun_t *sun, const float w[3])
-{
-    return pm_dot3(sun->direction, w) >= sun->cos_max ? 1.0f / sun->solid_angle : 0.0f;
-}
-
-/* A direction toward the sky for next-event estimation, from u1, u2 in [0, 1): a constant
- * sky's cosine-weighted about n (pdf cos / pi), a map's by its pixels' luminance
- * (pm_envmap_t; the normal plays no part). */
-void pm_sky_sample(const pm_scene_t *s, const float n[3], float u1, float u2, float wi_out[3]);
-/* The pdf of pm_sky_sample at unit direction w, 1/sr. */
-float pm_sky_pdf(const pm_scene_t *s, const float n[3], const float w[3]);
-
-/* A map's sampler and its pdf, 1/sr: a pixel with probability pix_p (row by row_cdf, column
- * by col_cdf), then (theta, phi) uniform within it: pdf pix_p w h / (2 pi^2 sin theta). 0 for
- * a black map. */
-void pm_envmap_sample(const pm_envmap_t *e, float u1, float u2, float wi_out[3]);
-float pm_envmap_pdf(const pm_envmap_t *e, const float w[3]);
-/* The map's pixel that direction w falls in (column, row). */
-void pm_envmap_pixel(const pm_envmap_t *e, const float w[3], uint32_t *x_out, uint32_t *y_out);
-
-/* A photon of the sun (sun 1) or of the sky (sun 0), from four uniforms in [0, 1): the
- * direction w it comes from, uniform in the sun's cone or over the sphere, then a point
- * uniform on the disc of radius R perpendicular to w, tangent to the scene's bounding sphere
- * (pm_scene_sphere) on w's side; the photon starts there and travels along -w. Every point of
- * the ball then receives radiance L from each direction of the light. A map's directions are
- * drawn by pm_envmap_sample instead. flux_out: the photon's flux were it the light's only one,
- * L(w) pi R^2 / pdf(w), W: L omega pi R^2 for the sun (omega its solid angle), L 4 pi pi R^2
- * for a constant sky, whose expectations are pm_sun_power and pm_sky_power. */
-void pm_env_emit(const pm_scene_t *s, int sun, float u1, float u2, float u3, float u4, float org_out[3],
-                 float dir_out[3], double flux_out[3]);
 
 /* Veach's power heuristic: the weight of strategy a against b, each a sample count times a
  * solid-angle pdf at one direction; 0 when neither could have produced it. */

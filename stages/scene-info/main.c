@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "base/stage.h"
+#include "render/light.h"
 #include "render/rt.h"
 #include "render/summary.h"
 
@@ -40,7 +41,9 @@ static pm_result_t run(pm_stage_t *st, const scene_info_options_t *o)
     if (r == PM_OK)
         r = pm_stage_open_output(st, &out);
     if (r == PM_OK) {
-        if (s.nlights == 0 && s.nemissive == 0 && !s.has_sun && !s.has_sky)
+        size_t nl, sampled;
+        pm_lights_count(&s, &nl, &sampled);
+        if (nl == 0)
             pm_stage_note(st, "warning: scene '%s' has no lights; every image of it is black", s.path);
         double p[3];
         pm_scene_power(&s, p);

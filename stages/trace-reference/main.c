@@ -13,6 +13,7 @@
 
 #include "base/stage.h"
 #include "formats/formats.h"
+#include "render/light.h"
 #include "render/pathtrace.h"
 #include "render/rt.h"
 #include "render/scene.h"
@@ -165,10 +166,11 @@ int main(int argc, char **argv)
     double power[3];
     pm_scene_power(&s, power);
     if (!(power[0] + power[1] + power[2] > 0.0)) {
+        size_t nl, sampled;
+        pm_lights_count(&s, &nl, &sampled);
         r = pm_error_set(PM_ERR_INPUT,
-                         "scene '%s' has no lights (%zu point lights and %zu emissive triangles emit 0 W): "
-                         "its reference image is black",
-                         s.path, s.nlights, s.nemissive);
+                         "scene '%s' has no lights (its %zu lights emit 0 W): its reference image is black", s.path,
+                         nl);
         pm_scene_free(&s);
         return pm_stage_end(&st, r);
     }

@@ -285,3 +285,70 @@ fi
 sed 's/"two_sided_lights": true/"two_sided_lights": 1/' "$t/scene.json" >"$t/bad.json"
 expect_error "two_sided_lights must be a boolean" "two_sided_lights: must be true or false" \
     "$BIN/trace-reference" "$t/bad.json" -q -o "$TMP/x.exr"
+
+# ---- 6. one light module (render/light.{c,h}): nothing outside it names a light kind ----
+# light_kind_names DIR...: every line of C code (comments left out) under DIR that names a light
+# kind outside light.c and light.h: the kind enum (PM_LIGHT_POINT ...), the per-kind samplers and
+# pdfs light.c switches over, a light kind as a bare number (the photon tracer's old
+# "kind == 2"), and in the three tracers the scene's own light fields (s->has_sun,
+# s->lights[i], ...), which only light.c reads. Each line is printed as FILE:LINE:code.
+# The awk program that prints each line's code, /* comments */ (across lines too) removed.
+LIGHT_CODE='FNR == 1 { inc = 0 }
+    { line = $0; out = ""
+      while (length(line)) {
+          if (inc) { i = index(line, "*/"); if (!i) { line = "" } else { line = substr(line, i + 2); inc = 0 } }
+          else { i = index(line, "/*"); if (!i) { out = out line; line = "" }
+                 else { out = out substr(line, 1, i - 1); line = substr(line, i + 2); inc = 1 } } }
+      if (out ~ /[^ \t]/) print FILENAME ":" FNR ":" out }'
+light_kind_names() {
+    local kinds='PM_LIGHT_(POINT|SPOT|AREA|SUN|SKY|KINDS)\b'
+    local prims='\bpm_(point_light_emit|point_light_emit_pdf|point_light_toward|spot_factor|area_light_sample|area_light_pdf|sun_sample|sun_pdf|sky_sample|sky_pdf|sky_radiance|env_emit|env_radiance|envmap_sample|envmap_pdf|envmap_pixel)\b'
+    local bare='\bkind\s*(==|!=|>=|<=|<|>|=)\s*[0-9]'
+    local fields='\bs(->|\.)(lights|nlights|emissive|nemissive|has_sun|has_sky|sun|sky|envmap|two_sided_lights)\b'
+    find "$@" -name '*.[ch]' ! -name light.c ! -name light.h -print0 | xargs -0 -r awk "$LIGHT_CODE" |
+        grep -E "$kinds|$prims|$bare"
+    find "$@" \( -name photontrace.c -o -name eyetrace.c -o -name pathtrace.c \) -print0 |
+        xargs -0 -r awk "$LIGHT_CODE" | grep -E "$fields"
+    return 0
+}
+out=$(light_kind_names common stages)
+if [ -n "$out" ]; then
+    fail "a light kind named outside render/light.c" "$(echo "$out" | head -5 | tr '\n' ' ')"
+else
+    pass "no light kind named outside render/light.c (common/, stages/)"
+fi
+# The check itself: a planted tracer and stage that name kinds are caught, line by line; light.c's
+# own switch and a comment that names a sampler are not.
+mkdir -p "$TMP/kinds/render" "$TMP/kinds/stage"
+printf 'int a(const light_t *l) { return l->kind == 2; }\nint b(int k) { return k == PM_LIGHT_SUN; }\n' \
+    >"$TMP/kinds/stage/main.c"
+printf 'void c(const pm_scene_t *s) { if (s->has_sky) pm_sky_sample(s, 0, 0, 0, 0); }\nint kindness = 3;\n' \
+    >"$TMP/kinds/render/pathtrace.c"
+printf '/* pm_env_emit of old,\n * pm_sky_pdf too */ int e; /* s->has_sun */\n' >"$TMP/kinds/render/scene.c"
+printf 'int d(int k) { return k == PM_LIGHT_SUN; }\n' >"$TMP/kinds/render/light.c"
+got=$(light_kind_names "$TMP/kinds" | sed 's|.*/kinds/||' | cut -d: -f1,2 | sort | tr '\n' ' ')
+if [ "$got" = "render/pathtrace.c:1 render/pathtrace.c:1 stage/main.c:1 stage/main.c:2 " ]; then
+    pass "the kind check catches a bare kind number, the enum, a per-kind sampler and a scene light field"
+else
+    fail "the kind check on planted violations" "found '$got'"
+fi
+
+# scene-info's kind-free counts for drivers: every light, and those that take light_samples.
+lit_plane "$TMP/cnt1" 0.5 '"point_lights": [ { "position": [0, 1, 0], "intensity": [1, 1, 1] },
+    { "position": [0, 1, 0], "intensity": [1, 1, 1], "direction": [0, -1, 0], "cone": 30 } ]'
+lit_plane "$TMP/cnt2" 0.5 '"sun": { "direction": [0, 1, 0], "radiance": [1, 1, 1], "solid_angle": 0.01 },
+  "sky": { "radiance": [1, 1, 1] }, "point_lights": [ { "position": [0, 1, 0], "intensity": [1, 1, 1] } ]'
+# cnt1: a point light and a spot (delta lights: no light samples); cnt2: a point light, the sun
+# and the sky; the Cornell box: two emissive triangles.
+for c in "cnt1 2 0" "cnt2 3 2" "cornell 2 2"; do
+    set -- $c
+    scene=$TMP/$1/scene.json
+    [ "$1" = cornell ] && scene=scenes/cornell-box/scene.json
+    json=$("$BIN/scene-info" -q --json "$scene" | jq -r '"\(.lights_total) \(.sampled_lights)"')
+    text=$("$BIN/scene-info" -q "$scene" | sed -n 's/^lights: \([0-9]*\) in all, \([0-9]*\) sampled .*/\1 \2/p')
+    if [ "$json" = "$2 $3" ] && [ "$text" = "$json" ]; then
+        pass "scene-info $1: lights_total $2, sampled_lights $3 (text and JSON)"
+    else
+        fail "scene-info $1 light counts" "json '$json' text '$text', want '$2 $3'"
+    fi
+done

@@ -116,9 +116,9 @@ typedef struct {
     uint64_t hash;   /* XXH3-64 of the scene file and everything loaded from it */
     /* The hash's parts by what reads them (XXH3-64 of a canonical serialisation of the loaded
      * content, not of the file nor of C structs' bytes: render/scene_hash.c):
-     * geometry: triangles, materials, textures; photons: that, the point lights and the
-     * render block's photon keys (photon tracing and the map); view: the geometry part,
-     * the camera, the image size and the render block's eye keys (the eye side's queries,
+     * geometry: triangles, materials, textures, vertex normals; photons: that, every light
+     * (point lights, sun, sky, two-sided emitters) and the render block's photon keys (photon tracing and the map);
+     * view: the geometry part, the camera, the image size and the render block's eye keys (the eye side's queries,
      * which no point light changes); eye: photons and view (the direct light, the image). */
     struct {
         uint64_t geometry, photons, view, eye;
@@ -201,9 +201,10 @@ double pm_sky_power(const pm_scene_t *s, int k);
 /* Area of triangle t, m^2. */
 double pm_scene_triangle_area(const pm_scene_t *s, size_t t);
 
-/* The material at point p (m, on or near triangle tri) with its Kd and Ks (a conductor's F0 with
- * Kd, its base colour) scaled by their textures there: the scene's own material when it has no texture (no copy, no
- * cost), else *scratch filled and returned. Every tracer reads a hit's reflectance through this. */
+/* The material at point p (m, on or near triangle tri) with its Kd and Ks (and a conductor's
+ * F0 with Kd: its base colour) scaled by their textures there: the scene's own material when it
+ * has no texture (no copy, no cost), else *scratch filled and returned. Every tracer reads a
+ * hit's reflectance through this. */
 const pm_material_t *pm_scene_material_textured(const pm_scene_t *s, uint32_t tri, const float p[3],
                                                 pm_material_t *scratch);
 static inline const pm_material_t *pm_scene_material_at(const pm_scene_t *s, uint32_t tri, const float p[3],

@@ -1,5 +1,7 @@
 /* test_scene.c: scene loading (the Cornell box's published numbers), bad scene input
- * with clear messages, degenerate triangles, and Embree rays against known distances. */
+ * with clear messages, degenerate triangles, Embree rays against known distances, what is
+ * reported, the PBR materials (MTL Pr/Pm, glTF metallic-roughness) and the scene's identity
+ * (its canonical serialisation and its parts). */
 #include <math.h>
 #include <stddef.h>
 #include <stdio.h>

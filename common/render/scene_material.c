@@ -11,10 +11,14 @@
 
 #include "render/scene_load.h"
 
-/* The PBR inputs of assimp material am: 1 when it is a metallic-roughness material (every glTF
- * material; an MTL material with a Pr or a Pm line, the PBR extension), with its metallic and
- * roughness factors (glTF's defaults where one is absent: metallic 1 in glTF, 0 in an MTL,
- * whose materials are dielectrics unless Pm says otherwise; roughness 1 in both). */
+/* The PBR inputs of assimp material am: 1 when it is a metallic-roughness material, that is when
+ * the importer gives a metallic or a roughness factor (assimp's glTF 2 importer gives both for
+ * every material; an MTL material has them with a Pr or a Pm line, the PBR extension), with its
+ * metallic and roughness factors (glTF's defaults where one is absent: metallic 1, or 0 in an
+ * MTL, whose materials are dielectrics unless Pm says otherwise; roughness 1 in both). A glTF 1
+ * (KHR_materials_common), Collada or PLY material has neither and stays the Phong material its
+ * format describes: reading it as glTF 2's default, a rough metal, would turn a milk truck's
+ * paint to chrome. */
 int pm_scene_pbr_inputs(int is_obj, const struct aiMaterial *am, float *metallic_out, float *roughness_out)
 {
     ai_real metallic = is_obj ? 0 : 1, roughness = 1;
@@ -22,7 +26,7 @@ int pm_scene_pbr_inputs(int is_obj, const struct aiMaterial *am, float *metallic
     int has_r = aiGetMaterialFloatArray(am, AI_MATKEY_ROUGHNESS_FACTOR, &roughness, NULL) == aiReturn_SUCCESS;
     *metallic_out = (float)metallic;
     *roughness_out = (float)roughness;
-    return !is_obj || has_m || has_r;
+    return has_m || has_r;
 }
 
 /* The specular part of a material (docs/scene-format.md, "Mirrors and glass"): from an OBJ,

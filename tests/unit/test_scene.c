@@ -158,6 +158,51 @@ static void test_scene_mesh_faults(void **state)
     assert_int_equal(s.ntris, 1);
     assert_int_equal(s.nmaterials, 1);
     assert_true(s.materials[0].kd[0] == 0.8f && s.materials[0].ks[0] == 0.0f);
+    assert_int_equal(s.materials[0].kind, PM_MAT_STANDARD);
+    pm_scene_free(&s);
+}
+
+/* A Collada (or glTF 1) material gives no metallic or roughness factor: it stays the Phong
+ * material its format describes, not glTF 2's default rough metal. */
+static void test_scene_phong_formats_stay_phong(void **state)
+{
+    (void)state;
+    char p[256];
+    write_file("phong.dae",
+               "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n"
+               "<COLLADA xmlns=\"http://www.collada.org/2005/11/COLLADASchema\" version=\"1.4.1\">\n"
+               "<library_effects><effect id=\"fx\"><profile_COMMON><technique sid=\"t\"><phong>\n"
+               "<diffuse><color>0.6 0.5 0.4 1</color></diffuse><specular><color>0.2 0.2 0.2 "
+               "1</color></specular><shininess><float>60</float></shininess>\n"
+               "</phong></technique></profile_COMMON></effect></library_effects>\n"
+               "<library_materials><material id=\"paint\" name=\"paint\"><instance_effect "
+               "url=\"#fx\"/></material></library_materials>\n"
+               "<library_geometries><geometry id=\"g\"><mesh>\n"
+               "<source id=\"p\"><float_array id=\"pa\" count=\"9\">0 0 0 1 0 0 0 1 "
+               "0</float_array><technique_common><accessor source=\"#pa\" count=\"3\" stride=\"3\"><param name=\"X\" "
+               "type=\"float\"/><param name=\"Y\" type=\"float\"/><param name=\"Z\" "
+               "type=\"float\"/></accessor></technique_common></source>\n"
+               "<vertices id=\"v\"><input semantic=\"POSITION\" source=\"#p\"/></vertices>\n"
+               "<triangles material=\"m\" count=\"1\"><input semantic=\"VERTEX\" source=\"#v\" offset=\"0\"/><p>0 1 "
+               "2</p></triangles>\n"
+               "</mesh></geometry></library_geometries>\n"
+               "<library_visual_scenes><visual_scene id=\"s\"><node id=\"n\"><instance_geometry "
+               "url=\"#g\"><bind_material><technique_common><instance_material symbol=\"m\" "
+               "target=\"#paint\"/></technique_common></bind_material></instance_geometry></node></visual_scene></"
+               "library_visual_scenes>\n"
+               "<scene><instance_visual_scene url=\"#s\"/></scene>\n"
+               "</COLLADA>\n",
+               p, sizeof p);
+    write_file("dae.json", "{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"phong.dae\"}], " CAM "}", p,
+               sizeof p);
+    pm_scene_t s;
+    pm_result_t r = pm_scene_load(p, &s);
+    if (r != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_int_equal(s.nmaterials, 1);
+    assert_int_equal(s.materials[0].kind, PM_MAT_STANDARD);
+    assert_true(fabsf(s.materials[0].kd[0] - 0.6f) < 1e-6f && fabsf(s.materials[0].ks[0] - 0.2f) < 1e-6f);
+    assert_true(s.materials[0].ns == 60.0f);
     pm_scene_free(&s);
 }
 
@@ -644,11 +689,11 @@ static void test_scene_identity_parts(void **state)
 }
 
 static const struct CMUnitTest tests[] = {
-    cmocka_unit_test(test_scene_cornell_box),    cmocka_unit_test(test_scene_bad_input),
-    cmocka_unit_test(test_scene_mesh_faults),    cmocka_unit_test(test_scene_degenerate_triangles),
-    cmocka_unit_test(test_scene_unsupported),    cmocka_unit_test(test_scene_unsupported_gltf),
-    cmocka_unit_test(test_scene_pbr_mtl),        cmocka_unit_test(test_scene_pbr_gltf),
-    cmocka_unit_test(test_scene_pbr_texture),    cmocka_unit_test(test_scene_identity_fields),
-    cmocka_unit_test(test_scene_identity_parts),
+    cmocka_unit_test(test_scene_cornell_box),     cmocka_unit_test(test_scene_bad_input),
+    cmocka_unit_test(test_scene_mesh_faults),     cmocka_unit_test(test_scene_degenerate_triangles),
+    cmocka_unit_test(test_scene_unsupported),     cmocka_unit_test(test_scene_unsupported_gltf),
+    cmocka_unit_test(test_scene_pbr_mtl),         cmocka_unit_test(test_scene_phong_formats_stay_phong),
+    cmocka_unit_test(test_scene_pbr_gltf),        cmocka_unit_test(test_scene_pbr_texture),
+    cmocka_unit_test(test_scene_identity_fields), cmocka_unit_test(test_scene_identity_parts),
 };
 UNIT_GROUP(unit_scene, "scene", tests);

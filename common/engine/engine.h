@@ -151,6 +151,9 @@ typedef struct {
     const char *scene;           /* the SCENE value it must record; NULL: not checked */
     int external;                /* 1: made by a program outside the program directory, which may
                                   * record no command line: judged by being whole alone */
+    int scene_arg;               /* 1: the word after the program's name in its own command line is
+                                  * the scene file, which SCENE judges by content: its path is no part
+                                  * of the identity (shot2.json with shot1.json's photon part) */
 } pm_prov_want_t;
 
 typedef enum {
@@ -195,5 +198,16 @@ typedef struct {
  * trace-photons, build-photonmap, build-photonmap.caustic, trace-gather-points, hilbert-sort,
  * simd-gather (the gather; its name is the gather program's), simd-gather.caustic, composite. */
 const pm_stage_info_t *pm_stage_table(size_t *n_out);
+
+/* ---- one render ---- */
+
+/* One render of the whole chain (no passes) into s->outdir, as pipelines/render did: the lock,
+ * the scene loaded through the library, the graph, each intermediate judged by provenance and
+ * remade when it is not what s would make (and what reads it, when its bytes changed), the
+ * time table on stdout, stats.json, KEEP. Messages start with "me: ". bin is the program
+ * directory (absolute); cmdline is what the lock file records. Returns the exit status: 0 ok,
+ * 1 bad input (or OUTDIR held with WAIT=0), 2 usage, 3 I/O or out of memory, 4 internal (a
+ * stage's class passed through). */
+int pm_render_fixed(const pm_settings_t *s, const char *me, const char *bin, const char *cmdline);
 
 #endif

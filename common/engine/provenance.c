@@ -92,6 +92,36 @@ static void norm_command(const char *line, char *out, size_t cap)
     out[o] = '\0';
 }
 
+/* line without its second word (the scene file after the program's name), as pmtk quotes
+ * words: bare, or in single quotes with a quote written '\\'' (header.c). In place. */
+static void drop_second_word(char *line)
+{
+    char *w = strchr(line, ' ');
+    if (!w)
+        return;
+    char *p = w + 1;
+    if (*p == '\'') {
+        p++;
+        for (;;) {
+            if (!*p)
+                break;
+            if (*p == '\'' && strncmp(p, "'\\''", 4) == 0) {
+                p += 4;
+                continue;
+            }
+            if (*p == '\'') {
+                p++;
+                break;
+            }
+            p++;
+        }
+    } else {
+        while (*p && *p != ' ')
+            p++;
+    }
+    memmove(w, p, strlen(p) + 1);
+}
+
 /* The message of a failed read as the one-line reason a file is corrupt: "checksum mismatch"
  * or the formats library's message with the file's path and the class left out. */
 static void corrupt_why(const char *msg, const char *path, char *why, size_t cap)
@@ -155,6 +185,10 @@ pm_result_t pm_prov_check(const pm_prov_want_t *w, pm_prov_t *out)
         static char got[PM_COMMAND_MAX + 8], want[PM_COMMAND_MAX + 8];
         norm_command(h->commands[h->ncommands - w->ncommands + i], got, sizeof got);
         norm_command(w->commands[i], want, sizeof want);
+        if (w->scene_arg && i + 1 == w->ncommands) {
+            drop_second_word(got);
+            drop_second_word(want);
+        }
         if (strcmp(got, want) != 0) {
             out->verdict = PM_PROV_OTHER;
             snprintf(out->why, sizeof out->why, "command '%.400s'", got);

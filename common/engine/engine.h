@@ -149,8 +149,9 @@ typedef struct {
     const char *const *commands; /* the COMMAND lines its header must end with, oldest first, */
     size_t ncommands;            /* as pm_prov_command_line makes them */
     const char *scene;           /* the SCENE value it must record; NULL: not checked */
-    int external;                /* 1: made by a program outside the program directory, which may
-                                  * record no command line: judged by being whole alone */
+    int external;                /* 1: made by a program outside the program directory (GATHER=PATH),
+                                  * maybe a wrapper of another: its own COMMAND line is compared
+                                  * without the program's name (a program that records none is remade) */
     int scene_arg;               /* 1: the word after the program's name in its own command line is
                                   * the scene file, which SCENE judges by content: its path is no part
                                   * of the identity (shot2.json with shot1.json's photon part) */

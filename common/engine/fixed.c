@@ -516,6 +516,18 @@ static const char *scene_of(const render_t *r, const char *file)
     return r->scene_all;
 }
 
+static double read_time(const render_t *r, const char *name, int *ok)
+{
+    char p[PATH_MAX + 160];
+    snprintf(p, sizeof p, "%s/times/%s", r->out, name);
+    FILE *f = fopen(p, "r");
+    double t = 0;
+    *ok = f && fscanf(f, "%lf", &t) == 1 && t >= 0 && t < 1e9;
+    if (f)
+        fclose(f);
+    return *ok ? t : 0;
+}
+
 /* Judges every output of j (phase 1). Returns PM_OK or out of memory. */
 static pm_result_t check_job(render_t *r, job_t *j)
 {
@@ -544,8 +556,13 @@ static pm_result_t check_job(render_t *r, job_t *j)
     free(cmd);
     for (int k = 0; k < j->nouts && res == PM_OK; k++) {
         const pm_prov_t *p = &j->prov[k];
+        int before;
         if (p->verdict == PM_PROV_CORRUPT)
             say(r, "%s is corrupt (%s): rebuilding it", j->outs[k], p->why);
+        else if (p->verdict == PM_PROV_MISSING && (read_time(r, j->name, &before), before))
+            /* made here before (its stage's time is on record) and gone since: said, as a
+             * corrupt file is, so that a file removed by hand is seen to come back */
+            say(r, "%s is missing: remaking it", j->outs[k]);
         else if (p->verdict == PM_PROV_OTHER && r->s->verbose)
             say(r, "%s was made otherwise (%s): remaking it", j->outs[k], p->why);
     }
@@ -591,18 +608,6 @@ static int input_planned(render_t *r, const job_t *j)
             return 1;
     }
     return 0;
-}
-
-static double read_time(const render_t *r, const char *name, int *ok)
-{
-    char p[PATH_MAX + 160];
-    snprintf(p, sizeof p, "%s/times/%s", r->out, name);
-    FILE *f = fopen(p, "r");
-    double t = 0;
-    *ok = f && fscanf(f, "%lf", &t) == 1 && t >= 0 && t < 1e9;
-    if (f)
-        fclose(f);
-    return *ok ? t : 0;
 }
 
 static void append_line(const render_t *r, const char *file, const char *line)
@@ -1189,6 +1194,20 @@ int pm_render_fixed(const pm_settings_t *s, const char *me, const char *bin, con
         if (job_outputs_ok(j) && !input_changed(r, j)) {
             j->state = 1;
             continue;
+        }
+        if (job_outputs_ok(j)) {
+            /* An input was remade with other bytes than the file it replaced (a corrupt one,
+             * say): what j made is judged again against the inputs now here, and kept when
+             * they are the bytes it recorded (a map rebuilt the same keeps its gather). */
+            if ((res = check_job(r, j)) != PM_OK) {
+                say(r, "%s", pm_error_message());
+                status = 3;
+                break;
+            }
+            if (job_outputs_ok(j)) {
+                j->state = 1;
+                continue;
+            }
         }
         if (j->shard >= 0) {
             if (!have_count) {

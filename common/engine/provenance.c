@@ -255,6 +255,7 @@ pm_result_t pm_prov_check(const pm_prov_want_t *w, pm_prov_t *out)
         if (pm_prov_trailer(in, &now) != PM_OK || now != want) {
             out->verdict = PM_PROV_OTHER;
             snprintf(out->why, sizeof out->why, "input '%.*s' has changed", (int)(sp - v), v);
+            snprintf(out->input, sizeof out->input, "%.*s", (int)(sp - v), v);
             goto done;
         }
     }

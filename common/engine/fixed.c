@@ -880,8 +880,9 @@ static void keep_only(render_t *r)
 /* ---- the whole render ---- */
 
 /* The lights that need direct-light samples at each primary hit: emissive triangles, a sun, a
- * sky (point lights are sampled exactly, one shadow ray each). One question, asked in one place,
- * so that a new kind of light answers it here alone (branch light's summary field, when it lands). */
+ * sky (point lights are sampled exactly, one shadow ray each). One question, asked in one place:
+ * when branch light lands, this is pm_lights_count's sampled_out (render/light.h), and the
+ * "no lights" note its total_out. */
 static size_t sampled_lights(const pm_scene_t *sc) { return sc->nemissive + (size_t)sc->has_sun + (size_t)sc->has_sky; }
 
 /* The decisions pipelines/render made from the scene and the parameters, and the notes it

@@ -837,19 +837,11 @@ static void keep_only(render_t *r)
 {
     if (r->s->keep == PM_KEEP_ALL)
         return;
-    static const char *const made[] = {"photons.pm",
-                                       "photonmap.pm",
-                                       "caustic-photons.pm",
-                                       "caustic-map.pm",
-                                       "queries.pm",
-                                       "sorted.pm",
-                                       "caustic-queries.pm",
-                                       "direct.pm",
-                                       "indirect.pm",
-                                       "caustic.pm",
-                                       "ran.txt",
-                                       "failed.txt",
-                                       NULL};
+    static const char *const made[] = {"photons.pm", "photonmap.pm", "caustic-photons.pm", "caustic-map.pm",
+                                       "queries.pm", "sorted.pm", "caustic-queries.pm", "direct.pm", "indirect.pm",
+                                       "caustic.pm", "ran.txt", "failed.txt",
+                                       /* what the make graph that pipelines/render was left here */
+                                       "Makefile", "scene-info.json", "scene-info.err", NULL};
     char p[PATH_MAX + 64];
     for (int i = 0; made[i]; i++) {
         int keep = 0;
@@ -874,6 +866,8 @@ static void keep_only(render_t *r)
     snprintf(p, sizeof p, "%s/times", r->out);
     remove_dir_files(p);
     snprintf(p, sizeof p, "%s/stats", r->out);
+    remove_dir_files(p);
+    snprintf(p, sizeof p, "%s/.stamps", r->out);
     remove_dir_files(p);
 }
 

@@ -89,6 +89,14 @@ done
     fail "THREADS and VERBOSE" "differ:$bad"
 "$PR" "$S/shot1.json" "$TMP/t1" $TINY THREADS=2 VERBOSE=1 >/dev/null 2>&1
 expect_ran "... and a rerun with other THREADS and VERBOSE runs nothing" "$TMP/t1" ""
+# JOBS=2: the photon side and the eye side at once, the same files
+"$PR" "$S/shot1.json" "$TMP/j2" $TINY JOBS=2 >/dev/null 2>&1
+bad=""
+for f in photons.pm photonmap.pm queries.pm sorted.pm direct.pm indirect.pm image.exr image.png; do
+    cmp -s "$TMP/t1/$f" "$TMP/j2/$f" || bad+=" $f"
+done
+[ -z "$bad" ] && [ "$(sorted <"$TMP/j2/ran.txt")" = "build-photonmap composite hilbert-sort simd-gather trace-gather-points trace-photons" ] &&
+    pass "JOBS=2 runs every stage and makes the same bytes as one at a time" || fail "JOBS=2" "differ:$bad"
 
 # Exit statuses: usage 2 (nothing made), bad input 1.
 expect_exit "pm-render with one argument is bad usage" 2 "$PR" "$S/shot1.json"

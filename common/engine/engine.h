@@ -14,6 +14,7 @@
 #ifndef PM_ENGINE_H
 #define PM_ENGINE_H
 
+#include <jansson.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <sys/types.h>
@@ -138,6 +139,9 @@ void pm_proc_status_free(pm_proc_status_t *st);
 pm_result_t pm_proc_wait_any(pm_proc_t *const *procs, int n, int *which_out, pm_proc_status_t *status_out);
 /* Runs one program to its end (pm_proc_spawn then pm_proc_wait). */
 pm_result_t pm_proc_run(const pm_spawn_t *sp, pm_proc_status_t *status_out);
+/* A stage's --stats file as JSON (*j_out the caller's to json_decref); PM_ERR_INPUT when it is
+ * missing or not JSON. */
+pm_result_t pm_proc_stats_load(const char *path, json_t **j_out);
 /* A pipe whose two ends close on exec (each child gets the end it needs as stdin or stdout). */
 pm_result_t pm_proc_pipe(int fds_out[2]);
 /* The error class (PM_ERR_*) a stage's exit status stands for (docs/cli.md): 1 input, 2
@@ -177,11 +181,12 @@ typedef struct {
     char input[256]; /* for OTHER because of an input: that input's name as the header records it */
 } pm_prov_t;
 
-/* Reads dir/name whole with the formats library (header, every record, the checksum) and
- * compares its provenance with w: the SCENE key, the last ncommands COMMAND lines, and each
- * INPUT's content hash against the file of that name in dir as it is now (an input that is
- * missing or a pipe, "-", is not compared: what makes it is judged on its own). Returns an
- * error only when the check itself cannot run (out of memory); every verdict is PM_OK. */
+/* Reads dir/name's header with the formats library, checks that the file is whole (its size
+ * is the header's, its XXH3 trailer the hash of every byte before it; the records' values are
+ * the reading stage's to check) and compares its provenance with w: the SCENE key, the last ncommands COMMAND lines,
+ * and each INPUT's content hash against the file of that name in dir as it is now (an input that is missing or a pipe,
+ * "-", is not compared: what makes it is judged on its own). Returns an error only when the check itself cannot run
+ * (out of memory); every verdict is PM_OK. */
 pm_result_t pm_prov_check(const pm_prov_want_t *w, pm_prov_t *out);
 /* The content hash of a pmtk file: its last 8 bytes (little-endian XXH3-64), not checked.
  * PM_ERR_IO when it cannot be read or is shorter than 8 bytes. */

@@ -744,12 +744,6 @@ static int finish_job(render_t *r, job_t *j, const pm_proc_status_t *st)
 
 /* ---- the table and stats.json ---- */
 
-static json_t *load_json(const char *path)
-{
-    json_error_t e;
-    return json_load_file(path, 0, &e);
-}
-
 static void report(render_t *r, double run_s)
 {
     int sw = r->need_caustic ? 24 : 22;
@@ -776,7 +770,8 @@ static void report(render_t *r, double run_s)
             json_array_append_new(ran, json_string(j->name));
         char sp[PATH_MAX + 160];
         snprintf(sp, sizeof sp, "%s/stats/%s.json", r->out, j->name);
-        json_t *st = load_json(sp);
+        json_t *st = NULL;
+        pm_proc_stats_load(sp, &st);
         if (st) {
             json_t *o = json_object();
             json_object_set_new(o, "status", json_string(status));

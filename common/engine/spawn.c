@@ -191,3 +191,12 @@ pm_result_t pm_proc_run(const pm_spawn_t *sp, pm_proc_status_t *status_out)
         return r;
     return pm_proc_wait(p, status_out);
 }
+
+pm_result_t pm_proc_stats_load(const char *path, json_t **j_out)
+{
+    json_error_t e;
+    *j_out = json_load_file(path, 0, &e);
+    if (!*j_out)
+        return pm_error_set(PM_ERR_INPUT, "cannot read the stage's statistics '%s': %s", path, e.text);
+    return PM_OK;
+}

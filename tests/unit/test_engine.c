@@ -215,6 +215,19 @@ static void test_engine_spawn(void **state)
     pm_result_t r = pm_proc_spawn(&sp3, &proc);
     assert_int_equal(r, PM_ERR_IO);
     assert_non_null(strstr(pm_error_message(), "'/nonexistent/program'"));
+    /* a stage's --stats, read back */
+    char sp5[300];
+    snprintf(sp5, sizeof sp5, "%s/engine-stats.json", unit_tmpdir());
+    char *stats[] = {"/bin/sh", "-c", "printf '{\"stage\": \"x\", \"wall_s\": 0.5}' >\"$0\"", sp5, NULL};
+    pm_spawn_t sp6 = {.argv = stats, .stdin_fd = -1, .stdout_fd = -1};
+    assert_int_equal(pm_proc_run(&sp6, &st), PM_OK);
+    assert_int_equal(st.exit_code, 0);
+    json_t *j;
+    assert_int_equal(pm_proc_stats_load(sp5, &j), PM_OK);
+    assert_true(json_real_value(json_object_get(j, "wall_s")) == 0.5);
+    json_decref(j);
+    unlink(sp5);
+    assert_int_equal(pm_proc_stats_load(sp5, &j), PM_ERR_INPUT);
     /* a killed one: 128 + the signal */
     char *killed[] = {"/bin/sh", "-c", "kill -9 $$", NULL};
     pm_spawn_t sp4 = {.argv = killed, .stdin_fd = -1, .stdout_fd = -1};

@@ -1032,13 +1032,14 @@ static int take_lock(render_t *r, const char *cmdline)
     return 0;
 }
 
-/* The exit status for a stage's: its class passed through (docs/cli.md); a usage error from a
- * stage is the driver's bug, and a signal the system's. */
+/* The exit status for a stage's: its class passed through (docs/cli.md): 1 input, 2 usage (a
+ * value given that the stage refuses only once it runs, LEAF=x say), 3 I/O or out of memory,
+ * 4 internal; a signal is the system's (3), which a retry may cure. */
 static int stage_status(int code)
 {
     switch (pm_proc_class(code)) {
     case PM_ERR_INPUT: return 1;
-    case PM_ERR_USAGE:
+    case PM_ERR_USAGE: return 2;
     case PM_ERR_INTERNAL: return 4;
     default: return 3;
     }

@@ -1,6 +1,8 @@
 /* settings.c: pm-render's NAME=VALUE parameters (engine.h, "settings"), the checks that need
  * no program, the stages' own checks of their values (--print-settings), and the table of
  * stages. The names, defaults and messages are pipelines/render's, which pm-render replaces. */
+#include <errno.h>
+#include <fcntl.h>
 #include <regex.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -214,71 +216,57 @@ static pm_result_t check_opt(const pm_settings_t *s, const char *bin, pm_param_t
     return r;
 }
 
-/* One program's values at once (one process instead of one per value, some 20 ms each), and
- * one at a time only when that fails, to name the first the program refuses. pairs: param,
- * option, ..., ending in PM_P_COUNT. */
-static pm_result_t check_program(const pm_settings_t *s, const char *bin, const char *program, const int *params_,
-                                 const char *const *options)
+/* One program's values at once (one process instead of one per value, some 20 ms each, and
+ * the programs side by side), and one at a time only when that fails, to name the first the
+ * program refuses. */
+typedef struct {
+    const char *program;
+    const int *params; /* ending in PM_P_COUNT */
+    const char *const *options;
+    pm_proc_t *proc; /* running, or NULL: nothing to check */
+} check_group_t;
+
+static pm_result_t group_start(const pm_settings_t *s, const char *bin, check_group_t *g, int devnull)
 {
     char path[4096];
-    snprintf(path, sizeof path, "%s/%s", bin, program);
+    snprintf(path, sizeof path, "%s/%s", bin, g->program);
     char *argv[24];
     int n = 0;
     argv[n++] = path;
-    for (int i = 0; params_[i] != PM_P_COUNT && n < 20; i++)
-        if (s->value[params_[i]][0]) {
-            argv[n++] = (char *)options[i];
-            argv[n++] = (char *)s->value[params_[i]];
+    for (int i = 0; g->params[i] != PM_P_COUNT && n < 20; i++)
+        if (s->value[g->params[i]][0]) {
+            argv[n++] = (char *)g->options[i];
+            argv[n++] = (char *)s->value[g->params[i]];
         }
+    g->proc = NULL;
     if (n == 1 || access(path, X_OK) != 0)
-        return PM_OK;
+        return PM_OK; /* nothing given, or a missing program, named when the stages are looked for */
     argv[n++] = "--print-settings";
     argv[n] = NULL;
-    int devnull[2];
-    if (pm_proc_pipe(devnull) != PM_OK)
-        return PM_ERR_IO;
-    pm_spawn_t sp = {.argv = argv, .stdin_fd = -1, .stdout_fd = devnull[1], .capture_stderr = 1};
-    pm_proc_t *proc;
-    pm_result_t r = pm_proc_spawn(&sp, &proc);
-    close(devnull[1]);
-    if (r != PM_OK) {
-        close(devnull[0]);
-        return r;
-    }
-    char sink[4096];
-    while (read(devnull[0], sink, sizeof sink) > 0)
-        ;
-    close(devnull[0]);
+    pm_spawn_t sp = {.argv = argv, .stdin_fd = -1, .stdout_fd = devnull, .capture_stderr = 1};
+    return pm_proc_spawn(&sp, &g->proc);
+}
+
+static pm_result_t group_finish(const pm_settings_t *s, const char *bin, check_group_t *g)
+{
+    if (!g->proc)
+        return PM_OK;
     pm_proc_status_t st;
-    r = pm_proc_wait(proc, &st);
+    pm_result_t r = pm_proc_wait(g->proc, &st);
+    g->proc = NULL;
     int failed = r == PM_OK && st.exit_code != 0;
     pm_proc_status_free(&st);
     if (r != PM_OK || !failed)
         return r;
-    for (int i = 0; params_[i] != PM_P_COUNT; i++)
-        if ((r = check_opt(s, bin, (pm_param_t)params_[i], program, options[i])) != PM_OK)
+    for (int i = 0; g->params[i] != PM_P_COUNT; i++)
+        if ((r = check_opt(s, bin, (pm_param_t)g->params[i], g->program, g->options[i])) != PM_OK)
             return r;
-    return pm_error_set(PM_ERR_USAGE, "%s refuses the values given together (%s --print-settings)", program, program);
+    return pm_error_set(PM_ERR_USAGE, "%s refuses the values given together (%s --print-settings)", g->program,
+                        g->program);
 }
 
 pm_result_t pm_settings_check_stages(const pm_settings_t *s, const char *bin)
 {
-    pm_result_t r;
-    static const int tp[] = {PM_P_PHOTONS, PM_P_SEED, PM_P_THREADS, PM_P_COUNT};
-    static const char *const tpo[] = {"--photons", "--seed", "--threads"};
-    static const int tg[] = {PM_P_SPP, PM_P_WIDTH, PM_P_HEIGHT, PM_P_PRIMARY, PM_P_LIGHT_SAMPLES, PM_P_COUNT};
-    static const char *const tgo[] = {"--spp", "--width", "--height", "--primary", "--light-samples"};
-    if ((r = check_program(s, bin, "trace-photons", tp, tpo)) ||
-        (r = check_program(s, bin, "trace-gather-points", tg, tgo)))
-        return r;
-    const char *spp = s->value[PM_P_SPP];
-    if (matches("^[0-9]+$", spp) && strtoull(spp, NULL, 10) % 4 != 0)
-        return pm_error_set(PM_ERR_USAGE,
-                            "bad value for SPP '%s': expected a multiple of 4 (the secondary rays are traced in fours)",
-                            spp);
-    if ((r = check_opt(s, bin, PM_P_LEAF, "hilbert-sort", "--leaf")) ||
-        (r = check_opt(s, bin, PM_P_WIDTH_K, "build-photonmap", "--width-k")))
-        return r;
     /* The gather's options by program: knn-gather's radius is its --max-radius, and it has
      * no ISA and no variable widths (docs/pipelines.md, "The gather"). */
     const char *g = s->value[PM_P_GATHER], *base = strrchr(g, '/');
@@ -291,26 +279,73 @@ pm_result_t pm_settings_check_stages(const pm_settings_t *s, const char *bin)
         free(a);
         free(b);
     }
-    if (knn && s->value[PM_P_ISA][0])
-        return pm_error_set(PM_ERR_USAGE, "ISA with GATHER=knn-gather: knn-gather is scalar (it has no --isa)");
-    if (knn && strcmp(s->value[PM_P_WIDTHS], "fixed") != 0)
-        return pm_error_set(PM_ERR_USAGE,
-                            "WIDTHS=variable with GATHER=knn-gather: its width is the k-th photon's distance");
     const char *family = knn ? "knn-gather" : "simd-gather";
     char fp[4096];
     snprintf(fp, sizeof fp, "%s/%s", bin, family);
     if (access(fp, X_OK) != 0)
         family = "simd-gather";
-    static const int gp[] = {PM_P_RADIUS, PM_P_K, PM_P_KERNEL, PM_P_COUNT};
+    static const int tp[] = {PM_P_PHOTONS, PM_P_SEED, PM_P_THREADS, PM_P_COUNT};
+    static const char *const tpo[] = {"--photons", "--seed", "--threads"};
+    static const int tg[] = {PM_P_SPP, PM_P_WIDTH, PM_P_HEIGHT, PM_P_PRIMARY, PM_P_LIGHT_SAMPLES, PM_P_COUNT};
+    static const char *const tgo[] = {"--spp", "--width", "--height", "--primary", "--light-samples"};
+    static const int lp[] = {PM_P_LEAF, PM_P_COUNT}, wp[] = {PM_P_WIDTH_K, PM_P_COUNT};
+    static const char *const lpo[] = {"--leaf"}, *const wpo[] = {"--width-k"};
+    static const int gp[] = {PM_P_RADIUS, PM_P_K, PM_P_KERNEL, PM_P_COUNT}, ep[] = {PM_P_EXPOSURE, PM_P_COUNT};
     const char *const go[] = {knn ? "--max-radius" : "--radius", "--k", "--kernel"};
-    if ((r = check_program(s, bin, family, gp, go)))
-        return r;
-    if (s->value[PM_P_ISA][0]) {
-        static const char *const isas[] = {"auto", "scalar", "sse4", "avx2", "avx512", NULL};
-        if ((r = choice(s, PM_P_ISA, isas)))
-            return r;
+    static const char *const epo[] = {"--exposure"};
+    check_group_t groups[] = {{"trace-photons", tp, tpo, NULL}, {"trace-gather-points", tg, tgo, NULL},
+                              {"hilbert-sort", lp, lpo, NULL},  {"build-photonmap", wp, wpo, NULL},
+                              {family, gp, go, NULL},           {"composite", ep, epo, NULL}};
+    enum { NG = sizeof groups / sizeof groups[0] };
+    int devnull = open("/dev/null", O_WRONLY | O_CLOEXEC);
+    if (devnull < 0)
+        return pm_error_set(PM_ERR_IO, "cannot open /dev/null: %s", strerror(errno));
+    pm_result_t r = PM_OK;
+    for (int i = 0; i < NG && r == PM_OK; i++)
+        r = group_start(s, bin, &groups[i], devnull);
+    close(devnull);
+    /* every started check is waited for, whatever the first says; the first error in the order
+     * pipelines/render judged them wins */
+    pm_result_t first = r;
+    char msg[PM_ERROR_MAX] = "";
+    if (first != PM_OK)
+        snprintf(msg, sizeof msg, "%s", pm_error_message());
+    for (int i = 0; i < NG; i++) {
+        pm_result_t ri = group_finish(s, bin, &groups[i]);
+        if (first == PM_OK && ri != PM_OK) {
+            first = ri;
+            snprintf(msg, sizeof msg, "%s", pm_error_message());
+        }
+        if (i == 1 && first == PM_OK) {
+            const char *spp = s->value[PM_P_SPP];
+            if (matches("^[0-9]+$", spp) && strtoull(spp, NULL, 10) % 4 != 0) {
+                first = PM_ERR_USAGE;
+                snprintf(msg, sizeof msg,
+                         "bad value for SPP '%s': expected a multiple of 4 (the secondary rays are traced in fours)",
+                         spp);
+            }
+        }
+        if (i == 3 && first == PM_OK) {
+            if (knn && s->value[PM_P_ISA][0]) {
+                first = PM_ERR_USAGE;
+                snprintf(msg, sizeof msg, "ISA with GATHER=knn-gather: knn-gather is scalar (it has no --isa)");
+            } else if (knn && strcmp(s->value[PM_P_WIDTHS], "fixed") != 0) {
+                first = PM_ERR_USAGE;
+                snprintf(msg, sizeof msg,
+                         "WIDTHS=variable with GATHER=knn-gather: its width is the k-th photon's distance");
+            }
+        }
+        if (i == 4 && first == PM_OK && s->value[PM_P_ISA][0]) {
+            static const char *const isas[] = {"auto", "scalar", "sse4", "avx2", "avx512", NULL};
+            if (choice(s, PM_P_ISA, isas) != PM_OK) {
+                first = PM_ERR_USAGE;
+                snprintf(msg, sizeof msg, "%s", pm_error_message());
+            }
+        }
     }
-    return check_opt(s, bin, PM_P_EXPOSURE, "composite", "--exposure");
+    if (first != PM_OK)
+        return pm_error_set(first, "%s", msg);
+    return PM_OK;
 }
 
 static const pm_stage_info_t stage_table[] = {

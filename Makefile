@@ -58,8 +58,9 @@ ALL_LDFLAGS := -fopenmp $(SAN) $(LDFLAGS)
 # libjpeg-turbo (texture JPEGs) ships libjpeg.pc only in newer Debian releases.
 LIBS := $(EMBREE_LIBS) $(PKG_LIBS) -ljpeg -lm
 
-# The library's layers (docs/architecture.md): base, math, formats, physics, then render, photonmap and image.
-LAYERS := common/base common/math formats common/physics common/render common/photonmap common/image
+# The library's layers (docs/architecture.md): base, math, formats, physics, then render,
+# photonmap and image, then engine (the render driver's library) over them all.
+LAYERS := common/base common/math formats common/physics common/render common/photonmap common/image common/engine
 LIB_SRC := $(foreach d,$(LAYERS),$(wildcard $(d)/*.c))
 LIB_OBJ := $(LIB_SRC:%.c=$(BUILD)/%.o)
 LIB := $(BUILD)/libpmtk.a

@@ -15,7 +15,8 @@ layer_allows() {
     render) echo "render physics math formats base" ;;
     photonmap) echo "photonmap physics math formats base" ;;
     image) echo "image math formats base" ;;
-    top) echo "render photonmap image physics math formats base" ;; # stages/, tests/: anything in the library
+    engine) echo "engine render photonmap image physics math formats base" ;;
+    top) echo "engine render photonmap image physics math formats base" ;; # stages/, tests/: anything in the library
     esac
 }
 
@@ -28,6 +29,7 @@ layer_of() {
     common/render/*) echo render ;;
     common/photonmap/*) echo photonmap ;;
     common/image/*) echo image ;;
+    common/engine/*) echo engine ;;
     common/*) echo stray ;; # a file directly in common/ belongs to no layer
     *) echo top ;;
     esac
@@ -41,7 +43,7 @@ check_layers() (
             [ -f "$f" ] || continue
             l=$(layer_of "$f")
             if [ "$l" = stray ]; then
-                echo "$f: not in a layer folder (common/base, math, physics, render, photonmap, image)"
+                echo "$f: not in a layer folder (common/base, math, physics, render, photonmap, image, engine)"
                 continue
             fi
             allowed=$(layer_allows "$l")
@@ -62,10 +64,10 @@ check_layers() (
                     esac
                     top=${inc%%/*}
                     case $top in
-                    base | math | physics | render | photonmap | image) path=common/$inc ;;
+                    base | math | physics | render | photonmap | image | engine) path=common/$inc ;;
                     formats) path=$inc ;;
                     *)
-                        echo "$f:$n: include '$inc' is not in a layer (base, math, formats, physics, render, photonmap, image)"
+                        echo "$f:$n: include '$inc' is not in a layer (base, math, formats, physics, render, photonmap, image, engine)"
                         continue
                         ;;
                     esac

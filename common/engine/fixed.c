@@ -31,6 +31,7 @@
 #include "base/timer.h"
 #include "engine/engine.h"
 #include "formats/pmfile.h"
+#include "render/light.h"
 #include "render/scene.h"
 #include "render/summary.h"
 
@@ -872,7 +873,15 @@ static void keep_only(render_t *r)
  * sky (point lights are sampled exactly, one shadow ray each). One question, asked in one place:
  * when branch light lands, this is pm_lights_count's sampled_out (render/light.h), and the
  * "no lights" note its total_out. */
-static size_t sampled_lights(const pm_scene_t *sc) { return sc->nemissive + (size_t)sc->has_sun + (size_t)sc->has_sky; }
+/* Lights whose direct light takes LIGHT_SAMPLES samples, and all lights, asked of the light
+ * module without naming a kind (render/light.h), so that a new kind of light gets its samples. */
+static size_t sampled_lights(const pm_scene_t *sc, size_t *total_out)
+{
+    size_t total = 0, sampled = 0;
+    pm_lights_count(sc, &total, &sampled);
+    *total_out = total;
+    return sampled;
+}
 
 /* The decisions pipelines/render made from the scene and the parameters, and the notes it
  * printed for them (docs/pipelines.md, "What it leaves out"). PM_ERR_USAGE for a combination
@@ -938,10 +947,11 @@ static void decide_scene(render_t *r)
         note(r, "left out the material channel: %s",
              !sc->any_glossy ? "a Lambertian query carries its BRDF in its weight" : "one material");
     snprintf(r->light_samples, sizeof r->light_samples, "%s", r->s->value[PM_P_LIGHT_SAMPLES]);
-    if (sampled_lights(sc) == 0) {
+    size_t lights_total = 0;
+    if (sampled_lights(sc, &lights_total) == 0) {
         snprintf(r->light_samples, sizeof r->light_samples, "0");
-        note(r, "skipped area-light sampling: no emissive triangles, sun or sky (%zu point lights)", sc->nlights);
-        if (sc->nlights == 0)
+        note(r, "skipped area-light sampling: no emissive triangles, sun or sky (%zu point lights)", lights_total);
+        if (lights_total == 0)
             note(r, "warning: the scene has no lights; the image is black");
     }
     r->width_k[0] = '\0';

@@ -226,6 +226,27 @@ static pm_result_t pass_key(const pm_composite_t *c, const char *key, char *out,
     return PM_OK;
 }
 
+pm_result_t pm_composite_pass(const pm_composite_t *c, uint64_t *pass_out)
+{
+    *pass_out = 0;
+    const char *first = NULL;
+    for (int i = 0; i < c->nin; i++) {
+        const char *v = c->in[i].used ? pm_header_get(pm_reader_header(c->in[i].rd), "pass") : NULL;
+        int64_t p;
+        if (!v)
+            continue;
+        if (pm_parse_i64(v, &p) != PM_OK || p < 1)
+            return pm_error_set(PM_ERR_INPUT, "'%s': header key pass '%s' is not a pass of at least 1", c->in[i].path,
+                                v);
+        if (first && (uint64_t)p != *pass_out)
+            return pm_error_set(PM_ERR_INPUT,
+                                "buffers of one pass disagree on pass: '%s' says %" PRIu64 ", '%s' says %s", first,
+                                *pass_out, c->in[i].path, v);
+        *pass_out = (uint64_t)p, first = c->in[i].path;
+    }
+    return PM_OK;
+}
+
 /* The state's key must equal the pass's, when both have it. */
 static pm_result_t same_key(const char *state, const pm_header_t *sh, const char *key, char *pass_value, size_t size,
                             uint64_t pass)

@@ -82,6 +82,11 @@ pm_result_t pm_composite_sum(pm_composite_t *c, int argc, char **argv, pm_compos
  * the mean, and pm_composite_write_radiance writes the new state. */
 pm_result_t pm_composite_accumulate(pm_composite_t *c, const char *state, uint64_t pass);
 
+/* The progressive pass the kept buffers name (header key pass, as the tracers and the gather
+ * write it with --pass) into *pass_out, 0 when none does; buffers that disagree, or a key that
+ * is not a pass of at least 1, are an input error. Valid from pm_composite_open. */
+pm_result_t pm_composite_pass(const pm_composite_t *c, uint64_t *pass_out);
+
 /* Converts the sum to the f32 pixels of the EXR and takes the luminance statistics. A value
  * beyond half (half != 0) or float, or not finite, is an error naming the pixel: a scale
  * can overflow even though every input is finite. */

@@ -14,7 +14,8 @@ layer_allows() {
     render) echo "render math formats base" ;;
     photonmap) echo "photonmap math formats base" ;;
     image) echo "image math formats base" ;;
-    top) echo "render photonmap image math formats base" ;; # stages/, tests/: anything in the library
+    engine) echo "engine render photonmap image math formats base" ;;
+    top) echo "engine render photonmap image math formats base" ;; # stages/, tests/: anything in the library
     esac
 }
 
@@ -26,6 +27,7 @@ layer_of() {
     common/render/*) echo render ;;
     common/photonmap/*) echo photonmap ;;
     common/image/*) echo image ;;
+    common/engine/*) echo engine ;;
     common/*) echo stray ;; # a file directly in common/ belongs to no layer
     *) echo top ;;
     esac

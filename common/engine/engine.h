@@ -1,0 +1,213 @@
+/* engine.h: the render driver's library (bin/pm-render, docs/programs/pm-render.md): its
+ * settings, its table of stages, how it starts a stage, and how it decides by provenance
+ * whether an intermediate is what the current settings would make.
+ *
+ * The engine sits above every other layer: it loads the scene through common/render (what the
+ * scene holds and needs) and reads intermediates through formats, but it never traces, sorts
+ * or gathers itself. Each stage stays a program a user can run alone; the engine starts it
+ * with posix_spawn, with pipes where one stage feeds the next, and judges each file by its
+ * header (COMMAND lines, INPUT content hashes, the SCENE parts) and its checksum trailer. No
+ * dates, stamp files, seals or make: docs/pipelines.md, "How reuse is decided".
+ *
+ * Like the rest of the library it never exits and returns pm_result_t; only pm-render's main
+ * picks the exit status. */
+#ifndef PM_ENGINE_H
+#define PM_ENGINE_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include <sys/types.h>
+
+#include "base/error.h"
+
+/* ---- settings: pipelines/render's NAME=VALUE parameters ---- */
+
+/* Every parameter pipelines/render takes, in the order --help lists them. */
+typedef enum {
+    PM_P_PHOTONS,
+    PM_P_MAP,
+    PM_P_MODE,
+    PM_P_SPP,
+    PM_P_WIDTH,
+    PM_P_HEIGHT,
+    PM_P_PRIMARY,
+    PM_P_LIGHT_SAMPLES,
+    PM_P_ORDER,
+    PM_P_LEAF,
+    PM_P_RADIUS,
+    PM_P_K,
+    PM_P_KERNEL,
+    PM_P_WIDTHS,
+    PM_P_ISA,
+    PM_P_WIDTH_K,
+    PM_P_SHARDS,
+    PM_P_GATHER,
+    PM_P_EXPOSURE,
+    PM_P_TONE,
+    PM_P_HALF,
+    PM_P_SEED,
+    PM_P_PASSES,
+    PM_P_TIME,
+    PM_P_TARGET_ERROR,
+    PM_P_ALPHA,
+    PM_P_PASS_RANGE,
+    PM_P_THREADS,
+    PM_P_JOBS,
+    PM_P_VERBOSE,
+    PM_P_QUIET,
+    PM_P_WAIT,
+    PM_P_KEEP,
+    PM_P_COUNT
+} pm_param_t;
+
+/* A parameter's name ("PHOTONS") and its default as text ("" means the stage's own default,
+ * which is the scene's render block). */
+const char *pm_param_name(pm_param_t p);
+const char *pm_param_default(pm_param_t p);
+/* The parameter called name, or PM_P_COUNT when there is none. */
+pm_param_t pm_param_find(const char *name);
+
+#define PM_ENGINE_MAX_TARGETS 64
+
+/* What one pm-render command line asks for. Values are the text given (or the default), as
+ * pipelines/render kept them; the derived fields below are filled by pm_settings_parse from
+ * them, after the checks that need no program (choices, counts, numbers). */
+typedef struct {
+    const char *scene;  /* the scene file as given */
+    const char *outdir; /* OUTDIR as given */
+    const char *value[PM_P_COUNT];
+    const char *targets[PM_ENGINE_MAX_TARGETS]; /* files of the graph to make, in order */
+    int ntargets;
+    /* derived */
+    int progressive;    /* PASSES > 1, TIME, TARGET_ERROR or PASS_RANGE */
+    int shards;         /* SHARDS, >= 1 */
+    int verbose, quiet; /* VERBOSE=1, QUIET=1 */
+    int wait;           /* WAIT=1 */
+    int keep;           /* 0 all, 1 buffers, 2 image (KEEP) */
+} pm_settings_t;
+
+enum { PM_KEEP_ALL = 0, PM_KEEP_BUFFERS = 1, PM_KEEP_IMAGE = 2 };
+
+/* Fills s with the defaults. */
+void pm_settings_init(pm_settings_t *s);
+/* Parses pm-render's arguments after SCENE and OUTDIR: NAME=VALUE words and TARGET words
+ * (pointers into argv are kept). PM_ERR_USAGE with a one-line message ("unknown parameter
+ * 'X' (known: ...)", "bad value for SHARDS '0': expected a count of at least 1") on the
+ * first bad one; the values the stages judge themselves (PHOTONS, RADIUS, ...) are left to
+ * pm_settings_check_stages. */
+pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv);
+/* Asks each stage to judge the values it reads (PROGRAM --option VALUE --print-settings, which
+ * parses and exits without reading input): PM_ERR_USAGE with "bad value for NAME 'V': the
+ * stage's message" on the first it refuses. bin is the program directory. */
+pm_result_t pm_settings_check_stages(const pm_settings_t *s, const char *bin);
+
+/* ---- spawn: a stage as a process ---- */
+
+/* How to start one program. */
+typedef struct {
+    char *const *argv;    /* argv[0] is the program's path; NULL-terminated */
+    const char *cwd;      /* directory to run in; NULL: the driver's */
+    int stdin_fd;         /* fd to give the program as stdin; -1: the driver's */
+    int stdout_fd;        /* fd to give it as stdout; -1: the driver's */
+    int capture_stderr;   /* 1: its stderr into pm_proc_status_t.err; 0: passed through */
+    const int *close_fds; /* fds the child must not inherit (the other ends of its pipes), */
+    int nclose;           /* so that a reader sees end of file when its writer exits */
+    char *const *env;     /* environment; NULL: the driver's */
+} pm_spawn_t;
+
+/* How a program ended. */
+typedef struct {
+    int exit_code; /* its exit status; 128 + signal when a signal ended it */
+    int signal;    /* the signal that ended it, 0 if none */
+    double wall_s; /* s (wall) from spawn to exit */
+    char *err;     /* its stderr when captured (malloc'd, NUL-terminated, may be ""), else NULL */
+} pm_proc_status_t;
+
+typedef struct pm_proc pm_proc_t;
+
+/* Starts the program; *out is its handle, to be waited for with pm_proc_wait. PM_ERR_IO
+ * when posix_spawn fails (a missing or non-executable program is named). */
+pm_result_t pm_proc_spawn(const pm_spawn_t *sp, pm_proc_t **out);
+/* Waits for it to end and frees the handle; *status_out says how it ended (its err is the
+ * caller's to free with pm_proc_status_free). */
+pm_result_t pm_proc_wait(pm_proc_t *p, pm_proc_status_t *status_out);
+void pm_proc_status_free(pm_proc_status_t *st);
+/* Runs one program to its end (pm_proc_spawn then pm_proc_wait). */
+pm_result_t pm_proc_run(const pm_spawn_t *sp, pm_proc_status_t *status_out);
+/* A pipe whose two ends close on exec (each child gets the end it needs as stdin or stdout). */
+pm_result_t pm_proc_pipe(int fds_out[2]);
+/* The error class (PM_ERR_*) a stage's exit status stands for (docs/cli.md): 1 input, 2
+ * usage, 3 io or out of memory, 4 internal; a signal is io. PM_OK for 0. */
+pm_result_t pm_proc_class(int exit_code);
+
+/* ---- provenance: is this intermediate what the current settings would make? ---- */
+
+/* What a file must record to be kept. */
+typedef struct {
+    const char *dir;             /* the directory the file and its INPUT paths are in */
+    const char *name;            /* the file, relative to dir */
+    const char *const *commands; /* the COMMAND lines its header must end with, oldest first, */
+    size_t ncommands;            /* as pm_prov_command_line makes them */
+    const char *scene;           /* the SCENE value it must record; NULL: not checked */
+    int external;                /* 1: made by a program outside the program directory, which may
+                                  * record no command line: judged by being whole alone */
+    int scene_arg;               /* 1: the word after the program's name in its own command line is
+                                  * the scene file, which SCENE judges by content: its path is no part
+                                  * of the identity (shot2.json with shot1.json's photon part) */
+} pm_prov_want_t;
+
+typedef enum {
+    PM_PROV_OK,      /* whole, and made as the settings would make it: keep it */
+    PM_PROV_MISSING, /* not there */
+    PM_PROV_CORRUPT, /* not a whole pmtk file: checksum, truncation, format (why says) */
+    PM_PROV_OTHER    /* whole, but made otherwise: another command, scene or input (why says) */
+} pm_prov_verdict_t;
+
+/* What pm_prov_check found. */
+typedef struct {
+    pm_prov_verdict_t verdict;
+    uint64_t hash;  /* the file's content hash (its XXH3 trailer) when whole */
+    uint64_t count; /* its records, when whole */
+    char why[512];  /* for CORRUPT and OTHER: "checksum mismatch", "command 'simd-gather ...'" */
+} pm_prov_t;
+
+/* Reads dir/name whole with the formats library (header, every record, the checksum) and
+ * compares its provenance with w: the SCENE key, the last ncommands COMMAND lines, and each
+ * INPUT's content hash against the file of that name in dir as it is now (an input that is
+ * missing or a pipe, "-", is not compared: what makes it is judged on its own). Returns an
+ * error only when the check itself cannot run (out of memory); every verdict is PM_OK. */
+pm_result_t pm_prov_check(const pm_prov_want_t *w, pm_prov_t *out);
+/* The content hash of a pmtk file: its last 8 bytes (little-endian XXH3-64), not checked.
+ * PM_ERR_IO when it cannot be read or is shorter than 8 bytes. */
+pm_result_t pm_prov_trailer(const char *path, uint64_t *hash_out);
+/* The COMMAND line a stage run as argv (argc words) records: argv[0] reduced to its base
+ * name, without -q/--quiet, --threads N and --stats FILE (which change no output and which
+ * the stages leave out), quoted as pm_header_add_command quotes. *out_line is malloc'd. */
+pm_result_t pm_prov_command_line(int argc, char *const *argv, char **line_out);
+
+/* ---- the stage table ---- */
+
+/* One program of the chain as the engine knows it. */
+typedef struct {
+    const char *name;    /* its row in the time table and its stats/NAME.json: "trace-photons" */
+    const char *program; /* the binary in the program directory */
+    int scene_part;      /* the SCENE part its outputs record: 0 all, 1 photons, 2 view */
+} pm_stage_info_t;
+
+/* The stages of the fixed chain, in the order they run and the time table lists them:
+ * trace-photons, build-photonmap, build-photonmap.caustic, trace-gather-points, hilbert-sort,
+ * simd-gather (the gather; its name is the gather program's), simd-gather.caustic, composite. */
+const pm_stage_info_t *pm_stage_table(size_t *n_out);
+
+/* ---- one render ---- */
+
+/* One render of the whole chain (no passes) into s->outdir, as pipelines/render did: the lock,
+ * the scene loaded through the library, the graph, each intermediate judged by provenance and
+ * remade when it is not what s would make (and what reads it, when its bytes changed), the
+ * time table on stdout, stats.json, KEEP. Messages start with "me: ". bin is the program
+ * directory (absolute); cmdline is what the lock file records. Returns the exit status: 0 ok,
+ * 1 bad input (or OUTDIR held with WAIT=0), 2 usage, 3 I/O or out of memory, 4 internal (a
+ * stage's class passed through). */
+int pm_render_fixed(const pm_settings_t *s, const char *me, const char *bin, const char *cmdline);
+
+#endif

@@ -1,0 +1,285 @@
+/* settings.c: pm-render's NAME=VALUE parameters (engine.h, "settings"), the checks that need
+ * no program, the stages' own checks of their values (--print-settings), and the table of
+ * stages. The names, defaults and messages are pipelines/render's, which pm-render replaces. */
+#include <regex.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "engine/engine.h"
+
+static const struct {
+    const char *name, *def;
+} params[PM_P_COUNT] = {
+    [PM_P_PHOTONS] = {"PHOTONS", ""},
+    [PM_P_MAP] = {"MAP", "auto"},
+    [PM_P_MODE] = {"MODE", "gather"},
+    [PM_P_SPP] = {"SPP", ""},
+    [PM_P_WIDTH] = {"WIDTH", ""},
+    [PM_P_HEIGHT] = {"HEIGHT", ""},
+    [PM_P_PRIMARY] = {"PRIMARY", ""},
+    [PM_P_LIGHT_SAMPLES] = {"LIGHT_SAMPLES", ""},
+    [PM_P_ORDER] = {"ORDER", "auto"},
+    [PM_P_LEAF] = {"LEAF", ""},
+    [PM_P_RADIUS] = {"RADIUS", ""},
+    [PM_P_K] = {"K", ""},
+    [PM_P_KERNEL] = {"KERNEL", ""},
+    [PM_P_WIDTHS] = {"WIDTHS", "fixed"},
+    [PM_P_ISA] = {"ISA", ""},
+    [PM_P_WIDTH_K] = {"WIDTH_K", ""},
+    [PM_P_SHARDS] = {"SHARDS", "1"},
+    [PM_P_GATHER] = {"GATHER", "simd-gather"},
+    [PM_P_EXPOSURE] = {"EXPOSURE", "0"},
+    [PM_P_TONE] = {"TONE", "srgb"},
+    [PM_P_HALF] = {"HALF", "0"},
+    [PM_P_SEED] = {"SEED", ""},
+    [PM_P_PASSES] = {"PASSES", ""},
+    [PM_P_TIME] = {"TIME", ""},
+    [PM_P_TARGET_ERROR] = {"TARGET_ERROR", ""},
+    [PM_P_ALPHA] = {"ALPHA", ""},
+    [PM_P_PASS_RANGE] = {"PASS_RANGE", ""},
+    [PM_P_THREADS] = {"THREADS", ""},
+    [PM_P_JOBS] = {"JOBS", "1"},
+    [PM_P_VERBOSE] = {"VERBOSE", "0"},
+    [PM_P_QUIET] = {"QUIET", "0"},
+    [PM_P_WAIT] = {"WAIT", "1"},
+    [PM_P_KEEP] = {"KEEP", "all"},
+};
+
+const char *pm_param_name(pm_param_t p) { return p < PM_P_COUNT ? params[p].name : ""; }
+const char *pm_param_default(pm_param_t p) { return p < PM_P_COUNT ? params[p].def : ""; }
+
+pm_param_t pm_param_find(const char *name)
+{
+    for (int p = 0; p < PM_P_COUNT; p++)
+        if (strcmp(params[p].name, name) == 0)
+            return (pm_param_t)p;
+    return PM_P_COUNT;
+}
+
+void pm_settings_init(pm_settings_t *s)
+{
+    memset(s, 0, sizeof *s);
+    for (int p = 0; p < PM_P_COUNT; p++)
+        s->value[p] = params[p].def;
+    s->shards = 1;
+    s->wait = 1;
+}
+
+static int cmp_names(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
+
+/* The value is one of the words (a NULL-terminated list), else a usage error naming them. */
+static pm_result_t choice(const pm_settings_t *s, pm_param_t p, const char *const *words)
+{
+    char list[256] = "";
+    for (int i = 0; words[i]; i++) {
+        if (strcmp(s->value[p], words[i]) == 0)
+            return PM_OK;
+        snprintf(list + strlen(list), sizeof list - strlen(list), "%s%s", i ? " " : "", words[i]);
+    }
+    return pm_error_set(PM_ERR_USAGE, "bad value for %s '%s': expected one of %s", params[p].name, s->value[p], list);
+}
+
+static int matches(const char *re, const char *s)
+{
+    regex_t rx;
+    if (regcomp(&rx, re, REG_EXTENDED | REG_NOSUB) != 0)
+        return 0;
+    int ok = regexec(&rx, s, 0, NULL, 0) == 0;
+    regfree(&rx);
+    return ok;
+}
+
+#define COUNT_RE "^[1-9][0-9]*$"
+/* A number of at least 0 as pipelines/render's isnum took it (no sign, no hex, no inf). */
+#define NUM_RE "^([0-9]+([.][0-9]*)?|[.][0-9]+)([eE][-+]?[0-9]+)?$"
+
+pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
+{
+    for (int i = 0; i < argc; i++) {
+        const char *a = argv[i], *eq = strchr(a, '=');
+        if (!eq) {
+            if (s->ntargets >= PM_ENGINE_MAX_TARGETS)
+                return pm_error_set(PM_ERR_USAGE, "more than %d TARGETs", PM_ENGINE_MAX_TARGETS);
+            s->targets[s->ntargets++] = a;
+            continue;
+        }
+        char name[64];
+        snprintf(name, sizeof name, "%.*s", (int)(eq - a), a);
+        pm_param_t p = pm_param_find(name);
+        if (p == PM_P_COUNT) {
+            const char *names[PM_P_COUNT];
+            for (int k = 0; k < PM_P_COUNT; k++)
+                names[k] = params[k].name;
+            qsort(names, PM_P_COUNT, sizeof names[0], cmp_names);
+            char known[512] = "";
+            for (int k = 0; k < PM_P_COUNT; k++)
+                snprintf(known + strlen(known), sizeof known - strlen(known), "%s ", names[k]);
+            return pm_error_set(PM_ERR_USAGE, "unknown parameter '%.*s' (known: %s)", (int)(eq - a), a, known);
+        }
+        if (strchr(eq + 1, '\n'))
+            return pm_error_set(PM_ERR_USAGE, "parameter %s: a value cannot hold a newline", name);
+        s->value[p] = eq + 1;
+    }
+    static const char *const modes[] = {"gather", "direct-vis", NULL},
+                             *const maps[] = {"auto", "global", "indirect", NULL},
+                             *const orders[] = {"auto", "hilbert", "morton", "none", NULL},
+                             *const widths[] = {"fixed", "variable", NULL}, *const tones[] = {"srgb", "filmic", NULL},
+                             *const bits[] = {"0", "1", NULL}, *const keeps[] = {"all", "buffers", "image", NULL};
+    pm_result_t r;
+    if ((r = choice(s, PM_P_MODE, modes)) || (r = choice(s, PM_P_MAP, maps)) || (r = choice(s, PM_P_ORDER, orders)) ||
+        (r = choice(s, PM_P_WIDTHS, widths)) || (r = choice(s, PM_P_TONE, tones)) || (r = choice(s, PM_P_HALF, bits)) ||
+        (r = choice(s, PM_P_VERBOSE, bits)) || (r = choice(s, PM_P_WAIT, bits)) || (r = choice(s, PM_P_QUIET, bits)) ||
+        (r = choice(s, PM_P_KEEP, keeps)))
+        return r;
+    s->keep = strcmp(s->value[PM_P_KEEP], "all") == 0       ? PM_KEEP_ALL
+              : strcmp(s->value[PM_P_KEEP], "buffers") == 0 ? PM_KEEP_BUFFERS
+                                                            : PM_KEEP_IMAGE;
+    if (s->keep != PM_KEEP_ALL && s->ntargets)
+        return pm_error_set(PM_ERR_USAGE, "KEEP=%s with TARGETs: a TARGET is made to be kept", s->value[PM_P_KEEP]);
+    if (!matches(COUNT_RE, s->value[PM_P_SHARDS]) || strlen(s->value[PM_P_SHARDS]) > 6)
+        return pm_error_set(PM_ERR_USAGE, "bad value for SHARDS '%s': expected a count of at least 1",
+                            s->value[PM_P_SHARDS]);
+    if (!matches(COUNT_RE, s->value[PM_P_JOBS]))
+        return pm_error_set(PM_ERR_USAGE, "bad value for JOBS '%s': expected a count of at least 1",
+                            s->value[PM_P_JOBS]);
+    if (s->value[PM_P_PASSES][0] && !matches(COUNT_RE, s->value[PM_P_PASSES]))
+        return pm_error_set(PM_ERR_USAGE, "bad value for PASSES '%s': expected a count of at least 1",
+                            s->value[PM_P_PASSES]);
+    if (s->value[PM_P_TIME][0] && !matches(NUM_RE, s->value[PM_P_TIME]))
+        return pm_error_set(PM_ERR_USAGE, "bad value for TIME '%s': expected seconds, a number of at least 0",
+                            s->value[PM_P_TIME]);
+    if (s->value[PM_P_TARGET_ERROR][0] &&
+        (!matches(NUM_RE, s->value[PM_P_TARGET_ERROR]) || !(strtod(s->value[PM_P_TARGET_ERROR], NULL) > 0)))
+        return pm_error_set(PM_ERR_USAGE, "bad value for TARGET_ERROR '%s': expected a relative error above 0",
+                            s->value[PM_P_TARGET_ERROR]);
+    if (s->value[PM_P_ALPHA][0]) {
+        double a = strtod(s->value[PM_P_ALPHA], NULL);
+        if (!matches(NUM_RE, s->value[PM_P_ALPHA]) || !(a > 0 && a < 1))
+            return pm_error_set(PM_ERR_USAGE, "bad value for ALPHA '%s': expected a number in (0, 1)",
+                                s->value[PM_P_ALPHA]);
+    }
+    s->shards = atoi(s->value[PM_P_SHARDS]);
+    s->verbose = s->value[PM_P_VERBOSE][0] == '1';
+    s->quiet = s->value[PM_P_QUIET][0] == '1';
+    s->wait = s->value[PM_P_WAIT][0] == '1';
+    s->progressive = s->value[PM_P_TIME][0] || s->value[PM_P_TARGET_ERROR][0] || s->value[PM_P_PASS_RANGE][0] ||
+                     (s->value[PM_P_PASSES][0] && strcmp(s->value[PM_P_PASSES], "1") != 0);
+    return PM_OK;
+}
+
+/* PROGRAM OPTION VALUE --print-settings: PM_OK, or a usage error with the stage's message. */
+static pm_result_t check_opt(const pm_settings_t *s, const char *bin, pm_param_t p, const char *program,
+                             const char *option)
+{
+    const char *v = s->value[p];
+    char path[4096];
+    snprintf(path, sizeof path, "%s/%s", bin, program);
+    if (!v[0] || access(path, X_OK) != 0)
+        return PM_OK; /* a missing program is named when the stages are looked for */
+    char *argv[] = {path, (char *)option, (char *)v, "--print-settings", NULL};
+    int devnull[2];
+    if (pm_proc_pipe(devnull) != PM_OK)
+        return PM_ERR_IO;
+    pm_spawn_t sp = {.argv = argv, .stdin_fd = -1, .stdout_fd = devnull[1], .capture_stderr = 1};
+    pm_proc_t *proc;
+    pm_result_t r = pm_proc_spawn(&sp, &proc);
+    close(devnull[1]);
+    if (r != PM_OK) {
+        close(devnull[0]);
+        return r;
+    }
+    char sink[4096];
+    while (read(devnull[0], sink, sizeof sink) > 0)
+        ;
+    close(devnull[0]);
+    pm_proc_status_t st;
+    r = pm_proc_wait(proc, &st);
+    if (r == PM_OK && st.exit_code != 0) {
+        /* the stage's first line, without "PROGRAM: " and " (usage error)" */
+        char msg[1024];
+        snprintf(msg, sizeof msg, "%s", st.err ? st.err : "");
+        msg[strcspn(msg, "\n")] = '\0';
+        const char *m = msg;
+        size_t pl = strlen(program);
+        if (strncmp(m, program, pl) == 0 && strncmp(m + pl, ": ", 2) == 0)
+            m += pl + 2;
+        char *tail = strstr(msg, " (usage error)");
+        if (tail && tail[14] == '\0')
+            *tail = '\0';
+        r = pm_error_set(PM_ERR_USAGE, "bad value for %s '%s': %s", params[p].name, v, m);
+    }
+    pm_proc_status_free(&st);
+    return r;
+}
+
+pm_result_t pm_settings_check_stages(const pm_settings_t *s, const char *bin)
+{
+    pm_result_t r;
+    if ((r = check_opt(s, bin, PM_P_PHOTONS, "trace-photons", "--photons")) ||
+        (r = check_opt(s, bin, PM_P_SEED, "trace-photons", "--seed")) ||
+        (r = check_opt(s, bin, PM_P_THREADS, "trace-photons", "--threads")) ||
+        (r = check_opt(s, bin, PM_P_SPP, "trace-gather-points", "--spp")) ||
+        (r = check_opt(s, bin, PM_P_WIDTH, "trace-gather-points", "--width")) ||
+        (r = check_opt(s, bin, PM_P_HEIGHT, "trace-gather-points", "--height")) ||
+        (r = check_opt(s, bin, PM_P_PRIMARY, "trace-gather-points", "--primary")) ||
+        (r = check_opt(s, bin, PM_P_LIGHT_SAMPLES, "trace-gather-points", "--light-samples")))
+        return r;
+    const char *spp = s->value[PM_P_SPP];
+    if (matches("^[0-9]+$", spp) && strtoull(spp, NULL, 10) % 4 != 0)
+        return pm_error_set(PM_ERR_USAGE,
+                            "bad value for SPP '%s': expected a multiple of 4 (the secondary rays are traced in fours)",
+                            spp);
+    if ((r = check_opt(s, bin, PM_P_LEAF, "hilbert-sort", "--leaf")) ||
+        (r = check_opt(s, bin, PM_P_WIDTH_K, "build-photonmap", "--width-k")))
+        return r;
+    /* The gather's options by program: knn-gather's radius is its --max-radius, and it has
+     * no ISA and no variable widths (docs/pipelines.md, "The gather"). */
+    const char *g = s->value[PM_P_GATHER], *base = strrchr(g, '/');
+    base = base ? base + 1 : g;
+    int knn = strcmp(base, "knn-gather") == 0;
+    if (knn && strchr(g, '/')) { /* a knn-gather outside the program directory stands in for simd-gather */
+        char *a = realpath(g, NULL), *b = realpath(bin, NULL);
+        size_t bl = b ? strlen(b) : 0;
+        knn = a && b && strncmp(a, b, bl) == 0 && a[bl] == '/' && !strchr(a + bl + 1, '/');
+        free(a);
+        free(b);
+    }
+    if (knn && s->value[PM_P_ISA][0])
+        return pm_error_set(PM_ERR_USAGE, "ISA with GATHER=knn-gather: knn-gather is scalar (it has no --isa)");
+    if (knn && strcmp(s->value[PM_P_WIDTHS], "fixed") != 0)
+        return pm_error_set(PM_ERR_USAGE,
+                            "WIDTHS=variable with GATHER=knn-gather: its width is the k-th photon's distance");
+    const char *family = knn ? "knn-gather" : "simd-gather";
+    char fp[4096];
+    snprintf(fp, sizeof fp, "%s/%s", bin, family);
+    if (access(fp, X_OK) != 0)
+        family = "simd-gather";
+    if ((r = check_opt(s, bin, PM_P_RADIUS, family, knn ? "--max-radius" : "--radius")) ||
+        (r = check_opt(s, bin, PM_P_K, family, "--k")) || (r = check_opt(s, bin, PM_P_KERNEL, family, "--kernel")))
+        return r;
+    if (s->value[PM_P_ISA][0]) {
+        static const char *const isas[] = {"auto", "scalar", "sse4", "avx2", "avx512", NULL};
+        if ((r = choice(s, PM_P_ISA, isas)))
+            return r;
+    }
+    return check_opt(s, bin, PM_P_EXPOSURE, "composite", "--exposure");
+}
+
+static const pm_stage_info_t stage_table[] = {
+    {"trace-photons", "trace-photons", 1},
+    {"build-photonmap", "build-photonmap", 1},
+    {"build-photonmap.caustic", "build-photonmap", 1},
+    {"trace-gather-points", "trace-gather-points", 2},
+    {"hilbert-sort", "hilbert-sort", 2},
+    {"simd-gather", "simd-gather", 0},
+    {"simd-gather.caustic", "simd-gather", 0},
+    {"composite", "composite", 0},
+};
+
+const pm_stage_info_t *pm_stage_table(size_t *n_out)
+{
+    *n_out = sizeof stage_table / sizeof stage_table[0];
+    return stage_table;
+}

@@ -1,0 +1,156 @@
+/* spawn.c: a stage as a process (engine.h, "spawn"). posix_spawn with the stage's stdin and
+ * stdout on the fds the driver gives (pipes between stages), its stderr passed through or
+ * captured through a pipe, its wall time from spawn to exit. */
+#include <errno.h>
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "base/timer.h"
+#include "engine/engine.h"
+
+extern char **environ;
+
+struct pm_proc {
+    pid_t pid;
+    int err_fd; /* read end of the captured stderr, -1 when passed through */
+    double t0;  /* s, pm_time_wall at spawn */
+    char name[256];
+};
+
+pm_result_t pm_proc_pipe(int fds_out[2])
+{
+    if (pipe2(fds_out, O_CLOEXEC) != 0)
+        return pm_error_set(PM_ERR_IO, "cannot make a pipe: %s", strerror(errno));
+    return PM_OK;
+}
+
+pm_result_t pm_proc_class(int exit_code)
+{
+    switch (exit_code) {
+    case 0: return PM_OK;
+    case 1: return PM_ERR_INPUT;
+    case 2: return PM_ERR_USAGE;
+    case 4: return PM_ERR_INTERNAL;
+    default: /* 3 (io, out of memory) and a signal: the system, which a retry may cure */ return PM_ERR_IO;
+    }
+}
+
+pm_result_t pm_proc_spawn(const pm_spawn_t *sp, pm_proc_t **out)
+{
+    *out = NULL;
+    pm_proc_t *p = calloc(1, sizeof *p);
+    if (!p)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory starting '%s'", sp->argv[0]);
+    const char *base = strrchr(sp->argv[0], '/');
+    snprintf(p->name, sizeof p->name, "%s", base ? base + 1 : sp->argv[0]);
+    p->err_fd = -1;
+    int errp[2] = {-1, -1};
+    if (sp->capture_stderr && pm_proc_pipe(errp) != PM_OK) {
+        free(p);
+        return PM_ERR_IO;
+    }
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    /* The pipes are close-on-exec: dup2 gives the child its ends as 0, 1 and 2 only. */
+    if (sp->stdin_fd >= 0)
+        posix_spawn_file_actions_adddup2(&fa, sp->stdin_fd, 0);
+    if (sp->stdout_fd >= 0)
+        posix_spawn_file_actions_adddup2(&fa, sp->stdout_fd, 1);
+    if (errp[1] >= 0)
+        posix_spawn_file_actions_adddup2(&fa, errp[1], 2);
+    for (int i = 0; i < sp->nclose; i++)
+        if (sp->close_fds[i] > 2)
+            posix_spawn_file_actions_addclose(&fa, sp->close_fds[i]);
+    if (sp->cwd)
+        posix_spawn_file_actions_addchdir_np(&fa, sp->cwd);
+    p->t0 = pm_time_wall();
+    int rc = posix_spawn(&p->pid, sp->argv[0], &fa, NULL, sp->argv, sp->env ? sp->env : environ);
+    posix_spawn_file_actions_destroy(&fa);
+    if (errp[1] >= 0)
+        close(errp[1]);
+    if (rc != 0) {
+        if (errp[0] >= 0)
+            close(errp[0]);
+        free(p);
+        return pm_error_set(PM_ERR_IO, "cannot start '%s': %s", sp->argv[0], strerror(rc));
+    }
+    p->err_fd = errp[0];
+    *out = p;
+    return PM_OK;
+}
+
+/* Reads fd to its end into a malloc'd string. */
+static char *slurp(int fd)
+{
+    size_t cap = 4096, n = 0;
+    char *s = malloc(cap);
+    if (!s)
+        return NULL;
+    for (;;) {
+        if (n + 1 >= cap) {
+            char *t = realloc(s, cap * 2);
+            if (!t)
+                break;
+            s = t;
+            cap *= 2;
+        }
+        ssize_t got = read(fd, s + n, cap - 1 - n);
+        if (got < 0 && errno == EINTR)
+            continue;
+        if (got <= 0)
+            break;
+        n += (size_t)got;
+    }
+    s[n] = '\0';
+    return s;
+}
+
+pm_result_t pm_proc_wait(pm_proc_t *p, pm_proc_status_t *status_out)
+{
+    memset(status_out, 0, sizeof *status_out);
+    if (p->err_fd >= 0) { /* read before waiting: a full pipe would block the stage forever */
+        status_out->err = slurp(p->err_fd);
+        close(p->err_fd);
+    }
+    int ws = 0;
+    pid_t r;
+    do
+        r = waitpid(p->pid, &ws, 0);
+    while (r < 0 && errno == EINTR);
+    status_out->wall_s = pm_time_wall() - p->t0;
+    pm_result_t res = PM_OK;
+    if (r < 0) {
+        res = pm_error_set(PM_ERR_IO, "cannot wait for '%s': %s", p->name, strerror(errno));
+        status_out->exit_code = 4;
+    } else if (WIFSIGNALED(ws)) {
+        status_out->signal = WTERMSIG(ws);
+        status_out->exit_code = 128 + status_out->signal;
+    } else {
+        status_out->exit_code = WEXITSTATUS(ws);
+    }
+    free(p);
+    return res;
+}
+
+void pm_proc_status_free(pm_proc_status_t *st)
+{
+    free(st->err);
+    st->err = NULL;
+}
+
+pm_result_t pm_proc_run(const pm_spawn_t *sp, pm_proc_status_t *status_out)
+{
+    pm_proc_t *p;
+    memset(status_out, 0, sizeof *status_out);
+    pm_result_t r = pm_proc_spawn(sp, &p);
+    if (r != PM_OK)
+        return r;
+    return pm_proc_wait(p, status_out);
+}

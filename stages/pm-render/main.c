@@ -1,0 +1,218 @@
+/* pm-render: the render driver, an executive over the stage programs in the manner of
+ * Radiance's rad: VAR=value settings, a table of stages, and a cache decided by provenance
+ * alone (docs/programs/pm-render.md; pipelines/render is this program under another name).
+ *
+ *   pm-render SCENE OUTDIR [NAME=VALUE ...] [TARGET ...]
+ *
+ * Runs trace-photons, build-photonmap, trace-gather-points, hilbert-sort, the gather and
+ * composite as programs (posix_spawn) in OUTDIR, keeps every intermediate there, and on a rerun
+ * remakes only the files whose headers do not record what these settings would make
+ * (common/engine). Progressive passes (PASSES > 1, TIME, TARGET_ERROR, PASS_RANGE) still run
+ * through the shell driver pipelines/lib/render-make, which pm-render hands them to whole. */
+#include <errno.h>
+#include <limits.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "base/stage.h"
+#include "engine/engine.h"
+
+static const char *const param_help =
+    "Parameters (NAME=VALUE; empty means the stage's default, which is the scene's render block;\n"
+    "with progressive passes (PASSES other than 1, TIME or TARGET_ERROR) PHOTONS, PRIMARY, SPP and K\n"
+    "not given take per-pass defaults measured in docs/accuracy.md: 300000, 16, 4 and 5):\n"
+    "  PHOTONS=N        photon paths (trace-photons --photons)\n"
+    "  MAP=auto         global|indirect photon map; auto: global (gather mode needs first-hit photons)\n"
+    "  MODE=gather      gather (final gather at secondary hits) | direct-vis (the map seen directly)\n"
+    "  SPP=N            secondary rays per pixel, a multiple of 4\n"
+    "  WIDTH=N HEIGHT=N image size (default: the scene camera's)\n"
+    "  PRIMARY=N        primary rays per pixel\n"
+    "  LIGHT_SAMPLES=N  area-light (and sun and sky) samples per primary hit (0 when the scene has none)\n"
+    "  ORDER=auto       hilbert|morton|none query order; auto: hilbert for gather, none for direct-vis\n"
+    "  LEAF=N|auto      hilbert-sort --leaf\n"
+    "  RADIUS=R K=K KERNEL=uniform|epanechnikov WIDTHS=fixed|variable ISA=...   simd-gather options\n"
+    "  WIDTH_K=K        with WIDTHS=variable: build-photonmap --width-k (default K, else 50)\n"
+    "  SHARDS=N         split the gather into N --range shards that composite adds (default 1)\n"
+    "  GATHER=simd-gather  the gather program (any program with simd-gather's command line; for\n"
+    "                   knn-gather RADIUS is its --max-radius), or none: the direct light alone\n"
+    "  EXPOSURE=EV TONE=srgb|filmic HALF=0|1   composite's preview exposure, tone curve, half EXR\n"
+    "  SEED=N           the tracers' --seed (trace-photons, trace-gather-points)\n"
+    "  PASSES=N         progressive passes (default 1: one render)\n"
+    "  TIME=SECONDS     progressive: passes while the time so far plus the longest pass fits\n"
+    "  TARGET_ERROR=E   progressive: stop when the running image's estimated relative error is at most E\n"
+    "  ALPHA=A          progressive: the radius schedule's alpha in (0, 1) (default 2/3)\n"
+    "  PASS_RANGE=A:B   progressive: make passes A to B alone (pipelines/slurm's tasks)\n"
+    "  THREADS=N        every stage's --threads (changes no output)\n"
+    "  JOBS=N           accepted for pipelines/render's command line; the stages run one at a time\n"
+    "  VERBOSE=1        print each stage's command line, its notes, and why a file is remade\n"
+    "  QUIET=1          no progress on a terminal\n"
+    "  WAIT=1           another render holding OUTDIR: wait for it (1) or refuse, exit 1 (0)\n"
+    "  KEEP=all         what OUTDIR keeps after a render that succeeded: all (the cache), buffers\n"
+    "                   (the radiance buffers composite adds) or image (image.exr, image.png, stats.json)\n"
+    "TARGETs are files of the graph (photonmap.pm, sorted.pm, direct.pm, ...): only those and what\n"
+    "they need are made. Exit status: 0 ok, 1 bad input or a stage failed on it (or OUTDIR is held\n"
+    "and WAIT=0), 2 bad usage, 3 I/O or out of memory, 4 internal.\n";
+
+/* word as the lock file shows it: bare when safe, else in single quotes */
+static void append_word(char *out, size_t cap, const char *w)
+{
+    size_t n = strlen(out);
+    int safe = w[0] != '\0';
+    for (const char *p = w; *p; p++)
+        if (!(('a' <= *p && *p <= 'z') || ('A' <= *p && *p <= 'Z') || ('0' <= *p && *p <= '9') ||
+              strchr("/._-=:,+@%", *p)))
+            safe = 0;
+    if (n && n + 1 < cap)
+        out[n++] = ' ', out[n] = '\0';
+    if (safe) {
+        snprintf(out + n, cap - n, "%s", w);
+        return;
+    }
+    if (n + 1 < cap)
+        out[n++] = '\'', out[n] = '\0';
+    for (const char *p = w; *p && n + 5 < cap; p++) {
+        if (*p == '\'') {
+            memcpy(out + n, "'\\''", 4);
+            n += 4;
+        } else {
+            out[n++] = *p;
+        }
+        out[n] = '\0';
+    }
+    if (n + 1 < cap)
+        out[n++] = '\'', out[n] = '\0';
+}
+
+/* The directory a path names the parent of ("/a/bin/pm-render" -> "/a/bin"), into out. */
+static void parent(const char *path, char *out, size_t cap)
+{
+    snprintf(out, cap, "%s", path);
+    char *s = strrchr(out, '/');
+    if (s)
+        *s = '\0';
+}
+
+int main(int argc, char **argv)
+{
+    const char *base = strrchr(argv[0], '/');
+    base = base ? base + 1 : argv[0];
+    /* As pipelines/render (exec -a), messages start "render:" as that driver's always did. */
+    const char *me = strcmp(base, "render") == 0 ? "render" : "pm-render";
+    if (argc > 1 && (!strcmp(argv[1], "-h") || !strcmp(argv[1], "--help")) && !strcmp(me, "render")) {
+        printf("usage: %s SCENE OUTDIR [NAME=VALUE ...] [TARGET ...]\n%s", argv[0], param_help);
+        return 0;
+    }
+    if (argc < 3 && !strcmp(me, "render")) {
+        fprintf(stderr, "usage: %s SCENE OUTDIR [NAME=VALUE ...] [TARGET ...] (try --help)\n", argv[0]);
+        return 2;
+    }
+    pm_stage_t st;
+    pm_stage_defaults(&st);
+    const pm_option_t opts[] = {PM_STAGE_COMMON_OPTIONS(st), {0}};
+    const pm_cli_t cli = {.program = "pm-render",
+                          .synopsis = "[options] SCENE OUTDIR [NAME=VALUE ...] [TARGET ...]",
+                          .summary = "render SCENE into OUTDIR through the stage programs, remaking only what the "
+                                     "settings change (by provenance); --threads is THREADS, --seed SEED, -q QUIET=1",
+                          .options = opts,
+                          .min_args = 2,
+                          .max_args = -1};
+    int rc = pm_stage_begin(&st, &cli, argc, argv);
+    if (rc >= 0) {
+        if (st.help)
+            fputs(param_help, stdout);
+        return rc;
+    }
+    char **args = st.args.args;
+    int nargs = st.args.nargs;
+    pm_settings_t s;
+    pm_settings_init(&s);
+    s.scene = args[0];
+    s.outdir = args[1];
+    /* the common options stand for their parameters (given ones only; NAME=VALUE wins) */
+    char threads[32] = "", seed[32] = "";
+    if (st.args.given[1]) {
+        snprintf(threads, sizeof threads, "%lld", (long long)st.threads);
+        s.value[PM_P_THREADS] = threads;
+    }
+    if (st.args.given[2]) {
+        snprintf(seed, sizeof seed, "%lld", (long long)st.seed);
+        s.value[PM_P_SEED] = seed;
+    }
+    if (st.quiet)
+        s.value[PM_P_QUIET] = "1";
+    /* pipelines/render's order: the scene, then the parameters */
+    if (access(s.scene, R_OK) != 0) {
+        fprintf(stderr, "%s: cannot read scene '%s'\n", me, s.scene);
+        return 1;
+    }
+    if (strchr(s.scene, '\n') || strchr(s.outdir, '\n')) {
+        fprintf(stderr, "%s: a scene path or OUTDIR cannot hold a newline\n", me);
+        return 2;
+    }
+    if (pm_settings_parse(&s, nargs - 2, args + 2) != PM_OK) {
+        fprintf(stderr, "%s: %s\n", me, pm_error_message());
+        return 2;
+    }
+    char self[PATH_MAX], bin[PATH_MAX], root[PATH_MAX];
+    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+    self[n > 0 ? n : 0] = '\0';
+    const char *env_bin = getenv("BIN");
+    if (env_bin && env_bin[0]) {
+        char *real = realpath(env_bin, NULL);
+        if (!real) {
+            fprintf(stderr, "%s: no program directory '%s'\n", me, env_bin);
+            return 2;
+        }
+        snprintf(bin, sizeof bin, "%s", real);
+        free(real);
+    } else {
+        parent(self, bin, sizeof bin);
+    }
+    if (s.progressive) {
+        /* Passes: the shell driver, until the resident passes of common/engine/progressive land. */
+        const char *env_root = getenv("PM_ROOT");
+        if (env_root && env_root[0])
+            snprintf(root, sizeof root, "%s", env_root);
+        else
+            parent(bin, root, sizeof root);
+        char script[PATH_MAX + 64];
+        snprintf(script, sizeof script, "%s/pipelines/lib/render-make", root);
+        char **av = calloc((size_t)nargs + 4, sizeof *av);
+        if (!av) {
+            fprintf(stderr, "%s: out of memory\n", me);
+            return 3;
+        }
+        int k = 0;
+        av[k++] = script;
+        for (int i = 0; i < nargs; i++)
+            av[k++] = args[i];
+        char tp[48], sp[48];
+        if (threads[0]) {
+            snprintf(tp, sizeof tp, "THREADS=%s", threads);
+            av[k++] = tp;
+        }
+        if (seed[0]) {
+            snprintf(sp, sizeof sp, "SEED=%s", seed);
+            av[k++] = sp;
+        }
+        av[k] = NULL;
+        setenv("PM_RENDER_SELF", argv[0], 1);
+        setenv("BIN", bin, 1);
+        execv(script, av);
+        fprintf(stderr, "%s: cannot run '%s' for the passes: %s\n", me, script, strerror(errno));
+        return 3;
+    }
+    if (pm_settings_check_stages(&s, bin) != PM_OK) {
+        fprintf(stderr, "%s: %s\n", me, pm_error_message());
+        return 2;
+    }
+    char cmdline[8192] = "";
+    append_word(cmdline, sizeof cmdline, argv[0]);
+    for (int i = 1; i < argc; i++)
+        append_word(cmdline, sizeof cmdline, argv[i]);
+    int status = pm_render_fixed(&s, me, bin, cmdline);
+    pm_args_free(&st.args);
+    return status;
+}

@@ -214,17 +214,62 @@ static pm_result_t check_opt(const pm_settings_t *s, const char *bin, pm_param_t
     return r;
 }
 
+/* One program's values at once (one process instead of one per value, some 20 ms each), and
+ * one at a time only when that fails, to name the first the program refuses. pairs: param,
+ * option, ..., ending in PM_P_COUNT. */
+static pm_result_t check_program(const pm_settings_t *s, const char *bin, const char *program, const int *params_,
+                                 const char *const *options)
+{
+    char path[4096];
+    snprintf(path, sizeof path, "%s/%s", bin, program);
+    char *argv[24];
+    int n = 0;
+    argv[n++] = path;
+    for (int i = 0; params_[i] != PM_P_COUNT && n < 20; i++)
+        if (s->value[params_[i]][0]) {
+            argv[n++] = (char *)options[i];
+            argv[n++] = (char *)s->value[params_[i]];
+        }
+    if (n == 1 || access(path, X_OK) != 0)
+        return PM_OK;
+    argv[n++] = "--print-settings";
+    argv[n] = NULL;
+    int devnull[2];
+    if (pm_proc_pipe(devnull) != PM_OK)
+        return PM_ERR_IO;
+    pm_spawn_t sp = {.argv = argv, .stdin_fd = -1, .stdout_fd = devnull[1], .capture_stderr = 1};
+    pm_proc_t *proc;
+    pm_result_t r = pm_proc_spawn(&sp, &proc);
+    close(devnull[1]);
+    if (r != PM_OK) {
+        close(devnull[0]);
+        return r;
+    }
+    char sink[4096];
+    while (read(devnull[0], sink, sizeof sink) > 0)
+        ;
+    close(devnull[0]);
+    pm_proc_status_t st;
+    r = pm_proc_wait(proc, &st);
+    int failed = r == PM_OK && st.exit_code != 0;
+    pm_proc_status_free(&st);
+    if (r != PM_OK || !failed)
+        return r;
+    for (int i = 0; params_[i] != PM_P_COUNT; i++)
+        if ((r = check_opt(s, bin, (pm_param_t)params_[i], program, options[i])) != PM_OK)
+            return r;
+    return pm_error_set(PM_ERR_USAGE, "%s refuses the values given together (%s --print-settings)", program, program);
+}
+
 pm_result_t pm_settings_check_stages(const pm_settings_t *s, const char *bin)
 {
     pm_result_t r;
-    if ((r = check_opt(s, bin, PM_P_PHOTONS, "trace-photons", "--photons")) ||
-        (r = check_opt(s, bin, PM_P_SEED, "trace-photons", "--seed")) ||
-        (r = check_opt(s, bin, PM_P_THREADS, "trace-photons", "--threads")) ||
-        (r = check_opt(s, bin, PM_P_SPP, "trace-gather-points", "--spp")) ||
-        (r = check_opt(s, bin, PM_P_WIDTH, "trace-gather-points", "--width")) ||
-        (r = check_opt(s, bin, PM_P_HEIGHT, "trace-gather-points", "--height")) ||
-        (r = check_opt(s, bin, PM_P_PRIMARY, "trace-gather-points", "--primary")) ||
-        (r = check_opt(s, bin, PM_P_LIGHT_SAMPLES, "trace-gather-points", "--light-samples")))
+    static const int tp[] = {PM_P_PHOTONS, PM_P_SEED, PM_P_THREADS, PM_P_COUNT};
+    static const char *const tpo[] = {"--photons", "--seed", "--threads"};
+    static const int tg[] = {PM_P_SPP, PM_P_WIDTH, PM_P_HEIGHT, PM_P_PRIMARY, PM_P_LIGHT_SAMPLES, PM_P_COUNT};
+    static const char *const tgo[] = {"--spp", "--width", "--height", "--primary", "--light-samples"};
+    if ((r = check_program(s, bin, "trace-photons", tp, tpo)) ||
+        (r = check_program(s, bin, "trace-gather-points", tg, tgo)))
         return r;
     const char *spp = s->value[PM_P_SPP];
     if (matches("^[0-9]+$", spp) && strtoull(spp, NULL, 10) % 4 != 0)
@@ -256,8 +301,9 @@ pm_result_t pm_settings_check_stages(const pm_settings_t *s, const char *bin)
     snprintf(fp, sizeof fp, "%s/%s", bin, family);
     if (access(fp, X_OK) != 0)
         family = "simd-gather";
-    if ((r = check_opt(s, bin, PM_P_RADIUS, family, knn ? "--max-radius" : "--radius")) ||
-        (r = check_opt(s, bin, PM_P_K, family, "--k")) || (r = check_opt(s, bin, PM_P_KERNEL, family, "--kernel")))
+    static const int gp[] = {PM_P_RADIUS, PM_P_K, PM_P_KERNEL, PM_P_COUNT};
+    const char *const go[] = {knn ? "--max-radius" : "--radius", "--k", "--kernel"};
+    if ((r = check_program(s, bin, family, gp, go)))
         return r;
     if (s->value[PM_P_ISA][0]) {
         static const char *const isas[] = {"auto", "scalar", "sse4", "avx2", "avx512", NULL};

@@ -834,10 +834,8 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
     int specular = sc.any_specular;
     p.light_samples_zero = sc.nemissive == 0 && !sc.has_sun && !sc.has_sky;
     pm_scene_free(&sc);
-    if (specular) {
-        say(&p, "resident passes do not run the caustic branch yet: scene '%s' has mirrors or glass", s->scene);
-        return 2;
-    }
+    if (specular) /* the caustic branch is not resident yet: the caller makes the passes as files */
+        return -1;
     int64_t v = 0;
     p.photons = s->value[PM_P_PHOTONS][0] && pm_parse_i64(s->value[PM_P_PHOTONS], &v) == PM_OK ? v : DEFAULT_PHOTONS;
     p.kmax = s->value[PM_P_PRIMARY][0] && pm_parse_i64(s->value[PM_P_PRIMARY], &v) == PM_OK ? (int)v : DEFAULT_PRIMARY;

@@ -40,8 +40,8 @@ int pm_progressive_handles(const pm_settings_t *s, char *why, size_t cap);
  * what it holds, the stages started from bin (absolute), the passes, the table on stdout and
  * stats.json. t0 is pm_time_wall() at the start of the command (TIME counts from it). me
  * starts every message ("render"). Returns the exit status: 0 ok, 1 a stage or the scene
- * failed, 2 bad usage (a scene the resident chain cannot render: mirrors or glass), 3 the
- * system (a pipe, a process, the disk). */
+ * failed, 3 the system (a pipe, a process, the disk); or -1, having written nothing, for a
+ * scene the resident chain does not render yet (mirrors or glass: the caustic branch). */
 int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bin, const char *cmdline, double t0);
 
 /* The size of pass p of a TIME budget, in units of 1/kmax of the per-pass size, given the

@@ -242,7 +242,7 @@ static int read_state(prog_t *p)
     char path[4200], line[9000];
     snprintf(path, sizeof path, "%s/passes.txt", p->out);
     FILE *f = fopen(path, "r");
-    int ok = f != NULL, n = 0;
+    int ok = f != NULL, n = 0, named = 0;
     const char *why = NULL;
     while (ok && fgets(line, sizeof line, f)) {
         line[strcspn(line, "\n")] = 0;
@@ -251,6 +251,7 @@ static int read_state(prog_t *p)
         if (!strncmp(line, "settings ", 9)) {
             if (strcmp(line + 9, p->settings))
                 ok = 0, why = "other settings";
+            named = 1;
             continue;
         }
         if (!strncmp(line, "request ", 8)) {
@@ -258,8 +259,10 @@ static int read_state(prog_t *p)
             continue;
         }
         pass_t ps = {0};
-        if (sscanf(line, "%d %" SCNd64 " %d %31s", &ps.pass, &ps.photons, &ps.primary, ps.err) != 4 ||
-            ps.pass != n + 1 || n >= MAX_PASSES || add_pass(p, &ps) != 0)
+        if (!named) /* the settings come first: a list without them is another driver's */
+            ok = 0, why = "passes.txt names no settings";
+        else if (sscanf(line, "%d %" SCNd64 " %d %31s", &ps.pass, &ps.photons, &ps.primary, ps.err) != 4 ||
+                 ps.pass != n + 1 || n >= MAX_PASSES || add_pass(p, &ps) != 0)
             ok = 0, why = "a damaged passes.txt";
         n++;
     }
@@ -884,8 +887,13 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
     double first_image = -1.0;
     int rc = 0;
     if (no_pass) {
+        char exr[4200], png[4200];
+        snprintf(exr, sizeof exr, "%s/image.exr", p.out);
+        snprintf(png, sizeof png, "%s/image.png", p.out);
         stop = "nothing to add";
-        rc = retone(&p, env);
+        /* the images as they are when the request is the same, EXPOSURE, TONE and HALF too */
+        if (strcmp(p.request, p.old_request) || access(exr, F_OK) || access(png, F_OK))
+            rc = retone(&p, env);
         if (rc == 0 && write_list(&p) != 0)
             say(&p, "cannot write '%s/passes.txt'", p.out), rc = 3;
     } else {

@@ -278,9 +278,19 @@ static int read_state(prog_t *p)
             ok = 0, why = "a damaged running.pm";
             say(p, "the running image is damaged (%s): the passes start again", pm_error_message());
             why = NULL;
-        } else if (pm_header_get_u64(&t.hdr, state, "passes", &held) != PM_OK || held != (uint64_t)n) {
+        } else if (pm_header_get_u64(&t.hdr, state, "passes", &held) != PM_OK ||
+                   (held != (uint64_t)n && !(held + 1 == (uint64_t)n && !strcmp(p->passes[n - 1].err, "pending")))) {
             ok = 0, why = "running.pm and passes.txt disagree";
         } else {
+            /* a pass under way when the last run stopped: in the running image or not */
+            if (!strcmp(p->passes[n - 1].err, "pending")) {
+                if (held + 1 == (uint64_t)n) {
+                    p->npasses = --n;
+                } else {
+                    const char *e = pm_header_get(&t.hdr, "relative_error");
+                    snprintf(p->passes[n - 1].err, sizeof p->passes[n - 1].err, "%s", e ? e : "-");
+                }
+            }
             const char *r1 = pm_header_get(&t.hdr, "radius1");
             snprintf(p->radius1, sizeof p->radius1, "%s", r1 ? r1 : "");
         }
@@ -725,6 +735,15 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
             snprintf(l1, sizeof l1, "%d %" PRId64 "\n", next, photons);
             snprintf(l2, sizeof l2, "%d %d\n", next, units);
         }
+        /* passes.txt names the pass before it is asked for: a run stopped while it is under way
+         * leaves "pending", which the next run settles by running.pm's count */
+        pass_t ps = {.pass = next, .photons = photons, .primary = units, .added = 1};
+        snprintf(ps.err, sizeof ps.err, "pending");
+        if (add_pass(p, &ps) != 0 || write_list(p) != 0) {
+            say(p, "cannot write '%s/passes.txt': %s", p->out, strerror(errno));
+            rc = 3;
+            break;
+        }
         double ts = pm_time_wall();
         if (write(plan_tp[1], l1, strlen(l1)) != (ssize_t)strlen(l1) ||
             write(plan_tg[1], l2, strlen(l2)) != (ssize_t)strlen(l2)) {
@@ -742,11 +761,12 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         double te = pm_time_wall();
         if (*first_out < 0)
             *first_out = te - t0;
-        pass_t ps = {.pass = next, .photons = photons, .primary = units, .wall_s = te - ts, .added = 1};
-        snprintf(ps.err, sizeof ps.err, "%s", err);
+        pass_t *pp = &p->passes[p->npasses - 1];
+        pp->wall_s = te - ts;
+        snprintf(pp->err, sizeof pp->err, "%s", err);
         if (next == 1 || !p->radius1[0])
             read_radius1(p);
-        if (add_pass(p, &ps) != 0 || write_list(p) != 0) {
+        if (write_list(p) != 0) {
             say(p, "cannot write '%s/passes.txt': %s", p->out, strerror(errno));
             rc = 3;
             break;
@@ -764,6 +784,11 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
     }
     (void)last_k;
     (void)targetp;
+    if (p->npasses && !strcmp(p->passes[p->npasses - 1].err, "pending")) { /* a pass that did not land */
+        p->npasses--;
+        if (write_list(p) != 0 && rc == 0)
+            say(p, "cannot write '%s/passes.txt': %s", p->out, strerror(errno)), rc = 3;
+    }
     /* the end of the plans ends every stage in turn */
     close(plan_tp[1]);
     close(plan_tg[1]);

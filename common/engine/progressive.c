@@ -185,12 +185,14 @@ int pm_progressive_next_size(const int *k, const double *sec, int n, int kmax, d
         b = 1e-6;
     int next = 2 * k[n - 1];
     next = next > kmax ? kmax : next < 1 ? 1 : next;
-    double t1 = c + b, tn = c + b * next;
+    int after = 2 * next > kmax ? kmax : 2 * next;
+    double t1 = c + b, tn = c + b * next, ta = c + b * after;
     if (t1 > remaining)
         return 0;
-    if (tn + t1 <= remaining)
+    if (tn + ta <= remaining) /* room for it and the pass that would follow it */
         return next;
-    /* the last pass: as large as ends at the budget */
+    /* the last pass: as large as ends at the budget, so that what is left after it is less
+     * than one unit's time rather than a pass that does not fit */
     double u = floor((remaining - c) / b);
     double most = 4.0 * kmax < 4096.0 ? 4.0 * kmax : 4096.0; /* PRIMARY's limit */
     return (int)(u < 1.0 ? 1.0 : u > most ? most : u);
@@ -297,7 +299,7 @@ static int read_state(prog_t *p)
         pm_table_free(&t);
     }
     if (!ok || n == 0) {
-        if (why && n > 0)
+        if (why)
             say(p, "the running image does not hold these passes (%s): the passes start again", why);
         unlink(state);
         unlink(path);
@@ -393,7 +395,7 @@ static void common_opts(const prog_t *p, argv_t *a)
 /* The six stages' command lines. plan: the plan's path as each tracer sees it; dfd, mfd, lfd:
  * the fds of the direct buffer (tracer's end, composite's end), the maps (the gather's) and
  * the pass log (composite's). first: the first pass of this run. */
-static void stage_argv(const prog_t *p, argv_t a[NSTAGE], int dw, int dr, int mr, int lw, int first)
+static void stage_argv(const prog_t *p, argv_t a[NSTAGE], int dw, int dr, int mr, int lw, int wr, int first)
 {
     char path[4200];
     memset(a, 0, sizeof(argv_t) * NSTAGE);
@@ -489,6 +491,8 @@ static void stage_argv(const prog_t *p, argv_t a[NSTAGE], int dw, int dr, int mr
         push(&a[CO], "--half");
     push(&a[CO], "--pass-log");
     pushf(&a[CO], "/dev/fd/%d", lw);
+    push(&a[CO], "--weights");
+    pushf(&a[CO], "/dev/fd/%d", wr);
     common_opts(p, &a[CO]);
 }
 
@@ -644,8 +648,8 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
     /* pipes: the two plans, photons, maps, queries, sorted queries, direct, indirect, the pass
      * log; the ends given as /dev/fd/N (direct both ends, the maps' read end, the log's write
      * end) are inherited, every other end is close-on-exec */
-    int plan_tp[2], plan_tg[2], ph[2], map[2], q[2], sq[2], dir[2], ind[2], log[2];
-    int *all[] = {plan_tp, plan_tg, ph, map, q, sq, dir, ind, log};
+    int plan_tp[2], plan_tg[2], ph[2], map[2], q[2], sq[2], dir[2], ind[2], log[2], wts[2];
+    int *all[] = {plan_tp, plan_tg, ph, map, q, sq, dir, ind, log, wts};
     for (size_t i = 0; i < sizeof all / sizeof *all; i++)
         all[i][0] = all[i][1] = -1;
     for (size_t i = 0; i < sizeof all / sizeof *all; i++)
@@ -655,18 +659,18 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
                 close(all[j][0]), close(all[j][1]);
             return 3;
         }
-    int inherit[] = {dir[1], dir[0], map[0], log[1]};
-    for (int i = 0; i < 4; i++)
+    int inherit[] = {dir[1], dir[0], map[0], log[1], wts[0]};
+    for (int i = 0; i < 5; i++)
         fcntl(inherit[i], F_SETFD, 0);
     argv_t a[NSTAGE];
-    stage_argv(p, a, dir[1], dir[0], map[0], log[1], first);
+    stage_argv(p, a, dir[1], dir[0], map[0], log[1], wts[0], first);
     /* each stage: stdin, stdout, and the inherited ends it must not hold */
     int in_fd[NSTAGE] = {plan_tp[0], ph[0], plan_tg[0], q[0], sq[0], ind[0]};
     int out_fd[NSTAGE] = {ph[1], map[1], q[1], sq[1], ind[1], -1};
-    int closes[NSTAGE][4] = {{dir[1], dir[0], map[0], log[1]}, {dir[1], dir[0], map[0], log[1]},
-                             {dir[0], map[0], log[1], -1},     {dir[1], dir[0], map[0], log[1]},
-                             {dir[1], dir[0], log[1], -1},     {dir[1], map[0], -1, -1}};
-    int nclose[NSTAGE] = {4, 4, 3, 4, 3, 2};
+    int closes[NSTAGE][5] = {{dir[1], dir[0], map[0], log[1], wts[0]}, {dir[1], dir[0], map[0], log[1], wts[0]},
+                             {dir[0], map[0], log[1], wts[0], -1},     {dir[1], dir[0], map[0], log[1], wts[0]},
+                             {dir[1], dir[0], log[1], wts[0], -1},     {dir[1], map[0], -1, -1, -1}};
+    int nclose[NSTAGE] = {5, 5, 4, 5, 4, 2};
     pm_proc_t *proc[NSTAGE] = {0};
     int rc = 0;
     for (int i = 0; i < NSTAGE && rc == 0; i++) {
@@ -691,7 +695,7 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
     }
     /* the driver keeps the plans' write ends and the log's read end */
     for (size_t i = 0; i < sizeof all / sizeof *all; i++) {
-        if (all[i] != plan_tp && all[i] != plan_tg)
+        if (all[i] != plan_tp && all[i] != plan_tg && all[i] != wts)
             close(all[i][1]);
         if (all[i] != log)
             close(all[i][0]);
@@ -727,7 +731,10 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         int64_t photons = units == p->kmax ? p->photons : (p->photons * units + p->kmax / 2) / p->kmax;
         if (photons < 1)
             photons = 1;
-        char l1[64], l2[64];
+        char l1[64], l2[64], l3[64];
+        /* the pass's weight in the running image: its size against a full pass's (exactly 1
+         * for a full pass, so that passes of one size average as they always did) */
+        snprintf(l3, sizeof l3, "%d %.17g\n", next, (double)units / p->kmax);
         if (units == p->kmax) {
             snprintf(l1, sizeof l1, "%d\n", next);
             snprintf(l2, sizeof l2, "%d\n", next);
@@ -745,7 +752,8 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
             break;
         }
         double ts = pm_time_wall();
-        if (write(plan_tp[1], l1, strlen(l1)) != (ssize_t)strlen(l1) ||
+        if (write(wts[1], l3, strlen(l3)) != (ssize_t)strlen(l3) ||
+            write(plan_tp[1], l1, strlen(l1)) != (ssize_t)strlen(l1) ||
             write(plan_tg[1], l2, strlen(l2)) != (ssize_t)strlen(l2)) {
             failed = next;
             break;
@@ -792,6 +800,7 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
     /* the end of the plans ends every stage in turn */
     close(plan_tp[1]);
     close(plan_tg[1]);
+    close(wts[1]);
     if (logf) {
         char rest[256];
         while (fgets(rest, sizeof rest, logf)) /* nothing more is expected; the pipe's end is */

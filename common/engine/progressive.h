@@ -44,11 +44,11 @@ int pm_progressive_handles(const pm_settings_t *s, char *why, size_t cap);
  * scene the resident chain does not render yet (mirrors or glass: the caustic branch). */
 int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bin, const char *cmdline, double t0);
 
-/* The size of pass p of a TIME budget, in units of 1/kmax of the per-pass size, given the
- * passes so far (k[i] units took sec[i] s of wall time, i < n), the last pass's size, the
- * seconds left (remaining) and the most units one pass may have (kmax, at least 1): the next
- * size doubling from the last up to kmax, or, when after it no pass of one unit would fit,
- * the size that ends at the budget; 0 when not even one unit fits. Exposed for the unit tests. */
+/* The size of the next pass of a TIME budget, in units of 1/kmax of the per-pass size, given
+ * the passes so far (k[i] units took sec[i] s of wall time, i < n), the seconds left
+ * (remaining) and kmax (at least 1): the last size doubled, up to kmax, when it and the pass
+ * that would follow it fit; else the last pass, sized to end at the budget (at most 4 kmax
+ * units); 0 when not even one unit fits. Exposed for the unit tests. */
 int pm_progressive_next_size(const int *k, const double *sec, int n, int kmax, double remaining);
 
 #endif

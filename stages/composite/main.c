@@ -56,6 +56,8 @@ typedef struct {
     int64_t pass;         /* --pass N: the pass the sum is (0: the next one) */
     int stream;           /* --stream: the inputs are streams of documents, one frame each */
     const char *pass_log; /* --pass-log FILE: a line per pass added (--stream --accumulate) */
+    double weight;        /* --weight W: the pass's weight in the running image */
+    const char *weights;  /* --weights FILE: a line "PASS WEIGHT" per pass (--stream --accumulate) */
 } composite_options_t;
 
 /* pattern with its one %d (or %0Nd, N < 10) replaced by frame; NULL pattern gives NULL. */
@@ -148,6 +150,23 @@ static pm_result_t preview_exr(pm_stage_t *st, const composite_options_t *o)
     return r;
 }
 
+/* The weight of pass `pass` from --weights' next line "PASS WEIGHT" (a driver writes it as it
+ * asks for the pass). */
+static pm_result_t next_weight(FILE *f, const char *path, uint64_t pass, double *w_out)
+{
+    char line[256], extra[8];
+    unsigned long long p = 0;
+    double w = 0.0;
+    if (!fgets(line, sizeof line, f))
+        return pm_error_set(PM_ERR_INPUT, "the weights '%s' end before pass %" PRIu64, path, pass);
+    if (sscanf(line, "%llu %lf %7s", &p, &w, extra) != 2 || p != pass || !(w > 0.0 && isfinite(w)))
+        return pm_error_set(
+            PM_ERR_INPUT, "the weights '%s': expected 'PASS WEIGHT' for pass %" PRIu64 ", a weight above 0, not '%.*s'",
+            path, pass, (int)strcspn(line, "\n"), line);
+    *w_out = w;
+    return PM_OK;
+}
+
 /* --stream: a frame per document of every input, written to the patterns' names. */
 static pm_result_t run_stream(pm_stage_t *st, const composite_options_t *o)
 {
@@ -158,9 +177,18 @@ static pm_result_t run_stream(pm_stage_t *st, const composite_options_t *o)
         return pm_error_set(PM_ERR_USAGE, "no output: give -o FRAME-%%04d.exr, --png or --radiance patterns");
     if (o->pass_log && !o->state)
         return pm_error_set(PM_ERR_USAGE, "--pass-log reports the passes of --accumulate");
-    FILE *log = NULL;
-    if (o->pass_log && !(log = fopen(o->pass_log, "w")))
+    if (o->weights && !o->state)
+        return pm_error_set(PM_ERR_USAGE, "--weights gives the passes of --accumulate their weights");
+    FILE *log = NULL, *wf = NULL;
+    if (o->weights && !(wf = strcmp(o->weights, "-") ? fopen(o->weights, "r") : NULL))
+        return pm_error_set(strcmp(o->weights, "-") ? PM_ERR_INPUT : PM_ERR_USAGE, "cannot read the weights '%s'%s%s",
+                            o->weights, strcmp(o->weights, "-") ? ": " : ": stdin holds a stream",
+                            strcmp(o->weights, "-") ? strerror(errno) : "");
+    if (o->pass_log && !(log = fopen(o->pass_log, "w"))) {
+        if (wf)
+            fclose(wf);
         return pm_error_set(PM_ERR_IO, "cannot open the pass log '%s': %s", o->pass_log, strerror(errno));
+    }
     pm_memory_reuse(
         PM_MEMORY_STREAM_REUSE); /* a frame's arrays are allocated again for the next: its freed mappings serve them */
     FILE **files = calloc((size_t)n, sizeof *files);
@@ -238,8 +266,11 @@ static pm_result_t run_stream(pm_stage_t *st, const composite_options_t *o)
         if (r == PM_OK)
             r = pm_composite_sum(c, st->argc, st->argv, note_repeat, st);
         uint64_t pass = 0;
-        if (r == PM_OK && o->state && (r = pm_composite_pass(c, &pass)) == PM_OK)
-            r = pm_composite_accumulate(c, o->state, pass);
+        double w = o->weight;
+        if (r == PM_OK && o->state && (r = pm_composite_pass(c, &pass)) == PM_OK && wf)
+            r = next_weight(wf, o->weights, pass, &w);
+        if (r == PM_OK && o->state)
+            r = pm_composite_accumulate(c, o->state, pass, w);
         if (r == PM_OK)
             r = pm_composite_finish(c, o->half);
         double t1 = pm_time_wall();
@@ -271,6 +302,8 @@ static pm_result_t run_stream(pm_stage_t *st, const composite_options_t *o)
     }
     if (r == PM_OK && frame == 0)
         r = pm_error_set(PM_ERR_INPUT, "empty streams: no radiance document");
+    if (wf)
+        fclose(wf);
     if (log && fclose(log) != 0 && r == PM_OK)
         r = pm_error_set(PM_ERR_IO, "cannot write the pass log '%s': %s", o->pass_log, strerror(errno));
     if (r == PM_OK) {
@@ -330,7 +363,7 @@ static pm_result_t run(pm_stage_t *st, const composite_options_t *o)
     if (r == PM_OK)
         r = pm_composite_sum(c, st->argc, st->argv, note_repeat, st);
     if (r == PM_OK && o->state)
-        r = pm_composite_accumulate(c, o->state, (uint64_t)o->pass);
+        r = pm_composite_accumulate(c, o->state, (uint64_t)o->pass, o->weight);
     double t1 = pm_time_wall(), clipped = 0.0;
     if (r == PM_OK)
         r = pm_composite_finish(c, o->half);
@@ -373,7 +406,7 @@ int main(int argc, char **argv)
 {
     pm_stage_t st;
     pm_stage_defaults(&st);
-    composite_options_t o = {.only = PM_ONLY_ALL, .tone = PM_TONE_SRGB};
+    composite_options_t o = {.only = PM_ONLY_ALL, .tone = PM_TONE_SRGB, .weight = 1.0};
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
         {"only", 0, PM_OPT_CHOICE, &o.only, "WHICH",
@@ -401,6 +434,12 @@ int main(int argc, char **argv)
          "--radiance names holding %04d (the frame number from 0); with --accumulate each document set is a pass and "
          "the outputs (plain names) are rewritten after each",
          1, 0, NULL},
+        {"weight", 0, PM_OPT_DOUBLE, &o.weight, "W",
+         "with --accumulate: the pass's weight, its size against the others' (its variance taken as sigma^2 / W)", 1e-9,
+         1e9, NULL},
+        {"weights", 0, PM_OPT_STRING, &o.weights, "FILE",
+         "with --stream --accumulate: a line 'PASS WEIGHT' per pass, read as each pass arrives (a driver's pipe)", 1, 0,
+         NULL},
         {"pass-log", 0, PM_OPT_OUTPUT, &o.pass_log, "FILE",
          "with --stream --accumulate: a line 'PASS PASSES RELATIVE_ERROR' here as each pass's outputs are in place "
          "(- for the error until a second pass)",

@@ -22,9 +22,9 @@ static void test_sizes_grow_then_fill(void **state)
     assert_int_equal(pm_progressive_next_size(k, sec, 4, 16, 100.0), 16);
     k[4] = 16, sec[4] = 3.3;
     assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 100.0), 16); /* kmax caps the growth */
-    /* 3.6 s left: 16 units (3.3 s) and then one (0.3 s) fit */
-    assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 3.6), 16);
-    /* 3.55 s left: 16 units would leave no room for one: the last pass ends at the budget,
+    /* 7 s left: 16 units (3.3 s) and the 16 after them fit */
+    assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 7.0), 16);
+    /* 3.55 s left: after 16 units no pass of 16 would fit: the last pass ends at the budget,
      * (3.55 - 0.1) / 0.2 = 17.25 -> 17 units */
     assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 3.55), 17);
     /* 2 s left: the last pass shrinks to what ends there, 9.5 -> 9 units */
@@ -38,18 +38,19 @@ static void test_sizes_first_pass(void **state)
     (void)state;
     /* no pass yet: one unit */
     assert_int_equal(pm_progressive_next_size(NULL, NULL, 0, 16, 10.0), 1);
-    /* one pass of 1 unit in 0.4 s, the rate alone (c = 0): 2 units fit in 10 s, and after
-     * them another unit */
+    /* one pass of 1 unit in 0.4 s, the rate alone (c = 0): 2 units fit in 10 s, and the 4
+     * after them */
     int k[2] = {1};
     double sec[2] = {0.4};
     assert_int_equal(pm_progressive_next_size(k, sec, 1, 16, 10.0), 2);
-    /* 0.9 s left: 2 units (0.8 s) leave no room for a unit; the last pass, 0.9 / 0.4 -> 2 */
+    /* 0.9 s left: no room for 2 and then 4 units; the last pass, 0.9 / 0.4 -> 2 */
     assert_int_equal(pm_progressive_next_size(k, sec, 1, 16, 0.9), 2);
     assert_int_equal(pm_progressive_next_size(k, sec, 1, 16, 0.3), 0);
     /* the first pass pays the stages' start: passes 2 on, when of two sizes, are the fit */
     int k3[4] = {1, 2, 4};
     double s3[4] = {2.0, 0.5, 0.9};
-    assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 4.0), 8); /* 1.7 + 0.3 <= 4 */
+    assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 5.5), 8);  /* 1.7 + 3.3 <= 5.5 */
+    assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 4.0), 19); /* (4 - 0.1) / 0.2 = 19.5 */
 }
 
 static void test_sizes_noisy(void **state)

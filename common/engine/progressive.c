@@ -151,51 +151,45 @@ int pm_progressive_handles(const pm_settings_t *s, char *why, size_t cap)
 
 /* ---- the size of the next pass (TIME) ---- */
 
+/* An upper bound of the wall time of a pass of u units, from the passes so far (k[j] units in
+ * sec[j] s). A pass costs c + b k with c, b >= 0 (a fixed part: the pipes' latency, the map's
+ * tree, composite's images; a part in proportion to its photons, rays and queries), so every
+ * pass bounds every other: t(u) <= sec[j] max(1, u / k[j]). The tightest of these bounds holds
+ * whatever c is, where a line fitted through two passes of nearby sizes on a busy machine can
+ * put nearly all of the time in c and promise a large pass for nothing (measured: a 41-unit
+ * pass predicted at 4 s took 23.6 s at load 12). The first pass, which also pays the stages'
+ * start, only loosens it. */
+static double time_bound(const int *k, const double *sec, int n, int u)
+{
+    double t = INFINITY;
+    for (int j = 0; j < n; j++) {
+        double kj = k[j] > 0 ? k[j] : 1, bj = sec[j] * (u > kj ? u / kj : 1.0);
+        t = bj < t ? bj : t;
+    }
+    return t;
+}
+
 int pm_progressive_next_size(const int *k, const double *sec, int n, int kmax, double remaining)
 {
     if (kmax < 1)
         kmax = 1;
     if (n <= 0)
         return 1;
-    /* sec = c + b k, fitted by least squares over the passes after the first (which also pays
-     * the stages' start: the scene, its BVH, r_1) when they hold two sizes, else over all of
-     * them; with one size alone, c = 0 and b from the latest pass */
-    int first = 0, distinct = 0;
-    for (int i = 2; i < n; i++)
-        first |= k[i] != k[1];
-    for (int i = first + 1; i < n; i++)
-        distinct |= k[i] != k[first];
-    double c = 0.0, b = sec[n - 1] / (k[n - 1] > 0 ? k[n - 1] : 1);
-    if (distinct) {
-        double mk = 0.0, mt = 0.0, skk = 0.0, skt = 0.0;
-        int m = n - first;
-        for (int i = first; i < n; i++)
-            mk += k[i], mt += sec[i];
-        mk /= m, mt /= m;
-        for (int i = first; i < n; i++)
-            skk += (k[i] - mk) * (k[i] - mk), skt += (k[i] - mk) * (sec[i] - mt);
-        b = skt / skk;
-        c = mt - b * mk;
-        if (!(b > 0.0)) /* noise on a machine shared with other work: no fit, a rate */
-            b = mt / mk, c = 0.0;
-        if (c < 0.0)
-            c = 0.0, b = mt / mk;
-    }
-    if (!(b > 0.0))
-        b = 1e-6;
     int next = 2 * k[n - 1];
     next = next > kmax ? kmax : next < 1 ? 1 : next;
     int after = 2 * next > kmax ? kmax : 2 * next;
-    double t1 = c + b, tn = c + b * next, ta = c + b * after;
-    if (t1 > remaining)
+    if (time_bound(k, sec, n, 1) > remaining)
         return 0;
-    if (tn + ta <= remaining) /* room for it and the pass that would follow it */
+    if (time_bound(k, sec, n, next) + time_bound(k, sec, n, after) <= remaining) /* it and the one after it */
         return next;
-    /* the last pass: as large as ends at the budget, so that what is left after it is less
-     * than one unit's time rather than a pass that does not fit */
-    double u = floor((remaining - c) / b);
-    double most = 4.0 * kmax < 4096.0 ? 4.0 * kmax : 4096.0; /* PRIMARY's limit */
-    return (int)(u < 1.0 ? 1.0 : u > most ? most : u);
+    /* the last pass: the largest that ends by the budget, so that what is left after it is less
+     * than a unit's time rather than a pass that does not fit (at most 4 kmax units, PRIMARY's
+     * limit of 4096 too) */
+    int most = 4 * kmax < 4096 ? 4 * kmax : 4096;
+    for (int u = most; u > 1; u--)
+        if (time_bound(k, sec, n, u) <= remaining)
+            return u;
+    return 1;
 }
 
 /* ---- the state: running.pm and passes.txt ---- */
@@ -634,7 +628,7 @@ static void read_radius1(prog_t *p)
 static int run_passes(prog_t *p, char **env, double t0, int first, const char **stop_out, double *first_out)
 {
     const pm_settings_t *s = p->s;
-    int64_t maxp = 0, targetp = 0;
+    int64_t maxp = 0;
     double budget = -1.0, target = 0.0;
     if (s->value[PM_P_PASSES][0])
         pm_parse_i64(s->value[PM_P_PASSES], &maxp);
@@ -642,12 +636,13 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         pm_parse_double(s->value[PM_P_TIME], &budget);
     if (s->value[PM_P_TARGET_ERROR][0])
         pm_parse_double(s->value[PM_P_TARGET_ERROR], &target);
-    targetp = maxp;
     static char stopbuf[96];
     *first_out = -1.0;
     /* pipes: the two plans, photons, maps, queries, sorted queries, direct, indirect, the pass
-     * log; the ends given as /dev/fd/N (direct both ends, the maps' read end, the log's write
-     * end) are inherited, every other end is close-on-exec */
+     * log, the passes' weights; the ends given as /dev/fd/N (direct both ends, the maps' read
+     * end, the log's write end, the weights' read end) are inherited, and each stage closes
+     * those it does not use, so that a reader sees the end of its pipe when its writer exits;
+     * every other end is close-on-exec */
     int plan_tp[2], plan_tg[2], ph[2], map[2], q[2], sq[2], dir[2], ind[2], log[2], wts[2];
     int *all[] = {plan_tp, plan_tg, ph, map, q, sq, dir, ind, log, wts};
     for (size_t i = 0; i < sizeof all / sizeof *all; i++)
@@ -706,7 +701,7 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
     void (*old_pipe)(int) = signal(SIGPIPE, SIG_IGN); /* a plan whose tracer failed: EPIPE, not death */
     int k[4096];
     double sec[4096];
-    int nk = 0, last_k = 0;
+    int nk = 0;
     const char *stop = "";
     int pass = first - 1, failed = 0;
     while (rc == 0 && logf) {
@@ -781,7 +776,6 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         }
         if (nk < 4096)
             k[nk] = units, sec[nk] = te - ts, nk++;
-        last_k = units;
         pass = next;
         double e;
         if (target > 0.0 && pm_parse_double(err, &e) == PM_OK && e <= target) {
@@ -790,8 +784,6 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
             break;
         }
     }
-    (void)last_k;
-    (void)targetp;
     if (p->npasses && !strcmp(p->passes[p->npasses - 1].err, "pending")) { /* a pass that did not land */
         p->npasses--;
         if (write_list(p) != 0 && rc == 0)

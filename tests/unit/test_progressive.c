@@ -10,7 +10,8 @@
 #include "engine/progressive.h"
 #include "unit.h"
 
-/* Passes of 1, 2, 4 units at exactly 0.1 + 0.2 k s: the fit finds c 0.1 and b 0.2. */
+/* Passes of 1, 2, 4 units at exactly 0.1 + 0.2 k s: a pass of u units is bounded by the least
+ * of sec_j max(1, u / k_j). */
 static void test_sizes_grow_then_fill(void **state)
 {
     (void)state;
@@ -25,9 +26,10 @@ static void test_sizes_grow_then_fill(void **state)
     /* 7 s left: 16 units (3.3 s) and the 16 after them fit */
     assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 7.0), 16);
     /* 3.55 s left: after 16 units no pass of 16 would fit: the last pass ends at the budget,
-     * (3.55 - 0.1) / 0.2 = 17.25 -> 17 units */
+     * 17 units, bounded by 3.3 x 17 / 16 = 3.51 s (18: 3.71 s) */
     assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 3.55), 17);
-    /* 2 s left: the last pass shrinks to what ends there, 9.5 -> 9 units */
+    /* 2 s left: the last pass shrinks to what ends there: 9 units, bounded by pass 4's 1.7 s
+     * times 9 / 8 = 1.91 s (10 units: 2.13 s) */
     assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 2.0), 9);
     /* less than one unit left: stop */
     assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 0.25), 0);
@@ -46,21 +48,26 @@ static void test_sizes_first_pass(void **state)
     /* 0.9 s left: no room for 2 and then 4 units; the last pass, 0.9 / 0.4 -> 2 */
     assert_int_equal(pm_progressive_next_size(k, sec, 1, 16, 0.9), 2);
     assert_int_equal(pm_progressive_next_size(k, sec, 1, 16, 0.3), 0);
-    /* the first pass pays the stages' start: passes 2 on, when of two sizes, are the fit */
+    /* the first pass pays the stages' start: it loosens no bound the later passes give */
     int k3[4] = {1, 2, 4};
     double s3[4] = {2.0, 0.5, 0.9};
-    assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 5.5), 8);  /* 1.7 + 3.3 <= 5.5 */
-    assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 4.0), 19); /* (4 - 0.1) / 0.2 = 19.5 */
+    assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 5.5), 8);  /* 1.8 + 3.6 <= 5.5 */
+    assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 4.0), 17); /* 0.9 x 17 / 4 = 3.83 */
 }
 
 static void test_sizes_noisy(void **state)
 {
     (void)state;
-    /* a larger pass that took less time (other work on the machine): no negative rate */
+    /* a larger pass that took less time (other work on the machine): the tightest bound,
+     * 5 units by pass 3's 0.8 x 5 / 4 = 1.0 s */
     int k[3] = {1, 2, 4};
     double sec[3] = {0.3, 0.9, 0.8};
-    int u = pm_progressive_next_size(k, sec, 3, 16, 1.0);
-    assert_true(u >= 1 && u <= 8);
+    assert_int_equal(pm_progressive_next_size(k, sec, 3, 16, 1.0), 5);
+    /* the measured case this rule replaced a line fit for: 1 unit in 1.753 s (the stages'
+     * start included), 3 units in 1.867 s, 3.96 s left: 6 units (bounded by 3.73 s), not 41 */
+    int km[2] = {1, 3};
+    double sm[2] = {1.753, 1.867};
+    assert_int_equal(pm_progressive_next_size(km, sm, 2, 16, 3.96), 6);
 }
 
 static void test_plan_range(void **state)

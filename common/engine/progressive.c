@@ -622,6 +622,29 @@ static void read_radius1(prog_t *p)
     }
 }
 
+/* RENDER_PASS_HOOK (environment; pipelines/error-vs-time sets it): an executable run as HOOK
+ * PASS SECONDS IMAGE once the image holds passes 1 to PASS, SECONDS the wall time since the
+ * command started; its time counts in the render's. A failing hook is reported and the passes
+ * go on. */
+static void run_hook(const prog_t *p, char **env, int pass, double seconds)
+{
+    const char *hook = getenv("RENDER_PASS_HOOK");
+    if (!hook || !hook[0])
+        return;
+    argv_t a = {0};
+    push(&a, hook);
+    pushf(&a, "%d", pass);
+    pushf(&a, "%.3f", seconds);
+    pushf(&a, "%s/image.exr", p->out);
+    pm_spawn_t sp = {.argv = a.v, .stdin_fd = -1, .stdout_fd = -1, .env = env};
+    pm_proc_status_t st;
+    if (pm_proc_run(&sp, &st) != PM_OK)
+        say(p, "pass %d: RENDER_PASS_HOOK '%s' failed (%s)", pass, hook, pm_error_message());
+    else if (st.exit_code)
+        say(p, "pass %d: RENDER_PASS_HOOK '%s' failed (exit %d)", pass, hook, st.exit_code);
+    pm_proc_status_free(&st);
+}
+
 /* The passes: the six stages started, a pass at a time, the stages ended. Returns the exit
  * status; *stop_out says what stopped the passes, *first_out when the first image was in
  * place (s from t0; -1 if none). */
@@ -777,6 +800,7 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         if (nk < 4096)
             k[nk] = units, sec[nk] = te - ts, nk++;
         pass = next;
+        run_hook(p, env, next, te - t0);
         double e;
         if (target > 0.0 && pm_parse_double(err, &e) == PM_OK && e <= target) {
             snprintf(stopbuf, sizeof stopbuf, "TARGET_ERROR=%s", val(p, PM_P_TARGET_ERROR));
@@ -840,6 +864,12 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
 int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bin, const char *cmdline, double t0)
 {
     prog_t p = {.s = s, .me = me, .bin = bin, .lock_fd = -1};
+    /* an OUTDIR that holds pass directories (KEEP=all, pipelines/slurm's tasks) goes on with them */
+    char pass1[4200];
+    struct stat sb;
+    snprintf(pass1, sizeof pass1, "%s/pass-0001", s->outdir);
+    if (stat(pass1, &sb) == 0 && S_ISDIR(sb.st_mode))
+        return -1;
     if (mkdir(s->outdir, 0777) != 0 && errno != EEXIST) {
         say(&p, "cannot create '%s': %s", s->outdir, strerror(errno));
         return 1;

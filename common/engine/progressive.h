@@ -41,7 +41,10 @@ int pm_progressive_handles(const pm_settings_t *s, char *why, size_t cap);
  * stats.json. t0 is pm_time_wall() at the start of the command (TIME counts from it). me
  * starts every message ("render"). Returns the exit status: 0 ok, 1 a stage or the scene
  * failed, 3 the system (a pipe, a process, the disk); or -1, having written nothing, for a
- * scene the resident chain does not render yet (mirrors or glass: the caustic branch). */
+ * scene the resident chain does not render yet (mirrors or glass: the caustic branch) and for
+ * an OUTDIR that holds pass directories (KEEP=all before, pipelines/slurm's tasks): those go
+ * on as pass files. RENDER_PASS_HOOK in the environment is run after every pass, as the pass
+ * files' driver runs it (HOOK PASS SECONDS IMAGE). */
 int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bin, const char *cmdline, double t0);
 
 /* The size of the next pass of a TIME budget, in units of 1/kmax of the per-pass size, given

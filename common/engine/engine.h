@@ -132,6 +132,10 @@ pm_result_t pm_proc_spawn(const pm_spawn_t *sp, pm_proc_t **out);
  * caller's to free with pm_proc_status_free). */
 pm_result_t pm_proc_wait(pm_proc_t *p, pm_proc_status_t *status_out);
 void pm_proc_status_free(pm_proc_status_t *st);
+/* Waits for whichever of procs[0..n) (NULL entries skipped) ends first: *which_out is its index,
+ * its handle freed (the caller sets procs[*which_out] to NULL). For programs whose stderr is
+ * passed through: a captured one is read only once the program has ended. */
+pm_result_t pm_proc_wait_any(pm_proc_t *const *procs, int n, int *which_out, pm_proc_status_t *status_out);
 /* Runs one program to its end (pm_proc_spawn then pm_proc_wait). */
 pm_result_t pm_proc_run(const pm_spawn_t *sp, pm_proc_status_t *status_out);
 /* A pipe whose two ends close on exec (each child gets the end it needs as stdin or stdout). */
@@ -149,8 +153,9 @@ typedef struct {
     const char *const *commands; /* the COMMAND lines its header must end with, oldest first, */
     size_t ncommands;            /* as pm_prov_command_line makes them */
     const char *scene;           /* the SCENE value it must record; NULL: not checked */
-    int external;                /* 1: made by a program outside the program directory, which may
-                                  * record no command line: judged by being whole alone */
+    int external;                /* 1: made by a program outside the program directory (GATHER=PATH),
+                                  * maybe a wrapper of another: its own COMMAND line is compared
+                                  * without the program's name (a program that records none is remade) */
     int scene_arg;               /* 1: the word after the program's name in its own command line is
                                   * the scene file, which SCENE judges by content: its path is no part
                                   * of the identity (shot2.json with shot1.json's photon part) */
@@ -166,9 +171,10 @@ typedef enum {
 /* What pm_prov_check found. */
 typedef struct {
     pm_prov_verdict_t verdict;
-    uint64_t hash;  /* the file's content hash (its XXH3 trailer) when whole */
-    uint64_t count; /* its records, when whole */
-    char why[512];  /* for CORRUPT and OTHER: "checksum mismatch", "command 'simd-gather ...'" */
+    uint64_t hash;   /* the file's content hash (its XXH3 trailer) when whole */
+    uint64_t count;  /* its records, when whole */
+    char why[512];   /* for CORRUPT and OTHER: "checksum mismatch", "command 'simd-gather ...'" */
+    char input[256]; /* for OTHER because of an input: that input's name as the header records it */
 } pm_prov_t;
 
 /* Reads dir/name whole with the formats library (header, every record, the checksum) and

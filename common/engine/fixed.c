@@ -51,6 +51,7 @@ typedef struct {
     int needed;                /* made for the targets */
     int run;                   /* planned to run (phase 2) */
     int state;                 /* 0 not made, 1 cached, 2 ran, 3 failed */
+    int active;                /* running now */
     double wall_s;             /* s (wall), this run or the last run's (times/NAME) */
     int have_time;             /* wall_s is known */
     pm_prov_t prov[MAX_FILES]; /* each output as found before this run */
@@ -516,6 +517,18 @@ static const char *scene_of(const render_t *r, const char *file)
     return r->scene_all;
 }
 
+static double read_time(const render_t *r, const char *name, int *ok)
+{
+    char p[PATH_MAX + 160];
+    snprintf(p, sizeof p, "%s/times/%s", r->out, name);
+    FILE *f = fopen(p, "r");
+    double t = 0;
+    *ok = f && fscanf(f, "%lf", &t) == 1 && t >= 0 && t < 1e9;
+    if (f)
+        fclose(f);
+    return *ok ? t : 0;
+}
+
 /* Judges every output of j (phase 1). Returns PM_OK or out of memory. */
 static pm_result_t check_job(render_t *r, job_t *j)
 {
@@ -544,8 +557,13 @@ static pm_result_t check_job(render_t *r, job_t *j)
     free(cmd);
     for (int k = 0; k < j->nouts && res == PM_OK; k++) {
         const pm_prov_t *p = &j->prov[k];
+        int before;
         if (p->verdict == PM_PROV_CORRUPT)
             say(r, "%s is corrupt (%s): rebuilding it", j->outs[k], p->why);
+        else if (p->verdict == PM_PROV_MISSING && (read_time(r, j->name, &before), before))
+            /* made here before (its stage's time is on record) and gone since: said, as a
+             * corrupt file is, so that a file removed by hand is seen to come back */
+            say(r, "%s is missing: remaking it", j->outs[k]);
         else if (p->verdict == PM_PROV_OTHER && r->s->verbose)
             say(r, "%s was made otherwise (%s): remaking it", j->outs[k], p->why);
     }
@@ -578,6 +596,37 @@ static int input_changed(render_t *r, const job_t *j)
     return 0;
 }
 
+/* Every stage that makes an input of j has ended (or is not part of this render). */
+static int inputs_ready(render_t *r, const job_t *j)
+{
+    const char *const *ins = j->ins;
+    int nins = j->nins;
+    if (strcmp(j->name, "composite") == 0)
+        ins = r->buffers, nins = r->nbuffers;
+    for (int i = 0; i < nins; i++) {
+        job_t *p = producer(r, ins[i]);
+        if (p && p->needed && (p->state == 0 || p->active))
+            return 0;
+    }
+    return 1;
+}
+
+/* After a failure: every stage that makes an input of j is cached or ran (none failed or was
+ * left unmade), so what j made is current. */
+static int inputs_settled(render_t *r, const job_t *j)
+{
+    const char *const *ins = j->ins;
+    int nins = j->nins;
+    if (strcmp(j->name, "composite") == 0)
+        ins = r->buffers, nins = r->nbuffers;
+    for (int i = 0; i < nins; i++) {
+        job_t *p = producer(r, ins[i]);
+        if (p && p->needed && p->state != 1 && p->state != 2)
+            return 0;
+    }
+    return 1;
+}
+
 /* Would j run if what came before it ran as planned (phase 2, for the progress count)? */
 static int input_planned(render_t *r, const job_t *j)
 {
@@ -593,18 +642,6 @@ static int input_planned(render_t *r, const job_t *j)
     return 0;
 }
 
-static double read_time(const render_t *r, const char *name, int *ok)
-{
-    char p[PATH_MAX + 160];
-    snprintf(p, sizeof p, "%s/times/%s", r->out, name);
-    FILE *f = fopen(p, "r");
-    double t = 0;
-    *ok = f && fscanf(f, "%lf", &t) == 1 && t >= 0 && t < 1e9;
-    if (f)
-        fclose(f);
-    return *ok ? t : 0;
-}
-
 static void append_line(const render_t *r, const char *file, const char *line)
 {
     char p[PATH_MAX + 64];
@@ -616,8 +653,9 @@ static void append_line(const render_t *r, const char *file, const char *line)
     }
 }
 
-/* Runs j in OUTDIR (phase 3); its outputs' change flags set from their content hashes. */
-static int run_job(render_t *r, job_t *j, int index, int total)
+/* Starts j in OUTDIR (phase 3): *proc_out is the running stage. Returns 0, or the exit status
+ * when it cannot be started. */
+static int start_job(render_t *r, job_t *j, int index, int total, pm_proc_t **proc_out)
 {
     char *argv[MAX_ARGS + 1];
     int n = 0;
@@ -632,7 +670,7 @@ static int run_job(render_t *r, job_t *j, int index, int total)
         int known = 1;
         for (int i = 0; i < r->njobs; i++) {
             job_t *o = &r->jobs[i];
-            if (!o->run || o->state != 0)
+            if (!o->run || o->state != 0 || o->active)
                 continue;
             int ok;
             left += read_time(r, o->name, &ok);
@@ -651,21 +689,37 @@ static int run_job(render_t *r, job_t *j, int index, int total)
         fputc('\n', stderr);
     }
     pm_spawn_t sp = {.argv = argv, .cwd = r->out, .stdin_fd = -1, .stdout_fd = -1};
-    pm_proc_status_t st;
-    pm_result_t res = pm_proc_run(&sp, &st);
-    if (res != PM_OK) {
+    if (pm_proc_spawn(&sp, proc_out) != PM_OK) {
         say(r, "%s", pm_error_message());
-        st.exit_code = 3;
-    }
-    pm_proc_status_free(&st);
-    if (st.exit_code != 0) {
-        say(r, "stage %s failed (exit %d)", j->name, st.exit_code);
+        say(r, "stage %s failed (exit %d)", j->name, 3);
         append_line(r, "failed.txt", j->name);
         j->state = 3;
-        return st.exit_code;
+        return 3;
+    }
+    j->active = 1;
+    return 0;
+}
+
+/* j has ended as st says: its records, and its outputs' change flags from their content hashes.
+ * Returns its exit status. */
+static int finish_job(render_t *r, job_t *j, const pm_proc_status_t *st)
+{
+    j->active = 0;
+    if (st->exit_code != 0) {
+        /* what a failed stage leaves is not what the settings make: removed, as make's
+         * .DELETE_ON_ERROR did (the stages themselves write through temporary files) */
+        for (int k = 0; k < j->nouts; k++) {
+            char op[PATH_MAX + 64];
+            snprintf(op, sizeof op, "%s/%s", r->out, j->outs[k]);
+            unlink(op);
+        }
+        say(r, "stage %s failed (exit %d)", j->name, st->exit_code);
+        append_line(r, "failed.txt", j->name);
+        j->state = 3;
+        return st->exit_code;
     }
     j->state = 2;
-    j->wall_s = st.wall_s;
+    j->wall_s = st->wall_s;
     j->have_time = 1;
     char p[PATH_MAX + 160];
     snprintf(p, sizeof p, "%s/times", r->out);
@@ -673,7 +727,7 @@ static int run_job(render_t *r, job_t *j, int index, int total)
     snprintf(p, sizeof p, "%s/times/%s", r->out, j->name);
     FILE *f = fopen(p, "w");
     if (f) {
-        fprintf(f, "%.6f\n", st.wall_s);
+        fprintf(f, "%.6f\n", st->wall_s);
         fclose(f);
     }
     append_line(r, "ran.txt", j->name);
@@ -783,19 +837,11 @@ static void keep_only(render_t *r)
 {
     if (r->s->keep == PM_KEEP_ALL)
         return;
-    static const char *const made[] = {"photons.pm",
-                                       "photonmap.pm",
-                                       "caustic-photons.pm",
-                                       "caustic-map.pm",
-                                       "queries.pm",
-                                       "sorted.pm",
-                                       "caustic-queries.pm",
-                                       "direct.pm",
-                                       "indirect.pm",
-                                       "caustic.pm",
-                                       "ran.txt",
-                                       "failed.txt",
-                                       NULL};
+    static const char *const made[] = {"photons.pm", "photonmap.pm", "caustic-photons.pm", "caustic-map.pm",
+                                       "queries.pm", "sorted.pm", "caustic-queries.pm", "direct.pm", "indirect.pm",
+                                       "caustic.pm", "ran.txt", "failed.txt",
+                                       /* what the make graph that pipelines/render was left here */
+                                       "Makefile", "scene-info.json", "scene-info.err", NULL};
     char p[PATH_MAX + 64];
     for (int i = 0; made[i]; i++) {
         int keep = 0;
@@ -821,13 +867,16 @@ static void keep_only(render_t *r)
     remove_dir_files(p);
     snprintf(p, sizeof p, "%s/stats", r->out);
     remove_dir_files(p);
+    snprintf(p, sizeof p, "%s/.stamps", r->out);
+    remove_dir_files(p);
 }
 
 /* ---- the whole render ---- */
 
 /* The lights that need direct-light samples at each primary hit: emissive triangles, a sun, a
- * sky (point lights are sampled exactly, one shadow ray each). One question, asked in one place,
- * so that a new kind of light answers it here alone (branch light's summary field, when it lands). */
+ * sky (point lights are sampled exactly, one shadow ray each). One question, asked in one place:
+ * when branch light lands, this is pm_lights_count's sampled_out (render/light.h), and the
+ * "no lights" note its total_out. */
 static size_t sampled_lights(const pm_scene_t *sc) { return sc->nemissive + (size_t)sc->has_sun + (size_t)sc->has_sky; }
 
 /* The decisions pipelines/render made from the scene and the parameters, and the notes it
@@ -1172,6 +1221,22 @@ int pm_render_fixed(const pm_settings_t *s, const char *me, const char *bin, con
             goto done;
         }
     }
+    /* A file judged against an input that is itself not what the settings make is judged again
+     * once that input is remade (phase 3): its verdict waits for the new bytes. */
+    for (int i = 0; i < r->njobs; i++) {
+        job_t *j = &r->jobs[i];
+        for (int k = 0; k < j->nouts && j->needed; k++) {
+            pm_prov_t *pv = &j->prov[k];
+            if (pv->verdict != PM_PROV_OTHER || !pv->input[0])
+                continue;
+            job_t *p = producer(r, pv->input);
+            int m = 0;
+            while (p && m < p->nouts && strcmp(p->outs[m], pv->input) != 0)
+                m++;
+            if (p && p->needed && m < p->nouts && p->prov[m].verdict != PM_PROV_OK)
+                pv->verdict = PM_PROV_OK; /* for now: its input will be remade, and it judged again */
+        }
+    }
     /* phase 2: the plan, as if every job that runs changed what it makes (the progress count) */
     int total = 0;
     for (int i = 0; i < r->njobs; i++) {
@@ -1179,32 +1244,78 @@ int pm_render_fixed(const pm_settings_t *s, const char *me, const char *bin, con
         j->run = j->needed && (!job_outputs_ok(j) || input_planned(r, j));
         total += j->run;
     }
-    /* phase 3: run what is not what the settings would make, or whose inputs changed */
+    /* phase 3: run what is not what the settings would make, or whose inputs changed; up to
+     * JOBS stages at once, each when the stages that make its inputs have ended */
     double t0 = pm_time_wall();
-    int index = 0;
-    for (int i = 0; i < r->njobs; i++) {
-        job_t *j = &r->jobs[i];
-        if (!j->needed)
-            continue;
-        if (job_outputs_ok(j) && !input_changed(r, j)) {
-            j->state = 1;
-            continue;
-        }
-        if (j->shard >= 0) {
-            if (!have_count) {
-                if (count_records(r, r->queries, &nqueries) != PM_OK) {
+    int index = 0, running = 0, stop = 0, jobs_max = atoi(s->value[PM_P_JOBS]);
+    if (jobs_max < 1)
+        jobs_max = 1;
+    static pm_proc_t *procs[MAX_JOBS];
+    memset(procs, 0, sizeof procs);
+    for (;;) {
+        for (int i = 0; i < r->njobs && !stop; i++) {
+            job_t *j = &r->jobs[i];
+            if (!j->needed || j->state != 0 || j->active || !inputs_ready(r, j))
+                continue;
+            if (job_outputs_ok(j) && !input_changed(r, j)) {
+                j->state = 1;
+                i = -1; /* what waited on it may be ready now */
+                continue;
+            }
+            if (job_outputs_ok(j)) {
+                /* An input was remade with other bytes than the file it replaced (a corrupt one,
+                 * say): what j made is judged again against the inputs now here, and kept when
+                 * they are the bytes it recorded (a map rebuilt the same keeps its gather). */
+                if ((res = check_job(r, j)) != PM_OK) {
                     say(r, "%s", pm_error_message());
-                    status = 1;
+                    status = 3;
+                    stop = 1;
                     break;
                 }
-                have_count = 1;
+                if (job_outputs_ok(j)) {
+                    j->state = 1;
+                    i = -1;
+                    continue;
+                }
             }
-            set_range(r, j, nqueries);
+            if (running >= jobs_max)
+                continue;
+            if (j->shard >= 0) {
+                if (!have_count) {
+                    if (count_records(r, r->queries, &nqueries) != PM_OK) {
+                        say(r, "%s", pm_error_message());
+                        status = 1;
+                        stop = 1;
+                        break;
+                    }
+                    have_count = 1;
+                }
+                set_range(r, j, nqueries);
+            }
+            int code = start_job(r, j, ++index, total, &procs[i]);
+            if (code != 0) {
+                status = code;
+                stop = 1;
+                break;
+            }
+            running++;
         }
-        int code = run_job(r, j, ++index, total);
-        if (code != 0) {
-            status = stage_status(code);
+        if (running == 0)
             break;
+        int which;
+        pm_proc_status_t st;
+        if (pm_proc_wait_any(procs, r->njobs, &which, &st) != PM_OK) {
+            say(r, "%s", pm_error_message());
+            status = 4;
+            break;
+        }
+        procs[which] = NULL;
+        running--;
+        int code = finish_job(r, &r->jobs[which], &st);
+        pm_proc_status_free(&st);
+        if (code != 0 && !stop) {
+            status = stage_status(code);
+            stop = 1; /* no stage starts after a failure; those running end */
         }
     }
     double run_s = pm_time_wall() - t0;
@@ -1214,7 +1325,7 @@ int pm_render_fixed(const pm_settings_t *s, const char *me, const char *bin, con
         if (j->state == 0 && !j->needed && j->nouts) {
             if (strcmp(j->name, "composite") != 0 && j->shard < 0 && check_job(r, j) == PM_OK && job_outputs_ok(j))
                 j->state = 1;
-        } else if (j->state == 0 && status != 0 && job_outputs_ok(j) && !input_changed(r, j)) {
+        } else if (j->state == 0 && status != 0 && job_outputs_ok(j) && !input_changed(r, j) && inputs_settled(r, j)) {
             j->state = 1;
         }
     }

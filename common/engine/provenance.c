@@ -208,8 +208,6 @@ pm_result_t pm_prov_check(const pm_prov_want_t *w, pm_prov_t *out)
     const pm_header_t *h = pm_reader_header(rd);
     out->count = h->count;
     out->verdict = PM_PROV_OK;
-    if (w->external)
-        goto done;
     const char *scene = pm_header_get(h, "SCENE");
     if (w->scene && (!scene || strcmp(scene, w->scene) != 0)) {
         out->verdict = PM_PROV_OTHER;
@@ -225,6 +223,13 @@ pm_result_t pm_prov_check(const pm_prov_want_t *w, pm_prov_t *out)
         static char got[PM_COMMAND_MAX + 8], want[PM_COMMAND_MAX + 8];
         norm_command(h->commands[h->ncommands - w->ncommands + i], got, sizeof got);
         norm_command(w->commands[i], want, sizeof want);
+        if (w->external && i + 1 == w->ncommands) {
+            /* a program outside the program directory may be a wrapper: the program it ran
+             * records its own name; its options and files are what is compared */
+            char *g = strchr(got, ' '), *v = strchr(want, ' ');
+            memmove(got, g ? g : "", strlen(g ? g : "") + 1);
+            memmove(want, v ? v : "", strlen(v ? v : "") + 1);
+        }
         if (w->scene_arg && i + 1 == w->ncommands) {
             drop_second_word(got);
             drop_second_word(want);
@@ -250,6 +255,7 @@ pm_result_t pm_prov_check(const pm_prov_want_t *w, pm_prov_t *out)
         if (pm_prov_trailer(in, &now) != PM_OK || now != want) {
             out->verdict = PM_PROV_OTHER;
             snprintf(out->why, sizeof out->why, "input '%.*s' has changed", (int)(sp - v), v);
+            snprintf(out->input, sizeof out->input, "%.*s", (int)(sp - v), v);
             goto done;
         }
     }

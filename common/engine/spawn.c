@@ -112,6 +112,46 @@ static char *slurp(int fd)
     return s;
 }
 
+/* How the child ended, from waitpid's status, into status_out. */
+static void set_status(int ws, pm_proc_status_t *status_out)
+{
+    if (WIFSIGNALED(ws)) {
+        status_out->signal = WTERMSIG(ws);
+        status_out->exit_code = 128 + status_out->signal;
+    } else {
+        status_out->exit_code = WEXITSTATUS(ws);
+    }
+}
+
+pm_result_t pm_proc_wait_any(pm_proc_t *const *procs, int n, int *which_out, pm_proc_status_t *status_out)
+{
+    memset(status_out, 0, sizeof *status_out);
+    *which_out = -1;
+    for (;;) {
+        int ws = 0;
+        pid_t r = waitpid(-1, &ws, 0);
+        if (r < 0 && errno == EINTR)
+            continue;
+        if (r < 0)
+            return pm_error_set(PM_ERR_INTERNAL, "waiting for a stage: %s", strerror(errno));
+        for (int i = 0; i < n; i++) {
+            pm_proc_t *p = procs[i];
+            if (!p || p->pid != r)
+                continue;
+            if (p->err_fd >= 0) {
+                status_out->err = slurp(p->err_fd);
+                close(p->err_fd);
+            }
+            status_out->wall_s = pm_time_wall() - p->t0;
+            set_status(ws, status_out);
+            free(p);
+            *which_out = i;
+            return PM_OK;
+        }
+        /* a child that is none of these (none is expected): reaped, and waited past */
+    }
+}
+
 pm_result_t pm_proc_wait(pm_proc_t *p, pm_proc_status_t *status_out)
 {
     memset(status_out, 0, sizeof *status_out);
@@ -129,11 +169,8 @@ pm_result_t pm_proc_wait(pm_proc_t *p, pm_proc_status_t *status_out)
     if (r < 0) {
         res = pm_error_set(PM_ERR_IO, "cannot wait for '%s': %s", p->name, strerror(errno));
         status_out->exit_code = 4;
-    } else if (WIFSIGNALED(ws)) {
-        status_out->signal = WTERMSIG(ws);
-        status_out->exit_code = 128 + status_out->signal;
     } else {
-        status_out->exit_code = WEXITSTATUS(ws);
+        set_status(ws, status_out);
     }
     free(p);
     return res;

@@ -21,6 +21,7 @@
 #include "base/args.h"
 #include "base/timer.h"
 #include "formats/formats.h"
+#include "photonmap/gather_stage.h"
 #include "render/scene.h"
 
 extern char **environ;
@@ -379,11 +380,16 @@ static char **stage_env(void)
     return e;
 }
 
+/* -q, --threads, and --stats into OUTDIR/.stats-NAME.json (none of which a file records),
+ * which stats.json takes in under "stages" */
 static void common_opts(const prog_t *p, argv_t *a)
 {
     if (strcmp(val(p, PM_P_VERBOSE), "1"))
         push(a, "-q");
     opt(a, "--threads", val(p, PM_P_THREADS));
+    const char *base = strrchr(a->v[0], '/');
+    push(a, "--stats");
+    pushf(a, "%s/.stats-%s.json", p->out, base ? base + 1 : a->v[0]);
 }
 
 /* The six stages' command lines. plan: the plan's path as each tracer sees it; dfd, mfd, lfd:
@@ -559,8 +565,14 @@ static void sync_file(const char *dir, const char *name)
 }
 
 /* stats.json: {"scene", "params", "passes": [{"pass", "status", "photons", "primary", "wall_s",
- * "relative_error"}], "total": {"passes", "added", "relative_error", "wall_s", "first_image_s",
- * "stopped_by", "alpha", "radius1", "resident": true}} */
+ * "relative_error", "stages"}], "stages": {NAME: the stage's --stats over every pass of this
+ * run}, "total": {"passes", "added", "relative_error", "wall_s",
+ * "first_image_s", "stopped_by", "alpha", "radius1", "resident": true}}. A pass's "stages" holds,
+ * in the words of the stages' own --stats, what the driver asked each stage for in that pass
+ * (trace-photons emitted, trace-gather-points primary and spp, simd-gather k and radius_m, the
+ * schedule's r_p of radius1): the resident stages write their --stats once, at their end, so
+ * a pass has no stats file of its own (pipelines/error-vs-time reads these; hilbert-sort's leaf
+ * is the stage's own, from its --stats). */
 static void write_stats(prog_t *p, double wall, double first_image, const char *stop)
 {
     json_t *root = json_object(), *params = json_object(), *passes = json_array(), *total = json_object();
@@ -569,9 +581,32 @@ static void write_stats(prog_t *p, double wall, double first_image, const char *
         json_object_set_new(params, pm_param_name((pm_param_t)k), json_string(val(p, (pm_param_t)k)));
     json_object_set_new(root, "params", params);
     int added = 0;
+    double a, r1 = 0.0;
+    if (!(val(p, PM_P_ALPHA)[0] && pm_parse_double(val(p, PM_P_ALPHA), &a) == PM_OK))
+        a = PM_PASS_ALPHA_DEFAULT;
+    if (p->radius1[0] && pm_parse_double(p->radius1, &r1) != PM_OK)
+        r1 = 0.0;
+    int64_t spp = 0;
+    pm_parse_i64(p->spp, &spp);
     for (int i = 0; i < p->npasses; i++) {
         const pass_t *ps = &p->passes[i];
-        json_t *o = json_object();
+        json_t *o = json_object(), *st = json_object(), *tp = json_object(), *tg = json_object(), *sg = json_object();
+        json_object_set_new(tp, "emitted", json_integer(ps->photons));
+        json_object_set_new(tp, "pass", json_integer(ps->pass));
+        json_object_set_new(tg, "primary", json_integer(ps->primary));
+        json_object_set_new(tg, "spp", json_integer(spp));
+        json_object_set_new(tg, "pass", json_integer(ps->pass));
+        if (!val(p, PM_P_RADIUS)[0]) {
+            double kk;
+            if (pm_parse_double(p->k, &kk) == PM_OK)
+                json_object_set_new(sg, "k", json_real(kk));
+        }
+        if (r1 > 0.0)
+            json_object_set_new(sg, "radius_m", json_real(pm_gather_pass_radius(r1, (uint64_t)ps->pass, a)));
+        json_object_set_new(sg, "pass", json_integer(ps->pass));
+        json_object_set_new(st, "trace-photons", tp);
+        json_object_set_new(st, "trace-gather-points", tg);
+        json_object_set_new(st, "simd-gather", sg);
         json_object_set_new(o, "pass", json_integer(ps->pass));
         json_object_set_new(o, "status", json_string(ps->added ? "added" : "kept"));
         json_object_set_new(o, "photons", json_integer(ps->photons));
@@ -579,11 +614,29 @@ static void write_stats(prog_t *p, double wall, double first_image, const char *
         json_object_set_new(o, "wall_s", ps->added ? json_real(ps->wall_s) : json_null());
         double e;
         json_object_set_new(o, "relative_error", pm_parse_double(ps->err, &e) == PM_OK ? json_real(e) : json_null());
+        json_object_set_new(o, "stages", st);
         json_array_append_new(passes, o);
         added += ps->added;
     }
     json_object_set_new(root, "passes", passes);
-    double e, a, r1;
+    /* each resident stage's --stats, for all its passes; hilbert-sort's leaf into every pass */
+    json_t *stages = json_object();
+    for (int i = 0; i < NSTAGE; i++) {
+        char sp[4200];
+        snprintf(sp, sizeof sp, "%s/.stats-%s.json", p->out, stage_names[i]);
+        json_t *j = json_load_file(sp, 0, NULL);
+        unlink(sp);
+        if (j)
+            json_object_set_new(stages, stage_names[i], j);
+    }
+    json_t *leaf = json_object_get(json_object_get(stages, "hilbert-sort"), "leaf");
+    for (size_t i = 0; leaf && i < json_array_size(passes); i++) {
+        json_t *hs = json_object();
+        json_object_set(hs, "leaf", leaf);
+        json_object_set_new(json_object_get(json_array_get(passes, i), "stages"), "hilbert-sort", hs);
+    }
+    json_object_set_new(root, "stages", stages);
+    double e;
     json_object_set_new(total, "passes", json_integer(p->npasses));
     json_object_set_new(total, "added", json_integer(added));
     json_object_set_new(total, "relative_error",
@@ -592,11 +645,8 @@ static void write_stats(prog_t *p, double wall, double first_image, const char *
     json_object_set_new(total, "wall_s", json_real(wall));
     json_object_set_new(total, "first_image_s", first_image >= 0 ? json_real(first_image) : json_null());
     json_object_set_new(total, "stopped_by", json_string(stop));
-    json_object_set_new(
-        total, "alpha",
-        json_real(val(p, PM_P_ALPHA)[0] && pm_parse_double(val(p, PM_P_ALPHA), &a) == PM_OK ? a : 2.0 / 3.0));
-    json_object_set_new(total, "radius1",
-                        p->radius1[0] && pm_parse_double(p->radius1, &r1) == PM_OK ? json_real(r1) : json_null());
+    json_object_set_new(total, "alpha", json_real(a));
+    json_object_set_new(total, "radius1", r1 > 0.0 ? json_real(r1) : json_null());
     json_object_set_new(total, "resident", json_true());
     json_object_set_new(root, "total", total);
     char path[4200], tmp[4300];
@@ -698,11 +748,14 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
                 fprintf(stderr, " %s", a[i].v[w]);
             fputc('\n', stderr);
         }
+        /* stderr captured (read when the stage ends: with -q a stage says nothing until it
+         * fails, so its pipe never fills), or passed through with VERBOSE=1, whose notes, a
+         * few a pass, could fill it over a long render */
         pm_spawn_t sp = {.argv = a[i].v,
                          .cwd = i == CO ? p->out : NULL,
                          .stdin_fd = in_fd[i],
                          .stdout_fd = out_fd[i],
-                         .capture_stderr = 1,
+                         .capture_stderr = strcmp(val(p, PM_P_VERBOSE), "1") != 0,
                          .close_fds = closes[i],
                          .nclose = nclose[i],
                          .env = env};
@@ -837,8 +890,6 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         errs[i] = st.err;
         if (st.exit_code && first_bad < 0)
             first_bad = i;
-        if (!st.exit_code && st.err && st.err[0] && !strcmp(val(p, PM_P_VERBOSE), "1"))
-            fputs(st.err, stderr);
     }
     if (rc == 0 && (failed || first_bad >= 0)) {
         /* the stage that failed first names the cause; the others then fail on its pipes */

@@ -41,7 +41,7 @@ check_layers() (
             [ -f "$f" ] || continue
             l=$(layer_of "$f")
             if [ "$l" = stray ]; then
-                echo "$f: not in a layer folder (common/base, math, render, photonmap, image)"
+                echo "$f: not in a layer folder (common/base, math, render, photonmap, image, engine)"
                 continue
             fi
             allowed=$(layer_allows "$l")
@@ -62,10 +62,10 @@ check_layers() (
                     esac
                     top=${inc%%/*}
                     case $top in
-                    base | math | render | photonmap | image) path=common/$inc ;;
+                    base | math | render | photonmap | image | engine) path=common/$inc ;;
                     formats) path=$inc ;;
                     *)
-                        echo "$f:$n: include '$inc' is not in a layer (base, math, formats, render, photonmap, image)"
+                        echo "$f:$n: include '$inc' is not in a layer (base, math, formats, render, photonmap, image, engine)"
                         continue
                         ;;
                     esac

@@ -356,6 +356,8 @@ static pm_result_t run(pm_stage_t *st, const composite_options_t *o)
                                           "--radiance or --accumulate");
     if (o->pass && !o->state)
         return pm_error_set(PM_ERR_USAGE, "--pass %" PRId64 " needs --accumulate STATE (the running image)", o->pass);
+    if (pm_args_given(&st->args, "weight") && !o->state)
+        return pm_error_set(PM_ERR_USAGE, "--weight %g is a pass's weight: it needs --accumulate STATE", o->weight);
     pm_stage_output_set(st); /* the EXR, the PNG, the radiance buffer and the running image appear together, or none */
     pm_composite_t *c;
     pm_result_t r = pm_composite_open(&c, st->args.args, st->args.nargs, (pm_composite_only_t)o->only);

@@ -132,6 +132,7 @@ else
 fi
 [ -z "$(hdr "$S" weight)" ] && pass "passes of weight 1 write no weight key" || fail "weight key" "$(hdr "$S" weight)"
 expect_exit "composite --weight 0 is a usage error" 2 $C "$TMP/r.pm" --accumulate "$TMP/wx.pm" --weight 0 -o "$TMP/x.exr"
+expect_exit "composite --weight without --accumulate is a usage error" 2 $C "$TMP/r.pm" --weight 2 -o "$TMP/x.exr"
 # the pass checks: a pass already in, a gap, --pass without --accumulate; the state unchanged
 h0=$(sha1sum <"$S")
 expect_error "composite: a pass already in the running image" "holds 3 passes: pass 3 is in it already \(input error\)" \

@@ -39,8 +39,8 @@ pm_result_t pm_writer_check_stream(const char *option, const char *path)
         (stat(path, &sb) == 0 && !S_ISREG(sb.st_mode) && !S_ISDIR(sb.st_mode)))
         return PM_OK;
     return pm_error_set(PM_ERR_USAGE,
-                        "several scenes write a stream of documents: %s must be - (stdout), a pipe or /dev/fd/N, "
-                        "not the file '%s'",
+                        "a stream of documents (several scenes or passes) goes to a pipe: %s must be - (stdout), a "
+                        "pipe or /dev/fd/N, not the file '%s'",
                         option, path);
 }
 

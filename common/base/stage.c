@@ -289,6 +289,37 @@ int pm_stage_end(pm_stage_t *st, pm_result_t result)
     return pm_result_exit_code(result);
 }
 
+pm_result_t pm_stage_pass_command(const pm_stage_t *st, char **argv, const void *const *drop, size_t ndrop,
+                                  char *const *add, int nadd, int *argc_out, char ***argv_out)
+{
+    const pm_args_t *a = &st->args;
+    /* the options pm_stage_begin leaves out of every COMMAND line, then the caller's */
+    const void *unrecorded[] = {&st->threads, &st->quiet, &st->stats_path};
+    char **v = malloc(((size_t)(a->argc > 0 ? a->argc : 1) + (size_t)nadd) * sizeof *v);
+    if (!v)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory recording %d arguments", a->argc);
+    int n = 0, added = 0;
+    for (int i = 0; i < a->argc; i++) {
+        int oi = a->argv_option ? a->argv_option[i] : -1, skip = 0, dropped = 0;
+        for (size_t k = 0; oi >= 0 && k < sizeof unrecorded / sizeof *unrecorded && !skip; k++)
+            skip = a->options[oi].dest == unrecorded[k];
+        for (size_t k = 0; oi >= 0 && k < ndrop && !skip; k++)
+            skip = dropped = a->options[oi].dest == drop[k];
+        if (dropped && !added) {
+            for (int j = 0; j < nadd; j++)
+                v[n++] = add[j];
+            added = 1;
+        }
+        if (!skip)
+            v[n++] = argv[i];
+    }
+    for (int j = 0; !added && j < nadd; j++) /* none of drop given (an @FILE held it): at the end */
+        v[n++] = add[j];
+    *argc_out = n;
+    *argv_out = v;
+    return PM_OK;
+}
+
 void pm_stage_command_line(const pm_stage_t *st, char *out, size_t cap)
 {
     size_t at = 0;

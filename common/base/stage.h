@@ -93,6 +93,14 @@ pm_result_t pm_stage_frame_error(pm_result_t r, int frame, const char *name);
 void pm_stage_stat_double(pm_stage_t *st, const char *key, double v);
 void pm_stage_stat_string(pm_stage_t *st, const char *key, const char *v);
 
+/* The command line one document of a --passes or --plan stream records (base/passplan.h):
+ * the recorded words (st->argv; argv is main's) without those of the options whose
+ * destinations are in drop, and the nadd words of add where the first of them stood, so
+ * that each document is the file a run with --pass P alone would write. *argv_out is
+ * malloc'd (free it); its words point into argv and add. */
+pm_result_t pm_stage_pass_command(const pm_stage_t *st, char **argv, const void *const *drop, size_t ndrop,
+                                  char *const *add, int nadd, int *argc_out, char ***argv_out);
+
 /* The command line as given, words joined by spaces and cut to fit cap bytes (an EXR
  * COMMAND attribute; pmtk files keep it with pm_header_add_command). */
 void pm_stage_command_line(const pm_stage_t *st, char *out, size_t cap);

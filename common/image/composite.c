@@ -39,6 +39,7 @@ struct pm_composite {
     double *acc;                 /* 3 per pixel, the sum; after pm_composite_accumulate the mean of the passes */
     double *var;                 /* 3 per pixel after pm_composite_accumulate: squared standard error of the mean */
     char alpha[40], radius1[40]; /* the schedule's words, as the gather wrote them ("" when not given) */
+    double weight;               /* after pm_composite_accumulate: the passes' weights summed */
     float *pix;                  /* 3 per pixel, the EXR's values, from pm_composite_finish */
     int half;
 };
@@ -226,6 +227,27 @@ static pm_result_t pass_key(const pm_composite_t *c, const char *key, char *out,
     return PM_OK;
 }
 
+pm_result_t pm_composite_pass(const pm_composite_t *c, uint64_t *pass_out)
+{
+    *pass_out = 0;
+    const char *first = NULL;
+    for (int i = 0; i < c->nin; i++) {
+        const char *v = c->in[i].used ? pm_header_get(pm_reader_header(c->in[i].rd), "pass") : NULL;
+        int64_t p;
+        if (!v)
+            continue;
+        if (pm_parse_i64(v, &p) != PM_OK || p < 1)
+            return pm_error_set(PM_ERR_INPUT, "'%s': header key pass '%s' is not a pass of at least 1", c->in[i].path,
+                                v);
+        if (first && (uint64_t)p != *pass_out)
+            return pm_error_set(PM_ERR_INPUT,
+                                "buffers of one pass disagree on pass: '%s' says %" PRIu64 ", '%s' says %s", first,
+                                *pass_out, c->in[i].path, v);
+        *pass_out = (uint64_t)p, first = c->in[i].path;
+    }
+    return PM_OK;
+}
+
 /* The state's key must equal the pass's, when both have it. */
 static pm_result_t same_key(const char *state, const pm_header_t *sh, const char *key, char *pass_value, size_t size,
                             uint64_t pass)
@@ -245,10 +267,13 @@ static pm_result_t same_key(const char *state, const pm_header_t *sh, const char
     return PM_OK;
 }
 
-pm_result_t pm_composite_accumulate(pm_composite_t *c, const char *state, uint64_t pass)
+pm_result_t pm_composite_accumulate(pm_composite_t *c, const char *state, uint64_t pass, double w)
 {
     uint64_t n = c->info.pixels, n0 = 0;
+    double w0 = 0.0; /* the weights of the passes in the state */
     pm_result_t r;
+    if (!(w > 0.0 && isfinite(w)))
+        return pm_error_set(PM_ERR_USAGE, "a pass's weight must be a finite number above 0, not %g", w);
     if ((r = pass_key(c, "alpha", c->alpha, sizeof c->alpha)) != PM_OK ||
         (r = pass_key(c, "radius1", c->radius1, sizeof c->radius1)) != PM_OK)
         return r;
@@ -269,6 +294,12 @@ pm_result_t pm_composite_accumulate(pm_composite_t *c, const char *state, uint64
             r = pm_error_set(PM_ERR_INPUT, "running image '%s' says passes=0", state);
             goto done;
         }
+        const char *wk = pm_header_get(&t.hdr, "weight");
+        w0 = (double)n0;
+        if (wk && (pm_parse_double(wk, &w0) != PM_OK || !(w0 > 0.0 && isfinite(w0)))) {
+            r = pm_error_set(PM_ERR_INPUT, "running image '%s': weight '%s' is not a number above 0", state, wk);
+            goto done;
+        }
         mean0 = t.col[PM_RADIANCE_RGB];
         var0 = t.col[PM_RADIANCE_VARIANCE];
         uint64_t p = pass ? pass : n0 + 1;
@@ -286,20 +317,21 @@ pm_result_t pm_composite_accumulate(pm_composite_t *c, const char *state, uint64
         goto done;
     }
     uint64_t k = n0 + 1;
-    double *x = c->acc, *v = c->var, sq = 0.0;
+    double *x = c->acc, *v = c->var, sq = 0.0, wk = w0 + w;
     uint64_t counted = 0;
     for (uint64_t i = 0; i < 3 * n; i++) {
         double m0 = mean0 ? mean0[i] : 0.0;
-        /* M2 of the earlier passes from their stored squared standard error: var = M2 / (n (n - 1)). */
-        double m2 = n0 >= 2 ? var0[i] * (double)n0 * (double)(n0 - 1) : 0.0;
-        double d = x[i] - m0, m = m0 + d / (double)k;
-        m2 += d * (x[i] - m);
+        /* S of the earlier passes from their stored squared standard error: var = S / (W (n - 1)). */
+        double m2 = n0 >= 2 ? var0[i] * w0 * (double)(n0 - 1) : 0.0;
+        double d = x[i] - m0, m = m0 + d * w / wk;
+        m2 += w * d * (x[i] - m);
         x[i] = m;
-        v[i] = k >= 2 ? m2 / ((double)k * (double)(k - 1)) : 0.0;
+        v[i] = k >= 2 ? m2 / (wk * (double)(k - 1)) : 0.0;
         if (m > 0.0)
             sq += v[i] / (m * m), counted++;
     }
     c->info.passes = k;
+    c->weight = wk;
     c->info.relative_error = k >= 2 && counted ? sqrt(sq / (double)counted) : (k >= 2 ? 0.0 : NAN);
 done:
     pm_table_free(&t);
@@ -444,6 +476,8 @@ pm_result_t pm_composite_write_radiance(const pm_composite_t *c, const char *pat
             r = pm_header_set(&t.hdr, "alpha", "%s", c->alpha);
         if (r == PM_OK && c->radius1[0])
             r = pm_header_set(&t.hdr, "radius1", "%s", c->radius1);
+        if (r == PM_OK && c->weight != (double)c->info.passes) /* passes of several sizes */
+            r = pm_header_set(&t.hdr, "weight", "%.17g", c->weight);
         if (r == PM_OK && isfinite(c->info.relative_error))
             r = pm_header_set(&t.hdr, "relative_error", "%.6g", c->info.relative_error);
         if (r == PM_OK)

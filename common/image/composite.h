@@ -71,16 +71,24 @@ typedef void (*pm_composite_note_fn)(void *ctx, const char *path, const char *sa
  * command (argc, argv) and one INPUT per buffer read. note (may be NULL) hears of repeats. */
 pm_result_t pm_composite_sum(pm_composite_t *c, int argc, char **argv, pm_composite_note_fn note, void *note_ctx);
 
-/* Takes the sum as the image of one progressive pass and averages it into the running image
- * of the earlier passes, held in the radiance buffer `state` (rgb: the mean of the passes,
- * variance: the squared standard error of that mean; header passes=N, alpha, radius1). A
- * missing state file is no pass yet. Welford's update, so that nothing but the state is read:
- * with n passes, mean += (x - mean) / n and the sum of squared deviations M2 (stored as
- * variance n (n - 1)) += (x - mean_old) (x - mean_new). pass (0: any) must be the state's
- * passes + 1, and the pass's alpha and radius1 (from its gather's header) the state's, so a
- * pass is neither added twice nor mixed with another schedule. From here on the outputs are
- * the mean, and pm_composite_write_radiance writes the new state. */
-pm_result_t pm_composite_accumulate(pm_composite_t *c, const char *state, uint64_t pass);
+/* Takes the sum as the image of one progressive pass of weight w (> 0; 1 for passes of one
+ * size, else the pass's size: its variance is taken as sigma^2 / w) and averages it into the
+ * running image of the earlier passes, held in the radiance buffer `state` (rgb: the weighted
+ * mean of the passes, variance: the squared standard error of that mean; header passes=N,
+ * alpha, radius1, and weight=W, the sum of the weights, when it is not N). A missing state
+ * file is no pass yet. West's weighted form of Welford's update, so that nothing but the state
+ * is read: with W the weights so far, mean += (x - mean) w / W and the weighted sum of squared
+ * deviations S (stored as variance W (n - 1)) += w (x - mean_old) (x - mean_new); with every
+ * weight 1 that is Welford's, to the bit. pass (0: any) must be the state's passes + 1, and
+ * the pass's alpha and radius1 (from its gather's header) the state's, so a pass is neither
+ * added twice nor mixed with another schedule. From here on the outputs are the mean, and
+ * pm_composite_write_radiance writes the new state. */
+pm_result_t pm_composite_accumulate(pm_composite_t *c, const char *state, uint64_t pass, double w);
+
+/* The progressive pass the kept buffers name (header key pass, as the tracers and the gather
+ * write it with --pass) into *pass_out, 0 when none does; buffers that disagree, or a key that
+ * is not a pass of at least 1, are an input error. Valid from pm_composite_open. */
+pm_result_t pm_composite_pass(const pm_composite_t *c, uint64_t *pass_out);
 
 /* Converts the sum to the f32 pixels of the EXR and takes the luminance statistics. A value
  * beyond half (half != 0) or float, or not finite, is an error naming the pixel: a scale

@@ -22,9 +22,16 @@
  * With --stream every input is a stream of radiance documents (docs/formats.md, "Streams"), one
  * per frame, and each frame's documents are added into that frame's outputs, whose names are
  * patterns holding the frame number (frame-%04d.exr), until the streams end together. Each
- * frame's outputs appear together, or none of them. */
+ * frame's outputs appear together, or none of them.
+ *
+ * --stream with --accumulate STATE is resident progressive passes (common/engine/progressive.c):
+ * each document set is one pass (the pass its header key names), averaged into STATE, and -o,
+ * --png and --radiance (plain names, no pattern) are rewritten after every pass, together with
+ * STATE, so that the image is whole after every pass; --pass-log FILE hears a line
+ * "PASS PASSES RELATIVE_ERROR" when a pass's outputs are in place (a driver's pipe). */
 #include <errno.h>
 #include <inttypes.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -48,6 +55,9 @@ typedef struct {
     const char *state;    /* --accumulate FILE: the running image of progressive passes */
     int64_t pass;         /* --pass N: the pass the sum is (0: the next one) */
     int stream;           /* --stream: the inputs are streams of documents, one frame each */
+    const char *pass_log; /* --pass-log FILE: a line per pass added (--stream --accumulate) */
+    double weight;        /* --weight W: the pass's weight in the running image */
+    const char *weights;  /* --weights FILE: a line "PASS WEIGHT" per pass (--stream --accumulate) */
 } composite_options_t;
 
 /* pattern with its one %d (or %0Nd, N < 10) replaced by frame; NULL pattern gives NULL. */
@@ -140,14 +150,45 @@ static pm_result_t preview_exr(pm_stage_t *st, const composite_options_t *o)
     return r;
 }
 
+/* The weight of pass `pass` from --weights' next line "PASS WEIGHT" (a driver writes it as it
+ * asks for the pass). */
+static pm_result_t next_weight(FILE *f, const char *path, uint64_t pass, double *w_out)
+{
+    char line[256], extra[8];
+    unsigned long long p = 0;
+    double w = 0.0;
+    if (!fgets(line, sizeof line, f))
+        return pm_error_set(PM_ERR_INPUT, "the weights '%s' end before pass %" PRIu64, path, pass);
+    if (sscanf(line, "%llu %lf %7s", &p, &w, extra) != 2 || p != pass || !(w > 0.0 && isfinite(w)))
+        return pm_error_set(
+            PM_ERR_INPUT, "the weights '%s': expected 'PASS WEIGHT' for pass %" PRIu64 ", a weight above 0, not '%.*s'",
+            path, pass, (int)strcspn(line, "\n"), line);
+    *w_out = w;
+    return PM_OK;
+}
+
 /* --stream: a frame per document of every input, written to the patterns' names. */
 static pm_result_t run_stream(pm_stage_t *st, const composite_options_t *o)
 {
     int n = st->args.nargs, to_exr = strcmp(st->output, "-") != 0;
-    if (o->state || o->pass)
-        return pm_error_set(PM_ERR_USAGE, "--stream writes frames: --accumulate and --pass are for passes");
-    if (!to_exr && !o->png && !o->radiance)
+    if (o->pass)
+        return pm_error_set(PM_ERR_USAGE, "--stream: the documents name their passes (--pass is for one pass)");
+    if (!to_exr && !o->png && !o->radiance && !o->state)
         return pm_error_set(PM_ERR_USAGE, "no output: give -o FRAME-%%04d.exr, --png or --radiance patterns");
+    if (o->pass_log && !o->state)
+        return pm_error_set(PM_ERR_USAGE, "--pass-log reports the passes of --accumulate");
+    if (o->weights && !o->state)
+        return pm_error_set(PM_ERR_USAGE, "--weights gives the passes of --accumulate their weights");
+    FILE *log = NULL, *wf = NULL;
+    if (o->weights && !(wf = strcmp(o->weights, "-") ? fopen(o->weights, "r") : NULL))
+        return pm_error_set(strcmp(o->weights, "-") ? PM_ERR_INPUT : PM_ERR_USAGE, "cannot read the weights '%s'%s%s",
+                            o->weights, strcmp(o->weights, "-") ? ": " : ": stdin holds a stream",
+                            strcmp(o->weights, "-") ? strerror(errno) : "");
+    if (o->pass_log && !(log = fopen(o->pass_log, "w"))) {
+        if (wf)
+            fclose(wf);
+        return pm_error_set(PM_ERR_IO, "cannot open the pass log '%s': %s", o->pass_log, strerror(errno));
+    }
     pm_memory_reuse(
         PM_MEMORY_STREAM_REUSE); /* a frame's arrays are allocated again for the next: its freed mappings serve them */
     FILE **files = calloc((size_t)n, sizeof *files);
@@ -211,11 +252,11 @@ static pm_result_t run_stream(pm_stage_t *st, const composite_options_t *o)
                                      paths[0], frame, paths[i]);
         if (r != PM_OK || ended)
             break;
-        const char *exr_path, *png_path, *rad_path;
-        if (r != PM_OK ||
-            (r = frame_path("-o", to_exr ? st->output : NULL, frame, exr, sizeof exr, &exr_path)) != PM_OK ||
-            (r = frame_path("--png", o->png, frame, png, sizeof png, &png_path)) != PM_OK ||
-            (r = frame_path("--radiance", o->radiance, frame, rad, sizeof rad, &rad_path)) != PM_OK)
+        const char *exr_path = to_exr ? st->output : NULL, *png_path = o->png, *rad_path = o->radiance;
+        if (!o->state && /* frames: a name each; passes: the same names, rewritten */
+            ((r = frame_path("-o", exr_path, frame, exr, sizeof exr, &exr_path)) != PM_OK ||
+             (r = frame_path("--png", o->png, frame, png, sizeof png, &png_path)) != PM_OK ||
+             (r = frame_path("--radiance", o->radiance, frame, rad, sizeof rad, &rad_path)) != PM_OK))
             break;
         pm_atomic_set_t set;
         pm_atomic_set_begin(&set); /* the frame's outputs appear together, or none */
@@ -224,6 +265,12 @@ static pm_result_t run_stream(pm_stage_t *st, const composite_options_t *o)
         r = pm_composite_open_streams(&c, names, mem, n, (pm_composite_only_t)o->only);
         if (r == PM_OK)
             r = pm_composite_sum(c, st->argc, st->argv, note_repeat, st);
+        uint64_t pass = 0;
+        double w = o->weight;
+        if (r == PM_OK && o->state && (r = pm_composite_pass(c, &pass)) == PM_OK && wf)
+            r = next_weight(wf, o->weights, pass, &w);
+        if (r == PM_OK && o->state)
+            r = pm_composite_accumulate(c, o->state, pass, w);
         if (r == PM_OK)
             r = pm_composite_finish(c, o->half);
         double t1 = pm_time_wall();
@@ -233,20 +280,39 @@ static pm_result_t run_stream(pm_stage_t *st, const composite_options_t *o)
             r = pm_composite_write_png(c, png_path, o->exposure, (pm_tone_t)o->tone, &clipped);
         if (r == PM_OK && rad_path)
             r = pm_composite_write_radiance(c, rad_path);
+        if (r == PM_OK && o->state)
+            r = pm_composite_write_radiance(c, o->state);
         r = pm_atomic_set_end(&set, r);
         t_add += t1 - t0;
         t_write += pm_time_wall() - t1;
         if (r == PM_OK)
             last = *pm_composite_info(c);
+        if (r == PM_OK && log) {
+            /* the pass is in place: say so at once (a driver waits on this line) */
+            char err[32] = "-";
+            if (isfinite(last.relative_error))
+                snprintf(err, sizeof err, "%.6g", last.relative_error);
+            if (fprintf(log, "%" PRIu64 " %" PRIu64 " %s\n", pass ? pass : last.passes, last.passes, err) < 0 ||
+                fflush(log) != 0)
+                r = pm_error_set(PM_ERR_IO, "cannot write the pass log '%s': %s", o->pass_log, strerror(errno));
+        }
         pm_composite_free(c);
         if (r == PM_OK)
             frame++;
     }
     if (r == PM_OK && frame == 0)
         r = pm_error_set(PM_ERR_INPUT, "empty streams: no radiance document");
+    if (wf)
+        fclose(wf);
+    if (log && fclose(log) != 0 && r == PM_OK)
+        r = pm_error_set(PM_ERR_IO, "cannot write the pass log '%s': %s", o->pass_log, strerror(errno));
     if (r == PM_OK) {
         st->items = last.pixels * frame;
         pm_stage_stat_int(st, "frames", (int64_t)frame);
+        if (o->state) {
+            pm_stage_stat_int(st, "passes", (int64_t)last.passes);
+            pm_stage_stat_double(st, "relative_error", last.relative_error); /* null after one pass */
+        }
         pm_stage_stat_int(st, "pixels", (int64_t)last.pixels);
         pm_stage_stat_int(st, "width", last.width);
         pm_stage_stat_int(st, "height", last.height);
@@ -290,6 +356,8 @@ static pm_result_t run(pm_stage_t *st, const composite_options_t *o)
                                           "--radiance or --accumulate");
     if (o->pass && !o->state)
         return pm_error_set(PM_ERR_USAGE, "--pass %" PRId64 " needs --accumulate STATE (the running image)", o->pass);
+    if (pm_args_given(&st->args, "weight") && !o->state)
+        return pm_error_set(PM_ERR_USAGE, "--weight %g is a pass's weight: it needs --accumulate STATE", o->weight);
     pm_stage_output_set(st); /* the EXR, the PNG, the radiance buffer and the running image appear together, or none */
     pm_composite_t *c;
     pm_result_t r = pm_composite_open(&c, st->args.args, st->args.nargs, (pm_composite_only_t)o->only);
@@ -297,7 +365,7 @@ static pm_result_t run(pm_stage_t *st, const composite_options_t *o)
     if (r == PM_OK)
         r = pm_composite_sum(c, st->argc, st->argv, note_repeat, st);
     if (r == PM_OK && o->state)
-        r = pm_composite_accumulate(c, o->state, (uint64_t)o->pass);
+        r = pm_composite_accumulate(c, o->state, (uint64_t)o->pass, o->weight);
     double t1 = pm_time_wall(), clipped = 0.0;
     if (r == PM_OK)
         r = pm_composite_finish(c, o->half);
@@ -340,7 +408,7 @@ int main(int argc, char **argv)
 {
     pm_stage_t st;
     pm_stage_defaults(&st);
-    composite_options_t o = {.only = PM_ONLY_ALL, .tone = PM_TONE_SRGB};
+    composite_options_t o = {.only = PM_ONLY_ALL, .tone = PM_TONE_SRGB, .weight = 1.0};
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
         {"only", 0, PM_OPT_CHOICE, &o.only, "WHICH",
@@ -365,7 +433,18 @@ int main(int argc, char **argv)
          (double)((int64_t)1 << 40), NULL},
         {"stream", 0, PM_OPT_FLAG, &o.stream, NULL,
          "every BUFFER is a stream of documents, one per frame: write a frame per document of each, to -o, --png and "
-         "--radiance names holding %04d (the frame number from 0)",
+         "--radiance names holding %04d (the frame number from 0); with --accumulate each document set is a pass and "
+         "the outputs (plain names) are rewritten after each",
+         1, 0, NULL},
+        {"weight", 0, PM_OPT_DOUBLE, &o.weight, "W",
+         "with --accumulate: the pass's weight, its size against the others' (its variance taken as sigma^2 / W)", 1e-9,
+         1e9, NULL},
+        {"weights", 0, PM_OPT_STRING, &o.weights, "FILE",
+         "with --stream --accumulate: a line 'PASS WEIGHT' per pass, read as each pass arrives (a driver's pipe)", 1, 0,
+         NULL},
+        {"pass-log", 0, PM_OPT_OUTPUT, &o.pass_log, "FILE",
+         "with --stream --accumulate: a line 'PASS PASSES RELATIVE_ERROR' here as each pass's outputs are in place "
+         "(- for the error until a second pass)",
          1, 0, NULL},
         {0},
     };

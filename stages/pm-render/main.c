@@ -18,6 +18,7 @@
 
 #include "base/stage.h"
 #include "engine/engine.h"
+#include "engine/progressive.h"
 
 static const char *const param_help =
     "Parameters (NAME=VALUE; empty means the stage's default, which is the scene's render block;\n"
@@ -96,6 +97,7 @@ static void parent(const char *path, char *out, size_t cap)
 
 int main(int argc, char **argv)
 {
+    double t0 = pm_time_wall(); /* TIME counts from here */
     const char *base = strrchr(argv[0], '/');
     base = base ? base + 1 : argv[0];
     /* As pipelines/render (exec -a), messages start "render:" as that driver's always did. */
@@ -170,6 +172,19 @@ int main(int argc, char **argv)
     } else {
         parent(self, bin, sizeof bin);
     }
+    char cmdline[8192] = "";
+    append_word(cmdline, sizeof cmdline, argv[0]);
+    for (int i = 1; i < argc; i++)
+        append_word(cmdline, sizeof cmdline, argv[i]);
+    if (s.progressive && pm_progressive_handles(&s, NULL, 0)) { /* resident passes: common/engine/progressive.c */
+        if (pm_settings_check_stages(&s, bin) != PM_OK) {
+            fprintf(stderr, "%s: %s\n", me, pm_error_message());
+            return 2;
+        }
+        int status = pm_render_progressive(&s, me, bin, cmdline, t0);
+        if (status >= 0)
+            return status; /* else a scene it cannot render (mirrors or glass): the pass files below */
+    }
     if (s.progressive) {
         /* Passes: the shell driver, until the resident passes of common/engine/progressive land. */
         const char *env_root = getenv("PM_ROOT");
@@ -208,10 +223,6 @@ int main(int argc, char **argv)
         fprintf(stderr, "%s: %s\n", me, pm_error_message());
         return 2;
     }
-    char cmdline[8192] = "";
-    append_word(cmdline, sizeof cmdline, argv[0]);
-    for (int i = 1; i < argc; i++)
-        append_word(cmdline, sizeof cmdline, argv[i]);
     int status = pm_render_fixed(&s, me, bin, cmdline);
     pm_args_free(&st.args);
     return status;

@@ -16,7 +16,15 @@
  * that arrives (a moving camera), --stream map keeps the queries and gathers them against every
  * map document (moving lights); one radiance document per frame goes to stdout, each the bytes
  * the same gather of that frame's two files would write but for its provenance. The kernel
- * width is measured once, on the first frame, when not given. */
+ * width is measured once, on the first frame, when not given.
+ *
+ * --stream pairs takes both inputs as streams, a map document and a queries document per
+ * progressive pass (resident passes: common/engine/progressive.c), and gathers each pair with
+ * the width of the pass its documents name (header key pass): r_1 from --radius, else measured
+ * by --k on the first pair (which must be pass 1), then r_p of the schedule (--alpha). Each
+ * radiance document records the command of that pass alone (--pass P, and --radius r_1 after
+ * pass 1), so it is the bytes `simd-gather MAP QUERIES --pass P` writes, but for the inputs'
+ * names. */
 #include <errno.h>
 #include <inttypes.h>
 #include <math.h>
@@ -31,8 +39,8 @@
 #include "photonmap/gather_stage.h"
 
 static const char *const width_names[] = {"fixed", "variable", NULL};
-static const char *const stream_names[] = {"none", "queries", "map", NULL};
-enum { STREAM_NONE = 0, STREAM_QUERIES = 1, STREAM_MAP = 2 };
+static const char *const stream_names[] = {"none", "queries", "map", "pairs", NULL};
+enum { STREAM_NONE = 0, STREAM_QUERIES = 1, STREAM_MAP = 2, STREAM_PAIRS = 3 };
 
 typedef struct {
     double radius;
@@ -201,7 +209,177 @@ static pm_result_t run_stream(pm_stage_t *st, const gather_options_t *opt, pm_is
     return r;
 }
 
-static pm_result_t run(pm_stage_t *st, const gather_options_t *opt)
+/* The pass a document of --stream pairs names (header key pass, at least 1); 0 when absent. */
+static pm_result_t doc_pass(const pm_header_t *h, const char *name, uint64_t *pass_out)
+{
+    *pass_out = 0;
+    const char *v = pm_header_get(h, "pass");
+    int64_t p;
+    if (!v)
+        return PM_OK;
+    if (pm_parse_i64(v, &p) != PM_OK || p < 1)
+        return pm_error_set(PM_ERR_INPUT, "'%s': header key pass '%s' is not a pass of at least 1", name, v);
+    *pass_out = (uint64_t)p;
+    return PM_OK;
+}
+
+/* --stream pairs: a map document and a queries document per pass, gathered with the pass's
+ * width of the schedule; a radiance document per pass to stdout. opt is main's (its option
+ * addresses name the words each pass's command leaves out), argv main's. */
+static pm_result_t run_pairs(pm_stage_t *st, const gather_options_t *opt, pm_isa_t isa, char **argv)
+{
+    gather_options_t oo = *opt, *o = &oo;
+    const char *mpath = st->args.args[0], *qpath = st->args.args[1];
+    FILE *mf = NULL, *qf = NULL;
+    pm_result_t r;
+    if (!strcmp(mpath, "-") && !strcmp(qpath, "-"))
+        return pm_error_set(PM_ERR_USAGE, "--stream pairs reads two streams: MAP and QUERIES cannot both be stdin");
+    if ((r = pm_stream_open(mpath, &mf)) != PM_OK)
+        return r;
+    if ((r = pm_stream_open(qpath, &qf)) != PM_OK) {
+        pm_stream_close(mf);
+        return r;
+    }
+    pm_memory_reuse(PM_MEMORY_STREAM_REUSE); /* a pass's arrays are allocated again for the next */
+    pm_gather_inputs_t in;
+    memset(&in, 0, sizeof in);
+    pm_table_t out = {0};
+    pm_gather_stats_t sum = {0};
+    double t_radius = 0.0, t_gather = 0.0, t_write = 0.0, t_read = 0.0, radius = 0.0, radius1 = opt->radius;
+    const char *width_from = opt->radius > 0.0 ? "--radius" : "--k";
+    uint64_t passes = 0, queries = 0, pass = 0;
+    char mname[1200], qname[1200];
+    for (;;) {
+        pm_stream_frame_name(mname, sizeof mname, mpath, passes);
+        pm_stream_frame_name(qname, sizeof qname, qpath, passes);
+        /* The map first (the queries are checked against it), read whole in place of the last. */
+        double t0 = pm_time_wall();
+        pm_reader_t *rd;
+        if ((r = pm_reader_open_next(mf, mname, &pm_photonmap_schema, pm_schema_required(&pm_photonmap_schema), &rd)) !=
+            PM_OK)
+            break;
+        int qend = 0;
+        if (!rd) { /* the map stream has ended: the queries must end too */
+            if (getc(qf) != EOF)
+                r = pm_error_set(PM_ERR_INPUT, "stream '%s' has ended at pass document %" PRIu64 " while '%s' goes on",
+                                 mpath, passes, qpath);
+            break;
+        }
+        pm_gather_map_free(&in.map);
+        memset(&in.map, 0, sizeof in.map);
+        pm_table_free(&in.map_table);
+        in.map_path = mname;
+        r = pm_table_read_from(rd, 0, UINT64_MAX, &in.map_table);
+        pm_reader_close(rd);
+        t_read += pm_time_wall() - t0;
+        uint64_t mpass = 0, qpass = 0;
+        if (r != PM_OK || (r = doc_pass(&in.map_table.hdr, mname, &mpass)) != PM_OK)
+            break;
+        /* r_1 unknown: the first pass's queries are read whole, for --k to measure it on. */
+        int whole = radius1 == 0.0;
+        if ((r = pm_gather_inputs_next_queries(&in, qf, qname, whole, 0, &qend)) != PM_OK)
+            break;
+        if (qend) {
+            r = pm_error_set(PM_ERR_INPUT, "stream '%s' has ended at pass document %" PRIu64 " while '%s' goes on",
+                             qpath, passes, mpath);
+            break;
+        }
+        t_read += in.read_s;
+        if ((r = doc_pass(&in.q_table.hdr, qname, &qpass)) != PM_OK ||
+            (r = pm_gather_map_init(&in.map, &in.map_table, 0)) != PM_OK)
+            break;
+        pass = qpass ? qpass : mpass;
+        if (!pass) {
+            r = pm_error_set(PM_ERR_INPUT, "--stream pairs: neither '%s' nor '%s' names its pass (header key pass)",
+                             mname, qname);
+            break;
+        }
+        if (mpass && qpass && mpass != qpass) {
+            r = pm_error_set(PM_ERR_INPUT, "--stream pairs: '%s' is pass %" PRIu64 " but '%s' is pass %" PRIu64, mname,
+                             mpass, qname, qpass);
+            break;
+        }
+        if (radius1 == 0.0) {
+            if (pass != 1) {
+                r = pm_error_set(PM_ERR_INPUT,
+                                 "--stream pairs begins at pass %" PRIu64 ": r_1 is measured on pass 1, so give "
+                                 "--radius R1 (the running image's radius1)",
+                                 pass);
+                break;
+            }
+            t0 = pm_time_wall();
+            if ((r = pm_gather_inputs_scene_kernel(&in, &st->args, &radius1, &o->k, &width_from)) != PM_OK)
+                break;
+            if (radius1 == 0.0 &&
+                (r = pm_gather_inputs_radius_for_k(&in, o->k, (float)o->normal_cos, &radius1)) != PM_OK)
+                break;
+            t_radius = pm_time_wall() - t0;
+        }
+        radius = pm_gather_pass_radius(radius1, pass, o->alpha);
+        pm_gather_params_t p = {.radius = radius,
+                                .kernel = (pm_kernel_t)o->kernel,
+                                .variable = 0,
+                                .normal_cos = (float)o->normal_cos,
+                                .isa = isa};
+        pm_gather_stats_t gs;
+        double tg = 0.0;
+        if (in.stream) {
+            r = pm_gather_stream(&in, &p, &gs, &tg);
+        } else {
+            t0 = pm_time_wall();
+            r = pm_gather_run(&in.map, &in.q, 0, in.q.n, &p, in.per_query, &gs);
+            tg = pm_time_wall() - t0;
+            if (r == PM_OK)
+                r = pm_gather_check_finite(&in, "the gather");
+        }
+        if (r != PM_OK)
+            break;
+        t_gather += tg;
+        stats_add(&sum, &gs);
+        queries += in.q.n;
+        /* The command of this pass alone: --pass P for --stream pairs, and after pass 1 (or
+         * with r_1 given) --radius r_1 for --radius and --k. */
+        char pw[32], rw[40];
+        snprintf(pw, sizeof pw, "%" PRIu64, pass);
+        snprintf(rw, sizeof rw, "%.9g", radius1);
+        int keep_k = pass == 1 && opt->radius == 0.0;
+        char *add[] = {"--pass", pw, "--radius", rw};
+        const void *drop[] = {&opt->stream, &opt->radius, &opt->k};
+        int argc1;
+        char **argv1 = NULL;
+        if ((r = pm_stage_pass_command(st, argv, drop, keep_k ? 1 : 3, add, keep_k ? 2 : 4, &argc1, &argv1)) != PM_OK)
+            break;
+        pm_table_free(&out);
+        memset(&out, 0, sizeof out);
+        t0 = pm_time_wall();
+        if ((r = pm_gather_output_init(&out, &in, argc1, argv1, o->kernel, width_names[0])) == PM_OK &&
+            (r = pm_header_set(&out.hdr, "radius", "%.9g", radius)) == PM_OK &&
+            (r = pm_gather_pass_header(&out.hdr, pass, o->alpha, radius1)) == PM_OK)
+            r = pm_table_write(&out, st->output);
+        free(argv1);
+        if (r != PM_OK)
+            break;
+        t_write += pm_time_wall() - t0;
+        passes++;
+    }
+    if (r == PM_OK && passes == 0)
+        r = pm_error_set(PM_ERR_INPUT, "empty streams '%s' and '%s': no pass", mpath, qpath);
+    if (r == PM_OK) {
+        in.read_s = t_read;
+        in.q.n = queries;
+        o->pass = (int64_t)pass;
+        report(st, o, &in, isa, &sum, radius, radius1, width_from, t_radius, t_gather, t_write);
+        pm_stage_stat_int(st, "passes", (int64_t)passes);
+        pm_stage_stat_string(st, "stream", stream_names[o->stream]);
+    }
+    pm_stream_close(mf);
+    pm_stream_close(qf);
+    pm_gather_inputs_free(&in);
+    pm_table_free(&out);
+    return r;
+}
+
+static pm_result_t run(pm_stage_t *st, const gather_options_t *opt, char **argv)
 {
     gather_options_t oo = *opt, *o = &oo; /* the kernel width may come from the queries header */
     const char *width_from = "--widths";
@@ -211,6 +389,12 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *opt)
     pm_result_t r = pm_isa_parse(o->isa, &isa);
     if (r != PM_OK)
         return r;
+    if (o->stream == STREAM_PAIRS) {
+        if (o->widths || o->range || o->pass || strcmp(st->output, "-") != 0)
+            return pm_error_set(PM_ERR_USAGE, "--stream pairs gathers whole passes of one width to stdout: no "
+                                              "--widths variable, --range or --pass, and -o -");
+        return run_pairs(st, opt, isa, argv);
+    }
     if (o->stream != STREAM_NONE)
         return run_stream(st, o, isa);
     if (o->radius == 0.0 && o->k <= 0.0 && !o->widths)
@@ -301,7 +485,9 @@ int main(int argc, char **argv)
         PM_GATHER_PASS_OPTIONS(o.pass, o.alpha),
         {"stream", 0, PM_OPT_CHOICE, &o.stream, "WHICH",
          "none; queries: keep MAP, gather each queries document of the stream QUERIES (a frame each); map: keep "
-         "QUERIES, gather them against each map document of the stream MAP; one radiance document per frame to stdout",
+         "QUERIES, gather them against each map document of the stream MAP; pairs: MAP and QUERIES both streams, a "
+         "document of each per progressive pass, gathered with that pass's width of the schedule; one radiance "
+         "document per frame or pass to stdout",
          1, 0, stream_names},
         {0},
     };
@@ -311,5 +497,5 @@ int main(int argc, char **argv)
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;
-    return pm_stage_end(&st, run(&st, &o));
+    return pm_stage_end(&st, run(&st, &o, argv));
 }

@@ -17,13 +17,17 @@
  * other and writes one document per scene to each output, a stream of documents
  * (docs/formats.md, "Streams") for the resident stages downstream (hilbert-sort --stream,
  * simd-gather --stream, composite --stream). --no-queries writes the direct buffer alone (a
- * light path whose queries are kept from the still camera). */
+ * light path whose queries are kept from the still camera). With --passes A:B or --plan FILE
+ * (base/passplan.h) it loads the scene once and traces progressive passes, a document per
+ * pass to each output, each the bytes `trace-gather-points --pass P` alone writes (its COMMAND
+ * says --pass P, and --primary N when the plan sized the pass). */
 #include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "base/memory.h"
+#include "base/passplan.h"
 #include "base/spool.h"
 #include "base/stage.h"
 #include "formats/formats.h"
@@ -45,7 +49,11 @@ typedef struct {
     int mode, schedule;
     int pixel; /* PM_PIXEL_BOX or PM_PIXEL_CENTER */
     const char *isa;
-    int no_queries; /* --no-queries: the direct buffer alone */
+    int no_queries;       /* --no-queries: the direct buffer alone */
+    const char *passes;   /* --passes A:B, NULL for none */
+    const char *plan;     /* --plan FILE, NULL for none */
+    int64_t plan_primary; /* the pass's primary rays per pixel from the plan; 0: the options' */
+    int single;           /* one document per output: the outputs are one set */
 } tgp_options_t;
 
 /* Where the eye tracer's results go: the queries into the spool, the direct rows into one
@@ -109,7 +117,7 @@ static pm_result_t write_outputs(pm_stage_t *st, const tgp_options_t *o, const p
 {
     pm_header_t qh, dh;
     pm_writer_t *qw = NULL, *dw = NULL;
-    if (st->args.nargs == 1)
+    if (o->single)
         pm_stage_output_set(st);
     pm_result_t r = pm_eye_queries_header(e, st->argc, st->argv, k->spool.count, &qh);
     pm_header_init(&dh, &pm_radiance_schema);
@@ -159,7 +167,9 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
         .width = (uint32_t)o->width,
         .height = (uint32_t)o->height,
         .spp = (uint32_t)o->spp,
-        .primary = (uint32_t)(pm_args_given(a, "primary") ? o->primary : s->defaults.primary),
+        .primary = (uint32_t)(o->plan_primary               ? o->plan_primary
+                              : pm_args_given(a, "primary") ? o->primary
+                                                            : s->defaults.primary),
         .pixel = o->pixel,
         .light_samples = (uint32_t)(pm_args_given(a, "light-samples") ? o->light_samples : s->defaults.light_samples),
         .seed =
@@ -206,11 +216,80 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
     return r;
 }
 
+/* --passes or --plan: the scene and its ray tracer made once, a document per pass to each
+ * output, each recording the command line of that pass alone. */
+static pm_result_t run_passes(pm_stage_t *st, tgp_options_t *o, char **argv, pm_isa_t isa)
+{
+    pm_passplan_t pp;
+    pm_result_t r = pm_passplan_open(&pp, o->passes, o->plan);
+    if (r != PM_OK)
+        return r;
+    o->single = pm_passplan_single(&pp);
+    if (!o->single && ((r = pm_writer_check_stream("-o", o->no_queries ? NULL : st->output)) != PM_OK ||
+                       (r = pm_writer_check_stream("--direct", o->direct)) != PM_OK ||
+                       (r = pm_writer_check_stream("--caustic-queries", o->caustic)) != PM_OK)) {
+        pm_passplan_close(&pp);
+        return r;
+    }
+    if (!o->single) /* a pass's arrays are allocated again for the next: its freed mappings serve them */
+        pm_memory_reuse(PM_MEMORY_STREAM_REUSE);
+    pm_scene_t s;
+    pm_rt_t rt;
+    if ((r = pm_scene_load(st->args.args[0], &s)) != PM_OK) {
+        pm_passplan_close(&pp);
+        return r;
+    }
+    pm_scene_warn_unsupported(&s, st);
+    r = pm_rt_create(&s, 1, st->threads_used, &rt);
+    int argc0 = st->argc, done = 0;
+    char **argv0 = st->argv;
+    while (r == PM_OK) {
+        int64_t pass, size;
+        int end;
+        if ((r = pm_passplan_next(&pp, &pass, &size, &end)) != PM_OK || end)
+            break;
+        char pw[32], nw[32];
+        snprintf(pw, sizeof pw, "%" PRId64, pass);
+        snprintf(nw, sizeof nw, "%" PRId64, size);
+        char *add[] = {"--pass", pw, "--primary", nw};
+        const void *drop[] = {&o->passes, &o->plan, &o->primary};
+        if (size > 4096) { /* --primary's own limit */
+            r = pm_error_set(PM_ERR_INPUT, "plan '%s' line %" PRId64 ": %" PRId64 " primary rays per pixel, above 4096",
+                             pp.path, pp.line, size);
+            break;
+        }
+        o->pass = pass;
+        o->plan_primary = size;
+        char **v = NULL;
+        if ((r = pm_stage_pass_command(st, argv, drop, size ? 3 : 2, add, size ? 4 : 2, &st->argc, &v)) != PM_OK)
+            break;
+        st->argv = v;
+        r = run(st, o, &s, &rt, isa);
+        st->argc = argc0, st->argv = argv0;
+        free(v);
+        if (r != PM_OK) {
+            char name[64];
+            snprintf(name, sizeof name, "pass %" PRId64, pass);
+            r = pm_stage_frame_error(r, done, name);
+            break;
+        }
+        done++;
+    }
+    if (r == PM_OK && done == 0)
+        r = pm_error_set(PM_ERR_INPUT, "the plan '%s' names no pass", pp.path ? pp.path : "");
+    pm_stage_stat_int(st, "passes", done);
+    pm_rt_destroy(&rt);
+    pm_scene_free(&s);
+    pm_passplan_close(&pp);
+    return r;
+}
+
 int main(int argc, char **argv)
 {
     pm_stage_t st;
     pm_stage_defaults(&st);
     tgp_options_t o = {.primary = 1, .pixel = PM_PIXEL_BOX, .light_samples = 4, .isa = "auto", .spool_mb = 256};
+    char **argv0 = argv;
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
         {"direct", 0, PM_OPT_OUTPUT, &o.direct, "FILE",
@@ -249,6 +328,14 @@ int main(int argc, char **argv)
          "write the --direct buffer alone, no queries (no -o): secondary rays are traced only in a scene with "
          "emissive triangles, for the light they find there; the buffer is the one a full run writes",
          1, 0, NULL},
+        {"passes", 0, PM_OPT_STRING, &o.passes, "A:B",
+         "progressive passes A to B, the scene loaded once: a document per pass to each output (streams), each the "
+         "bytes --pass P alone writes",
+         1, 0, NULL},
+        {"plan", 0, PM_OPT_STRING, &o.plan, "FILE",
+         "progressive passes as a driver asks for them: a line 'PASS [PRIMARY]' per pass (- is stdin), a document "
+         "each to each output, until the plan ends",
+         1, 0, NULL},
         {0},
     };
     static const char about[] =
@@ -284,6 +371,20 @@ int main(int argc, char **argv)
         (r = check_writable(o.caustic)) != PM_OK)
         return pm_stage_end(&st, r);
     int frames = st.args.nargs;
+    o.single = frames == 1;
+    if (o.passes || o.plan) {
+        if (o.passes && o.plan)
+            r = pm_error_set(PM_ERR_USAGE, "--passes and --plan both name the passes: give one");
+        else if (frames > 1)
+            r = pm_error_set(PM_ERR_USAGE, "--%s traces the passes of one scene, not %d scenes",
+                             o.passes ? "passes" : "plan", frames);
+        else if (o.pass)
+            r = pm_error_set(PM_ERR_USAGE, "--pass %" PRId64 " with --%s: the passes come from --%s", o.pass,
+                             o.passes ? "passes" : "plan", o.passes ? "passes" : "plan");
+        else
+            r = run_passes(&st, &o, argv0, isa);
+        return pm_stage_end(&st, r);
+    }
     if (frames > 1 && ((r = pm_writer_check_stream("-o", qout)) != PM_OK ||
                        (r = pm_writer_check_stream("--direct", o.direct)) != PM_OK ||
                        (r = pm_writer_check_stream("--caustic-queries", o.caustic)) != PM_OK))

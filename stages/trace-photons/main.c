@@ -11,7 +11,10 @@
  * committed together. common/render/photontrace.c does the work; this main reads options,
  * loads the scene and writes the files. Given several scenes (the frames of a light path), it
  * traces each in turn and writes one photons document per scene, a stream of documents
- * (docs/formats.md, "Streams") for build-photonmap --stream. */
+ * (docs/formats.md, "Streams") for build-photonmap --stream. With --passes A:B or --plan FILE
+ * (base/passplan.h) it loads the scene once and traces progressive passes one after another,
+ * a photons document per pass, each the bytes `trace-photons --pass P` alone writes (its
+ * COMMAND line says --pass P, and --photons N when the plan sized the pass). */
 #include <inttypes.h>
 #include <math.h>
 #include <stdio.h>
@@ -19,6 +22,7 @@
 #include <string.h>
 
 #include "base/memory.h"
+#include "base/passplan.h"
 #include "base/stage.h"
 #include "formats/formats.h"
 #include "render/photontrace.h"
@@ -31,6 +35,8 @@ typedef struct {
     int baseline;
     int64_t pass;        /* progressive pass, 1-based; 0: none */
     const char *caustic; /* --caustic-output FILE, NULL for none */
+    const char *passes;  /* --passes A:B, NULL for none */
+    const char *plan;    /* --plan FILE, NULL for none */
 } trace_options_t;
 
 /* One photons file: the global photons (caustic 0) or the caustic ones (caustic 1), whose
@@ -67,49 +73,53 @@ static pm_result_t write_photons(pm_stage_t *st, const trace_options_t *o, const
     return r;
 }
 
-static pm_result_t run(pm_stage_t *st, const trace_options_t *o, int frame)
+/* Loads scene `frame` of the arguments and its ray tracer; frees both on failure. */
+static pm_result_t load(pm_stage_t *st, const trace_options_t *o, int frame, pm_scene_t *s, pm_rt_t *rt)
 {
-    pm_scene_t s;
-    pm_rt_t rt;
-    pm_result_t r = pm_scene_load(st->args.args[frame], &s);
+    pm_result_t r = pm_scene_load(st->args.args[frame], s);
     if (r != PM_OK)
         return r;
     if (frame == 0)
-        pm_scene_warn_unsupported(&s, st);
-    if (o->caustic && !s.any_specular) {
+        pm_scene_warn_unsupported(s, st);
+    if (o->caustic && !s->any_specular) {
         r = pm_error_set(PM_ERR_INPUT,
-                         "scene '%s' has no mirror or glass: no caustic photons for --caustic-output '%s'", s.path,
+                         "scene '%s' has no mirror or glass: no caustic photons for --caustic-output '%s'", s->path,
                          o->caustic);
-        pm_scene_free(&s);
+        pm_scene_free(s);
         return r;
     }
     if (frame == 0)
-        pm_scene_warn_flipped(&s, st);
-    r = pm_rt_create(&s, 1, st->threads_used, &rt);
-    if (r != PM_OK) {
-        pm_scene_free(&s);
-        return r;
-    }
+        pm_scene_warn_flipped(s, st);
+    r = pm_rt_create(s, 1, st->threads_used, rt);
+    if (r != PM_OK)
+        pm_scene_free(s);
+    return r;
+}
+
+/* Traces the photons of one document (o->pass, o->photons) and writes them. */
+static pm_result_t trace(pm_stage_t *st, const trace_options_t *o, const pm_scene_t *s, const pm_rt_t *rt, int single)
+{
+    pm_result_t r;
     pm_trace_options_t to = {
-        .photons = (uint64_t)(o->photons > 0 ? o->photons : s.defaults.photons),
-        .seed = pm_trace_pass_seed((uint64_t)(pm_args_given(&st->args, "seed") ? st->seed : s.defaults.seed),
+        .photons = (uint64_t)(o->photons > 0 ? o->photons : s->defaults.photons),
+        .seed = pm_trace_pass_seed((uint64_t)(pm_args_given(&st->args, "seed") ? st->seed : s->defaults.seed),
                                    (uint64_t)o->pass),
         .max_bounces = (uint32_t)o->max_bounces,
         .rr_max = o->rr_max,
-        .direction = s.any_glossy,
+        .direction = s->any_glossy,
         .caustics = o->caustic != NULL,
         .record_rays = o->baseline,
         .progress = pm_stage_progress(st),
     };
     pm_trace_result_t tr;
-    r = pm_trace_photons(&s, &rt, &to, &tr);
+    r = pm_trace_photons(s, rt, &to, &tr);
     if (r == PM_OK) {
         double t0 = pm_time_wall();
-        if (o->caustic && st->args.nargs == 1)
+        if (o->caustic && single)
             pm_stage_output_set(st); /* both files or neither */
-        r = write_photons(st, o, &s, &tr, 0);
+        r = write_photons(st, o, s, &tr, 0);
         if (r == PM_OK && o->caustic)
-            r = write_photons(st, o, &s, &tr, 1);
+            r = write_photons(st, o, s, &tr, 1);
         double t_write = pm_time_wall() - t0;
         if (r == PM_OK) {
             double rays_s = tr.trace_s > 0 ? (double)tr.rays / tr.trace_s : 0.0;
@@ -127,7 +137,7 @@ static pm_result_t run(pm_stage_t *st, const trace_options_t *o, int frame)
             pm_stage_stat_double(st, "power_emitted_w",
                                  tr.power_emitted[0] + tr.power_emitted[1] + tr.power_emitted[2]);
             pm_stage_stat_double(st, "power_first_hits_w", tr.power_first[0] + tr.power_first[1] + tr.power_first[2]);
-            if (s.any_specular)
+            if (s->any_specular)
                 pm_stage_stat_int(st, "specular_bounces", (int64_t)tr.specular_bounces);
             if (o->caustic) {
                 pm_stage_stat_int(st, "caustic", (int64_t)tr.caustic);
@@ -139,7 +149,7 @@ static pm_result_t run(pm_stage_t *st, const trace_options_t *o, int frame)
             pm_stage_stat_double(st, "trace_s", tr.trace_s);
             pm_stage_stat_double(st, "write_s", t_write);
             if (o->baseline) {
-                double base = pm_trace_replay(&rt, &tr);
+                double base = pm_trace_replay(rt, &tr);
                 pm_stage_stat_double(st, "embree_rays_per_s", base);
                 pm_stage_stat_double(st, "rays_per_s_over_embree", base > 0 ? rays_s / base : 0.0);
             }
@@ -153,8 +163,80 @@ static pm_result_t run(pm_stage_t *st, const trace_options_t *o, int frame)
         }
         pm_trace_free(&tr);
     }
+    return r;
+}
+
+static pm_result_t run(pm_stage_t *st, const trace_options_t *o, int frame)
+{
+    pm_scene_t s;
+    pm_rt_t rt;
+    pm_result_t r = load(st, o, frame, &s, &rt);
+    if (r != PM_OK)
+        return r;
+    r = trace(st, o, &s, &rt, st->args.nargs == 1);
     pm_rt_destroy(&rt);
     pm_scene_free(&s);
+    return r;
+}
+
+/* --passes or --plan: the scene loaded once, a document per pass, each recording the command
+ * line of that pass alone. */
+static pm_result_t run_passes(pm_stage_t *st, trace_options_t *o, char **argv)
+{
+    pm_passplan_t pp;
+    pm_result_t r = pm_passplan_open(&pp, o->passes, o->plan);
+    if (r != PM_OK)
+        return r;
+    int single = pm_passplan_single(&pp);
+    if (!single && ((r = pm_writer_check_stream("-o", st->output)) != PM_OK ||
+                    (r = pm_writer_check_stream("--caustic-output", o->caustic)) != PM_OK)) {
+        pm_passplan_close(&pp);
+        return r;
+    }
+    if (!single) /* a pass's arrays are allocated again for the next: its freed mappings serve them */
+        pm_memory_reuse(PM_MEMORY_STREAM_REUSE);
+    pm_scene_t s;
+    pm_rt_t rt;
+    if ((r = load(st, o, 0, &s, &rt)) != PM_OK) {
+        pm_passplan_close(&pp);
+        return r;
+    }
+    int argc0 = st->argc, done = 0;
+    char **argv0 = st->argv;
+    int64_t photons0 = o->photons;
+    for (;;) {
+        int64_t pass, size;
+        int end;
+        if ((r = pm_passplan_next(&pp, &pass, &size, &end)) != PM_OK || end)
+            break;
+        char pw[32], nw[32];
+        snprintf(pw, sizeof pw, "%" PRId64, pass);
+        snprintf(nw, sizeof nw, "%" PRId64, size);
+        char *add[] = {"--pass", pw, "--photons", nw};
+        const void *drop[] = {&o->passes, &o->plan, &o->photons};
+        o->pass = pass;
+        o->photons = size ? size : photons0;
+        char **v = NULL;
+        if ((r = pm_stage_pass_command(st, argv, drop, size ? 3 : 2, add, size ? 4 : 2, &st->argc, &v)) != PM_OK)
+            break;
+        st->argv = v;
+        r = trace(st, o, &s, &rt, single);
+        st->argc = argc0, st->argv = argv0;
+        free(v);
+        if (r != PM_OK) {
+            char name[64];
+            snprintf(name, sizeof name, "pass %" PRId64, pass);
+            r = pm_stage_frame_error(r, done, name);
+            break;
+        }
+        done++;
+    }
+    if (r == PM_OK && done == 0)
+        r = pm_error_set(PM_ERR_INPUT, "the plan '%s' names no pass", pp.path ? pp.path : "");
+    pm_stage_stat_int(st, "passes", done);
+    pm_rt_destroy(&rt);
+    pm_scene_free(&s);
+    pm_passplan_close(&pp);
     return r;
 }
 
@@ -163,6 +245,7 @@ int main(int argc, char **argv)
     pm_stage_t st;
     pm_stage_defaults(&st);
     trace_options_t o = {.photons = 0, .max_bounces = 16384, .rr_max = 1.0, .baseline = 0, .pass = 0, .caustic = NULL};
+    char **argv0 = argv;
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
         {"photons", 'n', PM_OPT_INT, &o.photons, "N", "photon paths to emit; 0: the scene's render.photons", 0,
@@ -185,6 +268,14 @@ int main(int argc, char **argv)
          "progressive pass N (1-based): photons drawn from streams of their own, independent of other passes'; "
          "0: none",
          0, (double)((int64_t)1 << 40), NULL},
+        {"passes", 0, PM_OPT_STRING, &o.passes, "A:B",
+         "progressive passes A to B, the scene loaded once: a photons document per pass (a stream), each the bytes "
+         "--pass P alone writes",
+         1, 0, NULL},
+        {"plan", 0, PM_OPT_STRING, &o.plan, "FILE",
+         "progressive passes as a driver asks for them: a line 'PASS [PHOTONS]' per pass (- is stdin), a photons "
+         "document each, until the plan ends",
+         1, 0, NULL},
         {0},
     };
     static const char about[] = "Trace photons from the scene's lights and write where they land (watts).";
@@ -194,6 +285,19 @@ int main(int argc, char **argv)
         return rc;
     int frames = st.args.nargs;
     pm_result_t r = PM_OK;
+    if (o.passes || o.plan) {
+        if (o.passes && o.plan)
+            r = pm_error_set(PM_ERR_USAGE, "--passes and --plan both name the passes: give one");
+        else if (frames > 1)
+            r = pm_error_set(PM_ERR_USAGE, "--%s traces the passes of one scene, not %d scenes",
+                             o.passes ? "passes" : "plan", frames);
+        else if (o.pass)
+            r = pm_error_set(PM_ERR_USAGE, "--pass %" PRId64 " with --%s: the passes come from --%s", o.pass,
+                             o.passes ? "passes" : "plan", o.passes ? "passes" : "plan");
+        else
+            r = run_passes(&st, &o, argv0);
+        return pm_stage_end(&st, r);
+    }
     if (frames > 1 && ((r = pm_writer_check_stream("-o", st.output)) != PM_OK ||
                        (r = pm_writer_check_stream("--caustic-output", o.caustic)) != PM_OK))
         return pm_stage_end(&st, r);

@@ -128,9 +128,10 @@ status=$?
     pass "a failing stage is 'failed' in the table, and what it stopped 'not made'" ||
     fail "failed stage in the table" "exit $status: $(cat "$TMP/g.out")"
 
-# A pass's files are checked too.
+# A pass's files are checked too (KEEP=all: the pass files; the resident passes of the default
+# keep none, and an OUTDIR holding pass directories goes on with them).
 P2=$TMP/p2
-$R "$CORNELL" "$P2" $TINY PASSES=2 >/dev/null 2>&1
+$R "$CORNELL" "$P2" $TINY PASSES=2 KEEP=all >/dev/null 2>&1
 flip "$P2/pass-0002/photonmap.pm"
 $R "$CORNELL" "$P2" $TINY PASSES=2 >"$TMP/p2.out" 2>"$TMP/p2.err"
 status=$?
@@ -145,7 +146,7 @@ status=$?
 redate() { touch -d "@$1" "$2"; } # redate SECONDS.NS FILE: put the date back
 mtime() { stat -c %.9Y "$1"; }
 P3=$TMP/p3
-$R "$CORNELL" "$P3" $TINY PASSES=3 >/dev/null 2>&1
+$R "$CORNELL" "$P3" $TINY PASSES=3 KEEP=all >/dev/null 2>&1
 cp "$P3/image.exr" "$TMP/p3.exr"
 [ -s "$P3/pass-0002/.checked" ] && grep -q '^stat photonmap.pm ' "$P3/pass-0002/.checked" &&
     pass "passes: each pass made is sealed (.checked names its files' inode, size and date)" ||

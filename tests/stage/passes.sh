@@ -1,9 +1,13 @@
 # passes.sh: progressive passes (Knaus and Zwicker 2011) in the staged design: --pass on the
 # tracers and the gathers (independent streams, the radius schedule, the header keys),
 # composite --accumulate (the running average and its variance against a hand computation on
-# tiny buffers, the pass checks) and pipelines/render PASSES/TIME/TARGET_ERROR/ALPHA (pass
-# directories, reuse of finished passes, a pass that fails, an interrupted run, bad input).
-# The closed-form check of convergence is in analytic.sh.
+# tiny buffers, the pass checks); the stages' stream modes for resident passes (--passes and
+# --plan on the tracers, simd-gather --stream pairs, composite --stream --accumulate); and
+# pipelines/render PASSES/TIME/TARGET_ERROR/ALPHA: the resident passes by default (running.pm
+# and passes.txt, no pass directories: a rerun adds passes, EXPOSURE re-tones, THREADS changes
+# no byte, the image whole after every pass, an interrupted run) and the pass directories of
+# KEEP=all (pass files, reuse of finished passes, a pass that fails, an interrupted run, bad
+# input). The closed-form check of convergence is in analytic.sh.
 R=pipelines/render
 CORNELL=scenes/cornell-box/scene.json
 SMALL="PHOTONS=20000 SPP=4 WIDTH=32 HEIGHT=24"
@@ -111,6 +115,24 @@ if command -v exrheader >/dev/null; then
 else
     skip "EXR passes attribute" "exrheader not installed"
 fi
+# passes of two sizes: r of weight 1 and 3 r of weight 3 (a pass three times the size):
+# weighted mean (1 + 9) / 4 r = 2.5 r; S = 1 (1 - 2.5)^2 + 3 (3 - 2.5)^2 = 3 r^2; squared
+# standard error S / (W (n - 1)) = 0.75 r^2; the header says weight=4
+rm -f "$TMP/wstate.pm"
+$C "$TMP/r.pm" --accumulate "$TMP/wstate.pm" --pass 1 -o "$TMP/w1.exr" &&
+    $C "$TMP/r.pm:3" --accumulate "$TMP/wstate.pm" --pass 2 --weight 3 -o "$TMP/w2.exr" ||
+    fail "composite --weight" "a run failed"
+if paste -d' ' <(records "$TMP/r.pm") <(records "$TMP/wstate.pm") | awk '
+    function off(g, e) { return (g - e > 1e-12 * (e > 0 ? e : -e) + 1e-300 || e - g > 1e-12 * (e > 0 ? e : -e) + 1e-300) }
+    { for (c = 0; c < 3; c++) { r = $(2 + c); if (off($(6 + c), 2.5 * r) || off($(9 + c), 0.75 * r * r)) bad = 1 } n++ }
+    END { exit bad || n != 12 }' && [ "$(hdr "$TMP/wstate.pm" weight)" = 4 ]; then
+    pass "passes r (weight 1) and 3r (weight 3): mean 2.5 r, variance channel 0.75 r^2, weight=4"
+else
+    fail "weighted running mean" "$(paste -d' ' <(records "$TMP/r.pm") <(records "$TMP/wstate.pm") | head -2)"
+fi
+[ -z "$(hdr "$S" weight)" ] && pass "passes of weight 1 write no weight key" || fail "weight key" "$(hdr "$S" weight)"
+expect_exit "composite --weight 0 is a usage error" 2 $C "$TMP/r.pm" --accumulate "$TMP/wx.pm" --weight 0 -o "$TMP/x.exr"
+expect_exit "composite --weight without --accumulate is a usage error" 2 $C "$TMP/r.pm" --weight 2 -o "$TMP/x.exr"
 # the pass checks: a pass already in, a gap, --pass without --accumulate; the state unchanged
 h0=$(sha1sum <"$S")
 expect_error "composite: a pass already in the running image" "holds 3 passes: pass 3 is in it already \(input error\)" \
@@ -127,6 +149,87 @@ expect_error "composite: a pass of another scene" "scene mismatch" $C "$TMP/r2.p
 "$GEN" radiance 1 "$TMP/rb.pm" --set alpha=0.7
 expect_error "composite: a pass of another alpha" "has alpha=0.7 but the running image .* has alpha=0.5" \
     $C "$TMP/rb.pm" --accumulate "$TMP/sa.pm" -o "$TMP/x.exr"
+
+# ---- resident passes: the tracers' --passes and --plan, a document per pass, each the bytes
+# --pass P alone writes (a stream is its documents one after another, so cat of the single runs)
+TP="$BIN/trace-photons $CORNELL --photons 3000 -q"
+$TP --passes 2:3 -o - >"$TMP/tp23.pm" && $TP --pass 2 -o - >"$TMP/tp2.pm" && $TP --pass 3 -o - >"$TMP/tp3.pm" &&
+    cat "$TMP/tp2.pm" "$TMP/tp3.pm" | cmp -s - "$TMP/tp23.pm" &&
+    pass "trace-photons --passes 2:3: the bytes of --pass 2 and --pass 3 alone, one after the other" ||
+    fail "trace-photons --passes" "the stream differs from the single passes"
+printf '# a plan\n2 1000\n3\n' | $TP --plan - -o - >"$TMP/tpl.pm" &&
+    "$BIN/trace-photons" $CORNELL --pass 2 --photons 1000 -q -o - >"$TMP/tp2s.pm" &&
+    cat "$TMP/tp2s.pm" "$TMP/tp3.pm" | cmp -s - "$TMP/tpl.pm" &&
+    pass "trace-photons --plan: '2 1000' is --pass 2 --photons 1000, '3' is --pass 3 at --photons" ||
+    fail "trace-photons --plan" "the stream differs from the single passes"
+expect_exit "trace-photons --passes 1:2 to a regular file is a usage error" 2 $TP --passes 1:2 -o "$TMP/x.pm"
+expect_exit "trace-photons --passes 2:1 is a usage error" 2 $TP --passes 2:1 -o -
+expect_exit "trace-photons --passes with --pass is a usage error" 2 $TP --passes 1:2 --pass 1 -o -
+printf '1\n0 5\n' >"$TMP/badplan"
+expect_error "trace-photons: a bad plan line is named" "plan '.*badplan' line 2: expected 'PASS \[SIZE\]'" \
+    $TP --plan "$TMP/badplan" -o /dev/null
+TG="$BIN/trace-gather-points $CORNELL --width 16 --height 12 --spp 4 -q"
+$TG --passes 1:2 -o - --direct /dev/fd/3 3>"$TMP/tgd.pm" >"$TMP/tgq.pm" &&
+    $TG --pass 1 -o - --direct /dev/fd/3 3>"$TMP/tgd1.pm" >"$TMP/tgq1.pm" &&
+    printf '2 2\n' | $TG --plan - -o - --direct /dev/fd/3 3>"$TMP/tgd2.pm" >"$TMP/tgq2.pm" &&
+    $TG --pass 2 --primary 2 -o - --direct /dev/fd/3 3>"$TMP/tgd2s.pm" >"$TMP/tgq2s.pm" ||
+    fail "trace-gather-points --passes/--plan" "a run failed"
+$TG --pass 2 -o - --direct /dev/fd/3 3>"$TMP/tgd2p.pm" >"$TMP/tgq2p.pm"
+cat "$TMP/tgq1.pm" "$TMP/tgq2p.pm" | cmp -s - "$TMP/tgq.pm" && cat "$TMP/tgd1.pm" "$TMP/tgd2p.pm" | cmp -s - "$TMP/tgd.pm" &&
+    cmp -s "$TMP/tgq2.pm" "$TMP/tgq2s.pm" && cmp -s "$TMP/tgd2.pm" "$TMP/tgd2s.pm" &&
+    pass "trace-gather-points --passes 1:2 and --plan '2 2': the bytes of --pass P (--primary 2) alone, both outputs" ||
+    fail "trace-gather-points --passes" "a stream differs from the single passes"
+# simd-gather --stream pairs: each pass with its width of the schedule, the records of --pass P
+for p in 1 2 3; do
+    "$BIN/trace-photons" $CORNELL --photons 5000 -q --pass $p -o - | "$BIN/build-photonmap" -q - -o "$TMP/sm$p.pm"
+    $TG --pass $p -o - | "$BIN/hilbert-sort" -q - -o "$TMP/sq$p.pm"
+done
+cat "$TMP"/sm[123].pm >"$TMP/smaps.pm"
+cat "$TMP"/sq[123].pm >"$TMP/squeries.pm"
+"$BIN/simd-gather" -q "$TMP/sm1.pm" "$TMP/sq1.pm" --k 5 --pass 1 -o "$TMP/si1.pm"
+r1=$(hdr "$TMP/si1.pm" radius1)
+for p in 2 3; do "$BIN/simd-gather" -q "$TMP/sm$p.pm" "$TMP/sq$p.pm" --radius "$r1" --pass $p -o "$TMP/si$p.pm"; done
+if "$BIN/simd-gather" -q --stream pairs "$TMP/smaps.pm" "$TMP/squeries.pm" --k 5 -o - >"$TMP/spairs.pm" &&
+    "$BIN/composite" -q --stream "$TMP/spairs.pm" --radiance "$TMP/sp-%d.pm"; then
+    same=1
+    for p in 1 2 3; do
+        cmp -s <(records "$TMP/si$p.pm") <(records "$TMP/sp-$((p - 1)).pm") || same=0
+    done
+    [ $same = 1 ] && "$BIN/pm-info" "$TMP/sp-1.pm" | grep -q "^COMMAND=simd-gather --pass 2 --radius $r1 " &&
+        pass "simd-gather --stream pairs: 3 passes, the records of --pass P alone (r_1 $r1 by --k on pass 1, then --radius r_1)" ||
+        fail "simd-gather --stream pairs" "records, radius or command differ"
+else
+    fail "simd-gather --stream pairs" "the run failed"
+fi
+expect_error "simd-gather --stream pairs: documents of two passes" "is pass 1 but .* is pass 2" \
+    "$BIN/simd-gather" -q --stream pairs "$TMP/smaps.pm" "$TMP/sq2.pm" --k 5 -o -
+expect_error "simd-gather --stream pairs from pass 2 without --radius" "begins at pass 2: r_1 is measured on pass 1" \
+    "$BIN/simd-gather" -q --stream pairs "$TMP/sm2.pm" "$TMP/sq2.pm" --k 5 -o -
+expect_exit "simd-gather --stream pairs to a file is a usage error" 2 \
+    "$BIN/simd-gather" -q --stream pairs "$TMP/smaps.pm" "$TMP/squeries.pm" --k 5 -o "$TMP/x.pm"
+# composite --stream --accumulate: the running image of the stream's passes, the same records as
+# --accumulate --pass P a pass at a time; a line per pass in the pass log
+for p in 1 2 3; do $TG --pass $p -o /dev/null --direct "$TMP/sd$p.pm"; done
+cat "$TMP"/sd[123].pm >"$TMP/sdirect.pm"
+rm -f "$TMP/acc1.pm" "$TMP/acc2.pm"
+for p in 1 2 3; do "$BIN/composite" -q "$TMP/sd$p.pm" "$TMP/si$p.pm" --accumulate "$TMP/acc1.pm" --pass $p -o "$TMP/acc1.exr"; done
+if "$BIN/composite" -q --stream "$TMP/sdirect.pm" "$TMP/spairs.pm" --accumulate "$TMP/acc2.pm" -o "$TMP/acc2.exr" \
+    --png "$TMP/acc2.png" --pass-log "$TMP/acc2.log"; then
+    cmp -s <(records "$TMP/acc1.pm") <(records "$TMP/acc2.pm") && [ "$(hdr "$TMP/acc2.pm" passes)" = 3 ] &&
+        [ "$(cut -d' ' -f1,2 "$TMP/acc2.log" | tr '\n' ' ')" = "1 1 2 2 3 3 " ] &&
+        [ "$(sed -n '1s/.* //p' "$TMP/acc2.log")" = - ] &&
+        [ "$(sed -n '3s/.* //p' "$TMP/acc2.log")" = "$(hdr "$TMP/acc2.pm" relative_error)" ] &&
+        pass "composite --stream --accumulate: 3 passes, the running image of --accumulate --pass 1..3; the log says each" ||
+        fail "composite --stream --accumulate" "records or log differ: $(cat "$TMP/acc2.log")"
+else
+    fail "composite --stream --accumulate" "the run failed"
+fi
+rm -f "$TMP/acc3.pm"
+"$BIN/composite" -q "$TMP/sd1.pm" "$TMP/si1.pm" --accumulate "$TMP/acc3.pm" -o "$TMP/acc3.exr"
+expect_error "composite --stream --accumulate: a pass already in the running image" "holds 1 passes: pass 1 is in it already" \
+    "$BIN/composite" -q --stream "$TMP/sdirect.pm" "$TMP/spairs.pm" --accumulate "$TMP/acc3.pm" -o "$TMP/acc3.exr"
+expect_exit "composite --pass-log without --accumulate is a usage error" 2 \
+    "$BIN/composite" -q --stream "$TMP/sdirect.pm" --pass-log "$TMP/x.log" -o "$TMP/f-%d.exr"
 
 # ---- pipelines/render: bad input writes nothing
 for bad in PASSES=0 TIME=-1 ALPHA=1 ALPHA=0 ALPHA=1.5 TARGET_ERROR=0 PASSES=x; do
@@ -145,10 +248,11 @@ expect_exit "render PASSES=2 with a gather that takes no --pass (knn-gather): ex
 grep -q "does not take --pass" "$TMP/err" && [ ! -e "$TMP/knn/pass-0001" ] &&
     pass "... and says so before any pass" || fail "knn-gather with passes" "$(cat "$TMP/err")"
 
-# ---- pipelines/render PASSES: pass directories, the schedule, the running image
+# ---- pipelines/render PASSES KEEP=all: pass directories, the schedule, the running image
+# (KEEP=all given asks for every pass's files, made by pipelines/lib/render-make)
 O=$TMP/prog
-if "$R" "$CORNELL" "$O" $SMALL PASSES=2 >"$TMP/r1.out" 2>&1; then
-    pass "render PASSES=2 runs"
+if "$R" "$CORNELL" "$O" $SMALL PASSES=2 KEEP=all >"$TMP/r1.out" 2>&1; then
+    pass "render PASSES=2 KEEP=all runs"
 else
     fail "render PASSES=2" "$(tail -3 "$TMP/r1.out")"
 fi
@@ -174,20 +278,20 @@ else
     fail "running image = mean of passes" "$(paste -d' ' <(records "$TMP/s1.pm") <(records "$O/running.pm") | head -2)"
 fi
 # a rerun with more passes reuses the finished ones
-"$R" "$CORNELL" "$O" $SMALL PASSES=3 >"$TMP/r2.out" 2>&1
+"$R" "$CORNELL" "$O" $SMALL PASSES=3 KEEP=all >"$TMP/r2.out" 2>&1
 [ ! -s "$O/pass-0001/ran.txt" ] && [ ! -s "$O/pass-0002/ran.txt" ] && [ -s "$O/pass-0003/ran.txt" ] &&
     [ "$(hdr "$O/running.pm" passes)" = 3 ] && grep -q ' 1 .*cached' "$TMP/r2.out" &&
     pass "PASSES=3 after 2: passes 1 and 2 cached, pass 3 ran, the running image holds 3" ||
     fail "rerun with more passes" "$(tail -6 "$TMP/r2.out")"
 # and gives the running image a fresh run of 3 passes gives
-"$R" "$CORNELL" "$TMP/fresh" $SMALL PASSES=3 >/dev/null 2>&1
+"$R" "$CORNELL" "$TMP/fresh" $SMALL PASSES=3 KEEP=all >/dev/null 2>&1
 cmp -s <(records "$O/running.pm") <(records "$TMP/fresh/running.pm") &&
     pass "2 then 3 passes: the same running image as 3 passes at once" || fail "reuse vs fresh" "records differ"
 # a rerun with nothing changed adds nothing; one with fewer passes shows those alone
-"$R" "$CORNELL" "$O" $SMALL PASSES=3 >"$TMP/r3.out" 2>&1
+"$R" "$CORNELL" "$O" $SMALL PASSES=3 KEEP=all >"$TMP/r3.out" 2>&1
 h3=$(sha1sum <"$O/running.pm")
 ! grep -q added "$TMP/r3.out" && pass "a rerun with nothing changed adds no pass" || fail "rerun adds" "$(tail -5 "$TMP/r3.out")"
-"$R" "$CORNELL" "$O" $SMALL PASSES=1 TARGET_ERROR=100 >/dev/null 2>&1
+"$R" "$CORNELL" "$O" $SMALL PASSES=1 TARGET_ERROR=100 KEEP=all >/dev/null 2>&1
 [ "$(hdr "$O/running.pm" passes)" = 1 ] && pass "a rerun with fewer passes rebuilds the running image of those" ||
     fail "fewer passes" "$(hdr "$O/running.pm" passes) passes"
 
@@ -211,7 +315,7 @@ rc=$?
 
 # ---- an interrupted run keeps every finished pass and an intact running image
 I=$TMP/intr
-setsid "$R" "$CORNELL" "$I" $SMALL PASSES=50 >/dev/null 2>&1 &
+setsid "$R" "$CORNELL" "$I" $SMALL PASSES=50 KEEP=all >/dev/null 2>&1 &
 pid=$!
 for _ in $(seq 1 600); do
     [ -f "$I/passes.txt" ] && [ "$(wc -l <"$I/passes.txt")" -ge 2 ] && break
@@ -226,7 +330,7 @@ if "$BIN/pm-info" "$I/running.pm" >/dev/null 2>&1 && [ "$(hdr "$I/running.pm" pa
 else
     fail "interrupted run" "passes.txt $n lines, running.pm $(hdr "$I/running.pm" passes)"
 fi
-"$R" "$CORNELL" "$I" $SMALL PASSES=$((n + 1)) >"$TMP/i.out" 2>&1
+"$R" "$CORNELL" "$I" $SMALL PASSES=$((n + 1)) KEEP=all >"$TMP/i.out" 2>&1
 [ ! -s "$I/pass-0001/ran.txt" ] && [ "$(hdr "$I/running.pm" passes)" = $((n + 1)) ] &&
     pass "the rerun reuses the finished passes and completes $((n + 1))" || fail "rerun after interrupt" "$(tail -4 "$TMP/i.out")"
 
@@ -235,7 +339,7 @@ fi
 cp "$I/running.pm" "$TMP/good.pm"
 sz=$(stat -c %s "$I/running.pm")
 printf '\001' | dd of="$I/running.pm" bs=1 seek=$((sz - 100)) conv=notrunc status=none
-"$R" "$CORNELL" "$I" $SMALL PASSES=$((n + 1)) >"$TMP/d.out" 2>&1 &&
+"$R" "$CORNELL" "$I" $SMALL PASSES=$((n + 1)) KEEP=all >"$TMP/d.out" 2>&1 &&
     grep -q "running image is damaged (checksum mismatch" "$TMP/d.out" &&
     cmp -s <(tail -c 1000 "$I/running.pm") <(tail -c 1000 "$TMP/good.pm") &&
     pass "a damaged running.pm is named and rebuilt from the passes, the same bytes" ||
@@ -245,7 +349,7 @@ printf '\001' | dd of="$I/running.pm" bs=1 seek=$((sz - 100)) conv=notrunc statu
 "$R" "$CORNELL" "$TMP/t0" $SMALL TIME=0 >"$TMP/t.out" 2>&1 && [ "$(hdr "$TMP/t0/running.pm" passes)" = 1 ] &&
     [ ! -e "$TMP/t0/pass-0002" ] && grep -q "stopped by TIME=0" "$TMP/t.out" &&
     pass "TIME=0: the first pass runs, and only it" || fail "TIME=0" "$(tail -3 "$TMP/t.out")"
-"$R" "$CORNELL" "$O" $SMALL TARGET_ERROR=10 PASSES=5 >"$TMP/e.out" 2>&1 && [ "$(hdr "$O/running.pm" passes)" = 2 ] &&
+"$R" "$CORNELL" "$TMP/te" $SMALL TARGET_ERROR=10 PASSES=5 >"$TMP/e.out" 2>&1 && [ "$(hdr "$TMP/te/running.pm" passes)" = 2 ] &&
     grep -q "stopped by TARGET_ERROR=10" "$TMP/e.out" &&
     pass "TARGET_ERROR=10: stops after pass 2, the first with an error estimate" || fail "TARGET_ERROR" "$(tail -4 "$TMP/e.out")"
 
@@ -286,3 +390,99 @@ if [ -z "$bad" ] && [ -e "$TMP/th1/pass-0002/indirect.1.pm" ] && grep -q '^  2 .
 else
     fail "VERBOSE=1 rerun" "differ:${bad:- none}; $(grep '^  [0-9] ' "$TMP/th4.out")"
 fi
+
+# ---- pipelines/render's resident passes (the default): the stages stay alive across the
+# passes; OUTDIR keeps running.pm and passes.txt, no pass directories
+V=$TMP/res
+if "$R" "$CORNELL" "$V" $SMALL PASSES=2 >"$TMP/v1.out" 2>&1 && [ "$(hdr "$V/running.pm" passes)" = 2 ] &&
+    ! ls -d "$V"/pass-* >/dev/null 2>&1 && [ -s "$V/image.exr" ] && [ -s "$V/image.png" ] &&
+    [ "$(grep -c '^[0-9]' "$V/passes.txt")" = 2 ] && [ "$(jq .total.passes "$V/stats.json")" = 2 ] &&
+    grep -q 'resident stages' "$TMP/v1.out"; then
+    pass "resident PASSES=2: running.pm holds 2 passes, passes.txt lists them, no pass directory"
+else
+    fail "resident PASSES=2" "$(tail -5 "$TMP/v1.out"; ls "$V")"
+fi
+cp "$V/running.pm" "$TMP/v2.pm"
+"$R" "$CORNELL" "$V" $SMALL PASSES=3 >"$TMP/v2.out" 2>&1
+[ "$(hdr "$V/running.pm" passes)" = 3 ] && [ "$(jq .total.added "$V/stats.json")" = 1 ] &&
+    grep -q '^  1 .*kept' "$TMP/v2.out" && grep -q '^  3 .*added' "$TMP/v2.out" &&
+    pass "a rerun with PASSES=3 after 2 adds pass 3 alone" || fail "resident rerun with more passes" "$(tail -6 "$TMP/v2.out")"
+# the resident passes make the running image the pass files make (KEEP=all, above: $TMP/fresh)
+cmp -s <(records "$V/running.pm") <(records "$TMP/fresh/running.pm") &&
+    pass "2 then 3 resident passes: the running image of 3 passes of pass files (KEEP=all), record for record" ||
+    fail "resident against pass files" "records differ"
+# EXPOSURE re-tones the running image and adds no pass
+hs=$(sha1sum <"$V/running.pm") hp=$(sha1sum <"$V/image.png") hl=$(grep '^[0-9]' "$V/passes.txt")
+"$R" "$CORNELL" "$V" $SMALL PASSES=3 EXPOSURE=2 >"$TMP/v3.out" 2>&1
+[ "$(sha1sum <"$V/running.pm")" = "$hs" ] && [ "$(sha1sum <"$V/image.png")" != "$hp" ] &&
+    [ "$(grep '^[0-9]' "$V/passes.txt")" = "$hl" ] && [ "$(jq .total.added "$V/stats.json")" = 0 ] &&
+    grep -q 'stopped by nothing to add' "$TMP/v3.out" &&
+    pass "EXPOSURE=2 on 3 passes: a new PNG from the same running image, no pass added" ||
+    fail "EXPOSURE re-tone" "$(tail -4 "$TMP/v3.out")"
+# fewer passes than held: the image of those, made anew
+"$R" "$CORNELL" "$V" $SMALL PASSES=2 >"$TMP/v4.out" 2>&1
+cmp -s <(records "$V/running.pm") <(records "$TMP/v2.pm") && [ "$(grep -c '^[0-9]' "$V/passes.txt")" = 2 ] &&
+    pass "PASSES=2 after 3: the running image of 2 passes again" || fail "resident fewer passes" "$(tail -4 "$TMP/v4.out")"
+# other settings: the passes start again
+"$R" "$CORNELL" "$V" $SMALL PASSES=2 SEED=7 >"$TMP/v5.out" 2>&1
+grep -q 'does not hold these passes (other settings)' "$TMP/v5.out" && [ "$(jq .total.added "$V/stats.json")" = 2 ] &&
+    pass "SEED=7 on a running image of SEED's default: both passes made anew, and said so" ||
+    fail "resident other settings" "$(tail -4 "$TMP/v5.out")"
+
+# THREADS changes no byte of the running image, its list or the images
+for t in 1 2; do
+    "$R" "$CORNELL" "$TMP/rt$t" $SMALL PASSES=3 THREADS=$t >"$TMP/rt$t.out" 2>&1 || fail "resident THREADS=$t" "$(tail -3 "$TMP/rt$t.out")"
+done
+bad=""
+for f in running.pm passes.txt image.exr image.png; do cmp -s "$TMP/rt1/$f" "$TMP/rt2/$f" || bad+=" $f"; done
+[ -z "$bad" ] && [ -s "$TMP/rt1/running.pm" ] && pass "resident THREADS=1 and THREADS=2: running.pm, passes.txt and the images byte for byte" ||
+    fail "resident THREADS=1 against 2" "differ:$bad"
+
+# the image is whole after every pass: every version of running.pm and image.exr seen while
+# the passes run is a whole file (they are renamed into place together, after each pass)
+W=$TMP/whole
+"$R" "$CORNELL" "$W" $SMALL PASSES=12 >"$TMP/w.out" 2>&1 &
+pid=$!
+seen=0 torn="" last=""
+while kill -0 $pid 2>/dev/null; do
+    cp "$W/running.pm" "$TMP/w.pm" 2>/dev/null && cp "$W/image.exr" "$TMP/w.exr" 2>/dev/null || continue
+    h=$(sha1sum <"$TMP/w.pm")
+    [ "$h" = "$last" ] && continue
+    last=$h
+    seen=$((seen + 1))
+    "$BIN/pm-info" "$TMP/w.pm" >/dev/null 2>&1 || torn+=" running.pm($seen)"
+    "$BUILD/tests/pm-exrdump" "$TMP/w.exr" >/dev/null 2>&1 || torn+=" image.exr($seen)"
+done
+wait $pid
+rc=$?
+if [ $rc != 0 ] || [ -n "$torn" ]; then
+    fail "the image whole after every pass" "exit $rc; torn:$torn"
+elif [ $seen -lt 2 ]; then
+    skip "the image whole after every pass" "saw $seen version of running.pm while 12 passes ran"
+else
+    pass "while 12 resident passes ran: $seen versions of running.pm and image.exr, each whole"
+fi
+
+# an interrupted resident run keeps a whole running image that passes.txt describes; the rerun adds to it
+I=$TMP/rintr
+setsid "$R" "$CORNELL" "$I" $SMALL PASSES=60 >/dev/null 2>&1 &
+pid=$!
+for _ in $(seq 1 600); do
+    [ -f "$I/passes.txt" ] && [ "$(grep -c '^[0-9].* [0-9.e-]*$' "$I/passes.txt")" -ge 3 ] && break
+    sleep 0.1
+done
+kill -TERM -- -$pid 2>/dev/null
+wait $pid 2>/dev/null
+held=$(hdr "$I/running.pm" passes)
+"$R" "$CORNELL" "$I" $SMALL PASSES=$((held + 1)) >"$TMP/ri.out" 2>&1
+if [ -n "$held" ] && [ "$held" -ge 2 ] && [ "$held" -lt 60 ] && [ "$(hdr "$I/running.pm" passes)" = $((held + 1)) ] &&
+    [ "$(jq .total.added "$I/stats.json")" = 1 ] && [ "$(grep -c '^[0-9]' "$I/passes.txt")" = $((held + 1)) ]; then
+    pass "interrupted after $held resident passes: the rerun adds pass $((held + 1)) alone"
+else
+    fail "interrupted resident run" "held '$held': $(tail -4 "$TMP/ri.out")"
+fi
+
+# KEEP=image: the images and stats.json alone
+"$R" "$CORNELL" "$TMP/ki" $SMALL PASSES=2 KEEP=image >/dev/null 2>&1
+[ -s "$TMP/ki/image.exr" ] && [ -s "$TMP/ki/stats.json" ] && [ ! -e "$TMP/ki/running.pm" ] && [ ! -e "$TMP/ki/passes.txt" ] &&
+    pass "resident KEEP=image: image.exr, image.png and stats.json alone" || fail "resident KEEP=image" "$(ls "$TMP/ki")"

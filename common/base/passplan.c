@@ -1,0 +1,84 @@
+/* passplan.c: the passes a resident tracer runs, from --passes A:B or a --plan read line by
+ * line as a driver writes it (see passplan.h). */
+#include "base/passplan.h"
+
+#include <errno.h>
+#include <inttypes.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/args.h"
+
+pm_result_t pm_passplan_open(pm_passplan_t *pp, const char *range, const char *plan)
+{
+    memset(pp, 0, sizeof *pp);
+    pp->last = -1;
+    if ((range != NULL) == (plan != NULL))
+        return pm_error_set(PM_ERR_USAGE, "give one of --passes A:B and --plan FILE");
+    if (range) {
+        const char *colon = strchr(range, ':');
+        char a[32];
+        int64_t first = 0, last = 0;
+        if (!colon || (size_t)(colon - range) >= sizeof a)
+            return pm_error_set(PM_ERR_USAGE, "--passes '%s': expected A:B, passes 1 <= A <= B", range);
+        memcpy(a, range, (size_t)(colon - range));
+        a[colon - range] = 0;
+        if (pm_parse_i64(a, &first) != PM_OK || pm_parse_i64(colon + 1, &last) != PM_OK || first < 1 || last < first)
+            return pm_error_set(PM_ERR_USAGE, "--passes '%s': expected A:B, passes 1 <= A <= B", range);
+        pp->first = pp->next = first;
+        pp->last = last;
+        return PM_OK;
+    }
+    pp->path = strcmp(plan, "-") ? plan : "stdin";
+    pp->plan = strcmp(plan, "-") ? fopen(plan, "r") : stdin;
+    if (!pp->plan)
+        return pm_error_set(PM_ERR_INPUT, "cannot open the plan '%s': %s", plan, strerror(errno));
+    return PM_OK;
+}
+
+pm_result_t pm_passplan_next(pm_passplan_t *pp, int64_t *pass_out, int64_t *size_out, int *end_out)
+{
+    *pass_out = 0, *size_out = 0, *end_out = 0;
+    if (!pp->plan) {
+        if (pp->next > pp->last) {
+            *end_out = 1;
+            return PM_OK;
+        }
+        *pass_out = pp->next++;
+        return PM_OK;
+    }
+    char buf[256];
+    while (fgets(buf, sizeof buf, pp->plan)) {
+        pp->line++;
+        size_t len = strlen(buf);
+        if (len == sizeof buf - 1 && buf[len - 1] != '\n')
+            return pm_error_set(PM_ERR_INPUT, "plan '%s' line %" PRId64 ": longer than %zu bytes", pp->path, pp->line,
+                                sizeof buf - 2);
+        char *save = NULL, *w1 = strtok_r(buf, " \t\r\n", &save);
+        if (!w1 || w1[0] == '#')
+            continue;
+        char *w2 = strtok_r(NULL, " \t\r\n", &save), *w3 = strtok_r(NULL, " \t\r\n", &save);
+        int64_t pass = 0, size = 0;
+        if (w3 || pm_parse_i64(w1, &pass) != PM_OK || pass < 1 ||
+            (w2 && (pm_parse_i64(w2, &size) != PM_OK || size < 1)))
+            return pm_error_set(PM_ERR_INPUT,
+                                "plan '%s' line %" PRId64 ": expected 'PASS [SIZE]', a pass of at least 1 and a size "
+                                "of at least 1",
+                                pp->path, pp->line);
+        *pass_out = pass, *size_out = size;
+        return PM_OK;
+    }
+    if (ferror(pp->plan))
+        return pm_error_set(PM_ERR_IO, "cannot read the plan '%s': %s", pp->path, strerror(errno));
+    *end_out = 1;
+    return PM_OK;
+}
+
+int pm_passplan_single(const pm_passplan_t *pp) { return !pp->plan && pp->first == pp->last; }
+
+void pm_passplan_close(pm_passplan_t *pp)
+{
+    if (pp->plan && pp->plan != stdin)
+        fclose(pp->plan);
+    pp->plan = NULL;
+}

@@ -1,0 +1,44 @@
+/* passplan.h: which progressive passes a resident tracer runs, one document per pass
+ * (docs/formats.md, "Streams"; docs/pipelines.md, "Progressive passes").
+ *
+ *   --passes A:B   passes A to B, each of the size the options give
+ *   --plan FILE    one line "PASS [SIZE]" per pass, read when the stage is ready for it: a
+ *                  driver (common/engine/progressive.c) writes the next line when it has
+ *                  sized the next pass, and closes the pipe to end the stream
+ *
+ * SIZE is the stage's own measure of a pass (trace-photons: photon paths; trace-gather-points:
+ * primary rays per pixel); a line without it takes the options' size. Blank lines and lines
+ * starting with '#' are skipped. Passes need not follow one another (a rerun adds passes
+ * 5 to 8), but each is at least 1. */
+#ifndef PM_BASE_PASSPLAN_H
+#define PM_BASE_PASSPLAN_H
+
+#include <stdint.h>
+#include <stdio.h>
+
+#include "base/error.h"
+
+typedef struct {
+    int64_t first, last; /* --passes A:B; with a plan 0 and -1 */
+    int64_t next;        /* the next pass of the range */
+    FILE *plan;          /* --plan's file (stdin for "-"), NULL for a range */
+    const char *path;    /* --plan's path, for messages */
+    int64_t line;        /* lines of the plan read */
+} pm_passplan_t;
+
+/* Sets up from --passes (range, "A:B" with 1 <= A <= B, or NULL) or --plan (plan, a path or
+ * "-", or NULL); exactly one of them must be given (a usage error otherwise). A plan that
+ * cannot be opened is an input error naming it. */
+pm_result_t pm_passplan_open(pm_passplan_t *pp, const char *range, const char *plan);
+
+/* The next pass: *pass_out, *size_out (0 when the line gives none, and always for a range),
+ * and *end_out 1 when there is none (the range done, or the plan at its end). A malformed
+ * line is an input error naming the plan and the line. */
+pm_result_t pm_passplan_next(pm_passplan_t *pp, int64_t *pass_out, int64_t *size_out, int *end_out);
+
+/* 1 when the plan is one pass (--passes A:A): its one document may go to a regular file. */
+int pm_passplan_single(const pm_passplan_t *pp);
+
+void pm_passplan_close(pm_passplan_t *pp);
+
+#endif

@@ -1,0 +1,1051 @@
+/* progressive.c: pm-render's resident progressive passes (progressive.h): six stage programs
+ * started once with pipes between them, a pass at a time through them on streams of
+ * documents, the running image in OUTDIR/running.pm, what it holds in OUTDIR/passes.txt, the
+ * TIME budget sized from the passes' own wall times. docs/pipelines.md, "Progressive passes". */
+#include "engine/progressive.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <inttypes.h>
+#include <jansson.h>
+#include <math.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/file.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "base/args.h"
+#include "base/timer.h"
+#include "formats/formats.h"
+#include "photonmap/gather_stage.h"
+#include "render/scene.h"
+
+extern char **environ;
+
+/* Per-pass defaults for the parameters not given (the scene's render block sizes one render,
+ * not a pass), measured on both shipped scenes: docs/accuracy.md, "Progressive defaults". */
+#define DEFAULT_PHOTONS 300000
+#define DEFAULT_PRIMARY 16
+#define DEFAULT_SPP "4"
+#define DEFAULT_K "5"
+/* s the driver keeps for what follows the last pass (the stages' exit, the sync, stats.json),
+ * measured by tests/bench/92-passes.sh */
+#define TAIL_S 0.04
+#define MAX_PASSES 100000 /* passes.txt lines read back; far beyond any budget */
+#define LAST_MARGIN 1.05  /* a TIME budget's last pass: its bound times this must fit */
+
+enum { TP, BM, TG, HS, SG, CO, NSTAGE };
+static const char *const stage_names[NSTAGE] = {"trace-photons", "build-photonmap", "trace-gather-points",
+                                                "hilbert-sort",  "simd-gather",     "composite"};
+
+/* An argv with its words' storage. */
+typedef struct {
+    char *v[64];
+    int n;
+    char store[8192];
+    size_t used;
+} argv_t;
+
+static void push(argv_t *a, const char *w)
+{
+    size_t len = strlen(w) + 1;
+    if (a->n >= 63 || a->used + len > sizeof a->store)
+        return; /* the words pm-render gives are few and short; a longer one is cut (and refused by its stage) */
+    char *d = a->store + a->used;
+    memcpy(d, w, len);
+    a->used += len;
+    a->v[a->n++] = d;
+    a->v[a->n] = NULL;
+}
+
+static void pushf(argv_t *a, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void pushf(argv_t *a, const char *fmt, ...)
+{
+    char w[4200];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(w, sizeof w, fmt, ap);
+    va_end(ap);
+    push(a, w);
+}
+
+/* --opt VALUE when the parameter is given */
+static void opt(argv_t *a, const char *name, const char *value)
+{
+    if (value && value[0]) {
+        push(a, name);
+        push(a, value);
+    }
+}
+
+typedef struct {
+    int pass;
+    int64_t photons;
+    int primary;
+    char err[32]; /* the running image's relative error after it, "-" after one pass */
+    double wall_s;
+    int added; /* by this run */
+} pass_t;
+
+typedef struct {
+    const pm_settings_t *s;
+    const char *me, *bin;
+    char out[4096];
+    char scene[4096];
+    char scene_id[512];
+    int64_t photons; /* per full pass */
+    int kmax;        /* PRIMARY per full pass: the units a full pass has */
+    const char *spp, *k;
+    int light_samples_zero; /* no emissive triangle, sun or sky: LIGHT_SAMPLES=0 */
+    char settings[8192];    /* what the running image depends on, one line */
+    char request[512];      /* PASSES, TIME, TARGET_ERROR, EXPOSURE, TONE, HALF of this run */
+    char old_request[512];  /* passes.txt's, when the state is kept */
+    pass_t *passes;         /* passes.txt's and this run's */
+    int npasses, cap;
+    char radius1[64];
+    int lock_fd;
+} prog_t;
+
+static void say(const prog_t *p, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void say(const prog_t *p, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    fprintf(stderr, "%s: ", p->me);
+    vfprintf(stderr, fmt, ap);
+    fputc('\n', stderr);
+    va_end(ap);
+}
+
+static const char *val(const prog_t *p, pm_param_t k) { return p->s->value[k]; }
+
+int pm_progressive_handles(const pm_settings_t *s, char *why, size_t cap)
+{
+    const char *w = NULL;
+    /* KEEP=all is the default value of KEEP: given on the command line (a pointer into argv,
+     * not the table's default), it asks for the pass files */
+    if (s->value[PM_P_PASS_RANGE][0])
+        w = "PASS_RANGE makes pass files";
+    else if (s->keep == PM_KEEP_ALL && s->value[PM_P_KEEP] != pm_param_default(PM_P_KEEP))
+        w = "KEEP=all keeps every pass's files";
+    else if (strcmp(s->value[PM_P_MODE], "gather"))
+        w = "MODE=direct-vis";
+    else if (strcmp(s->value[PM_P_GATHER], "simd-gather"))
+        w = "GATHER other than simd-gather";
+    else if (s->shards != 1)
+        w = "SHARDS";
+    else if (strcmp(s->value[PM_P_WIDTHS], "fixed"))
+        w = "WIDTHS=variable";
+    else if (!strcmp(s->value[PM_P_ORDER], "none"))
+        w = "ORDER=none";
+    else if (strcmp(s->value[PM_P_MAP], "auto") && strcmp(s->value[PM_P_MAP], "global"))
+        w = "MAP=indirect";
+    else if (s->ntargets)
+        w = "TARGETs";
+    if (why && cap)
+        snprintf(why, cap, "%s", w ? w : "");
+    return w == NULL;
+}
+
+/* ---- the size of the next pass (TIME) ---- */
+
+/* An upper bound of the wall time of a pass of u units, from the passes so far (k[j] units in
+ * sec[j] s). A pass costs c + b k with c, b >= 0 (a fixed part: the pipes' latency, the map's
+ * tree, composite's images; a part in proportion to its photons, rays and queries), so every
+ * pass bounds every other: t(u) <= sec[j] max(1, u / k[j]). The tightest of these bounds holds
+ * whatever c is, where a line fitted through two passes of nearby sizes on a busy machine can
+ * put nearly all of the time in c and promise a large pass for nothing (measured: a 41-unit
+ * pass predicted at 4 s took 23.6 s at load 12). The first pass, which also pays the stages'
+ * start, only loosens it. */
+static double time_bound(const int *k, const double *sec, int n, int u)
+{
+    double t = INFINITY;
+    for (int j = 0; j < n; j++) {
+        double kj = k[j] > 0 ? k[j] : 1, bj = sec[j] * (u > kj ? u / kj : 1.0);
+        t = bj < t ? bj : t;
+    }
+    return t;
+}
+
+int pm_progressive_next_size(const int *k, const double *sec, int n, int kmax, double remaining)
+{
+    if (kmax < 1)
+        kmax = 1;
+    if (n <= 0)
+        return 1;
+    int next = 2 * k[n - 1];
+    next = next > kmax ? kmax : next < 1 ? 1 : next;
+    int after = 2 * next > kmax ? kmax : 2 * next;
+    if (time_bound(k, sec, n, 1) > remaining)
+        return 0;
+    if (time_bound(k, sec, n, next) + time_bound(k, sec, n, after) <= remaining) /* it and the one after it */
+        return next;
+    /* the last pass: the largest that ends by the budget with 5% to spare (a pass on a machine
+     * shared with other work took up to 12% longer than its bound, measured at load 7), so
+     * that what is left after it is about a unit's time rather than a pass that does not fit
+     * (at most 4 kmax units, PRIMARY's limit of 4096 too) */
+    int most = 4 * kmax < 4096 ? 4 * kmax : 4096;
+    for (int u = most; u > 1; u--)
+        if (LAST_MARGIN * time_bound(k, sec, n, u) <= remaining)
+            return u;
+    return 1;
+}
+
+/* ---- the state: running.pm and passes.txt ---- */
+
+static int add_pass(prog_t *p, const pass_t *ps)
+{
+    if (p->npasses == p->cap) {
+        int cap = p->cap ? 2 * p->cap : 64;
+        pass_t *n = realloc(p->passes, (size_t)cap * sizeof *n);
+        if (!n)
+            return -1;
+        p->passes = n, p->cap = cap;
+    }
+    p->passes[p->npasses++] = *ps;
+    return 0;
+}
+
+/* passes.txt, written beside and renamed: the settings, the request, a line per pass. */
+static int write_list(prog_t *p)
+{
+    char path[4200], tmp[4300];
+    snprintf(path, sizeof path, "%s/passes.txt", p->out);
+    snprintf(tmp, sizeof tmp, "%s/.passes.txt.%d", p->out, (int)getpid());
+    FILE *f = fopen(tmp, "w");
+    if (!f)
+        return -1;
+    fprintf(f,
+            "# pm-render's resident passes: what running.pm holds (docs/pipelines.md, \"Progressive passes\")\n"
+            "settings %s\nrequest %s\n# pass photons primary relative_error\n",
+            p->settings, p->request);
+    for (int i = 0; i < p->npasses; i++)
+        fprintf(f, "%d %" PRId64 " %d %s\n", p->passes[i].pass, p->passes[i].photons, p->passes[i].primary,
+                p->passes[i].err);
+    int bad = ferror(f);
+    if (fclose(f) != 0 || bad || rename(tmp, path) != 0) {
+        unlink(tmp);
+        return -1;
+    }
+    return 0;
+}
+
+/* Keeps the state when passes.txt names these settings and running.pm is whole and holds its
+ * passes; else removes both (the passes start again). Returns the passes kept. */
+static int read_state(prog_t *p)
+{
+    char path[4200], line[9000];
+    snprintf(path, sizeof path, "%s/passes.txt", p->out);
+    FILE *f = fopen(path, "r");
+    int ok = f != NULL, n = 0, named = 0;
+    const char *why = NULL;
+    while (ok && fgets(line, sizeof line, f)) {
+        line[strcspn(line, "\n")] = 0;
+        if (line[0] == '#')
+            continue;
+        if (!strncmp(line, "settings ", 9)) {
+            if (strcmp(line + 9, p->settings))
+                ok = 0, why = "other settings";
+            named = 1;
+            continue;
+        }
+        if (!strncmp(line, "request ", 8)) {
+            snprintf(p->old_request, sizeof p->old_request, "%s", line + 8);
+            continue;
+        }
+        pass_t ps = {0};
+        if (!named) /* the settings come first: a list without them is another driver's */
+            ok = 0, why = "passes.txt names no settings";
+        else if (sscanf(line, "%d %" SCNd64 " %d %31s", &ps.pass, &ps.photons, &ps.primary, ps.err) != 4 ||
+                 ps.pass != n + 1 || n >= MAX_PASSES || add_pass(p, &ps) != 0)
+            ok = 0, why = "a damaged passes.txt";
+        n++;
+    }
+    if (f)
+        fclose(f);
+    pm_table_t t = {0};
+    char state[4200];
+    snprintf(state, sizeof state, "%s/running.pm", p->out);
+    if (ok && n > 0) {
+        uint64_t held = 0;
+        const uint32_t need = 1u << PM_RADIANCE_RGB | 1u << PM_RADIANCE_VARIANCE;
+        if (pm_table_read(state, &pm_radiance_schema, need, &t) != PM_OK) {
+            ok = 0, why = "a damaged running.pm";
+            say(p, "the running image is damaged (%s): the passes start again", pm_error_message());
+            why = NULL;
+        } else if (pm_header_get_u64(&t.hdr, state, "passes", &held) != PM_OK ||
+                   (held != (uint64_t)n && !(held + 1 == (uint64_t)n && !strcmp(p->passes[n - 1].err, "pending")))) {
+            ok = 0, why = "running.pm and passes.txt disagree";
+        } else {
+            /* a pass under way when the last run stopped: in the running image or not */
+            if (!strcmp(p->passes[n - 1].err, "pending")) {
+                if (held + 1 == (uint64_t)n) {
+                    p->npasses = --n;
+                } else {
+                    const char *e = pm_header_get(&t.hdr, "relative_error");
+                    snprintf(p->passes[n - 1].err, sizeof p->passes[n - 1].err, "%s", e ? e : "-");
+                }
+            }
+            const char *r1 = pm_header_get(&t.hdr, "radius1");
+            snprintf(p->radius1, sizeof p->radius1, "%s", r1 ? r1 : "");
+        }
+        pm_table_free(&t);
+    }
+    if (!ok || n == 0) {
+        if (why)
+            say(p, "the running image does not hold these passes (%s): the passes start again", why);
+        unlink(state);
+        unlink(path);
+        p->npasses = 0;
+        p->old_request[0] = 0;
+        p->radius1[0] = 0;
+        return 0;
+    }
+    return n;
+}
+
+/* ---- OUTDIR ---- */
+
+/* One render at a time in OUTDIR: flock on OUTDIR/.lock, which names the holder (the rule
+ * of pm-render's single renders, common/engine/fixed.c). */
+static int take_lock(prog_t *p, const char *cmdline)
+{
+    char path[4200];
+    snprintf(path, sizeof path, "%s/.lock", p->out);
+    int fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0666);
+    if (fd < 0) {
+        say(p, "cannot open the lock file '%s': %s", path, strerror(errno));
+        return -1;
+    }
+    if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
+        char holder[1001] = "";
+        ssize_t n = pread(fd, holder, 1000, 0);
+        holder[n > 0 ? n : 0] = 0;
+        holder[strcspn(holder, "\n")] = 0;
+        if (!p->s->wait) {
+            say(p, "'%s' is in use by another render (%s); WAIT=0 does not wait", p->out,
+                holder[0] ? holder : "holder unknown");
+            close(fd);
+            return -1;
+        }
+        say(p, "waiting for '%s', in use by another render (%s)", p->out, holder[0] ? holder : "holder unknown");
+        int rc;
+        while ((rc = flock(fd, LOCK_EX)) != 0 && errno == EINTR)
+            ;
+        if (rc != 0) {
+            say(p, "cannot lock '%s': %s", path, strerror(errno));
+            close(fd);
+            return -1;
+        }
+    }
+    char line[8192];
+    int n = snprintf(line, sizeof line, "pid %d: %s\n", (int)getpid(), cmdline);
+    n = n > (int)sizeof line - 1 ? (int)sizeof line - 1 : n;
+    if (ftruncate(fd, 0) != 0 || pwrite(fd, line, (size_t)n, 0) != n) {
+        say(p, "cannot write the lock file '%s': %s", path, strerror(errno));
+        close(fd);
+        return -1;
+    }
+    p->lock_fd = fd;
+    return 0;
+}
+
+/* The stages' environment: the driver's, with PMTK_FSYNC=0 (the running image and the images
+ * are rewritten after every pass and synced once at the end: a power loss in between leaves
+ * a running.pm whose checksum the next run checks) and OMP_WAIT_POLICY=passive unless set
+ * (six programs share the cores, and a thread spinning for work takes one from a stage that
+ * has work). envp is malloc'd. */
+static char **stage_env(void)
+{
+    size_t n = 0;
+    while (environ[n])
+        n++;
+    char **e = calloc(n + 3, sizeof *e);
+    if (!e)
+        return NULL;
+    size_t k = 0;
+    int omp = 0;
+    for (size_t i = 0; i < n; i++) {
+        if (!strncmp(environ[i], "PMTK_FSYNC=", 11))
+            continue;
+        omp |= !strncmp(environ[i], "OMP_WAIT_POLICY=", 16);
+        e[k++] = environ[i];
+    }
+    e[k++] = "PMTK_FSYNC=0";
+    if (!omp)
+        e[k++] = "OMP_WAIT_POLICY=passive";
+    e[k] = NULL;
+    return e;
+}
+
+/* -q, --threads, and --stats into OUTDIR/.stats-NAME.json (none of which a file records),
+ * which stats.json takes in under "stages" */
+static void common_opts(const prog_t *p, argv_t *a)
+{
+    if (strcmp(val(p, PM_P_VERBOSE), "1"))
+        push(a, "-q");
+    opt(a, "--threads", val(p, PM_P_THREADS));
+    const char *base = strrchr(a->v[0], '/');
+    push(a, "--stats");
+    pushf(a, "%s/.stats-%s.json", p->out, base ? base + 1 : a->v[0]);
+}
+
+/* The six stages' command lines. plan: the plan's path as each tracer sees it; dfd, mfd, lfd:
+ * the fds of the direct buffer (tracer's end, composite's end), the maps (the gather's) and
+ * the pass log (composite's). first: the first pass of this run. */
+static void stage_argv(const prog_t *p, argv_t a[NSTAGE], int dw, int dr, int mr, int lw, int wr, int first)
+{
+    char path[4200];
+    memset(a, 0, sizeof(argv_t) * NSTAGE);
+    snprintf(path, sizeof path, "%s/trace-photons", p->bin);
+    push(&a[TP], path);
+    push(&a[TP], p->scene);
+    pushf(&a[TP], "--photons");
+    pushf(&a[TP], "%" PRId64, p->photons);
+    opt(&a[TP], "--seed", val(p, PM_P_SEED));
+    push(&a[TP], "--plan");
+    push(&a[TP], "-");
+    push(&a[TP], "-o");
+    push(&a[TP], "-");
+    common_opts(p, &a[TP]);
+
+    snprintf(path, sizeof path, "%s/build-photonmap", p->bin);
+    push(&a[BM], path);
+    push(&a[BM], "--stream");
+    push(&a[BM], "-");
+    push(&a[BM], "-o");
+    push(&a[BM], "-");
+    push(&a[BM], "--map");
+    push(&a[BM], "global");
+    common_opts(p, &a[BM]);
+
+    snprintf(path, sizeof path, "%s/trace-gather-points", p->bin);
+    push(&a[TG], path);
+    push(&a[TG], p->scene);
+    push(&a[TG], "--mode");
+    push(&a[TG], "gather");
+    opt(&a[TG], "--spp", p->spp);
+    opt(&a[TG], "--width", val(p, PM_P_WIDTH));
+    opt(&a[TG], "--height", val(p, PM_P_HEIGHT));
+    pushf(&a[TG], "--primary");
+    pushf(&a[TG], "%d", p->kmax);
+    opt(&a[TG], "--light-samples", p->light_samples_zero ? "0" : val(p, PM_P_LIGHT_SAMPLES));
+    opt(&a[TG], "--seed", val(p, PM_P_SEED));
+    push(&a[TG], "--plan");
+    push(&a[TG], "-");
+    push(&a[TG], "-o");
+    push(&a[TG], "-");
+    push(&a[TG], "--direct");
+    pushf(&a[TG], "/dev/fd/%d", dw);
+    common_opts(p, &a[TG]);
+
+    snprintf(path, sizeof path, "%s/hilbert-sort", p->bin);
+    push(&a[HS], path);
+    push(&a[HS], "--stream");
+    push(&a[HS], "-");
+    push(&a[HS], "-o");
+    push(&a[HS], "-");
+    push(&a[HS], "--order");
+    push(&a[HS], strcmp(val(p, PM_P_ORDER), "auto") ? val(p, PM_P_ORDER) : "hilbert");
+    opt(&a[HS], "--leaf", val(p, PM_P_LEAF));
+    common_opts(p, &a[HS]);
+
+    snprintf(path, sizeof path, "%s/simd-gather", p->bin);
+    push(&a[SG], path);
+    push(&a[SG], "--stream");
+    push(&a[SG], "pairs");
+    pushf(&a[SG], "/dev/fd/%d", mr);
+    push(&a[SG], "-");
+    push(&a[SG], "-o");
+    push(&a[SG], "-");
+    /* r_1: RADIUS, else measured by K on pass 1, else (a rerun) the running image's */
+    if (val(p, PM_P_RADIUS)[0])
+        opt(&a[SG], "--radius", val(p, PM_P_RADIUS));
+    else if (first > 1)
+        opt(&a[SG], "--radius", p->radius1);
+    else
+        opt(&a[SG], "--k", p->k);
+    opt(&a[SG], "--kernel", val(p, PM_P_KERNEL));
+    opt(&a[SG], "--isa", val(p, PM_P_ISA));
+    opt(&a[SG], "--alpha", val(p, PM_P_ALPHA));
+    common_opts(p, &a[SG]);
+
+    snprintf(path, sizeof path, "%s/composite", p->bin);
+    push(&a[CO], path);
+    push(&a[CO], "--stream");
+    pushf(&a[CO], "/dev/fd/%d", dr);
+    push(&a[CO], "-");
+    push(&a[CO], "--accumulate");
+    push(&a[CO], "running.pm");
+    push(&a[CO], "-o");
+    push(&a[CO], "image.exr");
+    push(&a[CO], "--png");
+    push(&a[CO], "image.png");
+    push(&a[CO], "--exposure");
+    push(&a[CO], val(p, PM_P_EXPOSURE));
+    push(&a[CO], "--tone");
+    push(&a[CO], val(p, PM_P_TONE));
+    if (!strcmp(val(p, PM_P_HALF), "1"))
+        push(&a[CO], "--half");
+    push(&a[CO], "--pass-log");
+    pushf(&a[CO], "/dev/fd/%d", lw);
+    push(&a[CO], "--weights");
+    pushf(&a[CO], "/dev/fd/%d", wr);
+    common_opts(p, &a[CO]);
+}
+
+/* What the running image depends on, as one line: the scene's content (not its path) and
+ * every parameter a pass's bytes follow. PASSES, TIME, TARGET_ERROR (how many passes),
+ * EXPOSURE, TONE, HALF (the images alone), THREADS, VERBOSE, QUIET, WAIT, JOBS and KEEP are
+ * not in it. */
+static void make_settings(prog_t *p)
+{
+    static const pm_param_t keys[] = {PM_P_PHOTONS,       PM_P_SPP,   PM_P_WIDTH, PM_P_HEIGHT, PM_P_PRIMARY,
+                                      PM_P_LIGHT_SAMPLES, PM_P_ORDER, PM_P_LEAF,  PM_P_RADIUS, PM_P_K,
+                                      PM_P_KERNEL,        PM_P_ISA,   PM_P_SEED,  PM_P_ALPHA};
+    size_t at = (size_t)snprintf(p->settings, sizeof p->settings, "scene=%s", p->scene_id);
+    for (size_t i = 0; i < sizeof keys / sizeof *keys && at < sizeof p->settings; i++)
+        at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " %s=%s", pm_param_name(keys[i]),
+                               val(p, keys[i]));
+    snprintf(p->request, sizeof p->request, "PASSES=%s TIME=%s TARGET_ERROR=%s EXPOSURE=%s TONE=%s HALF=%s",
+             val(p, PM_P_PASSES), val(p, PM_P_TIME), val(p, PM_P_TARGET_ERROR), val(p, PM_P_EXPOSURE),
+             val(p, PM_P_TONE), val(p, PM_P_HALF));
+}
+
+/* The request's words before EXPOSURE: how many passes it asks for. */
+static int same_passes_asked(const char *a, const char *b)
+{
+    const char *ea = strstr(a, " EXPOSURE="), *eb = strstr(b, " EXPOSURE=");
+    return ea && eb && ea - a == eb - b && !strncmp(a, b, (size_t)(ea - a));
+}
+
+/* composite on running.pm alone: the images at a new EXPOSURE, TONE or HALF, no pass. */
+static int retone(prog_t *p, char **env)
+{
+    argv_t a = {0};
+    char path[4200];
+    snprintf(path, sizeof path, "%s/composite", p->bin);
+    push(&a, path);
+    push(&a, "running.pm");
+    push(&a, "-o");
+    push(&a, "image.exr");
+    push(&a, "--png");
+    push(&a, "image.png");
+    push(&a, "--exposure");
+    push(&a, val(p, PM_P_EXPOSURE));
+    push(&a, "--tone");
+    push(&a, val(p, PM_P_TONE));
+    if (!strcmp(val(p, PM_P_HALF), "1"))
+        push(&a, "--half");
+    common_opts(p, &a);
+    pm_spawn_t sp = {.argv = a.v, .cwd = p->out, .stdin_fd = -1, .stdout_fd = -1, .capture_stderr = 1, .env = env};
+    pm_proc_status_t st;
+    if (pm_proc_run(&sp, &st) != PM_OK) {
+        say(p, "%s", pm_error_message());
+        return 3;
+    }
+    int code = st.exit_code;
+    if (code)
+        say(p, "re-toning the running image failed: %s", st.err && st.err[0] ? st.err : "composite failed");
+    pm_proc_status_free(&st);
+    return code ? 1 : 0;
+}
+
+static void sync_file(const char *dir, const char *name)
+{
+    char path[4200];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd >= 0) {
+        (void)fsync(fd);
+        close(fd);
+    }
+}
+
+/* stats.json: {"scene", "params", "passes": [{"pass", "status", "photons", "primary", "wall_s",
+ * "relative_error", "stages"}], "stages": {NAME: the stage's --stats over every pass of this
+ * run}, "total": {"passes", "added", "relative_error", "wall_s",
+ * "first_image_s", "stopped_by", "alpha", "radius1", "resident": true}}. A pass's "stages" holds,
+ * in the words of the stages' own --stats, what the driver asked each stage for in that pass
+ * (trace-photons emitted, trace-gather-points primary and spp, simd-gather k and radius_m, the
+ * schedule's r_p of radius1): the resident stages write their --stats once, at their end, so
+ * a pass has no stats file of its own (pipelines/error-vs-time reads these; hilbert-sort's leaf
+ * is the stage's own, from its --stats). */
+static void write_stats(prog_t *p, double wall, double first_image, const char *stop)
+{
+    json_t *root = json_object(), *params = json_object(), *passes = json_array(), *total = json_object();
+    json_object_set_new(root, "scene", json_string(p->scene_id));
+    for (int k = 0; k < PM_P_COUNT; k++)
+        json_object_set_new(params, pm_param_name((pm_param_t)k), json_string(val(p, (pm_param_t)k)));
+    json_object_set_new(root, "params", params);
+    int added = 0;
+    double a, r1 = 0.0;
+    if (!(val(p, PM_P_ALPHA)[0] && pm_parse_double(val(p, PM_P_ALPHA), &a) == PM_OK))
+        a = PM_PASS_ALPHA_DEFAULT;
+    if (p->radius1[0] && pm_parse_double(p->radius1, &r1) != PM_OK)
+        r1 = 0.0;
+    int64_t spp = 0;
+    pm_parse_i64(p->spp, &spp);
+    for (int i = 0; i < p->npasses; i++) {
+        const pass_t *ps = &p->passes[i];
+        json_t *o = json_object(), *st = json_object(), *tp = json_object(), *tg = json_object(), *sg = json_object();
+        json_object_set_new(tp, "emitted", json_integer(ps->photons));
+        json_object_set_new(tp, "pass", json_integer(ps->pass));
+        json_object_set_new(tg, "primary", json_integer(ps->primary));
+        json_object_set_new(tg, "spp", json_integer(spp));
+        json_object_set_new(tg, "pass", json_integer(ps->pass));
+        if (!val(p, PM_P_RADIUS)[0]) {
+            double kk;
+            if (pm_parse_double(p->k, &kk) == PM_OK)
+                json_object_set_new(sg, "k", json_real(kk));
+        }
+        if (r1 > 0.0)
+            json_object_set_new(sg, "radius_m", json_real(pm_gather_pass_radius(r1, (uint64_t)ps->pass, a)));
+        json_object_set_new(sg, "pass", json_integer(ps->pass));
+        json_object_set_new(st, "trace-photons", tp);
+        json_object_set_new(st, "trace-gather-points", tg);
+        json_object_set_new(st, "simd-gather", sg);
+        json_object_set_new(o, "pass", json_integer(ps->pass));
+        json_object_set_new(o, "status", json_string(ps->added ? "added" : "kept"));
+        json_object_set_new(o, "photons", json_integer(ps->photons));
+        json_object_set_new(o, "primary", json_integer(ps->primary));
+        json_object_set_new(o, "wall_s", ps->added ? json_real(ps->wall_s) : json_null());
+        double e;
+        json_object_set_new(o, "relative_error", pm_parse_double(ps->err, &e) == PM_OK ? json_real(e) : json_null());
+        json_object_set_new(o, "stages", st);
+        json_array_append_new(passes, o);
+        added += ps->added;
+    }
+    json_object_set_new(root, "passes", passes);
+    /* each resident stage's --stats, for all its passes; hilbert-sort's leaf into every pass */
+    json_t *stages = json_object();
+    for (int i = 0; i < NSTAGE; i++) {
+        char sp[4200];
+        snprintf(sp, sizeof sp, "%s/.stats-%s.json", p->out, stage_names[i]);
+        json_t *j = json_load_file(sp, 0, NULL);
+        unlink(sp);
+        if (j)
+            json_object_set_new(stages, stage_names[i], j);
+    }
+    json_t *leaf = json_object_get(json_object_get(stages, "hilbert-sort"), "leaf");
+    for (size_t i = 0; leaf && i < json_array_size(passes); i++) {
+        json_t *hs = json_object();
+        json_object_set(hs, "leaf", leaf);
+        json_object_set_new(json_object_get(json_array_get(passes, i), "stages"), "hilbert-sort", hs);
+    }
+    json_object_set_new(root, "stages", stages);
+    double e;
+    json_object_set_new(total, "passes", json_integer(p->npasses));
+    json_object_set_new(total, "added", json_integer(added));
+    json_object_set_new(total, "relative_error",
+                        p->npasses && pm_parse_double(p->passes[p->npasses - 1].err, &e) == PM_OK ? json_real(e)
+                                                                                                  : json_null());
+    json_object_set_new(total, "wall_s", json_real(wall));
+    json_object_set_new(total, "first_image_s", first_image >= 0 ? json_real(first_image) : json_null());
+    json_object_set_new(total, "stopped_by", json_string(stop));
+    json_object_set_new(total, "alpha", json_real(a));
+    json_object_set_new(total, "radius1", r1 > 0.0 ? json_real(r1) : json_null());
+    json_object_set_new(total, "resident", json_true());
+    json_object_set_new(root, "total", total);
+    char path[4200], tmp[4300];
+    snprintf(path, sizeof path, "%s/stats.json", p->out);
+    snprintf(tmp, sizeof tmp, "%s/.stats.json.%d", p->out, (int)getpid());
+    if (json_dump_file(root, tmp, JSON_INDENT(2)) != 0 || rename(tmp, path) != 0) {
+        unlink(tmp);
+        say(p, "could not write '%s'", path);
+    }
+    json_decref(root);
+}
+
+/* Reads the running image's radius1 after pass 1 (the gather measured it). */
+static void read_radius1(prog_t *p)
+{
+    char state[4200];
+    snprintf(state, sizeof state, "%s/running.pm", p->out);
+    pm_reader_t *rd;
+    if (pm_reader_open(state, &pm_radiance_schema, 0, &rd) == PM_OK) {
+        const char *r1 = pm_header_get(pm_reader_header(rd), "radius1");
+        snprintf(p->radius1, sizeof p->radius1, "%s", r1 ? r1 : "");
+        pm_reader_close(rd);
+    }
+}
+
+/* RENDER_PASS_HOOK (environment; pipelines/error-vs-time sets it): an executable run as HOOK
+ * PASS SECONDS IMAGE once the image holds passes 1 to PASS, SECONDS the wall time since the
+ * command started; its time counts in the render's. A failing hook is reported and the passes
+ * go on. */
+static void run_hook(const prog_t *p, char **env, int pass, double seconds)
+{
+    const char *hook = getenv("RENDER_PASS_HOOK");
+    if (!hook || !hook[0])
+        return;
+    argv_t a = {0};
+    push(&a, hook);
+    pushf(&a, "%d", pass);
+    pushf(&a, "%.3f", seconds);
+    pushf(&a, "%s/image.exr", p->out);
+    pm_spawn_t sp = {.argv = a.v, .stdin_fd = -1, .stdout_fd = -1, .env = env};
+    pm_proc_status_t st;
+    if (pm_proc_run(&sp, &st) != PM_OK)
+        say(p, "pass %d: RENDER_PASS_HOOK '%s' failed (%s)", pass, hook, pm_error_message());
+    else if (st.exit_code)
+        say(p, "pass %d: RENDER_PASS_HOOK '%s' failed (exit %d)", pass, hook, st.exit_code);
+    pm_proc_status_free(&st);
+}
+
+/* The passes: the six stages started, a pass at a time, the stages ended. Returns the exit
+ * status; *stop_out says what stopped the passes, *first_out when the first image was in
+ * place (s from t0; -1 if none). */
+static int run_passes(prog_t *p, char **env, double t0, int first, const char **stop_out, double *first_out)
+{
+    const pm_settings_t *s = p->s;
+    int64_t maxp = 0;
+    double budget = -1.0, target = 0.0;
+    if (s->value[PM_P_PASSES][0])
+        pm_parse_i64(s->value[PM_P_PASSES], &maxp);
+    if (s->value[PM_P_TIME][0])
+        pm_parse_double(s->value[PM_P_TIME], &budget);
+    if (s->value[PM_P_TARGET_ERROR][0])
+        pm_parse_double(s->value[PM_P_TARGET_ERROR], &target);
+    static char stopbuf[96];
+    *first_out = -1.0;
+    /* pipes: the two plans, photons, maps, queries, sorted queries, direct, indirect, the pass
+     * log, the passes' weights; the ends given as /dev/fd/N (direct both ends, the maps' read
+     * end, the log's write end, the weights' read end) are inherited, and each stage closes
+     * those it does not use, so that a reader sees the end of its pipe when its writer exits;
+     * every other end is close-on-exec */
+    int plan_tp[2], plan_tg[2], ph[2], map[2], q[2], sq[2], dir[2], ind[2], log[2], wts[2];
+    int *all[] = {plan_tp, plan_tg, ph, map, q, sq, dir, ind, log, wts};
+    for (size_t i = 0; i < sizeof all / sizeof *all; i++)
+        all[i][0] = all[i][1] = -1;
+    for (size_t i = 0; i < sizeof all / sizeof *all; i++)
+        if (pm_proc_pipe(all[i]) != PM_OK) {
+            say(p, "%s", pm_error_message());
+            for (size_t j = 0; j < i; j++)
+                close(all[j][0]), close(all[j][1]);
+            return 3;
+        }
+    int inherit[] = {dir[1], dir[0], map[0], log[1], wts[0]};
+    for (int i = 0; i < 5; i++)
+        fcntl(inherit[i], F_SETFD, 0);
+    argv_t a[NSTAGE];
+    stage_argv(p, a, dir[1], dir[0], map[0], log[1], wts[0], first);
+    /* each stage: stdin, stdout, and the inherited ends it must not hold */
+    int in_fd[NSTAGE] = {plan_tp[0], ph[0], plan_tg[0], q[0], sq[0], ind[0]};
+    int out_fd[NSTAGE] = {ph[1], map[1], q[1], sq[1], ind[1], -1};
+    int closes[NSTAGE][5] = {{dir[1], dir[0], map[0], log[1], wts[0]}, {dir[1], dir[0], map[0], log[1], wts[0]},
+                             {dir[0], map[0], log[1], wts[0], -1},     {dir[1], dir[0], map[0], log[1], wts[0]},
+                             {dir[1], dir[0], log[1], wts[0], -1},     {dir[1], map[0], -1, -1, -1}};
+    int nclose[NSTAGE] = {5, 5, 4, 5, 4, 2};
+    pm_proc_t *proc[NSTAGE] = {0};
+    int rc = 0;
+    for (int i = 0; i < NSTAGE && rc == 0; i++) {
+        if (!strcmp(val(p, PM_P_VERBOSE), "1")) {
+            fprintf(stderr, "%s:", p->me);
+            for (int w = 0; w < a[i].n; w++)
+                fprintf(stderr, " %s", a[i].v[w]);
+            fputc('\n', stderr);
+        }
+        /* stderr captured (read when the stage ends: with -q a stage says nothing until it
+         * fails, so its pipe never fills), or passed through with VERBOSE=1, whose notes, a
+         * few a pass, could fill it over a long render */
+        pm_spawn_t sp = {.argv = a[i].v,
+                         .cwd = i == CO ? p->out : NULL,
+                         .stdin_fd = in_fd[i],
+                         .stdout_fd = out_fd[i],
+                         .capture_stderr = strcmp(val(p, PM_P_VERBOSE), "1") != 0,
+                         .close_fds = closes[i],
+                         .nclose = nclose[i],
+                         .env = env};
+        if (pm_proc_spawn(&sp, &proc[i]) != PM_OK) {
+            say(p, "%s", pm_error_message());
+            rc = 3;
+        }
+    }
+    /* the driver keeps the plans' write ends and the log's read end */
+    for (size_t i = 0; i < sizeof all / sizeof *all; i++) {
+        if (all[i] != plan_tp && all[i] != plan_tg && all[i] != wts)
+            close(all[i][1]);
+        if (all[i] != log)
+            close(all[i][0]);
+    }
+    FILE *logf = rc == 0 ? fdopen(log[0], "r") : NULL;
+    if (!logf)
+        close(log[0]);
+    void (*old_pipe)(int) = signal(SIGPIPE, SIG_IGN); /* a plan whose tracer failed: EPIPE, not death */
+    int k[4096];
+    double sec[4096];
+    int nk = 0;
+    const char *stop = "";
+    int pass = first - 1, failed = 0;
+    while (rc == 0 && logf) {
+        int next = pass + 1, units = p->kmax;
+        if (maxp && next > maxp) {
+            snprintf(stopbuf, sizeof stopbuf, "PASSES=%" PRId64, maxp);
+            stop = stopbuf;
+            break;
+        }
+        if (budget >= 0.0) {
+            double left = budget - (pm_time_wall() - t0) - TAIL_S;
+            units = nk == 0 && next == first ? 1 : pm_progressive_next_size(k, sec, nk, p->kmax, left);
+            if (nk == 0 && next == first && next > 1) /* a rerun: time a small pass first, as a first run does */
+                units = 1;
+            if (units <= 0) {
+                snprintf(stopbuf, sizeof stopbuf, "TIME=%s", val(p, PM_P_TIME));
+                stop = stopbuf;
+                break;
+            }
+        }
+        /* the plan lines: the full pass's size needs no word (the options say it) */
+        int64_t photons = units == p->kmax ? p->photons : (p->photons * units + p->kmax / 2) / p->kmax;
+        if (photons < 1)
+            photons = 1;
+        char l1[64], l2[64], l3[64];
+        /* the pass's weight in the running image: its size against a full pass's (exactly 1
+         * for a full pass, so that passes of one size average as they always did) */
+        snprintf(l3, sizeof l3, "%d %.17g\n", next, (double)units / p->kmax);
+        if (units == p->kmax) {
+            snprintf(l1, sizeof l1, "%d\n", next);
+            snprintf(l2, sizeof l2, "%d\n", next);
+        } else {
+            snprintf(l1, sizeof l1, "%d %" PRId64 "\n", next, photons);
+            snprintf(l2, sizeof l2, "%d %d\n", next, units);
+        }
+        /* passes.txt names the pass before it is asked for: a run stopped while it is under way
+         * leaves "pending", which the next run settles by running.pm's count */
+        pass_t ps = {.pass = next, .photons = photons, .primary = units, .added = 1};
+        snprintf(ps.err, sizeof ps.err, "pending");
+        if (add_pass(p, &ps) != 0 || write_list(p) != 0) {
+            say(p, "cannot write '%s/passes.txt': %s", p->out, strerror(errno));
+            rc = 3;
+            break;
+        }
+        double ts = pm_time_wall();
+        if (write(wts[1], l3, strlen(l3)) != (ssize_t)strlen(l3) ||
+            write(plan_tp[1], l1, strlen(l1)) != (ssize_t)strlen(l1) ||
+            write(plan_tg[1], l2, strlen(l2)) != (ssize_t)strlen(l2)) {
+            failed = next;
+            break;
+        }
+        char line[256];
+        uint64_t lp = 0, ln = 0;
+        char err[32] = "";
+        if (!fgets(line, sizeof line, logf) || sscanf(line, "%" SCNu64 " %" SCNu64 " %31s", &lp, &ln, err) != 3 ||
+            lp != (uint64_t)next) {
+            failed = next;
+            break;
+        }
+        double te = pm_time_wall();
+        if (*first_out < 0)
+            *first_out = te - t0;
+        pass_t *pp = &p->passes[p->npasses - 1];
+        pp->wall_s = te - ts;
+        snprintf(pp->err, sizeof pp->err, "%s", err);
+        if (next == 1 || !p->radius1[0])
+            read_radius1(p);
+        if (write_list(p) != 0) {
+            say(p, "cannot write '%s/passes.txt': %s", p->out, strerror(errno));
+            rc = 3;
+            break;
+        }
+        if (nk < 4096)
+            k[nk] = units, sec[nk] = te - ts, nk++;
+        pass = next;
+        run_hook(p, env, next, te - t0);
+        double e;
+        if (target > 0.0 && pm_parse_double(err, &e) == PM_OK && e <= target) {
+            snprintf(stopbuf, sizeof stopbuf, "TARGET_ERROR=%s", val(p, PM_P_TARGET_ERROR));
+            stop = stopbuf;
+            break;
+        }
+    }
+    if (p->npasses && !strcmp(p->passes[p->npasses - 1].err, "pending")) { /* a pass that did not land */
+        p->npasses--;
+        if (write_list(p) != 0 && rc == 0)
+            say(p, "cannot write '%s/passes.txt': %s", p->out, strerror(errno)), rc = 3;
+    }
+    /* the end of the plans ends every stage in turn */
+    close(plan_tp[1]);
+    close(plan_tg[1]);
+    close(wts[1]);
+    if (logf) {
+        char rest[256];
+        while (fgets(rest, sizeof rest, logf)) /* nothing more is expected; the pipe's end is */
+            ;
+        fclose(logf);
+    }
+    signal(SIGPIPE, old_pipe);
+    int first_bad = -1;
+    char *errs[NSTAGE] = {0};
+    int codes[NSTAGE] = {0};
+    for (int i = 0; i < NSTAGE; i++) {
+        if (!proc[i])
+            continue;
+        pm_proc_status_t st;
+        if (pm_proc_wait(proc[i], &st) != PM_OK)
+            st.exit_code = 4;
+        codes[i] = st.exit_code;
+        errs[i] = st.err;
+        if (st.exit_code && first_bad < 0)
+            first_bad = i;
+    }
+    if (rc == 0 && (failed || first_bad >= 0)) {
+        /* the stage that failed first names the cause; the others then fail on its pipes */
+        for (int i = 0; i < NSTAGE; i++)
+            if (codes[i] && errs[i] && errs[i][0] && !strstr(errs[i], "Broken pipe") && !strstr(errs[i], "truncated") &&
+                !strstr(errs[i], "has ended")) {
+                first_bad = i;
+                break;
+            }
+        if (first_bad >= 0 && errs[first_bad] && errs[first_bad][0])
+            fputs(errs[first_bad], stderr);
+        say(p, "pass %d failed%s%s; %s/image.exr and running.pm hold the %d finished passes",
+            failed ? failed : pass + 1, first_bad >= 0 ? " in " : "", first_bad >= 0 ? stage_names[first_bad] : "",
+            p->out, p->npasses);
+        rc = first_bad >= 0 && codes[first_bad] == 3 ? 3 : 1;
+    }
+    for (int i = 0; i < NSTAGE; i++)
+        free(errs[i]);
+    *stop_out = stop;
+    return rc;
+}
+
+int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bin, const char *cmdline, double t0)
+{
+    prog_t p = {.s = s, .me = me, .bin = bin, .lock_fd = -1};
+    /* an OUTDIR that holds pass directories (KEEP=all, pipelines/slurm's tasks) goes on with them */
+    char pass1[4200];
+    struct stat sb;
+    snprintf(pass1, sizeof pass1, "%s/pass-0001", s->outdir);
+    if (stat(pass1, &sb) == 0 && S_ISDIR(sb.st_mode))
+        return -1;
+    if (mkdir(s->outdir, 0777) != 0 && errno != EEXIST) {
+        say(&p, "cannot create '%s': %s", s->outdir, strerror(errno));
+        return 1;
+    }
+    char *out = realpath(s->outdir, NULL), *scene = realpath(s->scene, NULL);
+    if (!out || !scene) {
+        say(&p, "cannot find '%s': %s", out ? s->scene : s->outdir, strerror(errno));
+        free(out), free(scene);
+        return 1;
+    }
+    snprintf(p.out, sizeof p.out, "%s", out);
+    snprintf(p.scene, sizeof p.scene, "%s", scene);
+    free(out), free(scene);
+    /* the scene once: its content hash (the running image's identity) and what it holds */
+    pm_scene_t sc;
+    if (pm_scene_load(p.scene, &sc) != PM_OK) {
+        say(&p, "cannot load the scene '%s': %s", s->scene, pm_error_message());
+        return 1;
+    }
+    pm_scene_id(&sc, p.scene_id, sizeof p.scene_id);
+    int specular = sc.any_specular;
+    p.light_samples_zero = sc.nemissive == 0 && !sc.has_sun && !sc.has_sky;
+    pm_scene_free(&sc);
+    if (specular) /* the caustic branch is not resident yet: the caller makes the passes as files */
+        return -1;
+    int64_t v = 0;
+    p.photons = s->value[PM_P_PHOTONS][0] && pm_parse_i64(s->value[PM_P_PHOTONS], &v) == PM_OK ? v : DEFAULT_PHOTONS;
+    p.kmax = s->value[PM_P_PRIMARY][0] && pm_parse_i64(s->value[PM_P_PRIMARY], &v) == PM_OK ? (int)v : DEFAULT_PRIMARY;
+    p.spp = s->value[PM_P_SPP][0] ? s->value[PM_P_SPP] : DEFAULT_SPP;
+    p.k = s->value[PM_P_K][0] ? s->value[PM_P_K] : DEFAULT_K;
+    make_settings(&p);
+    if (take_lock(&p, cmdline) != 0)
+        return 1;
+    char **env = stage_env();
+    if (!env) {
+        say(&p, "out of memory");
+        close(p.lock_fd);
+        return 3;
+    }
+    int held = read_state(&p);
+    int64_t maxp = 0;
+    double target = 0.0, e = 0.0;
+    if (s->value[PM_P_PASSES][0])
+        pm_parse_i64(s->value[PM_P_PASSES], &maxp);
+    if (s->value[PM_P_TARGET_ERROR][0])
+        pm_parse_double(s->value[PM_P_TARGET_ERROR], &target);
+    /* more passes held than PASSES asks for: the image of PASSES passes is made anew */
+    if (held && maxp && held > maxp && !s->value[PM_P_TIME][0] && !s->value[PM_P_TARGET_ERROR][0]) {
+        char path[4200];
+        snprintf(path, sizeof path, "%s/running.pm", p.out);
+        unlink(path);
+        p.npasses = held = 0;
+        p.radius1[0] = 0;
+    }
+    int no_pass = 0;
+    if (held) {
+        /* nothing more asked for: the same request (but for the images), PASSES met, or the
+         * error reached */
+        no_pass = same_passes_asked(p.request, p.old_request) || (maxp && held >= maxp) ||
+                  (target > 0.0 && pm_parse_double(p.passes[held - 1].err, &e) == PM_OK && e <= target);
+    }
+    printf("%s: %s -> %s (MODE=gather ORDER=%s, progressive, resident stages: PASSES=%s TIME=%s TARGET_ERROR=%s "
+           "ALPHA=%s)\n",
+           me, p.scene_id, p.out, strcmp(val(&p, PM_P_ORDER), "auto") ? val(&p, PM_P_ORDER) : "hilbert",
+           s->value[PM_P_PASSES][0] ? s->value[PM_P_PASSES] : "unlimited",
+           s->value[PM_P_TIME][0] ? s->value[PM_P_TIME] : "none",
+           s->value[PM_P_TARGET_ERROR][0] ? s->value[PM_P_TARGET_ERROR] : "none",
+           s->value[PM_P_ALPHA][0] ? s->value[PM_P_ALPHA] : "2/3");
+    fflush(stdout);
+    const char *stop = "";
+    double first_image = -1.0;
+    int rc = 0;
+    if (no_pass) {
+        char exr[4200], png[4200];
+        snprintf(exr, sizeof exr, "%s/image.exr", p.out);
+        snprintf(png, sizeof png, "%s/image.png", p.out);
+        stop = "nothing to add";
+        /* the images as they are when the request is the same, EXPOSURE, TONE and HALF too */
+        if (strcmp(p.request, p.old_request) || access(exr, F_OK) || access(png, F_OK))
+            rc = retone(&p, env);
+        if (rc == 0 && write_list(&p) != 0)
+            say(&p, "cannot write '%s/passes.txt'", p.out), rc = 3;
+    } else {
+        rc = run_passes(&p, env, t0, held + 1, &stop, &first_image);
+    }
+    free(env);
+    if (p.npasses) {
+        /* synced once here, not after every pass (the stages ran with PMTK_FSYNC=0) */
+        sync_file(p.out, "running.pm");
+        sync_file(p.out, "passes.txt");
+        sync_file(p.out, "image.exr");
+        sync_file(p.out, "image.png");
+        sync_file(p.out, ".");
+    }
+    double wall = pm_time_wall() - t0;
+    if (rc == 0) {
+        printf("  %-6s %-8s %9s %9s %9s %12s\n", "pass", "status", "photons", "primary", "wall s", "rel. error");
+        for (int i = 0; i < p.npasses; i++) {
+            const pass_t *ps = &p.passes[i];
+            if (ps->added)
+                printf("  %-6d %-8s %9" PRId64 " %9d %9.3f %12s\n", ps->pass, "added", ps->photons, ps->primary,
+                       ps->wall_s, ps->err);
+            else
+                printf("  %-6d %-8s %9" PRId64 " %9d %9s %12s\n", ps->pass, "kept", ps->photons, ps->primary, "-",
+                       ps->err);
+        }
+        printf("  %-34s %9.3f   (%d passes, stopped by %s)\n", "total", wall, p.npasses, stop);
+        write_stats(&p, wall, first_image, stop);
+        if (s->keep == PM_KEEP_IMAGE) {
+            char path[4200];
+            snprintf(path, sizeof path, "%s/running.pm", p.out);
+            unlink(path);
+            snprintf(path, sizeof path, "%s/passes.txt", p.out);
+            unlink(path);
+            printf("%s: wrote %s/image.exr, %s/image.png (%d passes), %s/stats.json (KEEP=image: the rest removed)\n",
+                   me, p.out, p.out, p.npasses, p.out);
+        } else {
+            printf("%s: wrote %s/image.exr, %s/image.png (%d passes), %s/running.pm, %s/stats.json\n", me, p.out, p.out,
+                   p.npasses, p.out, p.out);
+        }
+    }
+    free(p.passes);
+    if (p.lock_fd >= 0)
+        close(p.lock_fd);
+    return rc;
+}

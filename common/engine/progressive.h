@@ -1,0 +1,59 @@
+/* progressive.h: pm-render's resident progressive passes (issue 26, items 2 and 3;
+ * docs/pipelines.md, "Progressive passes").
+ *
+ * The stages start once and stay alive across the passes, each taking a stream of documents,
+ * a document per pass (docs/formats.md, "Streams"):
+ *
+ *   plan -> trace-photons --plan - | build-photonmap --stream ------------\
+ *   plan -> trace-gather-points --plan - | hilbert-sort --stream -> simd-gather --stream pairs
+ *                       \-- direct ---------------------------------------> composite --stream
+ *                                                        --accumulate running.pm -> image.exr, image.png
+ *
+ * The driver writes a line per pass to the two tracers' plans ("PASS [SIZE]") and waits for
+ * composite's pass log to say the pass is in the running image before it sizes the next, so
+ * that PASSES, TIME and TARGET_ERROR stop exactly where they say. No pass directories:
+ * OUTDIR keeps running.pm (the mean and variance of the passes), passes.txt (the settings the
+ * running image was made with, the last request, and a line per pass: its size and the running
+ * image's relative error after it), image.exr, image.png and stats.json. A rerun with the same
+ * settings adds passes to the running image (PASSES=8 after PASSES=4 traces passes 5 to 8); one
+ * that changes only EXPOSURE, TONE or HALF re-tones running.pm and adds no pass.
+ *
+ * TIME=T is a budget for the whole command, counted from t0: passes start small (1/PRIMARY of
+ * the per-pass size: PHOTONS/PRIMARY photons, one primary ray per pixel) and double up to the
+ * per-pass size, sized from the wall time of the passes so far on this scene (a bound of
+ * each pass's time by every earlier one's); the last pass is sized to end at the budget. */
+#ifndef PM_ENGINE_PROGRESSIVE_H
+#define PM_ENGINE_PROGRESSIVE_H
+
+#include <stddef.h>
+
+#include "engine/engine.h"
+
+/* 1 when the resident passes render these settings; else 0 and why (the caller then makes
+ * the passes as files, pipelines/lib/render-make): KEEP=all given on the command line or
+ * PASS_RANGE (pass files asked for), and what the resident chain does not run yet (MODE other
+ * than gather, GATHER other than simd-gather, SHARDS, WIDTHS=variable, ORDER=none, TARGETs). */
+int pm_progressive_handles(const pm_settings_t *s, char *why, size_t cap);
+
+/* Renders the progressive passes of s into s->outdir (created), as described above: the lock
+ * on OUTDIR/.lock (cmdline is what it records), the scene loaded once for its content hash and
+ * what it holds, the stages started from bin (absolute), the passes, the table on stdout and
+ * stats.json. t0 is pm_time_wall() at the start of the command (TIME counts from it). me
+ * starts every message ("render"). Returns the exit status: 0 ok, 1 a stage or the scene
+ * failed, 3 the system (a pipe, a process, the disk); or -1, having written nothing, for a
+ * scene the resident chain does not render yet (mirrors or glass: the caustic branch) and for
+ * an OUTDIR that holds pass directories (KEEP=all before, pipelines/slurm's tasks): those go
+ * on as pass files. RENDER_PASS_HOOK in the environment is run after every pass, as the pass
+ * files' driver runs it (HOOK PASS SECONDS IMAGE). */
+int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bin, const char *cmdline, double t0);
+
+/* The size of the next pass of a TIME budget, in units of 1/kmax of the per-pass size, given
+ * the passes so far (k[i] units took sec[i] s of wall time, i < n), the seconds left
+ * (remaining) and kmax (at least 1): the last size doubled, up to kmax, when it and the pass
+ * that would follow it fit; else the last pass, the largest whose time bound, plus 5%, ends
+ * by the budget (at most 4 kmax units); 0 when not even one unit fits. A pass of u units is taken to
+ * last at most the least of sec[j] max(1, u / k[j]) over the passes so far. Exposed for the
+ * unit tests. */
+int pm_progressive_next_size(const int *k, const double *sec, int n, int kmax, double remaining);
+
+#endif

@@ -1,0 +1,145 @@
+/* test_progressive.c: the anytime budget's pass sizes (common/engine/progressive.h,
+ * pm_progressive_next_size) on made-up pass times, and the pass plan a resident tracer reads
+ * (common/base/passplan.h): ranges, plan lines, and bad ones named by line. No timing: the
+ * times here are numbers given to the functions. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/passplan.h"
+#include "engine/progressive.h"
+#include "unit.h"
+
+/* Passes of 1, 2, 4 units at exactly 0.1 + 0.2 k s: a pass of u units is bounded by the least
+ * of sec_j max(1, u / k_j). */
+static void test_sizes_grow_then_fill(void **state)
+{
+    (void)state;
+    int k[8] = {1, 2, 4};
+    double sec[8] = {0.3, 0.5, 0.9};
+    /* plenty left: doubling up to kmax 16 */
+    assert_int_equal(pm_progressive_next_size(k, sec, 3, 16, 100.0), 8);
+    k[3] = 8, sec[3] = 1.7;
+    assert_int_equal(pm_progressive_next_size(k, sec, 4, 16, 100.0), 16);
+    k[4] = 16, sec[4] = 3.3;
+    assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 100.0), 16); /* kmax caps the growth */
+    /* 7 s left: 16 units (3.3 s) and the 16 after them fit */
+    assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 7.0), 16);
+    /* 3.75 s left: after 16 units no pass of 16 would fit: the last pass ends by the budget
+     * with 5% to spare, 17 units, bounded by 3.3 x 17 / 16 = 3.51 s (x 1.05: 3.68 s; 18: 3.90 s) */
+    assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 3.75), 17);
+    /* 2.1 s left: the last pass shrinks to what ends there: 9 units, bounded by pass 4's 1.7 s
+     * times 9 / 8 = 1.91 s (x 1.05: 2.01 s; 10 units: 2.23 s) */
+    assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 2.1), 9);
+    /* less than one unit left: stop */
+    assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 0.25), 0);
+}
+
+static void test_sizes_first_pass(void **state)
+{
+    (void)state;
+    /* no pass yet: one unit */
+    assert_int_equal(pm_progressive_next_size(NULL, NULL, 0, 16, 10.0), 1);
+    /* one pass of 1 unit in 0.4 s, the rate alone (c = 0): 2 units fit in 10 s, and the 4
+     * after them */
+    int k[2] = {1};
+    double sec[2] = {0.4};
+    assert_int_equal(pm_progressive_next_size(k, sec, 1, 16, 10.0), 2);
+    /* 0.9 s left: no room for 2 and then 4 units; the last pass, 2 units (0.8 x 1.05 s) */
+    assert_int_equal(pm_progressive_next_size(k, sec, 1, 16, 0.9), 2);
+    assert_int_equal(pm_progressive_next_size(k, sec, 1, 16, 0.3), 0);
+    /* the first pass pays the stages' start: it loosens no bound the later passes give */
+    int k3[4] = {1, 2, 4};
+    double s3[4] = {2.0, 0.5, 0.9};
+    assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 5.5), 8);  /* 1.8 + 3.6 <= 5.5 */
+    assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 4.2), 17); /* 0.9 x 17 / 4 x 1.05 = 4.02 */
+}
+
+static void test_sizes_noisy(void **state)
+{
+    (void)state;
+    /* a larger pass that took less time (other work on the machine): the tightest bound,
+     * 5 units by pass 3's 0.8 x 5 / 4 = 1.0 s (x 1.05: 1.05 s) */
+    int k[3] = {1, 2, 4};
+    double sec[3] = {0.3, 0.9, 0.8};
+    assert_int_equal(pm_progressive_next_size(k, sec, 3, 16, 1.06), 5);
+    /* the measured case this rule replaced a line fit for: 1 unit in 1.753 s (the stages'
+     * start included), 3 units in 1.867 s, 3.96 s left: 6 units (bounded by 3.73 s, x 1.05:
+     * 3.92 s), not 41 */
+    int km[2] = {1, 3};
+    double sm[2] = {1.753, 1.867};
+    assert_int_equal(pm_progressive_next_size(km, sm, 2, 16, 3.96), 6);
+}
+
+static void test_plan_range(void **state)
+{
+    (void)state;
+    pm_passplan_t pp;
+    int64_t pass, size;
+    int end;
+    assert_int_equal(pm_passplan_open(&pp, "3:4", NULL), PM_OK);
+    assert_false(pm_passplan_single(&pp));
+    assert_int_equal(pm_passplan_next(&pp, &pass, &size, &end), PM_OK);
+    assert_true(pass == 3 && size == 0 && !end);
+    assert_int_equal(pm_passplan_next(&pp, &pass, &size, &end), PM_OK);
+    assert_true(pass == 4 && !end);
+    assert_int_equal(pm_passplan_next(&pp, &pass, &size, &end), PM_OK);
+    assert_true(end);
+    pm_passplan_close(&pp);
+    assert_int_equal(pm_passplan_open(&pp, "2:2", NULL), PM_OK);
+    assert_true(pm_passplan_single(&pp));
+    const char *bad[] = {"0:2", "3:2", "2", ":4", "1:x", "a:b"};
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++)
+        assert_int_equal(pm_passplan_open(&pp, bad[i], NULL), PM_ERR_USAGE);
+    assert_int_equal(pm_passplan_open(&pp, NULL, NULL), PM_ERR_USAGE);
+    assert_int_equal(pm_passplan_open(&pp, "1:2", "plan"), PM_ERR_USAGE);
+}
+
+static void test_plan_lines(void **state)
+{
+    (void)state;
+    char path[4096];
+    snprintf(path, sizeof path, "%s/plan.txt", unit_tmpdir());
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs("# passes\n1 18750\n\n2\n 5\t300000 \nx 3\n", f);
+    fclose(f);
+    pm_passplan_t pp;
+    int64_t pass, size;
+    int end;
+    assert_int_equal(pm_passplan_open(&pp, NULL, path), PM_OK);
+    assert_int_equal(pm_passplan_next(&pp, &pass, &size, &end), PM_OK);
+    assert_true(pass == 1 && size == 18750 && !end);
+    assert_int_equal(pm_passplan_next(&pp, &pass, &size, &end), PM_OK);
+    assert_true(pass == 2 && size == 0);
+    assert_int_equal(pm_passplan_next(&pp, &pass, &size, &end), PM_OK);
+    assert_true(pass == 5 && size == 300000);
+    assert_int_equal(pm_passplan_next(&pp, &pass, &size, &end), PM_ERR_INPUT);
+    assert_non_null(strstr(pm_error_message(), "line 6"));
+    pm_passplan_close(&pp);
+    const char *bad[] = {"0\n", "1 0\n", "1 2 3\n", "-1\n", "1 2x\n"};
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
+        f = fopen(path, "w");
+        fputs(bad[i], f);
+        fclose(f);
+        assert_int_equal(pm_passplan_open(&pp, NULL, path), PM_OK);
+        assert_int_equal(pm_passplan_next(&pp, &pass, &size, &end), PM_ERR_INPUT);
+        pm_passplan_close(&pp);
+    }
+    /* an empty plan ends at once */
+    f = fopen(path, "w");
+    fclose(f);
+    assert_int_equal(pm_passplan_open(&pp, NULL, path), PM_OK);
+    assert_int_equal(pm_passplan_next(&pp, &pass, &size, &end), PM_OK);
+    assert_true(end);
+    pm_passplan_close(&pp);
+    snprintf(path, sizeof path, "%s/no-such-plan", unit_tmpdir());
+    assert_int_equal(pm_passplan_open(&pp, NULL, path), PM_ERR_INPUT);
+}
+
+static const struct CMUnitTest tests[] = {
+    cmocka_unit_test(test_sizes_grow_then_fill), cmocka_unit_test(test_sizes_first_pass),
+    cmocka_unit_test(test_sizes_noisy),          cmocka_unit_test(test_plan_range),
+    cmocka_unit_test(test_plan_lines),
+};
+UNIT_GROUP(progressive_group, "progressive", tests)

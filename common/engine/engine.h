@@ -212,6 +212,13 @@ const pm_stage_info_t *pm_stage_table(size_t *n_out);
 
 /* ---- one render ---- */
 
+/* One render at a time in OUTDIR: takes an exclusive flock on OUTDIR/.lock (kept in *fd_out and
+ * inherited by the stages) and writes "pid N: cmdline" into it, so that a second render names the holder.
+ * With wait 0 a held OUTDIR is refused at once, else waited for (with a message). Messages
+ * start with "me: ". Returns the exit status: 0 locked, 1 held with wait 0 (or a path that
+ * cannot be, by its errno), 3 when the system fails (base/error.h's classes). */
+int pm_engine_lock(const char *me, const char *outdir, int wait, const char *cmdline, int *fd_out);
+
 /* One render of the whole chain (no passes) into s->outdir, as pipelines/render did: the lock,
  * the scene loaded through the library, the graph, each intermediate judged by provenance and
  * remade when it is not what s would make (and what reads it, when its bytes changed), the

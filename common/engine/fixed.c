@@ -997,51 +997,6 @@ static pm_result_t find_gather(render_t *r)
     return PM_OK;
 }
 
-/* One render at a time in OUTDIR: flock on OUTDIR/.lock, which names the holder. The fd stays
- * open (and is inherited by the stages, so a killed render holds it only while a stage runs). */
-static int take_lock(render_t *r, const char *cmdline)
-{
-    char p[PATH_MAX + 64];
-    snprintf(p, sizeof p, "%s/.lock", r->out);
-    int fd = open(p, O_RDWR | O_CREAT, 0666);
-    if (fd < 0) {
-        say(r, "cannot open the lock file '%s': %s", p, strerror(errno));
-        return 1;
-    }
-    if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
-        char holder[1001] = "";
-        ssize_t n = pread(fd, holder, 1000, 0);
-        holder[n > 0 ? n : 0] = '\0';
-        holder[strcspn(holder, "\n")] = '\0';
-        if (!r->s->wait) {
-            say(r, "'%s' is in use by another render (%s); WAIT=0 does not wait", r->out,
-                holder[0] ? holder : "holder unknown");
-            close(fd);
-            return 1;
-        }
-        say(r, "waiting for '%s', in use by another render (%s)", r->out, holder[0] ? holder : "holder unknown");
-        int rc;
-        while ((rc = flock(fd, LOCK_EX)) != 0 && errno == EINTR)
-            ;
-        if (rc != 0) {
-            say(r, "cannot lock '%s': %s", p, strerror(errno));
-            close(fd);
-            return 1;
-        }
-    }
-    char line[8192];
-    int n = snprintf(line, sizeof line, "pid %d: %s\n", (int)getpid(), cmdline);
-    if (n > (int)sizeof line - 1)
-        n = (int)sizeof line - 1;
-    if (ftruncate(fd, 0) != 0 || pwrite(fd, line, (size_t)n, 0) != n) {
-        say(r, "cannot write the lock file '%s': %s", p, strerror(errno));
-        close(fd);
-        return 1;
-    }
-    r->lock_fd = fd;
-    return 0;
-}
-
 /* The exit status for a stage's: its class passed through (docs/cli.md): 1 input, 2 usage (a
  * value given that the stage refuses only once it runs, LEAF=x say), 3 I/O or out of memory,
  * 4 internal; a signal is the system's (3), which a retry may cure. */
@@ -1136,10 +1091,8 @@ int pm_render_fixed(const pm_settings_t *s, const char *me, const char *bin, con
         snprintf(r->out, sizeof r->out, "%s", real);
         free(real);
     }
-    if (take_lock(r, cmdline) != 0) {
-        status = 1;
+    if ((status = pm_engine_lock(r->me, r->out, r->s->wait, cmdline, &r->lock_fd)) != 0)
         goto done;
-    }
     {
         char p[PATH_MAX + 64];
         snprintf(p, sizeof p, "%s/stats", r->out);

@@ -310,50 +310,6 @@ static int read_state(prog_t *p)
 
 /* ---- OUTDIR ---- */
 
-/* One render at a time in OUTDIR: flock on OUTDIR/.lock, which names the holder (the rule
- * of pm-render's single renders, common/engine/fixed.c). */
-static int take_lock(prog_t *p, const char *cmdline)
-{
-    char path[4200];
-    snprintf(path, sizeof path, "%s/.lock", p->out);
-    int fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0666);
-    if (fd < 0) {
-        say(p, "cannot open the lock file '%s': %s", path, strerror(errno));
-        return -1;
-    }
-    if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
-        char holder[1001] = "";
-        ssize_t n = pread(fd, holder, 1000, 0);
-        holder[n > 0 ? n : 0] = 0;
-        holder[strcspn(holder, "\n")] = 0;
-        if (!p->s->wait) {
-            say(p, "'%s' is in use by another render (%s); WAIT=0 does not wait", p->out,
-                holder[0] ? holder : "holder unknown");
-            close(fd);
-            return -1;
-        }
-        say(p, "waiting for '%s', in use by another render (%s)", p->out, holder[0] ? holder : "holder unknown");
-        int rc;
-        while ((rc = flock(fd, LOCK_EX)) != 0 && errno == EINTR)
-            ;
-        if (rc != 0) {
-            say(p, "cannot lock '%s': %s", path, strerror(errno));
-            close(fd);
-            return -1;
-        }
-    }
-    char line[8192];
-    int n = snprintf(line, sizeof line, "pid %d: %s\n", (int)getpid(), cmdline);
-    n = n > (int)sizeof line - 1 ? (int)sizeof line - 1 : n;
-    if (ftruncate(fd, 0) != 0 || pwrite(fd, line, (size_t)n, 0) != n) {
-        say(p, "cannot write the lock file '%s': %s", path, strerror(errno));
-        close(fd);
-        return -1;
-    }
-    p->lock_fd = fd;
-    return 0;
-}
-
 /* The stages' environment: the driver's, with PMTK_FSYNC=0 (the running image and the images
  * are rewritten after every pass and synced once at the end: a power loss in between leaves
  * a running.pm whose checksum the next run checks) and OMP_WAIT_POLICY=passive unless set
@@ -954,8 +910,9 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
     p.spp = s->value[PM_P_SPP][0] ? s->value[PM_P_SPP] : DEFAULT_SPP;
     p.k = s->value[PM_P_K][0] ? s->value[PM_P_K] : DEFAULT_K;
     make_settings(&p);
-    if (take_lock(&p, cmdline) != 0)
-        return 1;
+    int locked = pm_engine_lock(p.me, p.out, p.s->wait, cmdline, &p.lock_fd);
+    if (locked != 0)
+        return locked;
     char **env = stage_env();
     if (!env) {
         say(&p, "out of memory");

@@ -146,8 +146,9 @@ int main(int argc, char **argv)
         s.value[PM_P_QUIET] = "1";
     /* pipelines/render's order: the scene, then the parameters */
     if (access(s.scene, R_OK) != 0) {
-        fprintf(stderr, "%s: cannot read scene '%s'\n", me, s.scene);
-        return 1;
+        int e = errno;
+        fprintf(stderr, "%s: cannot read scene '%s': %s\n", me, s.scene, strerror(e));
+        return pm_result_exit_code(pm_result_of_errno(e));
     }
     if (strchr(s.scene, '\n') || strchr(s.outdir, '\n')) {
         fprintf(stderr, "%s: a scene path or OUTDIR cannot hold a newline\n", me);

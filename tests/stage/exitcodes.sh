@@ -86,6 +86,7 @@ SYSTEM[scene-info]="full $CB"
 for p in "$BIN"/*; do
     n=$(basename "$p")
     [ "$n" = pm-compare ] && continue # below: it answers as cmp does
+    [ "$n" = pm-render ] && continue  # below: a driver, whose lines name no class
     if [ -z "${BAD[$n]+set}" ]; then
         fail "$n has a row in exitcodes.sh" "no corrupt input, missing input or system failure given for it"
         continue
@@ -210,3 +211,25 @@ st=$?
 [ $st = 3 ] && grep -q 'cannot use the reference: .*injected failure (io error)' "$TMP/evt.out" &&
     pass "error-vs-time: measure-error's io failure on the reference exits 3" ||
     fail "error-vs-time io failure" "exit $st: $(tail -n 2 "$TMP/evt.out")"
+
+# pm-render, the render driver: the same statuses, a stage's class passed through. Its own
+# lines are pipelines/render's and carry no "(class error)" suffix, so the status and the
+# subject are checked.
+expect_render() {
+    local name=$1 status=$2 subject=$3
+    shift 3
+    "$@" >/dev/null 2>"$TMP/err"
+    local got=$?
+    if [ "$got" != "$status" ]; then
+        fail "$name" "exit $got, expected $status: $(head -c 300 "$TMP/err")"
+    elif ! grep -q -- "$subject" "$TMP/err"; then
+        fail "$name" "no line names '$subject': $(head -c 300 "$TMP/err")"
+    else
+        pass "$name"
+    fi
+}
+expect_render "pm-render: usage (an unknown option) exits 2" 2 no-such-option "$BIN/pm-render" --no-such-option
+expect_render "pm-render: a corrupt scene exits 1" 1 corrupt.json "$BIN/pm-render" -q "$TMP/corrupt.json" "$TMP/r1"
+expect_render "pm-render: a scene that does not exist exits 1" 1 none.json "$BIN/pm-render" -q "$TMP/none.json" "$TMP/r2"
+expect_render "pm-render: an OUTDIR the system refuses exits 3 (limited)" 3 "File too large" \
+    limited "$BIN/pm-render" -q "$CB" "$TMP/r3" WIDTH=4 HEIGHT=4 PHOTONS=100

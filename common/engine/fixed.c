@@ -579,13 +579,22 @@ static int job_outputs_ok(const job_t *j)
     return 1;
 }
 
+/* The files job j reads: its own list, or for composite the buffers this render adds. */
+static const char *const *job_inputs(const render_t *r, const job_t *j, int *n_out)
+{
+    if (strcmp(j->name, "composite") == 0) {
+        *n_out = r->nbuffers;
+        return r->buffers;
+    }
+    *n_out = j->nins;
+    return j->ins;
+}
+
 /* An input of j was remade in this run with other bytes than it had. */
 static int input_changed(render_t *r, const job_t *j)
 {
-    const char *const *ins = j->ins;
-    int nins = j->nins;
-    if (strcmp(j->name, "composite") == 0)
-        ins = r->buffers, nins = r->nbuffers;
+    int nins;
+    const char *const *ins = job_inputs(r, j, &nins);
     for (int i = 0; i < nins; i++) {
         job_t *p = producer(r, ins[i]);
         if (!p)
@@ -600,10 +609,8 @@ static int input_changed(render_t *r, const job_t *j)
 /* Every stage that makes an input of j has ended (or is not part of this render). */
 static int inputs_ready(render_t *r, const job_t *j)
 {
-    const char *const *ins = j->ins;
-    int nins = j->nins;
-    if (strcmp(j->name, "composite") == 0)
-        ins = r->buffers, nins = r->nbuffers;
+    int nins;
+    const char *const *ins = job_inputs(r, j, &nins);
     for (int i = 0; i < nins; i++) {
         job_t *p = producer(r, ins[i]);
         if (p && p->needed && (p->state == 0 || p->active))
@@ -616,10 +623,8 @@ static int inputs_ready(render_t *r, const job_t *j)
  * left unmade), so what j made is current. */
 static int inputs_settled(render_t *r, const job_t *j)
 {
-    const char *const *ins = j->ins;
-    int nins = j->nins;
-    if (strcmp(j->name, "composite") == 0)
-        ins = r->buffers, nins = r->nbuffers;
+    int nins;
+    const char *const *ins = job_inputs(r, j, &nins);
     for (int i = 0; i < nins; i++) {
         job_t *p = producer(r, ins[i]);
         if (p && p->needed && p->state != 1 && p->state != 2)
@@ -631,10 +636,8 @@ static int inputs_settled(render_t *r, const job_t *j)
 /* Would j run if what came before it ran as planned (phase 2, for the progress count)? */
 static int input_planned(render_t *r, const job_t *j)
 {
-    const char *const *ins = j->ins;
-    int nins = j->nins;
-    if (strcmp(j->name, "composite") == 0)
-        ins = r->buffers, nins = r->nbuffers;
+    int nins;
+    const char *const *ins = job_inputs(r, j, &nins);
     for (int i = 0; i < nins; i++) {
         job_t *p = producer(r, ins[i]);
         if (p && p->run)

@@ -59,7 +59,7 @@ ALL_LDFLAGS := -fopenmp $(SAN) $(LDFLAGS)
 LIBS := $(EMBREE_LIBS) $(PKG_LIBS) -ljpeg -lm
 
 # The library's layers (docs/architecture.md): base, math, formats, then render, photonmap and image.
-LAYERS := common/base common/math formats common/render common/photonmap common/image
+LAYERS := common/base common/math formats common/physics common/render common/photonmap common/image
 LIB_SRC := $(foreach d,$(LAYERS),$(wildcard $(d)/*.c))
 LIB_OBJ := $(LIB_SRC:%.c=$(BUILD)/%.o)
 LIB := $(BUILD)/libpmtk.a

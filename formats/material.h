@@ -17,7 +17,9 @@
  *   PM_MAT_ROUGH_GLASS: rough dielectric of index ior, reflection and transmission both ways,
  *     each transmission filtered by tf;
  *   PM_MAT_PLASTIC: a diffuse base kd under a smooth-to-rough GGX dielectric coat of index ior.
- * alpha is GGX's width (glTF's perceptual roughness r gives alpha = r^2), in [0, 1]. */
+ * alpha is GGX's width (glTF's perceptual roughness r gives alpha = r^2), in [0, 1]; below
+ * PM_MAT_ALPHA_DELTA a conductor or rough glass is its smooth (delta) limit and a plastic's coat
+ * a smooth one. docs/materials.md describes every kind, its parameters and units. */
 #ifndef PM_MATERIAL_H
 #define PM_MATERIAL_H
 
@@ -27,10 +29,10 @@ typedef struct {
     float ks[3];  /* glossy albedo, RGB, in [0, 1]; kd + ks <= 1 */
     float ns;     /* Phong exponent, >= 0; only read where ks > 0 */
     float ke[3];  /* emitted radiance, RGB, W/(m^2 sr); > 0 makes a triangle an area light */
-    int kind;     /* PM_MAT_STANDARD, PM_MAT_MIRROR or PM_MAT_GLASS */
+    int kind;     /* PM_MAT_STANDARD, MIRROR, GLASS, CONDUCTOR, ROUGH_GLASS or PLASTIC */
     float kr[3];  /* mirror: reflectance, RGB, in [0, 1] (MTL Ks of an illum 3 or 5 material) */
-    float ior;    /* glass: index of refraction (MTL Ni), > 0; the outside medium has index 1 */
-    float tf[3];  /* glass: transmission filter per surface crossing, RGB, in [0, 1] (MTL Tf) */
+    float ior;    /* glass, rough glass, plastic's coat: index of refraction (MTL Ni), > 0; outside 1 */
+    float tf[3];  /* glass, rough glass: transmission filter per surface crossing, RGB, in [0, 1] */
     float alpha;  /* conductor, rough glass, plastic: GGX width, in [0, 1] */
     float eta[3]; /* conductor: real part of the complex index, RGB; 0 means use f0 */
     float k[3];   /* conductor: imaginary part (extinction), RGB, >= 0 */
@@ -46,14 +48,29 @@ enum {
     PM_MAT_PLASTIC = 5,
 };
 
-/* Mirror or glass: a delta BSDF, no diffuse or Phong part, no light sampling at its hits. */
+/* GGX widths below this are the smooth limit (a delta BSDF): D of a width near 0 overflows a
+ * float (its peak is 1 / (pi alpha^2)) and no sampler or density estimate can resolve it. */
+#define PM_MAT_ALPHA_DELTA 1e-3f
+
+/* A delta BSDF only (mirror, glass, and a conductor or rough glass of alpha below
+ * PM_MAT_ALPHA_DELTA): no diffuse or glossy part, no light sampling at its hits, no photon
+ * stored. physics/bsdf.h's pm_bsdf_is_delta says the same (a unit test keeps them equal). */
 static inline int pm_material_is_specular(const pm_material_t *m)
 {
+    if (m->kind == PM_MAT_CONDUCTOR || m->kind == PM_MAT_ROUGH_GLASS)
+        return !(m->alpha >= PM_MAT_ALPHA_DELTA);
     return m->kind == PM_MAT_MIRROR || m->kind == PM_MAT_GLASS;
 }
 
+/* The BSDF's non-delta part depends on the direction light arrives from (a Phong lobe, a GGX
+ * lobe, or the plastic's base seen through its coat's Fresnel): photons need their direction,
+ * queries theirs. */
 static inline int pm_material_is_glossy(const pm_material_t *m)
 {
+    if (m->kind == PM_MAT_PLASTIC)
+        return 1;
+    if (m->kind == PM_MAT_CONDUCTOR || m->kind == PM_MAT_ROUGH_GLASS)
+        return m->alpha >= PM_MAT_ALPHA_DELTA;
     return m->ks[0] > 0.0f || m->ks[1] > 0.0f || m->ks[2] > 0.0f;
 }
 

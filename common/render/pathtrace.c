@@ -183,7 +183,12 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
             /* sn: the shading normal (render/transport.h), n itself without vertex normals; n
              * still decides the side a ray leaves from, and no direction below it is taken. */
             float sn[3];
-            int shaded = pm_scene_shading_normal(s, tri, p, n, sn);
+            /* A transmitting kind (rough glass) shades with the geometric normal, as glass does:
+             * its side tells inside from outside. bn: the normal the BSDF reads (physics/bsdf.h),
+             * the front one for a dielectric, sn for the reflective kinds. */
+            int transmits = pm_bsdf_transmits(m);
+            int shaded = transmits ? (memcpy(sn, n, sizeof sn), 0) : pm_scene_shading_normal(s, tri, p, n, sn);
+            const float *bn = transmits ? ng : sn;
 
             /* Point lights and spots: I s cos / r^2, each one every vertex. */
             pm_light_sample_t ls;
@@ -195,7 +200,7 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
                 if (pm_rt_occluded1(pt->rt, ctx, org, ls.wi, 0.0f, ls.r - eps))
                     continue;
                 float f[3];
-                pm_brdf(m, sn, ls.wi, wo, f);
+                pm_brdf(m, bn, ls.wi, wo, f);
                 for (int q = 0; q < 3; q++)
                     L[q] += beta[q] * (double)f[q] * pm_point_light_intensity(pl, &ls, q) * ls.cosx / ls.r2;
             }
@@ -206,8 +211,8 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
                 /* Stop short of the light's own surface, by the offset and a relative margin. */
                 if (!pm_rt_occluded1(pt->rt, ctx, org, ls.wi, 0.0f, ls.r * (1.0f - 1e-4f) - 2.0f * eps)) {
                     const pm_material_t *lm = &s->materials[s->tri_material[ls.tri]];
-                    float pl = pm_area_light_pdf(g, ls.r2, ls.cosy), pb = pm_bsdf_pdf(m, sn, ls.wi, wo), f[3];
-                    pm_brdf(m, sn, ls.wi, wo, f);
+                    float pl = pm_area_light_pdf(g, ls.r2, ls.cosy), pb = pm_bsdf_pdf(m, bn, ls.wi, wo), f[3];
+                    pm_brdf(m, bn, ls.wi, wo, f);
                     double gw = (double)ls.cosx / pl * pm_power_heuristic(pl, pb);
                     for (int q = 0; q < 3; q++)
                         L[q] += beta[q] * (double)f[q] * lm->ke[q] * gw;
@@ -231,12 +236,12 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
                 cnt->shadow_rays++;
                 if (pm_rt_occluded1(pt->rt, ctx, org, wi, 0.0f, INFINITY))
                     continue;
-                float f[3], pb = pm_bsdf_pdf(m, sn, wi, wo), le[3];
+                float f[3], pb = pm_bsdf_pdf(m, bn, wi, wo), le[3];
                 if (e == 0)
                     memcpy(le, s->sun.radiance, sizeof le);
                 else
                     pm_sky_radiance(s, wi, le);
-                pm_brdf(m, sn, wi, wo, f);
+                pm_brdf(m, bn, wi, wo, f);
                 double gw = (double)cosi / pl * pm_power_heuristic(pl, pb);
                 for (int q = 0; q < 3; q++)
                     L[q] += beta[q] * (double)f[q] * le[q] * gw;
@@ -244,24 +249,51 @@ void pm_pathtrace_sample(const pm_pathtracer_t *pt, struct RTCIntersectContext *
 
             /* Continue along a BSDF sample: the lobe, then two numbers for the direction. */
             float wi[3], u = pm_rng_float(&rng), u1 = pm_rng_float(&rng), u2 = pm_rng_float(&rng);
-            if (!pm_bsdf_sample(m, sn, wo, u, u1, u2, wi))
-                break; /* the Phong lobe's share below the surface: its energy loss */
-            if (shaded && !(pm_dot3(n, wi) > 0.0f))
-                break; /* below the geometric surface: not taken (it would leak light through) */
-            float pdf = pm_bsdf_pdf(m, sn, wi, wo), f[3];
-            if (!(pdf > 0.0f))
-                break;
-            pm_brdf(m, sn, wi, wo, f);
-            float cosi = pm_dot3(sn, wi);
-            for (int q = 0; q < 3; q++)
-                beta[q] *= (double)f[q] * cosi / pdf;
-            bsdf_pdf_prev = pdf;
-            memcpy(n_prev, sn, sizeof n_prev);
-            memcpy(o, org, sizeof o);
-            memcpy(d, wi, sizeof d);
-            nd++;
-            spec = 0;
-            delta_prev = 0;
+            if (m->kind != PM_MAT_STANDARD) {
+                /* Conductor, rough glass, plastic: the BSDF's sampler gives the weight f cos / pdf
+                 * and the lobe. A delta lobe (a smooth plastic's coat) is a specular bounce (no
+                 * MIS for what it finds); so is a transmission as far as MIS goes, since no light
+                 * sample looks below the surface. */
+                pm_bsdf_sample_t bs;
+                if (!pm_bsdf_sample_wi(m, bn, wo, u, u1, u2, PM_BSDF_RADIANCE, &bs))
+                    break; /* absorbed, or the lobe's energy loss below or above the surface */
+                int tr = (bs.lobe & PM_BSDF_TRANSMIT) != 0, delta = (bs.lobe & PM_BSDF_DELTA) != 0;
+                if (shaded && !(pm_dot3(n, bs.wi) > 0.0f))
+                    break; /* below the geometric surface: not taken (it would leak light through) */
+                for (int q = 0; q < 3; q++)
+                    beta[q] *= (double)bs.weight[q];
+                if (tr)
+                    eta2 *= (double)bs.eta * bs.eta;
+                float ofs = tr ? -eps : eps;
+                for (int q = 0; q < 3; q++)
+                    o[q] = p[q] + ofs * n[q], d[q] = bs.wi[q];
+                bsdf_pdf_prev = bs.pdf;
+                memcpy(n_prev, sn, sizeof n_prev);
+                if (delta)
+                    spec = 1;
+                else
+                    nd++, spec = 0;
+                delta_prev = delta || tr;
+            } else {
+                if (!pm_bsdf_sample(m, sn, wo, u, u1, u2, wi))
+                    break; /* the Phong lobe's share below the surface: its energy loss */
+                if (shaded && !(pm_dot3(n, wi) > 0.0f))
+                    break; /* below the geometric surface: not taken (it would leak light through) */
+                float pdf = pm_bsdf_pdf(m, sn, wi, wo), f[3];
+                if (!(pdf > 0.0f))
+                    break;
+                pm_brdf(m, sn, wi, wo, f);
+                float cosi = pm_dot3(sn, wi);
+                for (int q = 0; q < 3; q++)
+                    beta[q] *= (double)f[q] * cosi / pdf;
+                bsdf_pdf_prev = pdf;
+                memcpy(n_prev, sn, sizeof n_prev);
+                memcpy(o, org, sizeof o);
+                memcpy(d, wi, sizeof d);
+                nd++;
+                spec = 0;
+                delta_prev = 0;
+            }
         }
         if (depth + 1 >= pt->set.rr_start) {
             double qs = fmax(beta[0], fmax(beta[1], beta[2])) * eta2;

@@ -240,6 +240,40 @@ static int specular_bounce(const tracer_t *t, chunk_t *c, const pm_material_t *m
     return 1;
 }
 
+/* A photon at a non-delta material other than the standard one (conductor, plastic, rough glass):
+ * a direction from the BSDF's own sampler in importance mode (physics/bsdf.h: photons carry
+ * power, so a transmission is not scaled by 1 / eta^2), about the normal nb (the front
+ * geometric normal for rough glass, whose side tells inside from outside; the shading normal on
+ * the photon's side otherwise); Russian roulette on the sample's weight, f |nb.wi| / pdf,
+ * survival min(max weight, rr_max), power divided by it; the photon leaves from the side of the
+ * geometric normal ng its new direction points to. Returns 0 when the path ends here. */
+static int rough_bounce(const tracer_t *t, chunk_t *c, const pm_material_t *m, pm_rng_t *rng, const float p[3],
+                        const float ng[3], const float nb[3], const float wo[3], uint32_t depth, double power[3],
+                        float org[3], float dir[3])
+{
+    if (depth + 1 >= t->o->max_bounces) {
+        c->capped++;
+        return 0;
+    }
+    float u = pm_rng_float(rng), u1 = pm_rng_float(rng), u2 = pm_rng_float(rng), v = pm_rng_float(rng);
+    pm_bsdf_sample_t bs;
+    if (!pm_bsdf_sample_wi(m, nb, wo, u, u1, u2, PM_BSDF_IMPORTANCE, &bs)) {
+        c->absorbed++;
+        return 0;
+    }
+    float q = fminf(fmaxf(bs.weight[0], fmaxf(bs.weight[1], bs.weight[2])), (float)t->o->rr_max);
+    if (!(v < q)) {
+        c->absorbed++;
+        return 0;
+    }
+    for (int k = 0; k < 3; k++)
+        power[k] *= (double)bs.weight[k] / q, dir[k] = bs.wi[k];
+    float side = pm_dot3(ng, dir) >= 0.0f ? t->rt->epsilon : -t->rt->epsilon;
+    for (int k = 0; k < 3; k++)
+        org[k] = p[k] + side * ng[k];
+    return 1;
+}
+
 /* Traces photon `index` into chunk c. */
 static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCIntersectContext *ctx)
 {
@@ -313,6 +347,13 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
             caustic = spec_only;
             continue;
         }
+        if (pm_bsdf_transmits(m)) {
+            /* Rough glass: no photon stored (pm_bsdf_stores_photons), a glossy bounce. */
+            if (!rough_bounce(t, c, m, &rng, p, n, n, wo, depth, power, org, dir))
+                return;
+            spec_only = caustic = 0;
+            continue;
+        }
         if (pm_dot3(n, dir) > 0.0f) /* the side the photon arrived from */
             pm_v3_store(n, pm_v3_scale(pm_v3_load(n), -1.0f));
         pm_material_t textured; /* the material with its textures at p (render/scene.h) */
@@ -329,7 +370,7 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
         }
         float pd, ps;
         pm_bsdf_albedo(m, &pd, &ps);
-        if (pd + ps > 0.0f) {
+        if (m->kind == PM_MAT_STANDARD ? pd + ps > 0.0f : pm_bsdf_stores_photons(m)) {
             store_photon(t, c, OUT_GLOBAL, p, power, ns, wo, depth);
             if (caustic && t->o->caustics)
                 store_photon(t, c, OUT_CAUSTIC, p, power, ns, wo, depth);
@@ -340,6 +381,16 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
         if (depth + 1 >= t->o->max_bounces) {
             c->capped++;
             return;
+        }
+        if (m->kind != PM_MAT_STANDARD) {
+            /* Conductor, plastic: the BSDF's own sampler, roulette on its weight, about ns. */
+            if (!rough_bounce(t, c, m, &rng, p, n, ns, wo, depth, power, org, dir))
+                return;
+            if (shaded && !pm_shading_leave(n, ns, dir, power)) {
+                c->absorbed++; /* below the geometric surface: not taken (no light leaks through) */
+                return;
+            }
+            continue;
         }
         /* Russian roulette: survive with q = min(albedo, rr_max), reflecting diffusely
          * with probability pd' and glossily with ps' (pd' + ps' = q), and divide the
@@ -365,7 +416,7 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
                 c->absorbed++; /* below the surface: the lobe's energy loss */
                 return;
             }
-            double w = pm_phong_weight(m, pm_dot3(dir, ns)) / psq;
+            double w = pm_bsdf_standard_phong_weight(m, pm_dot3(dir, ns)) / psq;
             for (int k = 0; k < 3; k++)
                 power[k] *= m->ks[k] * w;
         } else {

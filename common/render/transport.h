@@ -3,9 +3,8 @@
  * reference path tracer (render/pathtrace.h) evaluate, sample and weigh reflection and lights
  * only through these functions, so that an estimate and its ground truth cannot drift apart.
  *
- * The BSDF is the one of formats/material.h: a Lambertian lobe kd / pi plus a normalized Phong
- * lobe ks (ns + 2) / (2 pi) cos^ns(alpha), alpha between wo and the mirror direction of wi.
- * Directions are unit vectors pointing away from the surface point; n is the unit normal on
+ * The BSDF of every material kind is physics/bsdf.h's; this header keeps the names the tracers
+ * call it by. Directions are unit vectors pointing away from the surface point; n is the unit normal on
  * the side that is lit. Lights: point lights of intensity I (W/sr) and emissive triangles of
  * radiance Ke (W/(m^2 sr)) that emit from their front face (right-hand rule), sampled uniformly
  * over their total area.
@@ -23,11 +22,17 @@
 #include "math/rng.h"
 #include "math/sampling.h"
 #include "math/vec.h"
+#include "physics/bsdf.h"
 #include "render/scene.h"
 
-/* ---- the BSDF ---- */
+/* ---- the BSDF ----
+ *
+ * Every material kind's scattering is physics/bsdf.h's (pm_bsdf_eval, pm_bsdf_sample_wi,
+ * pm_bsdf_pdf_wi in a radiance or importance mode); the functions here are the names the tracers
+ * used before it, kept as thin calls into it: pm_brdf and pm_bsdf_pdf serve every kind, the lobe
+ * functions the standard kind's two lobes, pm_specular_sample every delta-only kind. */
 
-/* The lobes a direction is sampled from. */
+/* The standard kind's lobes a direction is sampled from. */
 typedef enum { PM_LOBE_DIFFUSE = 0, PM_LOBE_GLOSSY = 1 } pm_lobe_t;
 
 /* Mirror direction of w about n: 2 (n.w) n - w (unit up to rounding for unit n and w). */
@@ -38,48 +43,53 @@ static inline void pm_reflect(const float n[3], const float w[3], float r_out[3]
         r_out[k] = c * n[k] - w[k];
 }
 
-/* f(wi, wo) of formats/material.h, 1/sr, around unit normal n (wi, wo unit, pointing away). */
-void pm_brdf(const pm_material_t *m, const float n[3], const float wi[3], const float wo[3], float f_out[3]);
-
-/* Samples direction wi from one lobe with the uniforms u1, u2 in [0, 1): the diffuse lobe
- * cosine-weighted about n, the glossy one as cos^ns about the mirror direction of wo. Returns
- * whether wi lies above the surface (n.wi > 0); a glossy sample below it is the lobe's energy
- * loss, which callers treat as absorption. */
-int pm_bsdf_sample_lobe(const pm_material_t *m, pm_lobe_t lobe, const float n[3], const float wo[3], float u1, float u2,
-                        float wi_out[3]);
-
-/* Solid-angle pdf, 1/sr, of pm_bsdf_sample_lobe producing wi: cos(theta) / pi above the
- * surface (0 below) for the diffuse lobe; (ns + 1) / (2 pi) cos^ns(alpha) within 90 degrees of
- * the mirror direction of wo for the glossy one, below the surface included. Each integrates
- * to 1 over the sphere. */
-float pm_bsdf_lobe_pdf(const pm_material_t *m, pm_lobe_t lobe, const float n[3], const float wi[3], const float wo[3]);
-
-/* f cos / pdf of the glossy lobe alone over ks, at n.wi = cosi: (ns + 2) / (ns + 1) cosi, in
- * double (the photon tracer's weight for a glossy bounce). */
-static inline double pm_phong_weight(const pm_material_t *m, float cosi)
+/* f(wi, wo), 1/sr, radiance mode, of any kind's non-delta lobes around n (pm_bsdf_eval): for the
+ * standard kind kd / pi + ks (ns + 2) / (2 pi) cos^ns(alpha) (0 when wi and wo are on opposite
+ * sides of n). */
+static inline void pm_brdf(const pm_material_t *m, const float n[3], const float wi[3], const float wo[3],
+                           float f_out[3])
 {
-    return (m->ns + 2.0) / (m->ns + 1.0) * cosi;
+    pm_bsdf_eval(m, n, wi, wo, PM_BSDF_RADIANCE, f_out);
 }
 
-/* The lobes' albedos as the samplers weigh them: max(kd) and max(ks) over the channels. */
+/* Samples direction wi from one lobe of a standard material with the uniforms u1, u2 in [0, 1):
+ * the diffuse lobe cosine-weighted about n, the glossy one as cos^ns about the mirror direction of
+ * wo. Returns whether wi lies above the surface (n.wi > 0); a glossy sample below it is the lobe's
+ * energy loss, which callers treat as absorption (pm_bsdf_standard_sample_lobe). */
+static inline int pm_bsdf_sample_lobe(const pm_material_t *m, pm_lobe_t lobe, const float n[3], const float wo[3],
+                                      float u1, float u2, float wi_out[3])
+{
+    return pm_bsdf_standard_sample_lobe(m, (int)lobe, n, wo, u1, u2, wi_out);
+}
+
+/* Solid-angle pdf, 1/sr, of pm_bsdf_sample_lobe producing wi (pm_bsdf_standard_lobe_pdf). */
+static inline float pm_bsdf_lobe_pdf(const pm_material_t *m, pm_lobe_t lobe, const float n[3], const float wi[3],
+                                     const float wo[3])
+{
+    return pm_bsdf_standard_lobe_pdf(m, (int)lobe, n, wi, wo);
+}
+
+/* The standard kind's lobes' albedos as the samplers weigh them: max(kd) and max(ks). */
 static inline void pm_bsdf_albedo(const pm_material_t *m, float *pd_out, float *ps_out)
 {
     *pd_out = fmaxf(m->kd[0], fmaxf(m->kd[1], m->kd[2]));
     *ps_out = fmaxf(m->ks[0], fmaxf(m->ks[1], m->ks[2]));
 }
 
-/* Probability that the mixture sampler picks the diffuse lobe: its share of the albedo,
- * max(kd) / (max(kd) + max(ks)); 1 when the material reflects nothing. */
-float pm_bsdf_diffuse_share(const pm_material_t *m);
+/* Probability that the standard kind's mixture sampler picks the diffuse lobe. */
+static inline float pm_bsdf_diffuse_share(const pm_material_t *m) { return pm_bsdf_standard_diffuse_share(m); }
 
-/* The BSDF sampled as a mixture: the diffuse lobe when u < pm_bsdf_diffuse_share, else the
- * glossy one, from u1, u2. Returns whether wi lies above the surface. */
+/* The BSDF sampled as its mixture (pm_bsdf_sample_wi, radiance mode) from u, u1, u2. Returns
+ * whether a direction was drawn (for the standard kind: above the surface). */
 int pm_bsdf_sample(const pm_material_t *m, const float n[3], const float wo[3], float u, float u1, float u2,
                    float wi_out[3]);
 
-/* Solid-angle pdf, 1/sr, of pm_bsdf_sample producing wi above the surface; 0 below it (the
- * mixture's pdf integrates to its probability of landing above the surface). */
-float pm_bsdf_pdf(const pm_material_t *m, const float n[3], const float wi[3], const float wo[3]);
+/* Solid-angle pdf, 1/sr, of pm_bsdf_sample producing wi (pm_bsdf_pdf_wi): 0 below the surface
+ * for the reflective kinds. */
+static inline float pm_bsdf_pdf(const pm_material_t *m, const float n[3], const float wi[3], const float wo[3])
+{
+    return pm_bsdf_pdf_wi(m, n, wi, wo);
+}
 
 /* ---- shading normals ----
  *
@@ -138,28 +148,20 @@ static inline int pm_shading_leave(const float ng[3], const float ns[3], const f
     return 1;
 }
 
-/* ---- specular materials (mirror, glass) ---- */
+/* ---- delta-only materials (mirror, glass, smooth conductor and rough glass) ---- */
 
-/* Unpolarized Fresnel reflectance of a smooth dielectric boundary, the mean of the s and p
- * reflectances, for light arriving at cosine cos_i (taken as |cos_i|, clamped to 1) to the
- * normal on its own side, with eta = n_t / n_i the index beyond the boundary over the index on
- * that side (> 0). 1 under total internal reflection (sin_t >= 1) and at cos_i = 0; 0 for
- * eta = 1 up to rounding. Never NaN for eta > 0; a ratio beyond [1e-6, 1e6] is taken as that
- * limit. */
-float pm_fresnel_dielectric(float cos_i, float eta);
-
-/* Samples the delta BSDF of a specular material (mirror or glass) at a hit with unit geometric
- * normal ng, as the mesh stores it (either side: the side wo lies on, by the sign of
- * dot(ng, wo), tells entering from leaving; dot 0 counts as the front), wo unit and pointing
- * away from the surface, u one uniform in [0, 1). Writes wi (unit) and weight = f cos / pdf per
- * channel:
- *   mirror: wi the mirror direction of wo, weight kr;
+/* Samples the delta BSDF of a material whose lobes are all deltas (pm_bsdf_is_delta) at a hit
+ * with unit geometric normal ng, as the mesh stores it (either side: the side wo lies on, by the
+ * sign of dot(ng, wo), tells entering from leaving; dot 0 counts as the front), wo unit and
+ * pointing away from the surface, u one uniform in [0, 1). Writes wi (unit) and weight = f cos /
+ * pdf per channel (pm_bsdf_sample_wi):
+ *   mirror: wi the mirror direction of wo, weight kr; smooth conductor: weight F(n.wo);
  *   glass: reflect when u < F = pm_fresnel_dielectric(|ng.wo|, eta) (eta = ior on the front,
  *     1 / ior behind it), weight 1; else refract by Snell's law, weight tf, times 1 / eta^2
  *     when `radiance` is 1 (eye paths carry radiance, whose density changes with the solid
  *     angle a refraction squeezes; photons carry power: radiance 0).
  * Returns 1 when wi was transmitted, 0 when reflected, -1 when nothing leaves (a black
- * mirror, or a material that is not specular; wi and weight are then zero). */
+ * mirror, or a material that is not delta-only; wi and weight are then zero). */
 int pm_specular_sample(const pm_material_t *m, const float ng[3], const float wo[3], float u, int radiance,
                        float wi_out[3], float weight_out[3]);
 

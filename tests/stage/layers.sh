@@ -11,10 +11,11 @@ layer_allows() {
     base) echo "base" ;;
     math) echo "math base" ;;
     formats) echo "formats base" ;;
-    render) echo "render math formats base" ;;
-    photonmap) echo "photonmap math formats base" ;;
+    physics) echo "physics math formats base" ;; # the BSDFs: below the tracers and the gathers
+    render) echo "render physics math formats base" ;;
+    photonmap) echo "photonmap physics math formats base" ;;
     image) echo "image math formats base" ;;
-    top) echo "render photonmap image math formats base" ;; # stages/, tests/: anything in the library
+    top) echo "render photonmap image physics math formats base" ;; # stages/, tests/: anything in the library
     esac
 }
 
@@ -23,6 +24,7 @@ layer_of() {
     common/base/*) echo base ;;
     common/math/*) echo math ;;
     formats/*) echo formats ;;
+    common/physics/*) echo physics ;;
     common/render/*) echo render ;;
     common/photonmap/*) echo photonmap ;;
     common/image/*) echo image ;;
@@ -39,7 +41,7 @@ check_layers() (
             [ -f "$f" ] || continue
             l=$(layer_of "$f")
             if [ "$l" = stray ]; then
-                echo "$f: not in a layer folder (common/base, math, render, photonmap, image)"
+                echo "$f: not in a layer folder (common/base, math, physics, render, photonmap, image)"
                 continue
             fi
             allowed=$(layer_allows "$l")
@@ -60,10 +62,10 @@ check_layers() (
                     esac
                     top=${inc%%/*}
                     case $top in
-                    base | math | render | photonmap | image) path=common/$inc ;;
+                    base | math | physics | render | photonmap | image) path=common/$inc ;;
                     formats) path=$inc ;;
                     *)
-                        echo "$f:$n: include '$inc' is not in a layer (base, math, formats, render, photonmap, image)"
+                        echo "$f:$n: include '$inc' is not in a layer (base, math, formats, physics, render, photonmap, image)"
                         continue
                         ;;
                     esac
@@ -83,22 +85,26 @@ else
     fail "layers" "$(printf '%s\n' "$out" | head -n 20)"
 fi
 
-# The check itself must catch a wrong-way include, a ../ path and an include across from the
-# image layer to render: copy the tree's layout with three bad files and expect each named.
-mkdir -p "$TMP/layers/common/base" "$TMP/layers/common/render" "$TMP/layers/common/image" "$TMP/layers/formats"
+# The check itself must catch a wrong-way include, a ../ path, an include across from the
+# image layer to render and the physics layer reaching up to the tracers: copy the tree's layout
+# with four bad files and expect each named.
+mkdir -p "$TMP/layers/common/base" "$TMP/layers/common/render" "$TMP/layers/common/image" "$TMP/layers/formats" \
+    "$TMP/layers/common/physics"
 (
     cd "$TMP/layers" && git init -q . &&
         printf '#include "render/x.h"\n' >common/base/bad.c &&
         printf '#include "../base/bad.h"\n' >common/render/x.h &&
         printf '#include "render/x.h"\n' >common/image/across.c &&
+        printf '#include "render/x.h"\n' >common/physics/up.c &&
         printf '#include "formats/y.h"\n' >formats/y.h
 )
 bad=$(check_layers "$TMP/layers")
 if echo "$bad" | grep -q "common/base/bad.c:1: layer base includes 'render/x.h'" &&
     echo "$bad" | grep -q "common/render/x.h:1: include '../base/bad.h' climbs" &&
     echo "$bad" | grep -q "common/image/across.c:1: layer image includes 'render/x.h'" &&
+    echo "$bad" | grep -q "common/physics/up.c:1: layer physics includes 'render/x.h'" &&
     ! echo "$bad" | grep -q "formats/y.h"; then
-    pass "layers: the check names an upward include, a ../ path and image reaching across to render"
+    pass "layers: the check names an upward include, a ../ path, image reaching across to render and physics up to it"
 else
     fail "layers: the check names an upward include, a ../ path and image reaching across" "got: $bad"
 fi

@@ -21,6 +21,7 @@
 #include "math/sampling.h"
 #include "math/strata.h"
 #include "math/vec.h"
+#include "physics/bsdf.h"
 #include "render/packet.h"
 #include "render/shade.h"
 
@@ -311,8 +312,28 @@ typedef struct {
     float gn[3];            /* the geometric normal on the viewer's side: which side a ray leaves from */
     float o[3];             /* p moved off the surface along gn: where the rays start */
     float wo[3];            /* toward the viewer */
+    float bn[3];            /* the normal the BSDF reads (physics/bsdf.h): n, or a dielectric's front normal */
     int shaded;             /* the scene has vertex normals: a direction below gn is never taken */
 } surf_t;
+
+/* Whether material m transmits through a non-delta lobe (rough glass): such a surface holds no
+ * photons (pm_bsdf_stores_photons), shades with its geometric normal and has its BSDF read the
+ * front normal, as trace-reference does. */
+static inline int rough_transmits(const pm_material_t *m) { return pm_material_is_glossy(m) && pm_bsdf_transmits(m); }
+
+/* The normals of surface v (v->m, v->p and v->gn set) on triangle tri, seen from side (+1 its
+ * front, -1 its back): the shading normal n (gn without vertex normals) and the BSDF's bn. */
+static void surf_normals(const pm_scene_t *s, uint32_t tri, float side, surf_t *v)
+{
+    if (rough_transmits(v->m)) {
+        v->shaded = 0;
+        for (int k = 0; k < 3; k++)
+            v->n[k] = v->gn[k], v->bn[k] = side * v->gn[k];
+        return;
+    }
+    v->shaded = pm_scene_shading_normal(s, tri, v->p, v->gn, v->n);
+    memcpy(v->bn, v->n, sizeof v->bn);
+}
 
 /* Room for the shadow rays of one more surface point: at most one per point light and
  * light_samples per area light, sun and sky. 0 when out of memory. */
@@ -335,7 +356,7 @@ static void direct_lights(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uin
 {
     const pm_scene_t *s = c->s;
     const pm_material_t *m = v->m;
-    const float *p = v->p, *n = v->n, *gn = v->gn, *o = v->o, *wo = v->wo;
+    const float *p = v->p, *n = v->n, *gn = v->gn, *o = v->o, *wo = v->wo, *bn = v->bn;
     int shaded = v->shaded, glossy = pm_material_is_glossy(m);
     /* Point lights and spots: intensity I s (W/sr) at distance r gives irradiance I s cos / r^2. */
     pm_light_sample_t ls;
@@ -347,7 +368,7 @@ static void direct_lights(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uin
                              pm_point_light_intensity(L, &ls, 2)};
         if (!(il[0] > 0.0f || il[1] > 0.0f || il[2] > 0.0f))
             continue; /* outside a spot's cone */
-        pm_brdf(m, n, ls.wi, wo, f);
+        pm_brdf(m, bn, ls.wi, wo, f);
         size_t j = sc->shadow.n;
         for (int k = 0; k < 3; k++)
             sc->sh_c[3 * j + k] = f[k] * il[k] * ls.cosx / ls.r2 * inv_p * tp[k];
@@ -373,8 +394,8 @@ static void direct_lights(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uin
          * docs/programs/trace-gather-points.md. */
         if (mis) /* shared with the secondary rays that find the light (MIS) */
             g *= pm_power_heuristic((float)c->light_samples * ls.r2 / (ls.cosy * (float)c->geom.area),
-                                    glossy ? nb * pm_bsdf_pdf(m, n, ls.wi, wo) : nb * ls.cosx * (1.0f / PM_PI));
-        pm_brdf(m, n, ls.wi, wo, f);
+                                    glossy ? nb * pm_bsdf_pdf(m, bn, ls.wi, wo) : nb * ls.cosx * (1.0f / PM_PI));
+        pm_brdf(m, bn, ls.wi, wo, f);
         size_t j = sc->shadow.n;
         for (int k = 0; k < 3; k++)
             sc->sh_c[3 * j + k] = f[k] * lm->ke[k] * g * tp[k];
@@ -401,7 +422,7 @@ static void direct_lights(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uin
                 memcpy(le, s->sun.radiance, sizeof le);
             else
                 pm_sky_radiance(s, wi, le);
-            pm_brdf(m, n, wi, wo, f);
+            pm_brdf(m, bn, wi, wo, f);
             float g = cosi / pl / (float)c->light_samples * inv_p;
             size_t j = sc->shadow.n;
             for (int k = 0; k < 3; k++)
@@ -513,6 +534,39 @@ static void spawn_glossy(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint
     }
 }
 
+/* A primary hit of a kind other than the standard one (conductor, rough glass, plastic):
+ * directions from physics/bsdf.h's sampler with the stratified u1, u2 and a lobe choice from the
+ * pixel's gather stream; the weight f cos / pdf over N as the sampler gives it (a delta lobe's
+ * too). A transmitted ray leaves from the other side. sec_cos is -1 for a ray no light sample of
+ * this hit could have drawn (a delta lobe, a transmission): the light it finds is its own. */
+static void spawn_module(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, float scale, const float tp[3],
+                         pm_rng_t *gather_rng)
+{
+    float tb[3], bb[3];
+    secondary_directions(c, sc, v->n, gather_rng, tb, bb);
+    for (unsigned q = 0; q < c->spp; q++) {
+        pm_bsdf_sample_t bs;
+        float u = pm_rng_float(gather_rng);
+        if (!pm_bsdf_sample_wi(v->m, v->bn, v->wo, u, sc->u1[q], sc->u2[q], PM_BSDF_RADIANCE, &bs))
+            continue;
+        int tr = (bs.lobe & PM_BSDF_TRANSMIT) != 0;
+        float cg = pm_dot3(v->gn, bs.wi), o[3];
+        if (tr ? !(cg < 0.0f) : (v->shaded && !(cg > 0.0f)))
+            continue; /* not on the side of the geometric surface it was drawn for */
+        size_t j = sc->sec.n;
+        float *w = sc->sec_w + 3 * j;
+        for (int k = 0; k < 3; k++) {
+            w[k] = bs.weight[k] * scale * tp[k];
+            o[k] = tr ? v->p[k] - c->eps * v->gn[k] : v->o[k];
+        }
+        if (!(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f) || !isfinite(w[0] + w[1] + w[2]))
+            continue;
+        sc->sec_px[j] = x;
+        sc->sec_cos[j] = (bs.lobe & PM_BSDF_DELTA) || tr ? -1.0f : bs.pdf * PM_PI;
+        pm_rays_push(&sc->sec, o, bs.wi, 0.0f, INFINITY);
+    }
+}
+
 /* ------------------------------------------------------------------ primary hits */
 
 /* The surface primary ray i hit: its point, normals, material (textured into *textured) and
@@ -533,12 +587,13 @@ static float primary_surface(const pm_eye_t *c, scratch_t *sc, size_t i, pm_mate
     for (int k = 0; k < 3; k++)
         v->gn[k] = side * ng[k];
     v->m = pm_scene_material_at(s, tri, p, textured);
-    /* n: the shading normal (render/transport.h), gn itself in a scene without vertex normals */
-    v->shaded = pm_scene_shading_normal(s, tri, p, v->gn, p + 3);
     for (int k = 0; k < 3; k++) {
-        v->p[k] = p[k], v->n[k] = p[3 + k], v->wo[k] = wo[k];
+        v->p[k] = p[k], v->wo[k] = wo[k];
         v->o[k] = p[k] + c->eps * v->gn[k];
     }
+    /* n: the shading normal (render/transport.h), gn itself in a scene without vertex normals */
+    surf_normals(s, tri, side, v);
+    memcpy(p + 3, v->n, 12);
     return side;
 }
 
@@ -571,7 +626,7 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
 
     /* The caustic query: this first non-specular hit itself, weighted like a direct-vis query,
      * gathered against the caustic map (L S+ D seen from here). */
-    if (c->caustics) {
+    if (c->caustics && !rough_transmits(m)) { /* rough glass holds no photons */
         float w[3] = {inv_p * tp[0], inv_p * tp[1], inv_p * tp[2]};
         int put = put_hit(c, caus, v.p, v.n, w, pixel, s->tri_material[tri], m, v.wo);
         if (put < 0)
@@ -584,7 +639,7 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
     if (c->mode == PM_EYE_DIRECT_VIS) {
         /* The primary hit is the query: path weight 1 (over the primary rays of the pixel). */
         float w[3] = {inv_p * tp[0], inv_p * tp[1], inv_p * tp[2]};
-        if (!c->direct_only) {
+        if (!c->direct_only && !rough_transmits(m)) {
             int put = put_hit(c, out, v.p, v.n, w, pixel, s->tri_material[tri], m, v.wo);
             if (put < 0)
                 return 0;
@@ -596,7 +651,9 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
     if (c->direct_only && !s->nemissive && !c->cont)
         return 1; /* no emitter for a secondary ray to find nor glossy path to follow: no secondary rays */
     float scale = inv_p / (float)c->spp;
-    if (glossy)
+    if (m->kind != PM_MAT_STANDARD)
+        spawn_module(c, sc, &v, x, scale, tp, gather_rng);
+    else if (glossy)
         spawn_glossy(c, sc, &v, x, scale, tp, gather_rng);
     else
         spawn_lambertian(c, sc, &v, x, scale, tp, gather_rng);
@@ -606,13 +663,25 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
 /* ------------------------------------------------------------------ glossy paths */
 
 /* Whether a secondary path continues through a hit on material m instead of gathering there
- * (docs/accuracy.md, glossy paths): a Phong lobe of exponent PM_EYE_GLOSSY_NS or more. */
-static inline int material_continues(const pm_material_t *m)
+ * (docs/accuracy.md, glossy paths): a Phong lobe of exponent PM_EYE_GLOSSY_NS or more, a
+ * conductor or plastic of GGX width under PM_EYE_GLOSSY_ALPHA (a plastic's smooth coat too: its
+ * delta reflection cannot be gathered), with glossy paths on (depth > 0); and a rough glass
+ * always, which holds no photons (pm_bsdf_stores_photons). */
+static inline int material_continues(const pm_material_t *m, unsigned depth)
 {
-    return m->kind == PM_MAT_STANDARD && pm_material_is_glossy(m) && m->ns >= PM_EYE_GLOSSY_NS;
+    switch (m->kind) {
+    case PM_MAT_STANDARD: return depth && pm_material_is_glossy(m) && m->ns >= PM_EYE_GLOSSY_NS;
+    case PM_MAT_CONDUCTOR: return depth && m->alpha >= PM_MAT_ALPHA_DELTA && m->alpha < PM_EYE_GLOSSY_ALPHA;
+    case PM_MAT_PLASTIC: return depth && !(m->alpha >= PM_EYE_GLOSSY_ALPHA);
+    case PM_MAT_ROUGH_GLASS: return rough_transmits(m);
+    default: return 0;
+    }
 }
 
-static inline int continues(const pm_eye_t *c, const pm_material_t *m) { return c->cont && material_continues(m); }
+static inline int continues(const pm_eye_t *c, const pm_material_t *m)
+{
+    return c->cont && material_continues(m, c->glossy_depth);
+}
 
 /* Where a secondary path is: the ray that reached hit triangle tri (origin o, unit direction d,
  * distance t), its path weight w (f cos / pdf products over N, the query weight before the fold),
@@ -669,11 +738,63 @@ static void path_emission(const pm_eye_t *c, const path_t *a, float mis, double 
         direct[3 * a->x + (uint32_t)k] += (double)(a->w[k] * m->ke[k] * mis);
 }
 
-/* One glossy bounce of path a at its hit, a material that continues (continues()): next-event
- * estimation there into sc->shadow, a query for the diffuse part there (folded, its own records),
- * then a direction from the Phong lobe alone, the weight times its f cos / pdf (Russian roulette
- * from PM_EYE_GLOSSY_RR bounces on), and the ray traced to its next hit, whose emission is
- * counted (MIS against the light samples). Returns 1 when the path goes on, 0 when it ended
+/* The sky and the sun seen along path a's ray, which escaped, times the path weight, into direct. */
+static void path_sky(const pm_eye_t *c, const path_t *a, double *direct)
+{
+    float le[3];
+    pm_env_radiance(c->s, a->d, le);
+    for (int k = 0; k < 3; k++)
+        direct[3 * a->x + (uint32_t)k] += (double)(a->w[k] * le[k]);
+}
+
+/* The next ray of path a, leaving v along wi with the bounce's f cos / pdf in fc (Russian
+ * roulette from PM_EYE_GLOSSY_RR bounces on, u its number), traced to its next hit, whose
+ * emission is counted: against the light samples of v by MIS with the BSDF's pdf, or whole when
+ * pdf < 0 (a delta lobe or a transmission, which no light sample of v reaches; such a ray that
+ * escapes brings the sky back too). Returns 1 when the path goes on, 0 when it ended. */
+static int path_next(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContext *ctx, path_t *a, unsigned depth,
+                     const float o[3], const float wi[3], float fc[3], float pdf, float u, double *direct)
+{
+    const pm_scene_t *s = c->s;
+    if (depth + 1 >= PM_EYE_GLOSSY_RR) {
+        /* survival the bounce's largest channel of f cos / pdf, capped at 1 */
+        float q = fminf(1.0f, fmaxf(fc[0], fmaxf(fc[1], fc[2])));
+        if (!(u < q))
+            return 0;
+        for (int k = 0; k < 3; k++)
+            fc[k] /= q;
+    }
+    for (int k = 0; k < 3; k++) {
+        a->w[k] *= fc[k];
+        a->o[k] = o[k], a->d[k] = wi[k];
+    }
+    if (!(a->w[0] > 0.0f || a->w[1] > 0.0f || a->w[2] > 0.0f) || !isfinite(a->w[0] + a->w[1] + a->w[2]))
+        return 0;
+    sc->n_glossy++;
+    a->tri = pm_rt_intersect1(c->rt, ctx, a->o, a->d, 0.0f, INFINITY, &a->t, NULL);
+    if (a->tri == PM_RAY_MISS) {
+        /* the sun and the sky: the light samples' (weight 1), unless none could see them */
+        if (pdf < 0.0f)
+            path_sky(c, a, direct);
+        return 0;
+    }
+    if (!pm_material_is_specular(&s->materials[s->tri_material[a->tri]]) && s->nemissive) {
+        const float *lg = c->geom.tri_n + 3 * (size_t)a->tri;
+        float cosy = fabsf(pm_dot3(lg, a->d));
+        path_emission(
+            c, a,
+            pdf < 0.0f ? 1.0f
+                       : pm_power_heuristic(pdf, (float)c->light_samples * a->t * a->t / (cosy * (float)c->geom.area)),
+            direct);
+    }
+    return 1;
+}
+
+/* One bounce of path a at its hit, a material that continues (continues()): next-event
+ * estimation there into sc->shadow, then a direction from its BSDF and the ray to the next hit
+ * (path_next). A standard material leaves its diffuse part as a query there (folded, a record
+ * of its own) and continues along its Phong lobe alone; the other kinds continue along their
+ * whole BSDF (physics/bsdf.h's sampler). Returns 1 when the path goes on, 0 when it ended
  * (absorbed, escaped), -1 when out of memory. */
 static int glossy_bounce(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContext *ctx, path_t *a, unsigned depth,
                          double *direct, bytebuf_t *out)
@@ -688,58 +809,56 @@ static int glossy_bounce(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCo
     for (int k = 0; k < 3; k++)
         v.gn[k] = side * ng[k], v.o[k] = v.p[k] + c->eps * v.gn[k];
     const pm_material_t *m = pm_scene_material_at(s, a->tri, v.p, &textured);
-    v.shaded = pm_scene_shading_normal(s, a->tri, v.p, v.gn, v.n);
-    /* The diffuse part gathers here, the folded entry of the table: kd / pi in the weight. */
-    float wd[3] = {a->w[0] * m->kd[0] * (1.0f / PM_PI), a->w[1] * m->kd[1] * (1.0f / PM_PI),
-                   a->w[2] * m->kd[2] * (1.0f / PM_PI)};
-    if (!c->direct_only && (wd[0] > 0.0f || wd[1] > 0.0f || wd[2] > 0.0f) && isfinite(wd[0] + wd[1] + wd[2])) {
-        if (!put_query(c, out, v.p, v.n, wd, a->pixel, c->folded, v.wo))
-            return -1;
-        sc->n_queries++;
+    v.m = m;
+    surf_normals(s, a->tri, side, &v);
+    int standard = m->kind == PM_MAT_STANDARD;
+    if (standard) {
+        /* The diffuse part gathers here, the folded entry of the table: kd / pi in the weight. */
+        float wd[3] = {a->w[0] * m->kd[0] * (1.0f / PM_PI), a->w[1] * m->kd[1] * (1.0f / PM_PI),
+                       a->w[2] * m->kd[2] * (1.0f / PM_PI)};
+        if (!c->direct_only && (wd[0] > 0.0f || wd[1] > 0.0f || wd[2] > 0.0f) && isfinite(wd[0] + wd[1] + wd[2])) {
+            if (!put_query(c, out, v.p, v.n, wd, a->pixel, c->folded, v.wo))
+                return -1;
+            sc->n_queries++;
+        }
+        /* The lobe alone: the material without its diffuse part. */
+        lobe = *m;
+        lobe.kd[0] = lobe.kd[1] = lobe.kd[2] = 0.0f;
+        v.m = &lobe;
     }
-    /* The lobe alone: the material without its diffuse part. */
-    lobe = *m;
-    lobe.kd[0] = lobe.kd[1] = lobe.kd[2] = 0.0f;
-    v.m = &lobe;
     if (!shadow_room(c, sc))
         return -1;
     direct_lights(c, sc, &v, a->x, 1.0f, a->w, 1.0f, 1, a->rng);
-    float wi[3], u1 = pm_rng_float(a->rng), u2 = pm_rng_float(a->rng), u3 = pm_rng_float(a->rng);
-    if (!pm_bsdf_sample_lobe(&lobe, PM_LOBE_GLOSSY, v.n, v.wo, u1, u2, wi) || (v.shaded && !(pm_dot3(v.gn, wi) > 0.0f)))
-        return 0;
-    float pdf = pm_bsdf_pdf(&lobe, v.n, wi, v.wo), f[3], fc[3], cosi = pm_dot3(v.n, wi);
-    if (!(pdf > 0.0f))
-        return 0;
-    pm_brdf(&lobe, v.n, wi, v.wo, f);
-    for (int k = 0; k < 3; k++)
-        fc[k] = f[k] * cosi / pdf;
-    if (depth + 1 >= PM_EYE_GLOSSY_RR) {
-        /* survival the bounce's largest channel of f cos / pdf, capped at 1 */
-        float q = fminf(1.0f, fmaxf(fc[0], fmaxf(fc[1], fc[2])));
-        if (!(u3 < q))
+    float wi[3], fc[3], o[3], pdf, u = pm_rng_float(a->rng), u1 = pm_rng_float(a->rng), u2 = pm_rng_float(a->rng),
+                                   u3 = pm_rng_float(a->rng);
+    memcpy(o, v.o, sizeof o);
+    if (standard) {
+        if (!pm_bsdf_sample_lobe(&lobe, PM_LOBE_GLOSSY, v.n, v.wo, u1, u2, wi) ||
+            (v.shaded && !(pm_dot3(v.gn, wi) > 0.0f)))
             return 0;
+        float f[3], cosi = pm_dot3(v.n, wi);
+        pdf = pm_bsdf_pdf(&lobe, v.n, wi, v.wo);
+        if (!(pdf > 0.0f))
+            return 0;
+        pm_brdf(&lobe, v.n, wi, v.wo, f);
         for (int k = 0; k < 3; k++)
-            fc[k] /= q;
+            fc[k] = f[k] * cosi / pdf;
+    } else {
+        pm_bsdf_sample_t bs;
+        if (!pm_bsdf_sample_wi(m, v.bn, v.wo, u, u1, u2, PM_BSDF_RADIANCE, &bs))
+            return 0;
+        int tr = (bs.lobe & PM_BSDF_TRANSMIT) != 0;
+        float cg = pm_dot3(v.gn, bs.wi);
+        if (tr ? !(cg < 0.0f) : (v.shaded && !(cg > 0.0f)))
+            return 0; /* not on the side of the geometric surface it was drawn for */
+        memcpy(wi, bs.wi, sizeof wi);
+        memcpy(fc, bs.weight, sizeof fc);
+        pdf = (bs.lobe & PM_BSDF_DELTA) || tr ? -1.0f : bs.pdf;
+        if (tr)
+            for (int k = 0; k < 3; k++)
+                o[k] = v.p[k] - c->eps * v.gn[k];
     }
-    for (int k = 0; k < 3; k++) {
-        a->w[k] *= fc[k];
-        a->o[k] = v.o[k], a->d[k] = wi[k];
-    }
-    if (!(a->w[0] > 0.0f || a->w[1] > 0.0f || a->w[2] > 0.0f) || !isfinite(a->w[0] + a->w[1] + a->w[2]))
-        return 0;
-    sc->n_glossy++;
-    a->tri = pm_rt_intersect1(c->rt, ctx, a->o, a->d, 0.0f, INFINITY, &a->t, NULL);
-    if (a->tri == PM_RAY_MISS)
-        return 0; /* the sun and the sky were the light samples' (weight 1) */
-    if (!pm_material_is_specular(&s->materials[s->tri_material[a->tri]]) && s->nemissive) {
-        /* An emitter found from a glossy vertex: shared with its light samples (MIS). */
-        const float *lg = c->geom.tri_n + 3 * (size_t)a->tri;
-        float cosy = fabsf(pm_dot3(lg, a->d));
-        path_emission(c, a,
-                      pm_power_heuristic(pdf, (float)c->light_samples * a->t * a->t / (cosy * (float)c->geom.area)),
-                      direct);
-    }
-    return 1;
+    return path_next(c, sc, ctx, a, depth, o, wi, fc, pdf, u3, direct);
 }
 
 /* Follows secondary path a from its hit, a non-specular surface: through every glossy surface
@@ -756,8 +875,11 @@ static int follow_path(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCont
         float q[3];
         for (int k = 0; k < 3; k++)
             q[k] = a->o[k] + a->t * a->d[k];
-        if (depth >= c->glossy_depth || !c->cont || !continues(c, pm_scene_material_at(s, a->tri, q, &textured)))
-            return c->direct_only || path_query(c, sc, a, out);
+        const pm_material_t *m = c->cont ? pm_scene_material_at(s, a->tri, q, &textured) : NULL;
+        /* past glossy_depth bounces the path gathers where it is; through rough glass, which
+         * holds no photons, it goes on (to PM_EYE_MAX_SPECULAR bounces, then its light is lost) */
+        if (!m || !continues(c, m) || depth >= (rough_transmits(m) ? PM_EYE_MAX_SPECULAR : c->glossy_depth))
+            return c->direct_only || (m && rough_transmits(m)) || path_query(c, sc, a, out);
         int on = glossy_bounce(c, sc, ctx, a, depth, direct, out);
         if (on <= 0)
             return on == 0;
@@ -769,10 +891,7 @@ static int follow_path(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCont
             for (int k = 0; k < 3; k++)
                 a->w[k] *= thr[k];
             if (a->tri == PM_RAY_MISS) {
-                float le[3];
-                pm_env_radiance(s, a->d, le);
-                for (int k = 0; k < 3; k++)
-                    direct[3 * a->x + (uint32_t)k] += (double)(a->w[k] * le[k]);
+                path_sky(c, a, direct);
                 return 1;
             }
             path_emission(c, a, 1.0f, direct);
@@ -889,16 +1008,19 @@ static int secondary_hit(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCo
     pm_rng_t rng;
     path_t a = {
         .tri = sr->prim[j], .x = sc->sec_px[j], .pixel = y * c->w + sc->sec_px[j], .t = sr->tfar[j], .rng = &rng};
-    if (a.tri == PM_RAY_MISS)
-        return 1; /* escaped: no query */
-    float thr[3] = {1.0f, 1.0f, 1.0f};
+    float thr[3] = {1.0f, 1.0f, 1.0f}, o[3] = {sr->ox[j], sr->oy[j], sr->oz[j]},
+          d[3] = {sr->dx[j], sr->dy[j], sr->dz[j]};
+    memcpy(a.o, o, sizeof o);
+    memcpy(a.d, d, sizeof d);
     for (int k = 0; k < 3; k++)
-        a.o[k] = k == 0   ? sr->ox[j]
-                 : k == 1 ? sr->oy[j]
-                          : sr->oz[j],
-        a.d[k] = k == 0   ? sr->dx[j]
-                 : k == 1 ? sr->dy[j]
-                          : sr->dz[j];
+        a.w[k] = sc->sec_w[3 * j + k];
+    /* sec_cos < 0: a ray no light sample of the primary hit could have drawn (spawn_module) */
+    int own = sc->sec_cos[j] < 0.0f;
+    if (a.tri == PM_RAY_MISS) {
+        if (own)
+            path_sky(c, &a, direct);
+        return 1; /* escaped: no query */
+    }
     if (c->specular || c->cont) /* each secondary ray's chain draws from a sub-stream of its own */
         specular_rng(&rng, c->seed, a.pixel, 1 + in_px);
     if (c->specular && pm_material_is_specular(&s->materials[s->tri_material[a.tri]])) {
@@ -916,11 +1038,10 @@ static int secondary_hit(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCo
          * against the light samples that could have found the same point (MIS, power heuristic). */
         const float *ng = c->geom.tri_n + 3 * (size_t)a.tri;
         float cosy = fabsf(pm_dot3(ng, a.d));
-        for (int k = 0; k < 3; k++)
-            a.w[k] = sc->sec_w[3 * j + k];
         path_emission(c, &a,
-                      pm_power_heuristic((float)(c->spp / PER_CELL) * sc->sec_cos[j] * (1.0f / PM_PI),
-                                         (float)c->light_samples * a.t * a.t / (cosy * (float)c->geom.area)),
+                      own ? 1.0f
+                          : pm_power_heuristic((float)(c->spp / PER_CELL) * sc->sec_cos[j] * (1.0f / PM_PI),
+                                               (float)c->light_samples * a.t * a.t / (cosy * (float)c->geom.area)),
                       direct);
     }
     if (c->direct_only && !c->cont)
@@ -1060,8 +1181,8 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
     c->caustics = o->caustics;
     c->direct_only = o->direct_only;
     c->glossy_depth = o->glossy_depth;
-    for (size_t m = 0; c->mode == PM_EYE_GATHER && c->glossy_depth && m < s->nmaterials; m++)
-        c->cont |= material_continues(&s->materials[m]);
+    for (size_t m = 0; c->mode == PM_EYE_GATHER && m < s->nmaterials; m++)
+        c->cont |= material_continues(&s->materials[m], c->glossy_depth);
     pm_result_t r = PM_OK;
     if (o->caustics && o->direct_only) {
         pm_eye_destroy(c);

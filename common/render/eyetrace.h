@@ -37,6 +37,9 @@
  * gathering there, up to pm_eye_options_t's glossy_depth bounces, with Russian roulette from the
  * PM_EYE_GLOSSY_RR-th bounce on. */
 #define PM_EYE_GLOSSY_NS 50.0f
+/* The same for the GGX kinds (conductor, plastic): a width alpha under this (the GGX width whose
+ * Beckmann-equivalent Phong exponent 2 / alpha^2 - 2 is 48). */
+#define PM_EYE_GLOSSY_ALPHA 0.2f
 #define PM_EYE_GLOSSY_RR 3
 #define PM_EYE_GLOSSY_DEPTH 8 /* trace-gather-points' default glossy_depth */
 

@@ -51,17 +51,63 @@ pm_result_t pm_queries_set_materials(pm_header_t *h, const pm_material_t *m, siz
     for (size_t i = 0; i < n && r == PM_OK; i++) {
         char key[32];
         snprintf(key, sizeof key, "material.%zu", i);
-        /* a mirror or glass says so after the standard part; other materials read as they always did */
-        char extra[96] = "";
-        if (m[i].kind == PM_MAT_MIRROR)
-            snprintf(extra, sizeof extra, " mirror kr %.9g %.9g %.9g", m[i].kr[0], m[i].kr[1], m[i].kr[2]);
-        else if (m[i].kind == PM_MAT_GLASS)
-            snprintf(extra, sizeof extra, " glass ior %.9g tf %.9g %.9g %.9g", m[i].ior, m[i].tf[0], m[i].tf[1],
-                     m[i].tf[2]);
+        /* a mirror, glass or microfacet kind says so after the standard part; other materials
+         * read as they always did */
+        char extra[256] = "";
+        const pm_material_t *q = &m[i];
+        if (q->kind == PM_MAT_MIRROR)
+            snprintf(extra, sizeof extra, " mirror kr %.9g %.9g %.9g", q->kr[0], q->kr[1], q->kr[2]);
+        else if (q->kind == PM_MAT_GLASS)
+            snprintf(extra, sizeof extra, " glass ior %.9g tf %.9g %.9g %.9g", q->ior, q->tf[0], q->tf[1], q->tf[2]);
+        else if (q->kind == PM_MAT_CONDUCTOR)
+            snprintf(extra, sizeof extra, " conductor alpha %.9g eta %.9g %.9g %.9g k %.9g %.9g %.9g f0 %.9g %.9g %.9g",
+                     q->alpha, q->eta[0], q->eta[1], q->eta[2], q->k[0], q->k[1], q->k[2], q->f0[0], q->f0[1],
+                     q->f0[2]);
+        else if (q->kind == PM_MAT_ROUGH_GLASS)
+            snprintf(extra, sizeof extra, " roughglass alpha %.9g ior %.9g tf %.9g %.9g %.9g", q->alpha, q->ior,
+                     q->tf[0], q->tf[1], q->tf[2]);
+        else if (q->kind == PM_MAT_PLASTIC)
+            snprintf(extra, sizeof extra, " plastic alpha %.9g ior %.9g", q->alpha, q->ior);
         r = pm_header_set(h, key, "%s kd %.9g %.9g %.9g ks %.9g %.9g %.9g ns %.9g%s", m[i].name[0] ? m[i].name : "-",
                           m[i].kd[0], m[i].kd[1], m[i].kd[2], m[i].ks[0], m[i].ks[1], m[i].ks[2], m[i].ns, extra);
     }
     return r;
+}
+
+/* The microfacet kinds' fields (formats/material.h): one line naming the key, the field and its
+ * value when one is out of range or not a number. */
+static pm_result_t check_microfacet(const char *path, const char *key, const pm_material_t *m)
+{
+    if (m->kind != PM_MAT_CONDUCTOR && m->kind != PM_MAT_ROUGH_GLASS && m->kind != PM_MAT_PLASTIC)
+        return PM_OK;
+    const char *what = m->kind == PM_MAT_CONDUCTOR ? "conductor" : m->kind == PM_MAT_PLASTIC ? "plastic" : "roughglass";
+    if (!(m->alpha >= 0.0f && m->alpha <= 1.0f))
+        return pm_error_set(PM_ERR_INPUT, "queries '%s': %s %s alpha %g outside [0, 1]", path, key, what, m->alpha);
+    if (m->kind != PM_MAT_CONDUCTOR && !(m->ior > 0.0f && m->ior <= 1e6f))
+        return pm_error_set(PM_ERR_INPUT, "queries '%s': %s %s ior %g outside (0, 1e6]", path, key, what, m->ior);
+    for (int k = 0; k < 3; k++) {
+        /* kd is the plastic's base; no kind here has a Phong lobe */
+        if (m->ks[k] != 0.0f || (m->kind != PM_MAT_PLASTIC && m->kd[k] != 0.0f))
+            return pm_error_set(PM_ERR_INPUT, "queries '%s': %s %s has kd %g, ks %g (channel %d); want %s", path, key,
+                                what, m->kd[k], m->ks[k], k, m->kind == PM_MAT_PLASTIC ? "ks 0" : "kd 0 and ks 0");
+        if (m->kind == PM_MAT_ROUGH_GLASS && !(m->tf[k] >= 0.0f && m->tf[k] <= 1.0f))
+            return pm_error_set(PM_ERR_INPUT, "queries '%s': %s roughglass tf %g (channel %d) outside [0, 1]", path,
+                                key, m->tf[k], k);
+        if (m->kind != PM_MAT_CONDUCTOR)
+            continue;
+        /* either an index in every channel or none (eta 0 0 0: the f0 colour instead) */
+        int index = m->eta[0] > 0.0f;
+        if (!(index ? m->eta[k] > 0.0f && m->eta[k] <= 1e6f : m->eta[k] == 0.0f) ||
+            !(m->k[k] >= 0.0f && m->k[k] <= 1e6f))
+            return pm_error_set(PM_ERR_INPUT,
+                                "queries '%s': %s conductor eta %g k %g (channel %d): want eta in (0, 1e6] in every "
+                                "channel or 0 in all, k in [0, 1e6]",
+                                path, key, m->eta[k], m->k[k], k);
+        if (!(m->f0[k] >= 0.0f && m->f0[k] <= 1.0f))
+            return pm_error_set(PM_ERR_INPUT, "queries '%s': %s conductor f0 %g (channel %d) outside [0, 1]", path, key,
+                                m->f0[k], k);
+    }
+    return PM_OK;
 }
 
 pm_result_t pm_queries_get_materials(const pm_header_t *h, const char *path, pm_material_t **m_out, size_t *n_out)
@@ -90,16 +136,33 @@ pm_result_t pm_queries_get_materials(const pm_header_t *h, const char *path, pm_
             m[i].kind = PM_MAT_GLASS;
             ok = sscanf(v + used, " glass ior %f tf %f %f %f%n", &m[i].ior, &m[i].tf[0], &m[i].tf[1], &m[i].tf[2],
                         &more) == 4;
+        } else if (ok && v[used] == ' ' && strncmp(v + used, " conductor", 10) == 0) {
+            m[i].kind = PM_MAT_CONDUCTOR;
+            float *e = m[i].eta, *kk = m[i].k, *f = m[i].f0;
+            ok = sscanf(v + used, " conductor alpha %f eta %f %f %f k %f %f %f f0 %f %f %f%n", &m[i].alpha, &e[0],
+                        &e[1], &e[2], &kk[0], &kk[1], &kk[2], &f[0], &f[1], &f[2], &more) == 10;
+        } else if (ok && v[used] == ' ' && strncmp(v + used, " roughglass", 11) == 0) {
+            m[i].kind = PM_MAT_ROUGH_GLASS;
+            ok = sscanf(v + used, " roughglass alpha %f ior %f tf %f %f %f%n", &m[i].alpha, &m[i].ior, &m[i].tf[0],
+                        &m[i].tf[1], &m[i].tf[2], &more) == 5;
+        } else if (ok && v[used] == ' ' && strncmp(v + used, " plastic", 8) == 0) {
+            m[i].kind = PM_MAT_PLASTIC;
+            ok = sscanf(v + used, " plastic alpha %f ior %f%n", &m[i].alpha, &m[i].ior, &more) == 2;
         }
         if (!ok || v[used + more] != '\0') {
             free(m);
             return pm_error_set(PM_ERR_INPUT, "queries '%s': header key %s is %s", path, key,
-                                v ? "not 'NAME kd R G B ks R G B ns E', then optionally 'mirror kr R G B' or "
-                                    "'glass ior N tf R G B'"
+                                v ? "not 'NAME kd R G B ks R G B ns E', then optionally 'mirror kr R G B', "
+                                    "'glass ior N tf R G B', 'conductor alpha A eta R G B k R G B f0 R G B', "
+                                    "'roughglass alpha A ior N tf R G B' or 'plastic alpha A ior N'"
                                   : "missing");
         }
+        if ((r = check_microfacet(path, key, &m[i])) != PM_OK) {
+            free(m);
+            return r;
+        }
         /* a specular entry has no standard part, a reflectance in [0, 1] and an index > 0 */
-        for (int k = 0; k < 3 && m[i].kind != PM_MAT_STANDARD; k++)
+        for (int k = 0; k < 3 && (m[i].kind == PM_MAT_MIRROR || m[i].kind == PM_MAT_GLASS); k++)
             if (!(m[i].kr[k] >= 0.0f && m[i].kr[k] <= 1.0f && m[i].tf[k] >= 0.0f && m[i].tf[k] <= 1.0f) ||
                 !(m[i].ior > 0.0f && m[i].ior < INFINITY) || m[i].kd[k] != 0.0f || m[i].ks[k] != 0.0f) {
                 free(m);

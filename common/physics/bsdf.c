@@ -299,6 +299,17 @@ static int dielectric_pair(const pm_material_t *m, const float n[3], const float
     return transmit ? 2 : 1;
 }
 
+/* The microfacet Fresnel of a pair. A transmission's is taken from the outside (index 1), where
+ * no total internal reflection makes it ill-conditioned: from inside near the critical angle
+ * 1 - sin_t^2 cancels in float, and f(wi, wo) and f(wo, wi) would no longer keep the reciprocity
+ * rule to float precision. Both sides give the same F in exact arithmetic. */
+static inline float pair_fresnel(const dielectric_pair_t *p, float ior)
+{
+    if (p->e == 1.0f) /* a reflection: the angle to h is the same for both */
+        return pm_fresnel_dielectric(p->woh, p->co > 0.0f ? ior : 1.0f / ior);
+    return p->co > 0.0f ? pm_fresnel_dielectric(p->woh, ior) : pm_fresnel_dielectric(fabsf(p->wih), ior);
+}
+
 /* The rough dielectric's reflection probability for microfacet Fresnel f: f against the
  * transmission's (1 - f) max(tf), so that a black filter wastes no sample on it. */
 static inline float rough_glass_reflect_share(const pm_material_t *m, float f)
@@ -317,8 +328,7 @@ static void rough_glass_eval(const pm_material_t *m, const float n[3], const flo
     if (!how)
         return;
     float alpha = width(m), ior = rough_ior(m->ior), ci = fabsf(p.ci), co = fabsf(p.co);
-    float eta_across = p.co > 0.0f ? ior : 1.0f / ior; /* beyond wo's side over wo's side */
-    float f = pm_fresnel_dielectric(p.woh, eta_across), d = pm_ggx_d(alpha, p.cos_h), g = pm_ggx_g2(alpha, ci, co);
+    float f = pair_fresnel(&p, ior), d = pm_ggx_d(alpha, p.cos_h), g = pm_ggx_g2(alpha, ci, co);
     if (how == 1) {
         float v = f * d * g / (4.0f * ci * co);
         for (int k = 0; k < 3; k++)
@@ -342,7 +352,7 @@ static float rough_glass_pdf(const pm_material_t *m, const float n[3], const flo
     if (!how)
         return 0.0f;
     float alpha = width(m), ior = rough_ior(m->ior), co = fabsf(p.co);
-    float f = pm_fresnel_dielectric(p.woh, p.co > 0.0f ? ior : 1.0f / ior), pr = rough_glass_reflect_share(m, f);
+    float f = pair_fresnel(&p, ior), pr = rough_glass_reflect_share(m, f);
     float dv = pm_ggx_visible_pdf(alpha, co, p.cos_h, p.woh);
     if (how == 1)
         return pr * dv / (4.0f * p.woh);

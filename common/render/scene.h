@@ -89,6 +89,7 @@ typedef struct {
     int missing;       /* a texture file that is missing, rendered magenta (missing_textures) */
     char key[32];      /* as the mesh format names it: "map_Kd", "illum", "metallicFactor" */
     char value[224];   /* as assimp read it: "tex.png", "7", "0.75" */
+    char note[96];     /* empty: ignored; else honoured approximately, and how ("rendered as plastic, ...") */
 } pm_scene_unsupported_t;
 
 /* The textures of one material: indices into pm_scene_t.textures, -1 for none. The texel
@@ -165,7 +166,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *out);
 void pm_scene_free(pm_scene_t *s);
 
 /* Prints each of s->unsupported as a warning on stderr through pm_stage_note (nothing under
- * --quiet): "NAME: warning: material 'X': map_Kd 'tex.png' is not supported (ignored)". Every
+ * --quiet): "NAME: warning: material 'X': map_Kd 'tex.png' is not supported (ignored)", or for
+ * one with a note "... metallicFactor 0.3 is approximated: rendered as plastic, ...". Every
  * stage that loads a scene calls it once after pm_scene_load. */
 void pm_scene_warn_unsupported(const pm_scene_t *s, const pm_stage_t *st);
 
@@ -174,8 +176,8 @@ void pm_scene_warn_unsupported(const pm_scene_t *s, const pm_stage_t *st);
  * fireflies. scene-info and trace-photons call it after pm_scene_load. */
 void pm_scene_warn_flipped(const pm_scene_t *s, const pm_stage_t *st);
 
-/* "map_Kd 'tex.png'" or "illum 7": one unsupported property as the warnings and scene-info
- * print it. */
+/* "map_Kd 'tex.png'" or "illum 7", or with a note "metallicFactor 0.3 (approximated: NOTE)": one
+ * unsupported property as scene-info prints it. */
 void pm_scene_unsupported_text(const pm_scene_unsupported_t *u, char *out, size_t cap);
 
 /* Total emitted power, W, RGB: point lights (4 pi I, spots less: pm_point_light_power)

@@ -131,7 +131,10 @@ static float preview_shade(const pm_scene_t *s, uint32_t tri, const float ng[3],
     }
     float nn = sqrtf(pm_dot3(ng, ng)), dd = sqrtf(pm_dot3(d, d));
     float c = fabsf(pm_dot3(ng, d)) / (nn * dd);
-    float albedo = m->kind == PM_MAT_MIRROR ? m->kr[k] : m->kind == PM_MAT_GLASS ? m->tf[k] : m->kd[k] + m->ks[k];
+    float albedo = m->kind == PM_MAT_MIRROR                                   ? m->kr[k]
+                   : m->kind == PM_MAT_GLASS || m->kind == PM_MAT_ROUGH_GLASS ? m->tf[k]
+                   : m->kind == PM_MAT_CONDUCTOR                              ? m->f0[k]
+                                                                              : m->kd[k] + m->ks[k];
     return albedo * (0.2f + 0.8f * c);
 }
 
@@ -205,6 +208,14 @@ static void print_text(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, double
             snprintf(extra, sizeof extra, " mirror kr %.4g %.4g %.4g", m->kr[0], m->kr[1], m->kr[2]);
         else if (m->kind == PM_MAT_GLASS)
             snprintf(extra, sizeof extra, " glass ior %.4g tf %.4g %.4g %.4g", m->ior, m->tf[0], m->tf[1], m->tf[2]);
+        else if (m->kind == PM_MAT_CONDUCTOR)
+            snprintf(extra, sizeof extra, " conductor alpha %.4g f0 %.4g %.4g %.4g", m->alpha, m->f0[0], m->f0[1],
+                     m->f0[2]);
+        else if (m->kind == PM_MAT_ROUGH_GLASS)
+            snprintf(extra, sizeof extra, " rough-glass alpha %.4g ior %.4g tf %.4g %.4g %.4g", m->alpha, m->ior,
+                     m->tf[0], m->tf[1], m->tf[2]);
+        else if (m->kind == PM_MAT_PLASTIC)
+            snprintf(extra, sizeof extra, " plastic alpha %.4g ior %.4g", m->alpha, m->ior);
         fprintf(out, "  %zu %s kd %.4g %.4g %.4g ks %.4g %.4g %.4g ns %.4g ke %.4g %.4g %.4g%s\n", i, m->name, m->kd[0],
                 m->kd[1], m->kd[2], m->ks[0], m->ks[1], m->ks[2], m->ns, m->ke[0], m->ke[1], m->ke[2], extra);
         /* Only for a material that sets something pmtk ignores, so that other summaries keep their lines. */
@@ -329,15 +340,27 @@ pm_result_t pm_summary_json(const pm_scene_t *s, const pm_rt_t *rt, const pm_sum
         json_object_set_new(mj, "ns", json_real(m->ns));
         json_object_set_new(mj, "ke", floats_json(m->ke, 3));
         json_object_set_new(mj, "kind",
-                            json_string(m->kind == PM_MAT_MIRROR  ? "mirror"
-                                        : m->kind == PM_MAT_GLASS ? "glass"
-                                                                  : "standard"));
+                            json_string(m->kind == PM_MAT_MIRROR        ? "mirror"
+                                        : m->kind == PM_MAT_GLASS       ? "glass"
+                                        : m->kind == PM_MAT_CONDUCTOR   ? "conductor"
+                                        : m->kind == PM_MAT_ROUGH_GLASS ? "rough-glass"
+                                        : m->kind == PM_MAT_PLASTIC     ? "plastic"
+                                                                        : "standard"));
         if (m->kind == PM_MAT_MIRROR)
             json_object_set_new(mj, "kr", floats_json(m->kr, 3));
-        if (m->kind == PM_MAT_GLASS) {
-            json_object_set_new(mj, "ior", json_real(m->ior));
-            json_object_set_new(mj, "tf", floats_json(m->tf, 3));
+        if (m->kind == PM_MAT_CONDUCTOR || m->kind == PM_MAT_ROUGH_GLASS || m->kind == PM_MAT_PLASTIC)
+            json_object_set_new(mj, "alpha", json_real(m->alpha));
+        if (m->kind == PM_MAT_CONDUCTOR) {
+            json_object_set_new(mj, "f0", floats_json(m->f0, 3));
+            if (m->eta[0] > 0.0f) {
+                json_object_set_new(mj, "eta", floats_json(m->eta, 3));
+                json_object_set_new(mj, "k", floats_json(m->k, 3));
+            }
         }
+        if (m->kind == PM_MAT_GLASS || m->kind == PM_MAT_ROUGH_GLASS || m->kind == PM_MAT_PLASTIC)
+            json_object_set_new(mj, "ior", json_real(m->ior));
+        if (m->kind == PM_MAT_GLASS || m->kind == PM_MAT_ROUGH_GLASS)
+            json_object_set_new(mj, "tf", floats_json(m->tf, 3));
         json_t *un = json_array();
         for (size_t u = 0; u < s->nunsupported; u++)
             if (s->unsupported[u].material == i)

@@ -230,8 +230,9 @@ static void test_scene_unsupported(void **state)
 }
 
 /* A glTF material: base colour is Kd; its emissive texture (in assimp's emissive and emission
- * colour slots) is reported once, roughness 0.5 is reported, metallic 0 and alphaMode OPAQUE
- * are not. (A base colour texture is honoured: tests/unit/test_texture.c.) */
+ * colour slots) is reported once; metallic 0 and roughness 0.5 make it plastic (honoured, not
+ * reported), alphaMode OPAQUE is not reported. (A base colour texture is honoured:
+ * tests/unit/test_texture.c.) */
 static void test_scene_unsupported_gltf(void **state)
 {
     char p[256];
@@ -255,18 +256,211 @@ static void test_scene_unsupported_gltf(void **state)
     if (r != PM_OK)
         fail_msg("%s", pm_error_message());
     assert_int_equal(s.nmaterials, 1);
+    assert_int_equal(s.materials[0].kind, PM_MAT_PLASTIC);
     assert_true(fabsf(s.materials[0].kd[1] - 0.4f) < 1e-6f);
-    assert_int_equal(s.nunsupported, 2);
-    assert_string_equal(s.unsupported[0].key, "roughnessFactor");
-    assert_string_equal(s.unsupported[0].value, "0.5");
-    assert_string_equal(s.unsupported[1].key, "emissive texture");
-    assert_string_equal(s.unsupported[1].value, "tex.png");
+    assert_int_equal(s.nunsupported, 1);
+    assert_string_equal(s.unsupported[0].key, "emissive texture");
+    assert_string_equal(s.unsupported[0].value, "tex.png");
     pm_scene_free(&s);
+}
+
+/* The material named name in s, or a failed test. */
+static const pm_material_t *material_named(const pm_scene_t *s, const char *name)
+{
+    for (size_t m = 0; m < s->nmaterials; m++)
+        if (strcmp(s->materials[m].name, name) == 0)
+            return &s->materials[m];
+    fail_msg("no material '%s'", name);
+    return NULL;
+}
+
+/* The unsupported entry of material name with key, or NULL. */
+static const pm_scene_unsupported_t *reported(const pm_scene_t *s, const char *name, const char *key)
+{
+    for (size_t u = 0; u < s->nunsupported; u++)
+        if (strcmp(s->materials[s->unsupported[u].material].name, name) == 0 && strcmp(s->unsupported[u].key, key) == 0)
+            return &s->unsupported[u];
+    return NULL;
+}
+
+static void assert_rgb(const float got[3], float r, float g, float b)
+{
+    const float want[3] = {r, g, b};
+    for (int k = 0; k < 3; k++)
+        if (!(fabsf(got[k] - want[k]) < 1e-6f))
+            fail_msg("channel %d: %.9g, want %.9g", k, (double)got[k], (double)want[k]);
+}
+
+/* An OBJ whose .mtl has the PBR extension: Pm 1 is a conductor of F0 Kd and width Pr^2 (a mirror
+ * of reflectance Kd at Pr 0), Pr without Pm plastic under a coat of index 1.5 (Ni when given),
+ * Pm 0.7 the nearer kind (a metal of F0 lerp(0.04, Kd, 0.7)) with a note, illum 7 with Pr rough
+ * glass; a material without Pr or Pm stays standard; a PBR material's Ks is reported. */
+static void test_scene_pbr_mtl(void **state)
+{
+    char p[256];
+    write_file("pbr.mtl",
+               "newmtl metal\nKd 0.9 0.6 0.3\nPm 1\nPr 0.5\n"
+               "newmtl polished\nKd 0.9 0.6 0.3\nPm 1\nPr 0\nillum 2\n"
+               "newmtl plastic\nKd 0.5 0.4 0.3\nKs 0.2 0.2 0.2\nNs 50\nPr 0.6\n"
+               "newmtl coated\nKd 0.5 0.4 0.3\nPr 0.2\nNi 1.3\n"
+               "newmtl half\nKd 0.5 0.5 0.5\nPm 0.7\nPr 0.5\n"
+               "newmtl frosted\nKd 0 0 0\nillum 7\nNi 1.5\nTf 0.9 0.8 0.7\nPr 0.3\n"
+               "newmtl plain\nKd 0.5 0.5 0.5\nKs 0.25 0.25 0.25\nNs 20\n",
+               p, sizeof p);
+    write_file("pbr.obj",
+               "mtllib pbr.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl metal\nf 1 2 3\nusemtl polished\nf 1 3 2\n"
+               "usemtl plastic\nf 2 1 3\nusemtl coated\nf 2 3 1\nusemtl half\nf 3 1 2\nusemtl frosted\nf 3 2 1\n"
+               "usemtl plain\nf 1 2 3\n",
+               p, sizeof p);
+    write_file("pbr.json", "{\"pmtk_scene\": 1, \"name\": \"pbr\", \"meshes\": [{\"file\": \"pbr.obj\"}], " CAM "}", p,
+               sizeof p);
+    pm_scene_t s;
+    if (pm_scene_load(p, &s) != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_int_equal(s.nmaterials, 7);
+    const pm_material_t *m = material_named(&s, "metal");
+    assert_int_equal(m->kind, PM_MAT_CONDUCTOR);
+    assert_rgb(m->f0, 0.9f, 0.6f, 0.3f);
+    assert_rgb(m->kd, 0, 0, 0);
+    assert_true(m->alpha == 0.25f && m->eta[0] == 0.0f);
+    m = material_named(&s, "polished");
+    assert_int_equal(m->kind, PM_MAT_MIRROR);
+    assert_rgb(m->kr, 0.9f, 0.6f, 0.3f);
+    assert_null(reported(&s, "polished", "Kd")); /* a PBR mirror's Kd is its reflectance */
+    m = material_named(&s, "plastic");
+    assert_int_equal(m->kind, PM_MAT_PLASTIC);
+    assert_rgb(m->kd, 0.5f, 0.4f, 0.3f);
+    assert_rgb(m->ks, 0, 0, 0);
+    assert_true(m->ior == 1.5f && fabsf(m->alpha - 0.36f) < 1e-6f && m->ns == 0.0f);
+    assert_non_null(reported(&s, "plastic", "Ks"));
+    assert_null(reported(&s, "plastic", "Ns"));
+    assert_null(reported(&s, "plastic", "Pr"));
+    m = material_named(&s, "coated");
+    assert_int_equal(m->kind, PM_MAT_PLASTIC);
+    assert_true(fabsf(m->ior - 1.3f) < 1e-6f);
+    assert_null(reported(&s, "coated", "Ni"));
+    m = material_named(&s, "half");
+    assert_int_equal(m->kind, PM_MAT_CONDUCTOR);
+    assert_rgb(m->f0, 0.7f * 0.5f + 0.3f * 0.04f, 0.7f * 0.5f + 0.3f * 0.04f, 0.7f * 0.5f + 0.3f * 0.04f);
+    const pm_scene_unsupported_t *u = reported(&s, "half", "Pm");
+    assert_non_null(u);
+    assert_string_equal(u->value, "0.7");
+    assert_non_null(strstr(u->note, "rendered as metal"));
+    m = material_named(&s, "frosted");
+    assert_int_equal(m->kind, PM_MAT_ROUGH_GLASS);
+    assert_true(fabsf(m->alpha - 0.09f) < 1e-6f && m->ior == 1.5f);
+    assert_rgb(m->tf, 0.9f, 0.8f, 0.7f);
+    assert_null(reported(&s, "frosted", "Pr"));
+    m = material_named(&s, "plain");
+    assert_int_equal(m->kind, PM_MAT_STANDARD);
+    assert_rgb(m->ks, 0.25f, 0.25f, 0.25f);
+    assert_true(m->ns == 20.0f);
+    assert_true(s.any_glossy);
+    pm_scene_free(&s);
+
+    /* out of range: one line naming the material, the key and the value */
+    static const char *const bad[][2] = {
+        {"newmtl x\nKd 0.5 0.5 0.5\nPr 1.5\n", "material 'x': Pr 1.5 must lie in [0, 1]"},
+        {"newmtl x\nKd 0.5 0.5 0.5\nPm -0.5\n", "material 'x': Pm -0.5 must lie in [0, 1]"},
+        {"newmtl x\nillum 7\nNi 1.5\nPr 2\n", "material 'x': Pr 2 must lie in [0, 1]"},
+        {"newmtl x\nKd 0.5 0.5 0.5\nPr 0.5\nNi 0.5\n", "material 'x': Ni 0.5 must lie in [1, 10]"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        write_file("bad.mtl", bad[i][0], p, sizeof p);
+        write_file("bad.obj", "mtllib bad.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl x\nf 1 2 3\n", p, sizeof p);
+        expect_scene_error("{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"bad.obj\"}], " CAM "}",
+                           bad[i][1]);
+    }
+}
+
+/* A glTF of one triangle per material (materials: the JSON array's body). */
+static void write_gltf(const char *name, const char *materials, size_t n, char *path_out, size_t cap)
+{
+    char prims[2048] = "", text[8192];
+    for (size_t i = 0; i < n; i++)
+        snprintf(prims + strlen(prims), sizeof prims - strlen(prims),
+                 "%s{\"attributes\": {\"POSITION\": 0}, \"material\": %zu}", i ? ", " : "", i);
+    snprintf(text, sizeof text,
+             "{\"asset\": {\"version\": \"2.0\"}, \"extensionsUsed\": [\"KHR_materials_transmission\", "
+             "\"KHR_materials_ior\"], \"scene\": 0, \"scenes\": [{\"nodes\": [0]}], \"nodes\": [{\"mesh\": 0}], "
+             "\"meshes\": [{\"primitives\": [%s]}], \"materials\": [%s], \"buffers\": [{\"byteLength\": 36, \"uri\": "
+             "\"data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAAAAAAIA/\"}], "
+             "\"bufferViews\": [{\"buffer\": 0, \"byteLength\": 36}], \"accessors\": [{\"bufferView\": 0, "
+             "\"componentType\": 5126, \"count\": 3, \"type\": \"VEC3\", \"min\": [0, 0, 0], \"max\": [1, 0, 1]}]}\n",
+             prims, materials);
+    write_file(name, text, path_out, cap);
+}
+
+/* glTF metallic-roughness: metallic 1 (glTF's default) a conductor of F0 the base colour and
+ * width roughness^2, metallic 0 plastic (coat index 1.5, or KHR_materials_ior's; index 1 is
+ * exactly Lambertian: a standard material), metallic 0.3 plastic of kd 0.7 base with a note,
+ * transmission with roughness rough glass; a factor outside [0, 1] is an error. */
+static void test_scene_pbr_gltf(void **state)
+{
+    char p[256];
+    write_gltf("pbr.gltf",
+               "{\"name\": \"metal\", \"pbrMetallicRoughness\": {\"baseColorFactor\": [0.9, 0.8, 0.7, 1], "
+               "\"roughnessFactor\": 0.4}}, "
+               "{\"name\": \"plastic\", \"pbrMetallicRoughness\": {\"baseColorFactor\": [0.5, 0.4, 0.3, 1], "
+               "\"metallicFactor\": 0, \"roughnessFactor\": 0.2}, \"extensions\": {\"KHR_materials_ior\": {\"ior\": "
+               "1.4}}}, "
+               "{\"name\": \"matte\", \"pbrMetallicRoughness\": {\"baseColorFactor\": [0.5, 0.4, 0.3, 1], "
+               "\"metallicFactor\": 0}, \"extensions\": {\"KHR_materials_ior\": {\"ior\": 1}}}, "
+               "{\"name\": \"mix\", \"pbrMetallicRoughness\": {\"baseColorFactor\": [0.5, 0.5, 0.5, 1], "
+               "\"metallicFactor\": 0.3, \"roughnessFactor\": 0.5}}, "
+               "{\"name\": \"frosted\", \"pbrMetallicRoughness\": {\"baseColorFactor\": [0.9, 0.9, 0.8, 1], "
+               "\"metallicFactor\": 0, \"roughnessFactor\": 0.3}, \"extensions\": {\"KHR_materials_transmission\": "
+               "{\"transmissionFactor\": 1}, \"KHR_materials_ior\": {\"ior\": 1.7}}}",
+               5, p, sizeof p);
+    write_file("pbrg.json", "{\"pmtk_scene\": 1, \"name\": \"g\", \"meshes\": [{\"file\": \"pbr.gltf\"}], " CAM "}", p,
+               sizeof p);
+    pm_scene_t s;
+    if (pm_scene_load(p, &s) != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_int_equal(s.nmaterials, 5);
+    const pm_material_t *m = material_named(&s, "metal");
+    assert_int_equal(m->kind, PM_MAT_CONDUCTOR);
+    assert_rgb(m->f0, 0.9f, 0.8f, 0.7f);
+    assert_true(fabsf(m->alpha - 0.16f) < 1e-6f);
+    m = material_named(&s, "plastic");
+    assert_int_equal(m->kind, PM_MAT_PLASTIC);
+    assert_rgb(m->kd, 0.5f, 0.4f, 0.3f);
+    assert_true(fabsf(m->ior - 1.4f) < 1e-6f && fabsf(m->alpha - 0.04f) < 1e-6f);
+    m = material_named(&s, "matte");
+    assert_int_equal(m->kind, PM_MAT_STANDARD);
+    assert_rgb(m->kd, 0.5f, 0.4f, 0.3f);
+    assert_rgb(m->ks, 0, 0, 0);
+    m = material_named(&s, "mix");
+    assert_int_equal(m->kind, PM_MAT_PLASTIC);
+    assert_rgb(m->kd, 0.35f, 0.35f, 0.35f);
+    assert_non_null(reported(&s, "mix", "metallicFactor"));
+    assert_non_null(strstr(reported(&s, "mix", "metallicFactor")->note, "rendered as plastic"));
+    m = material_named(&s, "frosted");
+    assert_int_equal(m->kind, PM_MAT_ROUGH_GLASS);
+    assert_true(fabsf(m->alpha - 0.09f) < 1e-6f && fabsf(m->ior - 1.7f) < 1e-6f);
+    assert_rgb(m->tf, 0.9f, 0.9f, 0.8f);
+    /* honoured keys are not reported; the note is the only entry */
+    assert_int_equal(s.nunsupported, 1);
+    pm_scene_free(&s);
+
+    write_gltf("bad.gltf", "{\"name\": \"x\", \"pbrMetallicRoughness\": {\"metallicFactor\": 1.5}}", 1, p, sizeof p);
+    expect_scene_error("{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"bad.gltf\"}], " CAM "}",
+                       "material 'x': metallicFactor 1.5 must lie in [0, 1]");
+    write_gltf("bad.gltf", "{\"name\": \"x\", \"pbrMetallicRoughness\": {\"roughnessFactor\": -1}}", 1, p, sizeof p);
+    expect_scene_error("{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"bad.gltf\"}], " CAM "}",
+                       "material 'x': roughnessFactor -1 must lie in [0, 1]");
+    write_gltf("bad.gltf",
+               "{\"name\": \"x\", \"pbrMetallicRoughness\": {\"roughnessFactor\": 0.5}, \"extensions\": "
+               "{\"KHR_materials_transmission\": {\"transmissionFactor\": 1}}}",
+               1, p, sizeof p);
+    expect_scene_error("{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"bad.gltf\"}], " CAM "}",
+                       "metallicFactor 1 with roughnessFactor 0.5 a metal: it cannot be both");
 }
 
 static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_scene_cornell_box), cmocka_unit_test(test_scene_bad_input),
     cmocka_unit_test(test_scene_mesh_faults), cmocka_unit_test(test_scene_degenerate_triangles),
     cmocka_unit_test(test_scene_unsupported), cmocka_unit_test(test_scene_unsupported_gltf),
+    cmocka_unit_test(test_scene_pbr_mtl),     cmocka_unit_test(test_scene_pbr_gltf),
 };
 UNIT_GROUP(unit_scene, "scene", tests);

@@ -1,0 +1,444 @@
+/* mesh.c: a scene's mesh entries imported through assimp's C API: each file once, its OBJ
+ * order checked (faces before usemtl, late mtllib), its materials, vertices, texture coordinates,
+ * vertex normals and triangles flattened into the scene, and its placements found for instancing. */
+#include "render/scene.h"
+
+#include <assimp/cimport.h>
+#include <assimp/material.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+#include <ctype.h>
+#include <errno.h>
+#include <inttypes.h>
+#include <jansson.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+#include "base/exr.h"
+#include "base/hash.h"
+#include "formats/formats.h"
+#include "math/vec.h"
+#include "render/scene_load.h"
+
+/* assimp reports some faults only to its log and carries on: a usemtl the .mtl does not
+ * define, a missing .mtl (it then makes up a grey material). The first "Error" it logs
+ * during an import fails the load. Scenes load on one thread, so one buffer serves. */
+static char ai_first_error[512];
+
+/* Errors assimp 5.2 logs for legal input and then handles right: a usemtl before any
+ * group, object or face (the next face makes the default object, with that material), and
+ * an illum outside 0 to 2 (kept in the material, and reported as unsupported). */
+static const char *const ai_benign_errors[] = {
+    "OBJ: No object detected to attach a new mesh instance",
+    "OBJ: unexpected illumination model",
+    NULL,
+};
+
+static void on_assimp_log(const char *msg, char *user)
+{
+    (void)user;
+    if (ai_first_error[0] || strncmp(msg, "Error,", 6) != 0)
+        return;
+    for (const char *const *b = ai_benign_errors; *b; b++)
+        if (strstr(msg, *b))
+            return;
+    const char *colon = strchr(msg, ':'); /* "Error, T0: OBJ: ..." -> "OBJ: ..." */
+    snprintf(ai_first_error, sizeof ai_first_error, "%s", colon ? colon + 2 : msg);
+    for (char *p = ai_first_error; *p; p++)
+        if (*p == '\n' || *p == '\r')
+            *p = ' ';
+    for (size_t n = strlen(ai_first_error); n && ai_first_error[n - 1] == ' '; n--)
+        ai_first_error[n - 1] = '\0';
+}
+
+/* The first word of an OBJ line into word (cut to cap), and where the rest begins. */
+const char *pm_scene_obj_word(const char *line, char *word, size_t cap)
+{
+    while (*line == ' ' || *line == '\t')
+        line++;
+    size_t n = 0;
+    while (line[n] && line[n] != ' ' && line[n] != '\t' && line[n] != '\r' && line[n] != '\n')
+        n++;
+    snprintf(word, cap, "%.*s", (int)n, line);
+    line += n;
+    while (*line == ' ' || *line == '\t')
+        line++;
+    return line;
+}
+
+/* Reads the OBJ's own lines for the two orders assimp 5.2 gets silently wrong: a face before
+ * the first usemtl takes whichever material was current (the last one of the .mtl, or
+ * assimp's grey default), and an mtllib after a usemtl makes the last material of that
+ * library the material of the faces already read. Both are errors naming the line. */
+static pm_result_t check_obj_materials(const char *path, char *libs_out, size_t libs_cap)
+{
+    size_t libs_len = 0;
+    libs_out[0] = '\0';
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return pm_error_set(PM_ERR_IO, "cannot open mesh '%s': %s", path, strerror(errno));
+    char *line = NULL, word[16], group[128] = "";
+    size_t cap = 0;
+    uint64_t lineno = 0, faces = 0, first_usemtl = 0;
+    int continued = 0; /* the previous line ended in a backslash: this one goes on with it */
+    pm_result_t r = PM_OK;
+    for (ssize_t len; r == PM_OK && (len = getline(&line, &cap, f)) >= 0;) {
+        lineno++;
+        while (len > 0 && (line[len - 1] == '\n' || line[len - 1] == '\r'))
+            line[--len] = '\0';
+        int was_continued = continued;
+        continued = len > 0 && line[len - 1] == '\\';
+        if (was_continued)
+            continue;
+        const char *rest = pm_scene_obj_word(line, word, sizeof word);
+        if (strcmp(word, "g") == 0 || strcmp(word, "o") == 0) {
+            snprintf(group, sizeof group, "%s", rest);
+            for (char *p = group; *p; p++)
+                if ((unsigned char)*p < 0x20 || *p == '\\')
+                    *p = ' ';
+        } else if (strcmp(word, "usemtl") == 0) {
+            if (!first_usemtl)
+                first_usemtl = lineno;
+        } else if (strcmp(word, "f") == 0 || strcmp(word, "fo") == 0) {
+            faces++;
+            if (!first_usemtl) {
+                char where[200] = "";
+                if (group[0])
+                    snprintf(where, sizeof where, ", group '%s'", group);
+                r = pm_error_set(PM_ERR_INPUT,
+                                 "mesh '%s': face %" PRIu64 " (line %" PRIu64 "%s) comes before any usemtl: every "
+                                 "OBJ face needs a material from the .mtl",
+                                 path, faces, lineno, where);
+            }
+        } else if (strcmp(word, "mtllib") == 0 && !first_usemtl) {
+            /* assimp takes the rest of the line as one file name; kept one a line */
+            size_t n = strlen(rest);
+            while (n && (rest[n - 1] == ' ' || rest[n - 1] == '\t'))
+                n--;
+            if (n && libs_len + n + 2 <= libs_cap)
+                libs_len += (size_t)snprintf(libs_out + libs_len, libs_cap - libs_len, "%.*s\n", (int)n, rest);
+        } else if (strcmp(word, "mtllib") == 0) {
+            r = pm_error_set(PM_ERR_INPUT,
+                             "mesh '%s': mtllib on line %" PRIu64 " comes after the usemtl on line %" PRIu64
+                             ": assimp would give the faces before it that library's last material; put every "
+                             "mtllib before the first usemtl",
+                             path, lineno, first_usemtl);
+        }
+    }
+    if (r == PM_OK && ferror(f))
+        r = pm_error_set(PM_ERR_IO, "cannot read mesh '%s': %s", path, strerror(errno));
+    free(line);
+    fclose(f);
+    return r;
+}
+
+pm_result_t pm_scene_load_mesh(ctx_t *c, json_t *mj, size_t index)
+{
+    static const char *const keys[] = {"file", "scale", "rotate", "translate", "matrix", NULL};
+    pm_scene_t *s = c->s;
+    char where[64], path[1200];
+    snprintf(where, sizeof where, "meshes[%zu]", index);
+    if (!json_is_object(mj))
+        return pm_scene_bad(c, where, "must be an object");
+    pm_result_t r = pm_scene_only_keys(c, mj, where, keys);
+    if (r != PM_OK)
+        return r;
+    const char *file = json_string_value(json_object_get(mj, "file"));
+    if (!file)
+        return pm_scene_bad(c, where, "'file' is missing or not a string");
+    double xf[3][4];
+    int general;
+    if ((r = pm_scene_load_transform(c, mj, where, xf, &general)) != PM_OK)
+        return r;
+    /* A mirroring map (negative determinant) turns the right-hand-rule normal of every
+     * triangle inward: its vertex order is swapped so that the front face (the side an
+     * emitter lights) stays the mirror image of the mesh's own. */
+    int flip = pm_scene_det3(xf) < 0.0;
+    pm_scene_resolve(c->file, file, path, sizeof path);
+    size_t ext = strlen(path);
+    int is_obj = ext > 4 && strcasecmp(path + ext - 4, ".obj") == 0;
+    import_t *im = NULL;
+    for (size_t i = 0; i < c->nimports && !im; i++)
+        if (strcmp(c->imports[i].path, path) == 0)
+            im = &c->imports[i];
+    if (!im) {
+        FILE *probe = fopen(path, "rb");
+        if (!probe)
+            return pm_error_set(PM_ERR_INPUT, "cannot open mesh '%s': %s", path, strerror(errno));
+        fclose(probe);
+        if ((r = pm_scene_grow((void **)&c->imports, c->nimports + 1, sizeof *c->imports)) != PM_OK)
+            return r;
+        /* Triangulate polygons, merge shared vertices, flatten node transforms, drop points
+         * and lines; vertex normals come as the file has them (none are made up). */
+        struct aiLogStream log = {on_assimp_log, NULL};
+        ai_first_error[0] = '\0';
+        aiAttachLogStream(&log);
+        const struct aiScene *imported = aiImportFile(path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
+                                                                aiProcess_PreTransformVertices | aiProcess_SortByPType |
+                                                                aiProcess_ValidateDataStructure);
+        aiDetachAllLogStreams();
+        if (!imported)
+            return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, aiGetErrorString());
+        if (ai_first_error[0]) {
+            aiReleaseImport(imported);
+            return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, ai_first_error);
+        }
+        /* An OBJ whose faces name no material (no mtllib, or a usemtl the .mtl lacks) gets
+         * assimp's default material, or the .mtl's last one; rendering either would be
+         * silently wrong. The OBJ's own order of lines tells; the default material is checked
+         * after it. */
+        char libs_read[4096] = "";
+        if (is_obj && (r = check_obj_materials(path, libs_read, sizeof libs_read)) != PM_OK) {
+            aiReleaseImport(imported);
+            return r;
+        }
+        im = &c->imports[c->nimports++];
+        *im = (import_t){.as = imported};
+        snprintf(im->path, sizeof im->path, "%s", path);
+        snprintf(im->libs, sizeof im->libs, "%s", libs_read);
+        if (is_obj && (r = pm_scene_mtl_homes(path, libs_read, im)) != PM_OK)
+            return r;
+    }
+    /* the import is the scene's until pm_scene_load ends: it serves every entry placing it */
+    const struct aiScene *as = im->as;
+    const char *libs = im->libs;
+    size_t tri_start = s->ntris, vert_start = s->nverts;
+    uint64_t kept = 0; /* which faces are kept (degenerate ones left out): a placement's key */
+    for (unsigned mi = 0; is_obj && mi < as->mNumMeshes; mi++) {
+        const struct aiMesh *m = as->mMeshes[mi];
+        struct aiString mname;
+        if (m->mMaterialIndex < as->mNumMaterials &&
+            aiGetMaterialString(as->mMaterials[m->mMaterialIndex], AI_MATKEY_NAME, &mname) == aiReturn_SUCCESS &&
+            strcmp(mname.data, AI_DEFAULT_MATERIAL_NAME) == 0) {
+            return pm_error_set(PM_ERR_INPUT,
+                                "mesh '%s': %u faces of '%s' have no material (no mtllib, or no usemtl before them)",
+                                path, m->mNumFaces, m->mName.length ? m->mName.data : "(unnamed)");
+        }
+    }
+    size_t mat0 = s->nmaterials;
+    if ((r = pm_scene_grow((void **)&s->materials, mat0 + as->mNumMaterials, sizeof *s->materials)) != PM_OK ||
+        (r = pm_scene_grow((void **)&s->maps, mat0 + as->mNumMaterials, sizeof *s->maps)) != PM_OK)
+        return r;
+    for (size_t i = mat0; i < mat0 + as->mNumMaterials; i++)
+        s->maps[i] = (pm_material_maps_t){-1, -1, -1};
+    for (unsigned i = 0; i < as->mNumMaterials && r == PM_OK; i++) {
+        r = pm_scene_load_material(c, path, is_obj, as->mMaterials[i], &s->materials[mat0 + i]);
+        /* assimp's stand-in material is pmtk's grey default whatever it holds: nothing to report */
+        struct aiString an;
+        int stand_in = aiGetMaterialString(as->mMaterials[i], AI_MATKEY_NAME, &an) != aiReturn_SUCCESS ||
+                       an.length == 0 || strcmp(an.data, AI_DEFAULT_MATERIAL_NAME) == 0;
+        if (r == PM_OK && !stand_in)
+            r = pm_scene_scan_material(s, is_obj, as->mMaterials[i], (uint32_t)(mat0 + i));
+        /* only the textures of a material some triangle uses: an unused one is dropped unread */
+        int used = 0;
+        for (unsigned mi = 0; mi < as->mNumMeshes && !used; mi++)
+            used =
+                as->mMeshes[mi]->mMaterialIndex == i && (as->mMeshes[mi]->mPrimitiveTypes & aiPrimitiveType_TRIANGLE);
+        if (r == PM_OK && !stand_in && used)
+            r = pm_scene_load_material_maps(c, path, is_obj, im, as->mMaterials[i], (uint32_t)(mat0 + i));
+    }
+    if (r == PM_OK && is_obj) {
+        unsigned char *pbr = malloc(as->mNumMaterials ? as->mNumMaterials : 1);
+        float metallic, roughness;
+        if (!pbr)
+            return pm_error_set(PM_ERR_NOMEM, "out of memory");
+        for (unsigned i = 0; i < as->mNumMaterials; i++)
+            pbr[i] = (unsigned char)pm_scene_pbr_inputs(1, as->mMaterials[i], &metallic, &roughness);
+        r = pm_scene_scan_mtl_dropped(s, path, libs, mat0, as->mNumMaterials, pbr);
+        free(pbr);
+    }
+    if (r != PM_OK)
+        return r;
+    s->nmaterials += as->mNumMaterials;
+    for (unsigned mi = 0; mi < as->mNumMeshes && r == PM_OK; mi++) {
+        const struct aiMesh *m = as->mMeshes[mi];
+        if (!(m->mPrimitiveTypes & aiPrimitiveType_TRIANGLE))
+            continue;
+        if (m->mMaterialIndex >= as->mNumMaterials) {
+            r = pm_error_set(PM_ERR_INPUT, "mesh '%s': material index %u of %u", path, m->mMaterialIndex,
+                             as->mNumMaterials);
+            break;
+        }
+        const pm_material_maps_t *mm = &s->maps[mat0 + m->mMaterialIndex];
+        if (!m->mTextureCoords[0] && (mm->kd >= 0 || mm->ks >= 0 || mm->alpha >= 0) &&
+            (r = pm_scene_note_unsupported(s, (uint32_t)(mat0 + m->mMaterialIndex), "texture coordinates", 0,
+                                           "missing (texel 0 0 used)")) != PM_OK)
+            break;
+        size_t v0 = s->nverts;
+        if (s->ntris + m->mNumFaces > PM_SCENE_MAX_TRIS) {
+            r = pm_error_set(PM_ERR_INPUT, "mesh '%s': more than %u triangles in the scene", path, PM_SCENE_MAX_TRIS);
+            break;
+        }
+        if ((r = pm_scene_grow((void **)&s->verts, 3 * (v0 + m->mNumVertices), sizeof(float))) != PM_OK ||
+            (r = pm_scene_grow((void **)&s->uvs, 2 * (v0 + m->mNumVertices), sizeof(float))) != PM_OK ||
+            (r = pm_scene_grow((void **)&s->normals, 3 * (v0 + m->mNumVertices), sizeof(float))) != PM_OK ||
+            (r = pm_scene_grow((void **)&c->local, 3 * (v0 + m->mNumVertices), sizeof(float))) != PM_OK ||
+            (r = pm_scene_grow((void **)&s->tris, 3 * (s->ntris + m->mNumFaces), sizeof(uint32_t))) != PM_OK ||
+            (r = pm_scene_grow((void **)&s->tri_material, s->ntris + m->mNumFaces, sizeof(uint32_t))) != PM_OK)
+            break;
+        for (unsigned v = 0; v < m->mNumVertices; v++) {
+            double p[3] = {m->mVertices[v].x, m->mVertices[v].y, m->mVertices[v].z};
+            for (int k = 0; k < 3; k++)
+                c->local[3 * (v0 + v) + k] = (float)p[k];
+            for (int k = 0; k < 3; k++) {
+                double x = general ? xf[k][0] * p[0] + xf[k][1] * p[1] + xf[k][2] * p[2] + xf[k][3]
+                                   : p[k] * xf[k][k] + xf[k][3];
+                if (!isfinite(x) || fabs(x) > PM_SCENE_COORD_MAX) {
+                    r = pm_error_set(PM_ERR_INPUT, "mesh '%s': vertex %u coordinate %c = %g is not finite or beyond %g",
+                                     path, v, "xyz"[k], x, PM_SCENE_COORD_MAX);
+                    break;
+                }
+                s->verts[3 * (v0 + v) + k] = (float)x;
+            }
+            /* the first set of texture coordinates; none: every point reads texel (0, 0) */
+            const struct aiVector3D *uv = m->mTextureCoords[0] ? &m->mTextureCoords[0][v] : NULL;
+            float uu = uv ? uv->x : 0.0f, vv = uv ? uv->y : 0.0f;
+            s->uvs[2 * (v0 + v)] = isfinite(uu) ? uu : 0.0f;
+            s->uvs[2 * (v0 + v) + 1] = isfinite(vv) ? vv : 0.0f;
+            /* The vertex normal by the cofactor matrix of the map (normals transform by the
+             * inverse transpose; its scale and sign do not matter: pm_scene_shading_normal
+             * normalizes it and turns it to the side the ray came from). None, or one that is
+             * not finite: zero, which falls back to the geometric normal. */
+            float *nv = &s->normals[3 * (v0 + v)];
+            nv[0] = nv[1] = nv[2] = 0.0f;
+            if (m->mNormals) {
+                double a[3] = {m->mNormals[v].x, m->mNormals[v].y, m->mNormals[v].z}, q[3];
+                for (int k = 0; k < 3; k++) {
+                    int k1 = (k + 1) % 3, k2 = (k + 2) % 3;
+                    double c0 = xf[k1][1] * xf[k2][2] - xf[k1][2] * xf[k2][1],
+                           c1 = xf[k1][2] * xf[k2][0] - xf[k1][0] * xf[k2][2],
+                           c2 = xf[k1][0] * xf[k2][1] - xf[k1][1] * xf[k2][0];
+                    q[k] = c0 * a[0] + c1 * a[1] + c2 * a[2];
+                }
+                double len = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
+                if (isfinite(len) && len > 0.0)
+                    for (int k = 0; k < 3; k++)
+                        nv[k] = (float)(q[k] / len);
+                c->any_normals = 1;
+            }
+            if (r != PM_OK)
+                break;
+        }
+        s->nverts += m->mNumVertices;
+        for (unsigned f = 0; f < m->mNumFaces && r == PM_OK; f++) {
+            const struct aiFace *face = &m->mFaces[f];
+            if (face->mNumIndices != 3)
+                continue;
+            uint32_t *t = &s->tris[3 * s->ntris];
+            for (int k = 0; k < 3; k++) {
+                if (face->mIndices[k] >= m->mNumVertices) {
+                    r = pm_error_set(PM_ERR_INPUT, "mesh '%s': face %u names vertex %u of %u", path, f,
+                                     face->mIndices[k], m->mNumVertices);
+                    break;
+                }
+                t[k] = (uint32_t)(v0 + face->mIndices[flip && k ? 3 - k : k]);
+            }
+            if (r != PM_OK)
+                break;
+            s->tri_material[s->ntris] = (uint32_t)(mat0 + m->mMaterialIndex);
+            s->ntris++;
+            /* Zero-area triangles scatter nothing and have no normal: leave them out, and
+             * those too small for a float normal with them. One too large for a float normal
+             * cannot be left out without changing the scene: refuse it. */
+            double area = pm_scene_triangle_area(s, s->ntris - 1);
+            if (area > PM_SCENE_AREA_MAX) {
+                r = pm_error_set(PM_ERR_INPUT,
+                                 "mesh '%s': face %u has an area of %g m^2, beyond %g m^2 (its normal overflows a "
+                                 "float): scale the scene down",
+                                 path, f, area, PM_SCENE_AREA_MAX);
+                break;
+            }
+            if (!(area >= PM_SCENE_AREA_MIN)) {
+                s->ntris--;
+                s->ndropped++;
+            } else {
+                uint64_t id[3] = {kept, mi, f};
+                kept = pm_hash_bytes(id, sizeof id);
+            }
+        }
+    }
+    if (r != PM_OK)
+        return r;
+    /* This entry's placement: entries with equal keys hold the same triangles in the same mesh
+     * units and winding, so that Embree can keep one copy and place it by instances. */
+    if ((r = pm_scene_grow((void **)&s->placements, s->nplacements + 1, sizeof *s->placements)) != PM_OK)
+        return r;
+    pm_placement_t *pl = &s->placements[s->nplacements++];
+    memset(pl, 0, sizeof *pl);
+    uint64_t id[4] = {pm_hash_bytes(path, strlen(path)), kept, (uint64_t)flip, s->ntris - tri_start};
+    pl->key = pm_hash_bytes(id, sizeof id);
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 4; j++)
+            pl->xf[4 * i + j] = (float)xf[i][j];
+    pl->tri0 = (uint32_t)tri_start, pl->ntris = (uint32_t)(s->ntris - tri_start);
+    pl->vert0 = (uint32_t)vert_start, pl->nverts = (uint32_t)(s->nverts - vert_start);
+    pl->proto = -1;
+    return PM_OK;
+}
+
+/* Releases the import of entry i's mesh file unless a later entry places the same file, so
+ * that a scene of many different files holds one import at a time. */
+void pm_scene_release_import(ctx_t *c, json_t *meshes, size_t i)
+{
+    const char *file = json_string_value(json_object_get(json_array_get(meshes, i), "file"));
+    if (!file)
+        return;
+    char path[1200], later[1200];
+    pm_scene_resolve(c->file, file, path, sizeof path);
+    for (size_t j = i + 1; j < json_array_size(meshes); j++) {
+        const char *f = json_string_value(json_object_get(json_array_get(meshes, j), "file"));
+        if (!f)
+            continue;
+        pm_scene_resolve(c->file, f, later, sizeof later);
+        if (strcmp(later, path) == 0)
+            return;
+    }
+    for (size_t k = 0; k < c->nimports; k++)
+        if (c->imports[k].as && strcmp(c->imports[k].path, path) == 0) {
+            aiReleaseImport(c->imports[k].as);
+            c->imports[k].as = NULL;
+            c->imports[k].path[0] = '\0'; /* never found again */
+            free(c->imports[k].homes);
+            c->imports[k].homes = NULL;
+            c->imports[k].nhomes = 0;
+        }
+}
+
+/* Marks the placements Embree may instance (a key placed more than once, unless the scene
+ * says "instancing": false) and keeps their prototype's vertices in mesh units. */
+pm_result_t pm_scene_find_instances(ctx_t *c, int allowed)
+{
+    pm_scene_t *s = c->s;
+    size_t nlocal = 0;
+    for (size_t i = 0; allowed && i < s->nplacements; i++) {
+        pm_placement_t *p = &s->placements[i];
+        for (size_t j = 0; j < i && p->proto < 0; j++) {
+            pm_placement_t *q = &s->placements[j];
+            if (q->key == p->key && q->ntris == p->ntris && q->nverts == p->nverts && p->ntris > 0) {
+                if (q->proto < 0) { /* q becomes the prototype */
+                    q->proto = (int32_t)j;
+                    q->local0 = (uint32_t)nlocal;
+                    nlocal += q->nverts;
+                }
+                p->proto = q->proto;
+            }
+        }
+    }
+    if (!nlocal)
+        return PM_OK;
+    s->local_verts = malloc(3 * nlocal * sizeof(float));
+    if (!s->local_verts)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for %zu instanced vertices", nlocal);
+    for (size_t i = 0; i < s->nplacements; i++) {
+        const pm_placement_t *p = &s->placements[i];
+        if (p->proto == (int32_t)i)
+            memcpy(s->local_verts + 3 * (size_t)p->local0, c->local + 3 * (size_t)p->vert0,
+                   3 * (size_t)p->nverts * sizeof(float));
+    }
+    return PM_OK;
+}

@@ -1,0 +1,117 @@
+/* scene_load.h: what the files of the scene reader share (scene.c, scene_json.c, mesh.c,
+ * scene_material.c, mtl.c, scene_maps.c, scene_hash.c): limits, the loader's state and its
+ * internal functions. Not for use outside common/render's scene files. */
+#ifndef PM_SCENE_LOAD_H
+#define PM_SCENE_LOAD_H
+
+#include <jansson.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <sys/types.h>
+
+#include "render/scene.h"
+
+struct aiMaterial;
+struct aiScene;
+
+#define PM_SCENE_MAX_TRIS (1u << 30) /* triangles: 32-bit indices with room to spare */
+#define PM_SCENE_MAX_LIGHTS 65536
+/* m: Embree refuses (aborts on) a ray whose origin lies beyond 1.844e18 m, and camera and
+ * photon rays start at the eye, the lights and on the geometry. */
+#define PM_SCENE_COORD_MAX 1e18
+/* m^2: a triangle's normal is its edges' cross product, whose squared length must be a
+ * normal float (4 A^2 within [1.2e-38, 3.4e38]); these keep a margin of 50 below and 9
+ * above. Smaller triangles are left out as degenerate, larger ones refused. */
+#define PM_SCENE_AREA_MIN 1e-18
+#define PM_SCENE_AREA_MAX 1e18
+/* m: the smallest geometry pmtk renders (its bounding box's longest side); every triangle of
+ * a scene much smaller would be left out by PM_SCENE_AREA_MIN, and the image silently black. */
+#define PM_SCENE_SIZE_MIN 1e-8
+
+/* Where an OBJ's material is defined: the first .mtl of its libraries (in mtllib order) with a
+ * newmtl of that name, the folder its texture names are relative to. */
+typedef struct {
+    char name[64]; /* as load_material names it (material_word) */
+    char lib[1200];
+} mtl_home_t;
+
+/* A mesh file imported once per scene, however many entries place it. */
+typedef struct {
+    char path[1200];
+    const struct aiScene *as;
+    char libs[4096];   /* its .mtl files, one a line (check_obj_materials) */
+    mtl_home_t *homes; /* each material its .mtl files define, read once at import (mtl_homes) */
+    size_t nhomes;
+} import_t;
+
+typedef struct {
+    const char *file; /* the scene file, for messages */
+    pm_scene_t *s;
+    int missing_magenta; /* missing_textures "magenta": a missing texture file is a warning */
+    import_t *imports;   /* the mesh files imported so far */
+    size_t nimports;
+    float *local;    /* every vertex loaded, in its mesh's own units (placements share them) */
+    int any_normals; /* some mesh loaded has vertex normals */
+} ctx_t;
+
+/* ---- scene_json.c: the scene file's keys. Every error names the scene file, the key path and
+ * the value, through pm_scene_bad. */
+pm_result_t pm_scene_bad(const ctx_t *c, const char *key, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+/* Unknown keys of obj are errors listing the known ones (a typo must not fall back to a default). */
+pm_result_t pm_scene_only_keys(const ctx_t *c, json_t *obj, const char *where, const char *const *allowed);
+/* obj's member name, a finite number in [lo, hi] (an integer; 3 numbers), into *out; left alone when
+ * it is absent and not required. path names it in errors. */
+pm_result_t pm_scene_get_number(const ctx_t *c, json_t *obj, const char *name, const char *path, int required,
+                                double lo, double hi, double *out);
+pm_result_t pm_scene_get_int(const ctx_t *c, json_t *obj, const char *name, const char *path, int required,
+                             int64_t lo, int64_t hi, int64_t *out);
+pm_result_t pm_scene_get_vec3(const ctx_t *c, json_t *obj, const char *name, const char *path, int required,
+                              double lo, double hi, float out[3]);
+pm_result_t pm_scene_load_camera(const ctx_t *c, json_t *cam);
+pm_result_t pm_scene_load_lights(const ctx_t *c, json_t *lights);
+pm_result_t pm_scene_load_sun_sky(const ctx_t *c, json_t *sun, json_t *sky);
+pm_result_t pm_scene_load_defaults(const ctx_t *c, json_t *d);
+/* Mesh entry mj's placement (scale, rotate, translate, matrix) as one affine map, rows of [3x3 | t]. */
+pm_result_t pm_scene_load_transform(const ctx_t *c, json_t *mj, const char *where, double xf_out[3][4],
+                                    int *general_out);
+/* The determinant of m's 3 x 3 part. */
+double pm_scene_det3(const double m[3][4]);
+
+/* ---- scene.c: helpers every part uses. */
+/* file resolved against the folder of scene_path (a file name, not a folder). */
+void pm_scene_resolve(const char *scene_path, const char *file, char *out, size_t cap);
+/* *p reallocated to n (at least 1) elements of size; an out-of-memory error otherwise. */
+pm_result_t pm_scene_grow(void **p, size_t n, size_t size);
+
+/* ---- mesh.c: assimp imports. */
+pm_result_t pm_scene_load_mesh(ctx_t *c, json_t *mj, size_t index);
+void pm_scene_release_import(ctx_t *c, json_t *meshes, size_t i);
+pm_result_t pm_scene_find_instances(ctx_t *c, int allowed);
+/* The first word of an OBJ or MTL line into word (cut to cap), and where the rest begins. */
+const char *pm_scene_obj_word(const char *line, char *word, size_t cap);
+
+/* ---- scene_material.c: an assimp material into a pm_material_t. */
+pm_result_t pm_scene_load_material(const ctx_t *c, const char *mesh, int is_obj, const struct aiMaterial *am,
+                                   pm_material_t *m);
+/* 1 when am is a metallic-roughness material (glTF; an MTL with Pr or Pm), and its two factors. */
+int pm_scene_pbr_inputs(int is_obj, const struct aiMaterial *am, float *metallic_out, float *roughness_out);
+/* A material name as pmtk keeps it: spaces and control characters become '_'. */
+void pm_scene_material_word(char *name);
+
+/* ---- mtl.c: what a material sets and pmtk does not honour. */
+pm_result_t pm_scene_scan_material(pm_scene_t *s, int is_obj, const struct aiMaterial *am, uint32_t m);
+pm_result_t pm_scene_scan_mtl_dropped(pm_scene_t *s, const char *obj, const char *libs, size_t mat0, size_t n,
+                                      const unsigned char *pbr);
+pm_result_t pm_scene_mtl_homes(const char *obj, const char *libs, import_t *im);
+pm_result_t pm_scene_note_unsupported(pm_scene_t *s, uint32_t m, const char *key, int is_file, const char *value);
+
+/* ---- scene_maps.c: a material's textures. */
+pm_result_t pm_scene_load_material_maps(const ctx_t *c, const char *mesh, int is_obj, const import_t *im,
+                                        const struct aiMaterial *am, uint32_t mi);
+
+/* ---- scene_hash.c: the scene's identity. */
+pm_result_t pm_scene_hash_materials(const pm_scene_t *s, uint64_t *out);
+pm_result_t pm_scene_hash_lights(const pm_scene_t *s, uint64_t *hash_out);
+void pm_scene_hash_parts(pm_scene_t *s, const uint64_t h[6]);
+
+#endif

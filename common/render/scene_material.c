@@ -1,0 +1,236 @@
+/* scene_material.c: one assimp material into a pm_material_t (docs/scene-format.md, Materials):
+ * MTL's Kd, Ks, Ns, Ke, its mirrors and glass (illum, Ni, Tf), its PBR extension (Pr, Pm) and
+ * glTF's metallic-roughness, transmission and ior mapped onto the material kinds, with every
+ * value range-checked. */
+#include "render/scene.h"
+
+#include <assimp/cimport.h>
+#include <assimp/material.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+#include <ctype.h>
+#include <errno.h>
+#include <inttypes.h>
+#include <jansson.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+#include "base/exr.h"
+#include "base/hash.h"
+#include "formats/formats.h"
+#include "math/vec.h"
+#include "render/scene_load.h"
+
+/* The PBR inputs of assimp material am: 1 when it is a metallic-roughness material (every glTF
+ * material; an MTL material with a Pr or a Pm line, the PBR extension), with its metallic and
+ * roughness factors (glTF's defaults where one is absent: metallic 1 in glTF, 0 in an MTL,
+ * whose materials are dielectrics unless Pm says otherwise; roughness 1 in both). */
+int pm_scene_pbr_inputs(int is_obj, const struct aiMaterial *am, float *metallic_out, float *roughness_out)
+{
+    ai_real metallic = is_obj ? 0 : 1, roughness = 1;
+    int has_m = aiGetMaterialFloatArray(am, AI_MATKEY_METALLIC_FACTOR, &metallic, NULL) == aiReturn_SUCCESS;
+    int has_r = aiGetMaterialFloatArray(am, AI_MATKEY_ROUGHNESS_FACTOR, &roughness, NULL) == aiReturn_SUCCESS;
+    *metallic_out = (float)metallic;
+    *roughness_out = (float)roughness;
+    return !is_obj || has_m || has_r;
+}
+
+/* The specular part of a material (docs/scene-format.md, "Mirrors and glass"): from an OBJ,
+ * illum 7 is glass (Ni, Tf; rough glass of width Pr^2 with a Pr above 0) and illum 3 or 5 with
+ * some Ks a mirror (Ks); from glTF, a transmissionFactor above 0 is glass (ior, baseColorFactor
+ * as the filter), rough glass with a roughnessFactor above 0. Sets m->kind, kr, ior, tf and
+ * alpha; refuses an index that is not a finite number > 0, a filter outside [0, 1], a roughness
+ * outside [0, 1], and glass that is also a metal. */
+static pm_result_t load_specular(const char *mesh, int is_obj, const struct aiMaterial *am, const float kd[3],
+                                 const float ks[3], pm_material_t *m)
+{
+    int illum = 0, glass = 0, mirror = 0;
+    ai_real ior = 1, transmission = 0;
+    float metallic = 0, roughness = 0;
+    struct aiColor4D tf = {1, 1, 1, 1};
+    unsigned one = 1;
+    m->ior = 1.0f;
+    m->tf[0] = m->tf[1] = m->tf[2] = 1.0f;
+    aiGetMaterialFloatArray(am, AI_MATKEY_REFRACTI, &ior, NULL);
+    int pbr = pm_scene_pbr_inputs(is_obj, am, &metallic, &roughness);
+    if (is_obj) {
+        aiGetMaterialIntegerArray(am, "$mat.illum", 0, 0, &illum, &one);
+        aiGetMaterialColor(am, AI_MATKEY_COLOR_TRANSPARENT, &tf);
+        glass = illum == 7;
+        /* a PBR material's kind comes from Pm (load_pbr), not from illum */
+        mirror = !pbr && (illum == 3 || illum == 5) && (ks[0] > 0.0f || ks[1] > 0.0f || ks[2] > 0.0f);
+        for (int k = 0; k < 3; k++)
+            m->kr[k] = mirror ? ks[k] : 0.0f;
+        if (!pbr || !glass)
+            roughness = 0;
+    } else {
+        /* glTF's index defaults to 1.5 where KHR_materials_ior is absent */
+        if (aiGetMaterialFloatArray(am, AI_MATKEY_REFRACTI, &ior, NULL) != aiReturn_SUCCESS)
+            ior = 1.5f;
+        aiGetMaterialFloatArray(am, AI_MATKEY_TRANSMISSION_FACTOR, &transmission, NULL);
+        if (!(transmission >= 0 && transmission <= 1))
+            return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': transmissionFactor %g must lie in [0, 1]",
+                                mesh, m->name, transmission);
+        glass = transmission > 0;
+        /* the base colour tints what glass transmits */
+        tf = (struct aiColor4D){kd[0], kd[1], kd[2], 1};
+        /* only glTF can say both (an OBJ material has one illum) */
+        if (glass && metallic == 1.0f)
+            return pm_error_set(PM_ERR_INPUT,
+                                "mesh '%s': material '%s': transmissionFactor %g makes it glass, and metallicFactor 1 "
+                                "with roughnessFactor %g a %s: it cannot be both",
+                                mesh, m->name, transmission, roughness, roughness == 0.0f ? "mirror" : "metal");
+    }
+    if (glass) {
+        if (!(isfinite(ior) && ior > 0))
+            return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': %s %g must be a finite number > 0", mesh,
+                                m->name, is_obj ? "Ni" : "ior", ior);
+        if (!(roughness >= 0.0f && roughness <= 1.0f))
+            return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': %s %g must lie in [0, 1]", mesh, m->name,
+                                is_obj ? "Pr" : "roughnessFactor", roughness);
+        float tv[3] = {tf.r, tf.g, tf.b};
+        for (int k = 0; k < 3; k++)
+            if (!(tv[k] >= 0.0f && tv[k] <= 1.0f))
+                return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': %s %g in channel %c must lie in [0, 1]",
+                                    mesh, m->name, is_obj ? "Tf" : "baseColorFactor", tv[k], "rgb"[k]);
+        /* smooth glass stays the delta BSDF the tracers follow in specular chains */
+        m->kind = roughness > 0.0f ? PM_MAT_ROUGH_GLASS : PM_MAT_GLASS;
+        m->alpha = roughness * roughness;
+        m->ior = (float)ior;
+        for (int k = 0; k < 3; k++)
+            m->tf[k] = tv[k];
+    } else if (mirror) {
+        m->kind = PM_MAT_MIRROR;
+    }
+    /* A specular material is its delta BSDF alone (the Kd and Ks it sets besides are
+     * reported by scan_material and scan_mtl_dropped). */
+    if (m->kind != PM_MAT_STANDARD)
+        for (int k = 0; k < 3; k++)
+            m->kd[k] = m->ks[k] = 0.0f;
+    return PM_OK;
+}
+
+/* glTF's F0 of a dielectric: an index of 1.5 reflects ((1.5 - 1) / (1.5 + 1))^2 = 0.04 at normal
+ * incidence, the value its metallic-roughness model mixes toward the base colour. */
+#define PM_PBR_DIELECTRIC_F0 0.04f
+
+/* The metallic-roughness part of a material that is not glass (docs/scene-format.md, "PBR
+ * materials"): metallic 1 is a conductor of F0 the base colour and GGX width roughness^2 (a
+ * mirror of reflectance the base colour at roughness 0, the delta the tracers follow); metallic
+ * 0 is plastic, the base colour under a dielectric coat of index 1.5 (glTF's ior when
+ * KHR_materials_ior gives one, an MTL's Ni when not 1; index 1 makes it Lambertian, exactly).
+ * A metallic strictly between is the nearer kind with glTF's mix of that kind's own lobe:
+ * F0 = lerp(0.04, base, metallic) for a metal, kd = (1 - metallic) base for plastic; the other
+ * lobe is lost, and scan_material says so. */
+static pm_result_t load_pbr(const char *mesh, int is_obj, const struct aiMaterial *am, const float base[3],
+                            pm_material_t *m)
+{
+    float metallic, roughness;
+    if (!pm_scene_pbr_inputs(is_obj, am, &metallic, &roughness))
+        return PM_OK;
+    if (!(metallic >= 0.0f && metallic <= 1.0f))
+        return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': %s %g must lie in [0, 1]", mesh, m->name,
+                            is_obj ? "Pm" : "metallicFactor", metallic);
+    if (!(roughness >= 0.0f && roughness <= 1.0f))
+        return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': %s %g must lie in [0, 1]", mesh, m->name,
+                            is_obj ? "Pr" : "roughnessFactor", roughness);
+    memset(m->kd, 0, sizeof m->kd);
+    memset(m->ks, 0, sizeof m->ks);
+    m->ns = 0.0f;
+    if (metallic >= 0.5f) {
+        for (int k = 0; k < 3; k++) {
+            float f0 = metallic * base[k] + (1.0f - metallic) * PM_PBR_DIELECTRIC_F0;
+            if (roughness == 0.0f)
+                m->kr[k] = f0;
+            else
+                m->f0[k] = f0;
+        }
+        m->kind = roughness == 0.0f ? PM_MAT_MIRROR : PM_MAT_CONDUCTOR;
+        m->alpha = roughness * roughness;
+        return PM_OK;
+    }
+    ai_real ior = 1.5f, given = 1;
+    if (aiGetMaterialFloatArray(am, AI_MATKEY_REFRACTI, &given, NULL) == aiReturn_SUCCESS && (!is_obj || given != 1))
+        ior = given; /* assimp gives an MTL without Ni the index 1: that is no coat index */
+    if (!(isfinite(ior) && ior >= 1 && ior <= 10))
+        return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': %s %g must lie in [1, 10] (the coat's index)",
+                            mesh, m->name, is_obj ? "Ni" : "ior", ior);
+    for (int k = 0; k < 3; k++)
+        m->kd[k] = (1.0f - metallic) * base[k];
+    m->kind = ior == 1 ? PM_MAT_STANDARD : PM_MAT_PLASTIC;
+    m->ior = (float)ior;
+    m->alpha = ior == 1 ? 0.0f : roughness * roughness;
+    return PM_OK;
+}
+
+/* A material name as pmtk keeps it: spaces and control characters become '_', since names
+ * travel as one word in file headers (load_material, and the .mtl scans that match names). */
+void pm_scene_material_word(char *name)
+{
+    for (char *p = name; *p; p++)
+        if (*p == ' ' || (unsigned char)*p < 0x20 || *p == 0x7f)
+            *p = '_';
+}
+
+/* Reads one material's reflectance from assimp and checks it is physical. */
+pm_result_t pm_scene_load_material(const ctx_t *c, const char *mesh, int is_obj, const struct aiMaterial *am,
+                                   pm_material_t *m)
+{
+    struct aiString name;
+    struct aiColor4D kd = {0.8f, 0.8f, 0.8f, 1}, ks = {0, 0, 0, 1}, ke = {0, 0, 0, 1};
+    ai_real ns = 0;
+    memset(m, 0, sizeof *m);
+    if (aiGetMaterialString(am, AI_MATKEY_NAME, &name) == aiReturn_SUCCESS)
+        snprintf(m->name, sizeof m->name, "%s", name.data);
+    pm_scene_material_word(m->name);
+    aiGetMaterialColor(am, AI_MATKEY_COLOR_DIFFUSE, &kd);
+    aiGetMaterialColor(am, AI_MATKEY_COLOR_SPECULAR, &ks);
+    aiGetMaterialColor(am, AI_MATKEY_COLOR_EMISSIVE, &ke);
+    aiGetMaterialFloatArray(am, AI_MATKEY_SHININESS, &ns, NULL);
+    int stand_in = !m->name[0] || strcmp(m->name, AI_DEFAULT_MATERIAL_NAME) == 0;
+    if (stand_in) {
+        /* assimp's stand-in for a mesh that names no material (PLY, STL): a plain grey
+         * Lambertian surface, whatever the importer filled in (some set Ks to 1). */
+        kd = (struct aiColor4D){0.8f, 0.8f, 0.8f, 1};
+        ks = ke = (struct aiColor4D){0, 0, 0, 1};
+        snprintf(m->name, sizeof m->name, "default");
+    }
+    float kdv[3] = {kd.r, kd.g, kd.b}, ksv[3] = {ks.r, ks.g, ks.b}, kev[3] = {ke.r, ke.g, ke.b};
+    float metallic, roughness;
+    int pbr = !stand_in && pm_scene_pbr_inputs(is_obj, am, &metallic, &roughness);
+    pm_result_t r = PM_OK;
+    if (!stand_in && (r = load_specular(mesh, is_obj, am, kdv, ksv, m)) != PM_OK)
+        return r;
+    int specular = m->kind != PM_MAT_STANDARD;
+    for (int i = 0; i < 3; i++) {
+        if (!(kdv[i] >= 0.0f && kdv[i] <= 1.0f) || !(ksv[i] >= 0.0f && ksv[i] <= 1.0f))
+            return pm_error_set(PM_ERR_INPUT,
+                                "mesh '%s': material '%s': Kd %g and Ks %g in channel %c must lie in [0, 1]", mesh,
+                                m->name, kdv[i], ksv[i], "rgb"[i]);
+        /* a mirror's Ks is its reflectance and its Kd unused; a PBR material's Ks is unused (its
+         * metal or its dielectric coat replaces the Phong lobe): their sum is no constraint */
+        if (!specular && !pbr && kdv[i] + ksv[i] > 1.0f + 1e-6f)
+            return pm_error_set(
+                PM_ERR_INPUT, "mesh '%s': material '%s': Kd + Ks = %g in channel %c exceeds 1 (not energy conserving)",
+                mesh, m->name, kdv[i] + ksv[i], "rgb"[i]);
+        if (!(kev[i] >= 0.0f && kev[i] <= 1e30f))
+            return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': Ke %g in channel %c must lie in [0, 1e30]",
+                                mesh, m->name, kev[i], "rgb"[i]);
+        m->kd[i] = specular ? 0.0f : kdv[i];
+        m->ks[i] = specular || pbr ? 0.0f : ksv[i];
+        m->ke[i] = kev[i];
+    }
+    if (!(ns >= 0 && ns <= 1e6))
+        return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': Ns %g must lie in [0, 1e6]", mesh, m->name, ns);
+    /* a Phong exponent matters only where there is a Phong lobe */
+    m->ns = specular || pbr ? 0.0f : (float)ns;
+    if (pbr && !specular && (r = load_pbr(mesh, is_obj, am, kdv, m)) != PM_OK)
+        return r;
+    (void)c;
+    return PM_OK;
+}

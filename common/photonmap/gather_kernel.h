@@ -140,6 +140,53 @@ static inline void FN(ggx_eval)(float (*gl)[W], float (*lwo)[W], const float win
 }
 #endif
 
+#if W > 1
+/* The glossy lanes of the packet at query b: their outgoing directions into lwo (0 elsewhere)
+ * and their materials' rows into gl (gather_lane_setup); *ggx_out the lanes of a GGX kind,
+ * *slow_out those the module evaluates itself. */
+static void FN(glossy_lanes)(const gather_ctx_t *c, uint64_t b, uint32_t glossy, float (*gl)[W], float (*lwo)[W],
+                             uint32_t *ggx_out, uint32_t *slow_out)
+{
+    const pm_gather_queries_t *q = c->q;
+    uint32_t ggx = 0, slow = 0;
+    memset(gl, 0, GL_ROWS * W * sizeof(float));
+    for (uint32_t l = 0; l < W; l++)
+        for (int k = 0; k < 3; k++)
+            lwo[k][l] = (glossy >> l & 1) ? q->dir[3 * (b + l) + k] : 0.0f;
+    for (uint32_t g = glossy; g; g &= g - 1) {
+        uint32_t l = (uint32_t)__builtin_ctz(g), mi = q->material ? q->material[b + l] : 0;
+        float wo[3] = {lwo[0][l], lwo[1][l], lwo[2][l]};
+        int kind = gather_lane_setup(c, &q->materials[mi], mi, &q->normal[3 * (b + l)], wo, &gl[0][0], W, l);
+        ggx |= (uint32_t)(kind != GL_KIND_PHONG && kind != GL_KIND_MODULE) << l;
+        slow |= (uint32_t)(kind == GL_KIND_MODULE) << l;
+    }
+    *ggx_out = ggx, *slow_out = slow;
+}
+
+/* f of every glossy lane at once for the photon direction win (toward its source), each lane
+ * with its own material, as physics/bsdf.h's pm_bsdf_eval: Phong lanes f = kd/pi + ks (ns + 2)/(2 pi)
+ * max(0, r(wi) . wo)^ns where n.wi > 0, the GGX lanes (ggx, 0 when none is hit) by ggx_eval. */
+static inline void FN(glossy_f)(float (*gl)[W], float (*lwo)[W], VF vnx, VF vny, VF vnz, const float *win, uint32_t ggx,
+                                VF f[3])
+{
+    VF cw = vnx * win[0] + vny * win[1] + vnz * win[2];
+    VF rx = 2.0f * cw * vnx - win[0], ry = 2.0f * cw * vny - win[1], rz = 2.0f * cw * vnz - win[2];
+    VF cr = rx * *(const VF *)lwo[0] + ry * *(const VF *)lwo[1] + rz * *(const VF *)lwo[2];
+    VF ns = *(const VF *)gl[GL_NS];
+    VF lobe = FN(vpow)(cr, ns) * ((ns + 2.0f) * 0.15915494309189535f);
+    VI above = cw > 0.0f;
+    for (int k = 0; k < 3; k++)
+        f[k] = FN(vsel)(above, *(const VF *)gl[GL_KD + k] + *(const VF *)gl[GL_KS + k] * lobe, (VF){0});
+    if (ggx) {
+        VF fg[3];
+        VI gm = FN(vbits)(ggx);
+        FN(ggx_eval)(gl, lwo, win, fg);
+        for (int k = 0; k < 3; k++)
+            f[k] = FN(vsel)(gm, fg[k], f[k]);
+    }
+}
+#endif
+
 static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t end, double *out, pm_gather_stats_t *st)
 {
     const pm_gather_map_t *m = c->m;
@@ -174,19 +221,8 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
         _Alignas(64) float gl[GL_ROWS][W];
         _Alignas(64) float lwo[3][W];
         uint32_t ggx = 0, slow = 0;
-        if (glossy) {
-            memset(gl, 0, sizeof gl);
-            for (uint32_t l = 0; l < W; l++)
-                for (int k = 0; k < 3; k++)
-                    lwo[k][l] = (glossy >> l & 1) ? q->dir[3 * (b + l) + k] : 0.0f;
-            for (uint32_t g = glossy; g; g &= g - 1) {
-                uint32_t l = (uint32_t)__builtin_ctz(g), mi = q->material ? q->material[b + l] : 0;
-                float wo[3] = {lwo[0][l], lwo[1][l], lwo[2][l]};
-                int kind = gather_lane_setup(c, &q->materials[mi], mi, &q->normal[3 * (b + l)], wo, &gl[0][0], W, l);
-                ggx |= (uint32_t)(kind != GL_KIND_PHONG && kind != GL_KIND_MODULE) << l;
-                slow |= (uint32_t)(kind == GL_KIND_MODULE) << l;
-            }
-        }
+        if (glossy)
+            FN(glossy_lanes)(c, b, glossy, gl, lwo, &ggx, &slow);
 #endif
         const V qx = VLOAD(lq[0]), qy = VLOAD(lq[1]), qz = VLOAD(lq[2]);
         const V nx = VLOAD(lq[3]), ny = VLOAD(lq[4]), nz = VLOAD(lq[5]);
@@ -277,28 +313,9 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
                     }
                     if (hit & glossy) {
 #if W > 1
-                        /* f for every glossy lane at once, each with its own material, as
-                         * physics/bsdf.h's pm_bsdf_eval: Phong lanes f = kd/pi + ks (ns + 2)/(2 pi)
-                         * max(0, r(wi) . wo)^ns where n.wi > 0, GGX lanes by ggx_eval. */
-                        const float *win = &m->dir[3 * (size_t)ni]; /* toward the photon's source */
-                        VF vnx = (VF)nx, vny = (VF)ny, vnz = (VF)nz;
-                        VF cw = vnx * win[0] + vny * win[1] + vnz * win[2];
-                        VF rx = 2.0f * cw * vnx - win[0], ry = 2.0f * cw * vny - win[1], rz = 2.0f * cw * vnz - win[2];
-                        VF cr = rx * *(const VF *)lwo[0] + ry * *(const VF *)lwo[1] + rz * *(const VF *)lwo[2];
-                        VF ns = *(const VF *)gl[GL_NS];
-                        VF lobe = FN(vpow)(cr, ns) * ((ns + 2.0f) * 0.15915494309189535f);
-                        VI above = cw > 0.0f;
+                        /* f for every glossy lane at once (glossy_f), each with its own material */
                         VF f[3];
-                        for (int k = 0; k < 3; k++)
-                            f[k] = FN(vsel)(above, *(const VF *)gl[GL_KD + k] + *(const VF *)gl[GL_KS + k] * lobe,
-                                            (VF){0});
-                        if (hit & ggx) {
-                            VF fg[3];
-                            VI gm = FN(vbits)(ggx);
-                            FN(ggx_eval)(gl, lwo, win, fg);
-                            for (int k = 0; k < 3; k++)
-                                f[k] = FN(vsel)(gm, fg[k], f[k]);
-                        }
+                        FN(glossy_f)(gl, lwo, (VF)nx, (VF)ny, (VF)nz, &m->dir[3 * (size_t)ni], hit & ggx ? ggx : 0, f);
                         V kg = VMASKED(hit & glossy & ~slow, kv);
                         ar = VFMA(VMUL(kg, (V)f[0]), VSET1(pw[0]), ar);
                         ag = VFMA(VMUL(kg, (V)f[1]), VSET1(pw[1]), ag);

@@ -67,7 +67,9 @@ typedef struct {
     float *u1, *u2;                                                 /* spp stratified points */
     float *lx, *ly, *lz; /* their cosine-weighted directions in the local frame */
     float *thr;          /* per primary ray: RGB throughput of its specular chain (1 1 1 without one) */
-    size_t thr_cap;
+    float *emw;          /* per primary ray: the weight of the emission its last ray finds (MIS past a glossy bounce) */
+    unsigned char *part; /* per primary ray: 1 when its hit shades its diffuse part alone (primary_glossy) */
+    size_t thr_cap, emw_cap, part_cap;
     uint64_t n_primary, n_secondary, n_shadow, n_queries, n_caustic, n_specular, n_specular_cut, n_glossy;
     double t_secondary; /* s inside Embree for secondary rays */
     double cpu_rows;    /* s of this thread's CPU time in trace_row */
@@ -129,7 +131,9 @@ static pm_result_t scratch_reserve(scratch_t *sc, uint32_t y, size_t nprim, size
         !grow((void **)&sc->sec_px, sizeof(uint32_t), &sc->sec_px_cap, nsec) ||
         !grow((void **)&sc->sec_w, 3 * sizeof(float), &sc->sec_w_cap, nsec) ||
         !grow((void **)&sc->sec_cos, sizeof(float), &sc->sec_cos_cap, nsec) ||
-        !grow((void **)&sc->thr, 3 * sizeof(float), &sc->thr_cap, nprim))
+        !grow((void **)&sc->thr, 3 * sizeof(float), &sc->thr_cap, nprim) ||
+        !grow((void **)&sc->emw, sizeof(float), &sc->emw_cap, nprim) ||
+        !grow((void **)&sc->part, 1, &sc->part_cap, nprim))
         return pm_error_set(PM_ERR_NOMEM,
                             "out of memory for the rays of row %" PRIu32 ": %zu primary, %zu shadow, %zu secondary", y,
                             nprim, nshadow, nsec);
@@ -148,6 +152,7 @@ static void scratch_free(scratch_t *sc)
     pm_rays_free(&sc->prim), pm_rays_free(&sc->shadow), pm_rays_free(&sc->sec);
     free(sc->hit), free(sc->sh_px), free(sc->sh_c), free(sc->sec_px), free(sc->sec_w), free(sc->sec_cos);
     free(sc->u1), free(sc->u2), free(sc->lx), free(sc->ly), free(sc->lz), free(sc->thr);
+    free(sc->emw), free(sc->part);
 }
 
 /* Appends one query record in file layout; 0 when out of memory. */
@@ -587,6 +592,12 @@ static float primary_surface(const pm_eye_t *c, scratch_t *sc, size_t i, pm_mate
     for (int k = 0; k < 3; k++)
         v->gn[k] = side * ng[k];
     v->m = pm_scene_material_at(s, tri, p, textured);
+    if (c->cont && sc->part[i]) { /* the diffuse part alone (primary_glossy) */
+        if (v->m != textured)
+            *textured = *v->m;
+        textured->ks[0] = textured->ks[1] = textured->ks[2] = 0.0f;
+        v->m = textured;
+    }
     for (int k = 0; k < 3; k++) {
         v->p[k] = p[k], v->wo[k] = wo[k];
         v->o[k] = p[k] + c->eps * v->gn[k];
@@ -605,7 +616,8 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
                          pm_rng_t *gather_rng, double *direct, bytebuf_t *out, bytebuf_t *caus)
 {
     static const float one[3] = {1.0f, 1.0f, 1.0f};
-    const float *tp = c->specular ? sc->thr + 3 * i : one;
+    const float *tp = c->specular || c->cont ? sc->thr + 3 * i : one;
+    float emw = c->cont ? sc->emw[i] : 1.0f; /* 1 unless the ray left a glossy bounce (primary_glossy) */
     const pm_scene_t *s = c->s;
     uint32_t tri = sc->prim.prim[i];
     float inv_p = 1.0f / (float)c->primary;
@@ -615,9 +627,9 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
     const pm_material_t *m = v.m;
 
     /* Emission seen directly: emitters radiate from their front side only. */
-    if ((side > 0.0f || s->two_sided_lights) && pm_material_is_emissive(m))
+    if ((side > 0.0f || s->two_sided_lights) && pm_material_is_emissive(m) && emw > 0.0f)
         for (int k = 0; k < 3; k++)
-            direct[3 * x + k] += (double)(m->ke[k] * inv_p * tp[k]);
+            direct[3 * x + k] += (double)(m->ke[k] * inv_p * tp[k] * emw);
 
     int glossy = pm_material_is_glossy(m);
     int reflects = m->kd[0] > 0.0f || m->kd[1] > 0.0f || m->kd[2] > 0.0f || glossy;
@@ -952,6 +964,121 @@ static void primary_chain(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectC
     pr->tfar[i] = t;
 }
 
+/* Primary ray i (pixel column x) at a hit on a surface that continues (continues(): a sharp lobe,
+ * rough glass), passed through like a mirror, so that the surface seen in it gets the final
+ * gather of a primary hit (light samples, spp secondary rays) instead of one query per secondary
+ * ray, a density estimate seen through the lobe (the speckle of a windshield). A standard
+ * material's reflection is split by lobe (u against the lobe's share p of max(kd) + max(ks)):
+ * with 1 - p its diffuse part alone is shaded here as the primary hit (weight 1 / (1 - p),
+ * sc->part), with p its lobe goes on (1 / p); the other kinds go on along their whole BSDF. At
+ * each glossy vertex: its emission, its light samples for the lobe (MIS with the lobe's sample,
+ * shadow rays in the row's list), the sample and the ray to the next hit, whose emission weight
+ * goes to sc->emw; mirrors and glass on the way are followed; after glossy_depth bounces the last
+ * hit is shaded as it is. The ray becomes the chain's last, its throughput in sc->thr (zero when
+ * a ray escapes past a bounce whose light samples saw the sky). 0 when out of memory. */
+static int primary_glossy(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContext *ctx, size_t i, uint32_t x,
+                          pm_rng_t *rng, double *direct)
+{
+    const pm_scene_t *s = c->s;
+    pm_rays_t *pr = &sc->prim;
+    float *thr = sc->thr + 3 * i, inv_p = 1.0f / (float)c->primary;
+    float o[3] = {pr->ox[i], pr->oy[i], pr->oz[i]}, d[3] = {pr->dx[i], pr->dy[i], pr->dz[i]}, t = pr->tfar[i];
+    float l = sqrtf(pm_dot3(d, d));
+    for (int k = 0; k < 3; k++)
+        d[k] /= l;
+    t *= l;
+    uint32_t tri = pr->prim[i];
+    unsigned depth = 0;
+    for (; tri != PM_RAY_MISS; depth++) {
+        pm_material_t textured, lobe;
+        surf_t v;
+        for (int k = 0; k < 3; k++)
+            v.p[k] = o[k] + t * d[k], v.wo[k] = -d[k];
+        const pm_material_t *m = pm_scene_material_at(s, tri, v.p, &textured);
+        if (!continues(c, m) || depth >= (rough_transmits(m) ? PM_EYE_MAX_SPECULAR : c->glossy_depth))
+            break;
+        const float *ng = c->geom.tri_n + 3 * (size_t)tri;
+        float side = pm_dot3(ng, v.wo) >= 0.0f ? 1.0f : -1.0f, *emw = &sc->emw[i];
+        if ((side > 0.0f || s->two_sided_lights) && pm_material_is_emissive(m) && *emw > 0.0f)
+            for (int k = 0; k < 3; k++)
+                direct[3 * x + k] += (double)(m->ke[k] * inv_p * thr[k] * *emw);
+        *emw = 0.0f; /* counted: the hit shades no emission of its own */
+        float u = pm_rng_float(rng), u1 = pm_rng_float(rng), u2 = pm_rng_float(rng), pl = 1.0f;
+        int standard = m->kind == PM_MAT_STANDARD;
+        if (standard) {
+            float pd, ps;
+            pm_bsdf_albedo(m, &pd, &ps);
+            pl = ps / (pd + ps);
+            if (!(u < pl)) { /* the diffuse part, shaded here */
+                sc->part[i] = 1;
+                for (int k = 0; k < 3; k++)
+                    thr[k] /= 1.0f - pl;
+                break;
+            }
+            lobe = *m;
+            lobe.kd[0] = lobe.kd[1] = lobe.kd[2] = 0.0f;
+        }
+        for (int k = 0; k < 3; k++)
+            v.gn[k] = side * ng[k], v.o[k] = v.p[k] + c->eps * v.gn[k], thr[k] /= pl;
+        v.m = standard ? &lobe : m;
+        surf_normals(s, tri, side, &v);
+        if (!shadow_room(c, sc))
+            return 0;
+        direct_lights(c, sc, &v, x, inv_p, thr, 1.0f, 1, rng);
+        float wi[3], fc[3], pdf;
+        int tr = 0;
+        if (standard) {
+            float f[3];
+            if (!pm_bsdf_sample_lobe(&lobe, PM_LOBE_GLOSSY, v.n, v.wo, u1, u2, wi) ||
+                (v.shaded && !(pm_dot3(v.gn, wi) > 0.0f)) || !((pdf = pm_bsdf_pdf(&lobe, v.n, wi, v.wo)) > 0.0f)) {
+                tri = PM_RAY_MISS, thr[0] = thr[1] = thr[2] = 0.0f;
+                break;
+            }
+            pm_brdf(&lobe, v.n, wi, v.wo, f);
+            for (int k = 0; k < 3; k++)
+                fc[k] = f[k] * pm_dot3(v.n, wi) / pdf;
+        } else {
+            pm_bsdf_sample_t bs;
+            int ok = pm_bsdf_sample_wi(m, v.bn, v.wo, u, u1, u2, PM_BSDF_RADIANCE, &bs);
+            tr = (bs.lobe & PM_BSDF_TRANSMIT) != 0;
+            float cg = pm_dot3(v.gn, bs.wi);
+            if (!ok || (tr ? !(cg < 0.0f) : (v.shaded && !(cg > 0.0f)))) {
+                tri = PM_RAY_MISS, thr[0] = thr[1] = thr[2] = 0.0f;
+                break;
+            }
+            memcpy(wi, bs.wi, sizeof wi), memcpy(fc, bs.weight, sizeof fc);
+            pdf = (bs.lobe & PM_BSDF_DELTA) || tr ? -1.0f : bs.pdf;
+        }
+        for (int k = 0; k < 3; k++) {
+            thr[k] *= fc[k];
+            o[k] = tr ? v.p[k] - c->eps * v.gn[k] : v.o[k], d[k] = wi[k];
+        }
+        sc->n_glossy++;
+        tri = pm_rt_intersect1(c->rt, ctx, o, d, 0.0f, INFINITY, &t, NULL);
+        if (!(thr[0] > 0.0f || thr[1] > 0.0f || thr[2] > 0.0f) || !isfinite(thr[0] + thr[1] + thr[2]) ||
+            (tri == PM_RAY_MISS && pdf >= 0.0f)) { /* the sky past the lobe was its light samples' */
+            tri = PM_RAY_MISS, thr[0] = thr[1] = thr[2] = 0.0f;
+            break;
+        }
+        if (tri == PM_RAY_MISS)
+            break;
+        *emw = 1.0f;
+        if (pm_material_is_specular(&s->materials[s->tri_material[tri]]))
+            follow_specular(c, sc, ctx, rng, -1.0f, &tri, o, d, &t, thr); /* its end's light: weight 1 */
+        else if (pdf >= 0.0f && s->nemissive)
+            *emw =
+                pm_power_heuristic(pdf, (float)c->light_samples * t * t /
+                                            (fabsf(pm_dot3(c->geom.tri_n + 3 * (size_t)tri, d)) * (float)c->geom.area));
+    }
+    if (depth == 0 && tri != PM_RAY_MISS)
+        return 1; /* not passed through: the ray stays the camera's, bit for bit */
+    pr->prim[i] = tri;
+    pr->ox[i] = o[0], pr->oy[i] = o[1], pr->oz[i] = o[2];
+    pr->dx[i] = d[0], pr->dy[i] = d[1], pr->dz[i] = d[2];
+    pr->tfar[i] = t;
+    return 1;
+}
+
 /* Every primary ray of row y: chains through mirrors and glass, the sky seen, and the hits'
  * shading (shade_primary). 0 when out of memory. */
 static int shade_row(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContext *ctx, uint32_t y, double *direct,
@@ -969,22 +1096,27 @@ static int shade_row(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContex
         if (i % c->primary == 0) {
             pm_rng_init(&light_rng, c->seed, 4 * (uint64_t)pixel + STREAM_LIGHT);
             pm_rng_init(&gather_rng, c->seed, 4 * (uint64_t)pixel + STREAM_GATHER);
-            if (c->specular) {
+            if (c->specular || c->cont)
                 specular_rng(&spec_rng, c->seed, pixel, 0);
+            if (c->specular)
                 spec_xi = pm_rng_float(&spec_rng);
-            }
         }
-        if (c->specular) {
+        if (c->specular || c->cont) {
             float *t0 = sc->thr + 3 * i;
             t0[0] = t0[1] = t0[2] = 1.0f; /* the chain's throughput: none yet */
         }
         if (c->specular && sc->prim.prim[i] != PM_RAY_MISS)
             primary_chain(c, sc, ctx, i, &spec_rng, spec_xi);
+        if (c->cont) {
+            sc->emw[i] = 1.0f, sc->part[i] = 0;
+            if (sc->prim.prim[i] != PM_RAY_MISS && !primary_glossy(c, sc, ctx, i, x, &spec_rng, direct))
+                return 0;
+        }
         if (sc->prim.prim[i] == PM_RAY_MISS) {
             /* Escaped, at once or after mirrors and glass: no query; the sky and the sun seen
              * are direct light, times the chain's throughput. */
             float d[3] = {sc->prim.dx[i], sc->prim.dy[i], sc->prim.dz[i]}, le[3];
-            const float *thr = c->specular ? sc->thr + 3 * i : NULL;
+            const float *thr = c->specular || c->cont ? sc->thr + 3 * i : NULL;
             pm_env_radiance(s, d, le);
             for (int k = 0; k < 3; k++)
                 direct[3 * x + k] += (double)(le[k] * (thr ? thr[k] : 1.0f) / (float)c->primary);

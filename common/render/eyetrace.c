@@ -646,6 +646,9 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
         sc->n_caustic += (uint64_t)put;
     }
 
+    /* the row's reservation, unless glossy chains (primary_glossy) took some of it */
+    if (c->cont && !shadow_room(c, sc))
+        return 0;
     direct_lights(c, sc, &v, x, inv_p, tp, (float)(c->spp / PER_CELL), c->mode == PM_EYE_GATHER, light_rng);
 
     if (c->mode == PM_EYE_DIRECT_VIS) {

@@ -63,8 +63,9 @@ typedef struct {
     uint32_t *sec_px; /* secondary ray -> pixel column */
     float *sec_w;     /* secondary ray -> RGB path weight (f cos / pdf / N / primary) */
     float *sec_cos;   /* secondary ray -> pi times its solid-angle pdf (a cosine sample: its cosine), for MIS */
-    size_t sh_px_cap, sh_c_cap, sec_px_cap, sec_w_cap, sec_cos_cap; /* elements allocated */
-    float *u1, *u2;                                                 /* spp stratified points */
+    float *sec_env;   /* secondary ray -> the MIS weights of the sky and the sun it finds escaping (env_mis) */
+    size_t sh_px_cap, sh_c_cap, sec_px_cap, sec_w_cap, sec_cos_cap, sec_env_cap; /* elements allocated */
+    float *u1, *u2;                                                              /* spp stratified points */
     float *lx, *ly, *lz; /* their cosine-weighted directions in the local frame */
     float *thr;          /* per primary ray: RGB throughput of its specular chain (1 1 1 without one) */
     float *emw;          /* per primary ray: the weight of the emission its last ray finds (MIS past a glossy bounce) */
@@ -131,6 +132,7 @@ static pm_result_t scratch_reserve(scratch_t *sc, uint32_t y, size_t nprim, size
         !grow((void **)&sc->sec_px, sizeof(uint32_t), &sc->sec_px_cap, nsec) ||
         !grow((void **)&sc->sec_w, 3 * sizeof(float), &sc->sec_w_cap, nsec) ||
         !grow((void **)&sc->sec_cos, sizeof(float), &sc->sec_cos_cap, nsec) ||
+        !grow((void **)&sc->sec_env, 2 * sizeof(float), &sc->sec_env_cap, nsec) ||
         !grow((void **)&sc->thr, 3 * sizeof(float), &sc->thr_cap, nprim) ||
         !grow((void **)&sc->emw, sizeof(float), &sc->emw_cap, nprim) ||
         !grow((void **)&sc->part, 1, &sc->part_cap, nprim))
@@ -150,7 +152,8 @@ static pm_result_t scratch_reserve(scratch_t *sc, uint32_t y, size_t nprim, size
 static void scratch_free(scratch_t *sc)
 {
     pm_rays_free(&sc->prim), pm_rays_free(&sc->shadow), pm_rays_free(&sc->sec);
-    free(sc->hit), free(sc->sh_px), free(sc->sh_c), free(sc->sec_px), free(sc->sec_w), free(sc->sec_cos);
+    free(sc->hit), free(sc->sh_px), free(sc->sh_c), free(sc->sec_px), free(sc->sec_w), free(sc->sec_cos),
+        free(sc->sec_env);
     free(sc->u1), free(sc->u2), free(sc->lx), free(sc->ly), free(sc->lz), free(sc->thr);
     free(sc->emw), free(sc->part);
 }
@@ -409,8 +412,10 @@ static void direct_lights(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uin
         pm_rays_push(&sc->shadow, o, ls.wi, 0.0f, ls.r * (1.0f - 1e-4f) - 2.0f * c->eps);
     }
     /* The sun (directions uniform in its cone, pdf 1 / omega) and the sky (cosine-weighted,
-     * pdf cos / pi), light_samples each: L f cos / pdf, averaged. Secondary rays that escape
-     * add nothing, so these carry weight 1 (no MIS). */
+     * pdf cos / pi), light_samples each: L f cos / pdf, averaged. At a Lambertian surface the
+     * secondary rays that escape add nothing, so these carry weight 1 (no MIS); at a glossy one,
+     * whose lobe the cosine samples hardly find (the speckle of a windshield under the sky),
+     * they share the sky with the BSDF samples that escape, by the power heuristic (env_mis). */
     for (int e = 0; e < 2; e++) {
         if (!(e == 0 ? s->has_sun : s->has_sky))
             continue;
@@ -429,6 +434,8 @@ static void direct_lights(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uin
                 pm_sky_radiance(s, wi, le);
             pm_brdf(m, bn, wi, wo, f);
             float g = cosi / pl / (float)c->light_samples * inv_p;
+            if (mis && glossy) /* a glossy lobe's BSDF samples find the sky too (env_mis) */
+                g *= pm_power_heuristic((float)c->light_samples * pl, nb * pm_bsdf_pdf(m, bn, wi, wo));
             size_t j = sc->shadow.n;
             for (int k = 0; k < 3; k++)
                 sc->sh_c[3 * j + k] = f[k] * le[k] * g * tp[k];
@@ -449,6 +456,32 @@ static void shadow_rays(const pm_eye_t *c, scratch_t *sc, double *direct)
             for (int k = 0; k < 3; k++)
                 direct[3 * sc->sh_px[j] + k] += (double)sc->sh_c[3 * j + k];
     sc->shadow.n = 0;
+}
+
+/* The MIS weights of the sky and the sun for a BSDF sample along wi of solid-angle pdf pdf,
+ * taken nb times at a glossy surface of normal n whose light samples drew the sky and the sun
+ * (direct_lights): w[0] the sky's, w[1] the sun's (0 without one). */
+static void env_mis(const pm_eye_t *c, const float n[3], const float wi[3], float pdf, float nb, float w[2])
+{
+    const pm_scene_t *s = c->s;
+    float ls = (float)c->light_samples;
+    w[0] = s->has_sky ? pm_power_heuristic(nb * pdf, ls * pm_sky_pdf(s, n, wi)) : 0.0f;
+    w[1] = s->has_sun ? pm_power_heuristic(nb * pdf, ls * pm_sun_pdf(&s->sun, wi)) : 0.0f;
+}
+
+/* The sky and the sun along unit d, weighted by w (env_mis), times scale, into direct[3 x ..]. */
+static void env_add(const pm_eye_t *c, const float d[3], const float w[2], const float scale[3], uint32_t x,
+                    double *direct)
+{
+    const pm_scene_t *s = c->s;
+    float ls[3];
+    if (!(w[0] > 0.0f || w[1] > 0.0f))
+        return;
+    pm_sky_radiance(s, d, ls);
+    int in_sun = s->has_sun && pm_dot3(s->sun.direction, d) >= s->sun.cos_max;
+    for (int k = 0; k < 3; k++)
+        direct[3 * x + (uint32_t)k] +=
+            (double)(scale[k] * (ls[k] * w[0] + (in_sun ? s->sun.radiance[k] * w[1] : 0.0f)));
 }
 
 /* ------------------------------------------------------------------ secondary rays */
@@ -495,6 +528,8 @@ static void spawn_lambertian(const pm_eye_t *c, scratch_t *sc, const surf_t *v, 
         w[3 * q] = w0, w[3 * q + 1] = w1, w[3 * q + 2] = w2;
         px[q] = x;
     }
+    if (c->s->has_sky || c->s->has_sun) /* escaping, they add nothing: the light samples' weight is 1 */
+        memset(sc->sec_env + 2 * j0, 0, 2 * nq * sizeof(float));
     if (v->shaded) /* drawn about the shading normal: one below the geometric surface is not taken */
         for (unsigned q = 0; q < nq; q++)
             if (!(dx[q] * gn[0] + dy[q] * gn[1] + dz[q] * gn[2] > 0.0f))
@@ -535,6 +570,7 @@ static void spawn_glossy(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint
             continue; /* carries nothing: not traced */
         sc->sec_px[j] = x;
         sc->sec_cos[j] = pdf * PM_PI; /* pi times the pdf: what a cosine sample's cosine is */
+        env_mis(c, n, wi, pdf, (float)(c->spp / PER_CELL), &sc->sec_env[2 * j]);
         pm_rays_push(&sc->sec, v->o, wi, 0.0f, INFINITY);
     }
 }
@@ -568,6 +604,7 @@ static void spawn_module(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint
             continue;
         sc->sec_px[j] = x;
         sc->sec_cos[j] = (bs.lobe & PM_BSDF_DELTA) || tr ? -1.0f : bs.pdf * PM_PI;
+        env_mis(c, v->n, bs.wi, bs.pdf, (float)(c->spp / PER_CELL), &sc->sec_env[2 * j]);
         pm_rays_push(&sc->sec, o, bs.wi, 0.0f, INFINITY);
     }
 }
@@ -768,7 +805,8 @@ static void path_sky(const pm_eye_t *c, const path_t *a, double *direct)
  * pdf < 0 (a delta lobe or a transmission, which no light sample of v reaches; such a ray that
  * escapes brings the sky back too). Returns 1 when the path goes on, 0 when it ended. */
 static int path_next(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContext *ctx, path_t *a, unsigned depth,
-                     const float o[3], const float wi[3], float fc[3], float pdf, float u, double *direct)
+                     const float o[3], const float wi[3], float fc[3], float pdf, const float wenv[2], float u,
+                     double *direct)
 {
     const pm_scene_t *s = c->s;
     if (depth + 1 >= PM_EYE_GLOSSY_RR) {
@@ -788,9 +826,11 @@ static int path_next(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContex
     sc->n_glossy++;
     a->tri = pm_rt_intersect1(c->rt, ctx, a->o, a->d, 0.0f, INFINITY, &a->t, NULL);
     if (a->tri == PM_RAY_MISS) {
-        /* the sun and the sky: the light samples' (weight 1), unless none could see them */
+        /* the sun and the sky: shared with the light samples (env_mis), whole when none could see them */
         if (pdf < 0.0f)
             path_sky(c, a, direct);
+        else
+            env_add(c, a->d, wenv, a->w, a->x, direct);
         return 0;
     }
     if (!pm_material_is_specular(&s->materials[s->tri_material[a->tri]]) && s->nemissive) {
@@ -873,7 +913,10 @@ static int glossy_bounce(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCo
             for (int k = 0; k < 3; k++)
                 o[k] = v.p[k] - c->eps * v.gn[k];
     }
-    return path_next(c, sc, ctx, a, depth, o, wi, fc, pdf, u3, direct);
+    float wenv[2] = {0.0f, 0.0f};
+    if (pdf >= 0.0f)
+        env_mis(c, v.n, wi, pdf, 1.0f, wenv);
+    return path_next(c, sc, ctx, a, depth, o, wi, fc, pdf, wenv, u3, direct);
 }
 
 /* Follows secondary path a from its hit, a non-specular surface: through every glossy surface
@@ -971,9 +1014,12 @@ static void primary_chain(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectC
  * rough glass), passed through like a mirror, so that the surface seen in it gets the final
  * gather of a primary hit (light samples, spp secondary rays) instead of one query per secondary
  * ray, a density estimate seen through the lobe (the speckle of a windshield). A standard
- * material's reflection is split by lobe (u against the lobe's share p of max(kd) + max(ks)):
- * with 1 - p its diffuse part alone is shaded here as the primary hit (weight 1 / (1 - p),
- * sc->part), with p its lobe goes on (1 / p); the other kinds go on along their whole BSDF. At
+ * material whose lobe has at least half its albedo (p = max(ks) / (max(kd) + max(ks)) >= 1/2;
+ * a mostly diffuse one is shaded whole: on the milk truck's body, ks 0.04 under kd 0.8, the
+ * split's 1 / p made more noise than the lobe's gather) has its reflection split by lobe, u
+ * against p: with 1 - p its diffuse part alone is shaded here as the primary hit (weight
+ * 1 / (1 - p), sc->part), with p its lobe goes on (1 / p); the other kinds go on along their
+ * whole BSDF. At
  * each glossy vertex: its emission, its light samples for the lobe (MIS with the lobe's sample,
  * shadow rays in the row's list), the sample and the ray to the next hit, whose emission weight
  * goes to sc->emw; mirrors and glass on the way are followed; after glossy_depth bounces the last
@@ -1012,6 +1058,8 @@ static int primary_glossy(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectC
             float pd, ps;
             pm_bsdf_albedo(m, &pd, &ps);
             pl = ps / (pd + ps);
+            if (pl < 0.5f)
+                break;       /* a mostly diffuse surface: shaded whole (its lobe split off by 1 / p is noise) */
             if (!(u < pl)) { /* the diffuse part, shaded here */
                 sc->part[i] = 1;
                 for (int k = 0; k < 3; k++)
@@ -1058,8 +1106,14 @@ static int primary_glossy(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectC
         }
         sc->n_glossy++;
         tri = pm_rt_intersect1(c->rt, ctx, o, d, 0.0f, INFINITY, &t, NULL);
+        if (tri == PM_RAY_MISS && pdf >= 0.0f && isfinite(thr[0] + thr[1] + thr[2])) {
+            /* the sky past the lobe: shared with its light samples (env_mis) */
+            float wenv[2], sc3[3] = {thr[0] * inv_p, thr[1] * inv_p, thr[2] * inv_p};
+            env_mis(c, v.n, d, pdf, 1.0f, wenv);
+            env_add(c, d, wenv, sc3, x, direct);
+        }
         if (!(thr[0] > 0.0f || thr[1] > 0.0f || thr[2] > 0.0f) || !isfinite(thr[0] + thr[1] + thr[2]) ||
-            (tri == PM_RAY_MISS && pdf >= 0.0f)) { /* the sky past the lobe was its light samples' */
+            (tri == PM_RAY_MISS && pdf >= 0.0f)) {
             tri = PM_RAY_MISS, thr[0] = thr[1] = thr[2] = 0.0f;
             break;
         }
@@ -1154,6 +1208,8 @@ static int secondary_hit(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCo
     if (a.tri == PM_RAY_MISS) {
         if (own)
             path_sky(c, &a, direct);
+        else if (s->has_sky || s->has_sun)
+            env_add(c, a.d, &sc->sec_env[2 * j], a.w, a.x, direct);
         return 1; /* escaped: no query */
     }
     if (c->specular || c->cont) /* each secondary ray's chain draws from a sub-stream of its own */

@@ -7,7 +7,7 @@
 # the floor's queries are gathered through the SIMD evaluation of f, at 0.09 and 0.04 the
 # secondary paths continue past the floor; rough glass holds no photons and is always passed.
 # Measured (seed 1, 24 x 24, 200,000 photons, k 50): conductor 0.25 -1.0%, plastic 0.25 -0.7%,
-# conductor 0.09 -0.7%, plastic 0.04 -0.5%, rough glass 0.25 -0.4%.
+# conductor 0.09 -0.5%, plastic 0.04 -0.5%, rough glass 0.25 -0.9%.
 G=$TMP/kinds
 mkdir -p "$G"
 cat >"$G/box.obj" <<'OBJ'

@@ -73,7 +73,7 @@ else
         pass "glossy paths: the queries' table has the folded entry" ||
         fail "folded entry" "$("$BIN/pm-info" --header "$G/on-q.pm" | grep material)"
     # The error against trace-reference, relative MSE: measured 0.84 without the glossy paths
-    # and 0.091 with them (seed 1; seeds 2 and 3: 0.30 and 0.32 against 0.086 and 0.089).
+    # and 0.087 with them (seed 1; seeds 2 and 3: 0.30 and 0.32 without).
     e0=$("$BIN/measure-error" "$G/off.exr" "$G/ref.pm" -q | jq -r .relmse)
     m=$("$BIN/measure-error" "$G/on.exr" "$G/ref.pm" -q | jq -r '"\(.relmse) \(.mean_test) \(.mean_reference)"')
     read -r e1 mt mr <<<"$m"

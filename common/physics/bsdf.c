@@ -225,7 +225,13 @@ static float plastic_coat_share(const pm_material_t *m, float cos_o)
 /* The plastic's base, per channel: kd (1 - F(n.wi)) (1 - F(n.wo)) / (pi ior^2 (1 - kd Fdr_in)). */
 static void plastic_base(const pm_material_t *m, float ci, float co, float f_out[3])
 {
-    float ior = clamp_eta(m->ior), fdr = pm_fresnel_diffuse_inside(ior);
+    /* Fdr_in is a 64-point quadrature; a path meets one plastic many times running (light
+     * samples, the BSDF sample, the next bounce), so each thread keeps the last index's value. */
+    static _Thread_local float last_ior = -1.0f, last_fdr = 0.0f;
+    float ior = clamp_eta(m->ior);
+    if (ior != last_ior)
+        last_fdr = pm_fresnel_diffuse_inside(ior), last_ior = ior;
+    float fdr = last_fdr;
     float t = (1.0f - pm_fresnel_dielectric(ci, ior)) * (1.0f - pm_fresnel_dielectric(co, ior));
     for (int k = 0; k < 3; k++)
         f_out[k] = m->kd[k] * t / (PM_PI * ior * ior * (1.0f - m->kd[k] * fdr));
@@ -335,7 +341,7 @@ static void rough_glass_eval(const pm_material_t *m, const float n[3], const flo
             f_out[k] = v;
         return;
     }
-    float den = p.woh + p.e * p.wih; /* < 0 here... its square is what counts */
+    float den = p.woh + p.e * p.wih; /* of either sign; its square is the Jacobian's */
     if (!(den * den > 0.0f))
         return;
     float v = (1.0f - f) * d * g * fabsf(p.wih) * p.woh / (ci * co * den * den);

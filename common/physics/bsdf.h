@@ -119,7 +119,7 @@ static inline int pm_bsdf_transmits(const pm_material_t *m) { return (pm_bsdf_lo
 
 /* f(wi, wo) of the non-delta lobes, 1/sr per channel, in the given mode (delta lobes give 0;
  * 0 too when either direction is grazing or a reflective kind sees wi and wo on opposite sides).
- * For the standard kind this is the arithmetic the tracers always used (bit for bit). */
+ * For the standard kind this is the arithmetic the tracers always used (bit for bit), for n.wi > 0. */
 void pm_bsdf_eval(const pm_material_t *m, const float n[3], const float wi[3], const float wo[3], pm_bsdf_mode_t mode,
                   float f_out[3]);
 

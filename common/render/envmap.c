@@ -2,26 +2,12 @@
  * its sampling tables (rows, then columns, by luminance times solid angle) built. */
 #include "render/scene.h"
 
-#include <assimp/cimport.h>
-#include <assimp/material.h>
-#include <assimp/postprocess.h>
-#include <assimp/scene.h>
-#include <ctype.h>
-#include <errno.h>
 #include <inttypes.h>
-#include <jansson.h>
 #include <math.h>
-#include <stdarg.h>
-#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 
-#include "base/exr.h"
-#include "base/hash.h"
-#include "formats/formats.h"
-#include "math/vec.h"
 #include "render/scene_load.h"
 
 pm_result_t pm_envmap_init(pm_envmap_t *e, uint32_t w, uint32_t h, float *rgb)

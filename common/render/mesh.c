@@ -4,25 +4,17 @@
 #include "render/scene.h"
 
 #include <assimp/cimport.h>
-#include <assimp/material.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
-#include <ctype.h>
 #include <errno.h>
 #include <inttypes.h>
-#include <jansson.h>
 #include <math.h>
-#include <stdarg.h>
-#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
 
-#include "base/exr.h"
 #include "base/hash.h"
-#include "formats/formats.h"
-#include "math/vec.h"
 #include "render/scene_load.h"
 
 /* assimp reports some faults only to its log and carries on: a usemtl the .mtl does not
@@ -137,78 +129,61 @@ static pm_result_t check_obj_materials(const char *path, char *libs_out, size_t 
     return r;
 }
 
-pm_result_t pm_scene_load_mesh(ctx_t *c, json_t *mj, size_t index)
+/* The import of mesh file path, made now unless an earlier entry made it: assimp's scene, the OBJ
+ * order checked (faces before usemtl, late mtllib), the .mtl files' materials located. */
+static pm_result_t import_file(ctx_t *c, const char *path, int is_obj, import_t **im_out)
 {
-    static const char *const keys[] = {"file", "scale", "rotate", "translate", "matrix", NULL};
-    pm_scene_t *s = c->s;
-    char where[64], path[1200];
-    snprintf(where, sizeof where, "meshes[%zu]", index);
-    if (!json_is_object(mj))
-        return pm_scene_bad(c, where, "must be an object");
-    pm_result_t r = pm_scene_only_keys(c, mj, where, keys);
-    if (r != PM_OK)
-        return r;
-    const char *file = json_string_value(json_object_get(mj, "file"));
-    if (!file)
-        return pm_scene_bad(c, where, "'file' is missing or not a string");
-    double xf[3][4];
-    int general;
-    if ((r = pm_scene_load_transform(c, mj, where, xf, &general)) != PM_OK)
-        return r;
-    /* A mirroring map (negative determinant) turns the right-hand-rule normal of every
-     * triangle inward: its vertex order is swapped so that the front face (the side an
-     * emitter lights) stays the mirror image of the mesh's own. */
-    int flip = pm_scene_det3(xf) < 0.0;
-    pm_scene_resolve(c->file, file, path, sizeof path);
-    size_t ext = strlen(path);
-    int is_obj = ext > 4 && strcasecmp(path + ext - 4, ".obj") == 0;
-    import_t *im = NULL;
-    for (size_t i = 0; i < c->nimports && !im; i++)
-        if (strcmp(c->imports[i].path, path) == 0)
-            im = &c->imports[i];
-    if (!im) {
-        FILE *probe = fopen(path, "rb");
-        if (!probe)
-            return pm_error_set(PM_ERR_INPUT, "cannot open mesh '%s': %s", path, strerror(errno));
-        fclose(probe);
-        if ((r = pm_scene_grow((void **)&c->imports, c->nimports + 1, sizeof *c->imports)) != PM_OK)
-            return r;
-        /* Triangulate polygons, merge shared vertices, flatten node transforms, drop points
-         * and lines; vertex normals come as the file has them (none are made up). */
-        struct aiLogStream log = {on_assimp_log, NULL};
-        ai_first_error[0] = '\0';
-        aiAttachLogStream(&log);
-        const struct aiScene *imported = aiImportFile(path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
-                                                                aiProcess_PreTransformVertices | aiProcess_SortByPType |
-                                                                aiProcess_ValidateDataStructure);
-        aiDetachAllLogStreams();
-        if (!imported)
-            return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, aiGetErrorString());
-        if (ai_first_error[0]) {
-            aiReleaseImport(imported);
-            return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, ai_first_error);
+    pm_result_t r;
+    for (size_t i = 0; i < c->nimports; i++)
+        if (strcmp(c->imports[i].path, path) == 0) {
+            *im_out = &c->imports[i];
+            return PM_OK;
         }
-        /* An OBJ whose faces name no material (no mtllib, or a usemtl the .mtl lacks) gets
-         * assimp's default material, or the .mtl's last one; rendering either would be
-         * silently wrong. The OBJ's own order of lines tells; the default material is checked
-         * after it. */
-        char libs_read[4096] = "";
-        if (is_obj && (r = check_obj_materials(path, libs_read, sizeof libs_read)) != PM_OK) {
-            aiReleaseImport(imported);
-            return r;
-        }
-        im = &c->imports[c->nimports++];
-        *im = (import_t){.as = imported};
-        snprintf(im->path, sizeof im->path, "%s", path);
-        snprintf(im->libs, sizeof im->libs, "%s", libs_read);
-        if (is_obj && (r = pm_scene_mtl_homes(path, libs_read, im)) != PM_OK)
-            return r;
+    FILE *probe = fopen(path, "rb");
+    if (!probe)
+        return pm_error_set(PM_ERR_INPUT, "cannot open mesh '%s': %s", path, strerror(errno));
+    fclose(probe);
+    if ((r = pm_scene_grow((void **)&c->imports, c->nimports + 1, sizeof *c->imports)) != PM_OK)
+        return r;
+    /* Triangulate polygons, merge shared vertices, flatten node transforms, drop points
+     * and lines; vertex normals come as the file has them (none are made up). */
+    struct aiLogStream log = {on_assimp_log, NULL};
+    ai_first_error[0] = '\0';
+    aiAttachLogStream(&log);
+    const struct aiScene *imported =
+        aiImportFile(path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_PreTransformVertices |
+                               aiProcess_SortByPType | aiProcess_ValidateDataStructure);
+    aiDetachAllLogStreams();
+    if (!imported)
+        return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, aiGetErrorString());
+    if (ai_first_error[0]) {
+        aiReleaseImport(imported);
+        return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, ai_first_error);
     }
-    /* the import is the scene's until pm_scene_load ends: it serves every entry placing it */
+    /* An OBJ whose faces name no material (no mtllib, or a usemtl the .mtl lacks) gets
+     * assimp's default material, or the .mtl's last one; rendering either would be
+     * silently wrong. The OBJ's own order of lines tells; the default material is checked
+     * after it. */
+    char libs_read[4096] = "";
+    if (is_obj && (r = check_obj_materials(path, libs_read, sizeof libs_read)) != PM_OK) {
+        aiReleaseImport(imported);
+        return r;
+    }
+    import_t *im = &c->imports[c->nimports++];
+    *im = (import_t){.as = imported};
+    snprintf(im->path, sizeof im->path, "%s", path);
+    snprintf(im->libs, sizeof im->libs, "%s", libs_read);
+    *im_out = im;
+    return is_obj ? pm_scene_mtl_homes(path, libs_read, im) : PM_OK;
+}
+
+/* The materials of import im appended to the scene from index *mat0_out: each read, what it
+ * does not honour reported, the textures of those some triangle uses loaded. */
+static pm_result_t load_materials(ctx_t *c, const char *path, int is_obj, const import_t *im, size_t *mat0_out)
+{
+    pm_scene_t *s = c->s;
     const struct aiScene *as = im->as;
-    const char *libs = im->libs;
-    size_t tri_start = s->ntris, vert_start = s->nverts;
-    uint64_t kept = 0; /* which faces are kept (degenerate ones left out): a placement's key */
+    pm_result_t r;
     for (unsigned mi = 0; is_obj && mi < as->mNumMeshes; mi++) {
         const struct aiMesh *m = as->mMeshes[mi];
         struct aiString mname;
@@ -220,7 +195,7 @@ pm_result_t pm_scene_load_mesh(ctx_t *c, json_t *mj, size_t index)
                                 path, m->mNumFaces, m->mName.length ? m->mName.data : "(unnamed)");
         }
     }
-    size_t mat0 = s->nmaterials;
+    size_t mat0 = *mat0_out = s->nmaterials;
     if ((r = pm_scene_grow((void **)&s->materials, mat0 + as->mNumMaterials, sizeof *s->materials)) != PM_OK ||
         (r = pm_scene_grow((void **)&s->maps, mat0 + as->mNumMaterials, sizeof *s->maps)) != PM_OK)
         return r;
@@ -249,120 +224,170 @@ pm_result_t pm_scene_load_mesh(ctx_t *c, json_t *mj, size_t index)
             return pm_error_set(PM_ERR_NOMEM, "out of memory");
         for (unsigned i = 0; i < as->mNumMaterials; i++)
             pbr[i] = (unsigned char)pm_scene_pbr_inputs(1, as->mMaterials[i], &metallic, &roughness);
-        r = pm_scene_scan_mtl_dropped(s, path, libs, mat0, as->mNumMaterials, pbr);
+        r = pm_scene_scan_mtl_dropped(s, path, im->libs, mat0, as->mNumMaterials, pbr);
         free(pbr);
     }
-    if (r != PM_OK)
-        return r;
-    s->nmaterials += as->mNumMaterials;
+    if (r == PM_OK)
+        s->nmaterials += as->mNumMaterials;
+    return r;
+}
+
+/* The vertices of assimp mesh m into the scene from index v0 (room made by the caller): placed
+ * by xf (rows of [3x3 | t]; general 0: scale and translate only), with their first texture
+ * coordinates and their normals (by the cofactor matrix of xf), and in mesh units in c->local. */
+static pm_result_t load_vertices(ctx_t *c, const struct aiMesh *m, const char *path, const double xf[3][4], int general,
+                                 size_t v0)
+{
+    pm_scene_t *s = c->s;
+    for (unsigned v = 0; v < m->mNumVertices; v++) {
+        double p[3] = {m->mVertices[v].x, m->mVertices[v].y, m->mVertices[v].z};
+        for (int k = 0; k < 3; k++)
+            c->local[3 * (v0 + v) + k] = (float)p[k];
+        for (int k = 0; k < 3; k++) {
+            double x =
+                general ? xf[k][0] * p[0] + xf[k][1] * p[1] + xf[k][2] * p[2] + xf[k][3] : p[k] * xf[k][k] + xf[k][3];
+            if (!isfinite(x) || fabs(x) > PM_SCENE_COORD_MAX)
+                return pm_error_set(PM_ERR_INPUT, "mesh '%s': vertex %u coordinate %c = %g is not finite or beyond %g",
+                                    path, v, "xyz"[k], x, PM_SCENE_COORD_MAX);
+            s->verts[3 * (v0 + v) + k] = (float)x;
+        }
+        /* the first set of texture coordinates; none: every point reads texel (0, 0) */
+        const struct aiVector3D *uv = m->mTextureCoords[0] ? &m->mTextureCoords[0][v] : NULL;
+        float uu = uv ? uv->x : 0.0f, vv = uv ? uv->y : 0.0f;
+        s->uvs[2 * (v0 + v)] = isfinite(uu) ? uu : 0.0f;
+        s->uvs[2 * (v0 + v) + 1] = isfinite(vv) ? vv : 0.0f;
+        /* The vertex normal by the cofactor matrix of the map (normals transform by the
+         * inverse transpose; its scale and sign do not matter: pm_scene_shading_normal
+         * normalizes it and turns it to the side the ray came from). None, or one that is
+         * not finite: zero, which falls back to the geometric normal. */
+        float *nv = &s->normals[3 * (v0 + v)];
+        nv[0] = nv[1] = nv[2] = 0.0f;
+        if (m->mNormals) {
+            double a[3] = {m->mNormals[v].x, m->mNormals[v].y, m->mNormals[v].z}, q[3];
+            for (int k = 0; k < 3; k++) {
+                int k1 = (k + 1) % 3, k2 = (k + 2) % 3;
+                double c0 = xf[k1][1] * xf[k2][2] - xf[k1][2] * xf[k2][1],
+                       c1 = xf[k1][2] * xf[k2][0] - xf[k1][0] * xf[k2][2],
+                       c2 = xf[k1][0] * xf[k2][1] - xf[k1][1] * xf[k2][0];
+                q[k] = c0 * a[0] + c1 * a[1] + c2 * a[2];
+            }
+            double len = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
+            if (isfinite(len) && len > 0.0)
+                for (int k = 0; k < 3; k++)
+                    nv[k] = (float)(q[k] / len);
+            c->any_normals = 1;
+        }
+    }
+    return PM_OK;
+}
+
+/* The triangles of assimp mesh mi (m; its vertices from v0, its material scene material mat):
+ * wound the other way when flip, degenerate ones left out (counted), too large ones refused;
+ * *kept folds in which faces were kept. */
+static pm_result_t load_faces(pm_scene_t *s, const struct aiMesh *m, unsigned mi, const char *path, int flip, size_t v0,
+                              uint32_t mat, uint64_t *kept)
+{
+    for (unsigned f = 0; f < m->mNumFaces; f++) {
+        const struct aiFace *face = &m->mFaces[f];
+        if (face->mNumIndices != 3)
+            continue;
+        uint32_t *t = &s->tris[3 * s->ntris];
+        for (int k = 0; k < 3; k++) {
+            if (face->mIndices[k] >= m->mNumVertices)
+                return pm_error_set(PM_ERR_INPUT, "mesh '%s': face %u names vertex %u of %u", path, f,
+                                    face->mIndices[k], m->mNumVertices);
+            t[k] = (uint32_t)(v0 + face->mIndices[flip && k ? 3 - k : k]);
+        }
+        s->tri_material[s->ntris] = mat;
+        s->ntris++;
+        /* Zero-area triangles scatter nothing and have no normal: leave them out, and
+         * those too small for a float normal with them. One too large for a float normal
+         * cannot be left out without changing the scene: refuse it. */
+        double area = pm_scene_triangle_area(s, s->ntris - 1);
+        if (area > PM_SCENE_AREA_MAX)
+            return pm_error_set(PM_ERR_INPUT,
+                                "mesh '%s': face %u has an area of %g m^2, beyond %g m^2 (its normal overflows a "
+                                "float): scale the scene down",
+                                path, f, area, PM_SCENE_AREA_MAX);
+        if (!(area >= PM_SCENE_AREA_MIN)) {
+            s->ntris--;
+            s->ndropped++;
+        } else {
+            uint64_t id[3] = {*kept, mi, f};
+            *kept = pm_hash_bytes(id, sizeof id);
+        }
+    }
+    return PM_OK;
+}
+
+/* Every triangle mesh of the import into the scene's flattened arrays, its materials from mat0;
+ * *kept as load_faces makes it. */
+static pm_result_t load_meshes(ctx_t *c, const struct aiScene *as, const char *path, const double xf[3][4], int general,
+                               int flip, size_t mat0, uint64_t *kept)
+{
+    pm_scene_t *s = c->s;
+    pm_result_t r = PM_OK;
     for (unsigned mi = 0; mi < as->mNumMeshes && r == PM_OK; mi++) {
         const struct aiMesh *m = as->mMeshes[mi];
         if (!(m->mPrimitiveTypes & aiPrimitiveType_TRIANGLE))
             continue;
-        if (m->mMaterialIndex >= as->mNumMaterials) {
-            r = pm_error_set(PM_ERR_INPUT, "mesh '%s': material index %u of %u", path, m->mMaterialIndex,
-                             as->mNumMaterials);
-            break;
-        }
+        if (m->mMaterialIndex >= as->mNumMaterials)
+            return pm_error_set(PM_ERR_INPUT, "mesh '%s': material index %u of %u", path, m->mMaterialIndex,
+                                as->mNumMaterials);
         const pm_material_maps_t *mm = &s->maps[mat0 + m->mMaterialIndex];
         if (!m->mTextureCoords[0] && (mm->kd >= 0 || mm->ks >= 0 || mm->alpha >= 0) &&
             (r = pm_scene_note_unsupported(s, (uint32_t)(mat0 + m->mMaterialIndex), "texture coordinates", 0,
                                            "missing (texel 0 0 used)")) != PM_OK)
-            break;
+            return r;
         size_t v0 = s->nverts;
-        if (s->ntris + m->mNumFaces > PM_SCENE_MAX_TRIS) {
-            r = pm_error_set(PM_ERR_INPUT, "mesh '%s': more than %u triangles in the scene", path, PM_SCENE_MAX_TRIS);
-            break;
-        }
+        if (s->ntris + m->mNumFaces > PM_SCENE_MAX_TRIS)
+            return pm_error_set(PM_ERR_INPUT, "mesh '%s': more than %u triangles in the scene", path,
+                                PM_SCENE_MAX_TRIS);
         if ((r = pm_scene_grow((void **)&s->verts, 3 * (v0 + m->mNumVertices), sizeof(float))) != PM_OK ||
             (r = pm_scene_grow((void **)&s->uvs, 2 * (v0 + m->mNumVertices), sizeof(float))) != PM_OK ||
             (r = pm_scene_grow((void **)&s->normals, 3 * (v0 + m->mNumVertices), sizeof(float))) != PM_OK ||
             (r = pm_scene_grow((void **)&c->local, 3 * (v0 + m->mNumVertices), sizeof(float))) != PM_OK ||
             (r = pm_scene_grow((void **)&s->tris, 3 * (s->ntris + m->mNumFaces), sizeof(uint32_t))) != PM_OK ||
-            (r = pm_scene_grow((void **)&s->tri_material, s->ntris + m->mNumFaces, sizeof(uint32_t))) != PM_OK)
-            break;
-        for (unsigned v = 0; v < m->mNumVertices; v++) {
-            double p[3] = {m->mVertices[v].x, m->mVertices[v].y, m->mVertices[v].z};
-            for (int k = 0; k < 3; k++)
-                c->local[3 * (v0 + v) + k] = (float)p[k];
-            for (int k = 0; k < 3; k++) {
-                double x = general ? xf[k][0] * p[0] + xf[k][1] * p[1] + xf[k][2] * p[2] + xf[k][3]
-                                   : p[k] * xf[k][k] + xf[k][3];
-                if (!isfinite(x) || fabs(x) > PM_SCENE_COORD_MAX) {
-                    r = pm_error_set(PM_ERR_INPUT, "mesh '%s': vertex %u coordinate %c = %g is not finite or beyond %g",
-                                     path, v, "xyz"[k], x, PM_SCENE_COORD_MAX);
-                    break;
-                }
-                s->verts[3 * (v0 + v) + k] = (float)x;
-            }
-            /* the first set of texture coordinates; none: every point reads texel (0, 0) */
-            const struct aiVector3D *uv = m->mTextureCoords[0] ? &m->mTextureCoords[0][v] : NULL;
-            float uu = uv ? uv->x : 0.0f, vv = uv ? uv->y : 0.0f;
-            s->uvs[2 * (v0 + v)] = isfinite(uu) ? uu : 0.0f;
-            s->uvs[2 * (v0 + v) + 1] = isfinite(vv) ? vv : 0.0f;
-            /* The vertex normal by the cofactor matrix of the map (normals transform by the
-             * inverse transpose; its scale and sign do not matter: pm_scene_shading_normal
-             * normalizes it and turns it to the side the ray came from). None, or one that is
-             * not finite: zero, which falls back to the geometric normal. */
-            float *nv = &s->normals[3 * (v0 + v)];
-            nv[0] = nv[1] = nv[2] = 0.0f;
-            if (m->mNormals) {
-                double a[3] = {m->mNormals[v].x, m->mNormals[v].y, m->mNormals[v].z}, q[3];
-                for (int k = 0; k < 3; k++) {
-                    int k1 = (k + 1) % 3, k2 = (k + 2) % 3;
-                    double c0 = xf[k1][1] * xf[k2][2] - xf[k1][2] * xf[k2][1],
-                           c1 = xf[k1][2] * xf[k2][0] - xf[k1][0] * xf[k2][2],
-                           c2 = xf[k1][0] * xf[k2][1] - xf[k1][1] * xf[k2][0];
-                    q[k] = c0 * a[0] + c1 * a[1] + c2 * a[2];
-                }
-                double len = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
-                if (isfinite(len) && len > 0.0)
-                    for (int k = 0; k < 3; k++)
-                        nv[k] = (float)(q[k] / len);
-                c->any_normals = 1;
-            }
-            if (r != PM_OK)
-                break;
-        }
+            (r = pm_scene_grow((void **)&s->tri_material, s->ntris + m->mNumFaces, sizeof(uint32_t))) != PM_OK ||
+            (r = load_vertices(c, m, path, xf, general, v0)) != PM_OK)
+            return r;
         s->nverts += m->mNumVertices;
-        for (unsigned f = 0; f < m->mNumFaces && r == PM_OK; f++) {
-            const struct aiFace *face = &m->mFaces[f];
-            if (face->mNumIndices != 3)
-                continue;
-            uint32_t *t = &s->tris[3 * s->ntris];
-            for (int k = 0; k < 3; k++) {
-                if (face->mIndices[k] >= m->mNumVertices) {
-                    r = pm_error_set(PM_ERR_INPUT, "mesh '%s': face %u names vertex %u of %u", path, f,
-                                     face->mIndices[k], m->mNumVertices);
-                    break;
-                }
-                t[k] = (uint32_t)(v0 + face->mIndices[flip && k ? 3 - k : k]);
-            }
-            if (r != PM_OK)
-                break;
-            s->tri_material[s->ntris] = (uint32_t)(mat0 + m->mMaterialIndex);
-            s->ntris++;
-            /* Zero-area triangles scatter nothing and have no normal: leave them out, and
-             * those too small for a float normal with them. One too large for a float normal
-             * cannot be left out without changing the scene: refuse it. */
-            double area = pm_scene_triangle_area(s, s->ntris - 1);
-            if (area > PM_SCENE_AREA_MAX) {
-                r = pm_error_set(PM_ERR_INPUT,
-                                 "mesh '%s': face %u has an area of %g m^2, beyond %g m^2 (its normal overflows a "
-                                 "float): scale the scene down",
-                                 path, f, area, PM_SCENE_AREA_MAX);
-                break;
-            }
-            if (!(area >= PM_SCENE_AREA_MIN)) {
-                s->ntris--;
-                s->ndropped++;
-            } else {
-                uint64_t id[3] = {kept, mi, f};
-                kept = pm_hash_bytes(id, sizeof id);
-            }
-        }
+        r = load_faces(s, m, mi, path, flip, v0, (uint32_t)(mat0 + m->mMaterialIndex), kept);
     }
+    return r;
+}
+
+pm_result_t pm_scene_load_mesh(ctx_t *c, json_t *mj, size_t index)
+{
+    static const char *const keys[] = {"file", "scale", "rotate", "translate", "matrix", NULL};
+    pm_scene_t *s = c->s;
+    char where[64], path[1200];
+    snprintf(where, sizeof where, "meshes[%zu]", index);
+    if (!json_is_object(mj))
+        return pm_scene_bad(c, where, "must be an object");
+    pm_result_t r = pm_scene_only_keys(c, mj, where, keys);
     if (r != PM_OK)
+        return r;
+    const char *file = json_string_value(json_object_get(mj, "file"));
+    if (!file)
+        return pm_scene_bad(c, where, "'file' is missing or not a string");
+    double xf[3][4];
+    int general;
+    if ((r = pm_scene_load_transform(c, mj, where, xf, &general)) != PM_OK)
+        return r;
+    /* A mirroring map (negative determinant) turns the right-hand-rule normal of every
+     * triangle inward: its vertex order is swapped so that the front face (the side an
+     * emitter lights) stays the mirror image of the mesh's own. */
+    int flip = pm_scene_det3(xf) < 0.0;
+    pm_scene_resolve(c->file, file, path, sizeof path);
+    size_t ext = strlen(path);
+    int is_obj = ext > 4 && strcasecmp(path + ext - 4, ".obj") == 0;
+    import_t *im = NULL;
+    size_t tri_start = s->ntris, vert_start = s->nverts, mat0 = 0;
+    uint64_t kept = 0; /* which faces are kept (degenerate ones left out): a placement's key */
+    /* the import is the scene's until pm_scene_load ends: it serves every entry placing it */
+    if ((r = import_file(c, path, is_obj, &im)) != PM_OK || (r = load_materials(c, path, is_obj, im, &mat0)) != PM_OK ||
+        (r = load_meshes(c, im->as, path, xf, general, flip, mat0, &kept)) != PM_OK)
         return r;
     /* This entry's placement: entries with equal keys hold the same triangles in the same mesh
      * units and winding, so that Embree can keep one copy and place it by instances. */

@@ -3,26 +3,14 @@
  * the lines of an OBJ's .mtl files that assimp drops, read from the files themselves. */
 #include "render/scene.h"
 
-#include <assimp/cimport.h>
 #include <assimp/material.h>
-#include <assimp/postprocess.h>
-#include <assimp/scene.h>
 #include <ctype.h>
-#include <errno.h>
-#include <inttypes.h>
-#include <jansson.h>
-#include <math.h>
-#include <stdarg.h>
-#include <stddef.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
 
-#include "base/exr.h"
-#include "base/hash.h"
-#include "formats/formats.h"
-#include "math/vec.h"
 #include "render/scene_load.h"
 
 /* The next library of libs (mtllib names, one a line, as check_obj_materials lists them) that

@@ -6,9 +6,13 @@
  * Estimator: at every non-specular vertex, next-event estimation toward each point light
  * (delta: light sampling only) and toward one point on the area lights (uniform over their
  * total area), combined with BSDF sampling by the power heuristic; the BSDF is sampled as the
- * mixture of its lobes (pm_bsdf_sample). At a mirror or glass vertex the delta BSDF is sampled
- * alone (pm_specular_sample, carrying radiance): no light sample, no MIS, and emission the
- * next ray finds counts whole, since no light sample could have found it. Light from a point
+ * mixture of its lobes (pm_bsdf_sample for the standard kind, physics/bsdf.h's
+ * pm_bsdf_sample_wi in radiance mode for conductor, rough glass and plastic). At a vertex whose
+ * lobes are all deltas (mirror, glass, a smooth conductor) the delta BSDF is sampled alone
+ * (pm_specular_sample, carrying radiance): no light sample, no MIS, and emission the next ray
+ * finds counts whole, since no light sample could have found it; the same holds after a delta
+ * lobe of a mixed material (a smooth plastic coat) and after a rough-glass transmission (light
+ * samples look only at wo's side of the surface). Light from a point
  * light reaching a diffuse surface only through mirrors or glass (a point light's caustic)
  * is therefore never found: a path tracer cannot sample it, and it is zero in this estimate.
  * Paths end by Russian roulette with survival min(1, max throughput times the product of

@@ -340,7 +340,9 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
         float p[3], n[3], wo[3] = {-dir[0], -dir[1], -dir[2]};
         pm_v3_store(p, pm_v3_add(pm_v3_load(org), pm_v3_scale(pm_v3_load(dir), tfar)));
         pm_v3_store(n, pm_v3_normalize(pm_v3_load(ng)));
-        const pm_material_t *m = &s->materials[s->tri_material[hit]];
+        /* the material with its textures at p (render/scene.h): a map_Kd scales a PBR metal's F0 */
+        pm_material_t textured;
+        const pm_material_t *m = pm_scene_material_at(s, hit, p, &textured);
         if (pm_material_is_specular(m)) {
             if (!specular_bounce(t, c, m, &rng, p, n, wo, depth, power, org, dir))
                 return;
@@ -356,8 +358,6 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
         }
         if (pm_dot3(n, dir) > 0.0f) /* the side the photon arrived from */
             pm_v3_store(n, pm_v3_scale(pm_v3_load(n), -1.0f));
-        pm_material_t textured; /* the material with its textures at p (render/scene.h) */
-        m = pm_scene_material_at(s, hit, p, &textured);
         /* Shading normals (render/transport.h, pm_shading_adjoint): the photon's power becomes
          * what the shading normal's cosine makes of it, ns.wo / ng.wo, so that a density
          * estimate and an eye ray's direct light agree; it is stored with ns, the normal the

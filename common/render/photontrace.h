@@ -4,14 +4,18 @@
  * Photon i is emitted from a light chosen in proportion to its power (point lights in all
  * directions, emissive triangles from a uniform point, cosine-weighted about the front
  * face), traced with single Embree rays (pm_rt_intersect1), and stored at every hit on a
- * surface that reflects diffusely or glossily (first hits too, marked depth 0). Mirrors and glass
- * (pm_specular_sample) redirect a photon and never store it; a photon that reaches a diffuse or
- * glossy surface through one or more specular bounces and nothing else since the light
- * (L S+ D) is also a caustic photon, the second output when asked for. Each bounce samples one lobe of the
- * BRDF (render/transport.h: cosine for the Lambertian part, the Phong lobe for the glossy part)
- * and Russian roulette ends the path
- * without bias: the photon survives with probability q (its albedo, capped at rr_max) and
- * its power is divided by q (a cap below albedo^2 makes the variance unbounded). Powers are in watts, so that a density
+ * surface where the gather estimates (physics/bsdf.h, pm_bsdf_stores_photons: a standard
+ * material that reflects, a rough conductor, a plastic; first hits too, marked depth 0).
+ * Delta-only surfaces (mirrors, glass, smooth conductors: pm_specular_sample) redirect a photon
+ * and never store it; a photon that reaches a storing surface through one or more of them and
+ * nothing else since the light (L S+ D) is also a caustic photon, the second output when asked
+ * for. Rough glass stores none either and counts as a glossy bounce. At a standard surface each
+ * bounce samples one lobe (cosine for the Lambertian part, the Phong lobe for the glossy part)
+ * and Russian roulette ends the path without bias: the photon survives with probability q (its
+ * albedo, capped at rr_max) and its power is divided by q (a cap below albedo^2 makes the
+ * variance unbounded). At the other kinds the BSDF's own sampler draws the direction in
+ * importance mode (photons carry power: no 1 / eta^2 through a refraction) and the roulette
+ * uses the sample's weight f cos / pdf as q. Powers are in watts, so that a density
  * estimate of them is irradiance in W/m^2.
  *
  * Determinism: photon i draws only from the counter-based stream (seed, i), and photons

@@ -5,24 +5,15 @@
 #include "render/scene.h"
 
 #include <assimp/cimport.h>
-#include <assimp/material.h>
-#include <assimp/postprocess.h>
-#include <assimp/scene.h>
-#include <ctype.h>
 #include <errno.h>
 #include <inttypes.h>
 #include <jansson.h>
 #include <math.h>
-#include <stdarg.h>
-#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 
-#include "base/exr.h"
 #include "base/hash.h"
-#include "formats/formats.h"
 #include "math/vec.h"
 #include "render/scene_load.h"
 
@@ -343,61 +334,10 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
             if (pm_material_is_emissive(&s->materials[s->tri_material[t]]))
                 s->emissive[s->nemissive++] = (uint32_t)t;
     }
-    if (r == PM_OK) {
-        /* The scene's identity: its file's bytes plus everything loaded through it, so a
-         * change to a mesh or an .mtl changes the hash even when scene.json does not. */
-        uint64_t h[6] = {0};
-        r = pm_hash_file(path, &h[0]);
-        h[1] = pm_hash_bytes(s->verts, 3 * s->nverts * sizeof(float));
-        h[2] = pm_hash_bytes(s->tris, 3 * s->ntris * sizeof(uint32_t));
-        h[3] = pm_hash_bytes(s->tri_material, s->ntris * sizeof(uint32_t));
-        if (r == PM_OK)
-            r = pm_scene_hash_materials(s, &h[4]);
-        if (r == PM_OK)
-            r = pm_scene_hash_lights(s, &h[5]);
-        s->hash = pm_hash_bytes(h, sizeof h);
-        if (r == PM_OK && (r = drop_unused_maps(s)) == PM_OK && s->maps) {
-            /* Textured: their texels, the coordinates and which material uses which. A scene
-             * without textures keeps the hash it always had. */
-            uint64_t t[4] = {s->hash, pm_hash_bytes(s->uvs, 2 * s->nverts * sizeof(float)),
-                             pm_hash_bytes(s->maps, s->nmaterials * sizeof *s->maps), 0};
-            for (size_t i = 0; i < s->ntextures; i++)
-                t[3] = pm_hash_bytes((uint64_t[2]){t[3], s->textures[i].hash}, 2 * sizeof(uint64_t));
-            s->hash = pm_hash_bytes(t, sizeof t);
-        }
-        if (r == PM_OK)
-            pm_scene_hash_parts(s, h);
-    }
-    if (r == PM_OK && s->normals) /* shading normals: folded in only when used, other scenes keep their hash */
-        s->hash = pm_hash_bytes((uint64_t[2]){s->hash, pm_hash_bytes(s->normals, 3 * s->nverts * sizeof(float))},
-                                2 * sizeof(uint64_t));
-    if (r == PM_OK && s->two_sided_lights) /* folded in only when set: other scenes keep their hash */
-        s->hash = pm_hash_bytes((uint64_t[2]){s->hash, 2}, 2 * sizeof(uint64_t));
-    if (r == PM_OK && (s->has_sun || s->has_sky)) {
-        /* A sun or a sky: folded into the hash; a scene without either keeps the hash it had. */
-        uint64_t e[3] = {s->hash, s->has_sun ? pm_hash_bytes(&s->sun, sizeof s->sun) : 0,
-                         s->has_sky ? pm_hash_bytes(s->sky, sizeof s->sky) : 0};
-        if (s->envmap) /* the map's texels (already scaled) and size */
-            e[2] = pm_hash_bytes(
-                (uint64_t[3]){e[2],
-                              pm_hash_bytes(s->envmap->rgb, 3 * sizeof(float) * s->envmap->w * (size_t)s->envmap->h),
-                              (uint64_t)s->envmap->w << 32 | s->envmap->h},
-                3 * sizeof(uint64_t));
-        s->hash = pm_hash_bytes(e, sizeof e);
-    }
-    if (r == PM_OK && (s->two_sided_lights || s->has_sun || s->has_sky)) {
-        /* Two-sided emitters, a sun or a sky are the photons' part (and the direct light's,
-         * which names both parts); the queries do not read them, so the view keeps its hash. */
-        uint64_t x[4] = {s->parts.photons, (uint64_t)s->two_sided_lights,
-                         s->has_sun ? pm_hash_bytes(&s->sun, sizeof s->sun) : 0,
-                         s->has_sky ? pm_hash_bytes(s->sky, sizeof s->sky) : 0};
-        if (s->envmap)
-            x[3] = pm_hash_bytes((uint64_t[2]){x[3], pm_hash_bytes(s->envmap->rgb, 3 * sizeof(float) * s->envmap->w *
-                                                                                       (size_t)s->envmap->h)},
-                                 2 * sizeof(uint64_t));
-        s->parts.photons = pm_hash_bytes(x, sizeof x);
-        s->parts.eye = pm_hash_bytes((uint64_t[2]){s->parts.photons, s->parts.view}, 2 * sizeof(uint64_t));
-    }
+    /* The scene's identity: its file's bytes plus everything loaded through it, so a change to a
+     * mesh or an .mtl changes the hash even when scene.json does not (scene_hash.c). */
+    if (r == PM_OK && (r = drop_unused_maps(s)) == PM_OK)
+        r = pm_scene_identify(s);
     if (r == PM_OK)
         finish(s);
     if (r != PM_OK)

@@ -114,7 +114,8 @@ typedef struct {
     char name[128];  /* "cornell-box" */
     char path[1024]; /* the scene file */
     uint64_t hash;   /* XXH3-64 of the scene file and everything loaded from it */
-    /* The hash's parts by what reads them (XXH3-64 of the loaded content, not of the file):
+    /* The hash's parts by what reads them (XXH3-64 of a canonical serialisation of the loaded
+     * content, not of the file nor of C structs' bytes: render/scene_hash.c):
      * geometry: triangles, materials, textures; photons: that, the point lights and the
      * render block's photon keys (photon tracing and the map); view: the geometry part,
      * the camera, the image size and the render block's eye keys (the eye side's queries,
@@ -200,9 +201,9 @@ double pm_sky_power(const pm_scene_t *s, int k);
 /* Area of triangle t, m^2. */
 double pm_scene_triangle_area(const pm_scene_t *s, size_t t);
 
-/* The material at point p (m, on or near triangle tri) with its Kd and Ks scaled by their
- * textures there: the scene's own material when it has no texture (no copy, no cost), else
- * *scratch filled and returned. Every tracer reads a hit's reflectance through this. */
+/* The material at point p (m, on or near triangle tri) with its Kd and Ks (a conductor's F0 with
+ * Kd, its base colour) scaled by their textures there: the scene's own material when it has no texture (no copy, no
+ * cost), else *scratch filled and returned. Every tracer reads a hit's reflectance through this. */
 const pm_material_t *pm_scene_material_textured(const pm_scene_t *s, uint32_t tri, const float p[3],
                                                 pm_material_t *scratch);
 static inline const pm_material_t *pm_scene_material_at(const pm_scene_t *s, uint32_t tri, const float p[3],
@@ -255,9 +256,16 @@ typedef enum { PM_SCENE_ALL, PM_SCENE_PHOTONS, PM_SCENE_VIEW } pm_scene_part_t;
 void pm_scene_id(const pm_scene_t *s, char *out, size_t cap);
 void pm_scene_id_part(const pm_scene_t *s, pm_scene_part_t part, char *out, size_t cap);
 
-/* 1 when SCENE value key is this scene whole: pm_scene_id's value, or the one-hash form
- * "NAME xxh3:HASH" of pm_scene_t.hash that files written before the parts carry (so that
- * trace-reference resumes them). */
+/* XXH3-64 of materials m[0..n-1] (point lights l[0..n-1]) by the canonical serialisation the
+ * scene's identity is made of (render/scene_hash.c): the fields each kind reads, in a fixed order,
+ * floats as their IEEE bits little-endian, behind a version tag; padding, the bytes after a
+ * name's end and the fields a kind does not read are not read. */
+uint64_t pm_scene_materials_hash(const pm_material_t *m, size_t n);
+uint64_t pm_scene_lights_hash(const pm_point_light_t *l, size_t n);
+
+/* 1 when SCENE value key is this scene whole: pm_scene_id's value. A file written before the
+ * scene identity's version 2 (the one-hash form "NAME xxh3:HASH" before the parts, or the parts
+ * of the older identity) names another scene and is not matched. */
 int pm_scene_id_matches(const pm_scene_t *s, const char *key);
 
 #endif

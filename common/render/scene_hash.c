@@ -1,37 +1,349 @@
-/* scene_hash.c: the scene's identity (scene.h: hash, parts, pm_scene_id): hashes of what was
- * loaded, so that a file's SCENE key says which scene, and which part of it, made it. */
+/* scene_hash.c: the scene's identity (scene.h: hash, parts, pm_scene_id): XXH3-64 of a canonical
+ * serialisation of what was loaded, so that a file's SCENE key says which scene, and which part
+ * of it, made it. Every value is written field by field in a fixed order and byte order (integers
+ * and IEEE float bits little-endian, strings as a length and their bytes) behind a version tag,
+ * never as the bytes of a C struct: padding, the bytes after a name's end and the fields a kind
+ * does not use are never read, and a new field changes nothing until it is written here (with
+ * the tag's version raised). */
 #include "render/scene.h"
 
-#include <assimp/cimport.h>
-#include <assimp/material.h>
-#include <assimp/postprocess.h>
-#include <assimp/scene.h>
-#include <ctype.h>
-#include <errno.h>
-#include <inttypes.h>
-#include <jansson.h>
-#include <math.h>
-#include <stdarg.h>
-#include <stddef.h>
+#include <stdint.h>
 #include <stdio.h>
-#include <stdlib.h>
 #include <string.h>
-#include <strings.h>
+#define XXH_STATIC_LINKING_ONLY /* XXH3_state_t on the stack: no allocation, no failure */
+#include <xxhash.h>
 
-#include "base/exr.h"
 #include "base/hash.h"
-#include "formats/formats.h"
-#include "math/vec.h"
 #include "render/scene_load.h"
+
+/* The serialisation's version: raised whenever what is written, or its order, changes, so that
+ * an old identity can never be mistaken for a new one. */
+#define PM_SCENE_IDENTITY_TAG "pmtk scene identity 2"
+
+/* A serialisation being hashed: bytes staged in buf and fed to XXH3's streaming state. */
+typedef struct {
+    XXH3_state_t st;
+    unsigned char buf[4096];
+    size_t n;
+} ident_t;
+
+static void put(ident_t *w, const void *data, size_t n)
+{
+    const unsigned char *p = data;
+    if (n >= sizeof w->buf) { /* a large array: straight through, after what is staged */
+        XXH3_64bits_update(&w->st, w->buf, w->n);
+        w->n = 0;
+        XXH3_64bits_update(&w->st, p, n);
+        return;
+    }
+    if (w->n + n > sizeof w->buf) {
+        XXH3_64bits_update(&w->st, w->buf, w->n);
+        w->n = 0;
+    }
+    memcpy(w->buf + w->n, p, n);
+    w->n += n;
+}
+
+static void put_u32(ident_t *w, uint32_t v)
+{
+    unsigned char b[4] = {(unsigned char)v, (unsigned char)(v >> 8), (unsigned char)(v >> 16),
+                          (unsigned char)(v >> 24)};
+    put(w, b, sizeof b);
+}
+
+static void put_u64(ident_t *w, uint64_t v)
+{
+    put_u32(w, (uint32_t)v);
+    put_u32(w, (uint32_t)(v >> 32));
+}
+
+static void put_f32(ident_t *w, float f)
+{
+    uint32_t u;
+    memcpy(&u, &f, sizeof u);
+    put_u32(w, u);
+}
+
+static void put_f64(ident_t *w, double d)
+{
+    uint64_t u;
+    memcpy(&u, &d, sizeof u);
+    put_u64(w, u);
+}
+
+/* n floats (or 32-bit integers: u32 1), their count first. On a little-endian host an array's
+ * bytes are its serialisation; elsewhere each value is written in turn. */
+static void put_array32(ident_t *w, const void *a, size_t n)
+{
+    put_u64(w, n);
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+    if (n)
+        put(w, a, 4 * n);
+#else
+    for (size_t i = 0; i < n; i++) {
+        uint32_t u;
+        memcpy(&u, (const unsigned char *)a + 4 * i, sizeof u);
+        put_u32(w, u);
+    }
+#endif
+}
+
+static void put_f32s(ident_t *w, const float *f, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        put_f32(w, f[i]);
+}
+
+/* A string up to its end (a fixed-size field's bytes after the terminator are not read). */
+static void put_str(ident_t *w, const char *s, size_t cap)
+{
+    size_t n = strnlen(s, cap);
+    put_u32(w, (uint32_t)n);
+    put(w, s, n);
+}
+
+/* A section's name, so that the sections of a serialisation can never run into each other. */
+static void put_section(ident_t *w, const char *name) { put_str(w, name, 64); }
+
+static void ident_begin(ident_t *w, const char *section)
+{
+    XXH3_64bits_reset(&w->st);
+    w->n = 0;
+    put_section(w, PM_SCENE_IDENTITY_TAG);
+    put_section(w, section);
+}
+
+static uint64_t ident_end(ident_t *w)
+{
+    XXH3_64bits_update(&w->st, w->buf, w->n);
+    w->n = 0;
+    return XXH3_64bits_digest(&w->st);
+}
+
+/* One material: its name, kind and emission, then the fields its kind reads (material.h), in
+ * this order. A standard material's Phong exponent only where it has a Phong lobe. */
+static void put_material(ident_t *w, const pm_material_t *m)
+{
+    put_str(w, m->name, sizeof m->name);
+    put_u32(w, (uint32_t)m->kind);
+    put_f32s(w, m->ke, 3);
+    switch (m->kind) {
+    case PM_MAT_STANDARD:
+        put_f32s(w, m->kd, 3);
+        put_f32s(w, m->ks, 3);
+        if (pm_material_is_glossy(m))
+            put_f32(w, m->ns);
+        break;
+    case PM_MAT_MIRROR: put_f32s(w, m->kr, 3); break;
+    case PM_MAT_GLASS:
+        put_f32(w, m->ior);
+        put_f32s(w, m->tf, 3);
+        break;
+    case PM_MAT_CONDUCTOR:
+        put_f32(w, m->alpha);
+        put_u32(w, m->eta[0] > 0.0f); /* a complex index, or Schlick's F0 */
+        if (m->eta[0] > 0.0f) {
+            put_f32s(w, m->eta, 3);
+            put_f32s(w, m->k, 3);
+        } else {
+            put_f32s(w, m->f0, 3);
+        }
+        break;
+    case PM_MAT_ROUGH_GLASS:
+        put_f32(w, m->alpha);
+        put_f32(w, m->ior);
+        put_f32s(w, m->tf, 3);
+        break;
+    case PM_MAT_PLASTIC:
+        put_f32s(w, m->kd, 3);
+        put_f32(w, m->ior);
+        put_f32(w, m->alpha);
+        break;
+    default: /* a kind this file does not know yet: every field, so that none is left out */
+        put_f32s(w, m->kd, 3);
+        put_f32s(w, m->ks, 3);
+        put_f32(w, m->ns);
+        put_f32s(w, m->kr, 3);
+        put_f32(w, m->ior);
+        put_f32s(w, m->tf, 3);
+        put_f32(w, m->alpha);
+        put_f32s(w, m->eta, 3);
+        put_f32s(w, m->k, 3);
+        put_f32s(w, m->f0, 3);
+        break;
+    }
+}
+
+static void put_materials(ident_t *w, const pm_material_t *m, size_t n)
+{
+    put_section(w, "materials");
+    put_u64(w, n);
+    for (size_t i = 0; i < n; i++)
+        put_material(w, &m[i]);
+}
+
+/* One point light: position and intensity; a spot's axis, cone and falloff (an isotropic
+ * light does not read them). */
+static void put_light(ident_t *w, const pm_point_light_t *l)
+{
+    put_f32s(w, l->position, 3);
+    put_f32s(w, l->intensity, 3);
+    put_u32(w, (uint32_t)pm_point_light_is_spot(l));
+    if (pm_point_light_is_spot(l)) {
+        put_f32s(w, l->axis, 3);
+        put_f32(w, l->cos_cone);
+        put_f32(w, l->falloff);
+    }
+}
+
+static void put_lights(ident_t *w, const pm_point_light_t *l, size_t n)
+{
+    put_section(w, "point lights");
+    put_u64(w, n);
+    for (size_t i = 0; i < n; i++)
+        put_light(w, &l[i]);
+}
+
+uint64_t pm_scene_materials_hash(const pm_material_t *m, size_t n)
+{
+    ident_t w;
+    ident_begin(&w, "materials only");
+    put_materials(&w, m, n);
+    return ident_end(&w);
+}
+
+uint64_t pm_scene_lights_hash(const pm_point_light_t *l, size_t n)
+{
+    ident_t w;
+    ident_begin(&w, "point lights only");
+    put_lights(&w, l, n);
+    return ident_end(&w);
+}
+
+/* The geometry part: triangles, their materials, textures (coordinates, which material uses
+ * which, each texture's texels by its hash) and vertex normals. */
+static uint64_t geometry_part(const pm_scene_t *s)
+{
+    ident_t w;
+    ident_begin(&w, "geometry");
+    put_section(&w, "vertices");
+    put_array32(&w, s->verts, 3 * s->nverts);
+    put_section(&w, "triangles");
+    put_array32(&w, s->tris, 3 * s->ntris);
+    put_array32(&w, s->tri_material, s->ntris);
+    put_materials(&w, s->materials, s->nmaterials);
+    put_section(&w, "textures");
+    put_u32(&w, s->maps != NULL);
+    if (s->maps) {
+        put_array32(&w, s->uvs, 2 * s->nverts);
+        for (size_t m = 0; m < s->nmaterials; m++) {
+            put_u32(&w, (uint32_t)s->maps[m].kd);
+            put_u32(&w, (uint32_t)s->maps[m].ks);
+            put_u32(&w, (uint32_t)s->maps[m].alpha);
+        }
+        put_u64(&w, s->ntextures);
+        for (size_t i = 0; i < s->ntextures; i++)
+            put_u64(&w, s->textures[i].hash);
+    }
+    put_section(&w, "vertex normals");
+    put_u32(&w, s->normals != NULL);
+    if (s->normals)
+        put_array32(&w, s->normals, 3 * s->nverts);
+    return ident_end(&w);
+}
+
+/* The photons' part: the geometry part, every light (point lights, two-sided emitters, the sun,
+ * the sky and its map) and the render block's keys photon tracing and the map read. */
+static uint64_t photons_part(const pm_scene_t *s)
+{
+    const pm_render_defaults_t *d = &s->defaults;
+    ident_t w;
+    ident_begin(&w, "photons");
+    put_u64(&w, s->parts.geometry);
+    put_lights(&w, s->lights, s->nlights);
+    put_section(&w, "emitters");
+    put_u32(&w, (uint32_t)s->two_sided_lights);
+    put_section(&w, "sun");
+    put_u32(&w, (uint32_t)s->has_sun);
+    if (s->has_sun) {
+        put_f32s(&w, s->sun.direction, 3);
+        put_f32s(&w, s->sun.radiance, 3);
+        put_f32(&w, s->sun.solid_angle);
+    }
+    put_section(&w, "sky");
+    put_u32(&w, (uint32_t)s->has_sky);
+    put_u32(&w, s->envmap != NULL);
+    if (s->has_sky && !s->envmap)
+        put_f32s(&w, s->sky, 3);
+    if (s->envmap) { /* its texels, already scaled by the sky's radiance */
+        put_u32(&w, s->envmap->w);
+        put_u32(&w, s->envmap->h);
+        put_array32(&w, s->envmap->rgb, 3 * (size_t)s->envmap->w * s->envmap->h);
+    }
+    put_section(&w, "photon keys");
+    put_u64(&w, (uint64_t)d->photons);
+    put_u64(&w, (uint64_t)d->seed);
+    put_u64(&w, (uint64_t)d->k);
+    put_f64(&w, d->radius);
+    return ident_end(&w);
+}
+
+/* The view's part: the geometry part, the camera, the image size and the render block's keys
+ * the eye side reads (its rays, seed, the queries' order, the gather's width). */
+static uint64_t view_part(const pm_scene_t *s)
+{
+    const pm_camera_t *c = &s->camera;
+    const pm_render_defaults_t *d = &s->defaults;
+    ident_t w;
+    ident_begin(&w, "view");
+    put_u64(&w, s->parts.geometry);
+    put_section(&w, "camera");
+    put_f32s(&w, c->eye, 3);
+    put_f32s(&w, c->look_at, 3);
+    put_f32s(&w, c->up, 3);
+    put_f32(&w, c->fov_y);
+    put_u32(&w, c->width);
+    put_u32(&w, c->height);
+    put_section(&w, "eye keys");
+    put_u64(&w, (uint64_t)d->spp);
+    put_u64(&w, (uint64_t)d->primary);
+    put_u64(&w, (uint64_t)d->light_samples);
+    put_u64(&w, (uint64_t)d->seed);
+    put_u64(&w, (uint64_t)d->leaf);
+    put_u64(&w, (uint64_t)d->k);
+    put_f64(&w, d->radius);
+    return ident_end(&w);
+}
+
+pm_result_t pm_scene_identify(pm_scene_t *s)
+{
+    uint64_t file;
+    pm_result_t r = pm_hash_file(s->path, &file);
+    if (r != PM_OK)
+        return r;
+    s->parts.geometry = geometry_part(s);
+    s->parts.photons = photons_part(s);
+    s->parts.view = view_part(s);
+    ident_t w;
+    ident_begin(&w, "eye");
+    put_u64(&w, s->parts.photons);
+    put_u64(&w, s->parts.view);
+    s->parts.eye = ident_end(&w);
+    /* the whole: the scene file's own bytes (any edit to it) and everything loaded through it */
+    ident_begin(&w, "scene");
+    put_u64(&w, file);
+    put_u64(&w, s->parts.eye);
+    s->hash = ident_end(&w);
+    return PM_OK;
+}
 
 void pm_scene_id(const pm_scene_t *s, char *out, size_t cap) { pm_scene_id_part(s, PM_SCENE_ALL, out, cap); }
 
 int pm_scene_id_matches(const pm_scene_t *s, const char *key)
 {
-    char id[300], old[200];
+    char id[300];
     pm_scene_id(s, id, sizeof id);
-    snprintf(old, sizeof old, "%s xxh3:%016llx", s->name, (unsigned long long)s->hash);
-    return strcmp(key, id) == 0 || strcmp(key, old) == 0;
+    return strcmp(key, id) == 0;
 }
 
 void pm_scene_id_part(const pm_scene_t *s, pm_scene_part_t part, char *out, size_t cap)
@@ -41,94 +353,4 @@ void pm_scene_id_part(const pm_scene_t *s, pm_scene_part_t part, char *out, size
         n += snprintf(out + n, cap - (size_t)n, " photons:xxh3:%016llx", (unsigned long long)s->parts.photons);
     if (n >= 0 && (size_t)n < cap && part != PM_SCENE_PHOTONS)
         snprintf(out + n, cap - (size_t)n, " view:xxh3:%016llx", (unsigned long long)s->parts.view);
-}
-
-/* The materials' share of the scene hash. Without a mirror or glass, each material's bytes up
- * to its specular fields (name to ke, no padding), as the hash took them before those fields
- * existed, so that such a scene's identity, and every file naming it, stays what it was. */
-pm_result_t pm_scene_hash_materials(const pm_scene_t *s, uint64_t *out)
-{
-    int specular = 0;
-    for (size_t m = 0; m < s->nmaterials; m++)
-        specular |= pm_material_is_specular(&s->materials[m]);
-    if (specular) {
-        *out = pm_hash_bytes(s->materials, s->nmaterials * sizeof *s->materials);
-        return PM_OK;
-    }
-    size_t head = offsetof(pm_material_t, kind);
-    unsigned char *buf = malloc(s->nmaterials ? s->nmaterials * head : 1);
-    if (!buf)
-        return pm_error_set(PM_ERR_NOMEM, "out of memory");
-    for (size_t m = 0; m < s->nmaterials; m++)
-        memcpy(buf + m * head, &s->materials[m], head);
-    *out = pm_hash_bytes(buf, s->nmaterials * head);
-    free(buf);
-    return PM_OK;
-}
-
-/* The point lights' hash: position and intensity of each, the bytes a scene without spots
- * always hashed (its hash stays what it was), then the spots' axes, cones and falloffs when
- * there is any spot. */
-pm_result_t pm_scene_hash_lights(const pm_scene_t *s, uint64_t *hash_out)
-{
-    float *b = calloc((s->nlights ? s->nlights : 1) * 6, sizeof(float));
-    if (!b)
-        return pm_error_set(PM_ERR_NOMEM, "out of memory for the hash of %zu lights", s->nlights);
-    int spot = 0;
-    for (size_t i = 0; i < s->nlights; i++) {
-        memcpy(b + 6 * i, s->lights[i].position, 3 * sizeof(float));
-        memcpy(b + 6 * i + 3, s->lights[i].intensity, 3 * sizeof(float));
-        spot |= pm_point_light_is_spot(&s->lights[i]);
-    }
-    uint64_t h[2] = {pm_hash_bytes(b, s->nlights * 6 * sizeof(float)), 0};
-    free(b);
-    *hash_out = h[0];
-    if (!spot)
-        return PM_OK;
-    for (size_t i = 0; i < s->nlights; i++) {
-        const pm_point_light_t *l = &s->lights[i];
-        float v[5] = {l->axis[0], l->axis[1], l->axis[2], l->cos_cone, l->falloff};
-        h[1] = pm_hash_bytes((uint64_t[2]){h[1], pm_hash_bytes(v, sizeof v)}, 2 * sizeof(uint64_t));
-    }
-    *hash_out = pm_hash_bytes(h, sizeof h);
-    return PM_OK;
-}
-
-/* The scene's parts (scene.h, pm_scene_hash_t), from what was loaded rather than the scene
- * file's bytes, so that an edit to the camera leaves the photons' part alone. h: the hashes
- * of the geometry, triangle materials, materials and point lights the whole hash took. */
-void pm_scene_hash_parts(pm_scene_t *s, const uint64_t h[6])
-{
-    uint64_t g[6] = {h[1], h[2], h[3], h[4], 0, 0};
-    if (s->maps) {
-        g[4] = pm_hash_bytes(s->uvs, 2 * s->nverts * sizeof(float));
-        g[5] = pm_hash_bytes(s->maps, s->nmaterials * sizeof *s->maps);
-        for (size_t i = 0; i < s->ntextures; i++)
-            g[5] = pm_hash_bytes((uint64_t[2]){g[5], s->textures[i].hash}, 2 * sizeof(uint64_t));
-    }
-    s->parts.geometry = pm_hash_bytes(g, sizeof g);
-    if (s->normals) /* shading normals shade both sides' files; a scene without them keeps its hash */
-        s->parts.geometry =
-            pm_hash_bytes((uint64_t[2]){s->parts.geometry, pm_hash_bytes(s->normals, 3 * s->nverts * sizeof(float))},
-                          2 * sizeof(uint64_t));
-    /* The render block's keys each side reads as a default: the photons' count and seed,
-     * the eye side's rays, seed and the query order's leaf; the gather's width (radius, k)
-     * goes with both, as the map and the queries both carry it on. */
-    const pm_render_defaults_t *d = &s->defaults;
-    int64_t pk[4] = {d->photons, d->seed, d->k, 0},
-            ek[6] = {d->spp, d->primary, d->light_samples, d->seed, d->leaf, d->k};
-    memcpy(&pk[3], &d->radius, sizeof pk[3]);
-    uint64_t p[4] = {s->parts.geometry, h[5], pm_hash_bytes(pk, sizeof pk), 0};
-    s->parts.photons = pm_hash_bytes(p, sizeof p);
-    const pm_camera_t *c = &s->camera;
-    float cam[12] = {c->eye[0],     c->eye[1],     c->eye[2], c->look_at[0],
-                     c->look_at[1], c->look_at[2], c->up[0],  c->up[1],
-                     c->up[2],      c->fov_y,      0,         0};
-    uint32_t size[2] = {c->width, c->height};
-    uint64_t v[5] = {s->parts.geometry, pm_hash_bytes(cam, sizeof cam), pm_hash_bytes(size, sizeof size),
-                     pm_hash_bytes(ek, sizeof ek), 0};
-    memcpy(&v[4], &d->radius, sizeof v[4]);
-    s->parts.view = pm_hash_bytes(v, sizeof v);
-    uint64_t e[2] = {s->parts.photons, s->parts.view};
-    s->parts.eye = pm_hash_bytes(e, sizeof e);
 }

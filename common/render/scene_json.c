@@ -3,26 +3,15 @@
  * sky, the render defaults, and a mesh entry's placement (scale, rotate, translate, matrix). */
 #include "render/scene.h"
 
-#include <assimp/cimport.h>
-#include <assimp/material.h>
-#include <assimp/postprocess.h>
-#include <assimp/scene.h>
-#include <ctype.h>
-#include <errno.h>
-#include <inttypes.h>
 #include <jansson.h>
 #include <math.h>
 #include <stdarg.h>
-#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 
 #include "base/exr.h"
-#include "base/hash.h"
 #include "formats/formats.h"
-#include "math/vec.h"
 #include "render/scene_load.h"
 
 pm_result_t pm_scene_bad(const ctx_t *c, const char *key, const char *fmt, ...)

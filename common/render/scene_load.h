@@ -63,10 +63,10 @@ pm_result_t pm_scene_only_keys(const ctx_t *c, json_t *obj, const char *where, c
  * it is absent and not required. path names it in errors. */
 pm_result_t pm_scene_get_number(const ctx_t *c, json_t *obj, const char *name, const char *path, int required,
                                 double lo, double hi, double *out);
-pm_result_t pm_scene_get_int(const ctx_t *c, json_t *obj, const char *name, const char *path, int required,
-                             int64_t lo, int64_t hi, int64_t *out);
-pm_result_t pm_scene_get_vec3(const ctx_t *c, json_t *obj, const char *name, const char *path, int required,
-                              double lo, double hi, float out[3]);
+pm_result_t pm_scene_get_int(const ctx_t *c, json_t *obj, const char *name, const char *path, int required, int64_t lo,
+                             int64_t hi, int64_t *out);
+pm_result_t pm_scene_get_vec3(const ctx_t *c, json_t *obj, const char *name, const char *path, int required, double lo,
+                              double hi, float out[3]);
 pm_result_t pm_scene_load_camera(const ctx_t *c, json_t *cam);
 pm_result_t pm_scene_load_lights(const ctx_t *c, json_t *lights);
 pm_result_t pm_scene_load_sun_sky(const ctx_t *c, json_t *sun, json_t *sky);
@@ -110,8 +110,7 @@ pm_result_t pm_scene_load_material_maps(const ctx_t *c, const char *mesh, int is
                                         const struct aiMaterial *am, uint32_t mi);
 
 /* ---- scene_hash.c: the scene's identity. */
-pm_result_t pm_scene_hash_materials(const pm_scene_t *s, uint64_t *out);
-pm_result_t pm_scene_hash_lights(const pm_scene_t *s, uint64_t *hash_out);
-void pm_scene_hash_parts(pm_scene_t *s, const uint64_t h[6]);
+/* Sets s->hash and s->parts from what s holds (its file hashed again for the whole). */
+pm_result_t pm_scene_identify(pm_scene_t *s);
 
 #endif

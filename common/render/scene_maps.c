@@ -2,26 +2,11 @@
  * each file loaded once per scene, relative to the .mtl that names it. */
 #include "render/scene.h"
 
-#include <assimp/cimport.h>
 #include <assimp/material.h>
-#include <assimp/postprocess.h>
-#include <assimp/scene.h>
-#include <ctype.h>
 #include <errno.h>
-#include <inttypes.h>
-#include <jansson.h>
-#include <math.h>
-#include <stdarg.h>
-#include <stddef.h>
 #include <stdio.h>
-#include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 
-#include "base/exr.h"
-#include "base/hash.h"
-#include "formats/formats.h"
-#include "math/vec.h"
 #include "render/scene_load.h"
 
 /* The folder texture names of material `name` are relative to: the .mtl that defines it (an

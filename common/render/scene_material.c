@@ -4,26 +4,11 @@
  * value range-checked. */
 #include "render/scene.h"
 
-#include <assimp/cimport.h>
 #include <assimp/material.h>
-#include <assimp/postprocess.h>
-#include <assimp/scene.h>
-#include <ctype.h>
-#include <errno.h>
-#include <inttypes.h>
-#include <jansson.h>
 #include <math.h>
-#include <stdarg.h>
-#include <stddef.h>
 #include <stdio.h>
-#include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 
-#include "base/exr.h"
-#include "base/hash.h"
-#include "formats/formats.h"
-#include "math/vec.h"
 #include "render/scene_load.h"
 
 /* The PBR inputs of assimp material am: 1 when it is a metallic-roughness material (every glTF
@@ -120,9 +105,9 @@ static pm_result_t load_specular(const char *mesh, int is_obj, const struct aiMa
 #define PM_PBR_DIELECTRIC_F0 0.04f
 
 /* The metallic-roughness part of a material that is not glass (docs/scene-format.md, "PBR
- * materials"): metallic 1 is a conductor of F0 the base colour and GGX width roughness^2 (a
- * mirror of reflectance the base colour at roughness 0, the delta the tracers follow); metallic
- * 0 is plastic, the base colour under a dielectric coat of index 1.5 (glTF's ior when
+ * materials"): metallic 1 is a conductor of F0 the base colour (Schlick's Fresnel, as glTF
+ * says) and GGX width roughness^2, its smooth (delta) limit at roughness 0; metallic 0 is
+ * plastic, the base colour under a dielectric coat of index 1.5 (glTF's ior when
  * KHR_materials_ior gives one, an MTL's Ni when not 1; index 1 makes it Lambertian, exactly).
  * A metallic strictly between is the nearer kind with glTF's mix of that kind's own lobe:
  * F0 = lerp(0.04, base, metallic) for a metal, kd = (1 - metallic) base for plastic; the other
@@ -142,16 +127,11 @@ static pm_result_t load_pbr(const char *mesh, int is_obj, const struct aiMateria
     memset(m->kd, 0, sizeof m->kd);
     memset(m->ks, 0, sizeof m->ks);
     m->ns = 0.0f;
+    m->alpha = roughness * roughness;
     if (metallic >= 0.5f) {
-        for (int k = 0; k < 3; k++) {
-            float f0 = metallic * base[k] + (1.0f - metallic) * PM_PBR_DIELECTRIC_F0;
-            if (roughness == 0.0f)
-                m->kr[k] = f0;
-            else
-                m->f0[k] = f0;
-        }
-        m->kind = roughness == 0.0f ? PM_MAT_MIRROR : PM_MAT_CONDUCTOR;
-        m->alpha = roughness * roughness;
+        for (int k = 0; k < 3; k++)
+            m->f0[k] = metallic * base[k] + (1.0f - metallic) * PM_PBR_DIELECTRIC_F0;
+        m->kind = PM_MAT_CONDUCTOR;
         return PM_OK;
     }
     ai_real ior = 1.5f, given = 1;
@@ -164,7 +144,8 @@ static pm_result_t load_pbr(const char *mesh, int is_obj, const struct aiMateria
         m->kd[k] = (1.0f - metallic) * base[k];
     m->kind = ior == 1 ? PM_MAT_STANDARD : PM_MAT_PLASTIC;
     m->ior = (float)ior;
-    m->alpha = ior == 1 ? 0.0f : roughness * roughness;
+    if (ior == 1)
+        m->alpha = 0.0f; /* no coat: no width to read */
     return PM_OK;
 }
 

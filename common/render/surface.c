@@ -2,25 +2,8 @@
  * material, cut-outs (map_d) and shading normals at a point of a triangle. */
 #include "render/scene.h"
 
-#include <assimp/cimport.h>
-#include <assimp/material.h>
-#include <assimp/postprocess.h>
-#include <assimp/scene.h>
-#include <ctype.h>
-#include <errno.h>
-#include <inttypes.h>
-#include <jansson.h>
 #include <math.h>
-#include <stdarg.h>
-#include <stddef.h>
-#include <stdio.h>
-#include <stdlib.h>
-#include <string.h>
-#include <strings.h>
 
-#include "base/exr.h"
-#include "base/hash.h"
-#include "formats/formats.h"
 #include "math/vec.h"
 #include "render/scene_load.h"
 
@@ -66,9 +49,13 @@ const pm_material_t *pm_scene_material_textured(const pm_scene_t *s, uint32_t tr
     pm_scene_barycentrics(s, tri, p, b);
     pm_scene_uv(s, tri, b[0], b[1], uv);
     if (mm->kd >= 0) {
+        /* the base colour's texture: a PBR metal's base colour is its F0 (scene_material.c) */
         pm_texture_lookup(&s->textures[mm->kd], uv[0], uv[1], 1, texel);
-        for (int k = 0; k < 3; k++)
+        for (int k = 0; k < 3; k++) {
             scratch->kd[k] *= fminf(texel[k], 1.0f);
+            if (scratch->kind == PM_MAT_CONDUCTOR)
+                scratch->f0[k] *= fminf(texel[k], 1.0f);
+        }
     }
     if (mm->ks >= 0) {
         pm_texture_lookup(&s->textures[mm->ks], uv[0], uv[1], 1, texel);

@@ -1,6 +1,7 @@
 /* test_scene.c: scene loading (the Cornell box's published numbers), bad scene input
  * with clear messages, degenerate triangles, and Embree rays against known distances. */
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -35,12 +36,13 @@ static void test_scene_cornell_box(void **state)
     assert_true(fabs(p[2] - M_PI * 4 * 0.130 * 0.105) < 1e-5);
     assert_true(fabsf(s.bounds[4] - 0.5488f) < 1e-6f);
     assert_int_equal(s.camera.width, 256);
-    /* SCENE: the whole scene's key, or the one-hash form files before the parts carry */
+    /* SCENE: the whole scene's key; not the one-hash form of files before the parts (and before
+     * the identity's version 2) */
     char id[300], old[200];
     pm_scene_id(&s, id, sizeof id);
     snprintf(old, sizeof old, "cornell-box xxh3:%016llx", (unsigned long long)s.hash);
     assert_true(pm_scene_id_matches(&s, id));
-    assert_true(pm_scene_id_matches(&s, old));
+    assert_false(pm_scene_id_matches(&s, old));
     pm_scene_id_part(&s, PM_SCENE_VIEW, id, sizeof id);
     assert_false(pm_scene_id_matches(&s, id));
     assert_false(pm_scene_id_matches(&s, "cornell-box xxh3:0000000000000000"));
@@ -291,8 +293,8 @@ static void assert_rgb(const float got[3], float r, float g, float b)
             fail_msg("channel %d: %.9g, want %.9g", k, (double)got[k], (double)want[k]);
 }
 
-/* An OBJ whose .mtl has the PBR extension: Pm 1 is a conductor of F0 Kd and width Pr^2 (a mirror
- * of reflectance Kd at Pr 0), Pr without Pm plastic under a coat of index 1.5 (Ni when given),
+/* An OBJ whose .mtl has the PBR extension: Pm 1 is a conductor of F0 Kd and width Pr^2 (width 0,
+ * the smooth limit, at Pr 0), Pr without Pm plastic under a coat of index 1.5 (Ni when given),
  * Pm 0.7 the nearer kind (a metal of F0 lerp(0.04, Kd, 0.7)) with a note, illum 7 with Pr rough
  * glass; a material without Pr or Pm stays standard; a PBR material's Ks is reported. */
 static void test_scene_pbr_mtl(void **state)
@@ -323,10 +325,11 @@ static void test_scene_pbr_mtl(void **state)
     assert_rgb(m->f0, 0.9f, 0.6f, 0.3f);
     assert_rgb(m->kd, 0, 0, 0);
     assert_true(m->alpha == 0.25f && m->eta[0] == 0.0f);
-    m = material_named(&s, "polished");
-    assert_int_equal(m->kind, PM_MAT_MIRROR);
-    assert_rgb(m->kr, 0.9f, 0.6f, 0.3f);
-    assert_null(reported(&s, "polished", "Kd")); /* a PBR mirror's Kd is its reflectance */
+    m = material_named(&s, "polished"); /* the smooth limit: a delta conductor */
+    assert_int_equal(m->kind, PM_MAT_CONDUCTOR);
+    assert_rgb(m->f0, 0.9f, 0.6f, 0.3f);
+    assert_true(m->alpha == 0.0f);
+    assert_null(reported(&s, "polished", "Kd")); /* a PBR metal's Kd is its F0 */
     m = material_named(&s, "plastic");
     assert_int_equal(m->kind, PM_MAT_PLASTIC);
     assert_rgb(m->kd, 0.5f, 0.4f, 0.3f);
@@ -371,6 +374,33 @@ static void test_scene_pbr_mtl(void **state)
         expect_scene_error("{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"bad.obj\"}], " CAM "}",
                            bad[i][1]);
     }
+}
+
+/* A PBR metal's base colour texture scales its F0 (map_Kd times Kd is the base colour): a 1 x 1
+ * TGA of (255, 0, 255), texel (1, 0, 1) after sRGB decoding, on F0 (0.9, 0.6, 0.3). */
+static void test_scene_pbr_texture(void **state)
+{
+    char p[256];
+    static const unsigned char tga[21] = {0, 0, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 1, 0, 24, 0, 255, 0, 255};
+    snprintf(p, sizeof p, "%s/m.tga", unit_tmpdir());
+    FILE *f = fopen(p, "wb");
+    assert_non_null(f);
+    assert_int_equal(fwrite(tga, 1, sizeof tga, f), sizeof tga);
+    fclose(f);
+    write_file("tm.mtl", "newmtl tm\nKd 0.9 0.6 0.3\nPm 1\nPr 0.5\nmap_Kd m.tga\n", p, sizeof p);
+    write_file("tm.obj", "mtllib tm.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nusemtl tm\nf 1/1 2/1 3/1\n", p, sizeof p);
+    write_file("tm.json", "{\"pmtk_scene\": 1, \"name\": \"tm\", \"meshes\": [{\"file\": \"tm.obj\"}], " CAM "}", p,
+               sizeof p);
+    pm_scene_t s;
+    if (pm_scene_load(p, &s) != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_int_equal(s.materials[0].kind, PM_MAT_CONDUCTOR);
+    pm_material_t scratch;
+    const float at[3] = {0.25f, 0.25f, 0.0f};
+    const pm_material_t *m = pm_scene_material_at(&s, 0, at, &scratch);
+    assert_rgb(m->f0, 0.9f, 0.0f, 0.3f);
+    assert_rgb(s.materials[0].f0, 0.9f, 0.6f, 0.3f); /* the scene's own material is not touched */
+    pm_scene_free(&s);
 }
 
 /* A glTF of one triangle per material (materials: the JSON array's body). */
@@ -457,10 +487,166 @@ static void test_scene_pbr_gltf(void **state)
                        "metallicFactor 1 with roughnessFactor 0.5 a metal: it cannot be both");
 }
 
+/* Fields of pm_material_t by offset and float count, and which kinds read them. */
+typedef struct {
+    const char *name;
+    size_t offset, n;
+    unsigned kinds; /* bit k: kind k reads the field */
+} mat_field_t;
+
+#define K(k) (1u << (k))
+#define FIELD(f, kinds)                                                                                                \
+    {                                                                                                                  \
+#f, offsetof(pm_material_t, f), sizeof((pm_material_t *)0)->f / sizeof(float), kinds                           \
+    }
+static const mat_field_t mat_fields[] = {
+    FIELD(ke, 0x3fu),
+    FIELD(kd, K(PM_MAT_STANDARD) | K(PM_MAT_PLASTIC)),
+    FIELD(ks, K(PM_MAT_STANDARD)),
+    FIELD(ns, K(PM_MAT_STANDARD)),
+    FIELD(kr, K(PM_MAT_MIRROR)),
+    FIELD(ior, K(PM_MAT_GLASS) | K(PM_MAT_ROUGH_GLASS) | K(PM_MAT_PLASTIC)),
+    FIELD(tf, K(PM_MAT_GLASS) | K(PM_MAT_ROUGH_GLASS)),
+    FIELD(alpha, K(PM_MAT_CONDUCTOR) | K(PM_MAT_ROUGH_GLASS) | K(PM_MAT_PLASTIC)),
+    FIELD(f0, K(PM_MAT_CONDUCTOR)),
+};
+
+/* A material of kind `kind` whose every byte is first `fill`, then its name and the fields its
+ * kind reads set to the same values whatever fill is (a glossy standard material, so that its
+ * ns is read; a conductor by F0, so that eta and k are not). */
+static void make_material(pm_material_t *m, int kind, unsigned char fill)
+{
+    memset(m, fill, sizeof *m);
+    snprintf(m->name, sizeof m->name, "brass");
+    m->kind = kind;
+    for (size_t f = 0; f < sizeof mat_fields / sizeof mat_fields[0]; f++)
+        for (size_t i = 0; i < mat_fields[f].n; i++)
+            ((float *)((char *)m + mat_fields[f].offset))[i] = 0.25f + 0.125f * (float)(f + i);
+    m->eta[0] = 0.0f; /* a conductor of F0: eta[1], eta[2] and k are not read */
+}
+
+/* The scene identity's serialisation: two materials equal in every field their kind reads hash
+ * the same whatever their other bytes (name after its end, padding, fields of other kinds);
+ * changing any field a kind reads, the name or the kind changes the hash. Likewise lights: an
+ * isotropic light's axis is not read, a spot's is. */
+static void test_scene_identity_fields(void **state)
+{
+    for (int kind = PM_MAT_STANDARD; kind <= PM_MAT_PLASTIC; kind++) {
+        pm_material_t a, b;
+        make_material(&a, kind, 0x00);
+        make_material(&b, kind, 0xa5);
+        uint64_t h = pm_scene_materials_hash(&a, 1);
+        if (pm_scene_materials_hash(&b, 1) != h)
+            fail_msg("kind %d: unused bytes change the hash", kind);
+        for (size_t f = 0; f < sizeof mat_fields / sizeof mat_fields[0]; f++)
+            for (size_t i = 0; i < mat_fields[f].n; i++) {
+                pm_material_t c = a;
+                float *x = (float *)((char *)&c + mat_fields[f].offset) + i;
+                *x = nextafterf(*x, 2.0f);
+                int reads = (mat_fields[f].kinds >> kind) & 1;
+                if (reads && pm_scene_materials_hash(&c, 1) == h)
+                    fail_msg("kind %d: %s[%zu] changes and the hash does not", kind, mat_fields[f].name, i);
+                if (!reads && pm_scene_materials_hash(&c, 1) != h)
+                    fail_msg("kind %d: %s[%zu] is not read and changes the hash", kind, mat_fields[f].name, i);
+            }
+        pm_material_t c = a;
+        c.name[0] = 'B';
+        assert_true(pm_scene_materials_hash(&c, 1) != h);
+        c = a;
+        c.kind = kind == PM_MAT_PLASTIC ? PM_MAT_STANDARD : kind + 1;
+        assert_true(pm_scene_materials_hash(&c, 1) != h);
+    }
+    /* a conductor by complex index reads eta and k, not f0 */
+    pm_material_t a, b;
+    make_material(&a, PM_MAT_CONDUCTOR, 0);
+    a.eta[0] = a.eta[1] = a.eta[2] = 0.2f, a.k[0] = a.k[1] = a.k[2] = 3.0f;
+    b = a;
+    b.f0[1] = 0.9f;
+    assert_true(pm_scene_materials_hash(&a, 1) == pm_scene_materials_hash(&b, 1));
+    b = a;
+    b.k[2] = 3.5f;
+    assert_true(pm_scene_materials_hash(&a, 1) != pm_scene_materials_hash(&b, 1));
+    /* a Lambertian standard material (ks 0) does not read ns */
+    make_material(&a, PM_MAT_STANDARD, 0);
+    a.ks[0] = a.ks[1] = a.ks[2] = 0.0f;
+    b = a;
+    b.ns = 77.0f;
+    assert_true(pm_scene_materials_hash(&a, 1) == pm_scene_materials_hash(&b, 1));
+    /* the order of materials and their number count */
+    pm_material_t two[2], swapped[2];
+    make_material(&two[0], PM_MAT_STANDARD, 0);
+    make_material(&two[1], PM_MAT_PLASTIC, 0);
+    swapped[0] = two[1], swapped[1] = two[0];
+    assert_true(pm_scene_materials_hash(two, 2) != pm_scene_materials_hash(swapped, 2));
+    assert_true(pm_scene_materials_hash(two, 2) != pm_scene_materials_hash(two, 1));
+
+    pm_point_light_t l[2];
+    memset(l, 0, sizeof l);
+    l[0] = (pm_point_light_t){{1, 2, 3}, {4, 5, 6}, {0, 0, 0}, -1.0f, 0.0f};
+    l[1] = l[0];
+    l[1].axis[1] = 1.0f; /* not read: isotropic */
+    assert_true(pm_scene_lights_hash(&l[0], 1) == pm_scene_lights_hash(&l[1], 1));
+    l[1] = l[0];
+    l[1].intensity[2] = 6.5f;
+    assert_true(pm_scene_lights_hash(&l[0], 1) != pm_scene_lights_hash(&l[1], 1));
+    l[0].cos_cone = l[1].cos_cone = 0.5f; /* spots: the axis is read */
+    l[1] = l[0];
+    l[1].axis[1] = 1.0f;
+    assert_true(pm_scene_lights_hash(&l[0], 1) != pm_scene_lights_hash(&l[1], 1));
+}
+
+/* A loaded scene's identity is its content's: the same file loaded twice hashes the same; an
+ * .mtl edit the renderer cannot see (Ns of a Lambertian material) leaves every part alone, a
+ * Kd edit changes the geometry, photons and view parts, a camera move only the view's, a point
+ * light's move only the photons'. */
+static void test_scene_identity_parts(void **state)
+{
+    char p[256];
+    pm_scene_t s[5];
+    static const char *const mtl[] = {"newmtl w\nKd 0.5 0.5 0.5\n", "newmtl w\nKd 0.5 0.5 0.5\nNs 30\n",
+                                      "newmtl w\nKd 0.5 0.5 0.6\n"};
+    static const char *const json[] = {
+        "{\"pmtk_scene\": 1, \"name\": \"id\", \"meshes\": [{\"file\": \"id.obj\"}], " CAM
+        ", \"point_lights\": [{\"position\": [0, 1, 0], \"intensity\": [1, 1, 1]}]}",
+        "{\"pmtk_scene\": 1, \"name\": \"id\", \"meshes\": [{\"file\": \"id.obj\"}], \"camera\": {\"eye\": "
+        "[0,0,-2], \"look_at\": [0,0,0], \"fov_y\": 40, \"width\": 4, \"height\": 4}, \"point_lights\": "
+        "[{\"position\": [0, 1, 0], \"intensity\": [1, 1, 1]}]}",
+        "{\"pmtk_scene\": 1, \"name\": \"id\", \"meshes\": [{\"file\": \"id.obj\"}], " CAM
+        ", \"point_lights\": [{\"position\": [0, 2, 0], \"intensity\": [1, 1, 1]}]}",
+    };
+    /* s[0]: the base; s[1]: Ns added; s[2]: Kd changed; s[3]: camera moved; s[4]: light moved */
+    static const int use[5][2] = {{0, 0}, {1, 0}, {2, 0}, {0, 1}, {0, 2}};
+    write_file("id.obj", "mtllib id.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl w\nf 1 2 3\n", p, sizeof p);
+    for (int i = 0; i < 5; i++) {
+        write_file("id.mtl", mtl[use[i][0]], p, sizeof p);
+        write_file("id.json", json[use[i][1]], p, sizeof p);
+        if (pm_scene_load(p, &s[i]) != PM_OK)
+            fail_msg("%s", pm_error_message());
+    }
+    pm_scene_t again;
+    write_file("id.mtl", mtl[0], p, sizeof p);
+    write_file("id.json", json[0], p, sizeof p);
+    assert_int_equal(pm_scene_load(p, &again), PM_OK);
+    assert_true(again.hash == s[0].hash && again.parts.eye == s[0].parts.eye);
+    pm_scene_free(&again);
+    assert_true(s[1].parts.geometry == s[0].parts.geometry && s[1].parts.photons == s[0].parts.photons &&
+                s[1].parts.view == s[0].parts.view);
+    assert_true(s[2].parts.geometry != s[0].parts.geometry && s[2].parts.photons != s[0].parts.photons &&
+                s[2].parts.view != s[0].parts.view);
+    assert_true(s[3].parts.geometry == s[0].parts.geometry && s[3].parts.photons == s[0].parts.photons &&
+                s[3].parts.view != s[0].parts.view && s[3].hash != s[0].hash);
+    assert_true(s[4].parts.geometry == s[0].parts.geometry && s[4].parts.photons != s[0].parts.photons &&
+                s[4].parts.view == s[0].parts.view && s[4].parts.eye != s[0].parts.eye);
+    for (int i = 0; i < 5; i++)
+        pm_scene_free(&s[i]);
+}
+
 static const struct CMUnitTest tests[] = {
-    cmocka_unit_test(test_scene_cornell_box), cmocka_unit_test(test_scene_bad_input),
-    cmocka_unit_test(test_scene_mesh_faults), cmocka_unit_test(test_scene_degenerate_triangles),
-    cmocka_unit_test(test_scene_unsupported), cmocka_unit_test(test_scene_unsupported_gltf),
-    cmocka_unit_test(test_scene_pbr_mtl),     cmocka_unit_test(test_scene_pbr_gltf),
+    cmocka_unit_test(test_scene_cornell_box),    cmocka_unit_test(test_scene_bad_input),
+    cmocka_unit_test(test_scene_mesh_faults),    cmocka_unit_test(test_scene_degenerate_triangles),
+    cmocka_unit_test(test_scene_unsupported),    cmocka_unit_test(test_scene_unsupported_gltf),
+    cmocka_unit_test(test_scene_pbr_mtl),        cmocka_unit_test(test_scene_pbr_gltf),
+    cmocka_unit_test(test_scene_pbr_texture),    cmocka_unit_test(test_scene_identity_fields),
+    cmocka_unit_test(test_scene_identity_parts),
 };
 UNIT_GROUP(unit_scene, "scene", tests);

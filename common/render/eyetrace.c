@@ -730,9 +730,26 @@ static inline int material_continues(const pm_material_t *m, unsigned depth)
     }
 }
 
-static inline int continues(const pm_eye_t *c, const pm_material_t *m)
+/* A microfacet material with textures (a PBR metal's F0, a plastic's base): it differs at every
+ * hit, and a query's material is one entry of the table, so paths never gather on it. */
+static inline int varies(const pm_scene_t *s, uint32_t mi)
 {
-    return c->cont && material_continues(m, c->glossy_depth);
+    return s->maps && s->materials[mi].kind != PM_MAT_STANDARD && pm_material_is_glossy(&s->materials[mi]) &&
+           (s->maps[mi].kd >= 0 || s->maps[mi].ks >= 0);
+}
+
+/* Whether a path goes on through a hit on material mi (m: with its textures there). */
+static inline int continues(const pm_eye_t *c, const pm_material_t *m, uint32_t mi)
+{
+    return c->cont && (material_continues(m, c->glossy_depth) || varies(c->s, mi));
+}
+
+/* The glossy bounces a path may take through material mi before it gathers there: rough glass
+ * and a textured microfacet material, which no gather can use, to PM_EYE_MAX_SPECULAR (then its
+ * light is lost); the others glossy_depth. */
+static inline unsigned depth_limit(const pm_eye_t *c, const pm_material_t *m, uint32_t mi)
+{
+    return rough_transmits(m) || varies(c->s, mi) ? PM_EYE_MAX_SPECULAR : c->glossy_depth;
 }
 
 /* Where a secondary path is: the ray that reached hit triangle tri (origin o, unit direction d,
@@ -934,10 +951,11 @@ static int follow_path(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCont
         for (int k = 0; k < 3; k++)
             q[k] = a->o[k] + a->t * a->d[k];
         const pm_material_t *m = c->cont ? pm_scene_material_at(s, a->tri, q, &textured) : NULL;
+        uint32_t mi = s->tri_material[a->tri];
         /* past glossy_depth bounces the path gathers where it is; through rough glass, which
          * holds no photons, it goes on (to PM_EYE_MAX_SPECULAR bounces, then its light is lost) */
-        if (!m || !continues(c, m) || depth >= (rough_transmits(m) ? PM_EYE_MAX_SPECULAR : c->glossy_depth))
-            return c->direct_only || (m && rough_transmits(m)) || path_query(c, sc, a, out);
+        if (!m || !continues(c, m, mi) || depth >= depth_limit(c, m, mi))
+            return c->direct_only || (m && (rough_transmits(m) || varies(s, mi))) || path_query(c, sc, a, out);
         int on = glossy_bounce(c, sc, ctx, a, depth, direct, out);
         if (on <= 0)
             return on == 0;
@@ -1044,7 +1062,8 @@ static int primary_glossy(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectC
         for (int k = 0; k < 3; k++)
             v.p[k] = o[k] + t * d[k], v.wo[k] = -d[k];
         const pm_material_t *m = pm_scene_material_at(s, tri, v.p, &textured);
-        if (!continues(c, m) || depth >= (rough_transmits(m) ? PM_EYE_MAX_SPECULAR : c->glossy_depth))
+        uint32_t mi = s->tri_material[tri];
+        if (!continues(c, m, mi) || depth >= depth_limit(c, m, mi))
             break;
         const float *ng = c->geom.tri_n + 3 * (size_t)tri;
         float side = pm_dot3(ng, v.wo) >= 0.0f ? 1.0f : -1.0f, *emw = &sc->emw[i];
@@ -1323,7 +1342,7 @@ static pm_result_t split_table(pm_eye_t *c)
     const pm_scene_t *s = c->s;
     size_t n = s->nmaterials + 1;
     for (size_t m = 0; m < s->nmaterials; m++)
-        n += pm_scene_glossy_textured(s, (uint32_t)m);
+        n += pm_scene_glossy_textured(s, (uint32_t)m) && s->materials[m].kind == PM_MAT_STANDARD;
     if (n > 65536) /* the material channel is 16 bits */
         return pm_error_set(PM_ERR_INPUT,
                             "scene '%s': %zu materials and their glossy textured lobes do not fit the queries' "
@@ -1338,7 +1357,7 @@ static pm_result_t split_table(pm_eye_t *c)
     c->table[c->folded] = (pm_material_t){.name = "folded", .kd = {1, 1, 1}};
     size_t at = s->nmaterials + 1;
     for (size_t m = 0; m < s->nmaterials; m++)
-        if (pm_scene_glossy_textured(s, (uint32_t)m)) {
+        if (pm_scene_glossy_textured(s, (uint32_t)m) && s->materials[m].kind == PM_MAT_STANDARD) {
             pm_material_t *e = &c->table[at];
             snprintf(e->name, sizeof e->name, "%.57s.lobe", s->materials[m].name);
             e->ks[0] = e->ks[1] = e->ks[2] = 1.0f;
@@ -1373,7 +1392,7 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
     c->direct_only = o->direct_only;
     c->glossy_depth = o->glossy_depth;
     for (size_t m = 0; c->mode == PM_EYE_GATHER && m < s->nmaterials; m++)
-        c->cont |= material_continues(&s->materials[m], c->glossy_depth);
+        c->cont |= material_continues(&s->materials[m], c->glossy_depth) || varies(s, (uint32_t)m);
     pm_result_t r = PM_OK;
     if (o->caustics && o->direct_only) {
         pm_eye_destroy(c);

@@ -69,9 +69,9 @@ typedef struct {
     float *lx, *ly, *lz; /* their cosine-weighted directions in the local frame */
     float *thr;          /* per primary ray: RGB throughput of its specular chain (1 1 1 without one) */
     float *emw;          /* per primary ray: the weight of the emission its last ray finds (MIS past a glossy bounce) */
-    unsigned char *part; /* per primary ray: 1 when its hit shades its diffuse part alone (primary_glossy) */
-    size_t thr_cap, emw_cap, part_cap;
+    size_t thr_cap, emw_cap;
     uint64_t n_primary, n_secondary, n_shadow, n_queries, n_caustic, n_specular, n_specular_cut, n_glossy;
+    uint32_t row;       /* the row being traced */
     double t_secondary; /* s inside Embree for secondary rays */
     double cpu_rows;    /* s of this thread's CPU time in trace_row */
 } scratch_t;
@@ -134,8 +134,7 @@ static pm_result_t scratch_reserve(scratch_t *sc, uint32_t y, size_t nprim, size
         !grow((void **)&sc->sec_cos, sizeof(float), &sc->sec_cos_cap, nsec) ||
         !grow((void **)&sc->sec_env, 2 * sizeof(float), &sc->sec_env_cap, nsec) ||
         !grow((void **)&sc->thr, 3 * sizeof(float), &sc->thr_cap, nprim) ||
-        !grow((void **)&sc->emw, sizeof(float), &sc->emw_cap, nprim) ||
-        !grow((void **)&sc->part, 1, &sc->part_cap, nprim))
+        !grow((void **)&sc->emw, sizeof(float), &sc->emw_cap, nprim))
         return pm_error_set(PM_ERR_NOMEM,
                             "out of memory for the rays of row %" PRIu32 ": %zu primary, %zu shadow, %zu secondary", y,
                             nprim, nshadow, nsec);
@@ -155,7 +154,7 @@ static void scratch_free(scratch_t *sc)
     free(sc->hit), free(sc->sh_px), free(sc->sh_c), free(sc->sec_px), free(sc->sec_w), free(sc->sec_cos),
         free(sc->sec_env);
     free(sc->u1), free(sc->u2), free(sc->lx), free(sc->ly), free(sc->lz), free(sc->thr);
-    free(sc->emw), free(sc->part);
+    free(sc->emw);
 }
 
 /* Appends one query record in file layout; 0 when out of memory. */
@@ -484,6 +483,17 @@ static void env_add(const pm_eye_t *c, const float d[3], const float w[2], const
             (double)(scale[k] * (ls[k] * w[0] + (in_sun ? s->sun.radiance[k] * w[1] : 0.0f)));
 }
 
+/* Room for the spp secondary rays of one more surface point; 0 when out of memory. */
+static int sec_room(const pm_eye_t *c, scratch_t *sc)
+{
+    size_t want = sc->sec.n + c->spp;
+    return pm_rays_reserve(&sc->sec, want) == PM_OK &&
+           grow((void **)&sc->sec_px, sizeof(uint32_t), &sc->sec_px_cap, want) &&
+           grow((void **)&sc->sec_w, 3 * sizeof(float), &sc->sec_w_cap, want) &&
+           grow((void **)&sc->sec_cos, sizeof(float), &sc->sec_cos_cap, want) &&
+           grow((void **)&sc->sec_env, 2 * sizeof(float), &sc->sec_env_cap, want);
+}
+
 /* ------------------------------------------------------------------ secondary rays */
 
 /* The local frame about n and the spp stratified cosine-weighted directions in it, into sc. */
@@ -629,12 +639,6 @@ static float primary_surface(const pm_eye_t *c, scratch_t *sc, size_t i, pm_mate
     for (int k = 0; k < 3; k++)
         v->gn[k] = side * ng[k];
     v->m = pm_scene_material_at(s, tri, p, textured);
-    if (c->cont && sc->part[i]) { /* the diffuse part alone (primary_glossy) */
-        if (v->m != textured)
-            *textured = *v->m;
-        textured->ks[0] = textured->ks[1] = textured->ks[2] = 0.0f;
-        v->m = textured;
-    }
     for (int k = 0; k < 3; k++) {
         v->p[k] = p[k], v->wo[k] = wo[k];
         v->o[k] = p[k] + c->eps * v->gn[k];
@@ -703,6 +707,8 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
     if (c->direct_only && !s->nemissive && !c->cont)
         return 1; /* no emitter for a secondary ray to find nor glossy path to follow: no secondary rays */
     float scale = inv_p / (float)c->spp;
+    if (c->cont && !sec_room(c, sc)) /* glossy chains (shade_diffuse_part) may have taken the row's */
+        return 0;
     if (m->kind != PM_MAT_STANDARD)
         spawn_module(c, sc, &v, x, scale, tp, gather_rng);
     else if (glossy)
@@ -1028,23 +1034,49 @@ static void primary_chain(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectC
     pr->tfar[i] = t;
 }
 
+/* The pixel of primary ray i of the row sc holds. */
+static inline uint32_t y_pixel(const pm_eye_t *c, const scratch_t *sc, size_t i)
+{
+    return sc->row * c->w + (uint32_t)(i / c->primary);
+}
+
+/* The diffuse part of a standard material at a glossy vertex a primary ray passes through
+ * (v->m its kd alone), shaded as a Lambertian primary hit with the path's throughput thr: its
+ * caustic query (of the table's folded entry, kd / pi in the weight), its light samples and its
+ * spp cosine-weighted secondary rays. 0 when out of memory. */
+static int shade_diffuse_part(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, uint32_t pixel,
+                              const float thr[3], pm_rng_t *light_rng, pm_rng_t *gather_rng, bytebuf_t *caus)
+{
+    float inv_p = 1.0f / (float)c->primary;
+    if (c->caustics) {
+        float w[3];
+        for (int k = 0; k < 3; k++)
+            w[k] = inv_p * thr[k] * v->m->kd[k] * (1.0f / PM_PI);
+        if (!put_query(c, caus, v->p, v->n, w, pixel, c->folded, v->wo))
+            return 0;
+        sc->n_caustic++;
+    }
+    if (!shadow_room(c, sc) || !sec_room(c, sc))
+        return 0;
+    direct_lights(c, sc, v, x, inv_p, thr, (float)(c->spp / PER_CELL), 1, light_rng);
+    spawn_lambertian(c, sc, v, x, inv_p / (float)c->spp, thr, gather_rng);
+    return 1;
+}
+
 /* Primary ray i (pixel column x) at a hit on a surface that continues (continues(): a sharp lobe,
  * rough glass), passed through like a mirror, so that the surface seen in it gets the final
  * gather of a primary hit (light samples, spp secondary rays) instead of one query per secondary
  * ray, a density estimate seen through the lobe (the speckle of a windshield). A standard
- * material whose lobe has at least half its albedo (p = max(ks) / (max(kd) + max(ks)) >= 1/2;
- * a mostly diffuse one is shaded whole: on the milk truck's body, ks 0.04 under kd 0.8, the
- * split's 1 / p made more noise than the lobe's gather) has its reflection split by lobe, u
- * against p: with 1 - p its diffuse part alone is shaded here as the primary hit (weight
- * 1 / (1 - p), sc->part), with p its lobe goes on (1 / p); the other kinds go on along their
- * whole BSDF. At
- * each glossy vertex: its emission, its light samples for the lobe (MIS with the lobe's sample,
+ * material whose lobe has at least half its albedo (max(ks) >= max(kd); a mostly diffuse one is
+ * shaded whole, its lobe gathered) has its diffuse part shaded at the vertex as a Lambertian
+ * primary hit (shade_diffuse_part) and its lobe followed; the other kinds go on along their
+ * whole BSDF. At each glossy vertex: its emission, its light samples for the lobe (MIS with the lobe's sample,
  * shadow rays in the row's list), the sample and the ray to the next hit, whose emission weight
  * goes to sc->emw; mirrors and glass on the way are followed; after glossy_depth bounces the last
  * hit is shaded as it is. The ray becomes the chain's last, its throughput in sc->thr (zero when
  * a ray escapes past a bounce whose light samples saw the sky). 0 when out of memory. */
 static int primary_glossy(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContext *ctx, size_t i, uint32_t x,
-                          pm_rng_t *rng, double *direct)
+                          pm_rng_t *rng, pm_rng_t *light_rng, pm_rng_t *gather_rng, double *direct, bytebuf_t *caus)
 {
     const pm_scene_t *s = c->s;
     pm_rays_t *pr = &sc->prim;
@@ -1071,27 +1103,28 @@ static int primary_glossy(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectC
             for (int k = 0; k < 3; k++)
                 direct[3 * x + k] += (double)(m->ke[k] * inv_p * thr[k] * *emw);
         *emw = 0.0f; /* counted: the hit shades no emission of its own */
-        float u = pm_rng_float(rng), u1 = pm_rng_float(rng), u2 = pm_rng_float(rng), pl = 1.0f;
+        float u = pm_rng_float(rng), u1 = pm_rng_float(rng), u2 = pm_rng_float(rng);
         int standard = m->kind == PM_MAT_STANDARD;
         if (standard) {
             float pd, ps;
             pm_bsdf_albedo(m, &pd, &ps);
-            pl = ps / (pd + ps);
-            if (pl < 0.5f)
-                break;       /* a mostly diffuse surface: shaded whole (its lobe split off by 1 / p is noise) */
-            if (!(u < pl)) { /* the diffuse part, shaded here */
-                sc->part[i] = 1;
-                for (int k = 0; k < 3; k++)
-                    thr[k] /= 1.0f - pl;
-                break;
-            }
+            if (ps < pd)
+                break; /* a mostly diffuse surface: shaded whole */
             lobe = *m;
             lobe.kd[0] = lobe.kd[1] = lobe.kd[2] = 0.0f;
         }
         for (int k = 0; k < 3; k++)
-            v.gn[k] = side * ng[k], v.o[k] = v.p[k] + c->eps * v.gn[k], thr[k] /= pl;
-        v.m = standard ? &lobe : m;
+            v.gn[k] = side * ng[k], v.o[k] = v.p[k] + c->eps * v.gn[k];
+        v.m = m;
         surf_normals(s, tri, side, &v);
+        if (standard && (m->kd[0] > 0.0f || m->kd[1] > 0.0f || m->kd[2] > 0.0f)) {
+            pm_material_t diffuse = *m;
+            diffuse.ks[0] = diffuse.ks[1] = diffuse.ks[2] = 0.0f;
+            v.m = &diffuse;
+            if (!shade_diffuse_part(c, sc, &v, x, y_pixel(c, sc, i), thr, light_rng, gather_rng, caus))
+                return 0;
+        }
+        v.m = standard ? &lobe : m;
         if (!shadow_room(c, sc))
             return 0;
         direct_lights(c, sc, &v, x, inv_p, thr, 1.0f, 1, rng);
@@ -1184,8 +1217,9 @@ static int shade_row(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContex
         if (c->specular && sc->prim.prim[i] != PM_RAY_MISS)
             primary_chain(c, sc, ctx, i, &spec_rng, spec_xi);
         if (c->cont) {
-            sc->emw[i] = 1.0f, sc->part[i] = 0;
-            if (sc->prim.prim[i] != PM_RAY_MISS && !primary_glossy(c, sc, ctx, i, x, &spec_rng, direct))
+            sc->emw[i] = 1.0f;
+            if (sc->prim.prim[i] != PM_RAY_MISS &&
+                !primary_glossy(c, sc, ctx, i, x, &spec_rng, &light_rng, &gather_rng, direct, caus))
                 return 0;
         }
         if (sc->prim.prim[i] == PM_RAY_MISS) {
@@ -1283,6 +1317,7 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
     rtcInitIntersectContext(&ctx);
     ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
 
+    sc->row = y;
     cast_primary(c, sc, y);
     sc->shadow.n = 0;
     sc->sec.n = 0;

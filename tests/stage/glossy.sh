@@ -106,3 +106,40 @@ for s in tests/scenes/glossy-box/scene.json scenes/cornell-box/scene.json; do
     fi
 done
 expect_exit "--glossy-depth beyond 64 is a usage error" 2 "$TGP" "$G/scene.json" -q --glossy-depth 65 -o "$G/x.pm"
+
+# The sky at a glossy surface seen from the camera: a Kd 0.1 Ks 0.8 Ns 500 floor and a Kd 0.7
+# block under a constant sky. Cosine-distributed sky samples alone hardly ever land in the lobe
+# (relative MSE 8.1 and the mean 7% low before the sky was shared between light samples and BSDF
+# samples by MIS); measured 0.064 with glossy paths and 0.066 without, means within 0.2%.
+S=$TMP/glossy-sky
+mkdir -p "$S"
+printf 'mtllib s.mtl\nv -3 0 -3\nv 3 0 -3\nv 3 0 3\nv -3 0 3\nv -0.5 0 0.5\nv 0.5 0 0.5\nv 0.5 1 0.5\nv -0.5 1 0.5\nv -0.5 0 1.5\nv 0.5 0 1.5\nv 0.5 1 1.5\nv -0.5 1 1.5\nusemtl floor\nf 1 4 3\nf 1 3 2\nusemtl block\nf 5 6 7\nf 5 7 8\nf 9 12 11\nf 9 11 10\nf 5 8 12\nf 5 12 9\nf 6 10 11\nf 6 11 7\nf 8 7 11\nf 8 11 12\n' >"$S/s.obj"
+printf 'newmtl floor\nKd 0.1 0.1 0.1\nKs 0.8 0.8 0.8\nNs 500\nnewmtl block\nKd 0.7 0.5 0.3\n' >"$S/s.mtl"
+cat >"$S/scene.json" <<'JSON'
+{
+  "pmtk_scene": 1,
+  "name": "glossy-sky",
+  "meshes": [ { "file": "s.obj" } ],
+  "camera": { "eye": [0, 0.8, -2.5], "look_at": [0, 0.3, 1], "up": [0, 1, 0], "fov_y": 50, "width": 24, "height": 24 },
+  "sky": { "radiance": [1.2, 1.5, 2.0] },
+  "render": { "spp": 16, "seed": 1 }
+}
+JSON
+if { "$BIN/trace-photons" "$S/scene.json" -q --photons 200000 -o - | "$BIN/build-photonmap" - -q -o "$S/map.pm"; } &&
+    "$BIN/trace-reference" "$S/scene.json" -q --spp 512 --radiance "$S/ref.pm" -o "$S/ref.exr"; then
+    for depth in 8 0; do
+        if "$TGP" "$S/scene.json" -q --glossy-depth $depth -o "$S/q.pm" --direct "$S/d.pm" &&
+            "$BIN/simd-gather" "$S/map.pm" "$S/q.pm" --k 50 -q -o "$S/i.pm" &&
+            "$BIN/composite" -q "$S/d.pm" "$S/i.pm" -o "$S/img.exr"; then
+            read -r e mt mr <<<"$("$BIN/measure-error" "$S/img.exr" "$S/ref.pm" -q |
+                jq -r '"\(.relmse) \(.mean_test) \(.mean_reference)"')"
+            awk -v e="$e" -v a="$mt" -v b="$mr" 'BEGIN { exit !(e < 0.5 && b > 0 && a / b > 0.97 && a / b < 1.03) }' &&
+                pass "sky in a glossy floor (--glossy-depth $depth): relative MSE $e, mean $mt against $mr" ||
+                fail "sky in a glossy floor (--glossy-depth $depth)" "relative MSE $e (want < 0.5), mean $mt against $mr"
+        else
+            fail "sky in a glossy floor (--glossy-depth $depth)" "a stage failed"
+        fi
+    done
+else
+    fail "sky in a glossy floor" "the map or the reference failed"
+fi

@@ -45,7 +45,8 @@ typedef struct {
     int mode, schedule;
     int pixel; /* PM_PIXEL_BOX or PM_PIXEL_CENTER */
     const char *isa;
-    int no_queries; /* --no-queries: the direct buffer alone */
+    int no_queries;       /* --no-queries: the direct buffer alone */
+    int64_t glossy_depth; /* glossy bounces a secondary path continues through; 0 gathers on them */
 } tgp_options_t;
 
 /* Where the eye tracer's results go: the queries into the spool, the direct rows into one
@@ -168,7 +169,8 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
         .threads = st->threads_used,
         .progress = pm_stage_progress(st),
         .caustics = o->caustic != NULL,
-        .direct_only = o->no_queries};
+        .direct_only = o->no_queries,
+        .glossy_depth = (unsigned)o->glossy_depth};
     /* The scene's own camera is within the image limits (scene.c): only --width or --height
      * can take it beyond them, a usage error. */
     if (pm_image_size_check(o->width ? (uint64_t)o->width : s->camera.width,
@@ -210,7 +212,12 @@ int main(int argc, char **argv)
 {
     pm_stage_t st;
     pm_stage_defaults(&st);
-    tgp_options_t o = {.primary = 1, .pixel = PM_PIXEL_BOX, .light_samples = 4, .isa = "auto", .spool_mb = 256};
+    tgp_options_t o = {.primary = 1,
+                       .pixel = PM_PIXEL_BOX,
+                       .light_samples = 4,
+                       .isa = "auto",
+                       .spool_mb = 256,
+                       .glossy_depth = PM_EYE_GLOSSY_DEPTH};
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
         {"direct", 0, PM_OPT_OUTPUT, &o.direct, "FILE",
@@ -249,6 +256,10 @@ int main(int argc, char **argv)
          "write the --direct buffer alone, no queries (no -o): secondary rays are traced only in a scene with "
          "emissive triangles, for the light they find there; the buffer is the one a full run writes",
          1, 0, NULL},
+        {"glossy-depth", 0, PM_OPT_INT, &o.glossy_depth, "N",
+         "glossy bounces (a Phong Ns of 50 or more) a secondary ray continues through before it gathers, the "
+         "light found on the way into the direct buffer; 0 gathers on the glossy surface",
+         0, 64, NULL},
         {0},
     };
     static const char about[] =

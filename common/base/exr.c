@@ -11,14 +11,11 @@
  * file and OpenEXR's words. */
 #include "base/exr.h"
 
-#include <errno.h>
 #include <math.h>
 #include <openexr.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
-#include <unistd.h>
 
 #include "base/atomic.h"
 
@@ -38,11 +35,6 @@ static pm_result_t exr_fail(exr_result_t rv, const char *what, const char *path)
     pm_result_t code = rv == EXR_ERR_OUT_OF_MEMORY                                                      ? PM_ERR_NOMEM
                        : (rv == EXR_ERR_FILE_ACCESS || rv == EXR_ERR_WRITE_IO || rv == EXR_ERR_READ_IO) ? PM_ERR_IO
                                                                                                         : PM_ERR_INPUT;
-    /* A file to read that cannot be opened is classed by why (a missing file is an input
-     * error, as for the other readers: pm_result_of_errno), which OpenEXR does not pass on. */
-    struct stat st;
-    if (rv == EXR_ERR_FILE_ACCESS && strcmp(what, "read") == 0 && (stat(path, &st) != 0 || access(path, R_OK) != 0))
-        code = pm_result_of_errno(errno);
     return pm_error_set(code, "cannot %s OpenEXR image '%s': %s", what, path, detail);
 }
 

@@ -11,6 +11,7 @@
  * file and OpenEXR's words. */
 #include "base/exr.h"
 
+#include <errno.h>
 #include <math.h>
 #include <openexr.h>
 #include <stdio.h>
@@ -31,10 +32,14 @@ static void exr_error_handler(exr_const_context_t ctxt, exr_result_t code, const
 /* A pmtk error for OpenEXR result rv while doing what to path. */
 static pm_result_t exr_fail(exr_result_t rv, const char *what, const char *path)
 {
+    /* A file that cannot be opened is classed by the open's errno (base/error.h): a missing
+     * path is the user's input, a full disk the system's; OpenEXR leaves errno as open set it. */
+    int e = errno;
     const char *detail = exr_msg[0] ? exr_msg : exr_get_default_error_message(rv);
-    pm_result_t code = rv == EXR_ERR_OUT_OF_MEMORY                                                      ? PM_ERR_NOMEM
-                       : (rv == EXR_ERR_FILE_ACCESS || rv == EXR_ERR_WRITE_IO || rv == EXR_ERR_READ_IO) ? PM_ERR_IO
-                                                                                                        : PM_ERR_INPUT;
+    pm_result_t code = rv == EXR_ERR_OUT_OF_MEMORY                         ? PM_ERR_NOMEM
+                       : rv == EXR_ERR_FILE_ACCESS                         ? pm_result_of_errno(e)
+                       : (rv == EXR_ERR_WRITE_IO || rv == EXR_ERR_READ_IO) ? PM_ERR_IO
+                                                                           : PM_ERR_INPUT;
     return pm_error_set(code, "cannot %s OpenEXR image '%s': %s", what, path, detail);
 }
 

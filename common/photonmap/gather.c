@@ -9,8 +9,10 @@
 
 #include "base/memory.h"
 #include "base/timer.h"
+#include "math/sampling.h"
 #include "photonmap/gather_impl.h"
 #include "photonmap/kdtree.h"
+#include "physics/bsdf.h"
 
 /* Queries per unit of work handed to a thread: a multiple of every packet width, small
  * enough that two threads stay balanced, large enough that scheduling costs nothing. */
@@ -94,15 +96,56 @@ pm_result_t pm_gather_queries_init(pm_gather_queries_t *q, const pm_table_t *t, 
     return PM_OK;
 }
 
-/* f(wi, wo) of material mt at a surface of normal n, 1/sr (formats/material.h); see gather.h. */
+/* f(wi, wo) of material mt at a surface of normal n, 1/sr: physics/bsdf.h's, in radiance mode
+ * (light arriving along wi, the photon's, leaving along wo, the query's); see gather.h. */
 void pm_gather_brdf(const pm_material_t *mt, const float n[3], const float wi[3], const float wo[3], double f[3])
 {
-    double c = (double)n[0] * wi[0] + (double)n[1] * wi[1] + (double)n[2] * wi[2];
-    double r[3] = {2.0 * c * n[0] - wi[0], 2.0 * c * n[1] - wi[1], 2.0 * c * n[2] - wi[2]};
-    double cr = r[0] * wo[0] + r[1] * wo[1] + r[2] * wo[2];
-    double lobe = cr > 0.0 ? (mt->ns + 2.0) / (2.0 * M_PI) * pow(cr, mt->ns) : 0.0;
+    float ff[3];
+    pm_bsdf_eval(mt, n, wi, wo, PM_BSDF_RADIANCE, ff);
     for (int k = 0; k < 3; k++)
-        f[k] = mt->kd[k] / M_PI + mt->ks[k] * lobe;
+        f[k] = ff[k];
+}
+
+int gather_lane_setup(const gather_ctx_t *c, const pm_material_t *mt, uint32_t mi, const float n[3], const float wo[3],
+                      float *gl, uint32_t w, uint32_t l)
+{
+    float *row[GL_ROWS];
+    for (int r = 0; r < GL_ROWS; r++)
+        row[r] = gl + (size_t)r * w;
+    int kind = GL_KIND_MODULE;
+    if (mt->kind == PM_MAT_STANDARD) {
+        for (int k = 0; k < 3; k++) {
+            row[GL_KD + k][l] = mt->kd[k] * 0.31830988618379067f; /* kd / pi */
+            row[GL_KS + k][l] = mt->ks[k];
+        }
+        row[GL_NS][l] = mt->ns;
+        kind = GL_KIND_PHONG;
+    } else if ((mt->kind == PM_MAT_CONDUCTOR || mt->kind == PM_MAT_PLASTIC) && mt->alpha >= PM_MAT_ALPHA_DELTA) {
+        /* physics/bsdf.c's reflect_side: the normal on wo's side, both cosines about it */
+        float co = n[0] * wo[0] + n[1] * wo[1] + n[2] * wo[2], s = co < 0.0f ? -1.0f : 1.0f;
+        float alpha = fminf(mt->alpha, 1.0f);
+        for (int k = 0; k < 3; k++)
+            row[GL_N + k][l] = s * n[k];
+        co = row[GL_N][l] * wo[0] + row[GL_N + 1][l] * wo[1] + row[GL_N + 2][l] * wo[2];
+        row[GL_CO][l] = co;
+        row[GL_A2][l] = alpha * alpha;
+        row[GL_LO][l] = pm_ggx_lambda(alpha, co);
+        if (mt->kind == PM_MAT_CONDUCTOR) {
+            for (int k = 0; k < 3; k++) {
+                row[GL_E + k][l] = mt->eta[0] > 0.0f ? fminf(fmaxf(mt->eta[k], PM_ETA_MIN), PM_ETA_MAX) : mt->f0[k];
+                row[GL_K + k][l] = fminf(fmaxf(mt->k[k], 0.0f), PM_ETA_MAX);
+            }
+            kind = mt->eta[0] > 0.0f ? GL_KIND_CONDUCTOR : GL_KIND_SCHLICK;
+        } else {
+            float ior = fminf(fmaxf(mt->ior, PM_ETA_MIN), PM_ETA_MAX), to = 1.0f - pm_fresnel_dielectric(co, ior);
+            for (int k = 0; k < 3; k++)
+                row[GL_KD + k][l] = mt->kd[k] * to / (PM_PI * ior * ior * (1.0f - mt->kd[k] * c->mat_fdr[mi]));
+            row[GL_IOR][l] = ior;
+            kind = GL_KIND_PLASTIC;
+        }
+    }
+    row[GL_KIND][l] = (float)kind;
+    return kind;
 }
 
 void gather_glossy_lane(const gather_ctx_t *c, uint64_t qi, uint32_t ni, float k, double *dacc, uint32_t w, uint32_t l)
@@ -203,8 +246,22 @@ pm_result_t pm_gather_run(const pm_gather_map_t *m, const pm_gather_queries_t *q
     res = pm_gather_glossy_table(m, q, &mat_glossy, &glossy);
     if (res != PM_OK)
         return res;
-    gather_ctx_t c = {
-        .m = m, .q = q, .kernel = p->kernel, .normal_cos = p->normal_cos, .glossy = glossy, .mat_glossy = mat_glossy};
+    /* A plastic's base needs its coat's average internal reflectance: once per material. */
+    float *fdr = calloc(q->nmaterials ? q->nmaterials : 1, sizeof *fdr);
+    if (!fdr) {
+        free(mat_glossy);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for the material table");
+    }
+    for (uint32_t i = 0; i < q->nmaterials; i++)
+        if (q->materials[i].kind == PM_MAT_PLASTIC)
+            fdr[i] = pm_fresnel_diffuse_inside(fminf(fmaxf(q->materials[i].ior, PM_ETA_MIN), PM_ETA_MAX));
+    gather_ctx_t c = {.m = m,
+                      .q = q,
+                      .kernel = p->kernel,
+                      .normal_cos = p->normal_cos,
+                      .glossy = glossy,
+                      .mat_glossy = mat_glossy,
+                      .mat_fdr = fdr};
     const double inv_pi = 0.31830988618379067;
     c.kscale_unit = (float)((p->kernel == PM_KERNEL_UNIFORM ? 1.0 : 2.0) * inv_pi);
     double r = p->variable ? 0.0 : p->radius;
@@ -247,6 +304,7 @@ pm_result_t pm_gather_run(const pm_gather_map_t *m, const pm_gather_queries_t *q
     }
     *stats = total;
     free(mat_glossy);
+    free(fdr);
     return PM_OK;
 }
 

@@ -54,6 +54,7 @@ typedef float vf4 __attribute__((vector_size(16)));
 typedef int vi4 __attribute__((vector_size(16)));
 #define VF vf4
 #define VI vi4
+#define VSQRTF(x) ((VF)_mm_sqrt_ps((__m128)(x)))
 #define W 4
 #define V __m128
 #define VSET1(x) _mm_set1_ps(x)
@@ -103,6 +104,7 @@ typedef float vf8 __attribute__((vector_size(32)));
 typedef int vi8 __attribute__((vector_size(32)));
 #define VF vf8
 #define VI vi8
+#define VSQRTF(x) ((VF)_mm256_sqrt_ps((__m256)(x)))
 #define W 8
 #define V __m256
 #define VSET1(x) _mm256_set1_ps(x)
@@ -146,6 +148,7 @@ typedef float vf16 __attribute__((vector_size(64)));
 typedef int vi16 __attribute__((vector_size(64)));
 #define VF vf16
 #define VI vi16
+#define VSQRTF(x) ((VF)_mm512_sqrt_ps((__m512)(x)))
 #define W 16
 #define V __m512
 #define VSET1(x) _mm512_set1_ps(x)

@@ -35,3 +35,4 @@
 #undef FLUSH
 #undef VF
 #undef VI
+#undef VSQRTF

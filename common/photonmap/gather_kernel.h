@@ -5,7 +5,8 @@
  *   VAR          0: one fixed width h; 1: per-photon widths (the map's width channel)
  *   V            the vector type               VSET1(x), VLOAD(p), VSTORE(p, v), VADD,
  *   VSUB, VMUL, VFMA(a, b, c) = a b + c        BLE(a, b), BLT, BGE: lane bits of a <= b, ...
- *   VMASKED(bits, v): v in the lanes of bits, 0 elsewhere; FLUSH(ar, ag, ab, dacc): adds the
+ *   VMASKED(bits, v): v in the lanes of bits, 0 elsewhere; VSQRTF(x): the square root of a VF
+ *   (W > 1); FLUSH(ar, ag, ab, dacc): adds the
  *   float accumulators to the double ones (every GATHER_FLUSH shading steps, so that a
  *   million photons summed into one query keep their digits)
  *
@@ -53,6 +54,137 @@ static inline VF FN(vpow)(VF x, VF n)
     VF r = p * (VF)((i + 127) << 23);
     return (VF)((VI)r & ~under & pos);
 }
+
+/* Lane selection and the small functions of physics/bsdf.c, on VF. */
+static inline VF FN(vsel)(VI m, VF a, VF b) { return (VF)(((VI)a & m) | ((VI)b & ~m)); }
+static inline VF FN(vmin)(VF a, VF b) { return FN(vsel)(a < b, a, b); }
+static inline VF FN(vmax)(VF a, VF b) { return FN(vsel)(a > b, a, b); }
+static inline VF FN(vabs)(VF a) { return (VF)((VI)a & 0x7fffffff); }
+static inline VI FN(vbits)(uint32_t bits)
+{
+    _Alignas(64) int32_t t[W];
+    for (int l = 0; l < W; l++)
+        t[l] = -(int32_t)((bits >> l) & 1u);
+    return *(const VI *)t;
+}
+
+/* pm_fresnel_dielectric(cos_i, eta) for eta in [PM_ETA_MIN, PM_ETA_MAX] (callers clamp). */
+static inline VF FN(vfresnel_dielectric)(VF cos_i, VF eta)
+{
+    const VF one = (VF){0} + 1.0f;
+    VF ci = FN(vmin)(FN(vabs)(cos_i), one);
+    VI total = ~(ci > 0.0f);
+    VF sin_t2 = (1.0f - ci * ci) / (eta * eta);
+    total |= sin_t2 >= 1.0f;
+    VF ct = VSQRTF(FN(vmax)(1.0f - sin_t2, (VF){0}));
+    VF rs = (ci - eta * ct) / (ci + eta * ct), rp = (eta * ci - ct) / (eta * ci + ct);
+    VF f = FN(vmin)(one, 0.5f * (rs * rs + rp * rp));
+    return FN(vsel)(total, one, f);
+}
+
+/* pm_fresnel_conductor(cos_i, eta, k) in float: the unpolarized reflectance of the complex index
+ * eta + i k written with a^2 + b^2 = |N^2 - sin^2| (the module works in double complex; the two
+ * agree to about 1e-6 for the indices of metals, tests/unit/test_gather.c). */
+static inline VF FN(vfresnel_conductor)(VF cos_i, VF eta, VF k)
+{
+    const VF one = (VF){0} + 1.0f;
+    VF c = FN(vmin)(FN(vabs)(cos_i), one), c2 = c * c, s2 = 1.0f - c2;
+    VF t0 = eta * eta - k * k - s2, ab2 = VSQRTF(t0 * t0 + 4.0f * eta * eta * k * k);
+    VF a = VSQRTF(FN(vmax)(0.5f * (ab2 + t0), (VF){0}));
+    VF t1 = ab2 + c2, t2 = 2.0f * a * c, rs = (t1 - t2) / (t1 + t2);
+    VF t3 = c2 * ab2 + s2 * s2, t4 = t2 * s2, rp = rs * (t3 - t4) / (t3 + t4);
+    VF r = FN(vmin)(FN(vmax)(0.5f * (rs + rp), (VF){0}), one);
+    return FN(vsel)(c > 0.0f, r, one);
+}
+
+/* f(wi, wo) of the GGX lanes (conductor, plastic; GL_KIND_* of gather_impl.h) for the photon
+ * direction win, as pm_bsdf_eval computes it: the normal on wo's side (set up per lane), D of
+ * the half vector, Smith's height-correlated G2, the conductor's Fresnel at wo.h, or the
+ * plastic's coat (dielectric Fresnel at wo.h) over its base. Lanes of other kinds get garbage
+ * the caller selects away. */
+static inline void FN(ggx_eval)(float (*gl)[W], float (*lwo)[W], const float win[3], VF f[3])
+{
+    const VF one = (VF){0} + 1.0f, zero = (VF){0};
+    VF nx = *(const VF *)gl[GL_N], ny = *(const VF *)gl[GL_N + 1], nz = *(const VF *)gl[GL_N + 2];
+    VF wx = *(const VF *)lwo[0], wy = *(const VF *)lwo[1], wz = *(const VF *)lwo[2];
+    VF co = *(const VF *)gl[GL_CO], a2 = *(const VF *)gl[GL_A2], kind = *(const VF *)gl[GL_KIND];
+    VF ci = nx * win[0] + ny * win[1] + nz * win[2];
+    VI side = (ci > 0.0f) & (co > 0.0f); /* reflect_side: both strictly above */
+    VF hx = win[0] + wx, hy = win[1] + wy, hz = win[2] + wz;
+    VF l = VSQRTF(hx * hx + hy * hy + hz * hz);
+    VI okh = side & (l > 1e-12f);
+    l = FN(vsel)(okh, l, one);
+    VF ch = (nx * hx + ny * hy + nz * hz) / l, wh = (wx * hx + wy * hy + wz * hz) / l;
+    okh &= wh > 0.0f;
+    /* pm_ggx_d */
+    VF c2 = FN(vmin)(ch * ch, one), t = c2 * (a2 - 1.0f) + 1.0f;
+    VF d = FN(vsel)(ch > 0.0f, a2 / (3.14159265358979323846f * t * t), zero);
+    /* pm_ggx_lambda at wi, and G2 with wo's (set up per lane) */
+    VF cc = FN(vmin)(FN(vmax)(FN(vabs)(ci), (VF){0} + 1e-7f), one), s2 = 1.0f - cc * cc;
+    VF sq = VSQRTF(cc * cc + a2 * s2), lam = a2 * s2 / (2.0f * cc * (sq + cc));
+    VF g2 = 1.0f / (1.0f + lam + *(const VF *)gl[GL_LO]);
+    VF core = d * g2 / (4.0f * FN(vsel)(side, ci, one) * FN(vsel)(side, co, one));
+    VI spec = okh & (core > 0.0f);
+    core = FN(vsel)(spec, core, zero);
+    VI plastic = kind == (float)GL_KIND_PLASTIC, schlick = kind == (float)GL_KIND_SCHLICK;
+    VF ior = FN(vsel)(plastic, *(const VF *)gl[GL_IOR], one);
+    VF fcoat = FN(vfresnel_dielectric)(wh, ior) * core;
+    VF ti = 1.0f - FN(vfresnel_dielectric)(ci, ior);
+    VF m = 1.0f - FN(vmin)(FN(vabs)(wh), one), m2 = m * m, m5 = m2 * m2 * m; /* pm_fresnel_schlick's */
+    for (int k = 0; k < 3; k++) {
+        VF e = *(const VF *)gl[GL_E + k];
+        VF fr = FN(vsel)(schlick, e + (1.0f - e) * m5, FN(vfresnel_conductor)(wh, e, *(const VF *)gl[GL_K + k]));
+        VF fp = FN(vsel)(side, *(const VF *)gl[GL_KD + k] * ti, zero) + fcoat;
+        f[k] = FN(vsel)(plastic, fp, FN(vsel)(spec, fr * core, zero));
+    }
+}
+#endif
+
+#if W > 1
+/* The glossy lanes of the packet at query b: their outgoing directions into lwo (0 elsewhere)
+ * and their materials' rows into gl (gather_lane_setup); *ggx_out the lanes of a GGX kind,
+ * *slow_out those the module evaluates itself. */
+static void FN(glossy_lanes)(const gather_ctx_t *c, uint64_t b, uint32_t glossy, float (*gl)[W], float (*lwo)[W],
+                             uint32_t *ggx_out, uint32_t *slow_out)
+{
+    const pm_gather_queries_t *q = c->q;
+    uint32_t ggx = 0, slow = 0;
+    memset(gl, 0, GL_ROWS * W * sizeof(float));
+    for (uint32_t l = 0; l < W; l++)
+        for (int k = 0; k < 3; k++)
+            lwo[k][l] = (glossy >> l & 1) ? q->dir[3 * (b + l) + k] : 0.0f;
+    for (uint32_t g = glossy; g; g &= g - 1) {
+        uint32_t l = (uint32_t)__builtin_ctz(g), mi = q->material ? q->material[b + l] : 0;
+        float wo[3] = {lwo[0][l], lwo[1][l], lwo[2][l]};
+        int kind = gather_lane_setup(c, &q->materials[mi], mi, &q->normal[3 * (b + l)], wo, &gl[0][0], W, l);
+        ggx |= (uint32_t)(kind != GL_KIND_PHONG && kind != GL_KIND_MODULE) << l;
+        slow |= (uint32_t)(kind == GL_KIND_MODULE) << l;
+    }
+    *ggx_out = ggx, *slow_out = slow;
+}
+
+/* f of every glossy lane at once for the photon direction win (toward its source), each lane
+ * with its own material, as physics/bsdf.h's pm_bsdf_eval: Phong lanes f = kd/pi + ks (ns + 2)/(2 pi)
+ * max(0, r(wi) . wo)^ns where n.wi > 0, the GGX lanes (ggx, 0 when none is hit) by ggx_eval. */
+static inline void FN(glossy_f)(float (*gl)[W], float (*lwo)[W], VF vnx, VF vny, VF vnz, const float *win, uint32_t ggx,
+                                VF f[3])
+{
+    VF cw = vnx * win[0] + vny * win[1] + vnz * win[2];
+    VF rx = 2.0f * cw * vnx - win[0], ry = 2.0f * cw * vny - win[1], rz = 2.0f * cw * vnz - win[2];
+    VF cr = rx * *(const VF *)lwo[0] + ry * *(const VF *)lwo[1] + rz * *(const VF *)lwo[2];
+    VF ns = *(const VF *)gl[GL_NS];
+    VF lobe = FN(vpow)(cr, ns) * ((ns + 2.0f) * 0.15915494309189535f);
+    VI above = cw > 0.0f;
+    for (int k = 0; k < 3; k++)
+        f[k] = FN(vsel)(above, *(const VF *)gl[GL_KD + k] + *(const VF *)gl[GL_KS + k] * lobe, (VF){0});
+    if (ggx) {
+        VF fg[3];
+        VI gm = FN(vbits)(ggx);
+        FN(ggx_eval)(gl, lwo, win, fg);
+        for (int k = 0; k < 3; k++)
+            f[k] = FN(vsel)(gm, fg[k], f[k]);
+    }
+}
 #endif
 
 static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t end, double *out, pm_gather_stats_t *st)
@@ -72,7 +204,7 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
     for (uint64_t b = begin; b < end; b += W) {
         uint32_t nl = end - b < (uint64_t)W ? (uint32_t)(end - b) : (uint32_t)W;
         _Alignas(64) float lq[6][W];
-        uint32_t glossy = 0; /* lanes whose material needs the full BRDF per pair */
+        uint32_t glossy = 0; /* lanes whose material needs f per pair */
         for (uint32_t l = 0; l < W; l++) {
             uint64_t i = b + (l < nl ? l : 0); /* idle lanes repeat lane 0: valid numbers */
             for (int k = 0; k < 3; k++) {
@@ -83,26 +215,14 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
                 glossy |= 1u << l;
         }
 #if W > 1
-        /* Glossy lanes: their material and outgoing direction, as vectors for the SIMD BRDF. */
-        _Alignas(64) float gl[8][W];
-        if (glossy) {
-            memset(gl, 0, sizeof gl);
-            for (uint32_t g = glossy; g; g &= g - 1) {
-                uint32_t l = (uint32_t)__builtin_ctz(g);
-                uint64_t i = b + l;
-                const pm_material_t *mt = &q->materials[q->material ? q->material[i] : 0];
-                for (int k = 0; k < 3; k++) {
-                    gl[k][l] = mt->kd[k] * 0.31830988618379067f; /* kd / pi */
-                    gl[3 + k][l] = mt->ks[k];
-                }
-                gl[6][l] = mt->ns;
-            }
-        }
+        /* Glossy lanes: their material and outgoing direction, as vectors for the SIMD f
+         * (gather_impl.h's GL_ rows); ggx: the lanes of a GGX kind, slow: those the module
+         * evaluates itself, pair by pair. */
+        _Alignas(64) float gl[GL_ROWS][W];
         _Alignas(64) float lwo[3][W];
+        uint32_t ggx = 0, slow = 0;
         if (glossy)
-            for (uint32_t l = 0; l < W; l++)
-                for (int k = 0; k < 3; k++)
-                    lwo[k][l] = (glossy >> l & 1) ? q->dir[3 * (b + l) + k] : 0.0f;
+            FN(glossy_lanes)(c, b, glossy, gl, lwo, &ggx, &slow);
 #endif
         const V qx = VLOAD(lq[0]), qy = VLOAD(lq[1]), qz = VLOAD(lq[2]);
         const V nx = VLOAD(lq[3]), ny = VLOAD(lq[4]), nz = VLOAD(lq[5]);
@@ -193,26 +313,25 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
                     }
                     if (hit & glossy) {
 #if W > 1
-                        /* The whole BRDF for every glossy lane at once, each with its own
-                         * material: f = kd/pi + ks (ns + 2)/(2 pi) max(0, r(wi) . wo)^ns. */
-                        const float *win = &m->dir[3 * (size_t)ni]; /* toward the photon's source */
-                        VF vnx = (VF)nx, vny = (VF)ny, vnz = (VF)nz;
-                        VF cw = vnx * win[0] + vny * win[1] + vnz * win[2];
-                        VF rx = 2.0f * cw * vnx - win[0], ry = 2.0f * cw * vny - win[1], rz = 2.0f * cw * vnz - win[2];
-                        VF cr = rx * *(const VF *)lwo[0] + ry * *(const VF *)lwo[1] + rz * *(const VF *)lwo[2];
-                        VF ns = *(const VF *)gl[6];
-                        VF lobe = FN(vpow)(cr, ns) * ((ns + 2.0f) * 0.15915494309189535f);
-                        V kg = VMASKED(hit & glossy, kv);
-                        V fr = (V)(*(const VF *)gl[0] + *(const VF *)gl[3] * lobe);
-                        V fg = (V)(*(const VF *)gl[1] + *(const VF *)gl[4] * lobe);
-                        V fb = (V)(*(const VF *)gl[2] + *(const VF *)gl[5] * lobe);
-                        ar = VFMA(VMUL(kg, fr), VSET1(pw[0]), ar);
-                        ag = VFMA(VMUL(kg, fg), VSET1(pw[1]), ag);
-                        ab = VFMA(VMUL(kg, fb), VSET1(pw[2]), ab);
+                        /* f for every glossy lane at once (glossy_f), each with its own material */
+                        VF f[3];
+                        FN(glossy_f)(gl, lwo, (VF)nx, (VF)ny, (VF)nz, &m->dir[3 * (size_t)ni], hit & ggx ? ggx : 0, f);
+                        V kg = VMASKED(hit & glossy & ~slow, kv);
+                        ar = VFMA(VMUL(kg, (V)f[0]), VSET1(pw[0]), ar);
+                        ag = VFMA(VMUL(kg, (V)f[1]), VSET1(pw[1]), ag);
+                        ab = VFMA(VMUL(kg, (V)f[2]), VSET1(pw[2]), ab);
                         if (++since_flush >= GATHER_FLUSH) {
                             FLUSH(ar, ag, ab, dacc);
                             ar = ag = ab = VSET1(0.0f);
                             since_flush = 0;
+                        }
+                        if (hit & slow) {
+                            _Alignas(64) float kl[W];
+                            VSTORE(kl, kv);
+                            for (uint32_t g = hit & slow; g; g &= g - 1) {
+                                uint32_t l = (uint32_t)__builtin_ctz(g);
+                                gather_glossy_lane(c, b + l, ni, kl[l], &dacc[0][0], W, l);
+                            }
                         }
 #else
                         gather_glossy_lane(c, b, ni, kv, &dacc[0][0], 1, 0);

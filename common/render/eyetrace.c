@@ -21,6 +21,7 @@
 #include "math/sampling.h"
 #include "math/strata.h"
 #include "math/vec.h"
+#include "physics/bsdf.h"
 #include "render/packet.h"
 #include "render/shade.h"
 
@@ -62,12 +63,15 @@ typedef struct {
     uint32_t *sec_px; /* secondary ray -> pixel column */
     float *sec_w;     /* secondary ray -> RGB path weight (f cos / pdf / N / primary) */
     float *sec_cos;   /* secondary ray -> pi times its solid-angle pdf (a cosine sample: its cosine), for MIS */
-    size_t sh_px_cap, sh_c_cap, sec_px_cap, sec_w_cap, sec_cos_cap; /* elements allocated */
-    float *u1, *u2;                                                 /* spp stratified points */
+    float *sec_env;   /* secondary ray -> nb pdf and the normal of its start, for the lights at infinity (env_add) */
+    size_t sh_px_cap, sh_c_cap, sec_px_cap, sec_w_cap, sec_cos_cap, sec_env_cap; /* elements allocated */
+    float *u1, *u2;                                                              /* spp stratified points */
     float *lx, *ly, *lz; /* their cosine-weighted directions in the local frame */
     float *thr;          /* per primary ray: RGB throughput of its specular chain (1 1 1 without one) */
-    size_t thr_cap;
-    uint64_t n_primary, n_secondary, n_shadow, n_queries, n_caustic, n_specular, n_specular_cut;
+    float *emw;          /* per primary ray: the weight of the emission its last ray finds (MIS past a glossy bounce) */
+    size_t thr_cap, emw_cap;
+    uint64_t n_primary, n_secondary, n_shadow, n_queries, n_caustic, n_specular, n_specular_cut, n_glossy;
+    uint32_t row;       /* the row being traced */
     double t_secondary; /* s inside Embree for secondary rays */
     double cpu_rows;    /* s of this thread's CPU time in trace_row */
 } scratch_t;
@@ -92,9 +96,11 @@ struct pm_eye {
     unsigned spp, primary, light_samples, nx, ny;
     int pixel; /* PM_PIXEL_BOX or PM_PIXEL_CENTER */
     int mode, schedule, width, threads, progress, has_mat, has_dir;
-    int specular;    /* the scene has mirrors or glass: eye paths follow them */
-    int caustics;    /* also write the caustic queries (the first non-specular hits) */
-    int direct_only; /* pm_eye_options_t's: no queries, secondary rays only for emitters they find */
+    int specular;          /* the scene has mirrors or glass: eye paths follow them */
+    int caustics;          /* also write the caustic queries (the first non-specular hits) */
+    int direct_only;       /* pm_eye_options_t's: no queries, secondary rays only for emitters they find */
+    unsigned glossy_depth; /* glossy bounces a secondary path continues through before it gathers */
+    int cont;              /* some material continues (continues()): glossy paths are followed */
     uint32_t record_size, off_pos, off_nor, off_w, off_pix, off_mat, off_dir; /* bytes */
     uint64_t seed;
     float eps; /* m, ray-origin offset along the normal */
@@ -127,7 +133,9 @@ static pm_result_t scratch_reserve(scratch_t *sc, uint32_t y, size_t nprim, size
         !grow((void **)&sc->sec_px, sizeof(uint32_t), &sc->sec_px_cap, nsec) ||
         !grow((void **)&sc->sec_w, 3 * sizeof(float), &sc->sec_w_cap, nsec) ||
         !grow((void **)&sc->sec_cos, sizeof(float), &sc->sec_cos_cap, nsec) ||
-        !grow((void **)&sc->thr, 3 * sizeof(float), &sc->thr_cap, nprim))
+        !grow((void **)&sc->sec_env, 4 * sizeof(float), &sc->sec_env_cap, nsec) ||
+        !grow((void **)&sc->thr, 3 * sizeof(float), &sc->thr_cap, nprim) ||
+        !grow((void **)&sc->emw, sizeof(float), &sc->emw_cap, nprim))
         return pm_error_set(PM_ERR_NOMEM,
                             "out of memory for the rays of row %" PRIu32 ": %zu primary, %zu shadow, %zu secondary", y,
                             nprim, nshadow, nsec);
@@ -144,8 +152,10 @@ static pm_result_t scratch_reserve(scratch_t *sc, uint32_t y, size_t nprim, size
 static void scratch_free(scratch_t *sc)
 {
     pm_rays_free(&sc->prim), pm_rays_free(&sc->shadow), pm_rays_free(&sc->sec);
-    free(sc->hit), free(sc->sh_px), free(sc->sh_c), free(sc->sec_px), free(sc->sec_w), free(sc->sec_cos);
+    free(sc->hit), free(sc->sh_px), free(sc->sh_c), free(sc->sec_px), free(sc->sec_w), free(sc->sec_cos),
+        free(sc->sec_env);
     free(sc->u1), free(sc->u2), free(sc->lx), free(sc->ly), free(sc->lz), free(sc->thr);
+    free(sc->emw);
 }
 
 /* Appends one query record in file layout; 0 when out of memory. */
@@ -185,8 +195,8 @@ static void specular_rng(pm_rng_t *r, uint64_t seed, uint64_t pixel, uint32_t k)
  * *t, through every specular bounce (pm_specular_sample with radiance weights), to the first
  * hit on anything else: on return *tri, o, d and *t are that last ray's and its hit (*tri
  * PM_RAY_MISS when the path escaped or ended), and thr has been multiplied by the chain's
- * weights. u_first, when not negative, is the first bounce's choice between reflection and
- * refraction instead of a fresh number (the primary rays of a pixel stratify it). Single rays:
+ * weights (zeroed when the path ended rather than escaped). u_first, when not negative, is the first bounce's choice
+ * between reflection and refraction instead of a fresh number (the primary rays of a pixel stratify it). Single rays:
  * chains are rare and incoherent. */
 static void follow_specular(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContext *ctx, pm_rng_t *rng,
                             float u_first, uint32_t *tri, float o[3], float d[3], float *t, float thr[3])
@@ -208,6 +218,7 @@ static void follow_specular(const pm_eye_t *c, scratch_t *sc, struct RTCIntersec
         if (how < 0) {
             sc->n_specular_cut += bounce >= PM_EYE_MAX_SPECULAR;
             *tri = PM_RAY_MISS;
+            thr[0] = thr[1] = thr[2] = 0.0f; /* ended, not escaped: no sky seen along d */
             return;
         }
         for (int k = 0; k < 3; k++) {
@@ -218,6 +229,7 @@ static void follow_specular(const pm_eye_t *c, scratch_t *sc, struct RTCIntersec
             float q = fminf(1.0f, fmaxf(kept[0], fmaxf(kept[1], kept[2])));
             if (!(v < q)) {
                 *tri = PM_RAY_MISS;
+                thr[0] = thr[1] = thr[2] = 0.0f;
                 return;
             }
             for (int k = 0; k < 3; k++)
@@ -300,62 +312,61 @@ static inline void query_normal(const pm_scene_t *s, uint32_t tri, const float q
     }
 }
 
-/* Direct light and spawned rays of primary ray i (pixel column x), and its caustic query into
- * caus when asked for; 0 when out of memory. A primary ray that passed mirrors or glass arrives
- * here as its last ray, with the chain's throughput in sc->thr: every contribution is multiplied
- * by it last, so that without a chain (throughput exactly 1) every number is what it was. */
-static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x, uint32_t pixel, pm_rng_t *light_rng,
-                         pm_rng_t *gather_rng, double *direct, bytebuf_t *out, bytebuf_t *caus)
+/* A surface point as next-event estimation and the spawned rays see it. */
+typedef struct {
+    const pm_material_t *m; /* the BSDF there, its textures applied */
+    float p[3];             /* the hit point, m */
+    float n[3];             /* the shading normal on the viewer's side (gn without vertex normals) */
+    float gn[3];            /* the geometric normal on the viewer's side: which side a ray leaves from */
+    float o[3];             /* p moved off the surface along gn: where the rays start */
+    float wo[3];            /* toward the viewer */
+    float bn[3];            /* the normal the BSDF reads (physics/bsdf.h): n, or a dielectric's front normal */
+    int shaded;             /* the scene has vertex normals: a direction below gn is never taken */
+} surf_t;
+
+/* Whether material m transmits through a non-delta lobe (rough glass): such a surface holds no
+ * photons (pm_bsdf_stores_photons), shades with its geometric normal and has its BSDF read the
+ * front normal, as trace-reference does. */
+static inline int rough_transmits(const pm_material_t *m) { return pm_material_is_glossy(m) && pm_bsdf_transmits(m); }
+
+/* The normals of surface v (v->m, v->p and v->gn set) on triangle tri, seen from side (+1 its
+ * front, -1 its back): the shading normal n (gn without vertex normals) and the BSDF's bn. */
+static void surf_normals(const pm_scene_t *s, uint32_t tri, float side, surf_t *v)
 {
-    static const float one[3] = {1.0f, 1.0f, 1.0f};
-    const float *tp = c->specular ? sc->thr + 3 * i : one;
-    const pm_scene_t *s = c->s;
-    const pm_rays_t *pr = &sc->prim;
-    uint32_t tri = pr->prim[i];
-    float inv_p = 1.0f / (float)c->primary;
-    float d[3] = {pr->dx[i], pr->dy[i], pr->dz[i]}, t = pr->tfar[i];
-    float *p = sc->hit + 9 * i, *n = p + 3, *wo = p + 6;
-    const float *ng = c->geom.tri_n + 3 * (size_t)tri;
-    for (int k = 0; k < 3; k++) {
-        p[k] = (k == 0 ? pr->ox[i] : k == 1 ? pr->oy[i] : pr->oz[i]) + t * d[k];
-        wo[k] = -d[k];
-    }
-    float side = pm_dot3(ng, wo) >= 0.0f ? 1.0f : -1.0f; /* both sides reflect: face the viewer */
-    float gn[3]; /* the geometric normal on the viewer's side: which side a ray leaves from */
-    for (int k = 0; k < 3; k++)
-        gn[k] = side * ng[k];
-    pm_material_t textured; /* the material with its textures at p (render/scene.h) */
-    const pm_material_t *m = pm_scene_material_at(s, tri, p, &textured);
-    /* n: the shading normal (render/transport.h), gn itself in a scene without vertex normals */
-    int shaded = pm_scene_shading_normal(s, tri, p, gn, n);
-    float o[3];
-    for (int k = 0; k < 3; k++)
-        o[k] = p[k] + c->eps * gn[k];
-
-    /* Emission seen directly: emitters radiate from their front side only (both when two-sided). */
-    float le[3], cos_emit;
-    if (pm_lights_le_hit(&c->lights, tri, pm_dot3(ng, wo), le, &cos_emit))
+    if (rough_transmits(v->m)) {
+        v->shaded = 0;
         for (int k = 0; k < 3; k++)
-            direct[3 * x + k] += (double)(le[k] * inv_p * tp[k]);
-
-    int glossy = pm_material_is_glossy(m);
-    int reflects = m->kd[0] > 0.0f || m->kd[1] > 0.0f || m->kd[2] > 0.0f || glossy;
-    if (!reflects)
-        return 1; /* black: reflects no light, direct or gathered */
-
-    /* The caustic query: this first non-specular hit itself, weighted like a direct-vis query,
-     * gathered against the caustic map (L S+ D seen from here). */
-    if (c->caustics) {
-        float w[3] = {inv_p * tp[0], inv_p * tp[1], inv_p * tp[2]};
-        int put = put_hit(c, caus, p, n, w, pixel, s->tri_material[tri], m, wo);
-        if (put < 0)
-            return 0;
-        sc->n_caustic += (uint64_t)put;
+            v->n[k] = v->gn[k], v->bn[k] = side * v->gn[k];
+        return;
     }
+    v->shaded = pm_scene_shading_normal(s, tri, v->p, v->gn, v->n);
+    memcpy(v->bn, v->n, sizeof v->bn);
+}
 
-    /* Direct light (render/light.h): each delta light once, every other light light_samples
-     * times, f Li cos / pdf averaged over its samples. */
+/* Room for the shadow rays of one more surface point: at most one per delta light and
+ * light_samples per other light of the direct list (render/light.h). 0 when out of memory. */
+static int shadow_room(const pm_eye_t *c, scratch_t *sc)
+{
     const pm_lights_t *lights = &c->lights;
+    size_t want = sc->shadow.n + lights->ndelta + (lights->ndirect - lights->ndelta) * c->light_samples;
+    return pm_rays_reserve(&sc->shadow, want) == PM_OK &&
+           grow((void **)&sc->sh_px, sizeof(uint32_t), &sc->sh_px_cap, want) &&
+           grow((void **)&sc->sh_c, 3 * sizeof(float), &sc->sh_c_cap, want);
+}
+
+/* Next-event estimation at surface v for pixel column x: a shadow ray per light sample into
+ * sc->shadow, with the radiance it adds when unblocked times inv_p and the path weight tp.
+ * nb is the number of BSDF samples that can also find an area light from v (the MIS weight's
+ * count); mis 0 gives the light samples weight 1 (no ray leaves v to find a light). */
+static void direct_lights(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, float inv_p, const float tp[3],
+                          float nb, int mis, pm_rng_t *light_rng)
+{
+    const pm_lights_t *lights = &c->lights;
+    const pm_material_t *m = v->m;
+    const float *p = v->p, *n = v->n, *gn = v->gn, *o = v->o, *wo = v->wo, *bn = v->bn;
+    int shaded = v->shaded, glossy = pm_material_is_glossy(m);
+    /* Each delta light once, every other light light_samples times, f Li cos / pdf averaged
+     * over its samples (render/light.h). */
     for (size_t l = 0; l < lights->ndirect; l++) {
         unsigned nsamples = l < lights->ndelta ? 1 : c->light_samples;
         for (unsigned q = 0; q < nsamples; q++) {
@@ -363,23 +374,25 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
             if (!pm_lights_sample_li(lights, l, light_rng, p, n, &li) || (shaded && !(pm_dot3(gn, li.wi) > 0.0f)))
                 continue; /* behind the shading or the geometric surface */
             float f[3], g = li.cosx / li.pdf / (float)nsamples * inv_p;
-            /* MIS (pm_power_heuristic, render/shade.h) of the lights that secondary rays can hit
-             * (emitters; those that escape add nothing, so the sun and the sky keep weight 1): a
-             * and b are sample counts times solid-angle pdfs at one direction. In gather mode the
-             * light samples and the secondary rays both find area lights. Any weights that sum to
-             * one at every direction keep the estimate unbiased; the counts only tune the
-             * variance. The secondary rays count as spp / PER_CELL, their stratum cells (the four
-             * rays of a cell land close together), not as spp: counting every ray hands the
-             * weight to the rays where a small light is far more often found by the light
-             * samples, and counting none leaves a large emitter to light samples alone, whose
-             * variance is unbounded next to it (the 1/r^2 of a sample landing beside the
-             * receiver). The measurements behind this choice are in
-             * docs/programs/trace-gather-points.md. */
-            if (c->mode == PM_EYE_GATHER && !li.delta && !li.infinite)
+            /* MIS (pm_power_heuristic, render/shade.h) of the lights that the BSDF samples from v
+             * can find as well: a and b are sample counts times solid-angle pdfs at one
+             * direction. Emitters are found by the secondary rays (in gather mode) and by the
+             * rays of glossy paths. Lights at infinity (li.infinite) are found only by rays that
+             * escape: at a Lambertian surface those add nothing, so the light samples keep
+             * weight 1; at a glossy one, whose lobe the cosine-weighted sky samples hardly find
+             * (the speckle of a windshield under the sky), they share the light with the BSDF
+             * samples that escape (env_add). Any weights that sum to one at every direction keep
+             * the estimate unbiased; the counts only tune the variance. The secondary rays count
+             * as spp / PER_CELL, their stratum cells (the four rays of a cell land close
+             * together), not as spp: counting every ray hands the weight to the rays where a
+             * small light is far more often found by the light samples, and counting none leaves
+             * a large emitter to light samples alone, whose variance is unbounded next to it (the
+             * 1/r^2 of a sample landing beside the receiver). The measurements behind this
+             * choice are in docs/programs/trace-gather-points.md. */
+            if (mis && !li.delta && (!li.infinite || glossy))
                 g *= pm_power_heuristic((float)nsamples * li.pdf,
-                                        glossy ? (float)(c->spp / PER_CELL) * pm_bsdf_pdf(m, n, li.wi, wo)
-                                               : (float)(c->spp / PER_CELL) * li.cosx * (1.0f / PM_PI));
-            pm_brdf(m, n, li.wi, wo, f);
+                                        glossy ? nb * pm_bsdf_pdf(m, bn, li.wi, wo) : nb * li.cosx * (1.0f / PM_PI));
+            pm_brdf(m, bn, li.wi, wo, f);
             size_t j = sc->shadow.n;
             for (int k = 0; k < 3; k++)
                 sc->sh_c[3 * j + k] = f[k] * li.Li[k] * g * tp[k];
@@ -387,68 +400,134 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
             pm_rays_push(&sc->shadow, o, li.wi, 0.0f, pm_light_shadow_tmax(&li, c->eps));
         }
     }
+}
 
-    if (c->mode == PM_EYE_DIRECT_VIS) {
-        /* The primary hit is the query: path weight 1 (over the primary rays of the pixel). */
-        float w[3] = {inv_p * tp[0], inv_p * tp[1], inv_p * tp[2]};
-        if (!c->direct_only) {
-            int put = put_hit(c, out, p, n, w, pixel, s->tri_material[tri], m, wo);
-            if (put < 0)
-                return 0;
-            sc->n_queries += (uint64_t)put;
-        }
-        return 1;
-    }
+/* Traces the shadow rays gathered in sc->shadow; each unblocked one adds its radiance to
+ * direct, in ray (so pixel) order. Empties the list. */
+static void shadow_rays(const pm_eye_t *c, scratch_t *sc, double *direct)
+{
+    pm_rays_occluded(c->rt, c->width, 0, &sc->shadow);
+    sc->n_shadow += sc->shadow.n;
+    for (size_t j = 0; j < sc->shadow.n; j++)
+        if (sc->shadow.tfar[j] >= 0.0f)
+            for (int k = 0; k < 3; k++)
+                direct[3 * sc->sh_px[j] + k] += (double)sc->sh_c[3 * j + k];
+    sc->shadow.n = 0;
+}
 
-    if (c->direct_only && !pm_lights_has_emitters(&c->lights))
-        return 1; /* no emitter for a secondary ray to find: no secondary rays */
-    /* Secondary rays: cosine-weighted (pdf cos/pi), so f cos / pdf = pi f, over N. */
-    float tb[3], bb[3];
-    {
-        pm_vec3_t tv, bv;
-        pm_onb(pm_v3_load(n), &tv, &bv);
-        pm_v3_store(tb, tv), pm_v3_store(bb, bv);
+/* The lights at infinity of the direct list (render/light.h: the sun, the sky) seen along unit d
+ * by a BSDF sample of solid-angle pdf pdf taken nb times at a glossy surface of normal n whose
+ * light samples drew them too (direct_lights): each weighted by the power heuristic against
+ * those samples, times scale, into direct[3 x ..]. nbpdf is nb pdf; 0 adds nothing (the rays of
+ * a Lambertian surface, whose light samples keep weight 1). */
+static void env_add(const pm_eye_t *c, const float n[3], const float d[3], float nbpdf, const float scale[3],
+                    uint32_t x, double *direct)
+{
+    const pm_lights_t *lights = &c->lights;
+    float ls = (float)c->light_samples, sum[3] = {0.0f, 0.0f, 0.0f};
+    int any = 0;
+    if (!(nbpdf > 0.0f))
+        return;
+    for (size_t l = lights->ndelta; l < lights->ndirect; l++) {
+        float le[3];
+        if (!lights->direct[l].infinite)
+            continue;
+        pm_lights_le_escape_one(lights, l, d, le);
+        if (!(le[0] > 0.0f || le[1] > 0.0f || le[2] > 0.0f))
+            continue;
+        float w = pm_power_heuristic(nbpdf, ls * pm_lights_pdf_li_escape(lights, l, n, d));
+        for (int k = 0; k < 3; k++)
+            sum[k] += le[k] * w;
+        any = 1;
     }
+    if (any)
+        for (int k = 0; k < 3; k++)
+            direct[3 * x + (uint32_t)k] += (double)(scale[k] * sum[k]);
+}
+
+/* What env_add needs of secondary ray j's start, for when it escapes: nb pdf and the normal. */
+static void env_keep(scratch_t *sc, size_t j, const float n[3], float pdf, float nb)
+{
+    float *e = sc->sec_env + 4 * j;
+    e[0] = nb * pdf, e[1] = n[0], e[2] = n[1], e[3] = n[2];
+}
+
+/* Room for the spp secondary rays of one more surface point; 0 when out of memory. */
+static int sec_room(const pm_eye_t *c, scratch_t *sc)
+{
+    size_t want = sc->sec.n + c->spp;
+    return pm_rays_reserve(&sc->sec, want) == PM_OK &&
+           grow((void **)&sc->sec_px, sizeof(uint32_t), &sc->sec_px_cap, want) &&
+           grow((void **)&sc->sec_w, 3 * sizeof(float), &sc->sec_w_cap, want) &&
+           grow((void **)&sc->sec_cos, sizeof(float), &sc->sec_cos_cap, want) &&
+           grow((void **)&sc->sec_env, 4 * sizeof(float), &sc->sec_env_cap, want);
+}
+
+/* ------------------------------------------------------------------ secondary rays */
+
+/* The local frame about n and the spp stratified cosine-weighted directions in it, into sc. */
+static void secondary_directions(const pm_eye_t *c, scratch_t *sc, const float n[3], pm_rng_t *gather_rng, float tb[3],
+                                 float bb[3])
+{
+    pm_vec3_t tv, bv;
+    pm_onb(pm_v3_load(n), &tv, &bv);
+    pm_v3_store(tb, tv), pm_v3_store(bb, bv);
     pm_strata_fill(gather_rng, c->nx, c->ny, PER_CELL, sc->u1, sc->u2);
     pm_strata_cosine(sc->u1, sc->u2, c->spp, sc->lx, sc->ly, sc->lz);
-    float scale = inv_p / (float)c->spp;
-    if (!glossy) {
-        /* Lambertian: (kd/pi) cos / (cos/pi) = kd for every ray; kd > 0 here. Whole
-         * arrays at once, in SIMD lanes. */
-        pm_rays_t *sr = &sc->sec;
-        size_t j0 = sr->n;
-        unsigned nq = c->spp;
-        float *dx = sr->dx + j0, *dy = sr->dy + j0, *dz = sr->dz + j0, *ox = sr->ox + j0, *oy = sr->oy + j0,
-              *oz = sr->oz + j0, *tn = sr->tnear + j0, *tf = sr->tfar + j0;
-        const float *lx = sc->lx, *ly = sc->ly, *lz = sc->lz;
+}
+
+/* Lambertian primary hit: spp cosine-weighted rays (pdf cos/pi), so f cos / pdf = pi f = kd
+ * for every ray, over N; kd > 0 here. Whole arrays at once, in SIMD lanes. */
+static void spawn_lambertian(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, float scale,
+                             const float tp[3], pm_rng_t *gather_rng)
+{
+    float tb[3], bb[3];
+    const float *n = v->n, *o = v->o, *gn = v->gn;
+    secondary_directions(c, sc, n, gather_rng, tb, bb);
+    pm_rays_t *sr = &sc->sec;
+    size_t j0 = sr->n;
+    unsigned nq = c->spp;
+    float *dx = sr->dx + j0, *dy = sr->dy + j0, *dz = sr->dz + j0, *ox = sr->ox + j0, *oy = sr->oy + j0,
+          *oz = sr->oz + j0, *tn = sr->tnear + j0, *tf = sr->tfar + j0;
+    const float *lx = sc->lx, *ly = sc->ly, *lz = sc->lz;
 #pragma omp simd
-        for (unsigned q = 0; q < nq; q++) {
-            dx[q] = lx[q] * tb[0] + ly[q] * bb[0] + lz[q] * n[0];
-            dy[q] = lx[q] * tb[1] + ly[q] * bb[1] + lz[q] * n[1];
-            dz[q] = lx[q] * tb[2] + ly[q] * bb[2] + lz[q] * n[2];
-            ox[q] = o[0], oy[q] = o[1], oz[q] = o[2];
-            tn[q] = 0.0f, tf[q] = INFINITY;
-        }
-        float w0 = m->kd[0] * scale * tp[0], w1 = m->kd[1] * scale * tp[1], w2 = m->kd[2] * scale * tp[2],
-              *w = sc->sec_w + 3 * j0;
-        uint32_t *px = sc->sec_px + j0;
-        memcpy(sc->sec_cos + j0, lz, nq * sizeof *lz);
-        for (unsigned q = 0; q < nq; q++) {
-            w[3 * q] = w0, w[3 * q + 1] = w1, w[3 * q + 2] = w2;
-            px[q] = x;
-        }
-        if (shaded) /* drawn about the shading normal: one below the geometric surface is not taken */
-            for (unsigned q = 0; q < nq; q++)
-                if (!(dx[q] * gn[0] + dy[q] * gn[1] + dz[q] * gn[2] > 0.0f))
-                    w[3 * q] = w[3 * q + 1] = w[3 * q + 2] = 0.0f, tf[q] = 0.0f;
-        sr->n += nq;
-        return 1;
+    for (unsigned q = 0; q < nq; q++) {
+        dx[q] = lx[q] * tb[0] + ly[q] * bb[0] + lz[q] * n[0];
+        dy[q] = lx[q] * tb[1] + ly[q] * bb[1] + lz[q] * n[1];
+        dz[q] = lx[q] * tb[2] + ly[q] * bb[2] + lz[q] * n[2];
+        ox[q] = o[0], oy[q] = o[1], oz[q] = o[2];
+        tn[q] = 0.0f, tf[q] = INFINITY;
     }
-    /* Glossy: directions drawn from the BSDF mixture (pm_bsdf_sample), the lobe chosen by the
-     * stratified u1 itself (rescaled into the chosen lobe's share), so that a sharp lobe gets
-     * its rays along the mirror direction and the strata survive. The weight is f cos / pdf
-     * over N with the mixture's pdf (one-sample MIS of the two lobes, balance heuristic); a
-     * glossy draw below the surface is the lobe's energy loss and carries nothing. */
+    const pm_material_t *m = v->m;
+    float w0 = m->kd[0] * scale * tp[0], w1 = m->kd[1] * scale * tp[1], w2 = m->kd[2] * scale * tp[2],
+          *w = sc->sec_w + 3 * j0;
+    uint32_t *px = sc->sec_px + j0;
+    memcpy(sc->sec_cos + j0, lz, nq * sizeof *lz);
+    for (unsigned q = 0; q < nq; q++) {
+        w[3 * q] = w0, w[3 * q + 1] = w1, w[3 * q + 2] = w2;
+        px[q] = x;
+    }
+    for (unsigned q = 0; q < nq; q++) /* escaping, they add nothing: the light samples' weight is 1 */
+        sc->sec_env[4 * (j0 + q)] = 0.0f;
+    if (v->shaded) /* drawn about the shading normal: one below the geometric surface is not taken */
+        for (unsigned q = 0; q < nq; q++)
+            if (!(dx[q] * gn[0] + dy[q] * gn[1] + dz[q] * gn[2] > 0.0f))
+                w[3 * q] = w[3 * q + 1] = w[3 * q + 2] = 0.0f, tf[q] = 0.0f;
+    sr->n += nq;
+}
+
+/* Glossy primary hit: directions drawn from the BSDF mixture (pm_bsdf_sample), the lobe chosen
+ * by the stratified u1 itself (rescaled into the chosen lobe's share), so that a sharp lobe gets
+ * its rays along the mirror direction and the strata survive. The weight is f cos / pdf over N
+ * with the mixture's pdf (one-sample MIS of the two lobes, balance heuristic); a glossy draw
+ * below the surface is the lobe's energy loss and carries nothing. */
+static void spawn_glossy(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, float scale, const float tp[3],
+                         pm_rng_t *gather_rng)
+{
+    float tb[3], bb[3];
+    const pm_material_t *m = v->m;
+    const float *n = v->n, *wo = v->wo;
+    secondary_directions(c, sc, n, gather_rng, tb, bb);
     float sd = pm_bsdf_diffuse_share(m);
     for (unsigned q = 0; q < c->spp; q++) {
         float wi[3], u1 = sc->u1[q], u2 = sc->u2[q];
@@ -456,7 +535,7 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
         u1 = lobe == PM_LOBE_DIFFUSE ? u1 / sd : (u1 - sd) / (1.0f - sd);
         if (!(u1 < 1.0f))
             u1 = 0x1.fffffep-1f; /* the rescaling can round up to 1 */
-        if (!pm_bsdf_sample_lobe(m, lobe, n, wo, u1, u2, wi) || (shaded && !(pm_dot3(gn, wi) > 0.0f)))
+        if (!pm_bsdf_sample_lobe(m, lobe, n, wo, u1, u2, wi) || (v->shaded && !(pm_dot3(v->gn, wi) > 0.0f)))
             continue;
         float pdf = pm_bsdf_pdf(m, n, wi, wo), cosi = pm_dot3(n, wi);
         if (!(pdf > 0.0f))
@@ -470,36 +549,409 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
             continue; /* carries nothing: not traced */
         sc->sec_px[j] = x;
         sc->sec_cos[j] = pdf * PM_PI; /* pi times the pdf: what a cosine sample's cosine is */
-        pm_rays_push(&sc->sec, o, wi, 0.0f, INFINITY);
+        env_keep(sc, j, n, pdf, (float)(c->spp / PER_CELL));
+        pm_rays_push(&sc->sec, v->o, wi, 0.0f, INFINITY);
+    }
+}
+
+/* A primary hit of a kind other than the standard one (conductor, rough glass, plastic):
+ * directions from physics/bsdf.h's sampler with the stratified u1, u2 and a lobe choice from the
+ * pixel's gather stream; the weight f cos / pdf over N as the sampler gives it (a delta lobe's
+ * too). A transmitted ray leaves from the other side. sec_cos is -1 for a ray no light sample of
+ * this hit could have drawn (a delta lobe, a transmission): the light it finds is its own. */
+static void spawn_module(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, float scale, const float tp[3],
+                         pm_rng_t *gather_rng)
+{
+    float tb[3], bb[3];
+    secondary_directions(c, sc, v->n, gather_rng, tb, bb);
+    for (unsigned q = 0; q < c->spp; q++) {
+        pm_bsdf_sample_t bs;
+        float u = pm_rng_float(gather_rng);
+        if (!pm_bsdf_sample_wi(v->m, v->bn, v->wo, u, sc->u1[q], sc->u2[q], PM_BSDF_RADIANCE, &bs))
+            continue;
+        int tr = (bs.lobe & PM_BSDF_TRANSMIT) != 0;
+        float cg = pm_dot3(v->gn, bs.wi), o[3];
+        if (tr ? !(cg < 0.0f) : (v->shaded && !(cg > 0.0f)))
+            continue; /* not on the side of the geometric surface it was drawn for */
+        size_t j = sc->sec.n;
+        float *w = sc->sec_w + 3 * j;
+        for (int k = 0; k < 3; k++) {
+            w[k] = bs.weight[k] * scale * tp[k];
+            o[k] = tr ? v->p[k] - c->eps * v->gn[k] : v->o[k];
+        }
+        if (!(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f) || !isfinite(w[0] + w[1] + w[2]))
+            continue;
+        sc->sec_px[j] = x;
+        sc->sec_cos[j] = (bs.lobe & PM_BSDF_DELTA) || tr ? -1.0f : bs.pdf * PM_PI;
+        env_keep(sc, j, v->n, bs.pdf, (float)(c->spp / PER_CELL));
+        pm_rays_push(&sc->sec, o, bs.wi, 0.0f, INFINITY);
+    }
+}
+
+/* ------------------------------------------------------------------ primary hits */
+
+/* The surface primary ray i hit: its point, normals, material (textured into *textured) and
+ * the side it was seen from (+1 the front, -1 the back). */
+static float primary_surface(const pm_eye_t *c, scratch_t *sc, size_t i, pm_material_t *textured, surf_t *v)
+{
+    const pm_scene_t *s = c->s;
+    const pm_rays_t *pr = &sc->prim;
+    uint32_t tri = pr->prim[i];
+    float d[3] = {pr->dx[i], pr->dy[i], pr->dz[i]}, t = pr->tfar[i];
+    float *p = sc->hit + 9 * i, *wo = p + 6;
+    const float *ng = c->geom.tri_n + 3 * (size_t)tri;
+    for (int k = 0; k < 3; k++) {
+        p[k] = (k == 0 ? pr->ox[i] : k == 1 ? pr->oy[i] : pr->oz[i]) + t * d[k];
+        wo[k] = -d[k];
+    }
+    float side = pm_dot3(ng, wo) >= 0.0f ? 1.0f : -1.0f; /* both sides reflect: face the viewer */
+    for (int k = 0; k < 3; k++)
+        v->gn[k] = side * ng[k];
+    v->m = pm_scene_material_at(s, tri, p, textured);
+    for (int k = 0; k < 3; k++) {
+        v->p[k] = p[k], v->wo[k] = wo[k];
+        v->o[k] = p[k] + c->eps * v->gn[k];
+    }
+    /* n: the shading normal (render/transport.h), gn itself in a scene without vertex normals */
+    surf_normals(s, tri, side, v);
+    memcpy(p + 3, v->n, 12);
+    return side;
+}
+
+/* Direct light and spawned rays of primary ray i (pixel column x), and its caustic query into
+ * caus when asked for; 0 when out of memory. A primary ray that passed mirrors or glass arrives
+ * here as its last ray, with the chain's throughput in sc->thr: every contribution is multiplied
+ * by it last, so that without a chain (throughput exactly 1) every number is what it was. */
+static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x, uint32_t pixel, pm_rng_t *light_rng,
+                         pm_rng_t *gather_rng, double *direct, bytebuf_t *out, bytebuf_t *caus)
+{
+    static const float one[3] = {1.0f, 1.0f, 1.0f};
+    const float *tp = c->specular || c->cont ? sc->thr + 3 * i : one;
+    float emw = c->cont ? sc->emw[i] : 1.0f; /* 1 unless the ray left a glossy bounce (primary_glossy) */
+    const pm_scene_t *s = c->s;
+    uint32_t tri = sc->prim.prim[i];
+    float inv_p = 1.0f / (float)c->primary;
+    pm_material_t textured; /* the material with its textures at p (render/scene.h) */
+    surf_t v;
+    primary_surface(c, sc, i, &textured, &v); /* the side is the emitter test's own (pm_lights_le_hit) */
+    const pm_material_t *m = v.m;
+
+    /* Emission seen directly: emitters radiate from their front side only (both when two-sided). */
+    float le[3], cos_emit;
+    if (pm_lights_le_hit(&c->lights, tri, pm_dot3(c->geom.tri_n + 3 * (size_t)tri, v.wo), le, &cos_emit) && emw > 0.0f)
+        for (int k = 0; k < 3; k++)
+            direct[3 * x + k] += (double)(le[k] * inv_p * tp[k] * emw);
+
+    int glossy = pm_material_is_glossy(m);
+    int reflects = m->kd[0] > 0.0f || m->kd[1] > 0.0f || m->kd[2] > 0.0f || glossy;
+    if (!reflects)
+        return 1; /* black: reflects no light, direct or gathered */
+
+    /* The caustic query: this first non-specular hit itself, weighted like a direct-vis query,
+     * gathered against the caustic map (L S+ D seen from here). */
+    if (c->caustics && !rough_transmits(m)) { /* rough glass holds no photons */
+        float w[3] = {inv_p * tp[0], inv_p * tp[1], inv_p * tp[2]};
+        int put = put_hit(c, caus, v.p, v.n, w, pixel, s->tri_material[tri], m, v.wo);
+        if (put < 0)
+            return 0;
+        sc->n_caustic += (uint64_t)put;
+    }
+
+    /* the row's reservation, unless glossy chains (primary_glossy) took some of it */
+    if (c->cont && !shadow_room(c, sc))
+        return 0;
+    direct_lights(c, sc, &v, x, inv_p, tp, (float)(c->spp / PER_CELL), c->mode == PM_EYE_GATHER, light_rng);
+
+    if (c->mode == PM_EYE_DIRECT_VIS) {
+        /* The primary hit is the query: path weight 1 (over the primary rays of the pixel). */
+        float w[3] = {inv_p * tp[0], inv_p * tp[1], inv_p * tp[2]};
+        if (!c->direct_only && !rough_transmits(m)) {
+            int put = put_hit(c, out, v.p, v.n, w, pixel, s->tri_material[tri], m, v.wo);
+            if (put < 0)
+                return 0;
+            sc->n_queries += (uint64_t)put;
+        }
+        return 1;
+    }
+
+    if (c->direct_only && !pm_lights_has_emitters(&c->lights) && !c->cont)
+        return 1; /* no emitter for a secondary ray to find nor glossy path to follow: no secondary rays */
+    float scale = inv_p / (float)c->spp;
+    if (c->cont && !sec_room(c, sc)) /* glossy chains (shade_diffuse_part) may have taken the row's */
+        return 0;
+    if (m->kind != PM_MAT_STANDARD)
+        spawn_module(c, sc, &v, x, scale, tp, gather_rng);
+    else if (glossy)
+        spawn_glossy(c, sc, &v, x, scale, tp, gather_rng);
+    else
+        spawn_lambertian(c, sc, &v, x, scale, tp, gather_rng);
+    return 1;
+}
+
+/* ------------------------------------------------------------------ glossy paths */
+
+/* Whether a secondary path continues through a hit on material m instead of gathering there
+ * (docs/accuracy.md, glossy paths): a Phong lobe of exponent PM_EYE_GLOSSY_NS or more, a
+ * conductor or plastic of GGX width under PM_EYE_GLOSSY_ALPHA (a plastic's smooth coat too: its
+ * delta reflection cannot be gathered), with glossy paths on (depth > 0); and a rough glass
+ * always, which holds no photons (pm_bsdf_stores_photons). */
+static inline int material_continues(const pm_material_t *m, unsigned depth)
+{
+    switch (m->kind) {
+    case PM_MAT_STANDARD: return depth && pm_material_is_glossy(m) && m->ns >= PM_EYE_GLOSSY_NS;
+    case PM_MAT_CONDUCTOR: return depth && m->alpha >= PM_MAT_ALPHA_DELTA && m->alpha < PM_EYE_GLOSSY_ALPHA;
+    case PM_MAT_PLASTIC: return depth && !(m->alpha >= PM_EYE_GLOSSY_ALPHA);
+    case PM_MAT_ROUGH_GLASS: return rough_transmits(m);
+    default: return 0;
+    }
+}
+
+/* A microfacet material with textures (a PBR metal's F0, a plastic's base): it differs at every
+ * hit, and a query's material is one entry of the table, so paths never gather on it. */
+static inline int varies(const pm_scene_t *s, uint32_t mi)
+{
+    return s->maps && s->materials[mi].kind != PM_MAT_STANDARD && pm_material_is_glossy(&s->materials[mi]) &&
+           (s->maps[mi].kd >= 0 || s->maps[mi].ks >= 0);
+}
+
+/* Whether a path goes on through a hit on material mi (m: with its textures there). */
+static inline int continues(const pm_eye_t *c, const pm_material_t *m, uint32_t mi)
+{
+    return c->cont && (material_continues(m, c->glossy_depth) || varies(c->s, mi));
+}
+
+/* The glossy bounces a path may take through material mi before it gathers there: rough glass
+ * and a textured microfacet material, which no gather can use, to PM_EYE_MAX_SPECULAR (then its
+ * light is lost); the others glossy_depth. */
+static inline unsigned depth_limit(const pm_eye_t *c, const pm_material_t *m, uint32_t mi)
+{
+    return rough_transmits(m) || varies(c->s, mi) ? PM_EYE_MAX_SPECULAR : c->glossy_depth;
+}
+
+/* Where a secondary path is: the ray that reached hit triangle tri (origin o, unit direction d,
+ * distance t), its path weight w (f cos / pdf products over N, the query weight before the fold),
+ * the pixel it belongs to and the sub-stream it draws from. */
+typedef struct {
+    uint32_t tri, pixel, x;
+    float o[3], d[3], t, w[3];
+    pm_rng_t *rng;
+} path_t;
+
+/* The records of path a's hit, a non-specular surface: one query (two for a glossy textured
+ * material, put_hit), weighted by the path weight and the fold. 0 when out of memory. */
+static int path_query(const pm_eye_t *c, scratch_t *sc, const path_t *a, bytebuf_t *out)
+{
+    const pm_scene_t *s = c->s;
+    uint32_t mi = s->tri_material[a->tri];
+    const float *ng = c->geom.tri_n + 3 * (size_t)a->tri;
+    float q[3], wo[3] = {-a->d[0], -a->d[1], -a->d[2]}, n[3], fold_tex[3];
+    for (int k = 0; k < 3; k++)
+        q[k] = a->o[k] + a->t * a->d[k];
+    float side = pm_dot3(ng, wo) >= 0.0f ? 1.0f : -1.0f; /* the side the query sees */
+    pm_material_t textured;
+    const pm_material_t *mt;
+    const float *fold = hit_fold(c, a->tri, mi, q, &textured, fold_tex, &mt);
+    query_normal(s, a->tri, q, ng, side, n);
+    if (!isfinite(a->w[0] + a->w[1] + a->w[2]))
+        return 1;
+    if (c->lobe && c->lobe[mi]) { /* glossy and textured: two records (put_hit) */
+        int put = put_hit(c, out, q, n, a->w, a->pixel, mi, mt, wo);
+        if (put < 0)
+            return 0;
+        sc->n_queries += (uint64_t)put;
+        return 1;
+    }
+    float w[3] = {a->w[0] * fold[0], a->w[1] * fold[1], a->w[2] * fold[2]};
+    if (!(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f))
+        return 1; /* a black query surface */
+    if (!put_query(c, out, q, n, w, a->pixel, mi, wo))
+        return 0;
+    sc->n_queries++;
+    return 1;
+}
+
+/* The emission path a's ray found at its hit (front faces, unless lights are two-sided), times
+ * the path weight and mis, into direct. */
+static void path_emission(const pm_eye_t *c, const path_t *a, float mis, double *direct)
+{
+    const float *ng = c->geom.tri_n + 3 * (size_t)a->tri;
+    float le[3], cos_emit;
+    if (!pm_lights_le_hit(&c->lights, a->tri, -pm_dot3(ng, a->d), le, &cos_emit))
+        return;
+    for (int k = 0; k < 3; k++)
+        direct[3 * a->x + (uint32_t)k] += (double)(a->w[k] * le[k] * mis);
+}
+
+/* The sky and the sun seen along path a's ray, which escaped, times the path weight, into direct. */
+static void path_sky(const pm_eye_t *c, const path_t *a, double *direct)
+{
+    float le[3];
+    pm_lights_le_escape(&c->lights, a->d, le);
+    for (int k = 0; k < 3; k++)
+        direct[3 * a->x + (uint32_t)k] += (double)(a->w[k] * le[k]);
+}
+
+/* The next ray of path a, leaving v along wi with the bounce's f cos / pdf in fc (Russian
+ * roulette from PM_EYE_GLOSSY_RR bounces on, u its number), traced to its next hit, whose
+ * emission is counted: against the light samples of v by MIS with the BSDF's pdf, or whole when
+ * pdf < 0 (a delta lobe or a transmission, which no light sample of v reaches; such a ray that
+ * escapes brings the sky back too). Returns 1 when the path goes on, 0 when it ended. */
+static int path_next(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContext *ctx, path_t *a, unsigned depth,
+                     const float o[3], const float wi[3], float fc[3], float pdf, const float n[3], float u,
+                     double *direct)
+{
+    const pm_scene_t *s = c->s;
+    if (depth + 1 >= PM_EYE_GLOSSY_RR) {
+        /* survival the bounce's largest channel of f cos / pdf, capped at 1 */
+        float q = fminf(1.0f, fmaxf(fc[0], fmaxf(fc[1], fc[2])));
+        if (!(u < q))
+            return 0;
+        for (int k = 0; k < 3; k++)
+            fc[k] /= q;
+    }
+    for (int k = 0; k < 3; k++) {
+        a->w[k] *= fc[k];
+        a->o[k] = o[k], a->d[k] = wi[k];
+    }
+    if (!(a->w[0] > 0.0f || a->w[1] > 0.0f || a->w[2] > 0.0f) || !isfinite(a->w[0] + a->w[1] + a->w[2]))
+        return 0;
+    sc->n_glossy++;
+    a->tri = pm_rt_intersect1(c->rt, ctx, a->o, a->d, 0.0f, INFINITY, &a->t, NULL);
+    if (a->tri == PM_RAY_MISS) {
+        /* the lights at infinity: shared with the light samples (env_add), whole when none could see them */
+        if (pdf < 0.0f)
+            path_sky(c, a, direct);
+        else
+            env_add(c, n, a->d, pdf, a->w, a->x, direct);
+        return 0;
+    }
+    if (!pm_material_is_specular(&s->materials[s->tri_material[a->tri]]) && pm_lights_has_emitters(&c->lights)) {
+        const float *lg = c->geom.tri_n + 3 * (size_t)a->tri;
+        float cosy = fabsf(pm_dot3(lg, a->d));
+        path_emission(c, a,
+                      pdf < 0.0f ? 1.0f
+                                 : pm_power_heuristic(pdf, (float)c->light_samples *
+                                                               pm_lights_pdf_li_hit(&c->lights, a->t, cosy)),
+                      direct);
     }
     return 1;
 }
 
-/* ------------------------------------------------------------------ rows */
-
-/* Traces row y: direct radiance into direct[0 .. 3w), queries into out and caustic queries into
- * caus, in pixel order. */
-static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, double *direct, bytebuf_t *out,
-                                  bytebuf_t *caus)
+/* One bounce of path a at its hit, a material that continues (continues()): next-event
+ * estimation there into sc->shadow, then a direction from its BSDF and the ray to the next hit
+ * (path_next). A standard material leaves its diffuse part as a query there (folded, a record
+ * of its own) and continues along its Phong lobe alone; the other kinds continue along their
+ * whole BSDF (physics/bsdf.h's sampler). Returns 1 when the path goes on, 0 when it ended
+ * (absorbed, escaped), -1 when out of memory. */
+static int glossy_bounce(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContext *ctx, path_t *a, unsigned depth,
+                         double *direct, bytebuf_t *out)
 {
     const pm_scene_t *s = c->s;
-    size_t np = (size_t)c->w * c->primary;
-    const pm_lights_t *lights = &c->lights;
-    size_t nshadow = np * (lights->ndelta + (lights->ndirect - lights->ndelta) * c->light_samples);
-    size_t nsec = c->mode == PM_EYE_GATHER ? np * c->spp : 0;
-    pm_result_t r = scratch_reserve(sc, y, np, nshadow, nsec, c->mode == PM_EYE_GATHER ? c->spp : 0);
-    if (r != PM_OK)
-        return r;
-    memset(direct, 0, 3 * sizeof(double) * c->w);
-    out->n = 0;
-    out->count = 0;
-    caus->n = 0;
-    caus->count = 0;
-    struct RTCIntersectContext ctx; /* the specular chains' single rays */
-    rtcInitIntersectContext(&ctx);
-    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    const float *ng = c->geom.tri_n + 3 * (size_t)a->tri;
+    surf_t v;
+    pm_material_t textured, lobe;
+    for (int k = 0; k < 3; k++)
+        v.p[k] = a->o[k] + a->t * a->d[k], v.wo[k] = -a->d[k];
+    float side = pm_dot3(ng, v.wo) >= 0.0f ? 1.0f : -1.0f;
+    for (int k = 0; k < 3; k++)
+        v.gn[k] = side * ng[k], v.o[k] = v.p[k] + c->eps * v.gn[k];
+    const pm_material_t *m = pm_scene_material_at(s, a->tri, v.p, &textured);
+    v.m = m;
+    surf_normals(s, a->tri, side, &v);
+    int standard = m->kind == PM_MAT_STANDARD;
+    if (standard) {
+        /* The diffuse part gathers here, the folded entry of the table: kd / pi in the weight. */
+        float wd[3] = {a->w[0] * m->kd[0] * (1.0f / PM_PI), a->w[1] * m->kd[1] * (1.0f / PM_PI),
+                       a->w[2] * m->kd[2] * (1.0f / PM_PI)};
+        if (!c->direct_only && (wd[0] > 0.0f || wd[1] > 0.0f || wd[2] > 0.0f) && isfinite(wd[0] + wd[1] + wd[2])) {
+            if (!put_query(c, out, v.p, v.n, wd, a->pixel, c->folded, v.wo))
+                return -1;
+            sc->n_queries++;
+        }
+        /* The lobe alone: the material without its diffuse part. */
+        lobe = *m;
+        lobe.kd[0] = lobe.kd[1] = lobe.kd[2] = 0.0f;
+        v.m = &lobe;
+    }
+    if (!shadow_room(c, sc))
+        return -1;
+    direct_lights(c, sc, &v, a->x, 1.0f, a->w, 1.0f, 1, a->rng);
+    float wi[3], fc[3], o[3], pdf, u = pm_rng_float(a->rng), u1 = pm_rng_float(a->rng), u2 = pm_rng_float(a->rng),
+                                   u3 = pm_rng_float(a->rng);
+    memcpy(o, v.o, sizeof o);
+    if (standard) {
+        if (!pm_bsdf_sample_lobe(&lobe, PM_LOBE_GLOSSY, v.n, v.wo, u1, u2, wi) ||
+            (v.shaded && !(pm_dot3(v.gn, wi) > 0.0f)))
+            return 0;
+        float f[3], cosi = pm_dot3(v.n, wi);
+        pdf = pm_bsdf_pdf(&lobe, v.n, wi, v.wo);
+        if (!(pdf > 0.0f))
+            return 0;
+        pm_brdf(&lobe, v.n, wi, v.wo, f);
+        for (int k = 0; k < 3; k++)
+            fc[k] = f[k] * cosi / pdf;
+    } else {
+        pm_bsdf_sample_t bs;
+        if (!pm_bsdf_sample_wi(m, v.bn, v.wo, u, u1, u2, PM_BSDF_RADIANCE, &bs))
+            return 0;
+        int tr = (bs.lobe & PM_BSDF_TRANSMIT) != 0;
+        float cg = pm_dot3(v.gn, bs.wi);
+        if (tr ? !(cg < 0.0f) : (v.shaded && !(cg > 0.0f)))
+            return 0; /* not on the side of the geometric surface it was drawn for */
+        memcpy(wi, bs.wi, sizeof wi);
+        memcpy(fc, bs.weight, sizeof fc);
+        pdf = (bs.lobe & PM_BSDF_DELTA) || tr ? -1.0f : bs.pdf;
+        if (tr)
+            for (int k = 0; k < 3; k++)
+                o[k] = v.p[k] - c->eps * v.gn[k];
+    }
+    return path_next(c, sc, ctx, a, depth, o, wi, fc, pdf, v.n, u3, direct);
+}
 
-    /* Primary rays, pixel by pixel along the row: coherent packets. */
+/* Follows secondary path a from its hit, a non-specular surface: through every glossy surface
+ * that continues (glossy_bounce) and the mirrors and glass behind them, to the first surface
+ * that gathers, which gets the path's query; after c->glossy_depth glossy bounces the query is
+ * on the glossy surface itself (nothing is lost). Emission found past a glossy bounce is the
+ * direct buffer's (docs/accuracy.md). 0 when out of memory. */
+static int follow_path(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContext *ctx, path_t *a, double *direct,
+                       bytebuf_t *out)
+{
+    const pm_scene_t *s = c->s;
+    for (unsigned depth = 0;; depth++) {
+        pm_material_t textured;
+        float q[3];
+        for (int k = 0; k < 3; k++)
+            q[k] = a->o[k] + a->t * a->d[k];
+        const pm_material_t *m = c->cont ? pm_scene_material_at(s, a->tri, q, &textured) : NULL;
+        uint32_t mi = s->tri_material[a->tri];
+        /* past glossy_depth bounces the path gathers where it is; through rough glass, which
+         * holds no photons, it goes on (to PM_EYE_MAX_SPECULAR bounces, then its light is lost) */
+        if (!m || !continues(c, m, mi) || depth >= depth_limit(c, m, mi))
+            return c->direct_only || (m && (rough_transmits(m) || varies(s, mi))) || path_query(c, sc, a, out);
+        int on = glossy_bounce(c, sc, ctx, a, depth, direct, out);
+        if (on <= 0)
+            return on == 0;
+        if (pm_material_is_specular(&s->materials[s->tri_material[a->tri]])) {
+            /* Mirrors and glass past a glossy bounce: the light at the chain's end is this path's
+             * alone (no light sample reaches through them), weight 1; the sky seen escapes too. */
+            float thr[3] = {1.0f, 1.0f, 1.0f};
+            follow_specular(c, sc, ctx, a->rng, -1.0f, &a->tri, a->o, a->d, &a->t, thr);
+            for (int k = 0; k < 3; k++)
+                a->w[k] *= thr[k];
+            if (a->tri == PM_RAY_MISS) {
+                path_sky(c, a, direct);
+                return 1;
+            }
+            path_emission(c, a, 1.0f, direct);
+        }
+    }
+}
+
+/* ------------------------------------------------------------------ rows */
+
+/* Casts row y's primary rays, pixel by pixel along the row: coherent packets. */
+static void cast_primary(const pm_eye_t *c, scratch_t *sc, uint32_t y)
+{
     sc->prim.n = 0;
     for (uint32_t x = 0; x < c->w; x++) {
         uint64_t pixel = (uint64_t)y * c->w + x;
@@ -515,179 +967,354 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
         }
     }
     pm_rays_intersect(c->rt, c->width, 1, &sc->prim);
-    sc->n_primary += np;
+    sc->n_primary += sc->prim.n;
+}
 
-    sc->shadow.n = 0;
-    sc->sec.n = 0;
+/* Primary ray i through mirrors and glass to the first other surface: the ray becomes the
+ * chain's last, its throughput in sc->thr. spec_xi is the pixel's rotation of its primary rays'
+ * first choices. */
+static void primary_chain(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContext *ctx, size_t i,
+                          pm_rng_t *spec_rng, float spec_xi)
+{
+    pm_rays_t *pr = &sc->prim;
+    float *thr = sc->thr + 3 * i, o[3] = {pr->ox[i], pr->oy[i], pr->oz[i]}, d[3] = {pr->dx[i], pr->dy[i], pr->dz[i]},
+          t = pr->tfar[i];
+    thr[0] = thr[1] = thr[2] = 1.0f;
+    uint32_t tri = pr->prim[i];
+    if (!pm_material_is_specular(&c->s->materials[c->s->tri_material[tri]]))
+        return;
+    float l = sqrtf(pm_dot3(d, d));
+    for (int k = 0; k < 3; k++)
+        d[k] /= l;
+    t *= l;
+    /* The pixel's primary rays take the first choice between reflection and refraction from a
+     * rotated grid, {j / P + xi}, so that P rays split about F P to (1 - F) P rather than at
+     * random: the glass seen directly is far less noisy. */
+    float u_first = fmodf((float)(i % c->primary) / (float)c->primary + spec_xi, 1.0f);
+    if (!(u_first < 1.0f))
+        u_first = 0.0f;
+    follow_specular(c, sc, ctx, spec_rng, u_first, &tri, o, d, &t, thr);
+    pr->prim[i] = tri;
+    pr->ox[i] = o[0], pr->oy[i] = o[1], pr->oz[i] = o[2];
+    pr->dx[i] = d[0], pr->dy[i] = d[1], pr->dz[i] = d[2];
+    pr->tfar[i] = t;
+}
+
+/* The pixel of primary ray i of the row sc holds. */
+static inline uint32_t y_pixel(const pm_eye_t *c, const scratch_t *sc, size_t i)
+{
+    return sc->row * c->w + (uint32_t)(i / c->primary);
+}
+
+/* The diffuse part of a standard material at a glossy vertex a primary ray passes through
+ * (v->m its kd alone), shaded as a Lambertian primary hit with the path's throughput thr: its
+ * caustic query (of the table's folded entry, kd / pi in the weight), its light samples and its
+ * spp cosine-weighted secondary rays. 0 when out of memory. */
+static int shade_diffuse_part(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, uint32_t pixel,
+                              const float thr[3], pm_rng_t *light_rng, pm_rng_t *gather_rng, bytebuf_t *caus)
+{
+    float inv_p = 1.0f / (float)c->primary;
+    if (c->caustics) {
+        float w[3];
+        for (int k = 0; k < 3; k++)
+            w[k] = inv_p * thr[k] * v->m->kd[k] * (1.0f / PM_PI);
+        if (!put_query(c, caus, v->p, v->n, w, pixel, c->folded, v->wo))
+            return 0;
+        sc->n_caustic++;
+    }
+    if (!shadow_room(c, sc) || !sec_room(c, sc))
+        return 0;
+    direct_lights(c, sc, v, x, inv_p, thr, (float)(c->spp / PER_CELL), 1, light_rng);
+    spawn_lambertian(c, sc, v, x, inv_p / (float)c->spp, thr, gather_rng);
+    return 1;
+}
+
+/* Primary ray i (pixel column x) at a hit on a surface that continues (continues(): a sharp lobe,
+ * rough glass), passed through like a mirror, so that the surface seen in it gets the final
+ * gather of a primary hit (light samples, spp secondary rays) instead of one query per secondary
+ * ray, a density estimate seen through the lobe (the speckle of a windshield). A standard
+ * material whose lobe has at least half its albedo (max(ks) >= max(kd); a mostly diffuse one is
+ * shaded whole, its lobe gathered) has its diffuse part shaded at the vertex as a Lambertian
+ * primary hit (shade_diffuse_part) and its lobe followed; the other kinds go on along their
+ * whole BSDF. At each glossy vertex: its emission, its light samples for the lobe (MIS with the lobe's sample,
+ * shadow rays in the row's list), the sample and the ray to the next hit, whose emission weight
+ * goes to sc->emw; mirrors and glass on the way are followed; after glossy_depth bounces the last
+ * hit is shaded as it is. The ray becomes the chain's last, its throughput in sc->thr (zero when
+ * a ray escapes past a bounce whose light samples saw the sky). 0 when out of memory. */
+static int primary_glossy(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContext *ctx, size_t i, uint32_t x,
+                          pm_rng_t *rng, pm_rng_t *light_rng, pm_rng_t *gather_rng, double *direct, bytebuf_t *caus)
+{
+    const pm_scene_t *s = c->s;
+    pm_rays_t *pr = &sc->prim;
+    float *thr = sc->thr + 3 * i, inv_p = 1.0f / (float)c->primary;
+    float o[3] = {pr->ox[i], pr->oy[i], pr->oz[i]}, d[3] = {pr->dx[i], pr->dy[i], pr->dz[i]}, t = pr->tfar[i];
+    float l = sqrtf(pm_dot3(d, d));
+    for (int k = 0; k < 3; k++)
+        d[k] /= l;
+    t *= l;
+    uint32_t tri = pr->prim[i];
+    unsigned depth = 0;
+    for (; tri != PM_RAY_MISS; depth++) {
+        pm_material_t textured, lobe;
+        surf_t v;
+        for (int k = 0; k < 3; k++)
+            v.p[k] = o[k] + t * d[k], v.wo[k] = -d[k];
+        const pm_material_t *m = pm_scene_material_at(s, tri, v.p, &textured);
+        uint32_t mi = s->tri_material[tri];
+        if (!continues(c, m, mi) || depth >= depth_limit(c, m, mi))
+            break;
+        const float *ng = c->geom.tri_n + 3 * (size_t)tri;
+        float side = pm_dot3(ng, v.wo) >= 0.0f ? 1.0f : -1.0f, *emw = &sc->emw[i];
+        float le[3], cos_emit;
+        if (pm_lights_le_hit(&c->lights, tri, pm_dot3(ng, v.wo), le, &cos_emit) && *emw > 0.0f)
+            for (int k = 0; k < 3; k++)
+                direct[3 * x + k] += (double)(le[k] * inv_p * thr[k] * *emw);
+        *emw = 0.0f; /* counted: the hit shades no emission of its own */
+        float u = pm_rng_float(rng), u1 = pm_rng_float(rng), u2 = pm_rng_float(rng);
+        int standard = m->kind == PM_MAT_STANDARD;
+        if (standard) {
+            float pd, ps;
+            pm_bsdf_albedo(m, &pd, &ps);
+            if (ps < pd)
+                break; /* a mostly diffuse surface: shaded whole */
+            lobe = *m;
+            lobe.kd[0] = lobe.kd[1] = lobe.kd[2] = 0.0f;
+        }
+        for (int k = 0; k < 3; k++)
+            v.gn[k] = side * ng[k], v.o[k] = v.p[k] + c->eps * v.gn[k];
+        v.m = m;
+        surf_normals(s, tri, side, &v);
+        if (standard && (m->kd[0] > 0.0f || m->kd[1] > 0.0f || m->kd[2] > 0.0f)) {
+            pm_material_t diffuse = *m;
+            diffuse.ks[0] = diffuse.ks[1] = diffuse.ks[2] = 0.0f;
+            v.m = &diffuse;
+            if (!shade_diffuse_part(c, sc, &v, x, y_pixel(c, sc, i), thr, light_rng, gather_rng, caus))
+                return 0;
+        }
+        v.m = standard ? &lobe : m;
+        if (!shadow_room(c, sc))
+            return 0;
+        direct_lights(c, sc, &v, x, inv_p, thr, 1.0f, 1, rng);
+        float wi[3], fc[3], pdf;
+        int tr = 0;
+        if (standard) {
+            float f[3];
+            if (!pm_bsdf_sample_lobe(&lobe, PM_LOBE_GLOSSY, v.n, v.wo, u1, u2, wi) ||
+                (v.shaded && !(pm_dot3(v.gn, wi) > 0.0f)) || !((pdf = pm_bsdf_pdf(&lobe, v.n, wi, v.wo)) > 0.0f)) {
+                tri = PM_RAY_MISS, thr[0] = thr[1] = thr[2] = 0.0f;
+                break;
+            }
+            pm_brdf(&lobe, v.n, wi, v.wo, f);
+            for (int k = 0; k < 3; k++)
+                fc[k] = f[k] * pm_dot3(v.n, wi) / pdf;
+        } else {
+            pm_bsdf_sample_t bs;
+            int ok = pm_bsdf_sample_wi(m, v.bn, v.wo, u, u1, u2, PM_BSDF_RADIANCE, &bs);
+            tr = (bs.lobe & PM_BSDF_TRANSMIT) != 0;
+            float cg = pm_dot3(v.gn, bs.wi);
+            if (!ok || (tr ? !(cg < 0.0f) : (v.shaded && !(cg > 0.0f)))) {
+                tri = PM_RAY_MISS, thr[0] = thr[1] = thr[2] = 0.0f;
+                break;
+            }
+            memcpy(wi, bs.wi, sizeof wi), memcpy(fc, bs.weight, sizeof fc);
+            pdf = (bs.lobe & PM_BSDF_DELTA) || tr ? -1.0f : bs.pdf;
+        }
+        for (int k = 0; k < 3; k++) {
+            thr[k] *= fc[k];
+            o[k] = tr ? v.p[k] - c->eps * v.gn[k] : v.o[k], d[k] = wi[k];
+        }
+        sc->n_glossy++;
+        tri = pm_rt_intersect1(c->rt, ctx, o, d, 0.0f, INFINITY, &t, NULL);
+        if (tri == PM_RAY_MISS && pdf >= 0.0f && isfinite(thr[0] + thr[1] + thr[2])) {
+            /* the sky past the lobe: shared with its light samples (env_add) */
+            float sc3[3] = {thr[0] * inv_p, thr[1] * inv_p, thr[2] * inv_p};
+            env_add(c, v.n, d, pdf, sc3, x, direct);
+        }
+        if (!(thr[0] > 0.0f || thr[1] > 0.0f || thr[2] > 0.0f) || !isfinite(thr[0] + thr[1] + thr[2]) ||
+            (tri == PM_RAY_MISS && pdf >= 0.0f)) {
+            tri = PM_RAY_MISS, thr[0] = thr[1] = thr[2] = 0.0f;
+            break;
+        }
+        if (tri == PM_RAY_MISS)
+            break;
+        *emw = 1.0f;
+        if (pm_material_is_specular(&s->materials[s->tri_material[tri]]))
+            follow_specular(c, sc, ctx, rng, -1.0f, &tri, o, d, &t, thr); /* its end's light: weight 1 */
+        else if (pdf >= 0.0f && pm_lights_has_emitters(&c->lights))
+            *emw = pm_power_heuristic(
+                pdf, (float)c->light_samples *
+                         pm_lights_pdf_li_hit(&c->lights, t, fabsf(pm_dot3(c->geom.tri_n + 3 * (size_t)tri, d))));
+    }
+    if (depth == 0 && tri != PM_RAY_MISS)
+        return 1; /* not passed through: the ray stays the camera's, bit for bit */
+    pr->prim[i] = tri;
+    pr->ox[i] = o[0], pr->oy[i] = o[1], pr->oz[i] = o[2];
+    pr->dx[i] = d[0], pr->dy[i] = d[1], pr->dz[i] = d[2];
+    pr->tfar[i] = t;
+    return 1;
+}
+
+/* Every primary ray of row y: chains through mirrors and glass, the sky seen, and the hits'
+ * shading (shade_primary). 0 when out of memory. */
+static int shade_row(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContext *ctx, uint32_t y, double *direct,
+                     bytebuf_t *out, bytebuf_t *caus)
+{
     pm_rng_t light_rng, gather_rng, spec_rng;
     float spec_xi = 0.0f;                /* the pixel's rotation of its primary rays' first specular choices */
     pm_rng_init(&light_rng, c->seed, 0); /* re-keyed per pixel below */
     pm_rng_init(&gather_rng, c->seed, 0);
     pm_rng_init(&spec_rng, c->seed, 0);
-    for (size_t i = 0; i < np; i++) {
+    for (size_t i = 0; i < sc->prim.n; i++) {
         uint32_t x = (uint32_t)(i / c->primary);
         uint32_t pixel = y * c->w + x;
         if (i % c->primary == 0) {
             pm_rng_init(&light_rng, c->seed, 4 * (uint64_t)pixel + STREAM_LIGHT);
             pm_rng_init(&gather_rng, c->seed, 4 * (uint64_t)pixel + STREAM_GATHER);
-            if (c->specular) {
+            if (c->specular || c->cont)
                 specular_rng(&spec_rng, c->seed, pixel, 0);
+            if (c->specular)
                 spec_xi = pm_rng_float(&spec_rng);
-            }
         }
-        if (c->specular) {
+        if (c->specular || c->cont) {
             float *t0 = sc->thr + 3 * i;
             t0[0] = t0[1] = t0[2] = 1.0f; /* the chain's throughput: none yet */
         }
-        if (c->specular && sc->prim.prim[i] != PM_RAY_MISS) {
-            /* Through mirrors and glass to the first other surface: the ray becomes the chain's last. */
-            pm_rays_t *pr = &sc->prim;
-            float *thr = sc->thr + 3 * i, o[3] = {pr->ox[i], pr->oy[i], pr->oz[i]},
-                  d[3] = {pr->dx[i], pr->dy[i], pr->dz[i]}, t = pr->tfar[i];
-            thr[0] = thr[1] = thr[2] = 1.0f;
-            uint32_t tri = pr->prim[i];
-            if (pm_material_is_specular(&s->materials[s->tri_material[tri]])) {
-                float l = sqrtf(pm_dot3(d, d));
-                for (int k = 0; k < 3; k++)
-                    d[k] /= l;
-                t *= l;
-                /* The pixel's primary rays take the first choice between reflection and refraction
-                 * from a rotated grid, {j / P + xi}, so that P rays split about F P to (1 - F) P
-                 * rather than at random: the glass seen directly is far less noisy. */
-                float u_first = fmodf((float)(i % c->primary) / (float)c->primary + spec_xi, 1.0f);
-                if (!(u_first < 1.0f))
-                    u_first = 0.0f;
-                follow_specular(c, sc, &ctx, &spec_rng, u_first, &tri, o, d, &t, thr);
-                pr->prim[i] = tri;
-                pr->ox[i] = o[0], pr->oy[i] = o[1], pr->oz[i] = o[2];
-                pr->dx[i] = d[0], pr->dy[i] = d[1], pr->dz[i] = d[2];
-                pr->tfar[i] = t;
-            }
+        if (c->specular && sc->prim.prim[i] != PM_RAY_MISS)
+            primary_chain(c, sc, ctx, i, &spec_rng, spec_xi);
+        if (c->cont) {
+            sc->emw[i] = 1.0f;
+            if (sc->prim.prim[i] != PM_RAY_MISS &&
+                !primary_glossy(c, sc, ctx, i, x, &spec_rng, &light_rng, &gather_rng, direct, caus))
+                return 0;
         }
         if (sc->prim.prim[i] == PM_RAY_MISS) {
             /* Escaped, at once or after mirrors and glass: no query; the sky and the sun seen
              * are direct light, times the chain's throughput. */
             float d[3] = {sc->prim.dx[i], sc->prim.dy[i], sc->prim.dz[i]}, le[3];
-            const float *thr = c->specular ? sc->thr + 3 * i : NULL;
+            const float *thr = c->specular || c->cont ? sc->thr + 3 * i : NULL;
             pm_lights_le_escape(&c->lights, d, le);
             for (int k = 0; k < 3; k++)
                 direct[3 * x + k] += (double)(le[k] * (thr ? thr[k] : 1.0f) / (float)c->primary);
             continue;
         }
         if (!shade_primary(c, sc, i, x, pixel, &light_rng, &gather_rng, direct, out, caus))
-            return pm_error_set(PM_ERR_NOMEM, "out of memory for the queries of row %" PRIu32 ": %" PRIu64 " records",
-                                y, out->count + 1);
+            return 0;
     }
+    return 1;
+}
 
-    /* Shadow rays; each unblocked one adds its radiance, in ray (so pixel) order. */
-    pm_rays_occluded(c->rt, c->width, 0, &sc->shadow);
-    sc->n_shadow += sc->shadow.n;
-    for (size_t j = 0; j < sc->shadow.n; j++)
-        if (sc->shadow.tfar[j] >= 0.0f)
-            for (int k = 0; k < 3; k++)
-                direct[3 * sc->sh_px[j] + k] += (double)sc->sh_c[3 * j + k];
+/* Secondary ray j of row y at its hit: the emitter it found (MIS with the primary hit's light
+ * samples), the chain through mirrors and glass it starts, the glossy surfaces it continues
+ * through, and the query where it ends. in_px is the ray's index among its pixel's, for its
+ * sub-stream. 0 when out of memory. */
+static int secondary_hit(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContext *ctx, uint32_t y, size_t j,
+                         uint32_t in_px, double *direct, bytebuf_t *out)
+{
+    const pm_scene_t *s = c->s;
+    const pm_rays_t *sr = &sc->sec;
+    pm_rng_t rng;
+    path_t a = {
+        .tri = sr->prim[j], .x = sc->sec_px[j], .pixel = y * c->w + sc->sec_px[j], .t = sr->tfar[j], .rng = &rng};
+    float thr[3] = {1.0f, 1.0f, 1.0f}, o[3] = {sr->ox[j], sr->oy[j], sr->oz[j]},
+          d[3] = {sr->dx[j], sr->dy[j], sr->dz[j]};
+    memcpy(a.o, o, sizeof o);
+    memcpy(a.d, d, sizeof d);
+    for (int k = 0; k < 3; k++)
+        a.w[k] = sc->sec_w[3 * j + k];
+    /* sec_cos < 0: a ray no light sample of the primary hit could have drawn (spawn_module) */
+    int own = sc->sec_cos[j] < 0.0f;
+    if (a.tri == PM_RAY_MISS) {
+        if (own)
+            path_sky(c, &a, direct);
+        else
+            env_add(c, sc->sec_env + 4 * j + 1, a.d, sc->sec_env[4 * j], a.w, a.x, direct);
+        return 1; /* escaped: no query */
+    }
+    if (c->specular || c->cont) /* each secondary ray's chain draws from a sub-stream of its own */
+        specular_rng(&rng, c->seed, a.pixel, 1 + in_px);
+    if (c->specular && pm_material_is_specular(&s->materials[s->tri_material[a.tri]])) {
+        /* Through mirrors and glass to the first other surface. Light found at the end of such
+         * a chain is L S+ D at the primary hit, the caustic queries' (with the caustic map) or
+         * lost without them: never counted here, so a direct-only run, which makes no queries,
+         * need not follow the chain unless a glossy surface past it may continue. */
+        if (c->direct_only && !c->cont)
+            return 1;
+        follow_specular(c, sc, ctx, &rng, -1.0f, &a.tri, a.o, a.d, &a.t, thr);
+        if (a.tri == PM_RAY_MISS)
+            return 1;
+    } else {
+        /* An emitter's front seen by a secondary ray: direct light of the primary hit, weighted
+         * against the light samples that could have found the same point (MIS, power heuristic). */
+        const float *ng = c->geom.tri_n + 3 * (size_t)a.tri;
+        float cosy = fabsf(pm_dot3(ng, a.d));
+        path_emission(c, &a,
+                      own ? 1.0f
+                          : pm_power_heuristic((float)(c->spp / PER_CELL) * sc->sec_cos[j] * (1.0f / PM_PI),
+                                               (float)c->light_samples * pm_lights_pdf_li_hit(&c->lights, a.t, cosy)),
+                      direct);
+    }
+    if (c->direct_only && !c->cont)
+        return 1; /* the direct buffer alone: the query's normal and fold are not needed */
+    for (int k = 0; k < 3; k++)
+        a.w[k] = sc->sec_w[3 * j + k] * thr[k];
+    return follow_path(c, sc, ctx, &a, direct, out);
+}
 
-    /* The secondary rays' only part in the direct light is the emitters they find. */
-    if (c->mode != PM_EYE_GATHER || (c->direct_only && !pm_lights_has_emitters(&c->lights)))
+/* Traces row y: direct radiance into direct[0 .. 3w), queries into out and caustic queries into
+ * caus, in pixel order. */
+static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, double *direct, bytebuf_t *out,
+                                  bytebuf_t *caus)
+{
+    size_t np = (size_t)c->w * c->primary;
+    const pm_lights_t *lights = &c->lights;
+    size_t nshadow = np * (lights->ndelta + (lights->ndirect - lights->ndelta) * c->light_samples);
+    size_t nsec = c->mode == PM_EYE_GATHER ? np * c->spp : 0;
+    pm_result_t r = scratch_reserve(sc, y, np, nshadow, nsec, c->mode == PM_EYE_GATHER ? c->spp : 0);
+    if (r != PM_OK)
+        return r;
+    memset(direct, 0, 3 * sizeof(double) * c->w);
+    out->n = 0;
+    out->count = 0;
+    caus->n = 0;
+    caus->count = 0;
+    struct RTCIntersectContext ctx; /* the specular chains' and glossy paths' single rays */
+    rtcInitIntersectContext(&ctx);
+    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+
+    sc->row = y;
+    cast_primary(c, sc, y);
+    sc->shadow.n = 0;
+    sc->sec.n = 0;
+    if (!shade_row(c, sc, &ctx, y, direct, out, caus))
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for the queries of row %" PRIu32 ": %" PRIu64 " records", y,
+                            out->count + 1);
+    shadow_rays(c, sc, direct);
+
+    /* The secondary rays' only part in the direct light is the emitters they find (and the
+     * light of the glossy paths they continue). */
+    if (c->mode != PM_EYE_GATHER || (c->direct_only && !pm_lights_has_emitters(&c->lights) && !c->cont))
         return PM_OK;
     /* Secondary rays: consecutive rays share a cell or a pixel, so packets stay coherent. */
     double t0 = pm_time_wall();
     pm_rays_intersect(c->rt, c->width, 0, &sc->sec);
     sc->t_secondary += pm_time_wall() - t0;
     sc->n_secondary += sc->sec.n;
-    const pm_rays_t *sr = &sc->sec;
     /* Room for every ray's records up front (two where a glossy textured hit splits, put_hit):
-     * the loop below then only stores. */
-    if (!c->direct_only && !grow((void **)&out->p, 1, &out->cap, out->n + sr->n * c->record_size * (c->lobe ? 2 : 1)))
+     * put_query then only stores, unless glossy paths add their diffuse parts. */
+    if (!c->direct_only &&
+        !grow((void **)&out->p, 1, &out->cap, out->n + sc->sec.n * c->record_size * (c->lobe ? 2 : 1)))
         return pm_error_set(PM_ERR_NOMEM, "out of memory for the queries of row %" PRIu32 ": %zu records", y,
-                            out->count + sr->n);
+                            out->count + sc->sec.n);
     uint32_t last_px = UINT32_MAX, in_px = 0;
-    for (size_t j = 0; j < sr->n; j++) {
-        uint32_t tri = sr->prim[j];
-        if (c->specular) {
-            /* Each secondary ray's chain draws from a sub-stream of its own (specular_rng). */
-            in_px = sc->sec_px[j] == last_px ? in_px + 1 : 0;
-            last_px = sc->sec_px[j];
-        }
-        if (tri == PM_RAY_MISS)
-            continue; /* escaped: no query */
-        float d[3] = {sr->dx[j], sr->dy[j], sr->dz[j]}, t = sr->tfar[j];
-        float o[3] = {sr->ox[j], sr->oy[j], sr->oz[j]}, thr[3] = {1.0f, 1.0f, 1.0f};
-        if (c->specular && pm_material_is_specular(&s->materials[s->tri_material[tri]])) {
-            /* Through mirrors and glass to the first other surface. Light found at the end of
-             * such a chain is L S+ D at the primary hit, the caustic queries' (with the caustic
-             * map) or lost without them: never counted here, so a direct-only run, which makes
-             * no queries, need not follow the chain. */
-            if (c->direct_only)
-                continue;
-            specular_rng(&spec_rng, c->seed, (uint64_t)y * c->w + last_px, 1 + in_px);
-            follow_specular(c, sc, &ctx, &spec_rng, -1.0f, &tri, o, d, &t, thr);
-            if (tri == PM_RAY_MISS)
-                continue;
-            uint32_t mi = s->tri_material[tri];
-            float w[3], *rw = sc->sec_w + 3 * j;
-            const float *ng = c->geom.tri_n + 3 * (size_t)tri;
-            float wo[3] = {-d[0], -d[1], -d[2]}, n[3], q[3], fold_tex[3];
-            float side = pm_dot3(ng, wo) >= 0.0f ? 1.0f : -1.0f;
-            for (int k = 0; k < 3; k++)
-                q[k] = o[k] + t * d[k];
-            pm_material_t textured;
-            const pm_material_t *mt;
-            const float *fold = hit_fold(c, tri, mi, q, &textured, fold_tex, &mt);
-            for (int k = 0; k < 3; k++)
-                w[k] = rw[k] * thr[k] * fold[k];
-            query_normal(s, tri, q, ng, side, n);
-            if (c->lobe && c->lobe[mi]) { /* glossy and textured: two records (put_hit) */
-                float pw[3] = {rw[0] * thr[0], rw[1] * thr[1], rw[2] * thr[2]};
-                int put = isfinite(pw[0] + pw[1] + pw[2])
-                              ? put_hit(c, out, q, n, pw, y * c->w + sc->sec_px[j], mi, mt, wo)
-                              : 0;
-                if (put < 0)
-                    return pm_error_set(PM_ERR_NOMEM, "out of memory for the queries of row %" PRIu32, y);
-                sc->n_queries += (uint64_t)put;
-                continue;
-            }
-            if (!(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f) || !isfinite(w[0] + w[1] + w[2]))
-                continue;
-            put_query(c, out, q, n, w, y * c->w + sc->sec_px[j], mi, wo); /* room reserved above */
-            sc->n_queries++;
-            continue;
-        }
-        float q[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
-        float wo[3] = {-d[0], -d[1], -d[2]}, n[3];
-        const float *ng = c->geom.tri_n + 3 * (size_t)tri;
-        float side = pm_dot3(ng, wo) >= 0.0f ? 1.0f : -1.0f; /* the side the query sees */
-        uint32_t mi = s->tri_material[tri];
-        const float *rw = sc->sec_w + 3 * j;
-        /* An emitter's front seen by a secondary ray: direct light of the primary hit, weighted
-         * against the light samples that could have found the same point (MIS, power heuristic). */
-        float ke[3], cosy;
-        if (pm_lights_le_hit(&c->lights, tri, pm_dot3(ng, wo), ke, &cosy)) {
-            float wb = pm_power_heuristic((float)(c->spp / PER_CELL) * sc->sec_cos[j] * (1.0f / PM_PI),
-                                          (float)c->light_samples * pm_lights_pdf_li_hit(&c->lights, t, cosy));
-            for (int k = 0; k < 3; k++)
-                direct[3 * sc->sec_px[j] + (uint32_t)k] += (double)(rw[k] * ke[k] * wb);
-        }
-        if (c->direct_only)
-            continue; /* the direct buffer alone: the query's normal and fold are not needed */
-        float fold_tex[3];
-        pm_material_t textured;
-        const pm_material_t *mt;
-        const float *fold = hit_fold(c, tri, mi, q, &textured, fold_tex, &mt);
-        query_normal(s, tri, q, ng, side, n);
-        if (c->lobe && c->lobe[mi]) { /* glossy and textured: two records (put_hit) */
-            int put = put_hit(c, out, q, n, rw, y * c->w + sc->sec_px[j], mi, mt, wo);
-            if (put < 0)
-                return pm_error_set(PM_ERR_NOMEM, "out of memory for the queries of row %" PRIu32, y);
-            sc->n_queries += (uint64_t)put;
-            continue;
-        }
-        float w[3] = {rw[0] * fold[0], rw[1] * fold[1], rw[2] * fold[2]};
-        if (!(w[0] > 0.0f || w[1] > 0.0f || w[2] > 0.0f))
-            continue;                                                 /* a black query surface */
-        put_query(c, out, q, n, w, y * c->w + sc->sec_px[j], mi, wo); /* room reserved above */
-        sc->n_queries++;
+    for (size_t j = 0; j < sc->sec.n; j++) {
+        in_px = sc->sec_px[j] == last_px ? in_px + 1 : 0;
+        last_px = sc->sec_px[j];
+        if (!secondary_hit(c, sc, &ctx, y, j, in_px, direct, out))
+            return pm_error_set(PM_ERR_NOMEM, "out of memory for the queries of row %" PRIu32, y);
     }
+    /* The light samples of the glossy paths' vertices. */
+    if (sc->shadow.n)
+        shadow_rays(c, sc, direct);
     return PM_OK;
 }
 
@@ -705,7 +1332,8 @@ static void trace_row(const pm_eye_t *c, scratch_t *sc, uint32_t y, double *dire
 
 /* ------------------------------------------------------------------ context */
 
-/* The queries' material table of a scene with glossy textured materials (c->lobe, put_hit):
+/* The queries' material table of a scene with glossy textured materials (c->lobe, put_hit) or
+ * glossy paths (glossy_bounce's diffuse parts):
  * the scene's materials, then `folded` (kd 1: a weight that carries its BRDF), then per such
  * material its lobe alone (kd 0, ks 1, its ns), named NAME.lobe. */
 static pm_result_t split_table(pm_eye_t *c)
@@ -713,7 +1341,7 @@ static pm_result_t split_table(pm_eye_t *c)
     const pm_scene_t *s = c->s;
     size_t n = s->nmaterials + 1;
     for (size_t m = 0; m < s->nmaterials; m++)
-        n += pm_scene_glossy_textured(s, (uint32_t)m);
+        n += pm_scene_glossy_textured(s, (uint32_t)m) && s->materials[m].kind == PM_MAT_STANDARD;
     if (n > 65536) /* the material channel is 16 bits */
         return pm_error_set(PM_ERR_INPUT,
                             "scene '%s': %zu materials and their glossy textured lobes do not fit the queries' "
@@ -728,7 +1356,7 @@ static pm_result_t split_table(pm_eye_t *c)
     c->table[c->folded] = (pm_material_t){.name = "folded", .kd = {1, 1, 1}};
     size_t at = s->nmaterials + 1;
     for (size_t m = 0; m < s->nmaterials; m++)
-        if (pm_scene_glossy_textured(s, (uint32_t)m)) {
+        if (pm_scene_glossy_textured(s, (uint32_t)m) && s->materials[m].kind == PM_MAT_STANDARD) {
             pm_material_t *e = &c->table[at];
             snprintf(e->name, sizeof e->name, "%.57s.lobe", s->materials[m].name);
             e->ks[0] = e->ks[1] = e->ks[2] = 1.0f;
@@ -761,6 +1389,9 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
     c->specular = s->any_specular;
     c->caustics = o->caustics;
     c->direct_only = o->direct_only;
+    c->glossy_depth = o->glossy_depth;
+    for (size_t m = 0; c->mode == PM_EYE_GATHER && m < s->nmaterials; m++)
+        c->cont |= material_continues(&s->materials[m], c->glossy_depth) || varies(s, (uint32_t)m);
     pm_result_t r = PM_OK;
     if (o->caustics && o->direct_only) {
         pm_eye_destroy(c);
@@ -788,7 +1419,8 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
     }
     /* Channels: leave out what the scene does not need (docs/formats.md). */
     c->has_dir = s->any_glossy;
-    c->has_mat = s->any_glossy && (s->nmaterials > 1 || s->any_glossy_textured);
+    /* A glossy path leaves its diffuse parts as queries of the table's folded entry. */
+    c->has_mat = s->any_glossy && (s->nmaterials > 1 || s->any_glossy_textured || c->cont);
     uint32_t mask = pm_schema_required(&pm_queries_schema) | (c->has_mat ? 1u << PM_QUERY_MATERIAL : 0) |
                     (c->has_dir ? 1u << PM_QUERY_DIRECTION : 0);
     c->record_size = pm_schema_record_size(&pm_queries_schema, mask);
@@ -807,7 +1439,7 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
         float one[3] = {1.0f, 1.0f, 1.0f};
         query_weight(&s->materials[m], one, c->fold + 3 * m);
     }
-    if (r == PM_OK && s->any_glossy_textured)
+    if (r == PM_OK && (s->any_glossy_textured || c->cont))
         r = split_table(c);
     if (r == PM_OK)
         r = pm_shade_geom_init(s, &c->geom);
@@ -829,6 +1461,7 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
                               .channels = mask,
                               .specular = c->specular,
                               .caustics = c->caustics,
+                              .glossy_depth = c->cont ? c->glossy_depth : 0,
                               .record_size = c->record_size};
     *out = c;
     return PM_OK;
@@ -929,6 +1562,7 @@ pm_result_t pm_eye_trace(pm_eye_t *c, const pm_eye_sink_t *sink, pm_eye_stats_t 
         stats_out->caustic_queries += scr[t].n_caustic;
         stats_out->specular_rays += scr[t].n_specular;
         stats_out->specular_cut += scr[t].n_specular_cut;
+        stats_out->glossy_rays += scr[t].n_glossy;
         stats_out->secondary_embree_s += scr[t].t_secondary;
     }
     if (r == PM_OK && stats_out->queries != delivered)
@@ -1035,6 +1669,8 @@ void pm_eye_report(pm_stage_t *st, const pm_eye_info_t *in, const pm_eye_stats_t
     }
     if (in->caustics)
         pm_stage_stat_int(st, "caustic_queries", (int64_t)x->caustic_queries);
+    if (in->glossy_depth)
+        pm_stage_stat_int(st, "glossy_rays", (int64_t)x->glossy_rays);
     pm_stage_stat_double(st, "trace_s", tt);
     pm_stage_stat_double(st, "spool_s", x->sink_s);
     pm_stage_stat_double(st, "rays_per_s", tt > 0 ? (double)rays / tt : 0.0);

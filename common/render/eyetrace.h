@@ -31,6 +31,17 @@
 
 #define PM_EYE_PER_CELL 4       /* secondary samples per stratum cell: the paper's four */
 #define PM_EYE_MAX_SPECULAR 256 /* specular bounces in a row an eye path may take; more are cut (lost light) */
+/* Glossy paths (docs/accuracy.md): a secondary ray that hits a Phong lobe of exponent
+ * PM_EYE_GLOSSY_NS or more (a half-width at half maximum of 9.5 degrees and less, where a
+ * gather's few photons inside the lobe make speckle) continues along the lobe instead of
+ * gathering there, up to pm_eye_options_t's glossy_depth bounces, with Russian roulette from the
+ * PM_EYE_GLOSSY_RR-th bounce on. */
+#define PM_EYE_GLOSSY_NS 50.0f
+/* The same for the GGX kinds (conductor, plastic): a width alpha under this (the GGX width whose
+ * Beckmann-equivalent Phong exponent 2 / alpha^2 - 2 is 48). */
+#define PM_EYE_GLOSSY_ALPHA 0.2f
+#define PM_EYE_GLOSSY_RR 3
+#define PM_EYE_GLOSSY_DEPTH 8 /* trace-gather-points' default glossy_depth */
 
 enum { PM_EYE_GATHER = 0, PM_EYE_DIRECT_VIS = 1 };                    /* where the queries are */
 enum { PM_EYE_INTERLEAVE = 0, PM_EYE_TILES = 1, PM_EYE_DYNAMIC = 2 }; /* rows of a band to threads */
@@ -53,6 +64,8 @@ typedef struct {
     int caustics;    /* also deliver the caustic queries (sink->caustic); a scene with mirrors or glass, gather mode */
     int direct_only; /* the direct radiance alone, no queries: secondary rays are traced only in a scene with
                       * emissive triangles, for the light they find there (the same direct buffer, bit for bit) */
+    unsigned glossy_depth; /* glossy bounces a secondary path may continue through before it gathers (gather
+                            * mode); 0 gathers on every glossy surface */
 } pm_eye_options_t;
 
 /* What a context settled on: sizes, the effective spp, the queries' record layout. */
@@ -63,11 +76,12 @@ typedef struct {
     uint32_t primary, light_samples;
     int pixel; /* PM_PIXEL_BOX or PM_PIXEL_CENTER */
     uint64_t seed;
-    int packet_width;     /* lanes: 1, 4, 8 or 16 */
-    uint32_t channels;    /* mask of the queries channels written (direction, material only when needed) */
-    uint32_t record_size; /* bytes per query record */
-    int specular;         /* the scene has mirrors or glass: eye paths pass through them */
-    int caustics;         /* caustic queries are delivered */
+    int packet_width;      /* lanes: 1, 4, 8 or 16 */
+    uint32_t channels;     /* mask of the queries channels written (direction, material only when needed) */
+    uint32_t record_size;  /* bytes per query record */
+    int specular;          /* the scene has mirrors or glass: eye paths pass through them */
+    int caustics;          /* caustic queries are delivered */
+    unsigned glossy_depth; /* glossy paths are followed up to this many bounces (0: the scene has none, or off) */
 } pm_eye_info_t;
 
 /* Counters of one pm_eye_trace. */
@@ -76,6 +90,7 @@ typedef struct {
     uint64_t caustic_queries;  /* records delivered to sink->caustic */
     uint64_t specular_rays;    /* single rays of the chains through mirrors and glass */
     uint64_t specular_cut;     /* chains cut at PM_EYE_MAX_SPECULAR bounces */
+    uint64_t glossy_rays;      /* single rays of the glossy paths */
     double trace_s;            /* wall s of the row loop, without the time spent in the sink */
     double sink_s;             /* wall s spent in the sink (the caller's output cost) */
     double trace_cpu_s;        /* CPU s the threads spent tracing rows: immune to other processes' load */

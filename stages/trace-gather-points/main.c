@@ -54,6 +54,7 @@ typedef struct {
     const char *plan;     /* --plan FILE, NULL for none */
     int64_t plan_primary; /* the pass's primary rays per pixel from the plan; 0: the options' */
     int single;           /* one document per output: the outputs are one set */
+    int64_t glossy_depth; /* glossy bounces a secondary path continues through; 0 gathers on them */
 } tgp_options_t;
 
 /* Where the eye tracer's results go: the queries into the spool, the direct rows into one
@@ -178,7 +179,8 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
         .threads = st->threads_used,
         .progress = pm_stage_progress(st),
         .caustics = o->caustic != NULL,
-        .direct_only = o->no_queries};
+        .direct_only = o->no_queries,
+        .glossy_depth = (unsigned)o->glossy_depth};
     /* The scene's own camera is within the image limits (scene.c): only --width or --height
      * can take it beyond them, a usage error. */
     if (pm_image_size_check(o->width ? (uint64_t)o->width : s->camera.width,
@@ -288,7 +290,12 @@ int main(int argc, char **argv)
 {
     pm_stage_t st;
     pm_stage_defaults(&st);
-    tgp_options_t o = {.primary = 1, .pixel = PM_PIXEL_BOX, .light_samples = 4, .isa = "auto", .spool_mb = 256};
+    tgp_options_t o = {.primary = 1,
+                       .pixel = PM_PIXEL_BOX,
+                       .light_samples = 4,
+                       .isa = "auto",
+                       .spool_mb = 256,
+                       .glossy_depth = PM_EYE_GLOSSY_DEPTH};
     char **argv0 = argv;
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
@@ -336,6 +343,10 @@ int main(int argc, char **argv)
          "progressive passes as a driver asks for them: a line 'PASS [PRIMARY]' per pass (- is stdin), a document "
          "each to each output, until the plan ends",
          1, 0, NULL},
+        {"glossy-depth", 0, PM_OPT_INT, &o.glossy_depth, "N",
+         "glossy bounces (a Phong Ns of 50 or more) a secondary ray continues through before it gathers, the "
+         "light found on the way into the direct buffer; 0 gathers on the glossy surface",
+         0, 64, NULL},
         {0},
     };
     static const char about[] =

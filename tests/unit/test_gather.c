@@ -13,6 +13,7 @@
 #include "photonmap/kdtree.h"
 #include "photonmap/knn_gather.h"
 #include "photonmap/reverse_gather.h"
+#include "physics/bsdf.h"
 #include "unit.h"
 
 typedef struct {
@@ -389,8 +390,140 @@ static void test_gather_millions_of_photons_in_one_query(void **state)
     free(pos), free(pow), free(nor);
 }
 
+/* A unit direction uniform on the sphere. */
+static void random_unit(pm_rng_t *r, float d[3])
+{
+    for (;;) {
+        float v[3] = {2.0f * pm_rng_float(r) - 1.0f, 2.0f * pm_rng_float(r) - 1.0f, 2.0f * pm_rng_float(r) - 1.0f};
+        float l2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+        if (l2 > 1e-4f && l2 <= 1.0f) {
+            float l = sqrtf(l2);
+            for (int k = 0; k < 3; k++)
+                d[k] = v[k] / l;
+            return;
+        }
+    }
+}
+
+/* A random material of kind `kind`, with parameters over their whole ranges. */
+static pm_material_t random_material(pm_rng_t *r, int kind)
+{
+    pm_material_t m = {.kind = kind, .ior = 1.0f, .tf = {1, 1, 1}};
+    float u = pm_rng_float(r);
+    for (int k = 0; k < 3; k++) {
+        float a = pm_rng_float(r), b = pm_rng_float(r);
+        m.kd[k] = kind == PM_MAT_STANDARD ? a * (1.0f - u) : kind == PM_MAT_PLASTIC ? a : 0.0f;
+        m.ks[k] = kind == PM_MAT_STANDARD ? b * u : 0.0f;
+        m.eta[k] = 0.1f + 3.0f * a; /* the metals' range: silver 0.15, iron 2.9 */
+        m.k[k] = 8.0f * b;
+        m.f0[k] = pm_rng_float(r);
+        m.tf[k] = pm_rng_float(r);
+    }
+    m.ns = kind == PM_MAT_STANDARD ? powf(10.0f, 4.0f * pm_rng_float(r)) - 1.0f : 0.0f; /* 0 to 10^4 */
+    /* GGX widths from the smooth limit to 1, the stiff ends included */
+    float t = pm_rng_float(r);
+    m.alpha = t < 0.1f ? PM_MAT_ALPHA_DELTA : t > 0.9f ? 1.0f : powf(10.0f, -3.0f * pm_rng_float(r));
+    m.ior = kind == PM_MAT_CONDUCTOR ? 1.0f : 1.0f + 2.0f * pm_rng_float(r); /* 1 to 3 */
+    if (kind == PM_MAT_CONDUCTOR && pm_rng_float(r) < 0.5f)
+        m.eta[0] = m.eta[1] = m.eta[2] = 0.0f; /* Schlick's of f0 */
+    snprintf(m.name, sizeof m.name, "kind%d", kind);
+    return m;
+}
+
+/* The SIMD evaluation of f in the packet kernels mirrors physics/bsdf.h's pm_bsdf_eval for every
+ * kind whose surfaces gather: each ISA gathers one photon of power 1 and random direction wi
+ * into queries of random kinds (standard, conductor by complex index and by Schlick's f0,
+ * plastic, and rough glass, which the module evaluates itself) and random wo at its position;
+ * a Lambertian query there gives the kernel's factor, so each query's sum over it is the f the
+ * kernel computed. Tolerance: 2e-4 of f plus 1e-6 of the largest f of the trial (the float
+ * power of a Phong lobe of exponent 10^4 and the float conductor Fresnel against the module's
+ * double; measured worst 3e-5 relative). */
+static void test_gather_simd_f_matches_the_bsdf_module(void **state)
+{
+    (void)state;
+    enum { NQ = 67, TRIALS = 300 };
+    const int kinds[] = {PM_MAT_STANDARD, PM_MAT_CONDUCTOR, PM_MAT_PLASTIC, PM_MAT_ROUGH_GLASS};
+    pm_rng_t r;
+    pm_rng_init(&r, 77, 0);
+    float qpos[NQ * 3] = {0}, qnor[NQ * 3], qw[NQ * 3], qdir[NQ * 3];
+    uint16_t qmat[NQ];
+    pm_material_t mats[NQ];
+    double got[NQ * 3];
+    double worst = 0.0;
+    uint64_t checked = 0, nonzero = 0;
+    for (int trial = 0; trial < TRIALS; trial++) {
+        float n[3], wi[3], pos[3] = {0, 0, 0}, pw[3] = {1, 1, 1};
+        random_unit(&r, n);
+        random_unit(&r, wi);
+        for (int i = 0; i < NQ; i++) {
+            memcpy(&qnor[3 * i], n, 12);
+            qw[3 * i] = qw[3 * i + 1] = qw[3 * i + 2] = 1.0f;
+            random_unit(&r, &qdir[3 * i]);
+            /* mostly on wi's side, where reflection happens */
+            float s = (qdir[3 * i] * n[0] + qdir[3 * i + 1] * n[1] + qdir[3 * i + 2] * n[2]) *
+                      (wi[0] * n[0] + wi[1] * n[1] + wi[2] * n[2]);
+            if (s < 0.0f && pm_rng_float(&r) < 0.7f)
+                for (int k = 0; k < 3; k++)
+                    qdir[3 * i + k] = -qdir[3 * i + k];
+            mats[i] = i == 0 ? lambert : random_material(&r, kinds[(i + trial) % 4]);
+            qmat[i] = (uint16_t)i;
+        }
+        /* the standard kind reads n as given: its queries' normal faces wo, as trace-gather-points writes it */
+        for (int i = 1; i < NQ; i++)
+            if (mats[i].kind == PM_MAT_STANDARD &&
+                qdir[3 * i] * n[0] + qdir[3 * i + 1] * n[1] + qdir[3 * i + 2] * n[2] < 0.0f)
+                for (int k = 0; k < 3; k++)
+                    qnor[3 * i + k] = -n[k];
+        test_map_t t;
+        map_make(&t, 1, pos, pw, n, wi, NULL);
+        pm_gather_queries_t q = {.n = NQ,
+                                 .pos = qpos,
+                                 .normal = qnor,
+                                 .weight = qw,
+                                 .material = qmat,
+                                 .dir = qdir,
+                                 .materials = mats,
+                                 .nmaterials = NQ};
+        pm_gather_params_t p = {.radius = 1.0, .kernel = PM_KERNEL_UNIFORM, .normal_cos = -2.0f};
+        for (int isa = 0; isa < PM_ISA_COUNT; isa++) {
+            if (!pm_cpu_supports((pm_isa_t)isa))
+                continue;
+            p.isa = (pm_isa_t)isa;
+            pm_gather_stats_t st;
+            assert_int_equal(pm_gather_run(&t.map, &q, 0, NQ, &p, got, &st), PM_OK);
+            double kern = got[0]; /* the Lambertian query: the kernel's factor times power 1 */
+            assert_true(kern > 0.0);
+            double fhi = 0.0, want[NQ][3];
+            for (int i = 1; i < NQ; i++) {
+                float f[3];
+                pm_bsdf_eval(&mats[i], &qnor[3 * i], wi, &qdir[3 * i], PM_BSDF_RADIANCE, f);
+                for (int k = 0; k < 3; k++)
+                    want[i][k] = f[k], fhi = fhi > f[k] ? fhi : f[k];
+            }
+            for (int i = 1; i < NQ; i++)
+                for (int k = 0; k < 3; k++) {
+                    double g = got[3 * i + k] / kern, w = want[i][k];
+                    assert_true(isfinite(g));
+                    double err = fabs(g - w);
+                    if (!(err <= 2e-4 * fabs(w) + 1e-6 * fhi))
+                        fail_msg("%s: kind %d (alpha %g, ns %g, ior %g) f %.9g, module %.9g", pm_isa_name(p.isa),
+                                 mats[i].kind, mats[i].alpha, mats[i].ns, mats[i].ior, g, w);
+                    if (w > 1e-3 * fhi)
+                        worst = fmax(worst, err / w);
+                    checked++;
+                    nonzero += w > 0.0;
+                }
+        }
+        map_free(&t);
+    }
+    print_message("# simd f against the module: %llu values (%llu nonzero), worst relative error %.2g\n",
+                  (unsigned long long)checked, (unsigned long long)nonzero, worst);
+    assert_true(nonzero > checked / 4); /* the directions did reach the lobes */
+}
+
 static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_gather_matches_brute_force_for_every_isa),
+    cmocka_unit_test(test_gather_simd_f_matches_the_bsdf_module),
     cmocka_unit_test(test_gather_glossy_matches_brute_force),
     cmocka_unit_test(test_gather_uniform_density_gives_exact_irradiance),
     cmocka_unit_test(test_gather_edge_cases),

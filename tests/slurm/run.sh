@@ -33,8 +33,11 @@ same_image() { # same_image NAME DIR REFDIR: the images, the running image and p
 queue_empty() { [ -z "$(squeue -h -o %i 2>/dev/null)" ]; }
 
 # ---- the local references ----
-pipelines/render "$SCENE" "$TMP/local" "${PR[@]}" >"$TMP/local.log" 2>&1 || fail "local render" "$(tail -n 3 "$TMP/local.log")"
-pipelines/render "$SCENE" "$TMP/local7" "${PR[@]}" SEED=7 >"$TMP/local7.log" 2>&1 || fail "local render SEED=7" "$(tail -n 3 "$TMP/local7.log")"
+# The cluster's tasks write the pass files, so a local render that writes them too (KEEP=all) is
+# the one their files match byte for byte; the default resident render holds the same records
+# and pixels under other provenance (tests/stage/passes.sh compares the two).
+pipelines/render "$SCENE" "$TMP/local" "${PR[@]}" KEEP=all >"$TMP/local.log" 2>&1 || fail "local render" "$(tail -n 3 "$TMP/local.log")"
+pipelines/render "$SCENE" "$TMP/local7" "${PR[@]}" SEED=7 KEEP=all >"$TMP/local7.log" 2>&1 || fail "local render SEED=7" "$(tail -n 3 "$TMP/local7.log")"
 
 # ---- a render through the cluster, with one task killed while it runs ----
 pipelines/slurm "$SCENE" "$TMP/a" "${PR[@]}" "${SL[@]}" >"$TMP/a.log" 2>&1 &
@@ -73,7 +76,7 @@ same_image "a rerun leaves the same image" "$TMP/a" "$TMP/local"
 PR8=("${PR[@]/PASSES=6/PASSES=8}")
 pipelines/slurm "$SCENE" "$TMP/a" "${PR8[@]}" "${SL[@]}" TASK_PASSES=2 >"$TMP/a3.log" 2>&1
 rc=$?
-pipelines/render "$SCENE" "$TMP/local" "${PR8[@]}" >"$TMP/local8.log" 2>&1
+pipelines/render "$SCENE" "$TMP/local" "${PR8[@]}" KEEP=all >"$TMP/local8.log" 2>&1
 if [ $rc = 0 ] && grep -q '8 passes, 6 made before; submitted 1 task' "$TMP/a3.log"; then
     pass "PASSES=8 after 6 submits one task of passes 7 and 8"
 else
@@ -91,7 +94,7 @@ wait $pb
 rb=$?
 wait $pc
 rc=$?
-pipelines/render "$SCENE" "$TMP/local7" "${PR[@]}" SEED=7 >"$TMP/local7b.log" 2>&1
+pipelines/render "$SCENE" "$TMP/local7" "${PR[@]}" SEED=7 KEEP=all >"$TMP/local7b.log" 2>&1
 [ $rb = 0 ] && [ $rc = 0 ] && pass "two renders at once, two OUTDIRs" ||
     fail "two renders" "exits $rb $rc: $(tail -n 2 "$TMP/b.log" "$TMP/c.log")"
 same_image "two at once: the first's image (CPUS=2)" "$TMP/b" "$TMP/local"
@@ -119,7 +122,7 @@ exec "$BIN/simd-gather" "\$@"
 EOF
 chmod +x "$TMP/flaky-gather"
 rm -f "$TMP/fail-3"
-pipelines/render "$SCENE" "$TMP/localf" "${PR[@]}" GATHER="$TMP/flaky-gather" >"$TMP/localf.log" 2>&1 ||
+pipelines/render "$SCENE" "$TMP/localf" "${PR[@]}" GATHER="$TMP/flaky-gather" KEEP=all >"$TMP/localf.log" 2>&1 ||
     fail "local render with the flaky gather" "$(tail -n 2 "$TMP/localf.log")"
 echo once >"$TMP/fail-3"
 pipelines/slurm "$SCENE" "$TMP/f" "${PR[@]}" "${SL[@]}" GATHER="$TMP/flaky-gather" >"$TMP/f.log" 2>&1
@@ -188,7 +191,7 @@ all_same() { # all_same NAME DIR REFDIR: every file of every pass, and the image
     done
     if [ -z "$bad" ] && [ $n -gt 4 ]; then pass "$1 ($n files)"; else fail "$1" "differ:${bad:- none, but $n files}"; fi
 }
-pipelines/render "$SCENE" "$TMP/locals" "${PS[@]}" THREADS=1 >"$TMP/locals.log" 2>&1 || fail "local render SHARDS=3" "$(tail -n 3 "$TMP/locals.log")"
+pipelines/render "$SCENE" "$TMP/locals" "${PS[@]}" THREADS=1 KEEP=all >"$TMP/locals.log" 2>&1 || fail "local render SHARDS=3" "$(tail -n 3 "$TMP/locals.log")"
 pipelines/slurm "$SCENE" "$TMP/s" "${PS[@]}" "${SL[@]}" CPUS=2 THREADS=2 >"$TMP/s.log" 2>&1 &
 pid=$!
 killed=""
@@ -253,7 +256,7 @@ all_same "CPUS=1 and CPUS=2 THREADS=2 on the cluster: the same bytes" "$TMP/s1" 
 # ---- TARGET_ERROR and TIME: passes in waves ----
 PT=("${PR[@]:0:5}") # PR without PASSES
 [ "${PT[*]}" = "WIDTH=48 HEIGHT=48 PHOTONS=20000 PRIMARY=4 SPP=4" ] || fail "test set-up" "PT is '${PT[*]}'"
-pipelines/render "$SCENE" "$TMP/locale" "${PT[@]}" PASSES=12 TARGET_ERROR=0.2 >"$TMP/locale.log" 2>&1
+pipelines/render "$SCENE" "$TMP/locale" "${PT[@]}" PASSES=12 TARGET_ERROR=0.2 KEEP=all >"$TMP/locale.log" 2>&1
 pipelines/slurm "$SCENE" "$TMP/e" "${PT[@]}" PASSES=12 "${SL[@]}" TARGET_ERROR=0.2 >"$TMP/e.log" 2>&1
 rc=$?
 n=$(wc -l <"$TMP/locale/passes.txt")
@@ -270,7 +273,7 @@ rc=$?
 t1=$(date +%s)
 n=$(wc -l 2>/dev/null <"$TMP/t/passes.txt")
 last=$(grep -o 'stopped submitting (TIME=6); composite of passes 1 to [0-9]*' "$TMP/t.log")
-pipelines/render "$SCENE" "$TMP/localt" "${PT[@]}" PASSES="${n:-2}" >/dev/null 2>&1
+pipelines/render "$SCENE" "$TMP/localt" "${PT[@]}" PASSES="${n:-2}" KEEP=all >/dev/null 2>&1
 # the passes' part: from the start to the line that says submitting stopped, at most the budget
 # and one wave's overrun (slurm prints the time on each line)
 spent=$(sed -n 's/^slurm: \([0-9.]*\) s: stopped submitting.*/\1/p' "$TMP/t.log")
@@ -285,7 +288,7 @@ same_image "TIME=6: the image is pipelines/render PASSES=$n's" "$TMP/t" "$TMP/lo
 # ---- KEEP=image: the image and stats.json alone, and the logs ----
 pipelines/slurm "$SCENE" "$TMP/k" "${PT[@]}" PASSES=3 "${SL[@]}" KEEP=image >"$TMP/k.log" 2>&1
 rc=$?
-pipelines/render "$SCENE" "$TMP/localk" "${PT[@]}" PASSES=3 >/dev/null 2>&1
+pipelines/render "$SCENE" "$TMP/localk" "${PT[@]}" PASSES=3 KEEP=all >/dev/null 2>&1
 left=$(cd "$TMP/k" && find . -mindepth 1 ! -path './.slurm/logs/*' | sort | tr '\n' ' ')
 if [ $rc = 0 ] && [ "$left" = "./.lock ./.slurm ./.slurm/lock ./.slurm/logs ./image.exr ./image.png ./stats.json " ] &&
     cmp -s "$TMP/k/image.exr" "$TMP/localk/image.exr"; then

@@ -42,3 +42,40 @@ expect_error() {
 expect_same() {
     if cmp -s "$2" "$3"; then pass "$1"; else fail "$1" "$2 and $3 differ"; fi
 }
+
+# lamp_box_obj FILE FLOOR: the closed 2 m box of glossy.sh and glossy-kinds.sh (materials from
+# box.mtl: the floor's name FLOOR, walls 'wall', a 0.6 m square ceiling lamp 'lamp' facing down).
+lamp_box_obj() {
+    cat >"$1" <<OBJ
+mtllib box.mtl
+v -1 -1 -1
+v 1 -1 -1
+v 1 1 -1
+v -1 1 -1
+v -1 -1 1
+v 1 -1 1
+v 1 1 1
+v -1 1 1
+v -0.3 0.99 -0.3
+v 0.3 0.99 -0.3
+v 0.3 0.99 0.3
+v -0.3 0.99 0.3
+usemtl $2
+f 1 5 6
+f 1 6 2
+usemtl wall
+f 4 3 7
+f 4 7 8
+f 1 4 8
+f 1 8 5
+f 2 6 7
+f 2 7 3
+f 5 8 7
+f 5 7 6
+f 1 2 3
+f 1 3 4
+usemtl lamp
+f 9 10 11
+f 9 11 12
+OBJ
+}

@@ -10,38 +10,7 @@
 # conductor 0.09 -0.5%, plastic 0.04 -0.5%, rough glass 0.25 -0.9%.
 G=$TMP/kinds
 mkdir -p "$G"
-cat >"$G/box.obj" <<'OBJ'
-mtllib box.mtl
-v -1 -1 -1
-v 1 -1 -1
-v 1 1 -1
-v -1 1 -1
-v -1 -1 1
-v 1 -1 1
-v 1 1 1
-v -1 1 1
-v -0.3 0.99 -0.3
-v 0.3 0.99 -0.3
-v 0.3 0.99 0.3
-v -0.3 0.99 0.3
-usemtl floor
-f 1 5 6
-f 1 6 2
-usemtl wall
-f 4 3 7
-f 4 7 8
-f 1 4 8
-f 1 8 5
-f 2 6 7
-f 2 7 3
-f 5 8 7
-f 5 7 6
-f 1 2 3
-f 1 3 4
-usemtl lamp
-f 9 10 11
-f 9 11 12
-OBJ
+lamp_box_obj "$G/box.obj" floor
 cat >"$G/scene.json" <<'JSON'
 {
   "pmtk_scene": 1,

@@ -7,38 +7,7 @@
 # which a gather on the floor estimates from the few photons inside its lobe (speckle).
 G=$TMP/glossy
 mkdir -p "$G"
-cat >"$G/box.obj" <<'OBJ'
-mtllib box.mtl
-v -1 -1 -1
-v 1 -1 -1
-v 1 1 -1
-v -1 1 -1
-v -1 -1 1
-v 1 -1 1
-v 1 1 1
-v -1 1 1
-v -0.3 0.99 -0.3
-v 0.3 0.99 -0.3
-v 0.3 0.99 0.3
-v -0.3 0.99 0.3
-usemtl gloss
-f 1 5 6
-f 1 6 2
-usemtl wall
-f 4 3 7
-f 4 7 8
-f 1 4 8
-f 1 8 5
-f 2 6 7
-f 2 7 3
-f 5 8 7
-f 5 7 6
-f 1 2 3
-f 1 3 4
-usemtl lamp
-f 9 10 11
-f 9 11 12
-OBJ
+lamp_box_obj "$G/box.obj" gloss
 printf 'newmtl wall\nKd 0.5 0.6 0.7\nnewmtl gloss\nKd 0 0 0\nKs 0.9 0.9 0.9\nNs 10000\nnewmtl lamp\nKd 0 0 0\nKe 20 20 20\n' >"$G/box.mtl"
 cat >"$G/scene.json" <<'JSON'
 {

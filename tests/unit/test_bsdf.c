@@ -380,27 +380,9 @@ static void chi2_one(const char *name, const pm_material_t *m, const float wo[3]
             total += expect[ic * PB + ip];
         }
     expect[NBIN - 1] = fmax(0.0, 1.0 - total);
-    double chi2 = 0.0, po = 0.0, pe = 0.0;
-    int bins = 0;
-    for (int i = 0; i < NBIN; i++) {
-        double e = expect[i] * n;
-        if (e < 1e-3 && obs[i] > 0)
-            fail_msg("%s: %.0f samples in bin %d, where the pdf expects %.2g", name, obs[i], i, e);
-        if (e >= 5.0) {
-            chi2 += (obs[i] - e) * (obs[i] - e) / e;
-            bins++;
-        } else {
-            po += obs[i], pe += e;
-        }
-    }
-    if (pe >= 5.0) {
-        chi2 += (po - pe) * (po - pe) / pe;
-        bins++;
-    }
-    int dof = bins - 1;
-    double bound = dof + 5.0 * sqrt(2.0 * dof);
-    if (!(chi2 <= bound))
-        fail_msg("%s: chi-square %.1f over %d degrees of freedom (bound %.1f)", name, chi2, dof, bound);
+    int dof;
+    double chi2 = unit_chi2_pooled(name, obs, expect, NBIN, n, &dof);
+    unit_check_chi2(name, chi2, dof);
 }
 
 static void test_bsdf_sampler_chi2(void **state)

@@ -201,33 +201,15 @@ static double histogram_chi2(const char *name, kind_t kind, const pm_material_t 
     expect[NB - 2] = below / 256.0 * 2.0 * M_PI / 512.0;
     total += expect[NB - 2];
     expect[NB - 1] = kind == KIND_MIXTURE ? fmax(0.0, 1.0 - total) : 0.0;
-    double chi2 = 0.0, pool_o = 0.0, pool_e = 0.0;
-    int bins = 0;
-    for (int i = 0; i < NB; i++) {
-        double e = expect[i] * n;
-        if (e < 1e-3 && obs[i] > 0)
-            fail_msg("%s: %.0f samples in bin %d, where the pdf expects %.2g", name, obs[i], i, e);
-        if (e >= 5.0) {
-            chi2 += (obs[i] - e) * (obs[i] - e) / e;
-            bins++;
-        } else {
-            pool_o += obs[i], pool_e += e;
-        }
-    }
-    if (pool_e >= 5.0) {
-        chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e;
-        bins++;
-    }
-    *dof = bins - 1;
-    return chi2;
+    return unit_chi2_pooled(name, obs, expect, NB, n, dof);
 }
 
-/* The bound on chi-square: mean plus 5 standard deviations of a chi-square of dof degrees. */
+/* unit_check_chi2 under the name "case, what". */
 static void check_chi2(const char *name, const char *what, double chi2, int dof)
 {
-    double bound = dof + 5.0 * sqrt(2.0 * dof);
-    if (!(chi2 <= bound))
-        fail_msg("%s, %s: chi-square %.1f over %d degrees of freedom (bound %.1f)", name, what, chi2, dof, bound);
+    char label[160];
+    snprintf(label, sizeof label, "%s, %s", name, what);
+    unit_check_chi2(label, chi2, dof);
 }
 
 /* (b) Each sampler against its pdf: the diffuse lobe binned about the normal in cos, the

@@ -23,6 +23,13 @@ void unit_register(const unit_group_t *group);
 
 /* A fresh temporary directory for the test run (created once). */
 const char *unit_tmpdir(void);
+/* Chi-square of observed counts obs against probabilities prob (nbins bins, n samples): bins
+ * expecting fewer than 5 samples are pooled into one; fails at once on a sample in a bin expecting
+ * none (below 1e-3). Its degrees of freedom in *dof (unit_stats.c). */
+double unit_chi2_pooled(const char *name, const double *obs, const double *prob, int nbins, double n, int *dof);
+/* Fails when chi2 exceeds the mean plus 5 standard deviations of a chi-square of dof degrees. */
+void unit_check_chi2(const char *name, double chi2, int dof);
+
 /* Path of a file in the source tree (tests run from the repository root). */
 #define UNIT_GROUP(var, label, arr)                                                                                    \
     static const unit_group_t var = {label, arr, sizeof arr / sizeof arr[0]};                                          \

@@ -56,6 +56,18 @@ static void test_exr_float_roundtrip(void **state)
     roundtrip(PM_EXR_FLOAT, PM_EXR_PIZ, 1, 1);
 }
 
+/* One pixel is a 12-byte chunk (6 in half) that zip cannot shrink: the writer must store it
+ * uncompressed, not the deflated bytes under the raw size, which reads back as garbage. */
+static void test_exr_one_pixel(void **state)
+{
+    for (int t = 0; t < 2; t++)
+        for (int c = 0; c < 3; c++) {
+            roundtrip((pm_exr_pixel_t)t, (pm_exr_compression_t)c, 1, 1);
+            roundtrip((pm_exr_pixel_t)t, (pm_exr_compression_t)c, 2, 1);
+            roundtrip((pm_exr_pixel_t)t, (pm_exr_compression_t)c, 1, 2);
+        }
+}
+
 static void test_exr_half_roundtrip(void **state)
 {
     roundtrip(PM_EXR_HALF, PM_EXR_ZIP, 17, 33);
@@ -92,6 +104,7 @@ static void test_exr_refusals(void **state)
 
 static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_exr_float_roundtrip),
+    cmocka_unit_test(test_exr_one_pixel),
     cmocka_unit_test(test_exr_half_roundtrip),
     cmocka_unit_test(test_exr_refusals),
 };

@@ -30,6 +30,9 @@ WERROR ?= 1
 # Debian packages this project builds, tests and runs with (README says why each).
 DEBS := gcc make pkg-config libembree-dev libopenexr-dev libassimp-dev libjansson-dev \
         libpng-dev libjpeg62-turbo-dev libstb-dev libxxhash-dev libcmocka-dev openexr jq gnuplot-nox clang-format
+# The Python package python/pmtk (docs/python.md, tests/stage/python.sh): numpy and xxhash read
+# the files; matplotlib draws docs/python.md's error-against-time plot.
+DEBS += python3 python3-numpy python3-xxhash python3-matplotlib
 
 ifeq ($(V),1)
 Q :=

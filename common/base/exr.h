@@ -1,7 +1,8 @@
 /* exr.h: OpenEXR images through the OpenEXR 3 C API (OpenEXRCore), for composite's HDR
  * output, the tests that read it back, and reference images from other renderers.
  *
- * One scanline part, channels R G B (stored B G R, the order OpenEXR sorts them in), ZIP
+ * One scanline part, channels R G B (stored B G R, the order OpenEXR sorts them in) and, with
+ * pm_exr_write_channels, named layers beside them (albedo.R, normal.X, Z), ZIP
  * compression by default, float or half. String attributes carry provenance. Writes go
  * through a temporary file renamed into place (common/base/atomic.h); OpenEXR needs a seekable
  * file, so there is no stdout variant, and an EXR for a FIFO or device is written to a
@@ -31,6 +32,25 @@ typedef struct {
  * the caller checks (composite names the pixel); a value outside fails with PM_ERR_INTERNAL. */
 pm_result_t pm_exr_write_rgb(const char *path, uint32_t w, uint32_t h, const float *rgb, pm_exr_pixel_t type,
                              pm_exr_compression_t comp, const pm_exr_attr_t *attrs, size_t nattrs);
+
+/* One channel of an image to write: its name ("R", "albedo.R", "Z"), the value of pixel i at
+ * data[stride * i], and linear 1 for data that is not a colour (normals, depth: the hint lossy
+ * codecs read). */
+typedef struct {
+    const char *name;
+    const float *data;
+    size_t stride;
+    int linear;
+} pm_exr_channel_t;
+
+#define PM_EXR_MAX_CHANNELS 16
+
+/* Writes w x h pixels of nch named channels (1 to PM_EXR_MAX_CHANNELS, names distinct) to
+ * path, atomically, as pm_exr_write_rgb does: layers such as albedo.R albedo.G albedo.B beside
+ * R G B (OpenEXR stores them sorted by name). The same contract on values. */
+pm_result_t pm_exr_write_channels(const char *path, uint32_t w, uint32_t h, const pm_exr_channel_t *ch, size_t nch,
+                                  pm_exr_pixel_t type, pm_exr_compression_t comp, const pm_exr_attr_t *attrs,
+                                  size_t nattrs);
 
 /* Reads the first part of an OpenEXR file, as composite, pbrt-v4 and Mitsuba 3 write it,
  * into a malloc'd interleaved array *rgb_out of *w_out x *h_out pixels (the data window, rows

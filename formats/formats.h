@@ -1,9 +1,10 @@
-/* formats.h: the four file formats that flow between pmtk stages (docs/formats.md).
+/* formats.h: the file formats that flow between pmtk stages (docs/formats.md).
  *
  *   photons    trace-photons  -> build-photonmap       one record per stored photon
  *   photonmap  build-photonmap -> simd-gather          one record per KD-tree node
  *   queries    trace-gather-points -> hilbert-sort -> simd-gather   one per gather point
  *   radiance   trace-gather-points, simd-gather -> composite        one per pixel
+ *   aov        trace-gather-points --aov -> composite --aov-buffer  one per pixel
  *
  * Channel indices below are bit positions in CHANNEL_MASK and indices of pm_table_t.col. */
 #ifndef PM_FORMATS_H
@@ -100,6 +101,14 @@ enum {
     PM_RADIANCE_VARIANCE = 1 /* f64 x3, (W/(m^2 sr))^2: variance of the estimate (optional; trace-reference) */
 };
 extern const pm_schema_t pm_radiance_schema;
+
+/* ---- aov (per-pixel surface buffers for denoisers) ---- */
+enum {
+    PM_AOV_ALBEDO = 0, /* f32 x3: directional albedo at the first surface */
+    PM_AOV_NORMAL = 1, /* f32 x3: shading normal there, facing the eye (a mean over the pixel's rays) */
+    PM_AOV_DEPTH = 2   /* f32, m: distance from the eye */
+};
+extern const pm_schema_t pm_aov_schema;
 
 /* The largest image pmtk makes or reads: at most PM_IMAGE_SIDE_MAX pixels a side and
  * PM_IMAGE_PIXELS_MAX in all (8192 x 8192; its radiance buffer is 1.5 GiB of f64 RGB), so

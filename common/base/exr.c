@@ -255,6 +255,44 @@ done:
     return r;
 }
 
+pm_result_t pm_exr_aov_parse(const char *option, const char *list, unsigned *mask_out)
+{
+    static const char *const names[] = {"albedo", "normal", "depth", "variance"};
+    unsigned mask = 0;
+    const char *p = list;
+    for (;;) {
+        size_t len = strcspn(p, ",");
+        unsigned bit = 0;
+        for (unsigned k = 0; k < 4; k++)
+            if (len == strlen(names[k]) && !strncmp(p, names[k], len))
+                bit = 1u << k;
+        if (!bit || (mask & bit))
+            return pm_error_set(PM_ERR_USAGE, "%s: %s layer '%.*s' in '%s' (each of %s at most once)", option,
+                                bit ? "repeated" : "unknown", (int)len, p, list, PM_EXR_AOV_NAMES);
+        mask |= bit;
+        if (!p[len])
+            break;
+        p += len + 1;
+    }
+    *mask_out = mask;
+    return PM_OK;
+}
+
+size_t pm_exr_aov_channels(unsigned mask, const float *surf, const float *var, pm_exr_channel_t *ch)
+{
+    static const char *const names[] = {"albedo.R", "albedo.G", "albedo.B", "normal.X", "normal.Y", "normal.Z", "Z"};
+    size_t n = 0;
+    for (int k = 0; k < 7; k++) {
+        unsigned bit = k < 3 ? PM_EXR_AOV_ALBEDO : k < 6 ? PM_EXR_AOV_NORMAL : PM_EXR_AOV_DEPTH;
+        if (mask & bit)
+            ch[n++] = (pm_exr_channel_t){names[k], surf + k, 7, k >= 3};
+    }
+    if (mask & PM_EXR_AOV_VARIANCE)
+        for (int k = 0; k < 3; k++)
+            ch[n++] = (pm_exr_channel_t){(const char *[]){"variance.R", "variance.G", "variance.B"}[k], var + k, 3, 1};
+    return n;
+}
+
 /* The channels an image is read from: R G B, or Y alone (grey, copied to all three). */
 typedef struct {
     const char *name[3]; /* the channel feeding R, G, B (the context's strings) */

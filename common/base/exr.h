@@ -52,6 +52,21 @@ pm_result_t pm_exr_write_channels(const char *path, uint32_t w, uint32_t h, cons
                                   pm_exr_pixel_t type, pm_exr_compression_t comp, const pm_exr_attr_t *attrs,
                                   size_t nattrs);
 
+/* The layers a denoiser reads beside the beauty (Open Image Denoise, Blender): albedo.R/G/B,
+ * normal.X/Y/Z, depth as Z, variance.R/G/B. A mask of them: */
+enum { PM_EXR_AOV_ALBEDO = 1, PM_EXR_AOV_NORMAL = 2, PM_EXR_AOV_DEPTH = 4, PM_EXR_AOV_VARIANCE = 8 };
+#define PM_EXR_AOV_SURFACE (PM_EXR_AOV_ALBEDO | PM_EXR_AOV_NORMAL | PM_EXR_AOV_DEPTH)
+#define PM_EXR_AOV_NAMES "albedo,normal,depth,variance"
+
+/* The mask of a comma-separated list of layer names (albedo, normal, depth, variance, each at
+ * most once); PM_ERR_USAGE naming the word otherwise. option names the option in the message. */
+pm_result_t pm_exr_aov_parse(const char *option, const char *list, unsigned *mask_out);
+
+/* Appends to ch the channels of the layers in mask: albedo, normal and depth from surf (7 floats
+ * a pixel: albedo RGB, normal XYZ, depth), variance from var (3 floats a pixel); returns how
+ * many (at most 10). The caller has both arrays for the layers it asks for. */
+size_t pm_exr_aov_channels(unsigned mask, const float *surf, const float *var, pm_exr_channel_t *ch);
+
 /* Reads the first part of an OpenEXR file, as composite, pbrt-v4 and Mitsuba 3 write it,
  * into a malloc'd interleaved array *rgb_out of *w_out x *h_out pixels (the data window, rows
  * from the top whatever the file's line order). Read: scanline or tiled storage (of a

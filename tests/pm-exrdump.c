@@ -31,35 +31,35 @@ static int dump_channels(const char *path)
         return 1;
     }
     int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1, n = cl->num_channels;
-    float *v = calloc((size_t)w * h * n, sizeof *v), *plane = malloc((size_t)w * lines * 4);
+    float *v = calloc((size_t)w * h * n, sizeof *v), *plane = malloc((size_t)w * lines * n * 4);
     printf("channels");
     for (int c = 0; c < n; c++)
         printf(" %s", cl->entries[c].name.str);
     printf("\n");
     exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
     int live = 0, bad = !v || !plane;
-    for (int y = 0; y < h && !bad; y += lines)
-        for (int c = 0; c < n && !bad; c++) {
-            exr_chunk_info_t ci;
-            bad = exr_read_scanline_chunk_info(ctx, 0, dw.min.y + y, &ci) != EXR_ERR_SUCCESS;
-            if (!bad)
-                bad = (live ? exr_decoding_update(ctx, 0, &ci, &dec) : exr_decoding_initialize(ctx, 0, &ci, &dec)) !=
-                      EXR_ERR_SUCCESS;
-            if (bad)
-                break;
-            live = 1;
-            for (int k = 0; k < dec.channel_count; k++) {
-                exr_coding_channel_info_t *ch = &dec.channels[k];
-                ch->decode_to_ptr = strcmp(ch->channel_name, cl->entries[c].name.str) ? NULL : (uint8_t *)plane;
-                ch->user_bytes_per_element = 4;
-                ch->user_data_type = EXR_PIXEL_FLOAT;
-                ch->user_pixel_stride = 4;
-                ch->user_line_stride = 4 * ci.width;
-            }
-            bad = exr_decoding_choose_default_routines(ctx, 0, &dec) || exr_decoding_run(ctx, 0, &dec);
-            for (int i = 0; !bad && i < ci.width * ci.height; i++)
-                v[((size_t)(ci.start_y - dw.min.y) * w + i) * n + c] = plane[i];
+    for (int y = 0; y < h && !bad; y += lines) {
+        exr_chunk_info_t ci;
+        bad = exr_read_scanline_chunk_info(ctx, 0, dw.min.y + y, &ci) != EXR_ERR_SUCCESS;
+        if (!bad)
+            bad = (live ? exr_decoding_update(ctx, 0, &ci, &dec) : exr_decoding_initialize(ctx, 0, &ci, &dec)) !=
+                  EXR_ERR_SUCCESS;
+        if (bad)
+            break;
+        live = 1;
+        for (int k = 0; k < dec.channel_count; k++) { /* the decoder's channels are the list's, in order */
+            exr_coding_channel_info_t *ch = &dec.channels[k];
+            ch->decode_to_ptr = (uint8_t *)(plane + (size_t)k * w * lines);
+            ch->user_bytes_per_element = 4;
+            ch->user_data_type = EXR_PIXEL_FLOAT;
+            ch->user_pixel_stride = 4;
+            ch->user_line_stride = 4 * ci.width;
         }
+        bad = exr_decoding_choose_default_routines(ctx, 0, &dec) || exr_decoding_run(ctx, 0, &dec);
+        for (int c = 0; !bad && c < n; c++)
+            for (int i = 0; i < ci.width * ci.height; i++)
+                v[((size_t)(ci.start_y - dw.min.y) * w + i) * n + c] = plane[(size_t)c * w * lines + i];
+    }
     if (live)
         exr_decoding_destroy(ctx, &dec);
     exr_finish(&ctx);

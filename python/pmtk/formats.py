@@ -56,7 +56,13 @@ SCHEMAS = {
         ("rgb", "<f8", 3, True, NONNEG),
         ("variance", "<f8", 3, False, NONNEG),
     ]),
+    "aov": ("AOV buffer", [
+        ("albedo", "<f4", 3, True, NONNEG),
+        ("normal", "<f4", 3, True, FINITE),
+        ("depth", "<f4", 1, True, NONNEG),
+    ]),
 }
+OLDEST = {"aov": 2}  # the oldest major version of a format, where it is not OLDEST_MAJOR
 MAJOR, OLDEST_MAJOR = 2, 1
 CONTAINER_KEYS = ("FORMAT", "VERSION", "BYTE_ORDER", "COUNT", "RECORD_SIZE", "CHANNELS", "BOUNDS")
 REPEATED = ("COMMAND", "INPUT")
@@ -172,9 +178,9 @@ def _layout(header, name):
     m = _VERSION.match(header["VERSION"])
     if not m:
         _fail(title, name, "malformed VERSION '%s'" % header["VERSION"])
-    major = int(m.group(1))
-    if major > MAJOR or major < OLDEST_MAJOR:
-        _fail(title, name, "version %s not supported (this reader reads %d.x to %d.x)" % (header["VERSION"], OLDEST_MAJOR, MAJOR))
+    major, oldest = int(m.group(1)), OLDEST.get(fmt, OLDEST_MAJOR)
+    if major > MAJOR or major < oldest:
+        _fail(title, name, "version %s not supported (this reader reads %d.x to %d.x)" % (header["VERSION"], oldest, MAJOR))
     if header["BYTE_ORDER"] != "little-endian":
         _fail(title, name, "BYTE_ORDER '%s' is not little-endian" % header["BYTE_ORDER"])
     nums = {}
@@ -268,9 +274,9 @@ def check_records(fmt, header, records, name="records"):
             i = int(np.argmax(bad))
             _bad(title, name, "record %d channel %s is %s, not %s" % (i, ch, v[i].tolist(), {
                 UNIT: "a unit vector", FINITE: "finite", NONNEG: "finite and >= 0", POSITIVE: "finite and > 0"}[check]))
-    if fmt in ("queries", "radiance"):
+    if fmt in ("queries", "radiance", "aov"):
         w, h = _image_size(header, title, name)
-        if fmt == "radiance" and len(records) != w * h:
+        if fmt != "queries" and len(records) != w * h:
             _fail(title, name, "COUNT %d is not width x height = %d" % (len(records), w * h))
         if fmt == "queries":
             if len(records) and int(records["pixel"].max()) >= w * h:

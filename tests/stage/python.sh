@@ -24,6 +24,16 @@ for f in $G/photons-*.pm $G/photonmap-*.pm $G/queries-*.pm $G/radiance-*.pm $G/v
     fi
 done
 
+# an aov file (trace-gather-points --aov) too
+"$BIN/trace-gather-points" -q tests/scenes/closed-box/scene.json -o "$TMP/aq.pm" --aov "$TMP/aov.pm" 2>"$TMP/err"
+"$PY" -c '
+import sys, numpy as np, pmtk
+a = pmtk.read(sys.argv[1])
+assert a.format == "aov" and a.records["albedo"].shape == (64, 3) and np.allclose(a.records["albedo"], [0.5, 0.6, 0.7])
+pmtk.write(sys.argv[2], a)' "$TMP/aov.pm" "$TMP/aov-rt.pm" 2>>"$TMP/err" &&
+    expect_same "python: an aov file reads (albedo the box kd) and writes back the same bytes" "$TMP/aov.pm" "$TMP/aov-rt.pm" ||
+    fail "python: aov file" "$(head -c 300 "$TMP/err")"
+
 # ---- the records are the values pm-info prints ----
 for f in photons photonmap queries radiance; do
     "$PY" - "$G/$f-all.pm" >"$TMP/py.txt" 2>"$TMP/err" <<'EOF'

@@ -4,8 +4,6 @@
  * buffer's; header keys width and height. Each value is the mean over the pixel's primary rays
  * of what the ray's first surface (past mirrors and glass, the first other one) shows; a ray
  * that escapes adds zero, so a pixel of sky is all zero. */
-#include <inttypes.h>
-
 #include "formats/formats.h"
 
 static const pm_channel_t aov_channels[] = {
@@ -16,19 +14,6 @@ static const pm_channel_t aov_channels[] = {
     {"depth", PM_TYPE_F32, 1, PM_CH_REQUIRED | PM_CH_NONNEG, "m", "distance from the eye to the first surface"},
 };
 
-static pm_result_t validate_header(const pm_header_t *h, const char *path)
-{
-    uint32_t w, ht;
-    pm_result_t r = pm_header_get_image_size(h, path, &w, &ht);
-    if (r != PM_OK)
-        return r;
-    if (h->count != (uint64_t)w * ht)
-        return pm_error_set(PM_ERR_INPUT,
-                            "wrong count in AOV buffer '%s': COUNT=%" PRIu64 " for a %" PRIu32 "x%" PRIu32 " image",
-                            path, h->count, w, ht);
-    return PM_OK;
-}
-
 const pm_schema_t pm_aov_schema = {
     .name = "aov",
     .major = 2,
@@ -37,5 +22,5 @@ const pm_schema_t pm_aov_schema = {
     .title = "AOV buffer",
     .channels = aov_channels,
     .nchannels = sizeof aov_channels / sizeof aov_channels[0],
-    .validate_header = validate_header,
+    .validate_header = pm_header_check_pixels,
 };

@@ -123,5 +123,8 @@ pm_result_t pm_image_size_check(uint64_t w, uint64_t h);
 /* Width and height (header keys width, height) of a queries or radiance header, within the
  * limits above. */
 pm_result_t pm_header_get_image_size(const pm_header_t *h, const char *path, uint32_t *w_out, uint32_t *h_out);
+/* The same, and COUNT must be width x height (a per-pixel format: radiance, aov): "wrong count
+ * in TITLE 'PATH': COUNT=N for a WxH image". */
+pm_result_t pm_header_check_pixels(const pm_header_t *h, const char *path);
 
 #endif

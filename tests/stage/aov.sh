@@ -116,3 +116,9 @@ st=$?
 [ $st = 2 ] && grep -q "AOV=albedo is done for a one-pass render only" "$TMP/err" && [ ! -e "$TMP/r2/image.exr" ] &&
     pass "pm-render AOV= with PASSES is refused with exit 2, saying why" || fail "pm-render AOV= PASSES" "exit $st: $(head -c 300 "$TMP/err")"
 expect_exit "pm-render AOV=variance for one pass is usage, exit 2" 2 "$BIN/pm-render" "$BOX" "$TMP/r2" AOV=variance
+
+# ---- the reader: an aov file whose header disagrees with its records is named ----
+sed '0,/^width=8$/s//width=4/' "$TMP/aov.pm" >"$TMP/w4.pm"
+"$BUILD/tests/pm-testgen" reseal "$TMP/w4.pm" "$TMP/w4s.pm"
+expect_error "pm-info: an aov file of COUNT other than width x height" \
+    "wrong count in AOV buffer '.*w4s.pm': COUNT=64 for a 4x8 image" "$BIN/pm-info" "$TMP/w4s.pm"

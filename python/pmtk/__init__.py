@@ -23,7 +23,7 @@ import time
 from .formats import FormatError, PmFile, SCHEMAS, check_records, dtype, empty, read, read_stream, write
 
 __all__ = ["FormatError", "PmFile", "SCHEMAS", "RunError", "check_records", "dtype", "empty", "read", "read_stream",
-           "write", "bin_dir", "run", "render", "measure_error", "lib"]
+           "write", "bin_dir", "run", "render", "measure_error", "lib", "native"]
 __version__ = "0.1.0"
 
 _HERE = os.path.dirname(os.path.abspath(__file__))
@@ -103,8 +103,7 @@ _LIB = None
 def lib(path=None):
     """The C library libpmtk.so through ctypes, or None when it is not installed or built:
     $PMTK_LIB, then the tree's build (build/lib), then the system's (ldconfig). The API is
-    include/pmtk.h's; this module declares no prototypes it cannot check, so a caller sets
-    argtypes for the functions it uses (docs/python.md)."""
+    include/pmtk.h's; native() wraps it for numpy arrays (pmtk/native.py)."""
     global _LIB
     if _LIB is not None and path is None:
         return _LIB
@@ -126,3 +125,14 @@ def lib(path=None):
             _LIB = handle
         return handle
     return None
+
+
+def native(threads=0, path=None):
+    """A pmtk.native.Native over libpmtk (the packet gather, k-NN and Hilbert order on numpy
+    arrays), or None when the library is not there."""
+    handle = lib(path)
+    if handle is None:
+        return None
+    from .native import Native
+
+    return Native(handle, threads)

@@ -183,10 +183,36 @@ else
     fail "python: 1M-record photon map" "pm-testgen failed: $(head -c 200 "$TMP/err")"
 fi
 
-# ---- libpmtk through ctypes, where it is built ----
+# ---- libpmtk through ctypes, where it is built ($PMTK_LIB, the tree's build/, the system's) ----
+PMTK_LIB=$TMP/text.pm "$PY" -c 'import pmtk, sys; sys.exit(0 if pmtk.lib() is None or pmtk.lib() else 1)' 2>"$TMP/err" &&
+    pass "python: a PMTK_LIB that is not a library is passed over, not a crash" || fail "python: bad PMTK_LIB" "$(head -c 300 "$TMP/err")"
 if "$PY" -c 'import pmtk, sys; sys.exit(0 if pmtk.lib() else 1)' 2>/dev/null; then
-    "$PY" -c 'import pmtk; print(pmtk.lib())' >"$TMP/out" 2>"$TMP/err" &&
-        pass "python: libpmtk loads through ctypes ($(cat "$TMP/out"))" || fail "python: libpmtk" "$(head -c 300 "$TMP/err")"
+    "$PY" - "$G/build-photonmap-cornell.pm" >"$TMP/out" 2>"$TMP/err" <<'EOF2'
+import sys, numpy as np, pmtk
+nat = pmtk.native()
+rng = np.random.default_rng(3)
+n, h = 20000, 0.05
+pos = rng.uniform(0, 1, (n, 3)).astype(np.float32); pos[:, 2] = 0
+power = rng.uniform(0, 1e-3, (n, 3)).astype(np.float32)
+up = np.tile(np.float32([0, 0, 1]), (n, 1))
+m = nat.build_map(pos, power, up)
+qp = rng.uniform(0.1, 0.9, (500, 3)).astype(np.float32); qp[:, 2] = 0
+E, st = nat.gather(m, qp, up[:500], h)
+# the estimator by brute force: every photon within h, uniform kernel 1 / (pi h^2)
+d2 = ((qp[:, None, :2].astype(np.float64) - pos[None, :, :2]) ** 2).sum(-1)
+ref = ((d2 <= h * h)[:, :, None] * power[None].astype(np.float64)).sum(1) / (np.pi * h * h)
+assert np.abs(E - ref).max() <= 1e-5 * ref.max(), np.abs(E - ref).max()
+assert sorted(nat.hilbert_order(qp).tolist()) == list(range(500))
+assert len(nat.read_map(sys.argv[1])) == 5525
+try:
+    nat.gather(m, qp, up[:500], 0.0)
+    sys.exit(1)
+except pmtk.native.LibError as e:
+    assert e.code == 1 and "radius" in str(e), (e.code, str(e))
+print(st["packet_width"])
+EOF2
+    [ $? = 0 ] && pass "python: libpmtk's packet gather from numpy equals the estimator by brute force ($(cat "$TMP/out")-wide packets)" ||
+        fail "python: libpmtk gather" "$(tail -c 300 "$TMP/err")"
 else
     skip "python: libpmtk through ctypes" "no libpmtk.so built or installed (issue 31 item 1)"
 fi

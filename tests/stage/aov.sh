@@ -122,3 +122,21 @@ sed '0,/^width=8$/s//width=4/' "$TMP/aov.pm" >"$TMP/w4.pm"
 "$BUILD/tests/pm-testgen" reseal "$TMP/w4.pm" "$TMP/w4s.pm"
 expect_error "pm-info: an aov file of COUNT other than width x height" \
     "wrong count in AOV buffer '.*w4s.pm': COUNT=64 for a 4x8 image" "$BIN/pm-info" "$TMP/w4s.pm"
+
+# ---- the EXR writer at one pixel (issue 31: a 1x1 zip image was reported as garbage), read back by
+# OpenEXR's own C++ library (exrmaketiled rewrites it tiled) as well as by pmtk's reader ----
+for half in "" --half; do
+    "$BIN/trace-reference" -q "$BOX" --width 1 --height 1 --spp 4 --pass 4 -o "$TMP/one.exr" --radiance "$TMP/one.pm" 2>"$TMP/err"
+    "$BIN/composite" -q "$TMP/one.pm" -o "$TMP/one-c.exr" $half --aov variance --accumulate "$TMP/one-state$half.pm" 2>>"$TMP/err"
+    if command -v exrmaketiled >/dev/null; then
+        exrmaketiled "$TMP/one-c.exr" "$TMP/one-t.exr" >/dev/null 2>>"$TMP/err"
+        a=$("$DUMP" --channels "$TMP/one-c.exr" 2>>"$TMP/err" | tail -n 1) b=$("$DUMP" "$TMP/one-t.exr" 2>>"$TMP/err" | tail -n 1)
+        want=$("$BIN/pm-info" -r "$TMP/one.pm" | awk '$1 == 0 { printf "%.3g %.3g %.3g", $2, $3, $4 }')
+        got=$(echo "$b" | awk '{ printf "%.3g %.3g %.3g", $3, $4, $5 }')
+        [ -n "$want" ] && [ "$got" = "$want" ] && [ "$(echo "$a" | wc -w)" = 8 ] &&
+            pass "a 1x1 image ${half:-float} with a layer reads back through OpenEXR's C++ library ($got)" ||
+            fail "a 1x1 image ${half:-float}" "got '$got' want '$want' ($a) $(head -c 200 "$TMP/err")"
+    else
+        skip "a 1x1 image through OpenEXR's C++ library" "no exrmaketiled (Debian package openexr)"
+    fi
+done

@@ -55,12 +55,29 @@ typedef struct {
     double *pix_p;      /* h * w: probability of each pixel */
     double integral[3]; /* W/m^2 per channel: the map's radiance integrated over the sphere */
     double total;       /* the sum of the weights; 0 when the map is black */
+    /* The sky's frame (pm_sky_frame): rows are the map's x, y, z axes in world coordinates, so
+     * that a world direction w is (frame[0..2] . w, frame[3..5] . w, frame[6..8] . w) in the
+     * map; used only when framed is 1 (an identity frame leaves the map's arithmetic as it was). */
+    int framed;
+    double frame[9];
 } pm_envmap_t;
 
 /* Builds e's tables from rgb (w x h, owned by e from here, freed by pm_envmap_free); an
  * error on a value that is NaN, infinite or negative (named with its pixel and channel). */
 pm_result_t pm_envmap_init(pm_envmap_t *e, uint32_t w, uint32_t h, float *rgb);
 void pm_envmap_free(pm_envmap_t *e);
+
+/* The sky's frame (scene keys sky.up and sky.rotate, docs/scene-format.md): +y turned onto unit
+ * vector up by the shortest turn (half a turn about +x when up is -y), then turned about up by
+ * rotate_deg degrees the way azimuth grows (from +x toward +z when up is +y; clockwise seen
+ * from up's tip). frame_out: rows are the turned x, y (= up), z axes in world coordinates. */
+void pm_sky_frame(const double up[3], double rotate_deg, double frame_out[9]);
+/* World direction of elevation el_deg above the horizon and azimuth az_deg in frame f: the
+ * frame's (cos el cos az, sin el, cos el sin az); a map's pixel at longitude az_deg and
+ * latitude el_deg looks along it. */
+void pm_sky_frame_direction(const double f[9], double el_deg, double az_deg, double w_out[3]);
+/* Uses frame f for map e (framed unless f is the identity). */
+void pm_envmap_set_frame(pm_envmap_t *e, const double f[9]);
 
 typedef struct {
     float eye[3], look_at[3], up[3]; /* m */
@@ -135,6 +152,9 @@ typedef struct {
     int two_sided_lights; /* 1: emissive triangles emit from both faces (scene key two_sided_lights) */
     pm_sun_t sun;
     float sky[3];        /* W/(m^2 sr), RGB: radiance of a constant sky, seen by every ray that escapes */
+    double sky_up[3];    /* unit, the sky's zenith (sky.up, default +y) */
+    double sky_rotate;   /* degrees about sky_up (sky.rotate, default 0) */
+    double sky_frame[9]; /* pm_sky_frame of the two: a map's and the sun's elevation/azimuth frame */
     pm_envmap_t *envmap; /* the sky's lat-long map (its radiance then scales it), or NULL */
     uint32_t *emissive;  /* indices of triangles whose material emits */
     size_t nemissive;

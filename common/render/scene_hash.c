@@ -279,6 +279,9 @@ static uint64_t photons_part(const pm_scene_t *s)
         put_u32(&w, s->envmap->w);
         put_u32(&w, s->envmap->h);
         put_array32(&w, s->envmap->rgb, 3 * (size_t)s->envmap->w * s->envmap->h);
+        if (s->envmap->framed) /* turned by sky.up and sky.rotate (an unturned map hashes as before) */
+            for (int i = 0; i < 9; i++)
+                put_f64(&w, s->envmap->frame[i]);
     }
     put_section(&w, "photon keys");
     put_u64(&w, (uint64_t)d->photons);

@@ -134,6 +134,36 @@ TOL_D="-v tmean=2e-3 -v trms=0.015 -v tmax=0.05" TOL_R="-v tmean=2e-3 -v trms=0.
     three_ways "sun of 0.01 sr at 29.2 degrees over a plane, E = L pi sin^2(a) cos = $SUN_E" "$TMP/sun/scene.json" \
     -v kd=0.5 -v kind=const -v Ec=$SUN_E
 
+# ---- 2b. the sun as a user gives it (docs/scene-format.md, Sun): by its irradiance E_n on a
+# surface facing it (radiance E_n / (pi sin^2 a)), by elevation and azimuth (elevation
+# asin(2 / sqrt 5.25) = 60.7947 degrees, azimuth atan2(0.5, 1) = 26.5651 degrees: the direction
+# (1, 2, 0.5) of section 2), the plane receiving E_n cos(theta_s).
+SUN_C=$(awk 'BEGIN { print 2 / sqrt(5.25) }')
+lit_plane "$TMP/sunE" 0.5 '"sun": { "elevation": 60.794709, "azimuth": 26.565051, "irradiance": [3, 3, 3], "solid_angle": 0.01 }' 3
+TOL_D="-v tmean=2e-3 -v trms=0.015 -v tmax=0.05" TOL_R="-v tmean=2e-3 -v trms=0.015 -v tmax=0.05" \
+    three_ways "sun of irradiance 3 W per m^2 at elevation 60.79, azimuth 26.57 over a plane, E = 3 cos = $(awk -v c=$SUN_C 'BEGIN { print 3 * c }')" \
+    "$TMP/sunE/scene.json" -v kd=0.5 -v kind=const -v Ec=$(awk -v c=$SUN_C 'BEGIN { print 3 * c }')
+# scene-info shows the direction and the radiance it resolved to; with sky.up +z and rotate 90,
+# elevation 30 and azimuth 0 point to the frame's +x turned 90 degrees about +z the way azimuth
+# grows (+x toward the frame's +z, which is -y): (0, -0.866, 0.5).
+sun_info() {
+    lit_plane "$TMP/suninfo" 0.5 "$1" 3
+    "$BIN/scene-info" -q --json "$TMP/suninfo/scene.json" |
+        jq -r '.lights[] | select(.kind == "sun") | [.direction[], .radiance_w_m2_sr[0]] | map(. * 10000 | round / 10000) | join(" ")'
+}
+want_l=$(awk -v p=$PI 'BEGIN { f = 0.01 / (2 * p); printf "%.4f", 3 / (p * f * (2 - f)) }')
+for c in "elevation and azimuth, irradiance|\"elevation\": 60.794709, \"azimuth\": 26.565051, \"irradiance\": [3, 3, 3], \"solid_angle\": 0.01|0.4364 0.8729 0.2182 $want_l" \
+    "elevation and azimuth in a +z-up sky rotated 90|\"elevation\": 30, \"azimuth\": 0, \"radiance\": [1, 1, 1], \"solid_angle\": 0.01 }, \"sky\": { \"radiance\": [0, 0, 0], \"up\": [0, 0, 1], \"rotate\": 90|0 -0.866 0.5 1"; do
+    name=${c%%|*}; rest=${c#*|}; json=${rest%%|*}; want=${rest#*|}
+    got=$(sun_info "\"sun\": { $json }")
+    got=$(echo "$got" | sed 's/-0 /0 /g')
+    if [ "$got" = "$want" ]; then
+        pass "sun by $name: direction and radiance $got"
+    else
+        fail "sun by $name" "scene-info says '$got', want '$want'"
+    fi
+done
+
 # ---- 3. a constant sky of L 1 over a plane of albedo 0.5: L_out = 0.5 (E = pi). Cosine-
 # weighted sky samples on a diffuse plane have zero variance (f L cos / pdf = KD L), and
 # trace-reference's light and BSDF samples are then the same strategy, weighted half and half.
@@ -164,6 +194,14 @@ bad_light "sun of zero solid angle" "sun\.solid_angle: 0 sr is outside \(0, 2 pi
 bad_light "sun of negative radiance" "sun\.radiance: element 2 = -1 is outside \[0, 1e\+30\]" \
     '"sun": { "direction": [0, 1, 0], "radiance": [1, 1, -1], "solid_angle": 0.01 }'
 bad_light "sun without a solid angle" "sun\.solid_angle: missing" '"sun": { "direction": [0, 1, 0], "radiance": [1, 1, 1] }'
+bad_light "sun with direction and elevation" "sun: needs exactly one of 'direction' and 'elevation', not both" \
+    '"sun": { "direction": [0, 1, 0], "elevation": 30, "azimuth": 0, "radiance": [1, 1, 1], "solid_angle": 0.01 }'
+bad_light "sun with neither radiance nor irradiance" "sun: needs exactly one of 'radiance' and 'irradiance', found neither" \
+    '"sun": { "direction": [0, 1, 0], "solid_angle": 0.01 }'
+bad_light "sun elevation without azimuth" "sun\.azimuth: missing" '"sun": { "elevation": 30, "radiance": [1, 1, 1], "solid_angle": 0.01 }'
+bad_light "sun elevation 100" "sun\.elevation: 100 .*outside" '"sun": { "elevation": 100, "azimuth": 0, "radiance": [1, 1, 1], "solid_angle": 0.01 }'
+bad_light "sun of negative irradiance" "sun\.irradiance: element 0 = -3 is outside" \
+    '"sun": { "direction": [0, 1, 0], "irradiance": [-3, 1, 1], "solid_angle": 0.01 }'
 bad_light "sky of negative radiance" "sky\.radiance: element 0 = -0\.5 is outside" '"sky": { "radiance": [-0.5, 1, 1] }'
 # JSON has no NaN; a NaN written as the bare word is a syntax error naming the line.
 bad_light "sky of NaN radiance" "scene '.*' line [0-9]+ column [0-9]+" '"sky": { "radiance": [NaN, 1, 1] }'

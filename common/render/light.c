@@ -579,6 +579,8 @@ void pm_lights_describe_text(const pm_scene_t *s, FILE *out)
                     "sky: map %" PRIu32 "x%" PRIu32 " times %.6g %.6g %.6g, mean radiance %.6g %.6g %.6g W/(m^2 sr)",
                     s->envmap->w, s->envmap->h, s->sky[0], s->sky[1], s->sky[2], s->envmap->integral[0] / (4.0 * M_PI),
                     s->envmap->integral[1] / (4.0 * M_PI), s->envmap->integral[2] / (4.0 * M_PI));
+            if (s->sky_turbidity > 0.0)
+                fprintf(out, ", the preetham model of turbidity %.6g", s->sky_turbidity);
             if (s->envmap && s->envmap->framed)
                 fprintf(out, ", turned to up %.6g %.6g %.6g, rotate %.6g deg", s->sky_up[0], s->sky_up[1], s->sky_up[2],
                         s->sky_rotate);
@@ -632,6 +634,10 @@ json_t *pm_lights_describe_json(const pm_scene_t *s)
                                     json_pack("[I, I]", (json_int_t)s->envmap->w, (json_int_t)s->envmap->h));
                 json_object_set_new(lj, "up", json_pack("[f, f, f]", s->sky_up[0], s->sky_up[1], s->sky_up[2]));
                 json_object_set_new(lj, "rotate_deg", json_real(s->sky_rotate));
+                if (s->sky_turbidity > 0.0) {
+                    json_object_set_new(lj, "model", json_string("preetham"));
+                    json_object_set_new(lj, "turbidity", json_real(s->sky_turbidity));
+                }
             }
             break;
         default: break;

@@ -151,12 +151,13 @@ typedef struct {
     int has_sun, has_sky; /* 1 when the scene file names a sun / a sky */
     int two_sided_lights; /* 1: emissive triangles emit from both faces (scene key two_sided_lights) */
     pm_sun_t sun;
-    float sky[3];        /* W/(m^2 sr), RGB: radiance of a constant sky, seen by every ray that escapes */
-    double sky_up[3];    /* unit, the sky's zenith (sky.up, default +y) */
-    double sky_rotate;   /* degrees about sky_up (sky.rotate, default 0) */
-    double sky_frame[9]; /* pm_sky_frame of the two: a map's and the sun's elevation/azimuth frame */
-    pm_envmap_t *envmap; /* the sky's lat-long map (its radiance then scales it), or NULL */
-    uint32_t *emissive;  /* indices of triangles whose material emits */
+    float sky[3];         /* W/(m^2 sr), RGB: radiance of a constant sky, seen by every ray that escapes */
+    double sky_up[3];     /* unit, the sky's zenith (sky.up, default +y) */
+    double sky_rotate;    /* degrees about sky_up (sky.rotate, default 0) */
+    double sky_frame[9];  /* pm_sky_frame of the two: a map's and the sun's elevation/azimuth frame */
+    double sky_turbidity; /* > 0: envmap is the Preetham model of this turbidity (sky.model), else 0 */
+    pm_envmap_t *envmap;  /* the sky's lat-long map (its radiance then scales it), or NULL */
+    uint32_t *emissive;   /* indices of triangles whose material emits */
     size_t nemissive;
     size_t ndropped; /* degenerate (zero-area) triangles left out at load */
     pm_camera_t camera;

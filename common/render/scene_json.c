@@ -13,6 +13,7 @@
 #include "base/exr.h"
 #include "formats/formats.h"
 #include "render/scene_load.h"
+#include "render/skymodel.h"
 
 pm_result_t pm_scene_bad(const ctx_t *c, const char *key, const char *fmt, ...)
 {
@@ -355,10 +356,49 @@ static pm_result_t load_sun(const ctx_t *c, json_t *sun)
     return PM_OK;
 }
 
-/* The sun (load_sun) and the sky (radiance, map, up, rotate), both optional. */
+/* The sky's physical model (sky.model "preetham", sky.turbidity) as its map: tabulated in the
+ * sky's frame about the scene's sun, times sky.radiance. */
+static pm_result_t load_sky_model(const ctx_t *c, json_t *sky, json_t *model)
+{
+    enum { W = 512, H = 256 }; /* 0.7 degree pixels: the circumsolar glow spans tens of degrees */
+    pm_scene_t *s = c->s;
+    pm_result_t r;
+    if (!json_is_string(model) || strcmp(json_string_value(model), "preetham") != 0)
+        return pm_scene_bad(c, "sky.model", "'%s' is not a sky model (the one there is: \"preetham\")",
+                            json_is_string(model) ? json_string_value(model) : "(not a string)");
+    if (json_object_get(sky, "map"))
+        return pm_scene_bad(c, "sky", "needs one of 'map' and 'model', not both");
+    if (!s->has_sun)
+        return pm_scene_bad(c, "sky.model", "'preetham' is lit by the scene's sun, and the scene has none");
+    double t = 3.0, sun[3];
+    if ((r = pm_scene_get_number(c, sky, "turbidity", "sky.turbidity", 0, PM_PREETHAM_T_MIN, PM_PREETHAM_T_MAX, &t)) !=
+        PM_OK)
+        return r;
+    for (int k = 0; k < 3; k++) /* the sun in the sky's frame */
+        sun[k] = s->sky_frame[3 * k] * s->sun.direction[0] + s->sky_frame[3 * k + 1] * s->sun.direction[1] +
+                 s->sky_frame[3 * k + 2] * s->sun.direction[2];
+    if (!(sun[1] > 0.0))
+        return pm_scene_bad(c, "sky.model", "'preetham' needs the sun above the horizon: its elevation is %.6g degrees",
+                            asin(fmax(-1.0, fmin(1.0, sun[1]))) * 180.0 / M_PI);
+    float *rgb;
+    if ((r = pm_preetham_map(t, sun, W, H, &rgb)) != PM_OK)
+        return r;
+    for (size_t i = 0; i < 3 * (size_t)W * H; i++)
+        rgb[i] *= s->sky[i % 3];
+    if (!(s->envmap = calloc(1, sizeof *s->envmap))) {
+        free(rgb);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for the sky's map");
+    }
+    if ((r = pm_envmap_init(s->envmap, W, H, rgb)) != PM_OK)
+        pm_error_prefix("scene '%s': sky.model", c->file);
+    s->sky_turbidity = t;
+    return r;
+}
+
+/* The sun (load_sun) and the sky (radiance, map or model, up, rotate), both optional. */
 pm_result_t pm_scene_load_sun_sky(const ctx_t *c, json_t *sun, json_t *sky)
 {
-    static const char *const sky_keys[] = {"radiance", "map", "up", "rotate", NULL};
+    static const char *const sky_keys[] = {"radiance", "map", "model", "turbidity", "up", "rotate", NULL};
     pm_scene_t *s = c->s;
     pm_result_t r = PM_OK;
     if (sky && !json_is_object(sky))
@@ -370,9 +410,13 @@ pm_result_t pm_scene_load_sun_sky(const ctx_t *c, json_t *sun, json_t *sky)
     if (sun && (r = load_sun(c, sun)) != PM_OK)
         return r;
     if (sky) {
-        json_t *map = json_object_get(sky, "map");
-        s->sky[0] = s->sky[1] = s->sky[2] = 1.0f; /* a map's scale when radiance is not given */
-        r = pm_scene_get_vec3(c, sky, "radiance", "sky.radiance", !map, 0.0, 1e30, s->sky);
+        json_t *map = json_object_get(sky, "map"), *model = json_object_get(sky, "model");
+        s->sky[0] = s->sky[1] = s->sky[2] = 1.0f; /* a map's or a model's scale when radiance is not given */
+        r = pm_scene_get_vec3(c, sky, "radiance", "sky.radiance", !map && !model, 0.0, 1e30, s->sky);
+        if (r == PM_OK && !model && json_object_get(sky, "turbidity"))
+            r = pm_scene_bad(c, "sky.turbidity", "goes with a sky model (\"model\": \"preetham\")");
+        if (r == PM_OK && model)
+            r = load_sky_model(c, sky, model);
         if (r == PM_OK && map && (!json_is_string(map) || !*json_string_value(map)))
             r = pm_scene_bad(c, "sky.map", "must be a file name (an OpenEXR lat-long map)");
         if (r == PM_OK && map)

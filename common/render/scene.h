@@ -111,9 +111,13 @@ typedef struct {
 
 /* The textures of one material: indices into pm_scene_t.textures, -1 for none. The texel
  * scales the material's own value (MTL and glTF both say so): kd = Kd map_Kd, ks = Ks map_Ks;
- * alpha (map_d) below 0.5 makes a hit no hit, for every ray. */
+ * alpha (map_d) below 0.5 makes a hit no hit, for every ray. normal (MTL norm, glTF
+ * normalTexture) is a tangent-space normal map and bump (MTL map_Bump, bump) a height map of
+ * heights texel * bump_scale m; both bend the shading normal (pm_scene_shading_normal). */
 typedef struct {
     int32_t kd, ks, alpha;
+    int32_t normal, bump;
+    float bump_scale; /* MTL -bm: m of height per unit of texel, 1 by default */
 } pm_material_maps_t;
 
 /* Where one mesh entry of the scene file put its triangles. Every triangle is also in the
@@ -257,9 +261,11 @@ void pm_scene_barycentrics(const pm_scene_t *s, uint32_t tri, const float p[3], 
 int pm_scene_cut_out(const pm_scene_t *s, uint32_t tri, float b1, float b2);
 
 /* The shading normal at point p (m, on triangle tri): the vertex normals interpolated at p's
- * barycentrics and normalized, turned to the side of n (the unit geometric normal on the side
- * the ray came from). Returns 1 then; 0 with n itself copied, bit for bit, when the scene or
- * the triangle has no vertex normals (or they cancel at p). */
+ * barycentrics and normalized (or the triangle's own normal without them), bent by its
+ * material's normal map or bump map when it has one and the triangle has texture coordinates,
+ * turned to the side of n (the unit geometric normal on the side the ray came from). Returns 1
+ * then; 0 with n itself copied, bit for bit, when none of these applies (no vertex normals or
+ * they cancel at p, and no map). */
 int pm_scene_shading_normal(const pm_scene_t *s, uint32_t tri, const float p[3], const float n[3], float ns_out[3]);
 
 /* The emissive triangles whose front face (the side their winding's normal points to, the

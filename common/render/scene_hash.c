@@ -240,6 +240,11 @@ static uint64_t geometry_part(const pm_scene_t *s)
             put_u32(&w, (uint32_t)s->maps[m].kd);
             put_u32(&w, (uint32_t)s->maps[m].ks);
             put_u32(&w, (uint32_t)s->maps[m].alpha);
+            if (s->maps[m].normal >= 0 || s->maps[m].bump >= 0) { /* (a material without either hashes as before) */
+                put_u32(&w, (uint32_t)s->maps[m].normal);
+                put_u32(&w, (uint32_t)s->maps[m].bump);
+                put_f32(&w, s->maps[m].bump_scale);
+            }
         }
         put_u64(&w, s->ntextures);
         for (size_t i = 0; i < s->ntextures; i++)

@@ -80,6 +80,18 @@ int pm_scene_cut_out(const pm_scene_t *s, uint32_t tri, float b1, float b2)
     return (t->has_alpha ? texel[3] : texel[0]) < 0.5f;
 }
 
+/* v normalized in place; 0 (v left alone) when its squared length is not above min2 or not finite. */
+static int unit(float v[3], float min2)
+{
+    float l2 = pm_dot3(v, v);
+    if (!(l2 > min2) || !isfinite(l2))
+        return 0;
+    float inv = 1.0f / sqrtf(l2);
+    for (int k = 0; k < 3; k++)
+        v[k] *= inv;
+    return 1;
+}
+
 /* The vertex normals of triangle tri interpolated at p and normalized into q_out; 0 when the
  * scene has none or they cancel there. */
 static int vertex_normal(const pm_scene_t *s, uint32_t tri, const float p[3], float q_out[3])
@@ -93,14 +105,8 @@ static int vertex_normal(const pm_scene_t *s, uint32_t tri, const float p[3], fl
     float b0 = 1.0f - b[0] - b[1];
     for (int k = 0; k < 3; k++)
         q[k] = b0 * n0[k] + b[0] * n1[k] + b[1] * n2[k];
-    float len2 = pm_dot3(q, q);
     /* No normals at this triangle (zero), or ones that cancel: the geometric normal. */
-    if (!(len2 > 1e-12f) || !isfinite(len2))
-        return 0;
-    float inv = 1.0f / sqrtf(len2);
-    for (int k = 0; k < 3; k++)
-        q[k] *= inv;
-    return 1;
+    return unit(q, 1e-12f);
 }
 
 /* Triangle tri's position derivatives along its texture coordinates, m per unit of u and of v:
@@ -124,17 +130,6 @@ static int uv_derivatives(const pm_scene_t *s, uint32_t tri, float dpdu[3], floa
     return 1;
 }
 
-static int unit(float v[3])
-{
-    float l2 = pm_dot3(v, v);
-    if (!(l2 > 1e-30f) || !isfinite(l2))
-        return 0;
-    float inv = 1.0f / sqrtf(l2);
-    for (int k = 0; k < 3; k++)
-        v[k] *= inv;
-    return 1;
-}
-
 /* Bends unit normal q at p by material maps mm: a normal map's texel t (linear, 2 t - 1 per
  * channel) in the tangent frame (x along dp/du, y along dp/dv made orthogonal, z q), or a bump
  * map's height h (m: texel * bump_scale) as the normal of p + h q, cross(dp/du + dh/du q,
@@ -151,12 +146,12 @@ static int bend(const pm_scene_t *s, const pm_material_maps_t *mm, uint32_t tri,
         float T[3], B[3], tu = pm_dot3(q, dpdu), tv = pm_dot3(q, dpdv);
         for (int k = 0; k < 3; k++)
             T[k] = dpdu[k] - q[k] * tu;
-        if (!unit(T))
+        if (!unit(T, 1e-30f))
             return 0;
         float bt = pm_dot3(T, dpdv);
         for (int k = 0; k < 3; k++)
             B[k] = dpdv[k] - q[k] * tv - T[k] * bt;
-        if (!unit(B))
+        if (!unit(B, 1e-30f))
             return 0;
         pm_texture_lookup(&s->textures[mm->normal], uv[0], uv[1], 0, tx);
         for (int k = 0; k < 3; k++)
@@ -177,7 +172,7 @@ static int bend(const pm_scene_t *s, const pm_material_maps_t *mm, uint32_t tri,
             for (int k = 0; k < 3; k++)
                 out[k] = -out[k];
     }
-    if (!unit(out))
+    if (!unit(out, 1e-30f))
         return 0;
     memcpy(q, out, sizeof out);
     return 1;
@@ -195,7 +190,7 @@ int pm_scene_shading_normal(const pm_scene_t *s, uint32_t tri, const float p[3],
             pm_vec3_t a = pm_v3_load(&s->verts[3 * t[0]]), b = pm_v3_load(&s->verts[3 * t[1]]),
                       c = pm_v3_load(&s->verts[3 * t[2]]);
             pm_v3_store(q, pm_v3_cross(pm_v3_sub(b, a), pm_v3_sub(c, a)));
-            if (!unit(q))
+            if (!unit(q, 1e-30f))
                 return 0;
         }
         have = bend(s, mm, tri, p, q) || have;

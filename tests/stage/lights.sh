@@ -98,17 +98,23 @@ judge() {
 
 # three_ways NAME SCENE KD awk-options...: the photon pipeline (direct-vis gather of the global
 # map), the direct buffer and trace-reference, each judged.
-three_ways() {
-    local name=$1 scene=$2; shift 2
-    local t=$TMP/$name
-    if "$BIN/trace-photons" "$scene" --photons 400000 -q -o - | "$BIN/build-photonmap" - -q -o "$t.map.pm" &&
+# render_three T SCENE: the photon image, direct buffer and trace-reference (REF_SPP paths, 4 by
+# default) of SCENE as pm-exrdump text in T.{i,d,r}.txt, the hits in T.hits.
+render_three() {
+    local t=$1 scene=$2
+    "$BIN/trace-photons" "$scene" --photons 400000 -q -o - | "$BIN/build-photonmap" - -q -o "$t.map.pm" &&
         "$BIN/trace-gather-points" "$scene" --pixel center --mode direct-vis -q -o "$t.q.pm" --direct "$t.d.pm" &&
         "$BIN/simd-gather" "$t.map.pm" "$t.q.pm" --k 200 -q -o "$t.i.pm" &&
         "$BIN/pm-info" -r "$t.q.pm" >"$t.hits" &&
         "$BIN/composite" "$t.i.pm" -q -o "$t.i.exr" && "$BUILD/tests/pm-exrdump" "$t.i.exr" >"$t.i.txt" &&
         "$BIN/composite" "$t.d.pm" -q -o "$t.d.exr" && "$BUILD/tests/pm-exrdump" "$t.d.exr" >"$t.d.txt" &&
         "$BIN/trace-reference" "$scene" -q --pixel center --spp "${REF_SPP:-4}" -o "$t.r.exr" &&
-        "$BUILD/tests/pm-exrdump" "$t.r.exr" >"$t.r.txt"; then
+        "$BUILD/tests/pm-exrdump" "$t.r.exr" >"$t.r.txt"
+}
+three_ways() {
+    local name=$1 scene=$2; shift 2
+    local t=$TMP/$name
+    if render_three "$t" "$scene"; then
         judge "$name, photon map" "$t.hits" "$t.i.txt" -v tmean=0.02 -v trms=0.15 -v tmax=0.5 "$@"
         judge "$name, direct buffer" "$t.hits" "$t.d.txt" ${TOL_D:--v tmean=1e-4 -v trms=1e-4 -v tmax=1e-3} "$@"
         judge "$name, trace-reference" "$t.hits" "$t.r.txt" ${TOL_R:--v tmean=1e-4 -v trms=1e-4 -v tmax=1e-3} "$@"
@@ -371,13 +377,7 @@ LS=16 lit_plane "$TMP/preetham" 0.5 "$PREETHAM }" 3
 LS=16 lit_plane "$TMP/preetham0" 0.5 "$PREETHAM, \"radiance\": [0, 0, 0] }" 3
 t=$TMP/preetham
 mean_of() { awk 'NF >= 5 && $1 != "size" { s += $3 + $4 + $5; n += 3 } END { printf "%.6g\n", s / n }' "$1"; }
-if "$BIN/trace-photons" "$t/scene.json" --photons 400000 -q -o - | "$BIN/build-photonmap" - -q -o "$t.map.pm" &&
-    "$BIN/trace-gather-points" "$t/scene.json" --pixel center --mode direct-vis -q -o "$t.q.pm" --direct "$t.d.pm" &&
-    "$BIN/simd-gather" "$t.map.pm" "$t.q.pm" --k 200 -q -o "$t.i.pm" &&
-    "$BIN/composite" "$t.i.pm" -q -o "$t.i.exr" && "$BUILD/tests/pm-exrdump" "$t.i.exr" >"$t.i.txt" &&
-    "$BIN/composite" "$t.d.pm" -q -o "$t.d.exr" && "$BUILD/tests/pm-exrdump" "$t.d.exr" >"$t.d.txt" &&
-    "$BIN/trace-reference" "$t/scene.json" -q --pixel center --spp 64 -o "$t.r.exr" &&
-    "$BUILD/tests/pm-exrdump" "$t.r.exr" >"$t.r.txt" &&
+if REF_SPP=64 render_three "$t" "$t/scene.json" &&
     "$BIN/trace-reference" "$TMP/preetham0/scene.json" -q --pixel center --spp 4 -o "$t.s.exr" &&
     "$BUILD/tests/pm-exrdump" "$t.s.exr" >"$t.s.txt"; then
     ref=$(mean_of "$t.r.txt") pmap=$(mean_of "$t.i.txt") dbuf=$(mean_of "$t.d.txt") sunonly=$(mean_of "$t.s.txt")

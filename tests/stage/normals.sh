@@ -142,10 +142,17 @@ printf 'newmtl white\nKd 0.6 0.6 0.6\n' >"$TMP/tilt/s.mtl"
 scene "$TMP/tilt" "0, 1, 0"
 sed -i 's|"eye": \[0, 0, 4\], "look_at": \[0, 0, 0\], "up": \[0, 1, 0\], "fov_y": 36|"eye": [0, 1.5, 0], "look_at": [0, 0, 0], "up": [0, 0, 1], "fov_y": 90|' "$TMP/tilt/scene.json"
 TV="-v lx=0 -v ly=1 -v lz=0 -v tilt=30"
+# judge_plane NAME T AWK-VARS...: render T's photon map (a density estimate: mean within 3%,
+# RMS below 15%), direct buffer and trace-reference (exact up to rounding) against the closed form.
+judge_plane() {
+    local name=$1 t=$TMP/$2
+    shift 2
+    judge "$name, photon map" "$t.hits" "$t.i.txt" "$@" -v tmean=0.03 -v trms=0.15 -v tmax=0.6
+    judge "$name, direct buffer" "$t.hits" "$t.d.txt" "$@" -v tmean=1e-3 -v trms=1e-3 -v tmax=1e-3
+    judge "$name, trace-reference" "$t.hits" "$t.r.txt" "$@" -v tmean=1e-3 -v trms=1e-3 -v tmax=1e-3
+}
 if render tilt "$TMP/tilt/scene.json"; then
-    judge "plane with normals tilted 30 degrees, photon map" "$TMP/tilt.hits" "$TMP/tilt.i.txt" $TV -v tmean=0.03 -v trms=0.15 -v tmax=0.6
-    judge "plane with normals tilted 30 degrees, direct buffer" "$TMP/tilt.hits" "$TMP/tilt.d.txt" $TV -v tmean=1e-3 -v trms=1e-3 -v tmax=1e-3
-    judge "plane with normals tilted 30 degrees, trace-reference" "$TMP/tilt.hits" "$TMP/tilt.r.txt" $TV -v tmean=1e-3 -v trms=1e-3 -v tmax=1e-3
+    judge_plane "plane with normals tilted 30 degrees" tilt $TV
 else
     fail "plane with tilted normals" "a stage failed"
 fi
@@ -173,7 +180,7 @@ bent_plane() {
     mkdir -p "$1"
     printf 'mtllib s.mtl\nv -3 0 -3\nv 3 0 -3\nv 3 0 3\nv -3 0 3\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl white\nf 1/1 4/4 3/3 2/2\n' >"$1/s.obj"
     printf 'newmtl white\nKd 0.6 0.6 0.6\n%s\n' "$2" >"$1/s.mtl"
-    sed 's/"s.obj"/"s.obj"/' "$TMP/tilt/scene.json" >"$1/scene.json"
+    cp "$TMP/tilt/scene.json" "$1/scene.json"
 }
 bent_plane "$TMP/nmap" "norm n.tga"
 tga "$TMP/nmap/n.tga" 2 2 "$(printf 'ee80bf%.0s' 1 2 3 4)"
@@ -184,17 +191,13 @@ for key in bump map_Bump; do
 done
 NV="-v lx=0 -v ly=1 -v lz=0 -v nsx=0.49803922 -v nsy=0.86666667 -v nsz=0.00392157"
 if render nmap "$TMP/nmap/scene.json"; then
-    judge "flat plane, normal map of a 29.9 degree slope = the tilted plane, photon map" "$TMP/nmap.hits" "$TMP/nmap.i.txt" $NV -v tmean=0.03 -v trms=0.15 -v tmax=0.6
-    judge "flat plane, normal map of a 29.9 degree slope = the tilted plane, direct buffer" "$TMP/nmap.hits" "$TMP/nmap.d.txt" $NV -v tmean=1e-3 -v trms=1e-3 -v tmax=1e-3
-    judge "flat plane, normal map of a 29.9 degree slope = the tilted plane, trace-reference" "$TMP/nmap.hits" "$TMP/nmap.r.txt" $NV -v tmean=1e-3 -v trms=1e-3 -v tmax=1e-3
+    judge_plane "flat plane, normal map of a 29.9 degree slope = the tilted plane" nmap $NV
 else
     fail "plane with a normal map" "a stage failed: $("$BIN/scene-info" "$TMP/nmap/scene.json" 2>&1 >/dev/null | head -c 300)"
 fi
 for key in bump map_Bump; do
     if render bmap-$key "$TMP/bmap-$key/scene.json"; then
-        judge "flat plane, $key ramp of a 30 degree slope = the tilted plane, photon map" "$TMP/bmap-$key.hits" "$TMP/bmap-$key.i.txt" $TV -v tmean=0.03 -v trms=0.15 -v tmax=0.6
-        judge "flat plane, $key ramp of a 30 degree slope = the tilted plane, direct buffer" "$TMP/bmap-$key.hits" "$TMP/bmap-$key.d.txt" $TV -v tmean=1e-3 -v trms=1e-3 -v tmax=1e-3
-        judge "flat plane, $key ramp of a 30 degree slope = the tilted plane, trace-reference" "$TMP/bmap-$key.hits" "$TMP/bmap-$key.r.txt" $TV -v tmean=1e-3 -v trms=1e-3 -v tmax=1e-3
+        judge_plane "flat plane, $key ramp of a 30 degree slope = the tilted plane" bmap-$key $TV
     else
         fail "plane with a bump map ($key)" "a stage failed: $("$BIN/scene-info" "$TMP/bmap-$key/scene.json" 2>&1 >/dev/null | head -c 300)"
     fi
@@ -214,8 +217,7 @@ printf '{"asset":{"version":"2.0"},"extensionsUsed":["KHR_materials_ior"],"scene
 sed 's/"s.obj"/"s.gltf"/' "$TMP/tilt/scene.json" >"$TMP/nmapgl/scene.json"
 NVG="-v lx=0 -v ly=1 -v lz=0 -v nsx=0.49803922 -v nsy=0.86666667 -v nsz=-0.00392157"
 if render nmapgl "$TMP/nmapgl/scene.json"; then
-    judge "glTF flat plane, normalTexture of a 29.9 degree slope = the tilted plane, direct buffer" "$TMP/nmapgl.hits" "$TMP/nmapgl.d.txt" $NVG -v tmean=1e-3 -v trms=1e-3 -v tmax=1e-3
-    judge "glTF flat plane, normalTexture of a 29.9 degree slope = the tilted plane, trace-reference" "$TMP/nmapgl.hits" "$TMP/nmapgl.r.txt" $NVG -v tmean=1e-3 -v trms=1e-3 -v tmax=1e-3
+    judge_plane "glTF flat plane, normalTexture of a 29.9 degree slope = the tilted plane" nmapgl $NVG
 else
     fail "glTF plane with a normal texture" "a stage failed: $("$BIN/scene-info" "$TMP/nmapgl/scene.json" 2>&1 >/dev/null | head -c 300)"
 fi

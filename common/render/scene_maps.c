@@ -74,6 +74,21 @@ static pm_result_t scene_texture(const ctx_t *c, const char *base, const char *n
     return PM_OK;
 }
 
+/* Whether texture t has colour: a texel whose channels differ. */
+static int is_colour(const pm_texture_t *t)
+{
+    size_t n = (size_t)t->w * t->h;
+    if (t->grey)
+        return 0;
+    for (size_t i = 0; i < n; i++) {
+        if (t->u8 && (t->u8[4 * i] != t->u8[4 * i + 1] || t->u8[4 * i + 1] != t->u8[4 * i + 2]))
+            return 1;
+        if (t->f32 && (t->f32[4 * i] != t->f32[4 * i + 1] || t->f32[4 * i + 1] != t->f32[4 * i + 2]))
+            return 1;
+    }
+    return 0;
+}
+
 /* The textures pmtk honours of assimp material am (scene material mi): map_Kd, map_Ks, map_d,
  * norm and bump/map_Bump (with its -bm) of an MTL, the base colour and the normal texture of
  * glTF and the rest (assimp's diffuse and normals slots). */
@@ -125,6 +140,14 @@ pm_result_t pm_scene_load_material_maps(const ctx_t *c, const char *mesh, int is
         if (!base[0])
             texture_base(mesh, im, m->name, base, sizeof base);
         r = scene_texture(c, base, tp.data, mesh, m, mi, "normal texture", &mm->normal);
+    }
+    /* A colour image in the bump slot is a normal map (Blender's OBJ exporter writes its normal
+     * maps as map_Bump): read as one, and said so. Heights are grey, R = G = B in every texel. */
+    if (r == PM_OK && mm->bump >= 0 && mm->normal < 0 && is_colour(&s->textures[mm->bump])) {
+        mm->normal = mm->bump, mm->bump = -1;
+        if ((r = pm_scene_note_unsupported(s, mi, "bump", 1, s->textures[mm->normal].path)) == PM_OK)
+            snprintf(s->unsupported[s->nunsupported - 1].note, sizeof s->unsupported[0].note,
+                     "a colour image: read as a tangent-space normal map");
     }
     /* MTL's -bm: assimp 5.2 puts it on the texture ($tex.bumpmult), some importers on the material */
     float bm = 1.0f;

@@ -221,6 +221,22 @@ if render nmapgl "$TMP/nmapgl/scene.json"; then
 else
     fail "glTF plane with a normal texture" "a stage failed: $("$BIN/scene-info" "$TMP/nmapgl/scene.json" 2>&1 >/dev/null | head -c 300)"
 fi
+# A colour image in map_Bump (Blender's OBJ exporter writes normal maps so) is read as a normal
+# map, and scene-info says so: the normal map's plane again, through the direct buffer.
+bent_plane "$TMP/nbump" "map_Bump n.tga"
+cp "$TMP/nmap/n.tga" "$TMP/nbump/"
+if "$BIN/trace-gather-points" "$TMP/nbump/scene.json" --pixel center --mode direct-vis -q -o "$TMP/nbump.q.pm" --direct "$TMP/nbump.d.pm" &&
+    "$BIN/pm-info" -r "$TMP/nbump.q.pm" >"$TMP/nbump.hits" && "$BIN/composite" "$TMP/nbump.d.pm" -q -o "$TMP/nbump.d.exr" &&
+    "$BUILD/tests/pm-exrdump" "$TMP/nbump.d.exr" >"$TMP/nbump.d.txt"; then
+    judge "map_Bump holding a colour normal map = the normal map's tilted plane, direct buffer" "$TMP/nbump.hits" "$TMP/nbump.d.txt" $NV -v tmean=1e-3 -v trms=1e-3 -v tmax=1e-3
+else
+    fail "map_Bump holding a colour normal map" "a stage failed"
+fi
+if "$BIN/scene-info" -q "$TMP/nbump/scene.json" | grep -q "bump '.*n.tga' (approximated: a colour image: read as a tangent-space normal map)"; then
+    pass "scene-info: a colour map_Bump is listed as read as a normal map"
+else
+    fail "scene-info on a colour map_Bump" "$("$BIN/scene-info" -q "$TMP/nbump/scene.json" | grep -i -A1 unsupported)"
+fi
 # scene-info lists the maps as used (norm, bump) and reports nothing of them unsupported
 si_maps() { "$BIN/scene-info" -q --json "$1" | jq -r '[(.textures[].used_by[] | "\(.material) \(.map)"), (.materials[].unsupported // [] | length | tostring)] | join(" ")'; }
 got="$(si_maps "$TMP/nmap/scene.json"); $(si_maps "$TMP/bmap-bump/scene.json")"

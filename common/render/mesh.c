@@ -200,7 +200,7 @@ static pm_result_t load_materials(ctx_t *c, const char *path, int is_obj, const 
         (r = pm_scene_grow((void **)&s->maps, mat0 + as->mNumMaterials, sizeof *s->maps)) != PM_OK)
         return r;
     for (size_t i = mat0; i < mat0 + as->mNumMaterials; i++)
-        s->maps[i] = (pm_material_maps_t){-1, -1, -1};
+        s->maps[i] = (pm_material_maps_t){-1, -1, -1, -1, -1, 1.0f};
     for (unsigned i = 0; i < as->mNumMaterials && r == PM_OK; i++) {
         r = pm_scene_load_material(c, path, is_obj, as->mMaterials[i], &s->materials[mat0 + i]);
         /* assimp's stand-in material is pmtk's grey default whatever it holds: nothing to report */
@@ -335,7 +335,8 @@ static pm_result_t load_meshes(ctx_t *c, const struct aiScene *as, const char *p
             return pm_error_set(PM_ERR_INPUT, "mesh '%s': material index %u of %u", path, m->mMaterialIndex,
                                 as->mNumMaterials);
         const pm_material_maps_t *mm = &s->maps[mat0 + m->mMaterialIndex];
-        if (!m->mTextureCoords[0] && (mm->kd >= 0 || mm->ks >= 0 || mm->alpha >= 0) &&
+        if (!m->mTextureCoords[0] &&
+            (mm->kd >= 0 || mm->ks >= 0 || mm->alpha >= 0 || mm->normal >= 0 || mm->bump >= 0) &&
             (r = pm_scene_note_unsupported(s, (uint32_t)(mat0 + m->mMaterialIndex), "texture coordinates", 0,
                                            "missing (texel 0 0 used)")) != PM_OK)
             return r;

@@ -175,7 +175,8 @@ static pm_result_t drop_unused_maps(pm_scene_t *s)
 {
     int any = 0;
     for (size_t m = 0; s->maps && m < s->nmaterials; m++)
-        any |= s->maps[m].kd >= 0 || s->maps[m].ks >= 0 || s->maps[m].alpha >= 0;
+        any |= s->maps[m].kd >= 0 || s->maps[m].ks >= 0 || s->maps[m].alpha >= 0 || s->maps[m].normal >= 0 ||
+               s->maps[m].bump >= 0;
     if (!any) {
         free(s->maps);
         free(s->uvs);

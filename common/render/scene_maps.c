@@ -1,9 +1,11 @@
-/* scene_maps.c: the textures a material honours (MTL map_Kd, map_Ks, map_d; glTF's base colour),
- * each file loaded once per scene, relative to the .mtl that names it. */
+/* scene_maps.c: the textures a material honours (MTL map_Kd, map_Ks, map_d, norm, bump; glTF's
+ * base colour and normal texture), each file loaded once per scene, relative to the .mtl that
+ * names it. */
 #include "render/scene.h"
 
 #include <assimp/material.h>
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -72,8 +74,24 @@ static pm_result_t scene_texture(const ctx_t *c, const char *base, const char *n
     return PM_OK;
 }
 
-/* The textures pmtk honours of assimp material am (scene material mi): map_Kd, map_Ks and map_d
- * of an MTL, the base colour of glTF and the rest (assimp's diffuse slot). */
+/* Whether texture t has colour: a texel whose channels differ. */
+static int is_colour(const pm_texture_t *t)
+{
+    size_t n = (size_t)t->w * t->h;
+    if (t->grey)
+        return 0;
+    for (size_t i = 0; i < n; i++) {
+        if (t->u8 && (t->u8[4 * i] != t->u8[4 * i + 1] || t->u8[4 * i + 1] != t->u8[4 * i + 2]))
+            return 1;
+        if (t->f32 && (t->f32[4 * i] != t->f32[4 * i + 1] || t->f32[4 * i + 1] != t->f32[4 * i + 2]))
+            return 1;
+    }
+    return 0;
+}
+
+/* The textures pmtk honours of assimp material am (scene material mi): map_Kd, map_Ks, map_d,
+ * norm and bump/map_Bump (with its -bm) of an MTL, the base colour and the normal texture of
+ * glTF and the rest (assimp's diffuse and normals slots). */
 pm_result_t pm_scene_load_material_maps(const ctx_t *c, const char *mesh, int is_obj, const import_t *im,
                                         const struct aiMaterial *am, uint32_t mi)
 {
@@ -85,10 +103,13 @@ pm_result_t pm_scene_load_material_maps(const ctx_t *c, const char *mesh, int is
         const char *obj_key, *other_key;
     } slots[] = {{aiTextureType_DIFFUSE, "map_Kd", "diffuse texture"},
                  {aiTextureType_SPECULAR, "map_Ks", NULL},
-                 {aiTextureType_OPACITY, "map_d", NULL}};
+                 {aiTextureType_OPACITY, "map_d", NULL},
+                 {aiTextureType_NORMALS, "norm", "normal texture"},
+                 {aiTextureType_HEIGHT, "bump", NULL}};
+    int32_t *const where[] = {&mm->kd, &mm->ks, &mm->alpha, &mm->normal, &mm->bump};
     char base[1200] = "";
     pm_result_t r = PM_OK;
-    for (size_t k = 0; k < 3 && r == PM_OK; k++) {
+    for (size_t k = 0; k < sizeof slots / sizeof slots[0] && r == PM_OK; k++) {
         const char *key = is_obj ? slots[k].obj_key : slots[k].other_key;
         struct aiString tp;
         if (!key ||
@@ -106,10 +127,34 @@ pm_result_t pm_scene_load_material_maps(const ctx_t *c, const char *mesh, int is
         }
         if (!base[0])
             texture_base(mesh, im, m->name, base, sizeof base);
-        int32_t *slot = k == 0 ? &mm->kd : k == 1 ? &mm->ks : &mm->alpha;
-        r = scene_texture(c, base, tp.data, mesh, m, mi, key, slot);
-        if (r == PM_OK && k == 2)
+        r = scene_texture(c, base, tp.data, mesh, m, mi, key, where[k]);
+        if (r == PM_OK && slots[k].type == aiTextureType_OPACITY)
             s->any_alpha = 1;
     }
+    /* glTF keeps its normal texture in the glTF 2 slot as well (mtl.c maps it the same way) */
+    struct aiString tp;
+    if (r == PM_OK && !is_obj && mm->normal < 0 &&
+        aiGetMaterialTexture(am, aiTextureType_NORMAL_CAMERA, 0, &tp, NULL, NULL, NULL, NULL, NULL, NULL) ==
+            aiReturn_SUCCESS &&
+        tp.length > 0 && tp.data[0] != '*') {
+        if (!base[0])
+            texture_base(mesh, im, m->name, base, sizeof base);
+        r = scene_texture(c, base, tp.data, mesh, m, mi, "normal texture", &mm->normal);
+    }
+    /* A colour image in the bump slot is a normal map (Blender's OBJ exporter writes its normal
+     * maps as map_Bump): read as one, and said so. Heights are grey, R = G = B in every texel. */
+    if (r == PM_OK && mm->bump >= 0 && mm->normal < 0 && is_colour(&s->textures[mm->bump])) {
+        mm->normal = mm->bump, mm->bump = -1;
+        if ((r = pm_scene_note_unsupported(s, mi, "bump", 1, s->textures[mm->normal].path)) == PM_OK)
+            snprintf(s->unsupported[s->nunsupported - 1].note, sizeof s->unsupported[0].note,
+                     "a colour image: read as a tangent-space normal map");
+    }
+    /* MTL's -bm: assimp 5.2 puts it on the texture ($tex.bumpmult), some importers on the material */
+    float bm = 1.0f;
+    if (mm->bump >= 0 &&
+        (aiGetMaterialFloat(am, "$tex.bumpmult", aiTextureType_HEIGHT, 0, &bm) == aiReturn_SUCCESS ||
+         aiGetMaterialFloat(am, "$mat.bumpscaling", 0, 0, &bm) == aiReturn_SUCCESS) &&
+        isfinite(bm))
+        mm->bump_scale = bm;
     return r;
 }

@@ -29,7 +29,7 @@ pm_scene_needs_t pm_scene_needs(const pm_scene_t *s)
 
 /* ------------------------------------------------------------------ textures and normals */
 
-static const char *const map_keys[3] = {"map_Kd", "map_Ks", "map_d"};
+static const char *const map_keys[5] = {"map_Kd", "map_Ks", "map_d", "norm", "bump"};
 
 /* Texture t's channels as the file has them. */
 static const char *texture_channels(const pm_texture_t *t)
@@ -50,8 +50,8 @@ static int texture_missing(const pm_scene_t *s, const pm_texture_t *t)
 static void texture_users(const pm_scene_t *s, size_t i, void (*use)(void *, const char *, const char *), void *user)
 {
     for (size_t m = 0; s->maps && m < s->nmaterials; m++) {
-        const int32_t slot[3] = {s->maps[m].kd, s->maps[m].ks, s->maps[m].alpha};
-        for (int k = 0; k < 3; k++)
+        const int32_t slot[5] = {s->maps[m].kd, s->maps[m].ks, s->maps[m].alpha, s->maps[m].normal, s->maps[m].bump};
+        for (int k = 0; k < 5; k++)
             if (slot[k] == (int32_t)i)
                 use(user, s->materials[m].name, map_keys[k]);
     }

@@ -237,7 +237,7 @@ static void test_scene_unsupported(void **state)
 {
     char p[256];
     write_file("u.mtl",
-               "newmtl tex\nKd 0.5 0.5 0.5\nmap_Ka tex.png\nbump b.png\nd 0.5\nTr 0.25\nillum 6\nNi 1.5\n"
+               "newmtl tex\nKd 0.5 0.5 0.5\nmap_Ka tex.png\ndisp b.png\nd 0.5\nTr 0.25\nillum 6\nNi 1.5\n"
                "Tf 0.9 0.8 0.7\nsharpness 60\nrefl -type sphere r.png\nnewmtl plain\nKd 0.5 0.5 0.5\nd 1\nillum "
                "2\nnewmtl unused\nKd 0.1 0.1 0.1\n"
                "map_Kd u.png\n",
@@ -252,7 +252,7 @@ static void test_scene_unsupported(void **state)
         fail_msg("%s", pm_error_message());
     assert_int_equal(s.nmaterials, 2);
     static const char *const want[][2] = {
-        {"map_Ka", "tex.png"}, {"bump", "b.png"},     {"d", "0.75"},       {"illum", "6"},
+        {"map_Ka", "tex.png"}, {"disp", "b.png"},     {"d", "0.75"},       {"illum", "6"},
         {"Ni", "1.5"},         {"Tf", "0.9 0.8 0.7"}, {"sharpness", "60"}, {"refl", "-type sphere r.png"}};
     assert_int_equal(s.nunsupported, sizeof want / sizeof want[0]);
     for (size_t i = 0; i < sizeof want / sizeof want[0]; i++) {

@@ -29,7 +29,8 @@ WERROR ?= 1
 
 # Debian packages this project builds, tests and runs with (README says why each).
 DEBS := gcc make pkg-config libembree-dev libopenexr-dev libassimp-dev libjansson-dev \
-        libpng-dev libjpeg62-turbo-dev libstb-dev libxxhash-dev libcmocka-dev openexr jq gnuplot-nox clang-format
+        libpng-dev libjpeg62-turbo-dev libxxhash-dev libcmocka-dev openexr jq gnuplot-nox clang-format \
+        assimp-testmodels
 
 ifeq ($(V),1)
 Q :=
@@ -37,13 +38,13 @@ else
 Q := @
 endif
 
-PKGS := OpenEXR assimp jansson libpng libxxhash stb
+PKGS := OpenEXR assimp jansson libpng libxxhash
 # Debian's libembree-dev ships no .pc file; use pkg-config when there is one.
 EMBREE_CFLAGS := $(shell pkg-config --cflags embree3 2>/dev/null)
 EMBREE_LIBS := $(shell pkg-config --libs embree3 2>/dev/null || echo -lembree3)
 PKG_CFLAGS := $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
 # Only OpenEXR's C API (OpenEXRCore) is used; the C++ libraries are not linked.
-PKG_LIBS := -lOpenEXRCore-3_1 $(shell pkg-config --libs assimp jansson libpng libxxhash stb 2>/dev/null)
+PKG_LIBS := -lOpenEXRCore-3_1 $(shell pkg-config --libs assimp jansson libpng libxxhash 2>/dev/null)
 CMOCKA_LIBS := $(shell pkg-config --libs cmocka 2>/dev/null || echo -lcmocka)
 
 # snprintf truncation is how this code bounds names and messages, so it is not warned about.

@@ -28,7 +28,5 @@ pm_result_t pm_envmap_load(const char *path, uint64_t max_bytes, const float sca
     pm_img_free(&im);
     for (size_t i = 0; i < 3 * (size_t)w * h; i++)
         rgb[i] *= scale[i % 3];
-    if ((r = pm_envmap_init(e, w, h, rgb)) != PM_OK)
-        pm_error_prefix("sky map '%s'", path);
-    return r;
+    return pm_envmap_init(e, w, h, rgb); /* its errors name the pixel; the caller names the file */
 }

@@ -67,7 +67,8 @@ void pm_envmap_free(pm_envmap_t *e);
 #define PM_ENVMAP_BUDGET_DEFAULT ((uint64_t)1024 << 20)
 /* Reads the lat-long map path (OpenEXR or Radiance HDR, by content, through base/imgdecode.h),
  * each value times scale, into e (pm_envmap_init), taking at most max_bytes with its tables:
- * the declared size is checked before the pixels are allocated. Errors name the file. */
+ * the declared size is checked before the pixels are allocated. Errors of reading name the
+ * file; a bad value (pm_envmap_init) names its pixel only. */
 pm_result_t pm_envmap_load(const char *path, uint64_t max_bytes, const float scale[3], pm_envmap_t *e);
 
 typedef struct {

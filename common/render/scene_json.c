@@ -239,9 +239,9 @@ static pm_result_t load_envmap(const ctx_t *c, const char *file)
     c->s->envmap = calloc(1, sizeof *c->s->envmap);
     if (!c->s->envmap)
         return pm_error_set(PM_ERR_NOMEM, "out of memory for the sky's map");
-    pm_result_t r = pm_envmap_load(path, c->sky_map_budget, c->s->sky, c->s->envmap);
+    pm_result_t r = pm_envmap_load(path, (uint64_t)(c->sky_map_mib * (1 << 20)), c->s->sky, c->s->envmap);
     if (r != PM_OK)
-        pm_error_prefix("scene '%s': sky.map", c->file);
+        pm_error_prefix("scene '%s': sky.map '%s'", c->file, file);
     return r;
 }
 

@@ -52,9 +52,9 @@ typedef struct {
     size_t nimports;
     float *local;    /* every vertex loaded, in its mesh's own units (placements share them) */
     int any_normals; /* some mesh loaded has vertex normals */
-    /* bytes (image_budgets): one texture's texels, all textures' together, the sky map with its
+    /* MiB (image_budgets): one texture's texels, all textures' together, the sky map with its
      * tables; 0 until pm_scene_load_image_budgets sets them */
-    uint64_t texture_budget, textures_budget, sky_map_budget;
+    double texture_mib, textures_mib, sky_map_mib;
 } ctx_t;
 
 /* ---- scene_json.c: the scene file's keys. Every error names the scene file, the key path and

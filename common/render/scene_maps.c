@@ -27,24 +27,25 @@ static void texture_base(const char *mesh, const import_t *im, const char *name,
 }
 
 static double mib(uint64_t b) { return b / (1024.0 * 1024.0); }
+static uint64_t bytes(double mib) { return (uint64_t)(mib * (1 << 20)); }
 
-/* Texture t decoded from file path (data NULL) or from size bytes of data (embedded: path names
- * it, hint its format), within the smaller of the per-texture budget and what the all-textures
- * budget has left. */
+/* Texture t decoded from file path (tx NULL) or from assimp's embedded texture tx (size bytes
+ * when compressed; path names it), within the smaller of the per-texture budget and what the
+ * all-textures budget has left. */
 static pm_result_t budget_for(const ctx_t *c, const char *path, const struct aiTexture *tx, size_t size,
                               pm_texture_t *t)
 {
     uint64_t used = 0;
     for (size_t i = 0; i < c->s->ntextures; i++)
         used += pm_texture_bytes(&c->s->textures[i]);
-    uint64_t left = used < c->textures_budget ? c->textures_budget - used : 0, max = c->texture_budget;
+    uint64_t all = bytes(c->textures_mib), left = used < all ? all - used : 0, max = bytes(c->texture_mib);
     char budget[160];
     if (left < max) {
         max = left;
-        snprintf(budget, sizeof budget, "image_budgets.textures_mib %.6g over all textures, %.1f MiB of it taken",
-                 mib(c->textures_budget), mib(used));
+        snprintf(budget, sizeof budget, "image_budgets.textures_mib %.6g over all textures, %llu bytes of it taken",
+                 c->textures_mib, (unsigned long long)used);
     } else {
-        snprintf(budget, sizeof budget, "image_budgets.texture_mib %.6g", mib(c->texture_budget));
+        snprintf(budget, sizeof budget, "image_budgets.texture_mib %.6g", c->texture_mib);
     }
     if (!tx)
         return pm_texture_load_budget(path, max, budget, t);
@@ -67,9 +68,7 @@ pm_result_t pm_scene_load_image_budgets(ctx_t *c, json_t *b)
         r = pm_scene_get_number(c, b, "textures_mib", "image_budgets.textures_mib", 0, 1.0 / (1 << 20), 1 << 20, &all);
     if (b && r == PM_OK)
         r = pm_scene_get_number(c, b, "sky_map_mib", "image_budgets.sky_map_mib", 0, 1.0 / (1 << 20), 1 << 20, &sky);
-    c->texture_budget = (uint64_t)(tex * (1 << 20));
-    c->textures_budget = (uint64_t)(all * (1 << 20));
-    c->sky_map_budget = (uint64_t)(sky * (1 << 20));
+    c->texture_mib = tex, c->textures_mib = all, c->sky_map_mib = sky;
     return r;
 }
 

@@ -140,7 +140,20 @@ static pm_result_t alloc_u8(const char *name, const pm_img_limits_t *lim, pm_img
                   : pm_error_set(PM_ERR_NOMEM, "out of memory for %s '%s' (%u x %u)", lim->what, name, im->w, im->h);
 }
 
-/* ---- PNG: libpng's simplified reader; a warning (CRC error, extra data) fails the image. */
+/* ---- PNG: libpng's simplified reader; a warning fails the image (extra or damaged image data,
+ * a chunk it cannot use), unless it is about an ancillary chunk whose loss leaves the pixels as
+ * they are: by the PNG naming rule, a chunk whose name starts in lower case ("iCCP: known
+ * incorrect sRGB profile", common in real assets, or a text chunk's CRC), other than gAMA and
+ * sRGB, which the reader's conversion to sRGB uses. */
+static int png_warning_fatal(const char *msg)
+{
+    if (!(msg[0] >= 'a' && msg[0] <= 'z') || strlen(msg) < 6 || msg[4] != ':')
+        return 1;
+    for (int i = 1; i < 4; i++)
+        if (!((msg[i] >= 'a' && msg[i] <= 'z') || (msg[i] >= 'A' && msg[i] <= 'Z')))
+            return 1;
+    return strncmp(msg, "gAMA", 4) == 0 || strncmp(msg, "sRGB", 4) == 0;
+}
 
 static pm_result_t decode_png(const char *name, const uint8_t *data, size_t size, const pm_img_limits_t *lim,
                               pm_img_t *im)
@@ -151,7 +164,7 @@ static pm_result_t decode_png(const char *name, const uint8_t *data, size_t size
     if (!png_image_begin_read_from_memory(&pi, data, size))
         return pm_error_set(PM_ERR_INPUT, "%s '%s': libpng: %s", lim->what, name, pi.message);
     pm_result_t r = check_size(name, lim, pi.width, pi.height, 0);
-    if (r == PM_OK && (pi.warning_or_error & PNG_IMAGE_WARNING))
+    if (r == PM_OK && (pi.warning_or_error & PNG_IMAGE_WARNING) && png_warning_fatal(pi.message))
         r = pm_error_set(PM_ERR_INPUT, "%s '%s': libpng: %s", lim->what, name, pi.message);
     if (r != PM_OK) {
         png_image_free(&pi);
@@ -167,7 +180,7 @@ static pm_result_t decode_png(const char *name, const uint8_t *data, size_t size
     }
     if (!png_image_finish_read(&pi, NULL, im->u8, 0, NULL))
         return pm_error_set(PM_ERR_INPUT, "%s '%s': libpng: %s", lim->what, name, pi.message);
-    if (pi.warning_or_error & PNG_IMAGE_WARNING)
+    if ((pi.warning_or_error & PNG_IMAGE_WARNING) && png_warning_fatal(pi.message))
         return pm_error_set(PM_ERR_INPUT, "%s '%s': libpng: %s", lim->what, name, pi.message);
     return PM_OK;
 }
@@ -574,7 +587,11 @@ pm_result_t pm_img_decode(const char *name, const char *hint, const void *data, 
     unsigned named = by_extension(ext);
     if (!got && named == PM_IMG_TGA && !other)
         got = PM_IMG_TGA; /* TGA has no signature: a name that says so, and no other format's */
-    const char *read_list = (lim->formats & PM_IMG_HDR) ? "OpenEXR and Radiance HDR" : "PNG, JPEG, OpenEXR and TGA";
+    char read_list[96] = "";
+    for (unsigned f = 1; f <= PM_IMG_HDR; f <<= 1)
+        if (lim->formats & f)
+            snprintf(read_list + strlen(read_list), sizeof read_list - strlen(read_list), "%s%s",
+                     read_list[0] ? ", " : "", pm_img_format_name(f));
     if (!got && other)
         return pm_error_set(PM_ERR_INPUT, "%s '%s': a %s image%s%s; a %s is read from %s: convert it", lim->what,
                             name, other, named ? " named as " : "", named ? pm_img_format_name(named) : "", lim->what,
@@ -588,15 +605,9 @@ pm_result_t pm_img_decode(const char *name, const char *hint, const void *data, 
     if (named && named != got)
         return pm_error_set(PM_ERR_INPUT, "%s '%s': named as %s but holds a %s image", lim->what, name,
                             pm_img_format_name(named), pm_img_format_name(got));
-    if (!(lim->formats & got)) {
-        char list[96] = "";
-        for (unsigned f = 1; f <= PM_IMG_HDR; f <<= 1)
-            if (lim->formats & f)
-                snprintf(list + strlen(list), sizeof list - strlen(list), "%s%s", list[0] ? ", " : "",
-                         pm_img_format_name(f));
+    if (!(lim->formats & got))
         return pm_error_set(PM_ERR_INPUT, "%s '%s': a %s image: a %s is read from %s", lim->what, name,
-                            pm_img_format_name(got), lim->what, list);
-    }
+                            pm_img_format_name(got), lim->what, read_list);
     out->format = got;
     out->fchannels = lim->fchannels;
     pm_result_t r = got == PM_IMG_PNG    ? decode_png(name, d, size, lim, out)

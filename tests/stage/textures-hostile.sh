@@ -54,7 +54,7 @@ mkdir -p "$TMP/png-tga" "$TMP/bmp-tga"
 bin_file "$TMP/png-tga/t.tga" "$PNG_AB"
 hostile png-tga "texture '.*t\.tga': named as TGA but holds a PNG image" t.tga
 bin_file "$TMP/bmp-tga/t.tga" 424d3a000000000000003600000028000000010000000100000001001800000000000400000000000000000000000000000000000000ffffff00
-hostile bmp-tga "texture '.*t\.tga': a BMP image named as TGA; a texture is read from PNG, JPEG, OpenEXR and TGA" t.tga
+hostile bmp-tga "texture '.*t\.tga': a BMP image named as TGA; a texture is read from PNG, JPEG, OpenEXR, TGA: convert it" t.tga
 
 # 3. huge declared sizes: TGA 23170 x 23170 (18 bytes), JPEG 65500 x 65500, PNG 30000 x 30000,
 # OpenEXR data window 40000 x 40000: each refused against the budget, before allocation

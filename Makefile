@@ -211,7 +211,8 @@ bench-quick: check-deps
 # libFuzzer needs clang; Debian 12's is 14. The library is built with it as it is (the half
 # conversion and the ISA sections have clang forms); a target links what it uses of it.
 # Targets whose name is in FUZZ_RESEAL mutate past the checksum (tests/fuzz/reseal.h), each
-# seeded with the golden files of its format. FUZZ=name... runs only those; FUZZ_SECONDS
+# seeded with the golden files of its format; the image decoders' (fuzz_img_*) by
+# tests/fuzz/image-seeds.sh. FUZZ=name... runs only those; FUZZ_SECONDS
 # each (default 60); the corpus grows in build/fuzz/corpus-NAME, crashes land in build/fuzz.
 FUZZ_DEBS := clang
 FUZZ_TARGETS := $(basename $(notdir $(wildcard tests/fuzz/fuzz_*.c)))
@@ -227,6 +228,7 @@ fuzz:
 	    seeds=build/fuzz/seeds-$$t; rm -rf $$seeds; mkdir -p $$seeds build/fuzz/corpus-$$t; \
 	    case $$t in \
 	    fuzz_scene) cp scenes/cornell-box/scene.json $$seeds/ ;; \
+	    fuzz_img_*) bash tests/fuzz/image-seeds.sh $${t#fuzz_img_} $$seeds ;; \
 	    fuzz_photonmap|fuzz_queries|fuzz_radiance) \
 	        for f in tests/golden/*.pm; do \
 	            head -c 200 $$f | grep -qx "FORMAT=$${t#fuzz_}" && cp $$f $$seeds/; \

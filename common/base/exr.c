@@ -343,8 +343,8 @@ pm_result_t pm_exr_read_rgb(const char *path, uint32_t *w_out, uint32_t *h_out, 
     return read_rgb(path, exr_init(), (uint64_t)1 << 31, w_out, h_out, rgb_out);
 }
 
-pm_result_t pm_exr_read_rgb_mem(const char *name, const void *data, size_t size, uint64_t max_pixels,
-                                uint32_t *w_out, uint32_t *h_out, float **rgb_out)
+pm_result_t pm_exr_read_rgb_mem(const char *name, const void *data, size_t size, uint64_t max_pixels, uint32_t *w_out,
+                                uint32_t *h_out, float **rgb_out)
 {
     exr_mem_t m = {data, size};
     exr_context_initializer_t init = exr_init();

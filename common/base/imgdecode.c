@@ -30,16 +30,11 @@
 const char *pm_img_format_name(pm_img_format_t f)
 {
     switch (f) {
-    case PM_IMG_PNG:
-        return "PNG";
-    case PM_IMG_JPEG:
-        return "JPEG";
-    case PM_IMG_EXR:
-        return "OpenEXR";
-    case PM_IMG_TGA:
-        return "TGA";
-    case PM_IMG_HDR:
-        return "Radiance HDR";
+    case PM_IMG_PNG: return "PNG";
+    case PM_IMG_JPEG: return "JPEG";
+    case PM_IMG_EXR: return "OpenEXR";
+    case PM_IMG_TGA: return "TGA";
+    case PM_IMG_HDR: return "Radiance HDR";
     }
     return "unknown";
 }
@@ -70,11 +65,18 @@ static unsigned sniff(const uint8_t *d, size_t n, const char **other_out)
         const char *magic;
         size_t len;
         const char *name;
-    } others[] = {{"BM", 2, "BMP"},           {"GIF8", 4, "GIF"},        {"8BPS", 4, "Photoshop (PSD)"},
-                  {"DDS ", 4, "DDS"},         {"II*\0", 4, "TIFF"},      {"MM\0*", 4, "TIFF"},
-                  {"\x53\x80\xf6\x34", 4, "Softimage PIC"},              {"\xabKTX", 4, "KTX"},
-                  {"qoif", 4, "QOI"},         {"\0\0\0\x0cjP  ", 8, "JPEG 2000"},
-                  {"\xff\x0a", 2, "JPEG XL"}, {"\0\0\0\x0cJXL ", 8, "JPEG XL"}};
+    } others[] = {{"BM", 2, "BMP"},
+                  {"GIF8", 4, "GIF"},
+                  {"8BPS", 4, "Photoshop (PSD)"},
+                  {"DDS ", 4, "DDS"},
+                  {"II*\0", 4, "TIFF"},
+                  {"MM\0*", 4, "TIFF"},
+                  {"\x53\x80\xf6\x34", 4, "Softimage PIC"},
+                  {"\xabKTX", 4, "KTX"},
+                  {"qoif", 4, "QOI"},
+                  {"\0\0\0\x0cjP  ", 8, "JPEG 2000"},
+                  {"\xff\x0a", 2, "JPEG XL"},
+                  {"\0\0\0\x0cJXL ", 8, "JPEG XL"}};
     for (size_t i = 0; i < sizeof others / sizeof others[0]; i++)
         if (n >= others[i].len && memcmp(d, others[i].magic, others[i].len) == 0) {
             *other_out = others[i].name;
@@ -101,9 +103,9 @@ static unsigned by_extension(const char *ext)
     static const struct {
         const char *ext;
         unsigned f;
-    } exts[] = {{"png", PM_IMG_PNG}, {"jpg", PM_IMG_JPEG}, {"jpeg", PM_IMG_JPEG}, {"jpe", PM_IMG_JPEG},
-                {"jfif", PM_IMG_JPEG}, {"exr", PM_IMG_EXR}, {"tga", PM_IMG_TGA}, {"hdr", PM_IMG_HDR},
-                {"rgbe", PM_IMG_HDR}};
+    } exts[] = {{"png", PM_IMG_PNG},  {"jpg", PM_IMG_JPEG},  {"jpeg", PM_IMG_JPEG},
+                {"jpe", PM_IMG_JPEG}, {"jfif", PM_IMG_JPEG}, {"exr", PM_IMG_EXR},
+                {"tga", PM_IMG_TGA},  {"hdr", PM_IMG_HDR},   {"rgbe", PM_IMG_HDR}};
     for (size_t i = 0; ext && i < sizeof exts / sizeof exts[0]; i++)
         if (strcasecmp(ext, exts[i].ext) == 0)
             return exts[i].f;
@@ -127,8 +129,8 @@ static pm_result_t check_size(const char *name, const pm_img_limits_t *lim, uint
     uint64_t bytes = w * h * (is_float ? 4u * (uint64_t)lim->fchannels : 4u);
     if (bytes > lim->max_bytes)
         return pm_error_set(PM_ERR_INPUT,
-                            "%s '%s': %llu x %llu pixels would take %.1f MiB decoded, above its budget (%s)",
-                            lim->what, name, (unsigned long long)w, (unsigned long long)h, bytes / MIB,
+                            "%s '%s': %llu x %llu pixels would take %.1f MiB decoded, above its budget (%s)", lim->what,
+                            name, (unsigned long long)w, (unsigned long long)h, bytes / MIB,
                             lim->budget ? lim->budget : "image_budgets");
     return PM_OK;
 }
@@ -225,8 +227,8 @@ static pm_result_t decode_jpeg(const char *name, const uint8_t *data, size_t siz
         return pm_error_set(PM_ERR_INPUT, "%s '%s': libjpeg: %s", lim->what, name, err.message);
     }
     jpeg_create_decompress(&cinfo);
-    cinfo.mem->max_memory_to_use = (long)(lim->max_bytes < ((uint64_t)1 << 40) ? 2 * lim->max_bytes + (1 << 24)
-                                                                              : (uint64_t)1 << 41);
+    cinfo.mem->max_memory_to_use =
+        (long)(lim->max_bytes < ((uint64_t)1 << 40) ? 2 * lim->max_bytes + (1 << 24) : (uint64_t)1 << 41);
     jpeg_mem_src(&cinfo, data, (unsigned long)size);
     jpeg_read_header(&cinfo, TRUE);
     if (cinfo.jpeg_color_space == JCS_CMYK || cinfo.jpeg_color_space == JCS_YCCK)
@@ -328,12 +330,11 @@ static pm_result_t tga_bad(const char *name, const pm_img_limits_t *lim, const c
     return pm_error_set(PM_ERR_INPUT, "%s '%s': not a TGA image pmtk reads: %s", lim->what, name, what);
 }
 
-static pm_result_t decode_tga(const char *name, const uint8_t *d, size_t size, const pm_img_limits_t *lim,
-                              pm_img_t *im)
+static pm_result_t decode_tga(const char *name, const uint8_t *d, size_t size, const pm_img_limits_t *lim, pm_img_t *im)
 {
     if (size < 18)
-        return pm_error_set(PM_ERR_INPUT, "%s '%s': truncated TGA: %zu bytes, the header alone is 18", lim->what,
-                            name, size);
+        return pm_error_set(PM_ERR_INPUT, "%s '%s': truncated TGA: %zu bytes, the header alone is 18", lim->what, name,
+                            size);
     unsigned idlen = d[0], cmtype = d[1], type = d[2];
     unsigned cmfirst = d[3] | (unsigned)d[4] << 8, cmlen = d[5] | (unsigned)d[6] << 8, cmbits = d[7];
     unsigned w = d[12] | (unsigned)d[13] << 8, h = d[14] | (unsigned)d[15] << 8, bpp = d[16], desc = d[17];
@@ -410,8 +411,8 @@ static pm_result_t decode_tga(const char *name, const uint8_t *d, size_t size, c
     }
     return PM_OK;
 truncated:
-    return pm_error_set(PM_ERR_INPUT, "%s '%s': truncated TGA: pixel data ends at pixel %zu of %zu", lim->what, name,
-                        i, n);
+    return pm_error_set(PM_ERR_INPUT, "%s '%s': truncated TGA: pixel data ends at pixel %zu of %zu", lim->what, name, i,
+                        n);
 }
 
 /* ---- Radiance RGBE (.hdr): the header (FORMAT, EXPOSURE), the resolution line -Y H +X W (or
@@ -490,8 +491,7 @@ static pm_result_t hdr_scanline(const char *name, const pm_img_limits_t *lim, co
     return PM_OK;
 }
 
-static pm_result_t decode_hdr(const char *name, const uint8_t *d, size_t size, const pm_img_limits_t *lim,
-                              pm_img_t *im)
+static pm_result_t decode_hdr(const char *name, const uint8_t *d, size_t size, const pm_img_limits_t *lim, pm_img_t *im)
 {
     /* The header: text lines up to a blank one, at most 64 KiB. */
     size_t pos = 0;
@@ -576,8 +576,8 @@ static pm_result_t decode_hdr(const char *name, const uint8_t *d, size_t size, c
 
 /* ---- the entry points */
 
-pm_result_t pm_img_decode(const char *name, const char *hint, const void *data, size_t size,
-                          const pm_img_limits_t *lim, pm_img_t *out)
+pm_result_t pm_img_decode(const char *name, const char *hint, const void *data, size_t size, const pm_img_limits_t *lim,
+                          pm_img_t *out)
 {
     memset(out, 0, sizeof *out);
     const uint8_t *d = data;
@@ -593,15 +593,16 @@ pm_result_t pm_img_decode(const char *name, const char *hint, const void *data, 
             snprintf(read_list + strlen(read_list), sizeof read_list - strlen(read_list), "%s%s",
                      read_list[0] ? ", " : "", pm_img_format_name(f));
     if (!got && other)
-        return pm_error_set(PM_ERR_INPUT, "%s '%s': a %s image%s%s; a %s is read from %s: convert it", lim->what,
-                            name, other, named ? " named as " : "", named ? pm_img_format_name(named) : "", lim->what,
+        return pm_error_set(PM_ERR_INPUT, "%s '%s': a %s image%s%s; a %s is read from %s: convert it", lim->what, name,
+                            other, named ? " named as " : "", named ? pm_img_format_name(named) : "", lim->what,
                             read_list);
     if (!got)
-        return pm_error_set(PM_ERR_INPUT,
-                            "%s '%s': not a PNG, JPEG, OpenEXR or (named .tga) TGA%s image (%zu bytes; first bytes %02x "
-                            "%02x %02x %02x)",
-                            lim->what, name, (lim->formats & PM_IMG_HDR) ? " or Radiance HDR" : "", size,
-                            size > 0 ? d[0] : 0, size > 1 ? d[1] : 0, size > 2 ? d[2] : 0, size > 3 ? d[3] : 0);
+        return pm_error_set(
+            PM_ERR_INPUT,
+            "%s '%s': not a PNG, JPEG, OpenEXR or (named .tga) TGA%s image (%zu bytes; first bytes %02x "
+            "%02x %02x %02x)",
+            lim->what, name, (lim->formats & PM_IMG_HDR) ? " or Radiance HDR" : "", size, size > 0 ? d[0] : 0,
+            size > 1 ? d[1] : 0, size > 2 ? d[2] : 0, size > 3 ? d[3] : 0);
     if (named && named != got)
         return pm_error_set(PM_ERR_INPUT, "%s '%s': named as %s but holds a %s image", lim->what, name,
                             pm_img_format_name(named), pm_img_format_name(got));
@@ -622,8 +623,7 @@ pm_result_t pm_img_decode(const char *name, const char *hint, const void *data, 
     return r;
 }
 
-pm_result_t pm_img_read_file(const char *path, const char *what, uint64_t max_size, void **data_out,
-                             size_t *size_out)
+pm_result_t pm_img_read_file(const char *path, const char *what, uint64_t max_size, void **data_out, size_t *size_out)
 {
     *data_out = NULL;
     *size_out = 0;
@@ -640,8 +640,8 @@ pm_result_t pm_img_read_file(const char *path, const char *what, uint64_t max_si
     if (!S_ISREG(st.st_mode)) {
         close(fd);
         return pm_error_set(PM_ERR_INPUT, "%s '%s' is not a regular file (a %s)", what, path,
-                            S_ISFIFO(st.st_mode)  ? "FIFO"
-                            : S_ISDIR(st.st_mode) ? "folder"
+                            S_ISFIFO(st.st_mode)   ? "FIFO"
+                            : S_ISDIR(st.st_mode)  ? "folder"
                             : S_ISSOCK(st.st_mode) ? "socket"
                                                    : "device");
     }

@@ -59,8 +59,7 @@ pm_result_t pm_img_decode(const char *name, const char *hint, const void *data, 
 /* Reads the whole of file path into a malloc'd *data_out without blocking: a FIFO, device or
  * folder is refused (opened O_NONBLOCK, then checked to be a regular file), and so is a file
  * larger than max_size bytes. */
-pm_result_t pm_img_read_file(const char *path, const char *what, uint64_t max_size, void **data_out,
-                             size_t *size_out);
+pm_result_t pm_img_read_file(const char *path, const char *what, uint64_t max_size, void **data_out, size_t *size_out);
 
 /* pm_img_read_file and pm_img_decode: the file may be at most 2 * max_bytes + 1 MiB long. */
 pm_result_t pm_img_load(const char *path, const pm_img_limits_t *limits, pm_img_t *out);

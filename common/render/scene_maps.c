@@ -81,8 +81,9 @@ static pm_result_t embedded_texture(const ctx_t *c, const import_t *im, const ch
     char *end = NULL;
     unsigned long n = strtoul(name + 1, &end, 10);
     if (name[1] < '0' || name[1] > '9' || *end || !im->as || n >= im->as->mNumTextures || !im->as->mTextures[n])
-        return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': %s '%s': no such embedded texture (the file has %u)",
-                            mesh, m->name, key, name, im->as ? im->as->mNumTextures : 0);
+        return pm_error_set(PM_ERR_INPUT,
+                            "mesh '%s': material '%s': %s '%s': no such embedded texture (the file has %u)", mesh,
+                            m->name, key, name, im->as ? im->as->mNumTextures : 0);
     char label[1300];
     snprintf(label, sizeof label, "%s:%s", mesh, name);
     for (size_t i = 0; i < s->ntextures; i++)

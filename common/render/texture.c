@@ -109,8 +109,9 @@ pm_result_t pm_texture_from_bgra(const char *name, uint32_t w, uint32_t h, const
     snprintf(out->path, sizeof out->path, "%s", name);
     srgb_init();
     if (w == 0 || h == 0 || w > PM_TEXTURE_MAX_SIDE || h > PM_TEXTURE_MAX_SIDE || (uint64_t)w * h * 4 > max_bytes)
-        return pm_error_set(PM_ERR_INPUT, "texture '%s': %u x %u texels: each side must be 1 to %u, within its budget (%s)",
-                            name, w, h, PM_TEXTURE_MAX_SIDE, budget ? budget : "image_budgets");
+        return pm_error_set(PM_ERR_INPUT,
+                            "texture '%s': %u x %u texels: each side must be 1 to %u, within its budget (%s)", name, w,
+                            h, PM_TEXTURE_MAX_SIDE, budget ? budget : "image_budgets");
     out->w = w, out->h = h, out->has_alpha = 1;
     if (!(out->u8 = malloc((size_t)w * h * 4)))
         return pm_error_set(PM_ERR_NOMEM, "out of memory for texture '%s' (%u x %u)", name, w, h);
@@ -122,10 +123,7 @@ pm_result_t pm_texture_from_bgra(const char *name, uint32_t w, uint32_t h, const
     return PM_OK;
 }
 
-uint64_t pm_texture_bytes(const pm_texture_t *t)
-{
-    return (uint64_t)t->w * t->h * (t->u8 ? 4u : 4u * sizeof(float));
-}
+uint64_t pm_texture_bytes(const pm_texture_t *t) { return (uint64_t)t->w * t->h * (t->u8 ? 4u : 4u * sizeof(float)); }
 
 pm_result_t pm_texture_solid(const char *name, const float rgb[3], pm_texture_t *out)
 {

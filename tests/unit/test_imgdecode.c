@@ -226,8 +226,9 @@ static void test_budget_and_jpeg(void **state)
     pm_img_free(&im);
     lim.max_bytes--;
     lim.budget = "image_budgets.texture_mib 0.001";
-    expect_error("j.jpg", jpg, size, &lim, "16 x 16 pixels would take 0.0 MiB decoded, above its budget "
-                                           "(image_budgets.texture_mib 0.001)");
+    expect_error("j.jpg", jpg, size, &lim,
+                 "16 x 16 pixels would take 0.0 MiB decoded, above its budget "
+                 "(image_budgets.texture_mib 0.001)");
     /* cut short: libjpeg's "premature end" warning is an error, not grey texels */
     expect_error("j.jpg", jpg, size - 40, &tex, "libjpeg: Premature end of JPEG file");
     free(jpg);

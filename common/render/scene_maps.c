@@ -72,6 +72,19 @@ pm_result_t pm_scene_load_image_budgets(ctx_t *c, json_t *b)
     return r;
 }
 
+/* The scene texture named key as *index_out (*loaded_out 1), or room for one more (0). */
+static pm_result_t find_or_grow(pm_scene_t *s, const char *key, int32_t *index_out, int *loaded_out)
+{
+    for (size_t i = 0; i < s->ntextures; i++)
+        if (strcmp(s->textures[i].path, key) == 0) {
+            *index_out = (int32_t)i;
+            *loaded_out = 1;
+            return PM_OK;
+        }
+    *loaded_out = 0;
+    return pm_scene_grow((void **)&s->textures, s->ntextures + 1, sizeof *s->textures);
+}
+
 /* The texture embedded in mesh file `mesh` as name ("*N": aiScene::mTextures[N]) as scene
  * texture *index_out, decoded once per scene through the same decoders as files. */
 static pm_result_t embedded_texture(const ctx_t *c, const import_t *im, const char *name, const char *mesh,
@@ -86,13 +99,9 @@ static pm_result_t embedded_texture(const ctx_t *c, const import_t *im, const ch
                             m->name, key, name, im->as ? im->as->mNumTextures : 0);
     char label[1300];
     snprintf(label, sizeof label, "%s:%s", mesh, name);
-    for (size_t i = 0; i < s->ntextures; i++)
-        if (strcmp(s->textures[i].path, label) == 0) {
-            *index_out = (int32_t)i;
-            return PM_OK;
-        }
-    pm_result_t r = pm_scene_grow((void **)&s->textures, s->ntextures + 1, sizeof *s->textures);
-    if (r != PM_OK)
+    int loaded = 0;
+    pm_result_t r = find_or_grow(s, label, index_out, &loaded);
+    if (r != PM_OK || loaded)
         return r;
     const struct aiTexture *tx = im->as->mTextures[n];
     if ((r = budget_for(c, label, tx, tx->mHeight == 0 ? tx->mWidth : 0, &s->textures[s->ntextures])) != PM_OK) {
@@ -128,13 +137,9 @@ static pm_result_t scene_texture(const ctx_t *c, const char *base, const char *n
             snprintf(path, sizeof path, "%s", altpath);
     }
     int missing = !found && errno == ENOENT;
-    for (size_t i = 0; i < s->ntextures; i++)
-        if (strcmp(s->textures[i].path, path) == 0) {
-            *index_out = (int32_t)i;
-            return PM_OK;
-        }
-    pm_result_t r = pm_scene_grow((void **)&s->textures, s->ntextures + 1, sizeof *s->textures);
-    if (r != PM_OK)
+    int loaded = 0;
+    pm_result_t r = find_or_grow(s, path, index_out, &loaded);
+    if (r != PM_OK || loaded)
         return r;
     pm_texture_t *t = &s->textures[s->ntextures];
     if (missing && c->missing_magenta) {

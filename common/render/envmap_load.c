@@ -14,8 +14,8 @@ pm_result_t pm_envmap_load(const char *path, uint64_t max_bytes, const float sca
     /* The decoder's budget is the pixels' share (3 floats of PM_ENVMAP_BYTES_PER_PIXEL): the
      * tables pm_envmap_init builds take the rest. */
     char budget[96];
-    snprintf(budget, sizeof budget, "image_budgets.sky_map_mib %.6g, the pixels and their sampling tables",
-             max_bytes / (1024.0 * 1024.0));
+    snprintf(budget, sizeof budget, "image_budgets.sky_map_mib: %llu bytes for the pixels and their sampling tables",
+             (unsigned long long)max_bytes);
     pm_img_limits_t lim = {PM_IMG_EXR | PM_IMG_HDR, max_bytes / PM_ENVMAP_BYTES_PER_PIXEL * 3 * sizeof(float), 3,
                            "sky map", budget};
     pm_img_t im;

@@ -117,3 +117,8 @@ if "$BIN/trace-gather-points" "$TMP/hdr/scene.json" --spp 4 -q -o "$TMP/hdr/q.pm
 else
     fail "Radiance .hdr sky map" "$(head -c 300 "$TMP/hdr/d.txt") $(head -c 300 "$TMP/err" 2>/dev/null)"
 fi
+# ... and refused by a sky map budget below its 2 x 36 bytes (pixels and sampling tables)
+sed 's/"sky": {/"image_budgets": { "sky_map_mib": 0.00005 }, "sky": {/' "$TMP/hdr/scene.json" >"$TMP/hdr/small.json"
+expect_error "image_budgets.sky_map_mib" \
+    "sky\.map 'sky\.hdr': sky map '.*sky\.hdr': 2 x 1 pixels would take 0\.0 MiB decoded, above its budget \(image_budgets\.sky_map_mib: 52 bytes for the pixels and their sampling tables\)" \
+    "$BIN/scene-info" -q "$TMP/hdr/small.json"

@@ -40,4 +40,22 @@ JSON
     else
         fail "embedded glTF textures render" "$(cat "$TMP"/*.err | head -c 400)"
     fi
+    # an embedded image gets the checks of a file: a BMP behind image/png, a PNG declaring
+    # 30000 x 30000 (refused against the budget), a texture index the file does not have
+    # embed NAME HEX-BYTES [JQ-EDIT]: the data-URI glTF with its image replaced, and its scene
+    embed() {
+        mkdir -p "$TMP/$1"
+        cp "$M/BoxTextured-glTF-Embedded/BoxTextured.gltf" "$TMP/$1/in.gltf"
+        printf "$(echo "$2" | sed 's/../\\x&/g')" >"$TMP/$1/img"
+        jq --arg uri "data:image/png;base64,$(base64 -w0 "$TMP/$1/img")" ".images[0].uri = \$uri ${3:-}" \
+            "$TMP/$1/in.gltf" >"$TMP/$1/box.gltf"
+        sed "s|\"file\": \"[^\"]*\"|\"file\": \"$TMP/$1/box.gltf\"|" "$TMP/ext.json" >"$TMP/$1/scene.json"
+    }
+    embed bmp 424d3a000000000000003600000028000000010000000100000001001800000000000400000000000000000000000000000000000000ffffff00
+    expect_error "an embedded BMP behind image/png" "texture '.*box\.gltf:\*0': a BMP image named as PNG" \
+        "$BIN/scene-info" -q "$TMP/bmp/scene.json"
+    embed huge 89504e470d0a1a0a0000000d4948445200007530000075300802000000e9456fed0000000049444154""35af061e
+    expect_error "an embedded PNG of 30000 x 30000" \
+        "texture '.*box\.gltf:\*0': 30000 x 30000 pixels would take 3433\.2 MiB decoded, above its budget" \
+        "$BIN/scene-info" -q "$TMP/huge/scene.json"
 fi

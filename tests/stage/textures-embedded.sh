@@ -41,13 +41,13 @@ JSON
         fail "embedded glTF textures render" "$(cat "$TMP"/*.err | head -c 400)"
     fi
     # an embedded image gets the checks of a file: a BMP behind image/png, a PNG declaring
-    # 30000 x 30000 (refused against the budget), a texture index the file does not have
-    # embed NAME HEX-BYTES [JQ-EDIT]: the data-URI glTF with its image replaced, and its scene
+    # 30000 x 30000 (refused against the budget)
+    # embed NAME HEX-BYTES: the data-URI glTF with its image replaced, and its scene
     embed() {
         mkdir -p "$TMP/$1"
         cp "$M/BoxTextured-glTF-Embedded/BoxTextured.gltf" "$TMP/$1/in.gltf"
         printf "$(echo "$2" | sed 's/../\\x&/g')" >"$TMP/$1/img"
-        jq --arg uri "data:image/png;base64,$(base64 -w0 "$TMP/$1/img")" ".images[0].uri = \$uri ${3:-}" \
+        jq --arg uri "data:image/png;base64,$(base64 -w0 "$TMP/$1/img")" ".images[0].uri = \$uri" \
             "$TMP/$1/in.gltf" >"$TMP/$1/box.gltf"
         sed "s|\"file\": \"[^\"]*\"|\"file\": \"$TMP/$1/box.gltf\"|" "$TMP/ext.json" >"$TMP/$1/scene.json"
     }

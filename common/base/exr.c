@@ -373,11 +373,54 @@ static float value_at(const uint8_t *p, uint16_t t)
     return f;
 }
 
+/* An image in memory, read through OpenEXR's custom stream (pread semantics). */
+typedef struct {
+    const uint8_t *data;
+    size_t size;
+} exr_mem_t;
+
+static int64_t exr_mem_read(exr_const_context_t ctxt, void *user, void *buffer, uint64_t sz, uint64_t offset,
+                            exr_stream_error_func_ptr_t error_cb)
+{
+    (void)ctxt, (void)error_cb;
+    const exr_mem_t *m = user;
+    if (offset >= m->size)
+        return 0;
+    uint64_t n = m->size - offset < sz ? m->size - offset : sz;
+    memcpy(buffer, m->data + offset, (size_t)n);
+    return (int64_t)n;
+}
+
+static int64_t exr_mem_size(exr_const_context_t ctxt, void *user)
+{
+    (void)ctxt;
+    return (int64_t)((const exr_mem_t *)user)->size;
+}
+
+static pm_result_t read_rgb(const char *path, exr_context_initializer_t init, uint64_t max_pixels, uint32_t *w_out,
+                            uint32_t *h_out, float **rgb_out);
+
 pm_result_t pm_exr_read_rgb(const char *path, uint32_t *w_out, uint32_t *h_out, float **rgb_out)
+{
+    return read_rgb(path, exr_init(), (uint64_t)1 << 31, w_out, h_out, rgb_out);
+}
+
+pm_result_t pm_exr_read_rgb_mem(const char *name, const void *data, size_t size, uint64_t max_pixels, uint32_t *w_out,
+                                uint32_t *h_out, float **rgb_out)
+{
+    exr_mem_t m = {data, size};
+    exr_context_initializer_t init = exr_init();
+    init.user_data = &m;
+    init.read_fn = exr_mem_read;
+    init.size_fn = exr_mem_size;
+    return read_rgb(name, init, max_pixels, w_out, h_out, rgb_out);
+}
+
+static pm_result_t read_rgb(const char *path, exr_context_initializer_t init, uint64_t max_pixels, uint32_t *w_out,
+                            uint32_t *h_out, float **rgb_out)
 {
     *rgb_out = NULL;
     *w_out = *h_out = 0;
-    exr_context_initializer_t init = exr_init();
     exr_context_t ctx = NULL;
     exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
     int dec_live = 0;
@@ -408,6 +451,12 @@ pm_result_t pm_exr_read_rgb(const char *path, uint32_t *w_out, uint32_t *h_out, 
                          (long long)h);
         goto done;
     }
+    if ((uint64_t)(w * h) > max_pixels) { /* before any allocation the size asks for */
+        r = pm_error_set(PM_ERR_INPUT,
+                         "OpenEXR image '%s': data window of %lldx%lld pixels is above the budget of %llu pixels", path,
+                         (long long)w, (long long)h, (unsigned long long)max_pixels);
+        goto done;
+    }
     if ((r = choose_channels(ctx, path, &lay)) != PM_OK)
         goto done;
     /* Chunks: bands of `lines` scanlines, or the tiles of level (0, 0), the full-resolution
@@ -415,7 +464,7 @@ pm_result_t pm_exr_read_rgb(const char *path, uint32_t *w_out, uint32_t *h_out, 
     if (storage == EXR_STORAGE_SCANLINE) {
         rv = exr_get_scanlines_per_chunk(ctx, 0, &lines);
         ny = (int32_t)((h + lines - 1) / lines);
-        lay.chunk_px = (int32_t)w * lines;
+        lay.chunk_px = (int32_t)w * (lines < h ? lines : (int32_t)h); /* a band never exceeds the image */
     } else {
         int32_t lw = 0, lh = 0;
         rv = exr_get_tile_sizes(ctx, 0, 0, 0, &tw, &th);
@@ -427,7 +476,9 @@ pm_result_t pm_exr_read_rgb(const char *path, uint32_t *w_out, uint32_t *h_out, 
             goto done;
         }
         nx = (lw + tw - 1) / tw, ny = (lh + th - 1) / th;
-        lay.chunk_px = tw * th;
+        /* A tile larger than the level holds the level: the planes need no more (a corrupt
+         * header may declare tiles of 2^28 pixels over a tiny image). */
+        lay.chunk_px = (tw < lw ? tw : lw) * (th < lh ? th : lh);
     }
     if (rv != EXR_ERR_SUCCESS) {
         r = exr_fail(rv, "read", path);

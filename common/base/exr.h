@@ -78,6 +78,12 @@ size_t pm_exr_aov_channels(unsigned mask, const float *surf, const float *var, p
  * after a failure. */
 pm_result_t pm_exr_read_rgb(const char *path, uint32_t *w_out, uint32_t *h_out, float **rgb_out);
 
+/* pm_exr_read_rgb on size bytes of data in memory (a texture embedded in a glTF, a file the
+ * caller has read); name is for messages. A data window of more than max_pixels pixels is
+ * refused (PM_ERR_INPUT) before anything of its size is allocated. */
+pm_result_t pm_exr_read_rgb_mem(const char *name, const void *data, size_t size, uint64_t max_pixels, uint32_t *w_out,
+                                uint32_t *h_out, float **rgb_out);
+
 /* The value of string attribute name of the first part, malloc'd into *value_out, or
  * PM_ERR_INPUT when there is none (or it is not a string). */
 pm_result_t pm_exr_read_string_attr(const char *path, const char *name, char **value_out);

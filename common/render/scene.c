@@ -244,7 +244,7 @@ static pm_result_t check_size(const ctx_t *c)
 pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
 {
     memset(s, 0, sizeof *s);
-    ctx_t c = {path, s, 0, NULL, 0, NULL, 0};
+    ctx_t c = {path, s, 0, NULL, 0, NULL, 0, 0, 0, 0};
     snprintf(s->path, sizeof s->path, "%s", path);
     json_error_t je;
     FILE *f = fopen(path, "rb");
@@ -255,9 +255,9 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     if (!root)
         return pm_error_set(PM_ERR_INPUT, "scene '%s' line %d column %d: %s", path, je.line, je.column, je.text);
     static const char *const keys[] = {
-        "pmtk_scene", "name",   "meshes",           "camera",     "point_lights",     "sun",
-        "sky",        "render", "missing_textures", "instancing", "two_sided_lights", "shading_normals",
-        NULL};
+        "pmtk_scene",    "name",   "meshes",           "camera",     "point_lights",     "sun",
+        "sky",           "render", "missing_textures", "instancing", "two_sided_lights", "shading_normals",
+        "image_budgets", NULL};
     pm_result_t r = json_is_object(root) ? pm_scene_only_keys(&c, root, "top level", keys)
                                          : pm_scene_bad(&c, "top level", "must be a JSON object");
     int64_t version = 0;
@@ -276,6 +276,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         else if (!v || strcmp(v, "error") != 0)
             r = pm_scene_bad(&c, "missing_textures", "must be \"error\" (the default) or \"magenta\"");
     }
+    if (r == PM_OK)
+        r = pm_scene_load_image_budgets(&c, json_object_get(root, "image_budgets"));
     json_t *meshes = json_object_get(root, "meshes");
     if (r == PM_OK && meshes && !json_is_array(meshes))
         r = pm_scene_bad(&c, "meshes", "must be an array");

@@ -66,6 +66,15 @@ typedef struct {
  * error on a value that is NaN, infinite or negative (named with its pixel and channel). */
 pm_result_t pm_envmap_init(pm_envmap_t *e, uint32_t w, uint32_t h, float *rgb);
 void pm_envmap_free(pm_envmap_t *e);
+/* Bytes a map takes a pixel with its tables (what the sky_map budget counts), and the budget
+ * when the scene sets none (image_budgets.sky_map_mib). */
+#define PM_ENVMAP_BYTES_PER_PIXEL (3 * sizeof(float) + 3 * sizeof(double))
+#define PM_ENVMAP_BUDGET_DEFAULT ((uint64_t)1024 << 20)
+/* Reads the lat-long map path (OpenEXR or Radiance HDR, by content, through base/imgdecode.h),
+ * each value times scale, into e (pm_envmap_init), taking at most max_bytes with its tables:
+ * the declared size is checked before the pixels are allocated. Errors of reading name the
+ * file; a bad value (pm_envmap_init) names its pixel only. */
+pm_result_t pm_envmap_load(const char *path, uint64_t max_bytes, const float scale[3], pm_envmap_t *e);
 
 /* The sky's frame (scene keys sky.up and sky.rotate, docs/scene-format.md): +y turned onto unit
  * vector up by the shortest turn (half a turn about +x when up is -y), then turned about up by

@@ -10,7 +10,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "base/exr.h"
 #include "formats/formats.h"
 #include "render/scene_load.h"
 #include "render/skymodel.h"
@@ -232,26 +231,17 @@ pm_result_t pm_scene_load_lights(const ctx_t *c, json_t *lights)
     return PM_OK;
 }
 
-/* The sky's map: an OpenEXR file relative to the scene, each value times sky.radiance. */
+/* The sky's map: an OpenEXR or Radiance HDR file relative to the scene, each value times
+ * sky.radiance, within image_budgets.sky_map_mib. */
 static pm_result_t load_envmap(const ctx_t *c, const char *file)
 {
     char path[2048];
     pm_scene_resolve(c->file, file, path, sizeof path);
-    uint32_t w = 0, h = 0;
-    float *rgb = NULL;
-    pm_result_t r = pm_exr_read_rgb(path, &w, &h, &rgb);
-    if (r != PM_OK) {
-        pm_error_prefix("scene '%s': sky.map", c->file);
-        return r;
-    }
-    for (size_t i = 0; i < 3 * (size_t)w * h; i++)
-        rgb[i] *= c->s->sky[i % 3];
     c->s->envmap = calloc(1, sizeof *c->s->envmap);
-    if (!c->s->envmap) {
-        free(rgb);
+    if (!c->s->envmap)
         return pm_error_set(PM_ERR_NOMEM, "out of memory for the sky's map");
-    }
-    if ((r = pm_envmap_init(c->s->envmap, w, h, rgb)) != PM_OK)
+    pm_result_t r = pm_envmap_load(path, (uint64_t)(c->sky_map_mib * (1 << 20)), c->s->sky, c->s->envmap);
+    if (r != PM_OK)
         pm_error_prefix("scene '%s': sky.map '%s'", c->file, file);
     return r;
 }
@@ -418,7 +408,7 @@ pm_result_t pm_scene_load_sun_sky(const ctx_t *c, json_t *sun, json_t *sky)
         if (r == PM_OK && model)
             r = load_sky_model(c, sky, model);
         if (r == PM_OK && map && (!json_is_string(map) || !*json_string_value(map)))
-            r = pm_scene_bad(c, "sky.map", "must be a file name (an OpenEXR lat-long map)");
+            r = pm_scene_bad(c, "sky.map", "must be a file name (an OpenEXR or Radiance HDR lat-long map)");
         if (r == PM_OK && map)
             r = load_envmap(c, json_string_value(map));
         if (r != PM_OK)

@@ -52,6 +52,9 @@ typedef struct {
     size_t nimports;
     float *local;    /* every vertex loaded, in its mesh's own units (placements share them) */
     int any_normals; /* some mesh loaded has vertex normals */
+    /* MiB (image_budgets): one texture's texels, all textures' together, the sky map with its
+     * tables; 0 until pm_scene_load_image_budgets sets them */
+    double texture_mib, textures_mib, sky_map_mib;
 } ctx_t;
 
 /* ---- scene_json.c: the scene file's keys. Every error names the scene file, the key path and
@@ -106,6 +109,9 @@ pm_result_t pm_scene_mtl_homes(const char *obj, const char *libs, import_t *im);
 pm_result_t pm_scene_note_unsupported(pm_scene_t *s, uint32_t m, const char *key, int is_file, const char *value);
 
 /* ---- scene_maps.c: a material's textures. */
+/* The scene's image_budgets (an object of texture_mib, textures_mib, sky_map_mib; b may be
+ * NULL) into c's budgets, the defaults where a key is absent. */
+pm_result_t pm_scene_load_image_budgets(ctx_t *c, json_t *b);
 pm_result_t pm_scene_load_material_maps(const ctx_t *c, const char *mesh, int is_obj, const import_t *im,
                                         const struct aiMaterial *am, uint32_t mi);
 

@@ -67,7 +67,7 @@ const char *pm_scene_obj_word(const char *line, char *word, size_t cap)
  * the first usemtl takes whichever material was current (the last one of the .mtl, or
  * assimp's grey default), and an mtllib after a usemtl makes the last material of that
  * library the material of the faces already read. Both are errors naming the line. */
-static pm_result_t check_obj_materials(const char *path, char *libs_out, size_t libs_cap)
+static pm_result_t check_obj_materials(const char *path, char *libs_out, size_t libs_cap, int *no_materials_out)
 {
     size_t libs_len = 0;
     libs_out[0] = '\0';
@@ -76,7 +76,8 @@ static pm_result_t check_obj_materials(const char *path, char *libs_out, size_t 
         return pm_error_set(pm_result_of_errno(errno), "cannot open mesh '%s': %s", path, strerror(errno));
     char *line = NULL, word[16], group[128] = "";
     size_t cap = 0;
-    uint64_t lineno = 0, faces = 0, first_usemtl = 0;
+    uint64_t lineno = 0, faces = 0, first_usemtl = 0, bare_face = 0, bare_line = 0;
+    char bare_group[128] = "";
     int continued = 0; /* the previous line ended in a backslash: this one goes on with it */
     pm_result_t r = PM_OK;
     for (ssize_t len; r == PM_OK && (len = getline(&line, &cap, f)) >= 0;) {
@@ -98,14 +99,9 @@ static pm_result_t check_obj_materials(const char *path, char *libs_out, size_t 
                 first_usemtl = lineno;
         } else if (strcmp(word, "f") == 0 || strcmp(word, "fo") == 0) {
             faces++;
-            if (!first_usemtl) {
-                char where[200] = "";
-                if (group[0])
-                    snprintf(where, sizeof where, ", group '%s'", group);
-                r = pm_error_set(PM_ERR_INPUT,
-                                 "mesh '%s': face %" PRIu64 " (line %" PRIu64 "%s) comes before any usemtl: every "
-                                 "OBJ face needs a material from the .mtl",
-                                 path, faces, lineno, where);
+            if (!first_usemtl && !bare_face) { /* an error only if some usemtl comes later */
+                bare_face = faces, bare_line = lineno;
+                snprintf(bare_group, sizeof bare_group, "%s", group);
             }
         } else if (strcmp(word, "mtllib") == 0 && !first_usemtl) {
             /* assimp takes the rest of the line as one file name; kept one a line */
@@ -124,6 +120,18 @@ static pm_result_t check_obj_materials(const char *path, char *libs_out, size_t 
     }
     if (r == PM_OK && ferror(f))
         r = pm_error_set(pm_result_of_errno(errno), "cannot read mesh '%s': %s", path, strerror(errno));
+    /* No usemtl at all: geometry only, every face the default grey (load_materials notes it).
+     * Faces before the first of some usemtl would silently take a material they do not name. */
+    *no_materials_out = r == PM_OK && !first_usemtl;
+    if (r == PM_OK && bare_face && first_usemtl) {
+        char where[200] = "";
+        if (bare_group[0])
+            snprintf(where, sizeof where, ", group '%s'", bare_group);
+        r = pm_error_set(PM_ERR_INPUT,
+                         "mesh '%s': face %" PRIu64 " (line %" PRIu64 "%s) comes before any usemtl: every OBJ face "
+                         "needs a material from the .mtl (or, with no usemtl at all, the default grey)",
+                         path, bare_face, bare_line, where);
+    }
     free(line);
     fclose(f);
     return r;
@@ -165,12 +173,13 @@ static pm_result_t import_file(ctx_t *c, const char *path, int is_obj, import_t 
      * silently wrong. The OBJ's own order of lines tells; the default material is checked
      * after it. */
     char libs_read[4096] = "";
-    if (is_obj && (r = check_obj_materials(path, libs_read, sizeof libs_read)) != PM_OK) {
+    int no_materials = 0;
+    if (is_obj && (r = check_obj_materials(path, libs_read, sizeof libs_read, &no_materials)) != PM_OK) {
         aiReleaseImport(imported);
         return r;
     }
     import_t *im = &c->imports[c->nimports++];
-    *im = (import_t){.as = imported};
+    *im = (import_t){.as = imported, .no_materials = no_materials};
     snprintf(im->path, sizeof im->path, "%s", path);
     snprintf(im->libs, sizeof im->libs, "%s", libs_read);
     *im_out = im;
@@ -184,7 +193,7 @@ static pm_result_t load_materials(ctx_t *c, const char *path, int is_obj, const 
     pm_scene_t *s = c->s;
     const struct aiScene *as = im->as;
     pm_result_t r;
-    for (unsigned mi = 0; is_obj && mi < as->mNumMeshes; mi++) {
+    for (unsigned mi = 0; is_obj && !im->no_materials && mi < as->mNumMeshes; mi++) {
         const struct aiMesh *m = as->mMeshes[mi];
         struct aiString mname;
         if (m->mMaterialIndex < as->mNumMaterials &&
@@ -194,6 +203,19 @@ static pm_result_t load_materials(ctx_t *c, const char *path, int is_obj, const 
                                 "mesh '%s': %u faces of '%s' have no material (no mtllib, or no usemtl before them)",
                                 path, m->mNumFaces, m->mName.length ? m->mName.data : "(unnamed)");
         }
+    }
+    for (unsigned i = 0; i < as->mNumMaterials; i++) {
+        struct aiString an;
+        int used = 0;
+        for (unsigned mi = 0; mi < as->mNumMeshes && !used; mi++)
+            used =
+                as->mMeshes[mi]->mMaterialIndex == i && (as->mMeshes[mi]->mPrimitiveTypes & aiPrimitiveType_TRIANGLE);
+        if (used &&
+            (aiGetMaterialString(as->mMaterials[i], AI_MATKEY_NAME, &an) != aiReturn_SUCCESS || !an.length ||
+             strcmp(an.data, AI_DEFAULT_MATERIAL_NAME) == 0) &&
+            (r = pm_scene_add_note(s, 0, "mesh '%s' names no material: its faces are the default grey (Kd 0.8)",
+                                   path)) != PM_OK)
+            return r;
     }
     size_t mat0 = *mat0_out = s->nmaterials;
     if ((r = pm_scene_grow((void **)&s->materials, mat0 + as->mNumMaterials, sizeof *s->materials)) != PM_OK ||
@@ -359,7 +381,8 @@ static pm_result_t load_meshes(ctx_t *c, const struct aiScene *as, const char *p
 
 pm_result_t pm_scene_load_mesh(ctx_t *c, json_t *mj, size_t index)
 {
-    static const char *const keys[] = {"file", "scale", "rotate", "translate", "matrix", NULL};
+    static const char *const keys[] = {"file",     "scale",     "rotate",   "translate", "matrix",
+                                       "material", "materials", "emission", NULL};
     pm_scene_t *s = c->s;
     char where[64], path[1200];
     snprintf(where, sizeof where, "meshes[%zu]", index);
@@ -387,6 +410,7 @@ pm_result_t pm_scene_load_mesh(ctx_t *c, json_t *mj, size_t index)
     uint64_t kept = 0; /* which faces are kept (degenerate ones left out): a placement's key */
     /* the import is the scene's until pm_scene_load ends: it serves every entry placing it */
     if ((r = import_file(c, path, is_obj, &im)) != PM_OK || (r = load_materials(c, path, is_obj, im, &mat0)) != PM_OK ||
+        (r = pm_scene_apply_mesh_overrides(c, mj, where, file, mat0, im->as->mNumMaterials)) != PM_OK ||
         (r = load_meshes(c, im->as, path, xf, general, flip, mat0, &kept)) != PM_OK)
         return r;
     /* This entry's placement: entries with equal keys hold the same triangles in the same mesh

@@ -98,7 +98,8 @@ void pm_scene_power(const pm_scene_t *s, double p[3])
         size_t t = s->emissive[i];
         double a = pm_scene_triangle_area(s, t);
         for (int k = 0; k < 3; k++)
-            p[k] += (s->two_sided_lights ? 2.0 : 1.0) * M_PI * s->materials[s->tri_material[t]].ke[k] * a;
+            p[k] +=
+                (pm_scene_emits_both(s, (uint32_t)t) ? 2.0 : 1.0) * M_PI * s->materials[s->tri_material[t]].ke[k] * a;
     }
     for (int k = 0; k < 3 && s->has_sun; k++)
         p[k] += pm_sun_power(s, k);
@@ -115,6 +116,8 @@ size_t pm_scene_flipped_emitters(const pm_scene_t *s, uint32_t *first_out)
     if (s->two_sided_lights)
         return 0; /* both faces emit: no winding faces away */
     for (size_t i = 0; i < s->nemissive; i++) {
+        if (pm_scene_emits_both(s, s->emissive[i]))
+            continue; /* both faces emit: no winding faces away */
         const uint32_t *t = &s->tris[3 * (size_t)s->emissive[i]];
         const float *a = &s->verts[3 * (size_t)t[0]], *b = &s->verts[3 * (size_t)t[1]],
                     *c = &s->verts[3 * (size_t)t[2]];
@@ -243,7 +246,7 @@ static pm_result_t check_size(const ctx_t *c)
 pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
 {
     memset(s, 0, sizeof *s);
-    ctx_t c = {path, s, 0, NULL, 0, NULL, 0};
+    ctx_t c = {path, s, 0, NULL, 0, NULL, 0, NULL, NULL, 0};
     snprintf(s->path, sizeof s->path, "%s", path);
     json_error_t je;
     FILE *f = fopen(path, "rb");
@@ -253,10 +256,21 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     fclose(f);
     if (!root)
         return pm_error_set(PM_ERR_INPUT, "scene '%s' line %d column %d: %s", path, je.line, je.column, je.text);
-    static const char *const keys[] = {
-        "pmtk_scene", "name",   "meshes",           "camera",     "point_lights",     "sun",
-        "sky",        "render", "missing_textures", "instancing", "two_sided_lights", "shading_normals",
-        NULL};
+    static const char *const keys[] = {"pmtk_scene",
+                                       "name",
+                                       "meshes",
+                                       "camera",
+                                       "point_lights",
+                                       "sun",
+                                       "sky",
+                                       "render",
+                                       "missing_textures",
+                                       "instancing",
+                                       "two_sided_lights",
+                                       "shading_normals",
+                                       "materials",
+                                       "shapes",
+                                       NULL};
     pm_result_t r = json_is_object(root) ? pm_scene_only_keys(&c, root, "top level", keys)
                                          : pm_scene_bad(&c, "top level", "must be a JSON object");
     int64_t version = 0;
@@ -275,6 +289,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         else if (!v || strcmp(v, "error") != 0)
             r = pm_scene_bad(&c, "missing_textures", "must be \"error\" (the default) or \"magenta\"");
     }
+    if (r == PM_OK)
+        r = pm_scene_load_scene_materials(&c, json_object_get(root, "materials"));
     json_t *meshes = json_object_get(root, "meshes");
     if (r == PM_OK && meshes && !json_is_array(meshes))
         r = pm_scene_bad(&c, "meshes", "must be an array");
@@ -285,6 +301,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         if (r == PM_ERR_INPUT && strncmp(pm_error_message(), "scene '", 7) != 0)
             pm_error_prefix("scene '%s': meshes[%zu]", path, i);
     }
+    if (r == PM_OK)
+        r = pm_scene_load_shapes(&c, json_object_get(root, "shapes"));
     json_t *two = json_object_get(root, "two_sided_lights");
     if (r == PM_OK && two && !json_is_boolean(two))
         r = pm_scene_bad(&c, "two_sided_lights",
@@ -312,6 +330,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     }
     free(c.imports);
     free(c.local);
+    free(c.smats);
+    free(c.smaps);
     if (r == PM_OK)
         r = check_size(&c);
     if (r == PM_OK)
@@ -361,6 +381,7 @@ void pm_scene_free(pm_scene_t *s)
     free(s->normals);
     free(s->placements);
     free(s->local_verts);
+    free(s->notes);
     for (size_t i = 0; i < s->ntextures; i++)
         pm_texture_free(&s->textures[i]);
     free(s->textures);
@@ -389,6 +410,8 @@ void pm_scene_warn_flipped(const pm_scene_t *s, const pm_stage_t *st)
 
 void pm_scene_warn_unsupported(const pm_scene_t *s, const pm_stage_t *st)
 {
+    for (size_t i = 0; i < s->nnotes; i++)
+        pm_stage_note(st, "%s: %s", s->notes[i].warning ? "warning" : "note", s->notes[i].text);
     for (size_t i = 0; i < s->nunsupported; i++) {
         char text[300];
         pm_scene_unsupported_text(&s->unsupported[i], text, sizeof text);

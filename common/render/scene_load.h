@@ -42,6 +42,7 @@ typedef struct {
     char libs[4096];   /* its .mtl files, one a line (check_obj_materials) */
     mtl_home_t *homes; /* each material its .mtl files define, read once at import (mtl_homes) */
     size_t nhomes;
+    int no_materials; /* an OBJ without any usemtl: its faces are the default grey */
 } import_t;
 
 typedef struct {
@@ -50,8 +51,11 @@ typedef struct {
     int missing_magenta; /* missing_textures "magenta": a missing texture file is a warning */
     import_t *imports;   /* the mesh files imported so far */
     size_t nimports;
-    float *local;    /* every vertex loaded, in its mesh's own units (placements share them) */
-    int any_normals; /* some mesh loaded has vertex normals */
+    float *local;              /* every vertex loaded, in its mesh's own units (placements share them) */
+    int any_normals;           /* some mesh loaded has vertex normals */
+    pm_material_t *smats;      /* the scene file's materials section, in file order (scene_assets.c) */
+    pm_material_maps_t *smaps; /* their textures */
+    size_t nsmats;
 } ctx_t;
 
 /* ---- scene_json.c: the scene file's keys. Every error names the scene file, the key path and
@@ -106,8 +110,23 @@ pm_result_t pm_scene_mtl_homes(const char *obj, const char *libs, import_t *im);
 pm_result_t pm_scene_note_unsupported(pm_scene_t *s, uint32_t m, const char *key, int is_file, const char *value);
 
 /* ---- scene_maps.c: a material's textures. */
+/* Texture file `name` (relative to the file base) as scene texture *index_out, loaded once per
+ * scene; errors name mesh, material m and key. */
+pm_result_t pm_scene_texture(const ctx_t *c, const char *base, const char *name, const char *mesh,
+                             const pm_material_t *m, uint32_t mi, const char *key, int32_t *index_out);
 pm_result_t pm_scene_load_material_maps(const ctx_t *c, const char *mesh, int is_obj, const import_t *im,
                                         const struct aiMaterial *am, uint32_t mi);
+
+/* ---- scene_assets.c: the scene file's materials, overrides and shapes; the loader's notes. */
+/* A note (warning 0) or a warning (1) of what the loader changed, kept in s->notes. */
+pm_result_t pm_scene_add_note(pm_scene_t *s, int warning, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+/* The top-level "materials" object into c->smats (every entry checked, used or not). */
+pm_result_t pm_scene_load_scene_materials(ctx_t *c, json_t *mats);
+/* Mesh entry mj's "material", "materials" and "emission" applied to its materials [mat0, mat0 + n). */
+pm_result_t pm_scene_apply_mesh_overrides(ctx_t *c, json_t *mj, const char *where, const char *mesh, size_t mat0,
+                                          size_t n);
+/* The top-level "shapes" array tessellated into the scene, one placement each. */
+pm_result_t pm_scene_load_shapes(ctx_t *c, json_t *shapes);
 
 /* ---- scene_hash.c: the scene's identity. */
 /* Sets s->hash and s->parts from what s holds (its file hashed again for the whole). */

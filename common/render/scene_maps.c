@@ -25,8 +25,8 @@ static void texture_base(const char *mesh, const import_t *im, const char *name,
  * per scene. A name with Windows separators (Crytek Sponza's "textures\\x.png") is read with
  * '/' when it does not open as written. A missing file is an error naming the material, or
  * under missing_textures "magenta" a magenta texture and a warning. */
-static pm_result_t scene_texture(const ctx_t *c, const char *base, const char *name, const char *mesh,
-                                 const pm_material_t *m, uint32_t mi, const char *key, int32_t *index_out)
+pm_result_t pm_scene_texture(const ctx_t *c, const char *base, const char *name, const char *mesh,
+                             const pm_material_t *m, uint32_t mi, const char *key, int32_t *index_out)
 {
     pm_scene_t *s = c->s;
     char path[1200];
@@ -107,7 +107,7 @@ pm_result_t pm_scene_load_material_maps(const ctx_t *c, const char *mesh, int is
         if (!base[0])
             texture_base(mesh, im, m->name, base, sizeof base);
         int32_t *slot = k == 0 ? &mm->kd : k == 1 ? &mm->ks : &mm->alpha;
-        r = scene_texture(c, base, tp.data, mesh, m, mi, key, slot);
+        r = pm_scene_texture(c, base, tp.data, mesh, m, mi, key, slot);
         if (r == PM_OK && k == 2)
             s->any_alpha = 1;
     }

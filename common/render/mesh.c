@@ -120,16 +120,17 @@ static pm_result_t check_obj_materials(const char *path, char *libs_out, size_t 
     }
     if (r == PM_OK && ferror(f))
         r = pm_error_set(pm_result_of_errno(errno), "cannot read mesh '%s': %s", path, strerror(errno));
-    /* No usemtl at all: geometry only, every face the default grey (load_materials notes it).
-     * Faces before the first of some usemtl would silently take a material they do not name. */
-    *no_materials_out = r == PM_OK && !first_usemtl;
-    if (r == PM_OK && bare_face && first_usemtl) {
+    /* No usemtl and no mtllib: geometry only, every face the default grey (load_materials notes
+     * it). Faces before the first usemtl, or with an mtllib and no usemtl, would silently take a
+     * material they do not name (the .mtl's last one). */
+    *no_materials_out = r == PM_OK && !first_usemtl && !libs_len;
+    if (r == PM_OK && bare_face && !*no_materials_out) {
         char where[200] = "";
         if (bare_group[0])
             snprintf(where, sizeof where, ", group '%s'", bare_group);
         r = pm_error_set(PM_ERR_INPUT,
                          "mesh '%s': face %" PRIu64 " (line %" PRIu64 "%s) comes before any usemtl: every OBJ face "
-                         "needs a material from the .mtl (or, with no usemtl at all, the default grey)",
+                         "needs a material from the .mtl (an OBJ with no mtllib and no usemtl is the default grey)",
                          path, bare_face, bare_line, where);
     }
     free(line);

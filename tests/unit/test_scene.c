@@ -99,12 +99,23 @@ static void test_scene_bad_input(void **state)
                        "camera.look_at: equals camera.eye");
     expect_scene_error("{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"nope.obj\"}], " CAM "}",
                        "cannot open mesh");
-    expect_scene_error("{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"m.obj\"}], " CAM "}",
-                       "Kd + Ks = 1.1 in channel r exceeds 1");
     expect_scene_error("{\"pmtk_scene\": 1, \"name\": \"x\", " CAM ", \"point_lights\": [{\"position\": [0,0,0], "
                        "\"intensity\": [1,-1,1]}]}",
                        "point_lights[0].intensity: element 1 = -1 is outside");
     expect_scene_error("{\"pmtk_scene\": 1, \"name\": \"x\", \"name\": \"y\", " CAM "}", "duplicate");
+    /* Kd + Ks above 1 is read, both scaled by one factor to sum to 1, and said once (issue 29) */
+    char path[256];
+    write_file("kdks.json", "{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"m.obj\"}], " CAM "}", path,
+               sizeof path);
+    pm_scene_t s;
+    assert_int_equal(pm_scene_load(path, &s), PM_OK);
+    assert_float_equal(s.materials[0].kd[0], 0.9f / 1.1f, 1e-6);
+    assert_float_equal(s.materials[0].ks[0], 0.2f / 1.1f, 1e-6);
+    assert_float_equal(s.materials[0].kd[1], 0.5f / 1.1f, 1e-6);
+    assert_int_equal(s.nunsupported, 1);
+    assert_string_equal(s.unsupported[0].key, "Kd + Ks");
+    assert_non_null(strstr(s.unsupported[0].note, "scaled by 0.909091"));
+    pm_scene_free(&s);
 }
 
 static void test_scene_mesh_faults(void **state)
@@ -126,7 +137,6 @@ static void test_scene_mesh_faults(void **state)
                "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
                p, sizeof p);
     static const char *const cases[][2] = {
-        {"nomtl.obj", "face 1 (line 4) comes before any usemtl"},
         {"lastmtl.obj", "face 1 (line 6, group 'floor') comes before any usemtl"},
         {"latelib.obj", "mtllib on line 5 comes after the usemtl on line 4"},
         {"badmtl.obj", "failed to locate material nosuch"},
@@ -159,6 +169,16 @@ static void test_scene_mesh_faults(void **state)
     assert_int_equal(s.nmaterials, 1);
     assert_true(s.materials[0].kd[0] == 0.8f && s.materials[0].ks[0] == 0.0f);
     assert_int_equal(s.materials[0].kind, PM_MAT_STANDARD);
+    pm_scene_free(&s);
+    /* an OBJ with no mtllib and no usemtl is geometry: the same grey, and a note (issue 29) */
+    write_file("nomtl.json", "{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"nomtl.obj\"}], " CAM "}",
+               path, sizeof path);
+    if ((r = pm_scene_load(path, &s)) != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_int_equal(s.nmaterials, 1);
+    assert_true(s.materials[0].kd[0] == 0.8f && s.materials[0].ks[0] == 0.0f);
+    assert_int_equal(s.nnotes, 1);
+    assert_non_null(strstr(s.notes[0].text, "names no material: its faces are the default grey (Kd 0.8)"));
     pm_scene_free(&s);
 }
 
@@ -566,6 +586,7 @@ static void make_material(pm_material_t *m, int kind, unsigned char fill)
     memset(m, fill, sizeof *m);
     snprintf(m->name, sizeof m->name, "brass");
     m->kind = kind;
+    m->two_sided = 0; /* read (for an emitter) like the kind */
     for (size_t f = 0; f < sizeof mat_fields / sizeof mat_fields[0]; f++)
         for (size_t i = 0; i < mat_fields[f].n; i++)
             ((float *)((char *)m + mat_fields[f].offset))[i] = 0.25f + 0.125f * (float)(f + i);
@@ -602,6 +623,13 @@ static void test_scene_identity_fields(void **state)
         c = a;
         c.kind = kind == PM_MAT_PLASTIC ? PM_MAT_STANDARD : kind + 1;
         assert_true(pm_scene_materials_hash(&c, 1) != h);
+        c = a; /* an emitter lighting from both faces is another light */
+        c.two_sided = 1;
+        assert_true(pm_scene_materials_hash(&c, 1) != h);
+        c.ke[0] = c.ke[1] = c.ke[2] = 0.0f; /* not read where nothing is emitted */
+        pm_material_t d = c;
+        d.two_sided = 0;
+        assert_true(pm_scene_materials_hash(&c, 1) == pm_scene_materials_hash(&d, 1));
     }
     /* a conductor by complex index reads eta and k, not f0 */
     pm_material_t a, b;

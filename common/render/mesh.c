@@ -383,7 +383,7 @@ static pm_result_t load_meshes(ctx_t *c, const struct aiScene *as, const char *p
 pm_result_t pm_scene_load_mesh(ctx_t *c, json_t *mj, size_t index)
 {
     static const char *const keys[] = {"file",     "scale",     "rotate",   "translate", "matrix",
-                                       "material", "materials", "emission", NULL};
+                                       "material", "materials", "emission", "lights",    NULL};
     pm_scene_t *s = c->s;
     char where[64], path[1200];
     snprintf(where, sizeof where, "meshes[%zu]", index);
@@ -412,7 +412,8 @@ pm_result_t pm_scene_load_mesh(ctx_t *c, json_t *mj, size_t index)
     /* the import is the scene's until pm_scene_load ends: it serves every entry placing it */
     if ((r = import_file(c, path, is_obj, &im)) != PM_OK || (r = load_materials(c, path, is_obj, im, &mat0)) != PM_OK ||
         (r = pm_scene_apply_mesh_overrides(c, mj, where, file, mat0, im->as->mNumMaterials)) != PM_OK ||
-        (r = load_meshes(c, im->as, path, xf, general, flip, mat0, &kept)) != PM_OK)
+        (r = load_meshes(c, im->as, path, xf, general, flip, mat0, &kept)) != PM_OK ||
+        (r = pm_scene_load_asset_extras(c, mj, where, path, file, index, xf, im->as->mNumLights)) != PM_OK)
         return r;
     /* This entry's placement: entries with equal keys hold the same triangles in the same mesh
      * units and winding, so that Embree can keep one copy and place it by instances. */

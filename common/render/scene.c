@@ -246,7 +246,7 @@ static pm_result_t check_size(const ctx_t *c)
 pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
 {
     memset(s, 0, sizeof *s);
-    ctx_t c = {path, s, 0, NULL, 0, NULL, 0, NULL, NULL, 0};
+    ctx_t c = {.file = path, .s = s, .camera_mesh = -1};
     snprintf(s->path, sizeof s->path, "%s", path);
     json_error_t je;
     FILE *f = fopen(path, "rb");
@@ -294,6 +294,11 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     json_t *meshes = json_object_get(root, "meshes");
     if (r == PM_OK && meshes && !json_is_array(meshes))
         r = pm_scene_bad(&c, "meshes", "must be an array");
+    json_t *cam = json_object_get(root, "camera");
+    size_t nmeshes = meshes ? json_array_size(meshes) : 0;
+    if (r == PM_OK && json_is_object(cam) && json_object_get(cam, "mesh"))
+        r = nmeshes ? pm_scene_get_int(&c, cam, "mesh", "camera.mesh", 1, 0, (int64_t)nmeshes - 1, &c.camera_mesh)
+                    : pm_scene_bad(&c, "camera.mesh", "names a mesh entry, and the scene has none");
     for (size_t i = 0; r == PM_OK && meshes && i < json_array_size(meshes); i++) {
         r = pm_scene_load_mesh(&c, json_array_get(meshes, i), i);
         pm_scene_release_import(&c, meshes, i);
@@ -336,10 +341,14 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         r = check_size(&c);
     if (r == PM_OK)
         r = pm_scene_load_camera(&c, json_object_get(root, "camera"));
+    free(c.acams);
     if (r == PM_OK)
         r = pm_scene_load_lights(&c, json_object_get(root, "point_lights"));
     if (r == PM_OK)
         r = pm_scene_load_sun_sky(&c, json_object_get(root, "sun"), json_object_get(root, "sky"));
+    if (r == PM_OK)
+        r = pm_scene_add_asset_lights(&c);
+    free(c.alights);
     if (r == PM_OK)
         r = pm_scene_load_defaults(&c, json_object_get(root, "render"));
     json_decref(root);

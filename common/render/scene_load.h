@@ -45,6 +45,15 @@ typedef struct {
     int no_materials; /* an OBJ without any usemtl: its faces are the default grey */
 } import_t;
 
+/* A camera a mesh file carries, placed in the scene (scene_punctual.c). */
+typedef struct {
+    char name[128];                  /* its node's name */
+    float eye[3], look_at[3], up[3]; /* m */
+    float hfov;                      /* radians, assimp's horizontal angle (see scene_punctual.c) */
+    float aspect;                    /* width / height; 0: not given */
+    int gltf, ortho;
+} pm_asset_camera_t;
+
 typedef struct {
     const char *file; /* the scene file, for messages */
     pm_scene_t *s;
@@ -56,6 +65,13 @@ typedef struct {
     pm_material_t *smats;      /* the scene file's materials section, in file order (scene_assets.c) */
     pm_material_maps_t *smaps; /* their textures */
     size_t nsmats;
+    int64_t camera_mesh;      /* camera.mesh: the entry whose file's cameras are read; -1: none */
+    pm_asset_camera_t *acams; /* that file's cameras */
+    size_t nacams;
+    pm_point_light_t *alights; /* the glTF point lights and spots of entries with "lights": true */
+    size_t nalights;
+    int has_asun; /* a glTF directional light, as the sun asun */
+    pm_sun_t asun;
 } ctx_t;
 
 /* ---- scene_json.c: the scene file's keys. Every error names the scene file, the key path and
@@ -127,6 +143,17 @@ pm_result_t pm_scene_apply_mesh_overrides(ctx_t *c, json_t *mj, const char *wher
                                           size_t n);
 /* The top-level "shapes" array tessellated into the scene, one placement each. */
 pm_result_t pm_scene_load_shapes(ctx_t *c, json_t *shapes);
+
+/* ---- scene_punctual.c: cameras and lights from a mesh file. */
+/* Entry mj's file (path; mesh as the scene names it) read again for its cameras (when camera.mesh
+ * is index) and its glTF lights ("lights": true), placed by xf; a note when it holds
+ * nlights_seen lights the scene does not read. */
+pm_result_t pm_scene_load_asset_extras(ctx_t *c, json_t *mj, const char *where, const char *path, const char *mesh,
+                                       size_t index, const double xf[3][4], unsigned nlights_seen);
+/* The scene camera from c->acams by camera.name or camera.index, with camera.width and height. */
+pm_result_t pm_scene_asset_camera(const ctx_t *c, json_t *cam);
+/* The assets' lights appended to the scene's point lights, and their sun made the scene's. */
+pm_result_t pm_scene_add_asset_lights(ctx_t *c);
 
 /* ---- scene_hash.c: the scene's identity. */
 /* Sets s->hash and s->parts from what s holds (its file hashed again for the whole). */

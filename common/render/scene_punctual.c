@@ -205,9 +205,11 @@ pm_result_t pm_scene_load_asset_extras(ctx_t *c, json_t *mj, const char *where, 
     int want_lights = lj && json_is_true(lj), want_camera = c->camera_mesh == (int64_t)index;
     size_t n = strlen(path);
     int gltf = (n > 5 && strcasecmp(path + n - 5, ".gltf") == 0) || (n > 4 && strcasecmp(path + n - 4, ".glb") == 0);
-    if (!want_lights && nlights_seen)
-        return pm_scene_add_note(c->s, 0, "%s '%s' holds %u light%s, not read (\"lights\": true reads them)", where,
-                                 mesh, nlights_seen, nlights_seen == 1 ? "" : "s");
+    pm_result_t r = PM_OK;
+    if (!want_lights && nlights_seen &&
+        (r = pm_scene_add_note(c->s, 0, "%s '%s' holds %u light%s, not read (\"lights\": true reads them)", where,
+                               mesh, nlights_seen, nlights_seen == 1 ? "" : "s")) != PM_OK)
+        return r;
     if (!want_lights && !want_camera)
         return PM_OK;
     if (want_lights && !gltf)
@@ -216,7 +218,6 @@ pm_result_t pm_scene_load_asset_extras(ctx_t *c, json_t *mj, const char *where, 
     const struct aiScene *as = aiImportFile(path, aiProcess_ValidateDataStructure);
     if (!as)
         return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", mesh, aiGetErrorString());
-    pm_result_t r = PM_OK;
     if (want_camera)
         r = read_cameras(c, as, mesh, gltf, xf);
     if (r == PM_OK && want_lights)

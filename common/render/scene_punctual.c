@@ -207,8 +207,10 @@ pm_result_t pm_scene_load_asset_extras(ctx_t *c, json_t *mj, const char *where, 
     int gltf = (n > 5 && strcasecmp(path + n - 5, ".gltf") == 0) || (n > 4 && strcasecmp(path + n - 4, ".glb") == 0);
     pm_result_t r = PM_OK;
     if (!want_lights && nlights_seen &&
-        (r = pm_scene_add_note(c->s, 0, "%s '%s' holds %u light%s, not read (\"lights\": true reads them)", where, mesh,
-                               nlights_seen, nlights_seen == 1 ? "" : "s")) != PM_OK)
+        (r = pm_scene_add_note(c->s, 0, "%s '%s' holds %u light%s, not read (%s)", where, mesh, nlights_seen,
+                               nlights_seen == 1 ? "" : "s",
+                               gltf ? "\"lights\": true reads them"
+                                    : "pmtk reads glTF's lights only: they say their units")) != PM_OK)
         return r;
     if (!want_lights && !want_camera)
         return PM_OK;

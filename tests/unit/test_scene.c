@@ -182,6 +182,53 @@ static void test_scene_mesh_faults(void **state)
     pm_scene_free(&s);
 }
 
+/* Shapes (issue 29): every triangle of a sphere, a box and a disk wound with its front face
+ * outward (away from the centre; a disk's and a rectangle's toward +z before their transform),
+ * a sphere's and a disk's facets of the curved area exactly (to float rounding), a box's its
+ * six faces; a mirroring matrix keeps the fronts outward. */
+static void test_scene_shapes(void **state)
+{
+    (void)state;
+    char path[256];
+    write_file("shapes.json",
+               "{\"pmtk_scene\": 1, \"name\": \"x\", \"shapes\": ["
+               "{\"type\": \"sphere\", \"radius\": 0.5, \"segments\": 12, \"translate\": [3, 0, 0]},"
+               "{\"type\": \"box\", \"size\": [1, 2, 3], \"translate\": [-3, 0, 0]},"
+               "{\"type\": \"disk\", \"radius\": 2, \"segments\": 5, \"rotate\": {\"axis\": [1, 0, 0], "
+               "\"degrees\": -90}, \"translate\": [0, -5, 0]},"
+               "{\"type\": \"sphere\", \"radius\": 1, \"matrix\": [-1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 9, 0, 0, 0, 1]}"
+               "], " CAM "}",
+               path, sizeof path);
+    pm_scene_t s;
+    if (pm_scene_load(path, &s) != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_int_equal(s.nplacements, 4);
+    static const double centre[4][3] = {{3, 0, 0}, {-3, 0, 0}, {0, -6, 0}, {0, 0, 9}};
+    const double want[4] = {M_PI, 2 * (2 + 3 + 6), 4 * M_PI, 4 * M_PI};
+    for (size_t p = 0; p < 4; p++) {
+        const pm_placement_t *pl = &s.placements[p];
+        double area = 0.0;
+        for (uint32_t t = pl->tri0; t < pl->tri0 + pl->ntris; t++) {
+            const float *a = &s.verts[3 * s.tris[3 * t]], *b = &s.verts[3 * s.tris[3 * t + 1]],
+                        *c = &s.verts[3 * s.tris[3 * t + 2]];
+            double e1[3], e2[3], n[3], d = 0.0;
+            for (int k = 0; k < 3; k++)
+                e1[k] = (double)b[k] - a[k], e2[k] = (double)c[k] - a[k];
+            n[0] = e1[1] * e2[2] - e1[2] * e2[1], n[1] = e1[2] * e2[0] - e1[0] * e2[2],
+            n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+            /* a disk: away from the point below its centre (its front faces +y after the turn) */
+            for (int k = 0; k < 3; k++)
+                d += n[k] * (((double)a[k] + b[k] + c[k]) / 3.0 - centre[p][k]);
+            if (!(d > 0.0))
+                fail_msg("shape %zu triangle %u faces inward", p, t);
+            area += pm_scene_triangle_area(&s, t);
+        }
+        if (fabs(area / want[p] - 1.0) > 1e-6)
+            fail_msg("shape %zu: area %.9g, expected %.9g", p, area, want[p]);
+    }
+    pm_scene_free(&s);
+}
+
 /* A Collada (or glTF 1) material gives no metallic or roughness factor: it stays the Phong
  * material its format describes, not glTF 2's default rough metal. */
 static void test_scene_phong_formats_stay_phong(void **state)
@@ -717,11 +764,18 @@ static void test_scene_identity_parts(void **state)
 }
 
 static const struct CMUnitTest tests[] = {
-    cmocka_unit_test(test_scene_cornell_box),     cmocka_unit_test(test_scene_bad_input),
-    cmocka_unit_test(test_scene_mesh_faults),     cmocka_unit_test(test_scene_degenerate_triangles),
-    cmocka_unit_test(test_scene_unsupported),     cmocka_unit_test(test_scene_unsupported_gltf),
-    cmocka_unit_test(test_scene_pbr_mtl),         cmocka_unit_test(test_scene_phong_formats_stay_phong),
-    cmocka_unit_test(test_scene_pbr_gltf),        cmocka_unit_test(test_scene_pbr_texture),
-    cmocka_unit_test(test_scene_identity_fields), cmocka_unit_test(test_scene_identity_parts),
+    cmocka_unit_test(test_scene_cornell_box),
+    cmocka_unit_test(test_scene_bad_input),
+    cmocka_unit_test(test_scene_mesh_faults),
+    cmocka_unit_test(test_scene_shapes),
+    cmocka_unit_test(test_scene_degenerate_triangles),
+    cmocka_unit_test(test_scene_unsupported),
+    cmocka_unit_test(test_scene_unsupported_gltf),
+    cmocka_unit_test(test_scene_pbr_mtl),
+    cmocka_unit_test(test_scene_phong_formats_stay_phong),
+    cmocka_unit_test(test_scene_pbr_gltf),
+    cmocka_unit_test(test_scene_pbr_texture),
+    cmocka_unit_test(test_scene_identity_fields),
+    cmocka_unit_test(test_scene_identity_parts),
 };
 UNIT_GROUP(unit_scene, "scene", tests);

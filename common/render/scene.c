@@ -190,6 +190,34 @@ static pm_result_t drop_unused_maps(pm_scene_t *s)
         for (size_t m = 0; m < s->nmaterials; m++)
             s->any_alpha |= s->maps[m].alpha >= 0;
     }
+    /* Textures no kept material reads (an asset material the scene file replaced, or one no
+     * triangle uses) are freed, so that they are neither listed nor hashed. */
+    int32_t *keep = calloc(s->ntextures ? s->ntextures : 1, sizeof *keep);
+    if (!keep)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory");
+    for (size_t m = 0; s->maps && m < s->nmaterials; m++) {
+        const int32_t *slot[3] = {&s->maps[m].kd, &s->maps[m].ks, &s->maps[m].alpha};
+        for (int k = 0; k < 3; k++)
+            if (*slot[k] >= 0)
+                keep[*slot[k]] = 1;
+    }
+    size_t n = 0;
+    for (size_t i = 0; i < s->ntextures; i++) {
+        if (!keep[i]) {
+            pm_texture_free(&s->textures[i]);
+            continue;
+        }
+        s->textures[n] = s->textures[i];
+        keep[i] = (int32_t)n++;
+    }
+    s->ntextures = n;
+    for (size_t m = 0; s->maps && m < s->nmaterials; m++) {
+        int32_t *slot[3] = {&s->maps[m].kd, &s->maps[m].ks, &s->maps[m].alpha};
+        for (int k = 0; k < 3; k++)
+            if (*slot[k] >= 0)
+                *slot[k] = keep[*slot[k]];
+    }
+    free(keep);
     return PM_OK;
 }
 

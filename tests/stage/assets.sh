@@ -231,6 +231,13 @@ JSON
         [ "$(grep -c "Kd + Ks 1.1 (channel r) is approximated: Kd and Ks scaled by 0.909091" "$TMP/kdks.err")" = 1 ] &&
         pass "Kd + Ks = 1.1 is scaled by 1 / 1.1: scene-info lists it, and warns once" ||
         fail "Kd + Ks scaling report" "$(grep -i 'kd + ks' "$TMP/kdks.info" "$TMP/kdks.err" | head -3)"
+    # the duck's textured material replaced: its texture is neither read nor listed
+    sed 's|"meshes": \[ { "file": "\([^"]*\)" } \]|"materials": { "g": { "kind": "diffuse" } }, "meshes": [ { "file": "\1", "material": "g" } ]|' \
+        "$TMP/m-collada/scene.json" >"$TMP/m-collada/over.json"
+    "$BIN/scene-info" "$TMP/m-collada/over.json" >"$TMP/duck.info" 2>/dev/null
+    grep -q "^textures: 0$" "$TMP/duck.info" && grep -q "^  0 g kd 0.8 0.8 0.8 " "$TMP/duck.info" &&
+        pass "a textured asset material replaced by a scene material leaves no texture behind" ||
+        fail "replaced texture" "$(grep -E '^textures|^  0' "$TMP/duck.info" | head -3)"
     "$BIN/scene-info" "$TMP/m-obj-nomtl/scene.json" >"$TMP/nomtl.info" 2>/dev/null
     grep -q "^note: mesh '.*WusonOBJ.obj' names no material: its faces are the default grey (Kd 0.8)$" "$TMP/nomtl.info" &&
         grep -q "^  0 default kd 0.8 0.8 0.8 ks 0 0 0 " "$TMP/nomtl.info" &&

@@ -21,6 +21,9 @@
  * define, a missing .mtl (it then makes up a grey material). The first "Error" it logs
  * during an import fails the load. Scenes load on one thread, so one buffer serves. */
 static char ai_first_error[512];
+/* 1 while importing an OBJ without any mtllib: its usemtl names name nothing, and assimp's
+ * "failed to locate material" for each is expected (the faces are the default grey). */
+static int ai_obj_without_mtllib;
 
 /* Errors assimp 5.2 logs for legal input and then handles right: a usemtl before any
  * group, object or face (the next face makes the default object, with that material), and
@@ -39,6 +42,8 @@ static void on_assimp_log(const char *msg, char *user)
     for (const char *const *b = ai_benign_errors; *b; b++)
         if (strstr(msg, *b))
             return;
+    if (ai_obj_without_mtllib && strstr(msg, "OBJ: failed to locate material"))
+        return;
     const char *colon = strchr(msg, ':'); /* "Error, T0: OBJ: ..." -> "OBJ: ..." */
     snprintf(ai_first_error, sizeof ai_first_error, "%s", colon ? colon + 2 : msg);
     for (char *p = ai_first_error; *p; p++)
@@ -120,17 +125,17 @@ static pm_result_t check_obj_materials(const char *path, char *libs_out, size_t 
     }
     if (r == PM_OK && ferror(f))
         r = pm_error_set(pm_result_of_errno(errno), "cannot read mesh '%s': %s", path, strerror(errno));
-    /* No usemtl and no mtllib: geometry only, every face the default grey (load_materials notes
-     * it). Faces before the first usemtl, or with an mtllib and no usemtl, would silently take a
-     * material they do not name (the .mtl's last one). */
-    *no_materials_out = r == PM_OK && !first_usemtl && !libs_len;
+    /* No mtllib: geometry only, every face the default grey whatever its usemtl says (load_materials
+     * notes it). With an mtllib, faces before the first usemtl would silently take a material
+     * they do not name (the .mtl's last one). */
+    *no_materials_out = r == PM_OK && !libs_len;
     if (r == PM_OK && bare_face && !*no_materials_out) {
         char where[200] = "";
         if (bare_group[0])
             snprintf(where, sizeof where, ", group '%s'", bare_group);
         r = pm_error_set(PM_ERR_INPUT,
                          "mesh '%s': face %" PRIu64 " (line %" PRIu64 "%s) comes before any usemtl: every OBJ face "
-                         "needs a material from the .mtl (an OBJ with no mtllib and no usemtl is the default grey)",
+                         "needs a material from the .mtl (an OBJ with no mtllib is the default grey)",
                          path, bare_face, bare_line, where);
     }
     free(line);
@@ -156,8 +161,13 @@ static pm_result_t import_file(ctx_t *c, const char *path, int is_obj, import_t 
         return r;
     /* Triangulate polygons, merge shared vertices, flatten node transforms, drop points
      * and lines; vertex normals come as the file has them (none are made up). */
+    char libs_read[4096] = "";
+    int no_materials = 0;
+    if (is_obj && (r = check_obj_materials(path, libs_read, sizeof libs_read, &no_materials)) != PM_OK)
+        return r;
     struct aiLogStream log = {on_assimp_log, NULL};
     ai_first_error[0] = '\0';
+    ai_obj_without_mtllib = no_materials;
     aiAttachLogStream(&log);
     const struct aiScene *imported =
         aiImportFile(path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_PreTransformVertices |
@@ -173,12 +183,6 @@ static pm_result_t import_file(ctx_t *c, const char *path, int is_obj, import_t 
      * assimp's default material, or the .mtl's last one; rendering either would be
      * silently wrong. The OBJ's own order of lines tells; the default material is checked
      * after it. */
-    char libs_read[4096] = "";
-    int no_materials = 0;
-    if (is_obj && (r = check_obj_materials(path, libs_read, sizeof libs_read, &no_materials)) != PM_OK) {
-        aiReleaseImport(imported);
-        return r;
-    }
     import_t *im = &c->imports[c->nimports++];
     *im = (import_t){.as = imported, .no_materials = no_materials};
     snprintf(im->path, sizeof im->path, "%s", path);
@@ -212,8 +216,8 @@ static pm_result_t load_materials(ctx_t *c, const char *path, int is_obj, const 
             used =
                 as->mMeshes[mi]->mMaterialIndex == i && (as->mMeshes[mi]->mPrimitiveTypes & aiPrimitiveType_TRIANGLE);
         if (used &&
-            (aiGetMaterialString(as->mMaterials[i], AI_MATKEY_NAME, &an) != aiReturn_SUCCESS || !an.length ||
-             strcmp(an.data, AI_DEFAULT_MATERIAL_NAME) == 0) &&
+            (im->no_materials || aiGetMaterialString(as->mMaterials[i], AI_MATKEY_NAME, &an) != aiReturn_SUCCESS ||
+             !an.length || strcmp(an.data, AI_DEFAULT_MATERIAL_NAME) == 0) &&
             (r = pm_scene_add_note(s, 0, "mesh '%s' names no material: its faces are the default grey (Kd 0.8)",
                                    path)) != PM_OK)
             return r;
@@ -226,6 +230,14 @@ static pm_result_t load_materials(ctx_t *c, const char *path, int is_obj, const 
         s->maps[i] = (pm_material_maps_t){-1, -1, -1};
     for (unsigned i = 0; i < as->mNumMaterials && r == PM_OK; i++) {
         r = pm_scene_load_material(c, path, is_obj, as->mMaterials[i], &s->materials[mat0 + i]);
+        if (r == PM_OK && im->no_materials) { /* a usemtl name without a library: the grey, by that name */
+            pm_material_t *g = &s->materials[mat0 + i];
+            char name[sizeof g->name];
+            memcpy(name, g->name, sizeof name);
+            *g = (pm_material_t){.kd = {0.8f, 0.8f, 0.8f}};
+            memcpy(g->name, name, sizeof name);
+            continue;
+        }
         /* assimp's stand-in material is pmtk's grey default whatever it holds: nothing to report */
         struct aiString an;
         int stand_in = aiGetMaterialString(as->mMaterials[i], AI_MATKEY_NAME, &an) != aiReturn_SUCCESS ||

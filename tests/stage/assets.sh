@@ -15,8 +15,8 @@
 #      a point light of 683 cd is 1 W/sr, a spot of inner angle 0 is a falloff-2 spot; a
 #      directional light of 683 lux straight down lights the file's floor (the default grey,
 #      0.8) with E = 1 W/m^2: radiance 0.8 / pi.
-#   4. Models of assimp-testmodels, unedited, rendered small (OBJ, PLY, glTF, glb, Collada), the
-#      image finite; scene-info says what was scaled (Kd + Ks), filled in and overridden.
+#   4. Models of assimp-testmodels, unedited, rendered small (OBJ with Kd + Ks > 1, without
+#      materials, with a usemtl and no mtllib; PLY, glTF, glb, Collada), the image finite; scene-info says what was scaled (Kd + Ks), filled in and overridden.
 #   5. Bad input: one line naming the key and the value, exit 1.
 # programs: scene-info trace-gather-points composite trace-reference trace-photons build-photonmap simd-gather pipelines/render
 PI=3.141592653589793
@@ -221,6 +221,7 @@ JSON
     ROOT=$PWD
     render_model obj-kdks "$MODELS/OBJ/box_mat_with_spaces.obj"
     render_model obj-nomtl "$MODELS/OBJ/WusonOBJ.obj"
+    render_model obj-usemtl-nolib "$MODELS/OBJ/box.obj"
     render_model ply "$MODELS/PLY/cube_uv.ply"
     render_model gltf "$MODELS/glTF2/BoxTextured-glTF/BoxTextured.gltf"
     render_model glb "$MODELS/glTF2/BoxTextured-glTF-Binary/BoxTextured.glb"

@@ -106,6 +106,8 @@ grep -q "^note: meshes\[0\] 'floor.obj': material 'floor' replaced by scene mate
     grep -q "^  0 grey kd 0.5 0.5 0.5 " "$TMP/rect.info" &&
     pass "scene-info says the floor's material was overridden" ||
     fail "scene-info override note" "$(grep -E 'note|grey' "$TMP/rect.info" | head -3)"
+"$BIN/scene-info" --json "$TMP/rect/down.json" 2>/dev/null | jq -e '.notes == [{"changed": false, "text": "meshes[0] '"'"'floor.obj'"'"': material '"'"'floor'"'"' replaced by scene material '"'"'grey'"'"'"}]' >/dev/null &&
+    pass "... and --json lists it under notes" || fail "scene-info --json notes" "$("$BIN/scene-info" --json "$TMP/rect/down.json" 2>/dev/null | jq -c .notes)"
 
 # ---- 2. the power of tessellated shape lights
 cat >"$TMP/power.json" <<JSON

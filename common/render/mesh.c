@@ -193,7 +193,8 @@ static pm_result_t import_file(ctx_t *c, const char *path, int is_obj, import_t 
 
 /* The materials of import im appended to the scene from index *mat0_out: each read, what it
  * does not honour reported, the textures of those some triangle uses loaded. */
-static pm_result_t load_materials(ctx_t *c, const char *path, int is_obj, const import_t *im, size_t *mat0_out)
+static pm_result_t load_materials(ctx_t *c, json_t *mj, const char *path, int is_obj, const import_t *im,
+                                  size_t *mat0_out)
 {
     pm_scene_t *s = c->s;
     const struct aiScene *as = im->as;
@@ -229,6 +230,21 @@ static pm_result_t load_materials(ctx_t *c, const char *path, int is_obj, const 
     for (size_t i = mat0; i < mat0 + as->mNumMaterials; i++)
         s->maps[i] = (pm_material_maps_t){-1, -1, -1};
     for (unsigned i = 0; i < as->mNumMaterials && r == PM_OK; i++) {
+        /* one the scene file replaces is not read (nor refused, nor its textures loaded): a
+         * placeholder of its name until pm_scene_apply_mesh_overrides puts the scene's in */
+        pm_material_t *slot = &s->materials[mat0 + i];
+        struct aiString an0;
+        char word[sizeof slot->name] = "";
+        if (aiGetMaterialString(as->mMaterials[i], AI_MATKEY_NAME, &an0) == aiReturn_SUCCESS)
+            snprintf(word, sizeof word, "%s", an0.data);
+        pm_scene_material_word(word);
+        if (!word[0] || strcmp(word, AI_DEFAULT_MATERIAL_NAME) == 0)
+            snprintf(word, sizeof word, "default"); /* as pm_scene_load_material names the stand-in */
+        if (pm_scene_overridden(mj, word)) {
+            *slot = (pm_material_t){.kd = {0.8f, 0.8f, 0.8f}};
+            memcpy(slot->name, word, sizeof word);
+            continue;
+        }
         r = pm_scene_load_material(c, path, is_obj, as->mMaterials[i], &s->materials[mat0 + i]);
         if (r == PM_OK && im->no_materials) { /* a usemtl name without a library: the grey, by that name */
             pm_material_t *g = &s->materials[mat0 + i];
@@ -422,7 +438,8 @@ pm_result_t pm_scene_load_mesh(ctx_t *c, json_t *mj, size_t index)
     size_t tri_start = s->ntris, vert_start = s->nverts, mat0 = 0;
     uint64_t kept = 0; /* which faces are kept (degenerate ones left out): a placement's key */
     /* the import is the scene's until pm_scene_load ends: it serves every entry placing it */
-    if ((r = import_file(c, path, is_obj, &im)) != PM_OK || (r = load_materials(c, path, is_obj, im, &mat0)) != PM_OK ||
+    if ((r = import_file(c, path, is_obj, &im)) != PM_OK ||
+        (r = load_materials(c, mj, path, is_obj, im, &mat0)) != PM_OK ||
         (r = pm_scene_apply_mesh_overrides(c, mj, where, file, mat0, im->as->mNumMaterials)) != PM_OK ||
         (r = load_meshes(c, im->as, path, xf, general, flip, mat0, &kept)) != PM_OK ||
         (r = pm_scene_load_asset_extras(c, mj, where, path, file, index, xf, im->as->mNumLights)) != PM_OK)

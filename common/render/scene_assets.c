@@ -207,6 +207,24 @@ static pm_result_t find_material(const ctx_t *c, json_t *v, const char *path, si
                         c->nsmats ? list : "the scene file has no \"materials\" section");
 }
 
+int pm_scene_overridden(json_t *mj, const char *word)
+{
+    json_t *map = json_object_get(mj, "materials");
+    if (json_object_get(mj, "material"))
+        return 1;
+    const char *an;
+    json_t *v;
+    json_object_foreach(map, an, v)
+    {
+        char key[64];
+        snprintf(key, sizeof key, "%s", an);
+        pm_scene_material_word(key);
+        if (strcmp(key, word) == 0)
+            return 1;
+    }
+    return 0;
+}
+
 /* Scene material si in place of scene material slot mi: its parameters and texture; what the
  * asset's material set and pmtk did not honour no longer applies and is dropped. */
 static void use_material(ctx_t *c, size_t si, uint32_t mi)

@@ -141,6 +141,9 @@ pm_result_t pm_scene_load_scene_materials(ctx_t *c, json_t *mats);
 /* Mesh entry mj's "material", "materials" and "emission" applied to its materials [mat0, mat0 + n). */
 pm_result_t pm_scene_apply_mesh_overrides(ctx_t *c, json_t *mj, const char *where, const char *mesh, size_t mat0,
                                           size_t n);
+/* 1 when mesh entry mj replaces its asset's material `word` (as pm_scene_material_word makes it,
+ * "default" for assimp's stand-in): a "material" for all, or a "materials" key naming it. */
+int pm_scene_overridden(json_t *mj, const char *word);
 /* The top-level "shapes" array tessellated into the scene, one placement each. */
 pm_result_t pm_scene_load_shapes(ctx_t *c, json_t *shapes);
 

@@ -109,6 +109,19 @@ grep -q "^note: meshes\[0\] 'floor.obj': material 'floor' replaced by scene mate
 "$BIN/scene-info" --json "$TMP/rect/down.json" 2>/dev/null | jq -e '.notes == [{"changed": false, "text": "meshes[0] '"'"'floor.obj'"'"': material '"'"'floor'"'"' replaced by scene material '"'"'grey'"'"'"}]' >/dev/null &&
     pass "... and --json lists it under notes" || fail "scene-info --json notes" "$("$BIN/scene-info" --json "$TMP/rect/down.json" 2>/dev/null | jq -c .notes)"
 
+# an asset material pmtk would refuse (glass of index -1, a missing texture) is not read when the
+# scene file replaces it
+printf 'mtllib broken.mtl\nv -3 0 3\nv 3 0 3\nv 3 0 -3\nusemtl bad glass\nf 1 2 3\n' >"$TMP/rect/broken.obj"
+printf 'newmtl bad glass\nillum 7\nNi -1\nmap_Kd gone.png\n' >"$TMP/rect/broken.mtl"
+sed 's/"file": "floor.obj", "materials": { "floor": "grey" }/"file": "broken.obj"/' "$TMP/rect/down.json" >"$TMP/rect/broken.json"
+expect_error "an asset material with glass of index -1 is refused as it stands" "material 'bad_glass': Ni -1 must be a finite number > 0" \
+    "$BIN/scene-info" "$TMP/rect/broken.json"
+sed 's/"file": "floor.obj", "materials": { "floor": "grey" }/"file": "broken.obj", "materials": { "bad glass": "grey" }/' \
+    "$TMP/rect/down.json" >"$TMP/rect/fixed.json"
+"$BIN/scene-info" "$TMP/rect/fixed.json" >"$TMP/fixed.info" 2>"$TMP/fixed.err" && grep -q "^  0 grey kd 0.5 0.5 0.5 " "$TMP/fixed.info" &&
+    pass "... and loads when the scene file replaces it (its texture not looked for)" ||
+    fail "an overridden broken asset material" "$(head -c 300 "$TMP/fixed.err")"
+
 # ---- 2. the power of tessellated shape lights
 cat >"$TMP/power.json" <<JSON
 { "pmtk_scene": 1, "name": "shape-power",

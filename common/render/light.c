@@ -29,7 +29,7 @@ double pm_light_power(const pm_scene_t *s, pm_light_kind_t kind, uint32_t index,
     case PM_LIGHT_SPOT: return pm_point_light_power(&s->lights[index], k);
     case PM_LIGHT_AREA:
         /* pi Ke A from one face: the integral of Ke cos over the hemisphere, times the area. */
-        return (s->two_sided_lights ? 2.0 : 1.0) * M_PI * s->materials[s->tri_material[index]].ke[k] *
+        return (pm_scene_emits_both(s, index) ? 2.0 : 1.0) * M_PI * s->materials[s->tri_material[index]].ke[k] *
                pm_scene_triangle_area(s, index);
     case PM_LIGHT_SUN: return pm_sun_power(s, k);
     case PM_LIGHT_SKY: return pm_sky_power(s, k);
@@ -362,7 +362,7 @@ void pm_light_sample_le(const pm_lights_t *L, const pm_light_t *l, float u1, flo
         triangle_point(s, l->index, b0, b1, p);
         /* The front face: the right-hand-rule normal of (v0, v1, v2). */
         pm_vec3_t n = pm_v3_normalize(pm_v3_cross(pm_v3_sub(v1, v0), pm_v3_sub(v2, v0))), tb, bb;
-        if (s->two_sided_lights) { /* either face, by half of u3; the other half stays uniform */
+        if (pm_scene_emits_both(s, l->index)) { /* either face, by half of u3; the other half stays uniform */
             if (u3 < 0.5f)
                 n = pm_v3_scale(n, -1.0f), u3 = 2.0f * u3;
             else
@@ -427,7 +427,7 @@ int pm_lights_sample_li(const pm_lights_t *L, size_t i, pm_rng_t *rng, const flo
         if (!toward(p, n, y, o))
             return 0;
         o->cosy = -pm_dot3(L->front + 3 * e, o->wi);
-        if (s->two_sided_lights) /* either face lights */
+        if (pm_scene_emits_both(s, tri)) /* either face lights */
             o->cosy = fabsf(o->cosy);
         if (!(o->cosx > 0.0f && o->cosy > 0.0f))
             return 0;
@@ -512,7 +512,7 @@ int pm_lights_le_hit(const pm_lights_t *L, uint32_t tri, float cos_front, float 
 {
     const pm_scene_t *s = L->s;
     const pm_material_t *m = &s->materials[s->tri_material[tri]];
-    if (!pm_material_is_emissive(m) || !(cos_front >= 0.0f || s->two_sided_lights))
+    if (!pm_material_is_emissive(m) || !(cos_front >= 0.0f || pm_scene_emits_both(s, tri)))
         return 0;
     *cos_emit_out = fabsf(cos_front);
     memcpy(le_out, m->ke, 3 * sizeof(float));

@@ -140,6 +140,14 @@ typedef struct {
     uint32_t local0;                     /* when proto is itself: its first vertex in local_verts */
 } pm_placement_t;
 
+/* What the loader did to the assets on the user's behalf (a scene material put in place of an
+ * asset's, Kd + Ks scaled down to 1, a default grey given to a mesh without materials): one line
+ * each, printed by scene-info and, through pm_scene_warn_unsupported, by every stage. */
+typedef struct {
+    int warning;    /* 1: the asset was changed (a warning); 0: a note */
+    char text[320]; /* "meshes[0] 'box.obj': material 'red' replaced by scene material 'glass'" */
+} pm_scene_note_t;
+
 typedef struct {
     char name[128];  /* "cornell-box" */
     char path[1024]; /* the scene file */
@@ -192,8 +200,17 @@ typedef struct {
     int any_alpha;              /* some material has map_d: render/rt.c installs the cut-out filter */
     pm_placement_t *placements; /* one per mesh entry */
     size_t nplacements;
-    float *local_verts; /* prototypes' vertices in mesh units; NULL when no mesh is instanced */
+    float *local_verts;     /* prototypes' vertices in mesh units; NULL when no mesh is instanced */
+    pm_scene_note_t *notes; /* what the loader changed or filled in, in load order */
+    size_t nnotes;
 } pm_scene_t;
+
+/* 1 when emissive triangle tri lights from both faces: the scene key two_sided_lights, or its
+ * material's two_sided (a scene file's emission.two_sided). */
+static inline int pm_scene_emits_both(const pm_scene_t *s, uint32_t tri)
+{
+    return s->two_sided_lights || s->materials[s->tri_material[tri]].two_sided;
+}
 
 /* Loads and checks a scene file. Errors name the file and the line (JSON syntax) or the
  * key path ("camera.fov_y") and the offending value. */

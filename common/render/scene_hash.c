@@ -127,6 +127,8 @@ static void put_material(ident_t *w, const pm_material_t *m)
     put_str(w, m->name, sizeof m->name);
     put_u32(w, (uint32_t)m->kind);
     put_f32s(w, m->ke, 3);
+    if (m->two_sided && pm_material_is_emissive(m)) /* only then: other scenes keep their identity */
+        put_str(w, "two-sided", 10);
     switch (m->kind) {
     case PM_MAT_STANDARD:
         put_f32s(w, m->kd, 3);

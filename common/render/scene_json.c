@@ -113,6 +113,8 @@ pm_result_t pm_scene_load_camera(const ctx_t *c, json_t *cam)
     pm_camera_t *k = &c->s->camera;
     if (!json_is_object(cam))
         return pm_scene_bad(c, "camera", "missing or not an object");
+    if (json_object_get(cam, "mesh")) /* a camera the mesh file carries (scene_punctual.c) */
+        return pm_scene_asset_camera(c, cam);
     pm_result_t r = pm_scene_only_keys(c, cam, "camera", keys);
     double fov = 0;
     int64_t w = 0, h = 0;

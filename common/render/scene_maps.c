@@ -118,8 +118,8 @@ static pm_result_t embedded_texture(const ctx_t *c, const import_t *im, const ch
  * per scene. A name with Windows separators (Crytek Sponza's "textures\\x.png") is read with
  * '/' when it does not open as written. A missing file is an error naming the material, or
  * under missing_textures "magenta" a magenta texture and a warning. */
-static pm_result_t scene_texture(const ctx_t *c, const char *base, const char *name, const char *mesh,
-                                 const pm_material_t *m, uint32_t mi, const char *key, int32_t *index_out)
+pm_result_t pm_scene_texture(const ctx_t *c, const char *base, const char *name, const char *mesh,
+                             const pm_material_t *m, uint32_t mi, const char *key, int32_t *index_out)
 {
     pm_scene_t *s = c->s;
     char path[1200];
@@ -211,7 +211,7 @@ pm_result_t pm_scene_load_material_maps(const ctx_t *c, const char *mesh, int is
         if (!base[0])
             texture_base(mesh, im, m->name, base, sizeof base);
         r = tp.data[0] == '*' ? embedded_texture(c, im, tp.data, mesh, m, key, where[k]) /* in the glTF or .glb */
-                              : scene_texture(c, base, tp.data, mesh, m, mi, key, where[k]);
+                              : pm_scene_texture(c, base, tp.data, mesh, m, mi, key, where[k]);
         if (r == PM_OK && slots[k].type == aiTextureType_OPACITY)
             s->any_alpha = 1;
     }
@@ -224,7 +224,7 @@ pm_result_t pm_scene_load_material_maps(const ctx_t *c, const char *mesh, int is
         if (!base[0])
             texture_base(mesh, im, m->name, base, sizeof base);
         r = tp.data[0] == '*' ? embedded_texture(c, im, tp.data, mesh, m, "normal texture", &mm->normal)
-                              : scene_texture(c, base, tp.data, mesh, m, mi, "normal texture", &mm->normal);
+                              : pm_scene_texture(c, base, tp.data, mesh, m, mi, "normal texture", &mm->normal);
     }
     /* A colour image in the bump slot is a normal map (Blender's OBJ exporter writes its normal
      * maps as map_Bump): read as one, and said so. Heights are grey, R = G = B in every texel. */

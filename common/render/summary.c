@@ -233,6 +233,8 @@ static void print_text(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, double
         if (sep[0] == ',')
             fprintf(out, "\n");
     }
+    for (size_t i = 0; i < s->nnotes; i++) /* what the loader changed or filled in */
+        fprintf(out, "%s: %s\n", s->notes[i].warning ? "changed" : "note", s->notes[i].text);
     /* the caustic branch of pipelines/render runs only where this says yes */
     fprintf(out, "specular: %s\n", s->any_specular ? "yes (mirror or glass: caustic paths)" : "no");
     print_textures(out, s);
@@ -394,6 +396,13 @@ pm_result_t pm_summary_json(const pm_scene_t *s, const pm_rt_t *rt, const pm_sum
     }
     if (s->two_sided_lights)
         json_object_set_new(j, "two_sided_lights", json_true());
+    if (s->nnotes) {
+        json_t *notes = json_array();
+        for (size_t i = 0; i < s->nnotes; i++)
+            json_array_append_new(notes, json_pack("{s:b, s:o}", "changed", s->notes[i].warning, "text",
+                                                   jstr(&js, "a loader note", s->notes[i].text)));
+        json_object_set_new(j, "notes", notes);
+    }
     for (int k = 0; k < 3; k++)
         json_array_append_new(power, json_real(p[k]));
     json_object_set_new(j, "power_w", power);

@@ -99,7 +99,8 @@ typedef struct {
     int primary;
     char err[32]; /* the running image's relative error after it, "-" after one pass */
     double wall_s;
-    int added; /* by this run */
+    int added;            /* by this run */
+    double cpu_s[NSTAGE]; /* s of CPU each stage used in the pass (-1: not run or not known) */
 } pass_t;
 
 typedef struct {
@@ -567,7 +568,7 @@ static void sync_file(const char *dir, const char *name)
 }
 
 /* stats.json: {"scene", "params", "passes": [{"pass", "status", "photons", "primary", "wall_s",
- * "relative_error", "stages"}], "stages": {NAME: the stage's --stats over every pass of this
+ * "relative_error", "cpu_s", "stages_cpu_s", "stages"}], "stages": {NAME: the stage's --stats over every pass of this
  * run}, "total": {"passes", "added", "relative_error", "wall_s",
  * "first_image_s", "stopped_by", "alpha", "radius1", "resident": true}}. A pass's "stages" holds,
  * in the words of the stages' own --stats, what the driver asked each stage for in that pass
@@ -621,6 +622,18 @@ static void write_stats(prog_t *p, double wall, double first_image, const char *
         json_object_set_new(o, "photons", json_integer(ps->photons));
         json_object_set_new(o, "primary", json_integer(ps->primary));
         json_object_set_new(o, "wall_s", ps->added ? json_real(ps->wall_s) : json_null());
+        /* the CPU each resident stage used in the pass (/proc, in clock ticks) and their sum:
+         * the pass's compute, against which its wall time is the pipeline's overhead */
+        json_t *cpu = json_object();
+        double csum = 0.0;
+        int known = 0;
+        for (int k = 0; ps->added && k < NSTAGE; k++)
+            if (ps->cpu_s[k] >= 0.0) {
+                json_object_set_new(cpu, stage_names[k], json_real(round(ps->cpu_s[k] * 100.0) / 100.0));
+                csum += ps->cpu_s[k], known++;
+            }
+        json_object_set_new(o, "cpu_s", known ? json_real(round(csum * 100.0) / 100.0) : json_null());
+        json_object_set_new(o, "stages_cpu_s", cpu);
         double e;
         json_object_set_new(o, "relative_error", pm_parse_double(ps->err, &e) == PM_OK ? json_real(e) : json_null());
         json_object_set_new(o, "stages", st);
@@ -845,13 +858,17 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         /* passes.txt names the pass before it is asked for: a run stopped while it is under way
          * leaves "pending", which the next run settles by running.pm's count */
         pass_t ps = {.pass = next, .photons = photons, .primary = units, .added = 1};
+        for (int i = 0; i < NSTAGE; i++)
+            ps.cpu_s[i] = -1.0;
         snprintf(ps.err, sizeof ps.err, "pending");
         if (add_pass(p, &ps) != 0 || write_list(p) != 0) {
             say(p, "cannot write '%s/passes.txt': %s", p->out, strerror(errno));
             rc = 3;
             break;
         }
-        double ts = pm_time_wall();
+        double ts = pm_time_wall(), c0[NSTAGE];
+        for (int i = 0; i < NSTAGE; i++)
+            c0[i] = proc[i] ? pm_proc_cpu_s(proc[i]) : -1.0;
         if (write(wts, l3, strlen(l3)) != (ssize_t)strlen(l3) ||
             (plan_tp >= 0 && write(plan_tp, l1, strlen(l1)) != (ssize_t)strlen(l1)) ||
             write(plan_tg, l2, strlen(l2)) != (ssize_t)strlen(l2)) {
@@ -871,6 +888,12 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
             *first_out = te - t0;
         pass_t *pp = &p->passes[p->npasses - 1];
         pp->wall_s = te - ts;
+        /* each stage's CPU in the pass: all of it lies between the plan lines and the log line,
+         * since the next pass is asked for only now */
+        for (int i = 0; i < NSTAGE; i++) {
+            double c1 = proc[i] ? pm_proc_cpu_s(proc[i]) : -1.0;
+            pp->cpu_s[i] = c0[i] >= 0.0 && c1 >= c0[i] ? c1 - c0[i] : -1.0;
+        }
         snprintf(pp->err, sizeof pp->err, "%s", err);
         if (next == 1 || !p->radius1[0])
             read_radius1(p);

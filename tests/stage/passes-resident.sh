@@ -71,3 +71,10 @@ grep -q 'does not hold these passes (other settings)' "$TMP/mode.out" && [ "$(jq
 "$BIN/simd-gather" -q --k-each-pass --k 5 "$TMP/caustic/files/pass-0001/photonmap.pm" x.pm -o - >/dev/null 2>"$TMP/ke.err"
 [ $? = 2 ] && grep -q 'needs --stream pairs' "$TMP/ke.err" &&
     pass "simd-gather --k-each-pass without --stream pairs: usage error, exit 2" || fail "--k-each-pass usage" "$(cat "$TMP/ke.err")"
+
+# stats.json: each added pass's CPU by resident stage (stages_cpu_s) and its sum (cpu_s), the
+# pass's compute beside its wall_s (no timing is judged here: benchmarks do)
+jq -e '[.passes[] | (.cpu_s | type == "number" and . >= 0) and (.stages_cpu_s | has("trace-gather-points") and has("simd-gather.caustic"))] | all and length == 3' \
+    "$TMP/caustic/res/stats.json" >/dev/null &&
+    pass "resident stats.json: every pass's cpu_s and its stages' stages_cpu_s" ||
+    fail "resident per-pass cpu_s" "$(jq -c '.passes[0]' "$TMP/caustic/res/stats.json")"

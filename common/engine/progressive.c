@@ -200,11 +200,13 @@ int pm_progressive_next_size(const int *k, const double *sec, int n, int kmax, d
     if (time_bound(k, sec, n, next) + time_bound(k, sec, n, after) <= remaining) /* it and the one after it */
         return next;
     /* the last pass: the largest that ends by the budget with 5% to spare (a pass on a machine
-     * shared with other work took up to 12% longer than its bound, measured at load 7), so
-     * that what is left after it is about a unit's time rather than a pass that does not fit
-     * (at most 4 kmax units, PRIMARY's limit of 4096 too) */
-    int most = 4 * kmax < 4096 ? 4 * kmax : 4096;
-    for (int u = most; u > 1; u--)
+     * shared with other work took up to 12% longer than its bound, measured at load 7), and
+     * no larger than a full pass: a pass above kmax units cost more than its share (at load 3
+     * on the Cornell box, 25 units 4.28 s where 16 took 1.80 s, 18 units 2.57 s where 16 took
+     * 1.94 s: the stages' arrays outgrow what the passes before them freed), so TIME=8 and
+     * TIME=16 ended 6.5% and 7.7% late. What is left after it goes to smaller passes, until
+     * not even a unit fits. */
+    for (int u = kmax; u > 1; u--)
         if (LAST_MARGIN * time_bound(k, sec, n, u) <= remaining)
             return u;
     return 1;

@@ -60,7 +60,8 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
  * the passes so far (k[i] units took sec[i] s of wall time, i < n), the seconds left
  * (remaining) and kmax (at least 1): the last size doubled, up to kmax, when it and the pass
  * that would follow it fit; else the last pass, the largest whose time bound, plus 5%, ends
- * by the budget (at most 4 kmax units); 0 when not even one unit fits. A pass of u units is taken to
+ * by the budget (at most kmax units: the time left after it goes to smaller passes); 0 when
+ * not even one unit fits. A pass of u units is taken to
  * last at most the least of sec[j] max(1, u / k[j]) over the passes so far. Exposed for the
  * unit tests. */
 int pm_progressive_next_size(const int *k, const double *sec, int n, int kmax, double remaining);

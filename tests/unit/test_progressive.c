@@ -26,8 +26,11 @@ static void test_sizes_grow_then_fill(void **state)
     /* 7 s left: 16 units (3.3 s) and the 16 after them fit */
     assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 7.0), 16);
     /* 3.75 s left: after 16 units no pass of 16 would fit: the last pass ends by the budget
-     * with 5% to spare, 17 units, bounded by 3.3 x 17 / 16 = 3.51 s (x 1.05: 3.68 s; 18: 3.90 s) */
-    assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 3.75), 17);
+     * with 5% to spare and is no larger than a full pass, 16 units (17 would fit, 3.3 x 17 /
+     * 16 x 1.05 = 3.68 s, but a pass above kmax costs more than its share) */
+    assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 3.75), 16);
+    /* what is left after it goes to a smaller pass: 0.45 s, 1 unit (0.3 s x 1.05) */
+    assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 0.45), 1);
     /* 2.1 s left: the last pass shrinks to what ends there: 9 units, bounded by pass 4's 1.7 s
      * times 9 / 8 = 1.91 s (x 1.05: 2.01 s; 10 units: 2.23 s) */
     assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 2.1), 9);
@@ -52,7 +55,9 @@ static void test_sizes_first_pass(void **state)
     int k3[4] = {1, 2, 4};
     double s3[4] = {2.0, 0.5, 0.9};
     assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 5.5), 8);  /* 1.8 + 3.6 <= 5.5 */
-    assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 4.2), 17); /* 0.9 x 17 / 4 x 1.05 = 4.02 */
+    assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 4.2), 16); /* 17 would fit (0.9 x 17 / 4 x 1.05 =
+                                                                              4.02): a full pass at most */
+    assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 3.0), 12); /* 0.9 x 12 / 4 x 1.05 = 2.84; 13: 3.07 */
 }
 
 static void test_sizes_noisy(void **state)

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "base/args.h"
+#include "base/timer.h"
 
 pm_result_t pm_passplan_open(pm_passplan_t *pp, const char *range, const char *plan)
 {
@@ -81,4 +82,50 @@ void pm_passplan_close(pm_passplan_t *pp)
     if (pp->plan && pp->plan != stdin)
         fclose(pp->plan);
     pp->plan = NULL;
+}
+
+pm_result_t pm_passplan_run(pm_passplan_t *pp, pm_stage_t *st, char **argv, const void *const *drop, size_t ndrop,
+                            const char *size_opt, int64_t max_size, pm_passplan_fn fn, void *user)
+{
+    int argc0 = st->argc, done = 0;
+    char **argv0 = st->argv;
+    double cpu = 0.0;
+    pm_result_t r = PM_OK;
+    for (;;) {
+        int64_t pass, size;
+        int end;
+        if ((r = pm_passplan_next(pp, &pass, &size, &end)) != PM_OK || end)
+            break;
+        if (size > max_size) {
+            r = pm_error_set(PM_ERR_INPUT, "plan '%s' line %" PRId64 ": %s %" PRId64 " is above %" PRId64, pp->path,
+                             pp->line, size_opt, size, max_size);
+            break;
+        }
+        char pw[32], nw[32];
+        snprintf(pw, sizeof pw, "%" PRId64, pass);
+        snprintf(nw, sizeof nw, "%" PRId64, size);
+        char *add[] = {"--pass", pw, (char *)size_opt, nw};
+        char **v = NULL;
+        if ((r = pm_stage_pass_command(st, argv, drop, size ? ndrop : ndrop - 1, add, size ? 4 : 2, &st->argc, &v)) !=
+            PM_OK)
+            break;
+        st->argv = v;
+        double c0 = pm_time_cpu();
+        r = fn(user, pass, size);
+        cpu += pm_time_cpu() - c0;
+        st->argc = argc0, st->argv = argv0;
+        free(v);
+        if (r != PM_OK) {
+            char name[64];
+            snprintf(name, sizeof name, "pass %" PRId64, pass);
+            r = pm_stage_frame_error(r, done, name);
+            break;
+        }
+        done++;
+    }
+    if (r == PM_OK && done == 0)
+        r = pm_error_set(PM_ERR_INPUT, "the plan '%s' names no pass", pp->path ? pp->path : "");
+    pm_stage_stat_int(st, "passes", done);
+    pm_stage_stat_double(st, "pass_cpu_s", cpu);
+    return r;
 }

@@ -17,6 +17,7 @@
 #include <stdio.h>
 
 #include "base/error.h"
+#include "base/stage.h"
 
 typedef struct {
     int64_t first, last; /* --passes A:B; with a plan 0 and -1 */
@@ -40,5 +41,20 @@ pm_result_t pm_passplan_next(pm_passplan_t *pp, int64_t *pass_out, int64_t *size
 int pm_passplan_single(const pm_passplan_t *pp);
 
 void pm_passplan_close(pm_passplan_t *pp);
+
+/* One pass of a resident tracer: pass, and size from the plan (0: the options' size). When it
+ * is called, the stage's recorded command (st->argc, st->argv) is that pass's alone. */
+typedef pm_result_t (*pm_passplan_fn)(void *user, int64_t pass, int64_t size);
+
+/* The one pass loop of the resident tracers (trace-photons, trace-gather-points): fn for each
+ * pass of pp in turn, with the stage's recorded command set to what the pass alone would record
+ * (pm_stage_pass_command: the options whose destinations are drop[0..ndrop) left out, "--pass
+ * P" and, when the plan sizes the pass, "size_opt SIZE" put in; drop's last entry is size_opt's
+ * destination, left out only then) and restored after. A size above max_size is an input error
+ * naming the plan's line; a pass that fails is named (pm_stage_frame_error); a plan of no pass
+ * is an input error. Adds the stats "passes" (the passes done) and "pass_cpu_s" (the CPU s the
+ * stage used in its passes, not in loading). */
+pm_result_t pm_passplan_run(pm_passplan_t *pp, pm_stage_t *st, char **argv, const void *const *drop, size_t ndrop,
+                            const char *size_opt, int64_t max_size, pm_passplan_fn fn, void *user);
 
 #endif

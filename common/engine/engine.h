@@ -139,6 +139,11 @@ void pm_proc_status_free(pm_proc_status_t *st);
  * its handle freed (the caller sets procs[*which_out] to NULL). For programs whose stderr is
  * passed through: a captured one is read only once the program has ended. */
 pm_result_t pm_proc_wait_any(pm_proc_t *const *procs, int n, int *which_out, pm_proc_status_t *status_out);
+/* The CPU seconds (user and system, every thread) the running program has used so far, from
+ * /proc/PID/stat; -1 when they cannot be read (a program that has ended and been waited for). A
+ * resident stage's use between two readings is its compute in that span: one blocked on a pipe
+ * uses none. */
+double pm_proc_cpu_s(const pm_proc_t *p);
 /* Runs one program to its end (pm_proc_spawn then pm_proc_wait). */
 pm_result_t pm_proc_run(const pm_spawn_t *sp, pm_proc_status_t *status_out);
 /* A stage's --stats file as JSON (*j_out the caller's to json_decref); PM_ERR_INPUT when it is

@@ -38,9 +38,20 @@ extern char **environ;
 #define MAX_PASSES 100000 /* passes.txt lines read back; far beyond any budget */
 #define LAST_MARGIN 1.05  /* a TIME budget's last pass: its bound times this must fit */
 
-enum { TP, BM, TG, HS, SG, CO, NSTAGE };
-static const char *const stage_names[NSTAGE] = {"trace-photons", "build-photonmap", "trace-gather-points",
-                                                "hilbert-sort",  "simd-gather",     "composite"};
+/* The stages: the caustic map (CB) and the caustic gather (CG) run for a scene with mirrors or
+ * glass in gather mode; the photon stages and the gathers not with GATHER=none; hilbert-sort
+ * not with ORDER=none. stage_names name their --stats and their column in stats.json. */
+enum { TP, BM, CB, TG, HS, SG, CG, CO, NSTAGE };
+static const char *const stage_names[NSTAGE] = {"trace-photons",       "build-photonmap", "build-photonmap.caustic",
+                                                "trace-gather-points", "hilbert-sort",    "simd-gather",
+                                                "simd-gather.caustic", "composite"};
+static const char *const stage_progs[NSTAGE] = {"trace-photons",       "build-photonmap", "build-photonmap",
+                                                "trace-gather-points", "hilbert-sort",    "simd-gather",
+                                                "simd-gather",         "composite"};
+/* The pipes: the two plans, the photons (global, caustic), the maps (global, caustic), the
+ * queries (as traced, sorted, caustic), the buffers (direct, indirect, caustic), the pass log,
+ * the passes' weights. */
+enum { P_PLAN_TP, P_PLAN_TG, P_PH, P_CPH, P_MAP, P_CMAP, P_Q, P_SQ, P_CQ, P_DIR, P_IND, P_CAU, P_LOG, P_WTS, NPIPE };
 
 /* An argv with its words' storage. */
 typedef struct {
@@ -88,7 +99,8 @@ typedef struct {
     int primary;
     char err[32]; /* the running image's relative error after it, "-" after one pass */
     double wall_s;
-    int added; /* by this run */
+    int added;            /* by this run */
+    double cpu_s[NSTAGE]; /* s of CPU each stage used in the pass (-1: not run or not known) */
 } pass_t;
 
 typedef struct {
@@ -108,6 +120,10 @@ typedef struct {
     int npasses, cap;
     char radius1[64];
     int lock_fd;
+    int on[NSTAGE];         /* the stages this render runs */
+    int direct;             /* the direct buffer: not with MODE=direct-vis over a global map */
+    const char *mode, *map; /* trace-gather-points --mode, build-photonmap --map (MAP=auto resolved) */
+    const char *order;      /* hilbert-sort --order (ORDER=auto resolved; hilbert-sort off for none) */
 } prog_t;
 
 static void say(const prog_t *p, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
@@ -132,18 +148,17 @@ int pm_progressive_handles(const pm_settings_t *s, char *why, size_t cap)
         w = "PASS_RANGE makes pass files";
     else if (s->keep == PM_KEEP_ALL && s->value[PM_P_KEEP] != pm_param_default(PM_P_KEEP))
         w = "KEEP=all keeps every pass's files";
-    else if (strcmp(s->value[PM_P_MODE], "gather"))
-        w = "MODE=direct-vis";
-    else if (strcmp(s->value[PM_P_GATHER], "simd-gather"))
-        w = "GATHER other than simd-gather";
+    else if (strcmp(s->value[PM_P_GATHER], "simd-gather") && strcmp(s->value[PM_P_GATHER], "none"))
+        w = "GATHER other than simd-gather or none";
     else if (s->shards != 1)
         w = "SHARDS";
     else if (strcmp(s->value[PM_P_WIDTHS], "fixed"))
         w = "WIDTHS=variable";
-    else if (!strcmp(s->value[PM_P_ORDER], "none"))
-        w = "ORDER=none";
-    else if (strcmp(s->value[PM_P_MAP], "auto") && strcmp(s->value[PM_P_MAP], "global"))
-        w = "MAP=indirect";
+    else if (!strcmp(s->value[PM_P_MAP], "indirect") && !strcmp(s->value[PM_P_MODE], "gather"))
+        w = "MAP=indirect with MODE=gather"; /* refused, with the reason, by the pass files' driver */
+    else if (!strcmp(s->value[PM_P_GATHER], "none") && !strcmp(s->value[PM_P_MODE], "direct-vis") &&
+             strcmp(s->value[PM_P_MAP], "indirect"))
+        w = "GATHER=none with MODE=direct-vis over a global map"; /* nothing to composite: refused there too */
     else if (s->ntargets)
         w = "TARGETs";
     if (why && cap)
@@ -185,11 +200,13 @@ int pm_progressive_next_size(const int *k, const double *sec, int n, int kmax, d
     if (time_bound(k, sec, n, next) + time_bound(k, sec, n, after) <= remaining) /* it and the one after it */
         return next;
     /* the last pass: the largest that ends by the budget with 5% to spare (a pass on a machine
-     * shared with other work took up to 12% longer than its bound, measured at load 7), so
-     * that what is left after it is about a unit's time rather than a pass that does not fit
-     * (at most 4 kmax units, PRIMARY's limit of 4096 too) */
-    int most = 4 * kmax < 4096 ? 4 * kmax : 4096;
-    for (int u = most; u > 1; u--)
+     * shared with other work took up to 12% longer than its bound, measured at load 7), and
+     * no larger than a full pass: a pass above kmax units cost more than its share (at load 3
+     * on the Cornell box, 25 units 4.28 s where 16 took 1.80 s, 18 units 2.57 s where 16 took
+     * 1.94 s: the stages' arrays outgrow what the passes before them freed), so TIME=8 and
+     * TIME=16 ended 6.5% and 7.7% late. What is left after it goes to smaller passes, until
+     * not even a unit fits. */
+    for (int u = kmax; u > 1; u--)
         if (LAST_MARGIN * time_bound(k, sec, n, u) <= remaining)
             return u;
     return 1;
@@ -340,50 +357,57 @@ static char **stage_env(void)
 
 /* -q, --threads, and --stats into OUTDIR/.stats-NAME.json (none of which a file records),
  * which stats.json takes in under "stages" */
-static void common_opts(const prog_t *p, argv_t *a)
+static void common_opts(const prog_t *p, argv_t *a, int stage)
 {
     if (strcmp(val(p, PM_P_VERBOSE), "1"))
         push(a, "-q");
     opt(a, "--threads", val(p, PM_P_THREADS));
-    const char *base = strrchr(a->v[0], '/');
     push(a, "--stats");
-    pushf(a, "%s/.stats-%s.json", p->out, base ? base + 1 : a->v[0]);
+    pushf(a, "%s/.stats-%s.json", p->out, stage_names[stage]);
 }
 
-/* The six stages' command lines. plan: the plan's path as each tracer sees it; dfd, mfd, lfd:
- * the fds of the direct buffer (tracer's end, composite's end), the maps (the gather's) and
- * the pass log (composite's). first: the first pass of this run. */
-static void stage_argv(const prog_t *p, argv_t a[NSTAGE], int dw, int dr, int mr, int lw, int wr, int first)
+/* The command lines of the stages this render runs (p->on). fd[] holds the pipes' ends a
+ * stage names as /dev/fd/N (the caustic photons', the direct buffer's, the caustic queries'
+ * write ends; the maps', the direct buffer's, the caustic buffer's, the weights' read ends;
+ * the pass log's write end). first: the first pass of this run. */
+static void stage_argv(const prog_t *p, argv_t a[NSTAGE], const int fd[NPIPE][2], int first)
 {
     char path[4200];
     memset(a, 0, sizeof(argv_t) * NSTAGE);
-    snprintf(path, sizeof path, "%s/trace-photons", p->bin);
-    push(&a[TP], path);
-    push(&a[TP], p->scene);
-    pushf(&a[TP], "--photons");
-    pushf(&a[TP], "%" PRId64, p->photons);
-    opt(&a[TP], "--seed", val(p, PM_P_SEED));
-    push(&a[TP], "--plan");
-    push(&a[TP], "-");
-    push(&a[TP], "-o");
-    push(&a[TP], "-");
-    common_opts(p, &a[TP]);
+    for (int i = 0; i < NSTAGE; i++) {
+        if (!p->on[i])
+            continue;
+        snprintf(path, sizeof path, "%s/%s", p->bin, stage_progs[i]);
+        push(&a[i], path);
+    }
+    if (p->on[TP]) {
+        push(&a[TP], p->scene);
+        pushf(&a[TP], "--photons");
+        pushf(&a[TP], "%" PRId64, p->photons);
+        opt(&a[TP], "--seed", val(p, PM_P_SEED));
+        push(&a[TP], "--plan");
+        push(&a[TP], "-");
+        push(&a[TP], "-o");
+        push(&a[TP], "-");
+        if (p->on[CB]) {
+            push(&a[TP], "--caustic-output");
+            pushf(&a[TP], "/dev/fd/%d", fd[P_CPH][1]);
+        }
+    }
+    for (int i = BM; i <= CB; i++) {
+        if (!p->on[i])
+            continue;
+        push(&a[i], "--stream");
+        push(&a[i], "-");
+        push(&a[i], "-o");
+        push(&a[i], "-");
+        push(&a[i], "--map");
+        push(&a[i], i == CB ? "caustic" : p->map);
+    }
 
-    snprintf(path, sizeof path, "%s/build-photonmap", p->bin);
-    push(&a[BM], path);
-    push(&a[BM], "--stream");
-    push(&a[BM], "-");
-    push(&a[BM], "-o");
-    push(&a[BM], "-");
-    push(&a[BM], "--map");
-    push(&a[BM], "global");
-    common_opts(p, &a[BM]);
-
-    snprintf(path, sizeof path, "%s/trace-gather-points", p->bin);
-    push(&a[TG], path);
     push(&a[TG], p->scene);
     push(&a[TG], "--mode");
-    push(&a[TG], "gather");
+    push(&a[TG], p->mode);
     opt(&a[TG], "--spp", p->spp);
     opt(&a[TG], "--width", val(p, PM_P_WIDTH));
     opt(&a[TG], "--height", val(p, PM_P_HEIGHT));
@@ -393,48 +417,61 @@ static void stage_argv(const prog_t *p, argv_t a[NSTAGE], int dw, int dr, int mr
     opt(&a[TG], "--seed", val(p, PM_P_SEED));
     push(&a[TG], "--plan");
     push(&a[TG], "-");
-    push(&a[TG], "-o");
-    push(&a[TG], "-");
-    push(&a[TG], "--direct");
-    pushf(&a[TG], "/dev/fd/%d", dw);
-    common_opts(p, &a[TG]);
+    if (p->on[SG]) {
+        push(&a[TG], "-o");
+        push(&a[TG], "-");
+    } else {
+        push(&a[TG], "--no-queries"); /* GATHER=none: the direct light alone */
+    }
+    if (p->direct) {
+        push(&a[TG], "--direct");
+        pushf(&a[TG], "/dev/fd/%d", fd[P_DIR][1]);
+    }
+    if (p->on[CG]) {
+        push(&a[TG], "--caustic-queries");
+        pushf(&a[TG], "/dev/fd/%d", fd[P_CQ][1]);
+    }
 
-    snprintf(path, sizeof path, "%s/hilbert-sort", p->bin);
-    push(&a[HS], path);
-    push(&a[HS], "--stream");
-    push(&a[HS], "-");
-    push(&a[HS], "-o");
-    push(&a[HS], "-");
-    push(&a[HS], "--order");
-    push(&a[HS], strcmp(val(p, PM_P_ORDER), "auto") ? val(p, PM_P_ORDER) : "hilbert");
-    opt(&a[HS], "--leaf", val(p, PM_P_LEAF));
-    common_opts(p, &a[HS]);
+    if (p->on[HS]) {
+        push(&a[HS], "--stream");
+        push(&a[HS], "-");
+        push(&a[HS], "-o");
+        push(&a[HS], "-");
+        push(&a[HS], "--order");
+        push(&a[HS], p->order);
+        opt(&a[HS], "--leaf", val(p, PM_P_LEAF));
+    }
 
-    snprintf(path, sizeof path, "%s/simd-gather", p->bin);
-    push(&a[SG], path);
-    push(&a[SG], "--stream");
-    push(&a[SG], "pairs");
-    pushf(&a[SG], "/dev/fd/%d", mr);
-    push(&a[SG], "-");
-    push(&a[SG], "-o");
-    push(&a[SG], "-");
-    /* r_1: RADIUS, else measured by K on pass 1, else (a rerun) the running image's */
-    if (val(p, PM_P_RADIUS)[0])
-        opt(&a[SG], "--radius", val(p, PM_P_RADIUS));
-    else if (first > 1)
-        opt(&a[SG], "--radius", p->radius1);
-    else
-        opt(&a[SG], "--k", p->k);
-    opt(&a[SG], "--kernel", val(p, PM_P_KERNEL));
-    opt(&a[SG], "--isa", val(p, PM_P_ISA));
-    opt(&a[SG], "--alpha", val(p, PM_P_ALPHA));
-    common_opts(p, &a[SG]);
+    for (int i = SG; i <= CG; i++) {
+        if (!p->on[i])
+            continue;
+        push(&a[i], "--stream");
+        push(&a[i], "pairs");
+        pushf(&a[i], "/dev/fd/%d", fd[i == CG ? P_CMAP : P_MAP][0]);
+        push(&a[i], "-");
+        push(&a[i], "-o");
+        push(&a[i], "-");
+        if (val(p, PM_P_RADIUS)[0]) /* r_1: RADIUS */
+            opt(&a[i], "--radius", val(p, PM_P_RADIUS));
+        else if (i == CG) /* the caustic map's own density, measured on every pass as the pass files do */
+            opt(&a[i], "--k", p->k), push(&a[i], "--k-each-pass");
+        else if (first > 1) /* a rerun: the running image's r_1 */
+            opt(&a[i], "--radius", p->radius1);
+        else /* measured by K on pass 1 */
+            opt(&a[i], "--k", p->k);
+        opt(&a[i], "--kernel", val(p, PM_P_KERNEL));
+        opt(&a[i], "--isa", val(p, PM_P_ISA));
+        opt(&a[i], "--alpha", val(p, PM_P_ALPHA));
+    }
 
-    snprintf(path, sizeof path, "%s/composite", p->bin);
-    push(&a[CO], path);
+    /* the buffers in the order the pass files add them: direct, indirect, caustic */
     push(&a[CO], "--stream");
-    pushf(&a[CO], "/dev/fd/%d", dr);
-    push(&a[CO], "-");
+    if (p->direct)
+        pushf(&a[CO], "/dev/fd/%d", fd[P_DIR][0]);
+    if (p->on[SG])
+        push(&a[CO], "-");
+    if (p->on[CG])
+        pushf(&a[CO], "/dev/fd/%d", fd[P_CAU][0]);
     push(&a[CO], "--accumulate");
     push(&a[CO], "running.pm");
     push(&a[CO], "-o");
@@ -448,10 +485,12 @@ static void stage_argv(const prog_t *p, argv_t a[NSTAGE], int dw, int dr, int mr
     if (!strcmp(val(p, PM_P_HALF), "1"))
         push(&a[CO], "--half");
     push(&a[CO], "--pass-log");
-    pushf(&a[CO], "/dev/fd/%d", lw);
+    pushf(&a[CO], "/dev/fd/%d", fd[P_LOG][1]);
     push(&a[CO], "--weights");
-    pushf(&a[CO], "/dev/fd/%d", wr);
-    common_opts(p, &a[CO]);
+    pushf(&a[CO], "/dev/fd/%d", fd[P_WTS][0]);
+    for (int i = 0; i < NSTAGE; i++)
+        if (p->on[i])
+            common_opts(p, &a[i], i);
 }
 
 /* What the running image depends on, as one line: the scene's content (not its path) and
@@ -467,6 +506,14 @@ static void make_settings(prog_t *p)
     for (size_t i = 0; i < sizeof keys / sizeof *keys && at < sizeof p->settings; i++)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " %s=%s", pm_param_name(keys[i]),
                                val(p, keys[i]));
+    /* what else a pass's bytes follow, named only when not the default (the line of a running
+     * image made before these ran resident stays the same) */
+    if (strcmp(p->mode, "gather") && at < sizeof p->settings)
+        at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " MODE=%s", p->mode);
+    if (strcmp(p->map, "global") && at < sizeof p->settings)
+        at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " MAP=%s", p->map);
+    if (!p->on[SG] && at < sizeof p->settings)
+        at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " GATHER=none");
     snprintf(p->request, sizeof p->request, "PASSES=%s TIME=%s TARGET_ERROR=%s EXPOSURE=%s TONE=%s HALF=%s",
              val(p, PM_P_PASSES), val(p, PM_P_TIME), val(p, PM_P_TARGET_ERROR), val(p, PM_P_EXPOSURE),
              val(p, PM_P_TONE), val(p, PM_P_HALF));
@@ -497,7 +544,7 @@ static int retone(prog_t *p, char **env)
     push(&a, val(p, PM_P_TONE));
     if (!strcmp(val(p, PM_P_HALF), "1"))
         push(&a, "--half");
-    common_opts(p, &a);
+    common_opts(p, &a, CO);
     pm_spawn_t sp = {.argv = a.v, .cwd = p->out, .stdin_fd = -1, .stdout_fd = -1, .capture_stderr = 1, .env = env};
     pm_proc_status_t st;
     if (pm_proc_run(&sp, &st) != PM_OK) {
@@ -523,7 +570,7 @@ static void sync_file(const char *dir, const char *name)
 }
 
 /* stats.json: {"scene", "params", "passes": [{"pass", "status", "photons", "primary", "wall_s",
- * "relative_error", "stages"}], "stages": {NAME: the stage's --stats over every pass of this
+ * "relative_error", "cpu_s", "stages_cpu_s", "stages"}], "stages": {NAME: the stage's --stats over every pass of this
  * run}, "total": {"passes", "added", "relative_error", "wall_s",
  * "first_image_s", "stopped_by", "alpha", "radius1", "resident": true}}. A pass's "stages" holds,
  * in the words of the stages' own --stats, what the driver asked each stage for in that pass
@@ -552,7 +599,8 @@ static void write_stats(prog_t *p, double wall, double first_image, const char *
         json_object_set_new(tp, "emitted", json_integer(ps->photons));
         json_object_set_new(tp, "pass", json_integer(ps->pass));
         json_object_set_new(tg, "primary", json_integer(ps->primary));
-        json_object_set_new(tg, "spp", json_integer(spp));
+        if (spp > 0)
+            json_object_set_new(tg, "spp", json_integer(spp));
         json_object_set_new(tg, "pass", json_integer(ps->pass));
         if (!val(p, PM_P_RADIUS)[0]) {
             double kk;
@@ -562,14 +610,32 @@ static void write_stats(prog_t *p, double wall, double first_image, const char *
         if (r1 > 0.0)
             json_object_set_new(sg, "radius_m", json_real(pm_gather_pass_radius(r1, (uint64_t)ps->pass, a)));
         json_object_set_new(sg, "pass", json_integer(ps->pass));
-        json_object_set_new(st, "trace-photons", tp);
+        if (p->on[TP])
+            json_object_set_new(st, "trace-photons", tp);
+        else
+            json_decref(tp);
         json_object_set_new(st, "trace-gather-points", tg);
-        json_object_set_new(st, "simd-gather", sg);
+        if (p->on[SG])
+            json_object_set_new(st, "simd-gather", sg);
+        else
+            json_decref(sg);
         json_object_set_new(o, "pass", json_integer(ps->pass));
         json_object_set_new(o, "status", json_string(ps->added ? "added" : "kept"));
         json_object_set_new(o, "photons", json_integer(ps->photons));
         json_object_set_new(o, "primary", json_integer(ps->primary));
         json_object_set_new(o, "wall_s", ps->added ? json_real(ps->wall_s) : json_null());
+        /* the CPU each resident stage used in the pass (/proc, in clock ticks) and their sum:
+         * the pass's compute, against which its wall time is the pipeline's overhead */
+        json_t *cpu = json_object();
+        double csum = 0.0;
+        int known = 0;
+        for (int k = 0; ps->added && k < NSTAGE; k++)
+            if (ps->cpu_s[k] >= 0.0) {
+                json_object_set_new(cpu, stage_names[k], json_real(round(ps->cpu_s[k] * 100.0) / 100.0));
+                csum += ps->cpu_s[k], known++;
+            }
+        json_object_set_new(o, "cpu_s", known ? json_real(round(csum * 100.0) / 100.0) : json_null());
+        json_object_set_new(o, "stages_cpu_s", cpu);
         double e;
         json_object_set_new(o, "relative_error", pm_parse_double(ps->err, &e) == PM_OK ? json_real(e) : json_null());
         json_object_set_new(o, "stages", st);
@@ -669,37 +735,55 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         pm_parse_double(s->value[PM_P_TARGET_ERROR], &target);
     static char stopbuf[96];
     *first_out = -1.0;
-    /* pipes: the two plans, photons, maps, queries, sorted queries, direct, indirect, the pass
-     * log, the passes' weights; the ends given as /dev/fd/N (direct both ends, the maps' read
-     * end, the log's write end, the weights' read end) are inherited, and each stage closes
-     * those it does not use, so that a reader sees the end of its pipe when its writer exits;
-     * every other end is close-on-exec */
-    int plan_tp[2], plan_tg[2], ph[2], map[2], q[2], sq[2], dir[2], ind[2], log[2], wts[2];
-    int *all[] = {plan_tp, plan_tg, ph, map, q, sq, dir, ind, log, wts};
-    for (size_t i = 0; i < sizeof all / sizeof *all; i++)
-        all[i][0] = all[i][1] = -1;
-    for (size_t i = 0; i < sizeof all / sizeof *all; i++)
-        if (pm_proc_pipe(all[i]) != PM_OK) {
+    /* the pipes; the ends a stage names as /dev/fd/N are inherited (stage_argv), and each stage
+     * closes those it does not use, so that a reader sees the end of its pipe when its writer
+     * exits; every other end is close-on-exec */
+    int fd[NPIPE][2];
+    for (int i = 0; i < NPIPE; i++)
+        fd[i][0] = fd[i][1] = -1;
+    for (int i = 0; i < NPIPE; i++)
+        if (pm_proc_pipe(fd[i]) != PM_OK) {
             say(p, "%s", pm_error_message());
-            for (size_t j = 0; j < i; j++)
-                close(all[j][0]), close(all[j][1]);
+            for (int j = 0; j < i; j++)
+                close(fd[j][0]), close(fd[j][1]);
             return 3;
         }
-    int inherit[] = {dir[1], dir[0], map[0], log[1], wts[0]};
-    for (int i = 0; i < 5; i++)
-        fcntl(inherit[i], F_SETFD, 0);
+    /* each stage: stdin, stdout, and the ends it names (-1: none) */
+    int in_fd[NSTAGE] = {fd[P_PLAN_TP][0], fd[P_PH][0], fd[P_CPH][0], fd[P_PLAN_TG][0],
+                         fd[P_Q][0],       -1,          fd[P_CQ][0],  p->on[SG] ? fd[P_IND][0] : -1};
+    in_fd[SG] = p->on[HS] ? fd[P_SQ][0] : fd[P_Q][0];
+    int out_fd[NSTAGE] = {fd[P_PH][1], fd[P_MAP][1], fd[P_CMAP][1], p->on[SG] ? fd[P_Q][1] : -1,
+                          fd[P_SQ][1], fd[P_IND][1], fd[P_CAU][1],  -1};
+    int uses[NSTAGE][4] = {{p->on[CB] ? fd[P_CPH][1] : -1, -1, -1, -1},
+                           {-1, -1, -1, -1},
+                           {-1, -1, -1, -1},
+                           {p->direct ? fd[P_DIR][1] : -1, p->on[CG] ? fd[P_CQ][1] : -1, -1, -1},
+                           {-1, -1, -1, -1},
+                           {fd[P_MAP][0], -1, -1, -1},
+                           {fd[P_CMAP][0], -1, -1, -1},
+                           {p->direct ? fd[P_DIR][0] : -1, p->on[CG] ? fd[P_CAU][0] : -1, fd[P_LOG][1], fd[P_WTS][0]}};
+    int inherit[NSTAGE * 4], ninherit = 0;
+    for (int i = 0; i < NSTAGE; i++)
+        for (int j = 0; j < 4; j++)
+            if (p->on[i] && uses[i][j] >= 0) {
+                fcntl(uses[i][j], F_SETFD, 0);
+                inherit[ninherit++] = uses[i][j];
+            }
     argv_t a[NSTAGE];
-    stage_argv(p, a, dir[1], dir[0], map[0], log[1], wts[0], first);
-    /* each stage: stdin, stdout, and the inherited ends it must not hold */
-    int in_fd[NSTAGE] = {plan_tp[0], ph[0], plan_tg[0], q[0], sq[0], ind[0]};
-    int out_fd[NSTAGE] = {ph[1], map[1], q[1], sq[1], ind[1], -1};
-    int closes[NSTAGE][5] = {{dir[1], dir[0], map[0], log[1], wts[0]}, {dir[1], dir[0], map[0], log[1], wts[0]},
-                             {dir[0], map[0], log[1], wts[0], -1},     {dir[1], dir[0], map[0], log[1], wts[0]},
-                             {dir[1], dir[0], log[1], wts[0], -1},     {dir[1], map[0], -1, -1, -1}};
-    int nclose[NSTAGE] = {5, 5, 4, 5, 4, 2};
+    stage_argv(p, a, (const int(*)[2])fd, first);
     pm_proc_t *proc[NSTAGE] = {0};
     int rc = 0;
     for (int i = 0; i < NSTAGE && rc == 0; i++) {
+        if (!p->on[i])
+            continue;
+        int closes[NSTAGE * 4], nclose = 0;
+        for (int k = 0; k < ninherit; k++) {
+            int mine = 0;
+            for (int j = 0; j < 4; j++)
+                mine |= uses[i][j] == inherit[k];
+            if (!mine)
+                closes[nclose++] = inherit[k];
+        }
         if (!strcmp(val(p, PM_P_VERBOSE), "1")) {
             fprintf(stderr, "%s:", p->me);
             for (int w = 0; w < a[i].n; w++)
@@ -714,24 +798,26 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
                          .stdin_fd = in_fd[i],
                          .stdout_fd = out_fd[i],
                          .capture_stderr = strcmp(val(p, PM_P_VERBOSE), "1") != 0,
-                         .close_fds = closes[i],
-                         .nclose = nclose[i],
+                         .close_fds = closes,
+                         .nclose = nclose,
                          .env = env};
         if (pm_proc_spawn(&sp, &proc[i]) != PM_OK) {
             say(p, "%s", pm_error_message());
             rc = 3;
         }
     }
-    /* the driver keeps the plans' write ends and the log's read end */
-    for (size_t i = 0; i < sizeof all / sizeof *all; i++) {
-        if (all[i] != plan_tp && all[i] != plan_tg && all[i] != wts)
-            close(all[i][1]);
-        if (all[i] != log)
-            close(all[i][0]);
+    /* the driver keeps the plans' write ends (of the tracers it runs), the weights' write end
+     * and the log's read end */
+    int plan_tp = p->on[TP] ? fd[P_PLAN_TP][1] : -1, plan_tg = fd[P_PLAN_TG][1], wts = fd[P_WTS][1];
+    for (int i = 0; i < NPIPE; i++) {
+        if (fd[i][1] != plan_tp && fd[i][1] != plan_tg && fd[i][1] != wts)
+            close(fd[i][1]);
+        if (i != P_LOG)
+            close(fd[i][0]);
     }
-    FILE *logf = rc == 0 ? fdopen(log[0], "r") : NULL;
+    FILE *logf = rc == 0 ? fdopen(fd[P_LOG][0], "r") : NULL;
     if (!logf)
-        close(log[0]);
+        close(fd[P_LOG][0]);
     void (*old_pipe)(int) = signal(SIGPIPE, SIG_IGN); /* a plan whose tracer failed: EPIPE, not death */
     int k[4096];
     double sec[4096];
@@ -774,16 +860,20 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         /* passes.txt names the pass before it is asked for: a run stopped while it is under way
          * leaves "pending", which the next run settles by running.pm's count */
         pass_t ps = {.pass = next, .photons = photons, .primary = units, .added = 1};
+        for (int i = 0; i < NSTAGE; i++)
+            ps.cpu_s[i] = -1.0;
         snprintf(ps.err, sizeof ps.err, "pending");
         if (add_pass(p, &ps) != 0 || write_list(p) != 0) {
             say(p, "cannot write '%s/passes.txt': %s", p->out, strerror(errno));
             rc = 3;
             break;
         }
-        double ts = pm_time_wall();
-        if (write(wts[1], l3, strlen(l3)) != (ssize_t)strlen(l3) ||
-            write(plan_tp[1], l1, strlen(l1)) != (ssize_t)strlen(l1) ||
-            write(plan_tg[1], l2, strlen(l2)) != (ssize_t)strlen(l2)) {
+        double ts = pm_time_wall(), c0[NSTAGE];
+        for (int i = 0; i < NSTAGE; i++)
+            c0[i] = proc[i] ? pm_proc_cpu_s(proc[i]) : -1.0;
+        if (write(wts, l3, strlen(l3)) != (ssize_t)strlen(l3) ||
+            (plan_tp >= 0 && write(plan_tp, l1, strlen(l1)) != (ssize_t)strlen(l1)) ||
+            write(plan_tg, l2, strlen(l2)) != (ssize_t)strlen(l2)) {
             failed = next;
             break;
         }
@@ -800,6 +890,12 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
             *first_out = te - t0;
         pass_t *pp = &p->passes[p->npasses - 1];
         pp->wall_s = te - ts;
+        /* each stage's CPU in the pass: all of it lies between the plan lines and the log line,
+         * since the next pass is asked for only now */
+        for (int i = 0; i < NSTAGE; i++) {
+            double c1 = proc[i] ? pm_proc_cpu_s(proc[i]) : -1.0;
+            pp->cpu_s[i] = c0[i] >= 0.0 && c1 >= c0[i] ? c1 - c0[i] : -1.0;
+        }
         snprintf(pp->err, sizeof pp->err, "%s", err);
         if (next == 1 || !p->radius1[0])
             read_radius1(p);
@@ -825,9 +921,10 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
             say(p, "cannot write '%s/passes.txt': %s", p->out, strerror(errno)), rc = 3;
     }
     /* the end of the plans ends every stage in turn */
-    close(plan_tp[1]);
-    close(plan_tg[1]);
-    close(wts[1]);
+    if (plan_tp >= 0)
+        close(plan_tp);
+    close(plan_tg);
+    close(wts);
     if (logf) {
         char rest[256];
         while (fgets(rest, sizeof rest, logf)) /* nothing more is expected; the pipe's end is */
@@ -899,16 +996,32 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
         return 1;
     }
     pm_scene_id(&sc, p.scene_id, sizeof p.scene_id);
-    int specular = sc.any_specular;
+    int specular = sc.any_specular, scene_primary = (int)sc.defaults.primary;
     p.light_samples_zero = sc.nemissive == 0 && !sc.has_sun && !sc.has_sky;
     pm_scene_free(&sc);
-    if (specular) /* the caustic branch is not resident yet: the caller makes the passes as files */
-        return -1;
+    /* the stages, as the pass files' driver (pipelines/lib/render-make) chooses them */
+    p.mode = s->value[PM_P_MODE];
+    int vis = !strcmp(p.mode, "direct-vis"), gather = strcmp(s->value[PM_P_GATHER], "none") != 0;
+    p.map = strcmp(s->value[PM_P_MAP], "auto") ? s->value[PM_P_MAP] : "global";
+    p.order = strcmp(s->value[PM_P_ORDER], "auto") ? s->value[PM_P_ORDER] : vis ? "none" : "hilbert";
+    if (!gather)
+        p.order = "none"; /* nothing reads the queries */
+    p.direct = !(vis && !strcmp(p.map, "global"));
+    p.on[TP] = p.on[BM] = p.on[SG] = gather;
+    p.on[CB] = p.on[CG] = gather && specular && !vis;
+    p.on[TG] = p.on[CO] = 1;
+    p.on[HS] = strcmp(p.order, "none") != 0;
+    if (specular && !gather)
+        say(&p, "warning: GATHER=none: the light mirrors and glass throw onto diffuse surfaces (caustics) is missing");
+    /* Per-pass defaults (docs/accuracy.md): direct-vis has one query per primary hit, so no
+     * SPP, and it takes PRIMARY and K from the scene as the pass files do. */
     int64_t v = 0;
     p.photons = s->value[PM_P_PHOTONS][0] && pm_parse_i64(s->value[PM_P_PHOTONS], &v) == PM_OK ? v : DEFAULT_PHOTONS;
-    p.kmax = s->value[PM_P_PRIMARY][0] && pm_parse_i64(s->value[PM_P_PRIMARY], &v) == PM_OK ? (int)v : DEFAULT_PRIMARY;
-    p.spp = s->value[PM_P_SPP][0] ? s->value[PM_P_SPP] : DEFAULT_SPP;
-    p.k = s->value[PM_P_K][0] ? s->value[PM_P_K] : DEFAULT_K;
+    p.kmax = s->value[PM_P_PRIMARY][0] && pm_parse_i64(s->value[PM_P_PRIMARY], &v) == PM_OK ? (int)v
+             : vis                                                                          ? scene_primary
+                                                                                            : DEFAULT_PRIMARY;
+    p.spp = s->value[PM_P_SPP][0] ? s->value[PM_P_SPP] : vis ? "" : DEFAULT_SPP;
+    p.k = s->value[PM_P_K][0] ? s->value[PM_P_K] : vis ? "" : DEFAULT_K;
     make_settings(&p);
     int locked = pm_engine_lock(p.me, p.out, p.s->wait, cmdline, &p.lock_fd);
     if (locked != 0)
@@ -941,9 +1054,9 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
         no_pass = same_passes_asked(p.request, p.old_request) || (maxp && held >= maxp) ||
                   (target > 0.0 && pm_parse_double(p.passes[held - 1].err, &e) == PM_OK && e <= target);
     }
-    printf("%s: %s -> %s (MODE=gather ORDER=%s, progressive, resident stages: PASSES=%s TIME=%s TARGET_ERROR=%s "
-           "ALPHA=%s)\n",
-           me, p.scene_id, p.out, strcmp(val(&p, PM_P_ORDER), "auto") ? val(&p, PM_P_ORDER) : "hilbert",
+    printf("%s: %s -> %s (MODE=%s MAP=%s ORDER=%s GATHER=%s, progressive, resident stages: PASSES=%s TIME=%s "
+           "TARGET_ERROR=%s ALPHA=%s)\n",
+           me, p.scene_id, p.out, p.mode, p.map, p.order, p.on[SG] ? "simd-gather" : "none",
            s->value[PM_P_PASSES][0] ? s->value[PM_P_PASSES] : "unlimited",
            s->value[PM_P_TIME][0] ? s->value[PM_P_TIME] : "none",
            s->value[PM_P_TARGET_ERROR][0] ? s->value[PM_P_TARGET_ERROR] : "none",

@@ -9,6 +9,15 @@
  *                       \-- direct ---------------------------------------> composite --stream
  *                                                        --accumulate running.pm -> image.exr, image.png
  *
+ * with the stages the pass files' driver would run for the settings: for a scene with mirrors
+ * or glass in gather mode the caustic branch beside them (trace-photons --caustic-output into
+ * build-photonmap --map caustic, trace-gather-points --caustic-queries, both into a second
+ * simd-gather --stream pairs --k-each-pass, its buffer composite's third stream); MODE=direct-vis
+ * (one query per pixel, no hilbert-sort unless ORDER asks, the direct buffer only over
+ * MAP=indirect); ORDER=none (the queries straight into the gather); GATHER=none
+ * (trace-gather-points --no-queries: the direct buffer alone). Each pass's records are those
+ * of the pass files (KEEP=all) for the same settings.
+ *
  * The driver writes a line per pass to the two tracers' plans ("PASS [SIZE]") and waits for
  * composite's pass log to say the pass is in the running image before it sizes the next, so
  * that PASSES, TIME and TARGET_ERROR stop exactly where they say. No pass directories:
@@ -31,8 +40,9 @@
 
 /* 1 when the resident passes render these settings; else 0 and why (the caller then makes
  * the passes as files, pipelines/lib/render-make): KEEP=all given on the command line or
- * PASS_RANGE (pass files asked for), and what the resident chain does not run yet (MODE other
- * than gather, GATHER other than simd-gather, SHARDS, WIDTHS=variable, ORDER=none, TARGETs). */
+ * PASS_RANGE (pass files asked for), and what the resident chain does not run yet (GATHER
+ * other than simd-gather or none, SHARDS, WIDTHS=variable, TARGETs), or refuses with the
+ * pass files' own message (MAP=indirect in gather mode; GATHER=none with nothing to add). */
 int pm_progressive_handles(const pm_settings_t *s, char *why, size_t cap);
 
 /* Renders the progressive passes of s into s->outdir (created), as described above: the lock
@@ -41,7 +51,6 @@ int pm_progressive_handles(const pm_settings_t *s, char *why, size_t cap);
  * stats.json. t0 is pm_time_wall() at the start of the command (TIME counts from it). me
  * starts every message ("render"). Returns the exit status: 0 ok, 1 a stage or the scene
  * failed, 3 the system (a pipe, a process, the disk); or -1, having written nothing, for a
- * scene the resident chain does not render yet (mirrors or glass: the caustic branch) and for
  * an OUTDIR that holds pass directories (KEEP=all before, pipelines/slurm's tasks): those go
  * on as pass files. RENDER_PASS_HOOK in the environment is run after every pass, as the pass
  * files' driver runs it (HOOK PASS SECONDS IMAGE). */
@@ -51,7 +60,8 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
  * the passes so far (k[i] units took sec[i] s of wall time, i < n), the seconds left
  * (remaining) and kmax (at least 1): the last size doubled, up to kmax, when it and the pass
  * that would follow it fit; else the last pass, the largest whose time bound, plus 5%, ends
- * by the budget (at most 4 kmax units); 0 when not even one unit fits. A pass of u units is taken to
+ * by the budget (at most kmax units: the time left after it goes to smaller passes); 0 when
+ * not even one unit fits. A pass of u units is taken to
  * last at most the least of sec[j] max(1, u / k[j]) over the passes so far. Exposed for the
  * unit tests. */
 int pm_progressive_next_size(const int *k, const double *sec, int n, int kmax, double remaining);

@@ -24,6 +24,25 @@ struct pm_proc {
     char name[256];
 };
 
+double pm_proc_cpu_s(const pm_proc_t *p)
+{
+    char path[64], buf[1024];
+    snprintf(path, sizeof path, "/proc/%d/stat", (int)p->pid);
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return -1.0;
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = '\0';
+    /* the command name (field 2) is in parentheses and may hold spaces: count from its end */
+    const char *q = strrchr(buf, ')');
+    unsigned long long ut = 0, stime = 0;
+    if (!q || sscanf(q + 1, " %*c %*d %*d %*d %*d %*d %*u %*u %*u %*u %*u %llu %llu", &ut, &stime) != 2)
+        return -1.0;
+    long hz = sysconf(_SC_CLK_TCK);
+    return hz > 0 ? (double)(ut + stime) / (double)hz : -1.0;
+}
+
 pm_result_t pm_proc_pipe(int fds_out[2])
 {
     if (pipe2(fds_out, O_CLOEXEC) != 0)

@@ -7,8 +7,10 @@
  * Runs trace-photons, build-photonmap, trace-gather-points, hilbert-sort, the gather and
  * composite as programs (posix_spawn) in OUTDIR, keeps every intermediate there, and on a rerun
  * remakes only the files whose headers do not record what these settings would make
- * (common/engine). Progressive passes (PASSES > 1, TIME, TARGET_ERROR, PASS_RANGE) still run
- * through the shell driver pipelines/lib/render-make, which pm-render hands them to whole. */
+ * (common/engine). Progressive passes (PASSES > 1, TIME, TARGET_ERROR) run on resident stages
+ * (common/engine/progressive.c); those asked to write pass files (KEEP=all, PASS_RANGE) and the
+ * settings the resident chain does not run (SHARDS, WIDTHS=variable, another GATHER, TARGETs)
+ * go through the shell driver pipelines/lib/render-make, which pm-render hands them to whole. */
 #include <errno.h>
 #include <limits.h>
 #include <stdio.h>
@@ -196,7 +198,7 @@ int main(int argc, char **argv)
         }
         int status = pm_render_progressive(&s, me, bin, cmdline, t0);
         if (status >= 0)
-            return status; /* else a scene it cannot render (mirrors or glass): the pass files below */
+            return status; /* else an OUTDIR of pass directories: the pass files below */
     }
     if (s.progressive) {
         /* Passes: the shell driver, until the resident passes of common/engine/progressive land. */

@@ -52,6 +52,7 @@ typedef struct {
     int64_t pass; /* progressive pass, 1-based; 0: none */
     double alpha; /* the schedule's alpha with pass */
     int stream;   /* STREAM_*: which input is a stream of documents */
+    int k_each;   /* --k-each-pass: --stream pairs measures r_1 by --k on every pass's documents */
 } gather_options_t;
 
 /* The stats both paths report once the gather is done (t_* in wall seconds; with a stream,
@@ -250,6 +251,8 @@ static pm_result_t run_pairs(pm_stage_t *st, const gather_options_t *opt, pm_isa
     uint64_t passes = 0, queries = 0, pass = 0;
     char mname[1200], qname[1200];
     for (;;) {
+        if (opt->k_each) /* r_1 of this pass's own map (the caustic gather's, as a pass file's --k --pass P) */
+            radius1 = 0.0;
         pm_stream_frame_name(mname, sizeof mname, mpath, passes);
         pm_stream_frame_name(qname, sizeof qname, qpath, passes);
         /* The map first (the queries are checked against it), read whole in place of the last. */
@@ -300,7 +303,7 @@ static pm_result_t run_pairs(pm_stage_t *st, const gather_options_t *opt, pm_isa
             break;
         }
         if (radius1 == 0.0) {
-            if (pass != 1) {
+            if (pass != 1 && !opt->k_each) {
                 r = pm_error_set(PM_ERR_INPUT,
                                  "--stream pairs begins at pass %" PRIu64 ": r_1 is measured on pass 1, so give "
                                  "--radius R1 (the running image's radius1)",
@@ -342,12 +345,12 @@ static pm_result_t run_pairs(pm_stage_t *st, const gather_options_t *opt, pm_isa
         char pw[32], rw[40];
         snprintf(pw, sizeof pw, "%" PRIu64, pass);
         snprintf(rw, sizeof rw, "%.9g", radius1);
-        int keep_k = pass == 1 && opt->radius == 0.0;
+        int keep_k = (pass == 1 || opt->k_each) && opt->radius == 0.0;
         char *add[] = {"--pass", pw, "--radius", rw};
-        const void *drop[] = {&opt->stream, &opt->radius, &opt->k};
+        const void *drop[] = {&opt->stream, &opt->k_each, &opt->radius, &opt->k};
         int argc1;
         char **argv1 = NULL;
-        if ((r = pm_stage_pass_command(st, argv, drop, keep_k ? 1 : 3, add, keep_k ? 2 : 4, &argc1, &argv1)) != PM_OK)
+        if ((r = pm_stage_pass_command(st, argv, drop, keep_k ? 2 : 4, add, keep_k ? 2 : 4, &argc1, &argv1)) != PM_OK)
             break;
         pm_table_free(&out);
         memset(&out, 0, sizeof out);
@@ -389,6 +392,10 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *opt, char **argv)
     pm_result_t r = pm_isa_parse(o->isa, &isa);
     if (r != PM_OK)
         return r;
+    if (o->k_each && o->stream != STREAM_PAIRS)
+        return pm_error_set(PM_ERR_USAGE, "--k-each-pass measures each pass's width: it needs --stream pairs");
+    if (o->k_each && o->radius > 0.0)
+        return pm_error_set(PM_ERR_USAGE, "--k-each-pass measures r_1 by --k: not with --radius %g", o->radius);
     if (o->stream == STREAM_PAIRS) {
         if (o->widths || o->range || o->pass || strcmp(st->output, "-") != 0)
             return pm_error_set(PM_ERR_USAGE, "--stream pairs gathers whole passes of one width to stdout: no "
@@ -489,6 +496,10 @@ int main(int argc, char **argv)
          "document of each per progressive pass, gathered with that pass's width of the schedule; one radiance "
          "document per frame or pass to stdout",
          1, 0, stream_names},
+        {"k-each-pass", 0, PM_OPT_FLAG, &o.k_each, NULL,
+         "with --stream pairs: measure r_1 by --k on every pass's documents, not on pass 1 alone (each pass then is "
+         "the bytes of its own --k K --pass P; the caustic gather of progressive passes)",
+         0, 0, NULL},
         {0},
     };
     static const char about[] = "Gather photons at every query with SIMD packets and the sample-point estimator; write "

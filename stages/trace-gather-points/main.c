@@ -251,6 +251,23 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
     return r;
 }
 
+/* One pass of a plan (pm_passplan_run): the pass's documents. */
+typedef struct {
+    pm_stage_t *st;
+    tgp_options_t *o;
+    const pm_scene_t *s;
+    const pm_rt_t *rt;
+    pm_isa_t isa;
+} tgp_pass_t;
+
+static pm_result_t tgp_pass(void *user, int64_t pass, int64_t size)
+{
+    tgp_pass_t *t = user;
+    t->o->pass = pass;
+    t->o->plan_primary = size;
+    return run(t->st, t->o, t->s, t->rt, t->isa);
+}
+
 /* --passes or --plan: the scene and its ray tracer made once, a document per pass to each
  * output, each recording the command line of that pass alone. */
 static pm_result_t run_passes(pm_stage_t *st, tgp_options_t *o, char **argv, pm_isa_t isa)
@@ -276,43 +293,11 @@ static pm_result_t run_passes(pm_stage_t *st, tgp_options_t *o, char **argv, pm_
     }
     pm_scene_warn_unsupported(&s, st);
     r = pm_rt_create(&s, 1, st->threads_used, &rt);
-    int argc0 = st->argc, done = 0;
-    char **argv0 = st->argv;
-    while (r == PM_OK) {
-        int64_t pass, size;
-        int end;
-        if ((r = pm_passplan_next(&pp, &pass, &size, &end)) != PM_OK || end)
-            break;
-        char pw[32], nw[32];
-        snprintf(pw, sizeof pw, "%" PRId64, pass);
-        snprintf(nw, sizeof nw, "%" PRId64, size);
-        char *add[] = {"--pass", pw, "--primary", nw};
+    if (r == PM_OK) {
         const void *drop[] = {&o->passes, &o->plan, &o->primary};
-        if (size > 4096) { /* --primary's own limit */
-            r = pm_error_set(PM_ERR_INPUT, "plan '%s' line %" PRId64 ": %" PRId64 " primary rays per pixel, above 4096",
-                             pp.path, pp.line, size);
-            break;
-        }
-        o->pass = pass;
-        o->plan_primary = size;
-        char **v = NULL;
-        if ((r = pm_stage_pass_command(st, argv, drop, size ? 3 : 2, add, size ? 4 : 2, &st->argc, &v)) != PM_OK)
-            break;
-        st->argv = v;
-        r = run(st, o, &s, &rt, isa);
-        st->argc = argc0, st->argv = argv0;
-        free(v);
-        if (r != PM_OK) {
-            char name[64];
-            snprintf(name, sizeof name, "pass %" PRId64, pass);
-            r = pm_stage_frame_error(r, done, name);
-            break;
-        }
-        done++;
+        tgp_pass_t tp = {st, o, &s, &rt, isa};
+        r = pm_passplan_run(&pp, st, argv, drop, 3, "--primary", 4096, tgp_pass, &tp); /* --primary's own limit */
     }
-    if (r == PM_OK && done == 0)
-        r = pm_error_set(PM_ERR_INPUT, "the plan '%s' names no pass", pp.path ? pp.path : "");
-    pm_stage_stat_int(st, "passes", done);
     pm_rt_destroy(&rt);
     pm_scene_free(&s);
     pm_passplan_close(&pp);

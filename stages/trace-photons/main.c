@@ -179,6 +179,24 @@ static pm_result_t run(pm_stage_t *st, const trace_options_t *o, int frame)
     return r;
 }
 
+/* One pass of a plan (pm_passplan_run): its photons, of the plan's size or the options'. */
+typedef struct {
+    pm_stage_t *st;
+    trace_options_t *o;
+    const pm_scene_t *s;
+    const pm_rt_t *rt;
+    int single;
+    int64_t photons0;
+} tp_pass_t;
+
+static pm_result_t tp_pass(void *user, int64_t pass, int64_t size)
+{
+    tp_pass_t *t = user;
+    t->o->pass = pass;
+    t->o->photons = size ? size : t->photons0;
+    return trace(t->st, t->o, t->s, t->rt, t->single);
+}
+
 /* --passes or --plan: the scene loaded once, a document per pass, each recording the command
  * line of that pass alone. */
 static pm_result_t run_passes(pm_stage_t *st, trace_options_t *o, char **argv)
@@ -201,39 +219,9 @@ static pm_result_t run_passes(pm_stage_t *st, trace_options_t *o, char **argv)
         pm_passplan_close(&pp);
         return r;
     }
-    int argc0 = st->argc, done = 0;
-    char **argv0 = st->argv;
-    int64_t photons0 = o->photons;
-    for (;;) {
-        int64_t pass, size;
-        int end;
-        if ((r = pm_passplan_next(&pp, &pass, &size, &end)) != PM_OK || end)
-            break;
-        char pw[32], nw[32];
-        snprintf(pw, sizeof pw, "%" PRId64, pass);
-        snprintf(nw, sizeof nw, "%" PRId64, size);
-        char *add[] = {"--pass", pw, "--photons", nw};
-        const void *drop[] = {&o->passes, &o->plan, &o->photons};
-        o->pass = pass;
-        o->photons = size ? size : photons0;
-        char **v = NULL;
-        if ((r = pm_stage_pass_command(st, argv, drop, size ? 3 : 2, add, size ? 4 : 2, &st->argc, &v)) != PM_OK)
-            break;
-        st->argv = v;
-        r = trace(st, o, &s, &rt, single);
-        st->argc = argc0, st->argv = argv0;
-        free(v);
-        if (r != PM_OK) {
-            char name[64];
-            snprintf(name, sizeof name, "pass %" PRId64, pass);
-            r = pm_stage_frame_error(r, done, name);
-            break;
-        }
-        done++;
-    }
-    if (r == PM_OK && done == 0)
-        r = pm_error_set(PM_ERR_INPUT, "the plan '%s' names no pass", pp.path ? pp.path : "");
-    pm_stage_stat_int(st, "passes", done);
+    const void *drop[] = {&o->passes, &o->plan, &o->photons};
+    tp_pass_t tp = {st, o, &s, &rt, single, o->photons};
+    r = pm_passplan_run(&pp, st, argv, drop, 3, "--photons", INT64_MAX, tp_pass, &tp);
     pm_rt_destroy(&rt);
     pm_scene_free(&s);
     pm_passplan_close(&pp);

@@ -26,8 +26,11 @@ static void test_sizes_grow_then_fill(void **state)
     /* 7 s left: 16 units (3.3 s) and the 16 after them fit */
     assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 7.0), 16);
     /* 3.75 s left: after 16 units no pass of 16 would fit: the last pass ends by the budget
-     * with 5% to spare, 17 units, bounded by 3.3 x 17 / 16 = 3.51 s (x 1.05: 3.68 s; 18: 3.90 s) */
-    assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 3.75), 17);
+     * with 5% to spare and is no larger than a full pass, 16 units (17 would fit, 3.3 x 17 /
+     * 16 x 1.05 = 3.68 s, but a pass above kmax costs more than its share) */
+    assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 3.75), 16);
+    /* what is left after it goes to a smaller pass: 0.45 s, 1 unit (0.3 s x 1.05) */
+    assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 0.45), 1);
     /* 2.1 s left: the last pass shrinks to what ends there: 9 units, bounded by pass 4's 1.7 s
      * times 9 / 8 = 1.91 s (x 1.05: 2.01 s; 10 units: 2.23 s) */
     assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 2.1), 9);
@@ -52,7 +55,9 @@ static void test_sizes_first_pass(void **state)
     int k3[4] = {1, 2, 4};
     double s3[4] = {2.0, 0.5, 0.9};
     assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 5.5), 8);  /* 1.8 + 3.6 <= 5.5 */
-    assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 4.2), 17); /* 0.9 x 17 / 4 x 1.05 = 4.02 */
+    assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 4.2), 16); /* 17 would fit (0.9 x 17 / 4 x 1.05 =
+                                                                              4.02): a full pass at most */
+    assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 3.0), 12); /* 0.9 x 12 / 4 x 1.05 = 2.84; 13: 3.07 */
 }
 
 static void test_sizes_noisy(void **state)
@@ -137,9 +142,91 @@ static void test_plan_lines(void **state)
     assert_int_equal(pm_passplan_open(&pp, NULL, path), PM_ERR_INPUT);
 }
 
+/* pm_passplan_run: each pass's command is that pass's alone (--plan out, --pass P in, and the
+ * size option when the plan sizes it), restored after; a size above the limit names the line;
+ * a failing pass is named; an empty plan is an input error. */
+typedef struct {
+    pm_stage_t *st;
+    int calls;
+    char cmd[4][256];
+    int fail_at; /* the pass that fails, 0: none */
+} run_log_t;
+
+static pm_result_t log_pass(void *user, int64_t pass, int64_t size)
+{
+    (void)size;
+    run_log_t *l = user;
+    char *c = l->cmd[l->calls++ & 3];
+    c[0] = '\0';
+    for (int i = 0; i < l->st->argc; i++)
+        snprintf(c + strlen(c), 256 - strlen(c), "%s%s", i ? " " : "", l->st->argv[i]);
+    return pass == l->fail_at ? pm_error_set(PM_ERR_INPUT, "bad pass") : PM_OK;
+}
+
+static void test_plan_run(void **state)
+{
+    (void)state;
+    char path[4096];
+    snprintf(path, sizeof path, "%s/plan-run.txt", unit_tmpdir());
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs("1 50\n2\n", f);
+    fclose(f);
+    pm_stage_t st;
+    pm_stage_defaults(&st);
+    const char *plan = NULL;
+    int64_t photons = 10;
+    const pm_option_t opts[] = {PM_STAGE_COMMON_OPTIONS(st),
+                                {"plan", 0, PM_OPT_STRING, &plan, "FILE", "plan", 1, 0, NULL},
+                                {"photons", 0, PM_OPT_INT, &photons, "N", "photons", 1, 1e12, NULL},
+                                {0}};
+    const pm_cli_t cli = {"unit-tracer", "[options]", "a tracer of passes", opts, 0, 0, NULL};
+    char *argv[] = {"unit-tracer", "--photons", "10", "--plan", path, "-q", NULL};
+    assert_int_equal(pm_stage_begin(&st, &cli, 6, argv), -1);
+    const void *drop[] = {&plan, &photons};
+    run_log_t l = {.st = &st};
+    char **argv0 = st.argv;
+    int argc0 = st.argc;
+    pm_passplan_t pp;
+    assert_int_equal(pm_passplan_open(&pp, NULL, path), PM_OK);
+    assert_int_equal(pm_passplan_run(&pp, &st, argv, drop, 2, "--photons", 100, log_pass, &l), PM_OK);
+    pm_passplan_close(&pp);
+    assert_int_equal(l.calls, 2);
+    assert_non_null(strstr(l.cmd[0], "--pass 1 --photons 50"));
+    assert_null(strstr(l.cmd[0], "--plan"));
+    assert_non_null(strstr(l.cmd[1], "--photons 10"));
+    assert_non_null(strstr(l.cmd[1], "--pass 2"));
+    assert_true(st.argv == argv0 && st.argc == argc0); /* restored */
+    /* a size above the limit, named by its line */
+    f = fopen(path, "w");
+    fputs("1\n2 500\n", f);
+    fclose(f);
+    l.calls = 0;
+    assert_int_equal(pm_passplan_open(&pp, NULL, path), PM_OK);
+    assert_int_equal(pm_passplan_run(&pp, &st, argv, drop, 2, "--photons", 100, log_pass, &l), PM_ERR_INPUT);
+    assert_non_null(strstr(pm_error_message(), "line 2"));
+    pm_passplan_close(&pp);
+    /* a failing pass is named */
+    l.calls = 0, l.fail_at = 1;
+    assert_int_equal(pm_passplan_open(&pp, "1:3", NULL), PM_OK);
+    assert_int_not_equal(pm_passplan_run(&pp, &st, argv, drop, 2, "--photons", 100, log_pass, &l), PM_OK);
+    assert_non_null(strstr(pm_error_message(), "pass 1"));
+    assert_int_equal(l.calls, 1);
+    pm_passplan_close(&pp);
+    /* an empty plan names no pass */
+    f = fopen(path, "w");
+    fclose(f);
+    l.fail_at = 0;
+    assert_int_equal(pm_passplan_open(&pp, NULL, path), PM_OK);
+    assert_int_equal(pm_passplan_run(&pp, &st, argv, drop, 2, "--photons", 100, log_pass, &l), PM_ERR_INPUT);
+    assert_non_null(strstr(pm_error_message(), "names no pass"));
+    pm_passplan_close(&pp);
+    pm_args_free(&st.args);
+}
+
 static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_sizes_grow_then_fill), cmocka_unit_test(test_sizes_first_pass),
     cmocka_unit_test(test_sizes_noisy),          cmocka_unit_test(test_plan_range),
-    cmocka_unit_test(test_plan_lines),
+    cmocka_unit_test(test_plan_lines),           cmocka_unit_test(test_plan_run),
 };
 UNIT_GROUP(progressive_group, "progressive", tests)

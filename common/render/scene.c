@@ -197,8 +197,9 @@ static pm_result_t drop_unused_maps(pm_scene_t *s)
     if (!keep)
         return pm_error_set(PM_ERR_NOMEM, "out of memory");
     for (size_t m = 0; s->maps && m < s->nmaterials; m++) {
-        const int32_t *slot[3] = {&s->maps[m].kd, &s->maps[m].ks, &s->maps[m].alpha};
-        for (int k = 0; k < 3; k++)
+        const int32_t *slot[5] = {&s->maps[m].kd, &s->maps[m].ks, &s->maps[m].alpha, &s->maps[m].normal,
+                                  &s->maps[m].bump};
+        for (int k = 0; k < 5; k++)
             if (*slot[k] >= 0)
                 keep[*slot[k]] = 1;
     }
@@ -213,8 +214,8 @@ static pm_result_t drop_unused_maps(pm_scene_t *s)
     }
     s->ntextures = n;
     for (size_t m = 0; s->maps && m < s->nmaterials; m++) {
-        int32_t *slot[3] = {&s->maps[m].kd, &s->maps[m].ks, &s->maps[m].alpha};
-        for (int k = 0; k < 3; k++)
+        int32_t *slot[5] = {&s->maps[m].kd, &s->maps[m].ks, &s->maps[m].alpha, &s->maps[m].normal, &s->maps[m].bump};
+        for (int k = 0; k < 5; k++)
             if (*slot[k] >= 0)
                 *slot[k] = keep[*slot[k]];
     }

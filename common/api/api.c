@@ -124,22 +124,32 @@ PMTK_API const char *pmtk_isa_name(pmtk_isa_t isa)
 
 /* ---- argument checks ---- */
 
-/* n vectors of 3 floats: finite, and with unit, of length within 1e-3 of 1 (the formats' rule);
- * nonneg: every component >= 0. */
+/* Whether a vector of 3 floats breaks the rule: finite, and with unit, of length within 1e-3 of
+ * 1 (the formats' rule); with nonneg, every component >= 0. */
+static int vector_bad(const float *x, int unit, int nonneg)
+{
+    if (!isfinite(x[0]) || !isfinite(x[1]) || !isfinite(x[2]))
+        return 1;
+    if (nonneg && (x[0] < 0.0f || x[1] < 0.0f || x[2] < 0.0f))
+        return 1;
+    return unit && fabs(sqrt((double)x[0] * x[0] + (double)x[1] * x[1] + (double)x[2] * x[2]) - 1.0) > 1e-3;
+}
+
+/* Checks n vectors in parallel; the message names the first that breaks the rule. */
 static pm_result_t check_vectors(const char *what, const float *v, uint64_t n, int unit, int nonneg)
 {
-    for (uint64_t i = 0; i < n; i++) {
-        const float *x = &v[3 * i];
-        double len = sqrt((double)x[0] * x[0] + (double)x[1] * x[1] + (double)x[2] * x[2]);
-        int bad = !isfinite(x[0]) || !isfinite(x[1]) || !isfinite(x[2]) ||
-                  (nonneg && (x[0] < 0.0f || x[1] < 0.0f || x[2] < 0.0f)) || (unit && fabs(len - 1.0) > 1e-3);
-        if (bad)
-            return pm_error_set(PM_ERR_INPUT, "%s %" PRIu64 " (%g, %g, %g) is not %s", what, i, x[0], x[1], x[2],
-                                unit     ? "a unit vector"
-                                : nonneg ? "finite and non-negative"
-                                         : "finite");
-    }
-    return PM_OK;
+    uint64_t first = n;
+#pragma omp parallel for reduction(min : first) schedule(static)
+    for (uint64_t i = 0; i < n; i++)
+        if (vector_bad(&v[3 * i], unit, nonneg) && i < first)
+            first = i;
+    if (first == n)
+        return PM_OK;
+    const float *x = &v[3 * first];
+    return pm_error_set(PM_ERR_INPUT, "%s %" PRIu64 " (%g, %g, %g) is not %s", what, first, x[0], x[1], x[2],
+                        unit     ? "a unit vector"
+                        : nonneg ? "finite and non-negative"
+                                 : "finite");
 }
 
 static pm_result_t check_queries(const pmtk_queries_t *q)
@@ -274,26 +284,30 @@ PMTK_API void pmtk_gather_params_init(pmtk_gather_params_t *p)
 }
 
 /* The gather's view of the caller's queries: weights of 1 and the map's one diffuse material,
- * so that the sums are the density estimate. *ones_out is the weight array to free. */
+ * so that the sums are the density estimate. With ones_out, weights of 1 in an array to free
+ * (the k-NN gather reads them); without, none. */
 static pm_result_t queries_view(const pmtk_photonmap_t *map, const pmtk_queries_t *in, pm_gather_queries_t *q,
                                 float **ones_out)
 {
-    *ones_out = NULL;
+    if (ones_out)
+        *ones_out = NULL;
     pm_result_t r = check_queries(in);
     if (r != PM_OK)
         return r;
+    *q = (pm_gather_queries_t){.n = in->count,
+                               .pos = in->position,
+                               .normal = in->normal,
+                               .radius = in->radius,
+                               .materials = &map->diffuse,
+                               .nmaterials = 1};
+    if (!ones_out)
+        return PM_OK; /* the packet gather takes NULL weights as 1 */
     float *ones = malloc((in->count ? in->count : 1) * 3 * sizeof *ones);
     if (!ones)
         return pm_error_set(PM_ERR_NOMEM, "out of memory for the weights of %" PRIu64 " queries", in->count);
     for (uint64_t i = 0; i < 3 * in->count; i++)
         ones[i] = 1.0f;
-    *q = (pm_gather_queries_t){.n = in->count,
-                               .pos = in->position,
-                               .normal = in->normal,
-                               .weight = ones,
-                               .radius = in->radius,
-                               .materials = &map->diffuse,
-                               .nmaterials = 1};
+    q->weight = ones;
     *ones_out = ones;
     return PM_OK;
 }
@@ -313,8 +327,7 @@ PMTK_API pmtk_result_t pmtk_gather(pmtk_context_t *ctx, const pmtk_photonmap_t *
     if (params->isa != PMTK_ISA_AUTO && (params->isa < PMTK_ISA_SCALAR || params->isa > PMTK_ISA_AVX512))
         return report(ctx, pm_error_set(PM_ERR_USAGE, "unknown isa %d", (int)params->isa));
     pm_gather_queries_t q;
-    float *ones;
-    pm_result_t r = queries_view(map, queries, &q, &ones);
+    pm_result_t r = queries_view(map, queries, &q, NULL);
     if (r != PM_OK)
         return report(ctx, r);
     pm_gather_params_t p = {.radius = params->radius,
@@ -326,7 +339,6 @@ PMTK_API pmtk_result_t pmtk_gather(pmtk_context_t *ctx, const pmtk_photonmap_t *
     int before = threads_enter(ctx);
     r = pm_gather_run(&map->gm, &q, 0, q.n, &p, out, &st);
     threads_leave(before);
-    free(ones);
     if (r == PM_OK && stats_out)
         *stats_out = (pmtk_gather_stats_t){.shader_ops = st.shader_ops,
                                            .nodes_visited = st.nodes_visited,

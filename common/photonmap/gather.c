@@ -210,7 +210,7 @@ void pm_gather_brute(const pm_gather_map_t *m, const pm_gather_queries_t *q, uin
                 s[k] += kv * f[k] * m->power[3 * (size_t)j + k];
         }
         for (int k = 0; k < 3; k++)
-            out[3 * (i - begin) + k] = s[k] * q->weight[3 * i + k];
+            out[3 * (i - begin) + k] = q->weight ? s[k] * q->weight[3 * i + k] : s[k];
     }
 }
 

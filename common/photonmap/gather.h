@@ -56,7 +56,7 @@ typedef struct {
 /* The queries as the gather reads them (structure of arrays, from a queries table). */
 typedef struct {
     uint64_t n;
-    const float *pos, *normal, *weight; /* n * 3 each */
+    const float *pos, *normal, *weight; /* n * 3 each; weight NULL: 1 (pm_gather_run and brute only) */
     const uint32_t *pixel;
     const uint16_t *material;       /* NULL: every query has material 0 */
     const float *dir;               /* n * 3 or NULL */

@@ -377,10 +377,10 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
         }
         FLUSH(ar, ag, ab, dacc);
         for (uint32_t l = 0; l < nl; l++) {
-            const float *w = &q->weight[3 * (b + l)];
+            const float *w = q->weight ? &q->weight[3 * (b + l)] : NULL; /* NULL: weights of 1 */
             double *o = &out[3 * (b + l - begin)];
             for (int k = 0; k < 3; k++)
-                o[k] = dacc[k][l] * w[k];
+                o[k] = w ? dacc[k][l] * w[k] : dacc[k][l];
         }
     }
     st->shader_ops += ops;

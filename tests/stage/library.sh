@@ -1,8 +1,9 @@
 # library.sh: libpmtk as a project outside the tree meets it. `make install` lays out the pmtk
 # command, the programs in libexec/pmtk, libpmtk.so.1 exporting only pmtk_*, its header,
 # pkg-config file and man pages; examples/tiny-tracer builds from `pkg-config --cflags --libs
-# pmtk` alone, renders, and gathers a photon map file to the sums simd-gather makes.
-# programs: libpmtk pmtk simd-gather
+# pmtk` alone, renders, and gathers pmtk files through the library (the sums themselves are
+# checked against brute force in tests/unit/test_api.c).
+# programs: libpmtk pmtk composite
 SO=$BUILD/libpmtk.so.1.0.0
 if [ ! -f "$SO" ]; then
     fail "libpmtk.so.1.0.0 is built" "no $SO"

@@ -1,8 +1,14 @@
 # pmtk: SIMD packet photon mapping as small programs that exchange files.
 #
 #   make            build every program into bin/
-#   make test       install missing Debian packages, build with -Werror, run every test,
+#   make check      the developer's loop, under 60 s, as any user: unit tests, golden files, the
+#                   CLI contract, one small render (CHECK_SCRIPTS)
+#   make test       CI's whole suite, about 9 minutes twice: install missing Debian packages (needs
+#                   root for apt-get), build with -Werror, run every test, pipelines/slurm on a
+#                   one-node Slurm cluster started here (needs root for munged, slurmctld, slurmd),
 #                   then the same tests under AddressSanitizer + UBSan
+#   make install    PREFIX=/usr/local DESTDIR=: the pmtk command, the programs in libexec/pmtk,
+#                   libpmtk.so.1, pmtk.h, pmtk.pc, man pages (help2man)
 #   make test-extreme  only the stiff and extreme cases (tests/stage/extreme.sh; also part of test)
 #   make asan       sanitizer build into build/asan/bin
 #   make demo       render the Cornell box with what exists (see README)
@@ -223,6 +229,17 @@ test: check-deps
 	$(Q)$(MAKE) --no-print-directory test-run
 	$(Q)$(MAKE) --no-print-directory test-slurm
 	$(Q)$(MAKE) --no-print-directory test-asan
+
+# ---- make check: the developer's loop (issue 31) ----
+# The unit tests, the golden files (formats, simd-gather), the CLI contract (cli, exitcodes,
+# pmtk), the include layers and one small render (pm-render), in under 60 s on a 2-core
+# machine (docs/benchmarks.md), as any user: no apt-get, no Slurm, no sanitizer pass. `make test`
+# is the whole suite for CI.
+CHECK_SCRIPTS := cli exitcodes pmtk formats compare composite simd-gather layers testrun pm-render
+.PHONY: check
+check: all $(UNIT) $(TESTGEN) $(EXRDUMP)
+	$(Q)STAGE_SCRIPTS="$(CHECK_SCRIPTS)" BIN=$(abspath $(BIN)) BUILD=$(abspath $(BUILD)) bash tests/run
+# ---- end make check ----
 
 test-run: all $(UNIT) $(TESTGEN) $(EXRDUMP)
 	$(Q)BIN=$(abspath $(BIN)) BUILD=$(abspath $(BUILD)) bash tests/run

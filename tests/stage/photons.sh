@@ -3,6 +3,7 @@
 # Golden files (regenerate only when a change is meant to alter them, and say why):
 #   bin/trace-photons scenes/cornell-box/scene.json --photons 3000 --seed 7 -o tests/golden/trace-photons-cornell.pm
 #   bin/build-photonmap tests/golden/trace-photons-cornell.pm -o tests/golden/build-photonmap-cornell.pm
+# programs: build-photonmap simd-gather trace-photons
 G=tests/golden
 source tests/scenes/make-box.sh
 PI4=12.566370614359172 # 4 pi: a point light of 1 W/sr per channel emits 4 pi W per channel

@@ -17,6 +17,7 @@
 #      within 5% (measured 1%); gathering with the untextured Kd and Ks gave 3.5 times it.
 # The images are written byte by byte (a few dozen bytes each, made once with zlib), so that the
 # test needs no image tool.
+# programs: build-photonmap composite measure-error scene-info trace-gather-points trace-photons trace-reference pm-render
 PI=3.141592653589793
 
 # png NAME HEX: writes the bytes of HEX to NAME.

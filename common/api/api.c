@@ -200,10 +200,12 @@ PMTK_API pmtk_result_t pmtk_photonmap_build(pmtk_context_t *ctx, const pmtk_phot
     r = pm_table_alloc(&in, &pm_photons_schema, ch, ph->count);
     if (r == PM_OK) {
         size_t bytes = 3 * sizeof(float) * ph->count;
-        memcpy(in.col[PM_PHOTON_POSITION], ph->position, bytes);
-        memcpy(in.col[PM_PHOTON_POWER], ph->power, bytes);
-        memcpy(in.col[PM_PHOTON_NORMAL], ph->normal, bytes);
-        if (ph->direction)
+        if (bytes) { /* an empty map's arrays may be NULL */
+            memcpy(in.col[PM_PHOTON_POSITION], ph->position, bytes);
+            memcpy(in.col[PM_PHOTON_POWER], ph->power, bytes);
+            memcpy(in.col[PM_PHOTON_NORMAL], ph->normal, bytes);
+        }
+        if (bytes && ph->direction)
             memcpy(in.col[PM_PHOTON_DIRECTION], ph->direction, bytes);
         /* the scene bounds: the photons' own */
         float *b = in.hdr.bounds;

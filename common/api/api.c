@@ -132,7 +132,9 @@ static int vector_bad(const float *x, int unit, int nonneg)
         return 1;
     if (nonneg && (x[0] < 0.0f || x[1] < 0.0f || x[2] < 0.0f))
         return 1;
-    return unit && fabs(sqrt((double)x[0] * x[0] + (double)x[1] * x[1] + (double)x[2] * x[2]) - 1.0) > 1e-3;
+    /* |len - 1| <= 1e-3 as the squared length's bounds: no square root per vector */
+    double l2 = (double)x[0] * x[0] + (double)x[1] * x[1] + (double)x[2] * x[2];
+    return unit && !(l2 >= (1.0 - 1e-3) * (1.0 - 1e-3) && l2 <= (1.0 + 1e-3) * (1.0 + 1e-3));
 }
 
 /* Checks n vectors in parallel; the message names the first that breaks the rule. */

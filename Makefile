@@ -35,8 +35,11 @@ WERROR ?= 1
 
 # Debian packages this project builds, tests and runs with (README says why each).
 DEBS := gcc make pkg-config libembree-dev libopenexr-dev libassimp-dev libjansson-dev \
-        libpng-dev libjpeg62-turbo-dev libstb-dev libxxhash-dev libcmocka-dev openexr jq gnuplot-nox clang-format \
-        help2man
+        libpng-dev libjpeg62-turbo-dev libxxhash-dev libcmocka-dev openexr jq gnuplot-nox clang-format \
+        assimp-testmodels help2man
+# The Python package python/pmtk (docs/python.md, tests/stage/python.sh): numpy and xxhash read
+# the files; matplotlib draws docs/python.md's error-against-time plot.
+DEBS += python3 python3-numpy python3-xxhash python3-matplotlib
 
 ifeq ($(V),1)
 Q :=
@@ -44,13 +47,13 @@ else
 Q := @
 endif
 
-PKGS := OpenEXR assimp jansson libpng libxxhash stb
+PKGS := OpenEXR assimp jansson libpng libxxhash
 # Debian's libembree-dev ships no .pc file; use pkg-config when there is one.
 EMBREE_CFLAGS := $(shell pkg-config --cflags embree3 2>/dev/null)
 EMBREE_LIBS := $(shell pkg-config --libs embree3 2>/dev/null || echo -lembree3)
 PKG_CFLAGS := $(shell pkg-config --cflags $(PKGS) 2>/dev/null)
 # Only OpenEXR's C API (OpenEXRCore) is used; the C++ libraries are not linked.
-PKG_LIBS := -lOpenEXRCore-3_1 $(shell pkg-config --libs assimp jansson libpng libxxhash stb 2>/dev/null)
+PKG_LIBS := -lOpenEXRCore-3_1 $(shell pkg-config --libs assimp jansson libpng libxxhash 2>/dev/null)
 CMOCKA_LIBS := $(shell pkg-config --libs cmocka 2>/dev/null || echo -lcmocka)
 
 # snprintf truncation is how this code bounds names and messages, so it is not warned about.
@@ -283,7 +286,8 @@ bench-quick: check-deps
 # libFuzzer needs clang; Debian 12's is 14. The library is built with it as it is (the half
 # conversion and the ISA sections have clang forms); a target links what it uses of it.
 # Targets whose name is in FUZZ_RESEAL mutate past the checksum (tests/fuzz/reseal.h), each
-# seeded with the golden files of its format. FUZZ=name... runs only those; FUZZ_SECONDS
+# seeded with the golden files of its format; the image decoders' (fuzz_img_*) by
+# tests/fuzz/image-seeds.sh. FUZZ=name... runs only those; FUZZ_SECONDS
 # each (default 60); the corpus grows in build/fuzz/corpus-NAME, crashes land in build/fuzz.
 FUZZ_DEBS := clang
 FUZZ_TARGETS := $(basename $(notdir $(wildcard tests/fuzz/fuzz_*.c)))
@@ -299,6 +303,7 @@ fuzz:
 	    seeds=build/fuzz/seeds-$$t; rm -rf $$seeds; mkdir -p $$seeds build/fuzz/corpus-$$t; \
 	    case $$t in \
 	    fuzz_scene) cp scenes/cornell-box/scene.json $$seeds/ ;; \
+	    fuzz_img_*) bash tests/fuzz/image-seeds.sh $${t#fuzz_img_} $$seeds ;; \
 	    fuzz_photonmap|fuzz_queries|fuzz_radiance) \
 	        for f in tests/golden/*.pm; do \
 	            head -c 200 $$f | grep -qx "FORMAT=$${t#fuzz_}" && cp $$f $$seeds/; \

@@ -1,9 +1,10 @@
-/* formats.h: the four file formats that flow between pmtk stages (docs/formats.md).
+/* formats.h: the file formats that flow between pmtk stages (docs/formats.md).
  *
  *   photons    trace-photons  -> build-photonmap       one record per stored photon
  *   photonmap  build-photonmap -> simd-gather          one record per KD-tree node
  *   queries    trace-gather-points -> hilbert-sort -> simd-gather   one per gather point
  *   radiance   trace-gather-points, simd-gather -> composite        one per pixel
+ *   aov        trace-gather-points --aov -> composite --aov-buffer  one per pixel
  *
  * Channel indices below are bit positions in CHANNEL_MASK and indices of pm_table_t.col. */
 #ifndef PM_FORMATS_H
@@ -101,6 +102,14 @@ enum {
 };
 extern const pm_schema_t pm_radiance_schema;
 
+/* ---- aov (per-pixel surface buffers for denoisers) ---- */
+enum {
+    PM_AOV_ALBEDO = 0, /* f32 x3: directional albedo at the first surface */
+    PM_AOV_NORMAL = 1, /* f32 x3: shading normal there, facing the eye (a mean over the pixel's rays) */
+    PM_AOV_DEPTH = 2   /* f32, m: distance from the eye */
+};
+extern const pm_schema_t pm_aov_schema;
+
 /* The largest image pmtk makes or reads: at most PM_IMAGE_SIDE_MAX pixels a side and
  * PM_IMAGE_PIXELS_MAX in all (8192 x 8192; its radiance buffer is 1.5 GiB of f64 RGB), so
  * that a header cannot make a reader allocate what its records never fill. */
@@ -114,5 +123,8 @@ pm_result_t pm_image_size_check(uint64_t w, uint64_t h);
 /* Width and height (header keys width, height) of a queries or radiance header, within the
  * limits above. */
 pm_result_t pm_header_get_image_size(const pm_header_t *h, const char *path, uint32_t *w_out, uint32_t *h_out);
+/* The same, and COUNT must be width x height (a per-pixel format: radiance, aov): "wrong count
+ * in TITLE 'PATH': COUNT=N for a WxH image". */
+pm_result_t pm_header_check_pixels(const pm_header_t *h, const char *path);
 
 #endif

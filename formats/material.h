@@ -25,18 +25,19 @@
 
 typedef struct {
     char name[64];
-    float kd[3];  /* diffuse albedo, RGB, in [0, 1] */
-    float ks[3];  /* glossy albedo, RGB, in [0, 1]; kd + ks <= 1 */
-    float ns;     /* Phong exponent, >= 0; only read where ks > 0 */
-    float ke[3];  /* emitted radiance, RGB, W/(m^2 sr); > 0 makes a triangle an area light */
-    int kind;     /* PM_MAT_STANDARD, MIRROR, GLASS, CONDUCTOR, ROUGH_GLASS or PLASTIC */
-    float kr[3];  /* mirror: reflectance, RGB, in [0, 1] (MTL Ks of an illum 3 or 5 material) */
-    float ior;    /* glass, rough glass, plastic's coat: index of refraction (MTL Ni), > 0; outside 1 */
-    float tf[3];  /* glass, rough glass: transmission filter per surface crossing, RGB, in [0, 1] */
-    float alpha;  /* conductor, rough glass, plastic: GGX width, in [0, 1] */
-    float eta[3]; /* conductor: real part of the complex index, RGB; 0 means use f0 */
-    float k[3];   /* conductor: imaginary part (extinction), RGB, >= 0 */
-    float f0[3];  /* conductor: reflectance at normal incidence, RGB, in [0, 1], when eta[0] is 0 */
+    float kd[3];   /* diffuse albedo, RGB, in [0, 1] */
+    float ks[3];   /* glossy albedo, RGB, in [0, 1]; kd + ks <= 1 */
+    float ns;      /* Phong exponent, >= 0; only read where ks > 0 */
+    float ke[3];   /* emitted radiance, RGB, W/(m^2 sr); > 0 makes a triangle an area light */
+    int kind;      /* PM_MAT_STANDARD, MIRROR, GLASS, CONDUCTOR, ROUGH_GLASS or PLASTIC */
+    float kr[3];   /* mirror: reflectance, RGB, in [0, 1] (MTL Ks of an illum 3 or 5 material) */
+    float ior;     /* glass, rough glass, plastic's coat: index of refraction (MTL Ni), > 0; outside 1 */
+    float tf[3];   /* glass, rough glass: transmission filter per surface crossing, RGB, in [0, 1] */
+    float alpha;   /* conductor, rough glass, plastic: GGX width, in [0, 1] */
+    float eta[3];  /* conductor: real part of the complex index, RGB; 0 means use f0 */
+    float k[3];    /* conductor: imaginary part (extinction), RGB, >= 0 */
+    float f0[3];   /* conductor: reflectance at normal incidence, RGB, in [0, 1], when eta[0] is 0 */
+    int two_sided; /* an emitter lighting from both faces (the scene file's emission.two_sided) */
 } pm_material_t;
 
 enum {

@@ -45,6 +45,16 @@ pm_result_t pm_header_get_image_size(const pm_header_t *h, const char *path, uin
     return PM_OK;
 }
 
+pm_result_t pm_header_check_pixels(const pm_header_t *h, const char *path)
+{
+    uint32_t w, ht;
+    pm_result_t r = pm_header_get_image_size(h, path, &w, &ht);
+    if (r == PM_OK && h->count != (uint64_t)w * ht)
+        r = pm_error_set(PM_ERR_INPUT, "wrong count in %s '%s': COUNT=%" PRIu64 " for a %" PRIu32 "x%" PRIu32 " image",
+                         h->schema->title, path, h->count, w, ht);
+    return r;
+}
+
 pm_result_t pm_queries_set_materials(pm_header_t *h, const pm_material_t *m, size_t n)
 {
     pm_result_t r = pm_header_set(h, "materials", "%zu", n);

@@ -16,14 +16,9 @@ static const pm_channel_t radiance_channels[] = {
 
 static pm_result_t validate_header(const pm_header_t *h, const char *path)
 {
-    uint32_t w, ht;
-    pm_result_t r = pm_header_get_image_size(h, path, &w, &ht);
+    pm_result_t r = pm_header_check_pixels(h, path);
     if (r != PM_OK)
         return r;
-    if (h->count != (uint64_t)w * ht)
-        return pm_error_set(
-            PM_ERR_INPUT, "wrong count in radiance buffer '%s': COUNT=%" PRIu64 " for a %" PRIu32 "x%" PRIu32 " image",
-            path, h->count, w, ht);
     const char *c = pm_header_get(h, "component");
     if (!c || (strcmp(c, "direct") && strcmp(c, "indirect") && strcmp(c, "caustic") && strcmp(c, "total")))
         return pm_error_set(PM_ERR_INPUT,

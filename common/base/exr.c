@@ -109,20 +109,23 @@ static float exr_half_bits_to_float(uint16_t bits)
 }
 #endif
 
-/* Converts rows [y0, y0 + lines) of the caller's float RGB into the file's pixel type, one
- * plane per channel (planar data needs no strides the encoder might misread). */
-static void pack_rows(const float *rgb, uint32_t w, uint32_t y0, int32_t lines, pm_exr_pixel_t type, void *planes[3])
+/* Converts rows [y0, y0 + lines) of each channel into the file's pixel type, one plane per
+ * channel (planar data needs no strides the encoder might misread). */
+static void pack_rows(const pm_exr_channel_t *ch, size_t nch, uint32_t w, uint32_t y0, int32_t lines,
+                      pm_exr_pixel_t type, void **planes)
 {
     size_t n = (size_t)w * (size_t)lines, base = (size_t)y0 * w;
-    for (int c = 0; c < 3; c++) {
+    for (size_t c = 0; c < nch; c++) {
+        const float *src = ch[c].data;
+        size_t st = ch[c].stride;
         if (type == PM_EXR_HALF) {
             exr_half_t *p = planes[c];
             for (size_t i = 0; i < n; i++)
-                p[i] = exr_half_from_float(rgb[3 * (base + i) + (size_t)c]);
+                p[i] = exr_half_from_float(src[st * (base + i)]);
         } else {
             float *p = planes[c];
             for (size_t i = 0; i < n; i++)
-                p[i] = rgb[3 * (base + i) + (size_t)c];
+                p[i] = src[st * (base + i)];
         }
     }
 }
@@ -130,16 +133,32 @@ static void pack_rows(const float *rgb, uint32_t w, uint32_t y0, int32_t lines, 
 pm_result_t pm_exr_write_rgb(const char *path, uint32_t w, uint32_t h, const float *rgb, pm_exr_pixel_t type,
                              pm_exr_compression_t comp, const pm_exr_attr_t *attrs, size_t nattrs)
 {
+    const pm_exr_channel_t ch[3] = {{"R", rgb, 3, 0}, {"G", rgb + 1, 3, 0}, {"B", rgb + 2, 3, 0}};
+    return pm_exr_write_channels(path, w, h, ch, 3, type, comp, attrs, nattrs);
+}
+
+pm_result_t pm_exr_write_channels(const char *path, uint32_t w, uint32_t h, const pm_exr_channel_t *ch, size_t nch,
+                                  pm_exr_pixel_t type, pm_exr_compression_t comp, const pm_exr_attr_t *attrs,
+                                  size_t nattrs)
+{
     if (!path || !strcmp(path, "-"))
         return pm_error_set(PM_ERR_USAGE, "OpenEXR needs a seekable file, not stdout");
     if (w < 1 || h < 1 || w > INT32_MAX / 2 || h > INT32_MAX / 2)
         return pm_error_set(PM_ERR_INTERNAL, "OpenEXR image '%s': size %ux%u out of range", path, w, h);
+    if (nch < 1 || nch > PM_EXR_MAX_CHANNELS)
+        return pm_error_set(PM_ERR_INTERNAL, "OpenEXR image '%s': %zu channels, not 1 to %d", path, nch,
+                            PM_EXR_MAX_CHANNELS);
     /* The contract: the caller has checked every value; a bad one here is a bug upstream. */
     float lim = type == PM_EXR_HALF ? PM_EXR_HALF_MAX : 3.4028235e38f;
-    for (size_t i = 0; i < (size_t)3 * w * h; i++)
-        if (!(fabsf(rgb[i]) <= lim))
-            return pm_error_set(PM_ERR_INTERNAL, "refusing to write OpenEXR image '%s': pixel %zu channel %zu is %g",
-                                path, i / 3, i % 3, (double)rgb[i]);
+    for (size_t c = 0; c < nch; c++) {
+        for (size_t d = 0; d < c; d++)
+            if (!strcmp(ch[c].name, ch[d].name))
+                return pm_error_set(PM_ERR_INTERNAL, "OpenEXR image '%s': channel '%s' given twice", path, ch[c].name);
+        for (size_t i = 0; i < (size_t)w * h; i++)
+            if (!(fabsf(ch[c].data[ch[c].stride * i]) <= lim))
+                return pm_error_set(PM_ERR_INTERNAL, "refusing to write OpenEXR image '%s': pixel %zu channel %s is %g",
+                                    path, i, ch[c].name, (double)ch[c].data[ch[c].stride * i]);
+    }
 
     pm_atomic_t tmp;
     pm_result_t r = pm_atomic_reserve(path, &tmp);
@@ -149,7 +168,7 @@ pm_result_t pm_exr_write_rgb(const char *path, uint32_t w, uint32_t h, const flo
     exr_context_t ctx = NULL;
     exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
     int enc_live = 0, part = 0;
-    void *planes[3] = {NULL, NULL, NULL};
+    void *planes[PM_EXR_MAX_CHANNELS] = {NULL};
     static const exr_compression_t comps[] = {EXR_COMPRESSION_ZIP, EXR_COMPRESSION_NONE, EXR_COMPRESSION_PIZ};
     exr_pixel_type_t ptype = type == PM_EXR_HALF ? EXR_PIXEL_HALF : EXR_PIXEL_FLOAT;
     size_t esize = type == PM_EXR_HALF ? 2 : 4;
@@ -159,9 +178,11 @@ pm_result_t pm_exr_write_rgb(const char *path, uint32_t w, uint32_t h, const flo
         rv = exr_add_part(ctx, "rgb", EXR_STORAGE_SCANLINE, &part);
     if (rv == EXR_ERR_SUCCESS)
         rv = exr_initialize_required_attr_simple(ctx, part, (int32_t)w, (int32_t)h, comps[comp]);
-    /* Colour channels are perceptually logarithmic (the hint lossy codecs read). */
-    for (int c = 0; c < 3 && rv == EXR_ERR_SUCCESS; c++)
-        rv = exr_add_channel(ctx, part, (const char *[]){"R", "G", "B"}[c], ptype, EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1);
+    /* Colour channels are perceptually logarithmic (the hint lossy codecs read); normals,
+     * depth and the like are linear data. */
+    for (size_t c = 0; c < nch && rv == EXR_ERR_SUCCESS; c++)
+        rv = exr_add_channel(ctx, part, ch[c].name, ptype,
+                             ch[c].linear ? EXR_PERCEPTUALLY_LINEAR : EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1);
     for (size_t i = 0; i < nattrs && rv == EXR_ERR_SUCCESS; i++)
         rv = exr_attr_set_string(ctx, part, attrs[i].name, attrs[i].value);
     if (rv == EXR_ERR_SUCCESS)
@@ -173,7 +194,7 @@ pm_result_t pm_exr_write_rgb(const char *path, uint32_t w, uint32_t h, const flo
         r = exr_fail(rv, "write", path);
         goto done;
     }
-    for (int c = 0; c < 3; c++)
+    for (size_t c = 0; c < nch; c++)
         if (!(planes[c] = malloc((size_t)w * (size_t)lines * esize))) {
             r = pm_error_set(PM_ERR_NOMEM, "out of memory writing OpenEXR image '%s'", path);
             goto done;
@@ -187,15 +208,18 @@ pm_result_t pm_exr_write_rgb(const char *path, uint32_t w, uint32_t h, const flo
         if (rv != EXR_ERR_SUCCESS)
             break;
         enc_live = 1;
-        pack_rows(rgb, w, y, ci.height, type, planes);
+        pack_rows(ch, nch, w, y, ci.height, type, planes);
+        /* OpenEXR keeps its channels sorted by name: each finds its plane by name */
         for (int k = 0; k < enc.channel_count; k++) {
-            exr_coding_channel_info_t *ch = &enc.channels[k];
-            int c = ch->channel_name[0] == 'R' ? 0 : ch->channel_name[0] == 'G' ? 1 : 2;
-            ch->user_bytes_per_element = (int16_t)esize;
-            ch->user_data_type = (uint16_t)ptype;
-            ch->user_pixel_stride = (int32_t)esize;
-            ch->user_line_stride = (int32_t)(esize * w);
-            ch->encode_from_ptr = planes[c];
+            exr_coding_channel_info_t *ec = &enc.channels[k];
+            size_t c = 0;
+            while (c + 1 < nch && strcmp(ec->channel_name, ch[c].name))
+                c++;
+            ec->user_bytes_per_element = (int16_t)esize;
+            ec->user_data_type = (uint16_t)ptype;
+            ec->user_pixel_stride = (int32_t)esize;
+            ec->user_line_stride = (int32_t)(esize * w);
+            ec->encode_from_ptr = planes[c];
         }
         if (y == 0)
             rv = exr_encoding_choose_default_routines(ctx, part, &enc);
@@ -224,11 +248,49 @@ done:
         exr_encoding_destroy(ctx, &enc);
     if (ctx)
         exr_finish(&ctx);
-    for (int c = 0; c < 3; c++)
+    for (size_t c = 0; c < nch; c++)
         free(planes[c]);
     if (r != PM_OK)
         pm_atomic_abort(&tmp);
     return r;
+}
+
+pm_result_t pm_exr_aov_parse(const char *option, const char *list, unsigned *mask_out)
+{
+    static const char *const names[] = {"albedo", "normal", "depth", "variance"};
+    unsigned mask = 0;
+    const char *p = list;
+    for (;;) {
+        size_t len = strcspn(p, ",");
+        unsigned bit = 0;
+        for (unsigned k = 0; k < 4; k++)
+            if (len == strlen(names[k]) && !strncmp(p, names[k], len))
+                bit = 1u << k;
+        if (!bit || (mask & bit))
+            return pm_error_set(PM_ERR_USAGE, "%s: %s layer '%.*s' in '%s' (each of %s at most once)", option,
+                                bit ? "repeated" : "unknown", (int)len, p, list, PM_EXR_AOV_NAMES);
+        mask |= bit;
+        if (!p[len])
+            break;
+        p += len + 1;
+    }
+    *mask_out = mask;
+    return PM_OK;
+}
+
+size_t pm_exr_aov_channels(unsigned mask, const float *surf, const float *var, pm_exr_channel_t *ch)
+{
+    static const char *const names[] = {"albedo.R", "albedo.G", "albedo.B", "normal.X", "normal.Y", "normal.Z", "Z"};
+    size_t n = 0;
+    for (int k = 0; k < 7; k++) {
+        unsigned bit = k < 3 ? PM_EXR_AOV_ALBEDO : k < 6 ? PM_EXR_AOV_NORMAL : PM_EXR_AOV_DEPTH;
+        if (mask & bit)
+            ch[n++] = (pm_exr_channel_t){names[k], surf + k, 7, k >= 3};
+    }
+    if (mask & PM_EXR_AOV_VARIANCE)
+        for (int k = 0; k < 3; k++)
+            ch[n++] = (pm_exr_channel_t){(const char *[]){"variance.R", "variance.G", "variance.B"}[k], var + k, 3, 1};
+    return n;
 }
 
 /* The channels an image is read from: R G B, or Y alone (grey, copied to all three). */
@@ -311,11 +373,54 @@ static float value_at(const uint8_t *p, uint16_t t)
     return f;
 }
 
+/* An image in memory, read through OpenEXR's custom stream (pread semantics). */
+typedef struct {
+    const uint8_t *data;
+    size_t size;
+} exr_mem_t;
+
+static int64_t exr_mem_read(exr_const_context_t ctxt, void *user, void *buffer, uint64_t sz, uint64_t offset,
+                            exr_stream_error_func_ptr_t error_cb)
+{
+    (void)ctxt, (void)error_cb;
+    const exr_mem_t *m = user;
+    if (offset >= m->size)
+        return 0;
+    uint64_t n = m->size - offset < sz ? m->size - offset : sz;
+    memcpy(buffer, m->data + offset, (size_t)n);
+    return (int64_t)n;
+}
+
+static int64_t exr_mem_size(exr_const_context_t ctxt, void *user)
+{
+    (void)ctxt;
+    return (int64_t)((const exr_mem_t *)user)->size;
+}
+
+static pm_result_t read_rgb(const char *path, exr_context_initializer_t init, uint64_t max_pixels, uint32_t *w_out,
+                            uint32_t *h_out, float **rgb_out);
+
 pm_result_t pm_exr_read_rgb(const char *path, uint32_t *w_out, uint32_t *h_out, float **rgb_out)
+{
+    return read_rgb(path, exr_init(), (uint64_t)1 << 31, w_out, h_out, rgb_out);
+}
+
+pm_result_t pm_exr_read_rgb_mem(const char *name, const void *data, size_t size, uint64_t max_pixels, uint32_t *w_out,
+                                uint32_t *h_out, float **rgb_out)
+{
+    exr_mem_t m = {data, size};
+    exr_context_initializer_t init = exr_init();
+    init.user_data = &m;
+    init.read_fn = exr_mem_read;
+    init.size_fn = exr_mem_size;
+    return read_rgb(name, init, max_pixels, w_out, h_out, rgb_out);
+}
+
+static pm_result_t read_rgb(const char *path, exr_context_initializer_t init, uint64_t max_pixels, uint32_t *w_out,
+                            uint32_t *h_out, float **rgb_out)
 {
     *rgb_out = NULL;
     *w_out = *h_out = 0;
-    exr_context_initializer_t init = exr_init();
     exr_context_t ctx = NULL;
     exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
     int dec_live = 0;
@@ -346,6 +451,12 @@ pm_result_t pm_exr_read_rgb(const char *path, uint32_t *w_out, uint32_t *h_out, 
                          (long long)h);
         goto done;
     }
+    if ((uint64_t)(w * h) > max_pixels) { /* before any allocation the size asks for */
+        r = pm_error_set(PM_ERR_INPUT,
+                         "OpenEXR image '%s': data window of %lldx%lld pixels is above the budget of %llu pixels", path,
+                         (long long)w, (long long)h, (unsigned long long)max_pixels);
+        goto done;
+    }
     if ((r = choose_channels(ctx, path, &lay)) != PM_OK)
         goto done;
     /* Chunks: bands of `lines` scanlines, or the tiles of level (0, 0), the full-resolution
@@ -353,7 +464,7 @@ pm_result_t pm_exr_read_rgb(const char *path, uint32_t *w_out, uint32_t *h_out, 
     if (storage == EXR_STORAGE_SCANLINE) {
         rv = exr_get_scanlines_per_chunk(ctx, 0, &lines);
         ny = (int32_t)((h + lines - 1) / lines);
-        lay.chunk_px = (int32_t)w * lines;
+        lay.chunk_px = (int32_t)w * (lines < h ? lines : (int32_t)h); /* a band never exceeds the image */
     } else {
         int32_t lw = 0, lh = 0;
         rv = exr_get_tile_sizes(ctx, 0, 0, 0, &tw, &th);
@@ -365,7 +476,9 @@ pm_result_t pm_exr_read_rgb(const char *path, uint32_t *w_out, uint32_t *h_out, 
             goto done;
         }
         nx = (lw + tw - 1) / tw, ny = (lh + th - 1) / th;
-        lay.chunk_px = tw * th;
+        /* A tile larger than the level holds the level: the planes need no more (a corrupt
+         * header may declare tiles of 2^28 pixels over a tiny image). */
+        lay.chunk_px = (tw < lw ? tw : lw) * (th < lh ? th : lh);
     }
     if (rv != EXR_ERR_SUCCESS) {
         r = exr_fail(rv, "read", path);

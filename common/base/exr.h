@@ -1,7 +1,8 @@
 /* exr.h: OpenEXR images through the OpenEXR 3 C API (OpenEXRCore), for composite's HDR
  * output, the tests that read it back, and reference images from other renderers.
  *
- * One scanline part, channels R G B (stored B G R, the order OpenEXR sorts them in), ZIP
+ * One scanline part, channels R G B (stored B G R, the order OpenEXR sorts them in) and, with
+ * pm_exr_write_channels, named layers beside them (albedo.R, normal.X, Z), ZIP
  * compression by default, float or half. String attributes carry provenance. Writes go
  * through a temporary file renamed into place (common/base/atomic.h); OpenEXR needs a seekable
  * file, so there is no stdout variant, and an EXR for a FIFO or device is written to a
@@ -32,6 +33,40 @@ typedef struct {
 pm_result_t pm_exr_write_rgb(const char *path, uint32_t w, uint32_t h, const float *rgb, pm_exr_pixel_t type,
                              pm_exr_compression_t comp, const pm_exr_attr_t *attrs, size_t nattrs);
 
+/* One channel of an image to write: its name ("R", "albedo.R", "Z"), the value of pixel i at
+ * data[stride * i], and linear 1 for data that is not a colour (normals, depth: the hint lossy
+ * codecs read). */
+typedef struct {
+    const char *name;
+    const float *data;
+    size_t stride;
+    int linear;
+} pm_exr_channel_t;
+
+#define PM_EXR_MAX_CHANNELS 16
+
+/* Writes w x h pixels of nch named channels (1 to PM_EXR_MAX_CHANNELS, names distinct) to
+ * path, atomically, as pm_exr_write_rgb does: layers such as albedo.R albedo.G albedo.B beside
+ * R G B (OpenEXR stores them sorted by name). The same contract on values. */
+pm_result_t pm_exr_write_channels(const char *path, uint32_t w, uint32_t h, const pm_exr_channel_t *ch, size_t nch,
+                                  pm_exr_pixel_t type, pm_exr_compression_t comp, const pm_exr_attr_t *attrs,
+                                  size_t nattrs);
+
+/* The layers a denoiser reads beside the beauty (Open Image Denoise, Blender): albedo.R/G/B,
+ * normal.X/Y/Z, depth as Z, variance.R/G/B. A mask of them: */
+enum { PM_EXR_AOV_ALBEDO = 1, PM_EXR_AOV_NORMAL = 2, PM_EXR_AOV_DEPTH = 4, PM_EXR_AOV_VARIANCE = 8 };
+#define PM_EXR_AOV_SURFACE (PM_EXR_AOV_ALBEDO | PM_EXR_AOV_NORMAL | PM_EXR_AOV_DEPTH)
+#define PM_EXR_AOV_NAMES "albedo,normal,depth,variance"
+
+/* The mask of a comma-separated list of layer names (albedo, normal, depth, variance, each at
+ * most once); PM_ERR_USAGE naming the word otherwise. option names the option in the message. */
+pm_result_t pm_exr_aov_parse(const char *option, const char *list, unsigned *mask_out);
+
+/* Appends to ch the channels of the layers in mask: albedo, normal and depth from surf (7 floats
+ * a pixel: albedo RGB, normal XYZ, depth), variance from var (3 floats a pixel); returns how
+ * many (at most 10). The caller has both arrays for the layers it asks for. */
+size_t pm_exr_aov_channels(unsigned mask, const float *surf, const float *var, pm_exr_channel_t *ch);
+
 /* Reads the first part of an OpenEXR file, as composite, pbrt-v4 and Mitsuba 3 write it,
  * into a malloc'd interleaved array *rgb_out of *w_out x *h_out pixels (the data window, rows
  * from the top whatever the file's line order). Read: scanline or tiled storage (of a
@@ -42,6 +77,12 @@ pm_result_t pm_exr_write_rgb(const char *path, uint32_t w, uint32_t h, const flo
  * luminance-chroma (Y RY BY), no R G B or Y channel, subsampled channels. *rgb_out is NULL
  * after a failure. */
 pm_result_t pm_exr_read_rgb(const char *path, uint32_t *w_out, uint32_t *h_out, float **rgb_out);
+
+/* pm_exr_read_rgb on size bytes of data in memory (a texture embedded in a glTF, a file the
+ * caller has read); name is for messages. A data window of more than max_pixels pixels is
+ * refused (PM_ERR_INPUT) before anything of its size is allocated. */
+pm_result_t pm_exr_read_rgb_mem(const char *name, const void *data, size_t size, uint64_t max_pixels, uint32_t *w_out,
+                                uint32_t *h_out, float **rgb_out);
 
 /* The value of string attribute name of the first part, malloc'd into *value_out, or
  * PM_ERR_INPUT when there is none (or it is not a string). */

@@ -46,6 +46,7 @@ typedef enum {
     PM_P_EXPOSURE,
     PM_P_TONE,
     PM_P_HALF,
+    PM_P_AOV,
     PM_P_SEED,
     PM_P_PASSES,
     PM_P_TIME,
@@ -81,6 +82,7 @@ typedef struct {
     int ntargets;
     /* derived */
     int progressive;    /* PASSES > 1, TIME, TARGET_ERROR or PASS_RANGE */
+    unsigned aov;       /* AOV: the PM_EXR_AOV_* layers composite adds (base/exr.h); 0 none */
     int shards;         /* SHARDS, >= 1 */
     int verbose, quiet; /* VERBOSE=1, QUIET=1 */
     int wait;           /* WAIT=1 */

@@ -221,6 +221,11 @@ static void build_graph(render_t *r)
         arg(j, "caustic-queries.pm");
         j->outs[j->nouts++] = "caustic-queries.pm";
     }
+    if (s->aov & PM_EXR_AOV_SURFACE) { /* AOV: the denoiser's surfaces beside the queries */
+        arg(j, "--aov");
+        arg(j, "aov.pm");
+        j->outs[j->nouts++] = "aov.pm";
+    }
     arg(j, "--mode");
     arg(j, r->mode);
     arg_opt(j, "--spp", s->value[PM_P_SPP]);
@@ -305,6 +310,13 @@ static void build_graph(render_t *r)
     arg(j, s->value[PM_P_TONE]);
     if (strcmp(s->value[PM_P_HALF], "1") == 0)
         arg(j, "--half");
+    if (s->aov) {
+        arg(j, "--aov");
+        arg(j, s->value[PM_P_AOV]);
+        arg(j, "--aov-buffer");
+        arg(j, "aov.pm");
+        j->ins[j->nins++] = "aov.pm";
+    }
     arg_common(r, j);
     j->outs[j->nouts++] = "image.exr";
     j->outs[j->nouts++] = "image.png";
@@ -327,6 +339,11 @@ static void need(render_t *r, job_t *j)
     if (strcmp(j->name, "composite") == 0) {
         for (int i = 0; i < r->nbuffers; i++) {
             job_t *p = producer(r, r->buffers[i]);
+            if (p)
+                need(r, p);
+        }
+        for (int i = 0; i < j->nins; i++) { /* aov.pm, with AOV */
+            job_t *p = producer(r, j->ins[i]);
             if (p)
                 need(r, p);
         }

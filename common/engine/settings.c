@@ -9,6 +9,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "base/exr.h"
 #include "engine/engine.h"
 
 static const struct {
@@ -35,6 +36,7 @@ static const struct {
     [PM_P_EXPOSURE] = {"EXPOSURE", "0"},
     [PM_P_TONE] = {"TONE", "srgb"},
     [PM_P_HALF] = {"HALF", "0"},
+    [PM_P_AOV] = {"AOV", ""},
     [PM_P_SEED] = {"SEED", ""},
     [PM_P_PASSES] = {"PASSES", ""},
     [PM_P_TIME] = {"TIME", ""},
@@ -168,6 +170,21 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
     s->wait = s->value[PM_P_WAIT][0] == '1';
     s->progressive = s->value[PM_P_TIME][0] || s->value[PM_P_TARGET_ERROR][0] || s->value[PM_P_PASS_RANGE][0] ||
                      (s->value[PM_P_PASSES][0] && strcmp(s->value[PM_P_PASSES], "1") != 0);
+    if (s->value[PM_P_AOV][0]) {
+        if ((r = pm_exr_aov_parse("AOV", s->value[PM_P_AOV], &s->aov)) != PM_OK)
+            return r;
+        /* The running image's layers need composite --stream --accumulate --aov, not done yet. */
+        if (s->progressive)
+            return pm_error_set(PM_ERR_USAGE,
+                                "AOV=%s is done for a one-pass render only, not with PASSES, TIME, "
+                                "TARGET_ERROR or PASS_RANGE",
+                                s->value[PM_P_AOV]);
+        if (s->aov & PM_EXR_AOV_VARIANCE)
+            return pm_error_set(PM_ERR_USAGE,
+                                "AOV=%s: variance is a progressive render's (the spread of its passes), "
+                                "and AOV is done for one pass only: ask for albedo, normal or depth",
+                                s->value[PM_P_AOV]);
+    }
     return PM_OK;
 }
 

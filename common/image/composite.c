@@ -42,6 +42,9 @@ struct pm_composite {
     double weight;               /* after pm_composite_accumulate: the passes' weights summed */
     float *pix;                  /* 3 per pixel, the EXR's values, from pm_composite_finish */
     int half;
+    unsigned aov; /* PM_EXR_AOV_* layers the EXR carries beside R G B (pm_composite_set_aov) */
+    float *surf;  /* 7 per pixel: albedo, normal, depth from an aov file, when aov asks for them */
+    float *varf;  /* 3 per pixel: var as the EXR's floats, when aov asks for variance */
 };
 
 pm_result_t pm_composite_parse_input(const char *arg, char **path_out, double *scale_out)
@@ -426,6 +429,69 @@ static pm_result_t exr_attrs(const pm_composite_t *c, pm_exr_attr_t **attrs_out,
     return PM_OK;
 }
 
+pm_result_t pm_composite_set_aov(pm_composite_t *c, unsigned mask, const char *aov_path)
+{
+    uint64_t n = c->info.pixels;
+    uint32_t w = c->info.width;
+    if (mask & PM_EXR_AOV_VARIANCE) {
+        if (!c->var)
+            return pm_error_set(PM_ERR_USAGE, "--aov variance: the variance is the running image's: give "
+                                              "--accumulate STATE (progressive passes)");
+        float lim = c->half ? PM_EXR_HALF_MAX : 3.4028235e38f;
+        if (!(c->varf = pm_alloc_aligned(3 * (n ? n : 1) * sizeof *c->varf)))
+            return pm_error_set(PM_ERR_NOMEM, "out of memory for a %" PRIu32 "x%" PRIu32 " variance layer", w,
+                                c->info.height);
+        for (uint64_t i = 0; i < 3 * n; i++) {
+            if (!(c->var[i] <= (double)lim))
+                return pm_error_set(
+                    PM_ERR_INPUT, "pixel (%" PRIu64 ", %" PRIu64 ") variance %c is %g, beyond %s (largest %g)",
+                    i / 3 % w, i / 3 / w, "RGB"[i % 3], c -> var[i], c -> half ? "half" : "float", (double)lim);
+            c->varf[i] = (float)c->var[i];
+        }
+    }
+    if (mask & PM_EXR_AOV_SURFACE) {
+        if (!aov_path)
+            return pm_error_set(PM_ERR_USAGE, "--aov albedo, normal and depth come from an aov file: give "
+                                              "--aov-buffer FILE (trace-gather-points --aov)");
+        pm_table_t t;
+        pm_result_t r = pm_table_read(aov_path, &pm_aov_schema, 0, &t);
+        if (r != PM_OK)
+            return r;
+        const pm_header_t *h0 = pm_reader_header(c->in[c->first].rd);
+        uint32_t aw, ah;
+        r = pm_header_get_image_size(&t.hdr, aov_path, &aw, &ah);
+        const char *s0 = pm_header_get(h0, "SCENE"), *s = pm_header_get(&t.hdr, "SCENE");
+        if (r == PM_OK && (aw != w || ah != c->info.height))
+            r = pm_error_set(PM_ERR_INPUT,
+                             "resolution mismatch: AOV buffer '%s' is %" PRIu32 "x%" PRIu32 ", the image %" PRIu32
+                             "x%" PRIu32,
+                             aov_path, aw, ah, w, c->info.height);
+        else if (r == PM_OK && (s0 || s) && (!s0 || !s || !pm_scene_key_same_scene(s0, s)))
+            r = pm_error_set(PM_ERR_INPUT, "scene mismatch: AOV buffer '%s' is of scene '%s', '%s' of scene '%s'",
+                             aov_path, s ? s : "(none)", c->in[c->first].path, s0 ? s0 : "(none)");
+        if (r == PM_OK && !(c->surf = pm_alloc_aligned(7 * (n ? n : 1) * sizeof *c->surf)))
+            r = pm_error_set(PM_ERR_NOMEM, "out of memory for a %" PRIu32 "x%" PRIu32 " AOV image", w, c->info.height);
+        /* Values in range: albedo in [0, 1], normals of length <= 1, depth a scene's size, and half
+         * holds them; the reader has checked them finite. */
+        for (uint64_t i = 0; r == PM_OK && i < n; i++) {
+            const float *a = t.col[PM_AOV_ALBEDO], *nm = t.col[PM_AOV_NORMAL], *d = t.col[PM_AOV_DEPTH];
+            float *o = c->surf + 7 * i;
+            for (int k = 0; k < 3; k++)
+                o[k] = a[3 * i + (uint64_t)k], o[3 + k] = nm[3 * i + (uint64_t)k];
+            o[6] = d[i];
+            for (int k = 0; k < 7; k++)
+                if (c->half && !(fabsf(o[k]) <= PM_EXR_HALF_MAX))
+                    r = pm_error_set(PM_ERR_INPUT, "AOV buffer '%s': pixel %" PRIu64 " holds %g, beyond half", aov_path,
+                                     i, (double)o[k]);
+        }
+        pm_table_free(&t);
+        if (r != PM_OK)
+            return r;
+    }
+    c->aov = mask;
+    return PM_OK;
+}
+
 pm_result_t pm_composite_write_exr(const pm_composite_t *c, const char *path, pm_exr_compression_t comp)
 {
     pm_exr_attr_t *attrs = NULL;
@@ -435,8 +501,10 @@ pm_result_t pm_composite_write_exr(const pm_composite_t *c, const char *path, pm
     pm_result_t r = exr_attrs(c, &attrs, &nattrs, &names, passes, sizeof passes);
     if (r != PM_OK)
         return r;
-    r = pm_exr_write_rgb(path, c->info.width, c->info.height, c->pix, c->half ? PM_EXR_HALF : PM_EXR_FLOAT, comp, attrs,
-                         nattrs);
+    pm_exr_channel_t ch[PM_EXR_MAX_CHANNELS] = {{"R", c->pix, 3, 0}, {"G", c->pix + 1, 3, 0}, {"B", c->pix + 2, 3, 0}};
+    size_t nch = 3 + pm_exr_aov_channels(c->aov, c->surf, c->varf, ch + 3);
+    r = pm_exr_write_channels(path, c->info.width, c->info.height, ch, nch, c->half ? PM_EXR_HALF : PM_EXR_FLOAT, comp,
+                              attrs, nattrs);
     for (size_t i = 0; names[i]; i++)
         free(names[i]);
     free(names);
@@ -498,6 +566,8 @@ void pm_composite_free(pm_composite_t *c)
     if (!c)
         return;
     pm_free_aligned(c->pix);
+    pm_free_aligned(c->surf);
+    pm_free_aligned(c->varf);
     pm_free_aligned(c->acc);
     pm_free_aligned(c->var);
     pm_header_free(&c->hdr);

@@ -95,6 +95,12 @@ pm_result_t pm_composite_pass(const pm_composite_t *c, uint64_t *pass_out);
  * can overflow even though every input is finite. */
 pm_result_t pm_composite_finish(pm_composite_t *c, int half);
 
+/* After pm_composite_finish: the layers (PM_EXR_AOV_* of base/exr.h) pm_composite_write_exr adds
+ * beside R G B: variance from the running image (after pm_composite_accumulate; a usage error
+ * without it), albedo, normal and depth from aov_path (an aov file, trace-gather-points --aov, of
+ * the image's size and scene; a usage error when NULL and they are asked for). */
+pm_result_t pm_composite_set_aov(pm_composite_t *c, unsigned mask, const char *aov_path);
+
 /* After pm_composite_finish: the OpenEXR image (R G B, half or float as finished), with the
  * provenance as string attributes SOFTWARE, SCENE, components, COMMAND.i and INPUT.i; after
  * pm_composite_accumulate also passes, alpha and radius1 (the schedule). */

@@ -29,7 +29,7 @@ double pm_light_power(const pm_scene_t *s, pm_light_kind_t kind, uint32_t index,
     case PM_LIGHT_SPOT: return pm_point_light_power(&s->lights[index], k);
     case PM_LIGHT_AREA:
         /* pi Ke A from one face: the integral of Ke cos over the hemisphere, times the area. */
-        return (s->two_sided_lights ? 2.0 : 1.0) * M_PI * s->materials[s->tri_material[index]].ke[k] *
+        return (pm_scene_emits_both(s, index) ? 2.0 : 1.0) * M_PI * s->materials[s->tri_material[index]].ke[k] *
                pm_scene_triangle_area(s, index);
     case PM_LIGHT_SUN: return pm_sun_power(s, k);
     case PM_LIGHT_SKY: return pm_sky_power(s, k);
@@ -202,16 +202,31 @@ float pm_sun_pdf(const pm_sun_t *sun, const float w[3])
     return pm_dot3(sun->direction, w) >= sun->cos_max ? 1.0f / sun->solid_angle : 0.0f;
 }
 
-void pm_envmap_pixel(const pm_envmap_t *e, const float w[3], uint32_t *x_out, uint32_t *y_out)
+/* Direction w in the map's frame (w itself for an unframed map). */
+static void to_map(const pm_envmap_t *e, const float w[3], double m_out[3])
+{
+    for (int k = 0; k < 3; k++)
+        m_out[k] = e->framed ? e->frame[3 * k] * w[0] + e->frame[3 * k + 1] * w[1] + e->frame[3 * k + 2] * w[2] : w[k];
+}
+
+/* The pixel of direction m in the map's frame. */
+static void map_pixel(const pm_envmap_t *e, const double m[3], uint32_t *x_out, uint32_t *y_out)
 {
     /* theta from the horizontal length, not acos(y): near the poles y rounds to 1 first. */
-    double st = sqrt((double)w[0] * w[0] + (double)w[2] * w[2]);
-    double th = atan2(st, (double)w[1]), ph = atan2((double)w[2], (double)w[0]);
+    double st = sqrt(m[0] * m[0] + m[2] * m[2]);
+    double th = atan2(st, m[1]), ph = atan2(m[2], m[0]);
     if (ph < 0.0)
         ph += 2.0 * M_PI;
     double fx = ph / (2.0 * M_PI) * e->w, fy = th / M_PI * e->h;
     *x_out = fx >= e->w ? e->w - 1 : (uint32_t)fx;
     *y_out = fy >= e->h ? e->h - 1 : (uint32_t)fy;
+}
+
+void pm_envmap_pixel(const pm_envmap_t *e, const float w[3], uint32_t *x_out, uint32_t *y_out)
+{
+    double m[3];
+    to_map(e, w, m);
+    map_pixel(e, m, x_out, y_out);
 }
 
 void pm_envmap_sample(const pm_envmap_t *e, float u1, float u2, float wi_out[3])
@@ -225,7 +240,9 @@ void pm_envmap_sample(const pm_envmap_t *e, float u1, float u2, float wi_out[3])
     double fx = cc[x] > c0 ? (u2 - c0) / (cc[x] - c0) : 0.5;
     fy = fmin(fmax(fy, 0.0), 1.0), fx = fmin(fmax(fx, 0.0), 1.0);
     double th = M_PI * (y + fy) / e->h, ph = 2.0 * M_PI * (x + fx) / e->w;
-    wi_out[0] = (float)(sin(th) * cos(ph)), wi_out[1] = (float)cos(th), wi_out[2] = (float)(sin(th) * sin(ph));
+    double m[3] = {sin(th) * cos(ph), cos(th), sin(th) * sin(ph)};
+    for (int k = 0; k < 3; k++) /* back to the world: the frame's rows weighted by m */
+        wi_out[k] = (float)(e->framed ? m[0] * e->frame[k] + m[1] * e->frame[3 + k] + m[2] * e->frame[6 + k] : m[k]);
 }
 
 float pm_envmap_pdf(const pm_envmap_t *e, const float w[3])
@@ -233,8 +250,10 @@ float pm_envmap_pdf(const pm_envmap_t *e, const float w[3])
     if (!(e->total > 0.0))
         return 0.0f;
     uint32_t x, y;
-    pm_envmap_pixel(e, w, &x, &y);
-    double st = sqrt((double)w[0] * w[0] + (double)w[2] * w[2]) / sqrt(pm_dot3(w, w));
+    double m[3];
+    to_map(e, w, m);
+    map_pixel(e, m, &x, &y);
+    double st = sqrt(m[0] * m[0] + m[2] * m[2]) / sqrt(pm_dot3(w, w)); /* a turn keeps the length */
     if (!(st > 0.0))
         return 0.0f;
     return (float)(e->pix_p[(size_t)y * e->w + x] * e->w * e->h / (2.0 * M_PI * M_PI * st));
@@ -343,7 +362,7 @@ void pm_light_sample_le(const pm_lights_t *L, const pm_light_t *l, float u1, flo
         triangle_point(s, l->index, b0, b1, p);
         /* The front face: the right-hand-rule normal of (v0, v1, v2). */
         pm_vec3_t n = pm_v3_normalize(pm_v3_cross(pm_v3_sub(v1, v0), pm_v3_sub(v2, v0))), tb, bb;
-        if (s->two_sided_lights) { /* either face, by half of u3; the other half stays uniform */
+        if (pm_scene_emits_both(s, l->index)) { /* either face, by half of u3; the other half stays uniform */
             if (u3 < 0.5f)
                 n = pm_v3_scale(n, -1.0f), u3 = 2.0f * u3;
             else
@@ -408,7 +427,7 @@ int pm_lights_sample_li(const pm_lights_t *L, size_t i, pm_rng_t *rng, const flo
         if (!toward(p, n, y, o))
             return 0;
         o->cosy = -pm_dot3(L->front + 3 * e, o->wi);
-        if (s->two_sided_lights) /* either face lights */
+        if (pm_scene_emits_both(s, tri)) /* either face lights */
             o->cosy = fabsf(o->cosy);
         if (!(o->cosx > 0.0f && o->cosy > 0.0f))
             return 0;
@@ -493,7 +512,7 @@ int pm_lights_le_hit(const pm_lights_t *L, uint32_t tri, float cos_front, float 
 {
     const pm_scene_t *s = L->s;
     const pm_material_t *m = &s->materials[s->tri_material[tri]];
-    if (!pm_material_is_emissive(m) || !(cos_front >= 0.0f || s->two_sided_lights))
+    if (!pm_material_is_emissive(m) || !(cos_front >= 0.0f || pm_scene_emits_both(s, tri)))
         return 0;
     *cos_emit_out = fabsf(cos_front);
     memcpy(le_out, m->ke, 3 * sizeof(float));
@@ -557,9 +576,16 @@ void pm_lights_describe_text(const pm_scene_t *s, FILE *out)
             if (s->envmap)
                 fprintf(
                     out,
-                    "sky: map %" PRIu32 "x%" PRIu32 " times %.6g %.6g %.6g, mean radiance %.6g %.6g %.6g W/(m^2 sr)\n",
+                    "sky: map %" PRIu32 "x%" PRIu32 " times %.6g %.6g %.6g, mean radiance %.6g %.6g %.6g W/(m^2 sr)",
                     s->envmap->w, s->envmap->h, s->sky[0], s->sky[1], s->sky[2], s->envmap->integral[0] / (4.0 * M_PI),
                     s->envmap->integral[1] / (4.0 * M_PI), s->envmap->integral[2] / (4.0 * M_PI));
+            if (s->sky_turbidity > 0.0)
+                fprintf(out, ", the preetham model of turbidity %.6g", s->sky_turbidity);
+            if (s->envmap && s->envmap->framed)
+                fprintf(out, ", turned to up %.6g %.6g %.6g, rotate %.6g deg", s->sky_up[0], s->sky_up[1], s->sky_up[2],
+                        s->sky_rotate);
+            if (s->envmap)
+                fprintf(out, "\n");
             else
                 fprintf(out, "sky: radiance %.6g %.6g %.6g W/(m^2 sr)\n", s->sky[0], s->sky[1], s->sky[2]);
             break;
@@ -603,9 +629,16 @@ json_t *pm_lights_describe_json(const pm_scene_t *s)
             break;
         case PM_LIGHT_SKY:
             lj = json_pack("{s:s, s:o}", "kind", pm_light_kind_name(kind), "radiance_w_m2_sr", floats_json(s->sky, 3));
-            if (lj && s->envmap) /* radiance is then the map's scale */
+            if (lj && s->envmap) { /* radiance is then the map's scale */
                 json_object_set_new(lj, "map_pixels",
                                     json_pack("[I, I]", (json_int_t)s->envmap->w, (json_int_t)s->envmap->h));
+                json_object_set_new(lj, "up", json_pack("[f, f, f]", s->sky_up[0], s->sky_up[1], s->sky_up[2]));
+                json_object_set_new(lj, "rotate_deg", json_real(s->sky_rotate));
+                if (s->sky_turbidity > 0.0) {
+                    json_object_set_new(lj, "model", json_string("preetham"));
+                    json_object_set_new(lj, "turbidity", json_real(s->sky_turbidity));
+                }
+            }
             break;
         default: break;
         }

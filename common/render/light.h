@@ -7,7 +7,8 @@
  *
  * The kinds are what the scene model loads (render/scene.h): point lights of intensity I (W/sr),
  * spots (the same with a cone and a falloff), emissive triangles of radiance Ke (W/(m^2 sr)) from
- * their front face (both with the scene key two_sided_lights), the sun (a disc of radiance L at
+ * their front face (both with the scene key two_sided_lights or their material's two_sided:
+ * pm_scene_emits_both), the sun (a disc of radiance L at
  * infinity) and the sky (a constant radiance or a lat-long map, at infinity).
  *
  * Units: metres; power W; intensity W/sr; radiance W/(m^2 sr); pdfs over solid angle 1/sr,
@@ -136,7 +137,7 @@ void pm_lights_le_escape(const pm_lights_t *L, const float w[3], float le_out[3]
 
 /* Whether the hit on triangle tri at cosine cos_front (the triangle's front normal with the
  * direction back along the ray) sees emission: its material emits and the ray arrives at the
- * emitting face (the front, dot 0 included; either with two_sided_lights). Then le_out is Ke,
+ * emitting face (the front, dot 0 included; either when pm_scene_emits_both). Then le_out is Ke,
  * W/(m^2 sr), and *cos_emit_out the cosine at the emitting face (>= 0). */
 int pm_lights_le_hit(const pm_lights_t *L, uint32_t tri, float cos_front, float le_out[3], float *cos_emit_out);
 

@@ -21,6 +21,9 @@
  * define, a missing .mtl (it then makes up a grey material). The first "Error" it logs
  * during an import fails the load. Scenes load on one thread, so one buffer serves. */
 static char ai_first_error[512];
+/* 1 while importing an OBJ without any mtllib: its usemtl names name nothing, and assimp's
+ * "failed to locate material" for each is expected (the faces are the default grey). */
+static int ai_obj_without_mtllib;
 
 /* Errors assimp 5.2 logs for legal input and then handles right: a usemtl before any
  * group, object or face (the next face makes the default object, with that material), and
@@ -39,6 +42,8 @@ static void on_assimp_log(const char *msg, char *user)
     for (const char *const *b = ai_benign_errors; *b; b++)
         if (strstr(msg, *b))
             return;
+    if (ai_obj_without_mtllib && strstr(msg, "OBJ: failed to locate material"))
+        return;
     const char *colon = strchr(msg, ':'); /* "Error, T0: OBJ: ..." -> "OBJ: ..." */
     snprintf(ai_first_error, sizeof ai_first_error, "%s", colon ? colon + 2 : msg);
     for (char *p = ai_first_error; *p; p++)
@@ -67,7 +72,7 @@ const char *pm_scene_obj_word(const char *line, char *word, size_t cap)
  * the first usemtl takes whichever material was current (the last one of the .mtl, or
  * assimp's grey default), and an mtllib after a usemtl makes the last material of that
  * library the material of the faces already read. Both are errors naming the line. */
-static pm_result_t check_obj_materials(const char *path, char *libs_out, size_t libs_cap)
+static pm_result_t check_obj_materials(const char *path, char *libs_out, size_t libs_cap, int *no_materials_out)
 {
     size_t libs_len = 0;
     libs_out[0] = '\0';
@@ -76,7 +81,8 @@ static pm_result_t check_obj_materials(const char *path, char *libs_out, size_t 
         return pm_error_set(pm_result_of_errno(errno), "cannot open mesh '%s': %s", path, strerror(errno));
     char *line = NULL, word[16], group[128] = "";
     size_t cap = 0;
-    uint64_t lineno = 0, faces = 0, first_usemtl = 0;
+    uint64_t lineno = 0, faces = 0, first_usemtl = 0, bare_face = 0, bare_line = 0;
+    char bare_group[128] = "";
     int continued = 0; /* the previous line ended in a backslash: this one goes on with it */
     pm_result_t r = PM_OK;
     for (ssize_t len; r == PM_OK && (len = getline(&line, &cap, f)) >= 0;) {
@@ -98,14 +104,9 @@ static pm_result_t check_obj_materials(const char *path, char *libs_out, size_t 
                 first_usemtl = lineno;
         } else if (strcmp(word, "f") == 0 || strcmp(word, "fo") == 0) {
             faces++;
-            if (!first_usemtl) {
-                char where[200] = "";
-                if (group[0])
-                    snprintf(where, sizeof where, ", group '%s'", group);
-                r = pm_error_set(PM_ERR_INPUT,
-                                 "mesh '%s': face %" PRIu64 " (line %" PRIu64 "%s) comes before any usemtl: every "
-                                 "OBJ face needs a material from the .mtl",
-                                 path, faces, lineno, where);
+            if (!first_usemtl && !bare_face) { /* an error only if some usemtl comes later */
+                bare_face = faces, bare_line = lineno;
+                snprintf(bare_group, sizeof bare_group, "%s", group);
             }
         } else if (strcmp(word, "mtllib") == 0 && !first_usemtl) {
             /* assimp takes the rest of the line as one file name; kept one a line */
@@ -124,6 +125,19 @@ static pm_result_t check_obj_materials(const char *path, char *libs_out, size_t 
     }
     if (r == PM_OK && ferror(f))
         r = pm_error_set(pm_result_of_errno(errno), "cannot read mesh '%s': %s", path, strerror(errno));
+    /* No mtllib: geometry only, every face the default grey whatever its usemtl says (load_materials
+     * notes it). With an mtllib, faces before the first usemtl would silently take a material
+     * they do not name (the .mtl's last one). */
+    *no_materials_out = r == PM_OK && !libs_len;
+    if (r == PM_OK && bare_face && !*no_materials_out) {
+        char where[200] = "";
+        if (bare_group[0])
+            snprintf(where, sizeof where, ", group '%s'", bare_group);
+        r = pm_error_set(PM_ERR_INPUT,
+                         "mesh '%s': face %" PRIu64 " (line %" PRIu64 "%s) comes before any usemtl: every OBJ face "
+                         "needs a material from the .mtl (an OBJ with no mtllib is the default grey)",
+                         path, bare_face, bare_line, where);
+    }
     free(line);
     fclose(f);
     return r;
@@ -147,8 +161,13 @@ static pm_result_t import_file(ctx_t *c, const char *path, int is_obj, import_t 
         return r;
     /* Triangulate polygons, merge shared vertices, flatten node transforms, drop points
      * and lines; vertex normals come as the file has them (none are made up). */
+    char libs_read[4096] = "";
+    int no_materials = 0;
+    if (is_obj && (r = check_obj_materials(path, libs_read, sizeof libs_read, &no_materials)) != PM_OK)
+        return r;
     struct aiLogStream log = {on_assimp_log, NULL};
     ai_first_error[0] = '\0';
+    ai_obj_without_mtllib = no_materials;
     aiAttachLogStream(&log);
     const struct aiScene *imported =
         aiImportFile(path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_PreTransformVertices |
@@ -164,13 +183,8 @@ static pm_result_t import_file(ctx_t *c, const char *path, int is_obj, import_t 
      * assimp's default material, or the .mtl's last one; rendering either would be
      * silently wrong. The OBJ's own order of lines tells; the default material is checked
      * after it. */
-    char libs_read[4096] = "";
-    if (is_obj && (r = check_obj_materials(path, libs_read, sizeof libs_read)) != PM_OK) {
-        aiReleaseImport(imported);
-        return r;
-    }
     import_t *im = &c->imports[c->nimports++];
-    *im = (import_t){.as = imported};
+    *im = (import_t){.as = imported, .no_materials = no_materials};
     snprintf(im->path, sizeof im->path, "%s", path);
     snprintf(im->libs, sizeof im->libs, "%s", libs_read);
     *im_out = im;
@@ -179,12 +193,13 @@ static pm_result_t import_file(ctx_t *c, const char *path, int is_obj, import_t 
 
 /* The materials of import im appended to the scene from index *mat0_out: each read, what it
  * does not honour reported, the textures of those some triangle uses loaded. */
-static pm_result_t load_materials(ctx_t *c, const char *path, int is_obj, const import_t *im, size_t *mat0_out)
+static pm_result_t load_materials(ctx_t *c, json_t *mj, const char *path, int is_obj, const import_t *im,
+                                  size_t *mat0_out)
 {
     pm_scene_t *s = c->s;
     const struct aiScene *as = im->as;
     pm_result_t r;
-    for (unsigned mi = 0; is_obj && mi < as->mNumMeshes; mi++) {
+    for (unsigned mi = 0; is_obj && !im->no_materials && mi < as->mNumMeshes; mi++) {
         const struct aiMesh *m = as->mMeshes[mi];
         struct aiString mname;
         if (m->mMaterialIndex < as->mNumMaterials &&
@@ -195,14 +210,50 @@ static pm_result_t load_materials(ctx_t *c, const char *path, int is_obj, const 
                                 path, m->mNumFaces, m->mName.length ? m->mName.data : "(unnamed)");
         }
     }
+    for (unsigned i = 0; i < as->mNumMaterials; i++) {
+        struct aiString an;
+        int used = 0;
+        for (unsigned mi = 0; mi < as->mNumMeshes && !used; mi++)
+            used =
+                as->mMeshes[mi]->mMaterialIndex == i && (as->mMeshes[mi]->mPrimitiveTypes & aiPrimitiveType_TRIANGLE);
+        if (used &&
+            (im->no_materials || aiGetMaterialString(as->mMaterials[i], AI_MATKEY_NAME, &an) != aiReturn_SUCCESS ||
+             !an.length || strcmp(an.data, AI_DEFAULT_MATERIAL_NAME) == 0) &&
+            (r = pm_scene_add_note(s, 0, "mesh '%s' names no material: its faces are the default grey (Kd 0.8)",
+                                   path)) != PM_OK)
+            return r;
+    }
     size_t mat0 = *mat0_out = s->nmaterials;
     if ((r = pm_scene_grow((void **)&s->materials, mat0 + as->mNumMaterials, sizeof *s->materials)) != PM_OK ||
         (r = pm_scene_grow((void **)&s->maps, mat0 + as->mNumMaterials, sizeof *s->maps)) != PM_OK)
         return r;
     for (size_t i = mat0; i < mat0 + as->mNumMaterials; i++)
-        s->maps[i] = (pm_material_maps_t){-1, -1, -1};
+        s->maps[i] = (pm_material_maps_t){-1, -1, -1, -1, -1, 1.0f};
     for (unsigned i = 0; i < as->mNumMaterials && r == PM_OK; i++) {
+        /* one the scene file replaces is not read (nor refused, nor its textures loaded): a
+         * placeholder of its name until pm_scene_apply_mesh_overrides puts the scene's in */
+        pm_material_t *slot = &s->materials[mat0 + i];
+        struct aiString an0;
+        char word[sizeof slot->name] = "";
+        if (aiGetMaterialString(as->mMaterials[i], AI_MATKEY_NAME, &an0) == aiReturn_SUCCESS)
+            snprintf(word, sizeof word, "%s", an0.data);
+        pm_scene_material_word(word);
+        if (!word[0] || strcmp(word, AI_DEFAULT_MATERIAL_NAME) == 0)
+            snprintf(word, sizeof word, "default"); /* as pm_scene_load_material names the stand-in */
+        if (pm_scene_overridden(mj, word)) {
+            *slot = (pm_material_t){.kd = {0.8f, 0.8f, 0.8f}};
+            memcpy(slot->name, word, sizeof word);
+            continue;
+        }
         r = pm_scene_load_material(c, path, is_obj, as->mMaterials[i], &s->materials[mat0 + i]);
+        if (r == PM_OK && im->no_materials) { /* a usemtl name without a library: the grey, by that name */
+            pm_material_t *g = &s->materials[mat0 + i];
+            char name[sizeof g->name];
+            memcpy(name, g->name, sizeof name);
+            *g = (pm_material_t){.kd = {0.8f, 0.8f, 0.8f}};
+            memcpy(g->name, name, sizeof name);
+            continue;
+        }
         /* assimp's stand-in material is pmtk's grey default whatever it holds: nothing to report */
         struct aiString an;
         int stand_in = aiGetMaterialString(as->mMaterials[i], AI_MATKEY_NAME, &an) != aiReturn_SUCCESS ||
@@ -335,7 +386,8 @@ static pm_result_t load_meshes(ctx_t *c, const struct aiScene *as, const char *p
             return pm_error_set(PM_ERR_INPUT, "mesh '%s': material index %u of %u", path, m->mMaterialIndex,
                                 as->mNumMaterials);
         const pm_material_maps_t *mm = &s->maps[mat0 + m->mMaterialIndex];
-        if (!m->mTextureCoords[0] && (mm->kd >= 0 || mm->ks >= 0 || mm->alpha >= 0) &&
+        if (!m->mTextureCoords[0] &&
+            (mm->kd >= 0 || mm->ks >= 0 || mm->alpha >= 0 || mm->normal >= 0 || mm->bump >= 0) &&
             (r = pm_scene_note_unsupported(s, (uint32_t)(mat0 + m->mMaterialIndex), "texture coordinates", 0,
                                            "missing (texel 0 0 used)")) != PM_OK)
             return r;
@@ -359,7 +411,8 @@ static pm_result_t load_meshes(ctx_t *c, const struct aiScene *as, const char *p
 
 pm_result_t pm_scene_load_mesh(ctx_t *c, json_t *mj, size_t index)
 {
-    static const char *const keys[] = {"file", "scale", "rotate", "translate", "matrix", NULL};
+    static const char *const keys[] = {"file",     "scale",     "rotate",   "translate", "matrix",
+                                       "material", "materials", "emission", "lights",    NULL};
     pm_scene_t *s = c->s;
     char where[64], path[1200];
     snprintf(where, sizeof where, "meshes[%zu]", index);
@@ -386,8 +439,11 @@ pm_result_t pm_scene_load_mesh(ctx_t *c, json_t *mj, size_t index)
     size_t tri_start = s->ntris, vert_start = s->nverts, mat0 = 0;
     uint64_t kept = 0; /* which faces are kept (degenerate ones left out): a placement's key */
     /* the import is the scene's until pm_scene_load ends: it serves every entry placing it */
-    if ((r = import_file(c, path, is_obj, &im)) != PM_OK || (r = load_materials(c, path, is_obj, im, &mat0)) != PM_OK ||
-        (r = load_meshes(c, im->as, path, xf, general, flip, mat0, &kept)) != PM_OK)
+    if ((r = import_file(c, path, is_obj, &im)) != PM_OK ||
+        (r = load_materials(c, mj, path, is_obj, im, &mat0)) != PM_OK ||
+        (r = pm_scene_apply_mesh_overrides(c, mj, where, file, mat0, im->as->mNumMaterials)) != PM_OK ||
+        (r = load_meshes(c, im->as, path, xf, general, flip, mat0, &kept)) != PM_OK ||
+        (r = pm_scene_load_asset_extras(c, mj, where, path, file, index, xf, im->as->mNumLights)) != PM_OK)
         return r;
     /* This entry's placement: entries with equal keys hold the same triangles in the same mesh
      * units and winding, so that Embree can keep one copy and place it by instances. */

@@ -228,9 +228,11 @@ pm_result_t pm_scene_scan_material(pm_scene_t *s, int is_obj, const struct aiMat
                       : sem == aiTextureType_EMISSION_COLOR ? aiTextureType_EMISSIVE
                       : sem == aiTextureType_NORMAL_CAMERA  ? aiTextureType_NORMALS
                                                             : sem;
-            /* Honoured (load_material_maps): MTL map_Kd, map_Ks, map_d; the base colour elsewhere. */
-            if (sem == aiTextureType_DIFFUSE ||
-                (is_obj && (sem == aiTextureType_SPECULAR || sem == aiTextureType_OPACITY)))
+            /* Honoured (load_material_maps): MTL map_Kd, map_Ks, map_d, norm, bump; the base colour and
+             * the normal texture elsewhere. */
+            if (sem == aiTextureType_DIFFUSE || sem == aiTextureType_NORMALS ||
+                (is_obj &&
+                 (sem == aiTextureType_SPECULAR || sem == aiTextureType_OPACITY || sem == aiTextureType_HEIGHT)))
                 continue;
             const char *mtl = is_obj ? mtl_texture_name(sem) : NULL;
             if (mtl)

@@ -416,9 +416,27 @@ pm_result_t pm_pathtrace_write(const pm_pathtracer_t *pt, const pm_pathtrace_out
         {"pixel", pm_pixel_names[c->pixel]},
         {"stderr_rms", rmse_s},
     };
+    /* The layers a denoiser reads (--aov): the variance of each pixel's mean, the surface's */
+    float *var = NULL;
+    if (r == PM_OK && (out->aov & PM_EXR_AOV_VARIANCE)) {
+        if (!(var = malloc(np * 3 * sizeof *var)))
+            r = pm_error_set(PM_ERR_NOMEM, "out of memory for a %" PRIu32 "x%" PRIu32 " variance layer", c->width,
+                             c->height);
+        for (size_t i = 0; r == PM_OK && i < 3 * np; i++) {
+            double v = pt->n > 1 ? pt->m2[i] / ((double)pt->n * (double)(pt->n - 1)) : 0.0;
+            if (!(v <= FLT_MAX))
+                r = pm_error_set(PM_ERR_INPUT, "pixel (%zu, %zu) of '%s': variance %g does not fit in a float",
+                                 i / 3 % c->width, i / 3 / c->width, out->exr, v);
+            else
+                var[i] = (float)v;
+        }
+    }
+    pm_exr_channel_t ch[PM_EXR_MAX_CHANNELS] = {{"R", rgb, 3, 0}, {"G", rgb + 1, 3, 0}, {"B", rgb + 2, 3, 0}};
+    size_t nch = 3 + pm_exr_aov_channels(out->aov, out->surf, var, ch + 3);
     if (r == PM_OK)
-        r = pm_exr_write_rgb(out->exr, c->width, c->height, rgb, PM_EXR_FLOAT, PM_EXR_ZIP, attrs,
-                             sizeof attrs / sizeof attrs[0]);
+        r = pm_exr_write_channels(out->exr, c->width, c->height, ch, nch, PM_EXR_FLOAT, PM_EXR_ZIP, attrs,
+                                  sizeof attrs / sizeof attrs[0]);
+    free(var);
     free(rgb);
     if (r != PM_OK || !out->radiance)
         return pm_atomic_set_end(&set, r);

@@ -116,6 +116,8 @@ typedef struct {
     int argc;             /* the command, for the radiance buffer's COMMAND line */
     char **argv;
     const char *command; /* the same as one line, for the image's COMMAND.0 attribute */
+    unsigned aov;        /* PM_EXR_AOV_* layers the image carries beside R G B (base/exr.h); 0: none */
+    const float *surf;   /* with albedo, normal or depth in aov: render/aov.h's 7 floats a pixel */
 } pm_pathtrace_output_t;
 
 /* Writes the image and, when asked, the radiance buffer, each atomically. */

@@ -98,7 +98,8 @@ void pm_scene_power(const pm_scene_t *s, double p[3])
         size_t t = s->emissive[i];
         double a = pm_scene_triangle_area(s, t);
         for (int k = 0; k < 3; k++)
-            p[k] += (s->two_sided_lights ? 2.0 : 1.0) * M_PI * s->materials[s->tri_material[t]].ke[k] * a;
+            p[k] +=
+                (pm_scene_emits_both(s, (uint32_t)t) ? 2.0 : 1.0) * M_PI * s->materials[s->tri_material[t]].ke[k] * a;
     }
     for (int k = 0; k < 3 && s->has_sun; k++)
         p[k] += pm_sun_power(s, k);
@@ -115,6 +116,8 @@ size_t pm_scene_flipped_emitters(const pm_scene_t *s, uint32_t *first_out)
     if (s->two_sided_lights)
         return 0; /* both faces emit: no winding faces away */
     for (size_t i = 0; i < s->nemissive; i++) {
+        if (pm_scene_emits_both(s, s->emissive[i]))
+            continue; /* both faces emit: no winding faces away */
         const uint32_t *t = &s->tris[3 * (size_t)s->emissive[i]];
         const float *a = &s->verts[3 * (size_t)t[0]], *b = &s->verts[3 * (size_t)t[1]],
                     *c = &s->verts[3 * (size_t)t[2]];
@@ -175,7 +178,8 @@ static pm_result_t drop_unused_maps(pm_scene_t *s)
 {
     int any = 0;
     for (size_t m = 0; s->maps && m < s->nmaterials; m++)
-        any |= s->maps[m].kd >= 0 || s->maps[m].ks >= 0 || s->maps[m].alpha >= 0;
+        any |= s->maps[m].kd >= 0 || s->maps[m].ks >= 0 || s->maps[m].alpha >= 0 || s->maps[m].normal >= 0 ||
+               s->maps[m].bump >= 0;
     if (!any) {
         free(s->maps);
         free(s->uvs);
@@ -187,6 +191,34 @@ static pm_result_t drop_unused_maps(pm_scene_t *s)
         for (size_t m = 0; m < s->nmaterials; m++)
             s->any_alpha |= s->maps[m].alpha >= 0;
     }
+    /* Textures no kept material reads (an asset material the scene file replaced, or one no
+     * triangle uses) are freed, so that they are neither listed nor hashed. */
+    int32_t *keep = calloc(s->ntextures ? s->ntextures : 1, sizeof *keep);
+    if (!keep)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory");
+    for (size_t m = 0; s->maps && m < s->nmaterials; m++) {
+        const int32_t *slot[3] = {&s->maps[m].kd, &s->maps[m].ks, &s->maps[m].alpha};
+        for (int k = 0; k < 3; k++)
+            if (*slot[k] >= 0)
+                keep[*slot[k]] = 1;
+    }
+    size_t n = 0;
+    for (size_t i = 0; i < s->ntextures; i++) {
+        if (!keep[i]) {
+            pm_texture_free(&s->textures[i]);
+            continue;
+        }
+        s->textures[n] = s->textures[i];
+        keep[i] = (int32_t)n++;
+    }
+    s->ntextures = n;
+    for (size_t m = 0; s->maps && m < s->nmaterials; m++) {
+        int32_t *slot[3] = {&s->maps[m].kd, &s->maps[m].ks, &s->maps[m].alpha};
+        for (int k = 0; k < 3; k++)
+            if (*slot[k] >= 0)
+                *slot[k] = keep[*slot[k]];
+    }
+    free(keep);
     return PM_OK;
 }
 
@@ -243,7 +275,7 @@ static pm_result_t check_size(const ctx_t *c)
 pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
 {
     memset(s, 0, sizeof *s);
-    ctx_t c = {path, s, 0, NULL, 0, NULL, 0};
+    ctx_t c = {.file = path, .s = s, .camera_mesh = -1};
     snprintf(s->path, sizeof s->path, "%s", path);
     json_error_t je;
     FILE *f = fopen(path, "rb");
@@ -256,7 +288,7 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     static const char *const keys[] = {
         "pmtk_scene", "name",   "meshes",           "camera",     "point_lights",     "sun",
         "sky",        "render", "missing_textures", "instancing", "two_sided_lights", "shading_normals",
-        NULL};
+        "materials",  "shapes", "image_budgets",    NULL};
     pm_result_t r = json_is_object(root) ? pm_scene_only_keys(&c, root, "top level", keys)
                                          : pm_scene_bad(&c, "top level", "must be a JSON object");
     int64_t version = 0;
@@ -275,9 +307,18 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         else if (!v || strcmp(v, "error") != 0)
             r = pm_scene_bad(&c, "missing_textures", "must be \"error\" (the default) or \"magenta\"");
     }
+    if (r == PM_OK)
+        r = pm_scene_load_image_budgets(&c, json_object_get(root, "image_budgets"));
+    if (r == PM_OK)
+        r = pm_scene_load_scene_materials(&c, json_object_get(root, "materials"));
     json_t *meshes = json_object_get(root, "meshes");
     if (r == PM_OK && meshes && !json_is_array(meshes))
         r = pm_scene_bad(&c, "meshes", "must be an array");
+    json_t *cam = json_object_get(root, "camera");
+    size_t nmeshes = meshes ? json_array_size(meshes) : 0;
+    if (r == PM_OK && json_is_object(cam) && json_object_get(cam, "mesh"))
+        r = nmeshes ? pm_scene_get_int(&c, cam, "mesh", "camera.mesh", 1, 0, (int64_t)nmeshes - 1, &c.camera_mesh)
+                    : pm_scene_bad(&c, "camera.mesh", "names a mesh entry, and the scene has none");
     for (size_t i = 0; r == PM_OK && meshes && i < json_array_size(meshes); i++) {
         r = pm_scene_load_mesh(&c, json_array_get(meshes, i), i);
         pm_scene_release_import(&c, meshes, i);
@@ -285,6 +326,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         if (r == PM_ERR_INPUT && strncmp(pm_error_message(), "scene '", 7) != 0)
             pm_error_prefix("scene '%s': meshes[%zu]", path, i);
     }
+    if (r == PM_OK)
+        r = pm_scene_load_shapes(&c, json_object_get(root, "shapes"));
     json_t *two = json_object_get(root, "two_sided_lights");
     if (r == PM_OK && two && !json_is_boolean(two))
         r = pm_scene_bad(&c, "two_sided_lights",
@@ -312,14 +355,20 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     }
     free(c.imports);
     free(c.local);
+    free(c.smats);
+    free(c.smaps);
     if (r == PM_OK)
         r = check_size(&c);
     if (r == PM_OK)
         r = pm_scene_load_camera(&c, json_object_get(root, "camera"));
+    free(c.acams);
     if (r == PM_OK)
         r = pm_scene_load_lights(&c, json_object_get(root, "point_lights"));
     if (r == PM_OK)
         r = pm_scene_load_sun_sky(&c, json_object_get(root, "sun"), json_object_get(root, "sky"));
+    if (r == PM_OK)
+        r = pm_scene_add_asset_lights(&c);
+    free(c.alights);
     if (r == PM_OK)
         r = pm_scene_load_defaults(&c, json_object_get(root, "render"));
     json_decref(root);
@@ -361,6 +410,7 @@ void pm_scene_free(pm_scene_t *s)
     free(s->normals);
     free(s->placements);
     free(s->local_verts);
+    free(s->notes);
     for (size_t i = 0; i < s->ntextures; i++)
         pm_texture_free(&s->textures[i]);
     free(s->textures);
@@ -389,6 +439,8 @@ void pm_scene_warn_flipped(const pm_scene_t *s, const pm_stage_t *st)
 
 void pm_scene_warn_unsupported(const pm_scene_t *s, const pm_stage_t *st)
 {
+    for (size_t i = 0; i < s->nnotes; i++)
+        pm_stage_note(st, "%s: %s", s->notes[i].warning ? "warning" : "note", s->notes[i].text);
     for (size_t i = 0; i < s->nunsupported; i++) {
         char text[300];
         pm_scene_unsupported_text(&s->unsupported[i], text, sizeof text);

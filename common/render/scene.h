@@ -55,12 +55,38 @@ typedef struct {
     double *pix_p;      /* h * w: probability of each pixel */
     double integral[3]; /* W/m^2 per channel: the map's radiance integrated over the sphere */
     double total;       /* the sum of the weights; 0 when the map is black */
+    /* The sky's frame (pm_sky_frame): rows are the map's x, y, z axes in world coordinates, so
+     * that a world direction w is (frame[0..2] . w, frame[3..5] . w, frame[6..8] . w) in the
+     * map; used only when framed is 1 (an identity frame leaves the map's arithmetic as it was). */
+    int framed;
+    double frame[9];
 } pm_envmap_t;
 
 /* Builds e's tables from rgb (w x h, owned by e from here, freed by pm_envmap_free); an
  * error on a value that is NaN, infinite or negative (named with its pixel and channel). */
 pm_result_t pm_envmap_init(pm_envmap_t *e, uint32_t w, uint32_t h, float *rgb);
 void pm_envmap_free(pm_envmap_t *e);
+/* Bytes a map takes a pixel with its tables (what the sky_map budget counts), and the budget
+ * when the scene sets none (image_budgets.sky_map_mib). */
+#define PM_ENVMAP_BYTES_PER_PIXEL (3 * sizeof(float) + 3 * sizeof(double))
+#define PM_ENVMAP_BUDGET_DEFAULT ((uint64_t)1024 << 20)
+/* Reads the lat-long map path (OpenEXR or Radiance HDR, by content, through base/imgdecode.h),
+ * each value times scale, into e (pm_envmap_init), taking at most max_bytes with its tables:
+ * the declared size is checked before the pixels are allocated. Errors of reading name the
+ * file; a bad value (pm_envmap_init) names its pixel only. */
+pm_result_t pm_envmap_load(const char *path, uint64_t max_bytes, const float scale[3], pm_envmap_t *e);
+
+/* The sky's frame (scene keys sky.up and sky.rotate, docs/scene-format.md): +y turned onto unit
+ * vector up by the shortest turn (half a turn about +x when up is -y), then turned about up by
+ * rotate_deg degrees the way azimuth grows (from +x toward +z when up is +y; clockwise seen
+ * from up's tip). frame_out: rows are the turned x, y (= up), z axes in world coordinates. */
+void pm_sky_frame(const double up[3], double rotate_deg, double frame_out[9]);
+/* World direction of elevation el_deg above the horizon and azimuth az_deg in frame f: the
+ * frame's (cos el cos az, sin el, cos el sin az); a map's pixel at longitude az_deg and
+ * latitude el_deg looks along it. */
+void pm_sky_frame_direction(const double f[9], double el_deg, double az_deg, double w_out[3]);
+/* Uses frame f for map e (framed unless f is the identity). */
+void pm_envmap_set_frame(pm_envmap_t *e, const double f[9]);
 
 typedef struct {
     float eye[3], look_at[3], up[3]; /* m */
@@ -94,9 +120,13 @@ typedef struct {
 
 /* The textures of one material: indices into pm_scene_t.textures, -1 for none. The texel
  * scales the material's own value (MTL and glTF both say so): kd = Kd map_Kd, ks = Ks map_Ks;
- * alpha (map_d) below 0.5 makes a hit no hit, for every ray. */
+ * alpha (map_d) below 0.5 makes a hit no hit, for every ray. normal (MTL norm, glTF
+ * normalTexture) is a tangent-space normal map and bump (MTL map_Bump, bump) a height map of
+ * heights texel * bump_scale m; both bend the shading normal (pm_scene_shading_normal). */
 typedef struct {
     int32_t kd, ks, alpha;
+    int32_t normal, bump;
+    float bump_scale; /* MTL -bm: m of height per unit of texel, 1 by default */
 } pm_material_maps_t;
 
 /* Where one mesh entry of the scene file put its triangles. Every triangle is also in the
@@ -109,6 +139,14 @@ typedef struct {
     int32_t proto;                       /* the placement Embree holds its triangles from; -1: built flat */
     uint32_t local0;                     /* when proto is itself: its first vertex in local_verts */
 } pm_placement_t;
+
+/* What the loader did to the assets on the user's behalf (a scene material put in place of an
+ * asset's, Kd + Ks scaled down to 1, a default grey given to a mesh without materials): one line
+ * each, printed by scene-info and, through pm_scene_warn_unsupported, by every stage. */
+typedef struct {
+    int warning;    /* 1: the asset was changed (a warning); 0: a note */
+    char text[320]; /* "meshes[0] 'box.obj': material 'red' replaced by scene material 'glass'" */
+} pm_scene_note_t;
 
 typedef struct {
     char name[128];  /* "cornell-box" */
@@ -134,9 +172,13 @@ typedef struct {
     int has_sun, has_sky; /* 1 when the scene file names a sun / a sky */
     int two_sided_lights; /* 1: emissive triangles emit from both faces (scene key two_sided_lights) */
     pm_sun_t sun;
-    float sky[3];        /* W/(m^2 sr), RGB: radiance of a constant sky, seen by every ray that escapes */
-    pm_envmap_t *envmap; /* the sky's lat-long map (its radiance then scales it), or NULL */
-    uint32_t *emissive;  /* indices of triangles whose material emits */
+    float sky[3];         /* W/(m^2 sr), RGB: radiance of a constant sky, seen by every ray that escapes */
+    double sky_up[3];     /* unit, the sky's zenith (sky.up, default +y) */
+    double sky_rotate;    /* degrees about sky_up (sky.rotate, default 0) */
+    double sky_frame[9];  /* pm_sky_frame of the two: a map's and the sun's elevation/azimuth frame */
+    double sky_turbidity; /* > 0: envmap is the Preetham model of this turbidity (sky.model), else 0 */
+    pm_envmap_t *envmap;  /* the sky's lat-long map (its radiance then scales it), or NULL */
+    uint32_t *emissive;   /* indices of triangles whose material emits */
     size_t nemissive;
     size_t ndropped; /* degenerate (zero-area) triangles left out at load */
     pm_camera_t camera;
@@ -158,8 +200,17 @@ typedef struct {
     int any_alpha;              /* some material has map_d: render/rt.c installs the cut-out filter */
     pm_placement_t *placements; /* one per mesh entry */
     size_t nplacements;
-    float *local_verts; /* prototypes' vertices in mesh units; NULL when no mesh is instanced */
+    float *local_verts;     /* prototypes' vertices in mesh units; NULL when no mesh is instanced */
+    pm_scene_note_t *notes; /* what the loader changed or filled in, in load order */
+    size_t nnotes;
 } pm_scene_t;
+
+/* 1 when emissive triangle tri lights from both faces: the scene key two_sided_lights, or its
+ * material's two_sided (a scene file's emission.two_sided). */
+static inline int pm_scene_emits_both(const pm_scene_t *s, uint32_t tri)
+{
+    return s->two_sided_lights || s->materials[s->tri_material[tri]].two_sided;
+}
 
 /* Loads and checks a scene file. Errors name the file and the line (JSON syntax) or the
  * key path ("camera.fov_y") and the offending value. */
@@ -236,9 +287,11 @@ void pm_scene_barycentrics(const pm_scene_t *s, uint32_t tri, const float p[3], 
 int pm_scene_cut_out(const pm_scene_t *s, uint32_t tri, float b1, float b2);
 
 /* The shading normal at point p (m, on triangle tri): the vertex normals interpolated at p's
- * barycentrics and normalized, turned to the side of n (the unit geometric normal on the side
- * the ray came from). Returns 1 then; 0 with n itself copied, bit for bit, when the scene or
- * the triangle has no vertex normals (or they cancel at p). */
+ * barycentrics and normalized (or the triangle's own normal without them), bent by its
+ * material's normal map or bump map when it has one and the triangle has texture coordinates,
+ * turned to the side of n (the unit geometric normal on the side the ray came from). Returns 1
+ * then; 0 with n itself copied, bit for bit, when none of these applies (no vertex normals or
+ * they cancel at p, and no map). */
 int pm_scene_shading_normal(const pm_scene_t *s, uint32_t tri, const float p[3], const float n[3], float ns_out[3]);
 
 /* The emissive triangles whose front face (the side their winding's normal points to, the

@@ -127,6 +127,8 @@ static void put_material(ident_t *w, const pm_material_t *m)
     put_str(w, m->name, sizeof m->name);
     put_u32(w, (uint32_t)m->kind);
     put_f32s(w, m->ke, 3);
+    if (m->two_sided && pm_material_is_emissive(m)) /* only then: other scenes keep their identity */
+        put_str(w, "two-sided", 10);
     switch (m->kind) {
     case PM_MAT_STANDARD:
         put_f32s(w, m->kd, 3);
@@ -240,6 +242,11 @@ static uint64_t geometry_part(const pm_scene_t *s)
             put_u32(&w, (uint32_t)s->maps[m].kd);
             put_u32(&w, (uint32_t)s->maps[m].ks);
             put_u32(&w, (uint32_t)s->maps[m].alpha);
+            if (s->maps[m].normal >= 0 || s->maps[m].bump >= 0) { /* (a material without either hashes as before) */
+                put_u32(&w, (uint32_t)s->maps[m].normal);
+                put_u32(&w, (uint32_t)s->maps[m].bump);
+                put_f32(&w, s->maps[m].bump_scale);
+            }
         }
         put_u64(&w, s->ntextures);
         for (size_t i = 0; i < s->ntextures; i++)
@@ -279,6 +286,9 @@ static uint64_t photons_part(const pm_scene_t *s)
         put_u32(&w, s->envmap->w);
         put_u32(&w, s->envmap->h);
         put_array32(&w, s->envmap->rgb, 3 * (size_t)s->envmap->w * s->envmap->h);
+        if (s->envmap->framed) /* turned by sky.up and sky.rotate (an unturned map hashes as before) */
+            for (int i = 0; i < 9; i++)
+                put_f64(&w, s->envmap->frame[i]);
     }
     put_section(&w, "photon keys");
     put_u64(&w, (uint64_t)d->photons);

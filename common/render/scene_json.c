@@ -10,9 +10,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "base/exr.h"
 #include "formats/formats.h"
 #include "render/scene_load.h"
+#include "render/skymodel.h"
 
 pm_result_t pm_scene_bad(const ctx_t *c, const char *key, const char *fmt, ...)
 {
@@ -113,6 +113,8 @@ pm_result_t pm_scene_load_camera(const ctx_t *c, json_t *cam)
     pm_camera_t *k = &c->s->camera;
     if (!json_is_object(cam))
         return pm_scene_bad(c, "camera", "missing or not an object");
+    if (json_object_get(cam, "mesh")) /* a camera the mesh file carries (scene_punctual.c) */
+        return pm_scene_asset_camera(c, cam);
     pm_result_t r = pm_scene_only_keys(c, cam, "camera", keys);
     double fov = 0;
     int64_t w = 0, h = 0;
@@ -231,78 +233,190 @@ pm_result_t pm_scene_load_lights(const ctx_t *c, json_t *lights)
     return PM_OK;
 }
 
-/* The sky's map: an OpenEXR file relative to the scene, each value times sky.radiance. */
+/* The sky's map: an OpenEXR or Radiance HDR file relative to the scene, each value times
+ * sky.radiance, within image_budgets.sky_map_mib. */
 static pm_result_t load_envmap(const ctx_t *c, const char *file)
 {
     char path[2048];
     pm_scene_resolve(c->file, file, path, sizeof path);
-    uint32_t w = 0, h = 0;
-    float *rgb = NULL;
-    pm_result_t r = pm_exr_read_rgb(path, &w, &h, &rgb);
-    if (r != PM_OK) {
-        pm_error_prefix("scene '%s': sky.map", c->file);
-        return r;
-    }
-    for (size_t i = 0; i < 3 * (size_t)w * h; i++)
-        rgb[i] *= c->s->sky[i % 3];
     c->s->envmap = calloc(1, sizeof *c->s->envmap);
-    if (!c->s->envmap) {
-        free(rgb);
+    if (!c->s->envmap)
         return pm_error_set(PM_ERR_NOMEM, "out of memory for the sky's map");
-    }
-    if ((r = pm_envmap_init(c->s->envmap, w, h, rgb)) != PM_OK)
+    pm_result_t r = pm_envmap_load(path, (uint64_t)(c->sky_map_mib * (1 << 20)), c->s->sky, c->s->envmap);
+    if (r != PM_OK)
         pm_error_prefix("scene '%s': sky.map '%s'", c->file, file);
     return r;
 }
 
-/* The sun (direction, radiance, solid_angle) and the sky (radiance, map), all optional. */
-pm_result_t pm_scene_load_sun_sky(const ctx_t *c, json_t *sun, json_t *sky)
+/* The sky's frame (sky.up, default +y; sky.rotate, degrees, default 0): a map is turned by it
+ * and the sun's elevation and azimuth are measured in it. */
+static pm_result_t load_sky_frame(const ctx_t *c, json_t *sky)
 {
-    static const char *const sun_keys[] = {"direction", "radiance", "solid_angle", NULL};
-    static const char *const sky_keys[] = {"radiance", "map", NULL};
     pm_scene_t *s = c->s;
+    float up[3] = {0.0f, 1.0f, 0.0f};
     pm_result_t r = PM_OK;
-    if (sun) {
-        if (!json_is_object(sun))
-            return pm_scene_bad(c, "sun", "must be an object");
-        float d[3];
-        double omega = 0.0;
-        json_t *om = json_object_get(sun, "solid_angle");
-        /* Stated as users read it: the solid angle must be positive, and a hemisphere at most. */
-        if (om && json_is_number(om) && !(json_number_value(om) > 0.0 && json_number_value(om) <= 2.0 * M_PI))
-            return pm_scene_bad(c, "sun.solid_angle", "%.9g sr is outside (0, 2 pi]", json_number_value(om));
-        if ((r = pm_scene_only_keys(c, sun, "sun", sun_keys)) == PM_OK)
-            r = pm_scene_get_vec3(c, sun, "direction", "sun.direction", 1, -PM_SCENE_COORD_MAX, PM_SCENE_COORD_MAX, d);
+    s->sky_rotate = 0.0;
+    if (json_is_object(sky)) {
+        r = pm_scene_get_vec3(c, sky, "up", "sky.up", 0, -PM_SCENE_COORD_MAX, PM_SCENE_COORD_MAX, up);
         if (r == PM_OK)
-            r = pm_scene_get_vec3(c, sun, "radiance", "sun.radiance", 1, 0.0, 1e30, s->sun.radiance);
-        if (r == PM_OK)
-            r = pm_scene_get_number(c, sun, "solid_angle", "sun.solid_angle", 1, 0.0, 2.0 * M_PI, &omega);
+            r = pm_scene_get_number(c, sky, "rotate", "sky.rotate", 0, -1e6, 1e6, &s->sky_rotate);
         if (r != PM_OK)
             return r;
-        double dl = sqrt((double)d[0] * d[0] + (double)d[1] * d[1] + (double)d[2] * d[2]);
-        if (!(dl > 0.0))
-            return pm_scene_bad(c, "sun.direction", "is the zero vector");
-        for (int k = 0; k < 3; k++)
-            s->sun.direction[k] = (float)(d[k] / dl);
-        s->sun.solid_angle = (float)omega;
-        s->sun.cos_max = (float)(1.0 - omega / (2.0 * M_PI));
-        if (!(s->sun.cos_max < 1.0f))
-            return pm_scene_bad(c, "sun.solid_angle", "%.9g sr is too small: the cone's cosine rounds to 1", omega);
-        s->has_sun = 1;
     }
+    double ul = sqrt((double)up[0] * up[0] + (double)up[1] * up[1] + (double)up[2] * up[2]);
+    if (!(ul > 0.0))
+        return pm_scene_bad(c, "sky.up", "is the zero vector");
+    for (int k = 0; k < 3; k++)
+        s->sky_up[k] = up[k] / ul;
+    pm_sky_frame(s->sky_up, s->sky_rotate, s->sky_frame);
+    return PM_OK;
+}
+
+/* Exactly one of keys a and b of obj (named where.a, where.b in the error). */
+static pm_result_t one_of(const ctx_t *c, json_t *obj, const char *where, const char *a, const char *b)
+{
+    int ha = json_object_get(obj, a) != NULL, hb = json_object_get(obj, b) != NULL;
+    if (ha == hb)
+        return pm_scene_bad(c, where, "needs exactly one of '%s' and '%s', %s", a, b,
+                            ha ? "not both" : "found neither");
+    return PM_OK;
+}
+
+/* The sun: its direction (a vector, or elevation and azimuth in the sky's frame), its radiance
+ * or its irradiance on a surface facing it, and its solid angle. */
+static pm_result_t load_sun(const ctx_t *c, json_t *sun)
+{
+    static const char *const sun_keys[] = {"direction",  "elevation",   "azimuth", "radiance",
+                                           "irradiance", "solid_angle", NULL};
+    pm_scene_t *s = c->s;
+    pm_result_t r;
+    if (!json_is_object(sun))
+        return pm_scene_bad(c, "sun", "must be an object");
+    double omega = 0.0, d[3] = {0.0, 0.0, 0.0};
+    json_t *om = json_object_get(sun, "solid_angle");
+    /* Stated as users read it: the solid angle must be positive, and a hemisphere at most. */
+    if (om && json_is_number(om) && !(json_number_value(om) > 0.0 && json_number_value(om) <= 2.0 * M_PI))
+        return pm_scene_bad(c, "sun.solid_angle", "%.9g sr is outside (0, 2 pi]", json_number_value(om));
+    if ((r = pm_scene_only_keys(c, sun, "sun", sun_keys)) != PM_OK ||
+        (r = one_of(c, sun, "sun", "direction", "elevation")) != PM_OK ||
+        (r = one_of(c, sun, "sun", "radiance", "irradiance")) != PM_OK)
+        return r;
+    if (json_object_get(sun, "direction")) {
+        float df[3];
+        if (json_object_get(sun, "azimuth"))
+            return pm_scene_bad(c, "sun.azimuth", "goes with elevation, not with direction");
+        if ((r = pm_scene_get_vec3(c, sun, "direction", "sun.direction", 1, -PM_SCENE_COORD_MAX, PM_SCENE_COORD_MAX,
+                                   df)) != PM_OK)
+            return r;
+        for (int k = 0; k < 3; k++)
+            d[k] = df[k];
+    } else {
+        double el = 0.0, az = 0.0;
+        if ((r = pm_scene_get_number(c, sun, "elevation", "sun.elevation", 1, -90.0, 90.0, &el)) != PM_OK ||
+            (r = pm_scene_get_number(c, sun, "azimuth", "sun.azimuth", 1, -360.0, 360.0, &az)) != PM_OK)
+            return r;
+        pm_sky_frame_direction(s->sky_frame, el, az, d);
+    }
+    if ((r = pm_scene_get_number(c, sun, "solid_angle", "sun.solid_angle", 1, 0.0, 2.0 * M_PI, &omega)) != PM_OK)
+        return r;
+    if (json_object_get(sun, "radiance")) {
+        if ((r = pm_scene_get_vec3(c, sun, "radiance", "sun.radiance", 1, 0.0, 1e30, s->sun.radiance)) != PM_OK)
+            return r;
+    } else {
+        /* E = L pi sin^2(a) at normal incidence, cos a = 1 - omega / (2 pi): sin^2 a = f (2 - f). */
+        float e[3];
+        if ((r = pm_scene_get_vec3(c, sun, "irradiance", "sun.irradiance", 1, 0.0, 1e30, e)) != PM_OK)
+            return r;
+        double f = omega / (2.0 * M_PI), s2 = f * (2.0 - f);
+        for (int k = 0; k < 3; k++)
+            s->sun.radiance[k] = (float)(e[k] / (M_PI * s2));
+        for (int k = 0; k < 3; k++)
+            if (!isfinite(s->sun.radiance[k]))
+                return pm_scene_bad(c, "sun.irradiance", "%.9g W/m^2 over %.9g sr is a radiance beyond a float",
+                                    (double)e[k], omega);
+    }
+    double dl = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    if (!(dl > 0.0))
+        return pm_scene_bad(c, "sun.direction", "is the zero vector");
+    for (int k = 0; k < 3; k++)
+        s->sun.direction[k] = (float)(d[k] / dl);
+    s->sun.solid_angle = (float)omega;
+    s->sun.cos_max = (float)(1.0 - omega / (2.0 * M_PI));
+    if (!(s->sun.cos_max < 1.0f))
+        return pm_scene_bad(c, "sun.solid_angle", "%.9g sr is too small: the cone's cosine rounds to 1", omega);
+    s->has_sun = 1;
+    return PM_OK;
+}
+
+/* The sky's physical model (sky.model "preetham", sky.turbidity) as its map: tabulated in the
+ * sky's frame about the scene's sun, times sky.radiance. */
+static pm_result_t load_sky_model(const ctx_t *c, json_t *sky, json_t *model)
+{
+    enum { W = 512, H = 256 }; /* 0.7 degree pixels: the circumsolar glow spans tens of degrees */
+    pm_scene_t *s = c->s;
+    pm_result_t r;
+    if (!json_is_string(model) || strcmp(json_string_value(model), "preetham") != 0)
+        return pm_scene_bad(c, "sky.model", "'%s' is not a sky model (the one there is: \"preetham\")",
+                            json_is_string(model) ? json_string_value(model) : "(not a string)");
+    if (json_object_get(sky, "map"))
+        return pm_scene_bad(c, "sky", "needs one of 'map' and 'model', not both");
+    if (!s->has_sun)
+        return pm_scene_bad(c, "sky.model", "'preetham' is lit by the scene's sun, and the scene has none");
+    double t = 3.0, sun[3];
+    if ((r = pm_scene_get_number(c, sky, "turbidity", "sky.turbidity", 0, PM_PREETHAM_T_MIN, PM_PREETHAM_T_MAX, &t)) !=
+        PM_OK)
+        return r;
+    for (int k = 0; k < 3; k++) /* the sun in the sky's frame */
+        sun[k] = s->sky_frame[3 * k] * s->sun.direction[0] + s->sky_frame[3 * k + 1] * s->sun.direction[1] +
+                 s->sky_frame[3 * k + 2] * s->sun.direction[2];
+    if (!(sun[1] > 0.0))
+        return pm_scene_bad(c, "sky.model", "'preetham' needs the sun above the horizon: its elevation is %.6g degrees",
+                            asin(fmax(-1.0, fmin(1.0, sun[1]))) * 180.0 / M_PI);
+    float *rgb;
+    if ((r = pm_preetham_map(t, sun, W, H, &rgb)) != PM_OK)
+        return r;
+    for (size_t i = 0; i < 3 * (size_t)W * H; i++)
+        rgb[i] *= s->sky[i % 3];
+    if (!(s->envmap = calloc(1, sizeof *s->envmap))) {
+        free(rgb);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for the sky's map");
+    }
+    if ((r = pm_envmap_init(s->envmap, W, H, rgb)) != PM_OK)
+        pm_error_prefix("scene '%s': sky.model", c->file);
+    s->sky_turbidity = t;
+    return r;
+}
+
+/* The sun (load_sun) and the sky (radiance, map or model, up, rotate), both optional. */
+pm_result_t pm_scene_load_sun_sky(const ctx_t *c, json_t *sun, json_t *sky)
+{
+    static const char *const sky_keys[] = {"radiance", "map", "model", "turbidity", "up", "rotate", NULL};
+    pm_scene_t *s = c->s;
+    pm_result_t r = PM_OK;
+    if (sky && !json_is_object(sky))
+        return pm_scene_bad(c, "sky", "must be an object");
+    if (sky && (r = pm_scene_only_keys(c, sky, "sky", sky_keys)) != PM_OK)
+        return r;
+    if ((r = load_sky_frame(c, sky)) != PM_OK)
+        return r;
+    if (sun && (r = load_sun(c, sun)) != PM_OK)
+        return r;
     if (sky) {
-        if (!json_is_object(sky))
-            return pm_scene_bad(c, "sky", "must be an object");
-        json_t *map = json_object_get(sky, "map");
-        s->sky[0] = s->sky[1] = s->sky[2] = 1.0f; /* a map's scale when radiance is not given */
-        if ((r = pm_scene_only_keys(c, sky, "sky", sky_keys)) == PM_OK)
-            r = pm_scene_get_vec3(c, sky, "radiance", "sky.radiance", !map, 0.0, 1e30, s->sky);
+        json_t *map = json_object_get(sky, "map"), *model = json_object_get(sky, "model");
+        s->sky[0] = s->sky[1] = s->sky[2] = 1.0f; /* a map's or a model's scale when radiance is not given */
+        r = pm_scene_get_vec3(c, sky, "radiance", "sky.radiance", !map && !model, 0.0, 1e30, s->sky);
+        if (r == PM_OK && !model && json_object_get(sky, "turbidity"))
+            r = pm_scene_bad(c, "sky.turbidity", "goes with a sky model (\"model\": \"preetham\")");
+        if (r == PM_OK && model)
+            r = load_sky_model(c, sky, model);
         if (r == PM_OK && map && (!json_is_string(map) || !*json_string_value(map)))
-            r = pm_scene_bad(c, "sky.map", "must be a file name (an OpenEXR lat-long map)");
+            r = pm_scene_bad(c, "sky.map", "must be a file name (an OpenEXR or Radiance HDR lat-long map)");
         if (r == PM_OK && map)
             r = load_envmap(c, json_string_value(map));
         if (r != PM_OK)
             return r;
+        if (s->envmap)
+            pm_envmap_set_frame(s->envmap, s->sky_frame);
         s->has_sky = 1;
     }
     return PM_OK;

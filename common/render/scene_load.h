@@ -42,7 +42,17 @@ typedef struct {
     char libs[4096];   /* its .mtl files, one a line (check_obj_materials) */
     mtl_home_t *homes; /* each material its .mtl files define, read once at import (mtl_homes) */
     size_t nhomes;
+    int no_materials; /* an OBJ without any usemtl: its faces are the default grey */
 } import_t;
+
+/* A camera a mesh file carries, placed in the scene (scene_punctual.c). */
+typedef struct {
+    char name[128];                  /* its node's name */
+    float eye[3], look_at[3], up[3]; /* m */
+    float hfov;                      /* radians, assimp's horizontal angle (see scene_punctual.c) */
+    float aspect;                    /* width / height; 0: not given */
+    int gltf, ortho;
+} pm_asset_camera_t;
 
 typedef struct {
     const char *file; /* the scene file, for messages */
@@ -50,8 +60,21 @@ typedef struct {
     int missing_magenta; /* missing_textures "magenta": a missing texture file is a warning */
     import_t *imports;   /* the mesh files imported so far */
     size_t nimports;
-    float *local;    /* every vertex loaded, in its mesh's own units (placements share them) */
-    int any_normals; /* some mesh loaded has vertex normals */
+    float *local;              /* every vertex loaded, in its mesh's own units (placements share them) */
+    int any_normals;           /* some mesh loaded has vertex normals */
+    pm_material_t *smats;      /* the scene file's materials section, in file order (scene_assets.c) */
+    pm_material_maps_t *smaps; /* their textures */
+    size_t nsmats;
+    int64_t camera_mesh;      /* camera.mesh: the entry whose file's cameras are read; -1: none */
+    pm_asset_camera_t *acams; /* that file's cameras */
+    size_t nacams;
+    pm_point_light_t *alights; /* the glTF point lights and spots of entries with "lights": true */
+    size_t nalights;
+    int has_asun; /* a glTF directional light, as the sun asun */
+    pm_sun_t asun;
+    /* MiB (image_budgets): one texture's texels, all textures' together, the sky map with its
+     * tables; 0 until pm_scene_load_image_budgets sets them */
+    double texture_mib, textures_mib, sky_map_mib;
 } ctx_t;
 
 /* ---- scene_json.c: the scene file's keys. Every error names the scene file, the key path and
@@ -106,8 +129,40 @@ pm_result_t pm_scene_mtl_homes(const char *obj, const char *libs, import_t *im);
 pm_result_t pm_scene_note_unsupported(pm_scene_t *s, uint32_t m, const char *key, int is_file, const char *value);
 
 /* ---- scene_maps.c: a material's textures. */
+/* The scene's image_budgets (an object of texture_mib, textures_mib, sky_map_mib; b may be
+ * NULL) into c's budgets, the defaults where a key is absent. */
+pm_result_t pm_scene_load_image_budgets(ctx_t *c, json_t *b);
+/* Texture file `name` (relative to the file base) as scene texture *index_out, loaded once per
+ * scene; errors name mesh, material m and key. */
+pm_result_t pm_scene_texture(const ctx_t *c, const char *base, const char *name, const char *mesh,
+                             const pm_material_t *m, uint32_t mi, const char *key, int32_t *index_out);
 pm_result_t pm_scene_load_material_maps(const ctx_t *c, const char *mesh, int is_obj, const import_t *im,
                                         const struct aiMaterial *am, uint32_t mi);
+
+/* ---- scene_assets.c: the scene file's materials, overrides and shapes; the loader's notes. */
+/* A note (warning 0) or a warning (1) of what the loader changed, kept in s->notes. */
+pm_result_t pm_scene_add_note(pm_scene_t *s, int warning, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+/* The top-level "materials" object into c->smats (every entry checked, used or not). */
+pm_result_t pm_scene_load_scene_materials(ctx_t *c, json_t *mats);
+/* Mesh entry mj's "material", "materials" and "emission" applied to its materials [mat0, mat0 + n). */
+pm_result_t pm_scene_apply_mesh_overrides(ctx_t *c, json_t *mj, const char *where, const char *mesh, size_t mat0,
+                                          size_t n);
+/* 1 when mesh entry mj replaces its asset's material `word` (as pm_scene_material_word makes it,
+ * "default" for assimp's stand-in): a "material" for all, or a "materials" key naming it. */
+int pm_scene_overridden(json_t *mj, const char *word);
+/* The top-level "shapes" array tessellated into the scene, one placement each. */
+pm_result_t pm_scene_load_shapes(ctx_t *c, json_t *shapes);
+
+/* ---- scene_punctual.c: cameras and lights from a mesh file. */
+/* Entry mj's file (path; mesh as the scene names it) read again for its cameras (when camera.mesh
+ * is index) and its glTF lights ("lights": true), placed by xf; a note when it holds
+ * nlights_seen lights the scene does not read. */
+pm_result_t pm_scene_load_asset_extras(ctx_t *c, json_t *mj, const char *where, const char *path, const char *mesh,
+                                       size_t index, const double xf[3][4], unsigned nlights_seen);
+/* The scene camera from c->acams by camera.name or camera.index, with camera.width and height. */
+pm_result_t pm_scene_asset_camera(const ctx_t *c, json_t *cam);
+/* The assets' lights appended to the scene's point lights, and their sun made the scene's. */
+pm_result_t pm_scene_add_asset_lights(ctx_t *c);
 
 /* ---- scene_hash.c: the scene's identity. */
 /* Sets s->hash and s->parts from what s holds (its file hashed again for the whole). */

@@ -1,11 +1,18 @@
-/* scene_maps.c: the textures a material honours (MTL map_Kd, map_Ks, map_d; glTF's base colour),
- * each file loaded once per scene, relative to the .mtl that names it. */
+/* scene_maps.c: the textures a material honours (MTL map_Kd, map_Ks, map_d, norm, bump; glTF's
+ * base colour and normal texture), each file loaded once per scene, relative to the .mtl that
+ * names it, or decoded from the mesh file itself (a .glb's or data-URI glTF's "*N"), within the
+ * scene's image budgets. */
 #include "render/scene.h"
 
 #include <assimp/material.h>
+#include <assimp/scene.h>
+#include <assimp/texture.h>
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "render/scene_load.h"
 
@@ -21,18 +28,106 @@ static void texture_base(const char *mesh, const import_t *im, const char *name,
         }
 }
 
+static double mib(uint64_t b) { return b / (1024.0 * 1024.0); }
+static uint64_t bytes(double mib) { return (uint64_t)(mib * (1 << 20)); }
+
+/* Texture t decoded from file path (tx NULL) or from assimp's embedded texture tx (size bytes
+ * when compressed; path names it), within the smaller of the per-texture budget and what the
+ * all-textures budget has left. */
+static pm_result_t budget_for(const ctx_t *c, const char *path, const struct aiTexture *tx, size_t size,
+                              pm_texture_t *t)
+{
+    uint64_t used = 0;
+    for (size_t i = 0; i < c->s->ntextures; i++)
+        used += pm_texture_bytes(&c->s->textures[i]);
+    uint64_t all = bytes(c->textures_mib), left = used < all ? all - used : 0, max = bytes(c->texture_mib);
+    char budget[160];
+    if (left < max) {
+        max = left;
+        snprintf(budget, sizeof budget, "image_budgets.textures_mib %.6g over all textures, %llu bytes of it taken",
+                 c->textures_mib, (unsigned long long)used);
+    } else {
+        snprintf(budget, sizeof budget, "image_budgets.texture_mib %.6g", c->texture_mib);
+    }
+    if (!tx)
+        return pm_texture_load_budget(path, max, budget, t);
+    if (tx->mHeight == 0) /* compressed: mWidth bytes of a PNG, JPEG, ... file */
+        return pm_texture_decode(path, tx->achFormatHint, tx->pcData, size, max, budget, t);
+    return pm_texture_from_bgra(path, tx->mWidth, tx->mHeight, (const uint8_t *)tx->pcData, max, budget, t);
+}
+
+pm_result_t pm_scene_load_image_budgets(ctx_t *c, json_t *b)
+{
+    static const char *const keys[] = {"texture_mib", "textures_mib", "sky_map_mib", NULL};
+    double tex = mib(PM_TEXTURE_BUDGET_DEFAULT), all = 4.0 * tex, sky = mib(PM_ENVMAP_BUDGET_DEFAULT);
+    pm_result_t r = PM_OK;
+    if (b && !json_is_object(b))
+        return pm_scene_bad(c, "image_budgets", "must be an object of texture_mib, textures_mib, sky_map_mib");
+    /* MiB: up to 1 TiB, and at least one byte */
+    if (b && (r = pm_scene_only_keys(c, b, "image_budgets", keys)) == PM_OK)
+        r = pm_scene_get_number(c, b, "texture_mib", "image_budgets.texture_mib", 0, 1.0 / (1 << 20), 1 << 20, &tex);
+    if (b && r == PM_OK)
+        r = pm_scene_get_number(c, b, "textures_mib", "image_budgets.textures_mib", 0, 1.0 / (1 << 20), 1 << 20, &all);
+    if (b && r == PM_OK)
+        r = pm_scene_get_number(c, b, "sky_map_mib", "image_budgets.sky_map_mib", 0, 1.0 / (1 << 20), 1 << 20, &sky);
+    c->texture_mib = tex, c->textures_mib = all, c->sky_map_mib = sky;
+    return r;
+}
+
+/* The scene texture named key as *index_out (*loaded_out 1), or room for one more (0). */
+static pm_result_t find_or_grow(pm_scene_t *s, const char *key, int32_t *index_out, int *loaded_out)
+{
+    for (size_t i = 0; i < s->ntextures; i++)
+        if (strcmp(s->textures[i].path, key) == 0) {
+            *index_out = (int32_t)i;
+            *loaded_out = 1;
+            return PM_OK;
+        }
+    *loaded_out = 0;
+    return pm_scene_grow((void **)&s->textures, s->ntextures + 1, sizeof *s->textures);
+}
+
+/* The texture embedded in mesh file `mesh` as name ("*N": aiScene::mTextures[N]) as scene
+ * texture *index_out, decoded once per scene through the same decoders as files. */
+static pm_result_t embedded_texture(const ctx_t *c, const import_t *im, const char *name, const char *mesh,
+                                    const pm_material_t *m, const char *key, int32_t *index_out)
+{
+    pm_scene_t *s = c->s;
+    char *end = NULL;
+    unsigned long n = strtoul(name + 1, &end, 10);
+    if (name[1] < '0' || name[1] > '9' || *end || !im->as || n >= im->as->mNumTextures || !im->as->mTextures[n])
+        return pm_error_set(PM_ERR_INPUT,
+                            "mesh '%s': material '%s': %s '%s': no such embedded texture (the file has %u)", mesh,
+                            m->name, key, name, im->as ? im->as->mNumTextures : 0);
+    char label[1300];
+    snprintf(label, sizeof label, "%s:%s", mesh, name);
+    int loaded = 0;
+    pm_result_t r = find_or_grow(s, label, index_out, &loaded);
+    if (r != PM_OK || loaded)
+        return r;
+    const struct aiTexture *tx = im->as->mTextures[n];
+    if ((r = budget_for(c, label, tx, tx->mHeight == 0 ? tx->mWidth : 0, &s->textures[s->ntextures])) != PM_OK) {
+        pm_error_prefix("mesh '%s': material '%s': %s '%s'", mesh, m->name, key, name);
+        return r;
+    }
+    *index_out = (int32_t)s->ntextures++;
+    return PM_OK;
+}
+
 /* The texture file `name` (relative to the file base) as scene texture *index_out, loaded once
  * per scene. A name with Windows separators (Crytek Sponza's "textures\\x.png") is read with
  * '/' when it does not open as written. A missing file is an error naming the material, or
  * under missing_textures "magenta" a magenta texture and a warning. */
-static pm_result_t scene_texture(const ctx_t *c, const char *base, const char *name, const char *mesh,
-                                 const pm_material_t *m, uint32_t mi, const char *key, int32_t *index_out)
+pm_result_t pm_scene_texture(const ctx_t *c, const char *base, const char *name, const char *mesh,
+                             const pm_material_t *m, uint32_t mi, const char *key, int32_t *index_out)
 {
     pm_scene_t *s = c->s;
     char path[1200];
     pm_scene_resolve(base, name, path, sizeof path);
-    FILE *probe = fopen(path, "rb");
-    if (!probe && strchr(name, '\\')) {
+    /* stat, not open: a FIFO must not block here (pm_texture_load_budget refuses it) */
+    struct stat st;
+    int found = stat(path, &st) == 0;
+    if (!found && strchr(name, '\\')) {
         char alt[1024];
         snprintf(alt, sizeof alt, "%s", name);
         for (char *q = alt; *q; q++)
@@ -40,19 +135,13 @@ static pm_result_t scene_texture(const ctx_t *c, const char *base, const char *n
                 *q = '/';
         char altpath[1200];
         pm_scene_resolve(base, alt, altpath, sizeof altpath);
-        if ((probe = fopen(altpath, "rb")) != NULL)
+        if ((found = stat(altpath, &st) == 0) != 0)
             snprintf(path, sizeof path, "%s", altpath);
     }
-    int missing = !probe && errno == ENOENT;
-    if (probe)
-        fclose(probe);
-    for (size_t i = 0; i < s->ntextures; i++)
-        if (strcmp(s->textures[i].path, path) == 0) {
-            *index_out = (int32_t)i;
-            return PM_OK;
-        }
-    pm_result_t r = pm_scene_grow((void **)&s->textures, s->ntextures + 1, sizeof *s->textures);
-    if (r != PM_OK)
+    int missing = !found && errno == ENOENT;
+    int loaded = 0;
+    pm_result_t r = find_or_grow(s, path, index_out, &loaded);
+    if (r != PM_OK || loaded)
         return r;
     pm_texture_t *t = &s->textures[s->ntextures];
     if (missing && c->missing_magenta) {
@@ -64,7 +153,7 @@ static pm_result_t scene_texture(const ctx_t *c, const char *base, const char *n
             return r;
         }
         s->unsupported[s->nunsupported - 1].missing = 1;
-    } else if ((r = pm_texture_load(path, t)) != PM_OK) {
+    } else if ((r = budget_for(c, path, NULL, 0, t)) != PM_OK) {
         pm_error_prefix("mesh '%s': material '%s': %s '%s'", mesh, m->name, key, name);
         return r;
     }
@@ -72,8 +161,24 @@ static pm_result_t scene_texture(const ctx_t *c, const char *base, const char *n
     return PM_OK;
 }
 
-/* The textures pmtk honours of assimp material am (scene material mi): map_Kd, map_Ks and map_d
- * of an MTL, the base colour of glTF and the rest (assimp's diffuse slot). */
+/* Whether texture t has colour: a texel whose channels differ. */
+static int is_colour(const pm_texture_t *t)
+{
+    size_t n = (size_t)t->w * t->h;
+    if (t->grey)
+        return 0;
+    for (size_t i = 0; i < n; i++) {
+        if (t->u8 && (t->u8[4 * i] != t->u8[4 * i + 1] || t->u8[4 * i + 1] != t->u8[4 * i + 2]))
+            return 1;
+        if (t->f32 && (t->f32[4 * i] != t->f32[4 * i + 1] || t->f32[4 * i + 1] != t->f32[4 * i + 2]))
+            return 1;
+    }
+    return 0;
+}
+
+/* The textures pmtk honours of assimp material am (scene material mi): map_Kd, map_Ks, map_d,
+ * norm and bump/map_Bump (with its -bm) of an MTL, the base colour and the normal texture of
+ * glTF and the rest (assimp's diffuse and normals slots). */
 pm_result_t pm_scene_load_material_maps(const ctx_t *c, const char *mesh, int is_obj, const import_t *im,
                                         const struct aiMaterial *am, uint32_t mi)
 {
@@ -85,20 +190,19 @@ pm_result_t pm_scene_load_material_maps(const ctx_t *c, const char *mesh, int is
         const char *obj_key, *other_key;
     } slots[] = {{aiTextureType_DIFFUSE, "map_Kd", "diffuse texture"},
                  {aiTextureType_SPECULAR, "map_Ks", NULL},
-                 {aiTextureType_OPACITY, "map_d", NULL}};
+                 {aiTextureType_OPACITY, "map_d", NULL},
+                 {aiTextureType_NORMALS, "norm", "normal texture"},
+                 {aiTextureType_HEIGHT, "bump", NULL}};
+    int32_t *const where[] = {&mm->kd, &mm->ks, &mm->alpha, &mm->normal, &mm->bump};
     char base[1200] = "";
     pm_result_t r = PM_OK;
-    for (size_t k = 0; k < 3 && r == PM_OK; k++) {
+    for (size_t k = 0; k < sizeof slots / sizeof slots[0] && r == PM_OK; k++) {
         const char *key = is_obj ? slots[k].obj_key : slots[k].other_key;
         struct aiString tp;
         if (!key ||
             aiGetMaterialTexture(am, slots[k].type, 0, &tp, NULL, NULL, NULL, NULL, NULL, NULL) != aiReturn_SUCCESS ||
             tp.length == 0)
             continue;
-        if (tp.data[0] == '*') { /* a texture inside the glTF (or .glb): not read */
-            r = pm_scene_note_unsupported(s, mi, "embedded texture", 1, tp.data);
-            continue;
-        }
         if (slots[k].type == aiTextureType_OPACITY && pm_material_is_emissive(m)) {
             /* light sampling draws points over an emitter's whole area: cut-outs would not match */
             r = pm_scene_note_unsupported(s, mi, "map_d on an emitter", 1, tp.data);
@@ -106,10 +210,36 @@ pm_result_t pm_scene_load_material_maps(const ctx_t *c, const char *mesh, int is
         }
         if (!base[0])
             texture_base(mesh, im, m->name, base, sizeof base);
-        int32_t *slot = k == 0 ? &mm->kd : k == 1 ? &mm->ks : &mm->alpha;
-        r = scene_texture(c, base, tp.data, mesh, m, mi, key, slot);
-        if (r == PM_OK && k == 2)
+        r = tp.data[0] == '*' ? embedded_texture(c, im, tp.data, mesh, m, key, where[k]) /* in the glTF or .glb */
+                              : pm_scene_texture(c, base, tp.data, mesh, m, mi, key, where[k]);
+        if (r == PM_OK && slots[k].type == aiTextureType_OPACITY)
             s->any_alpha = 1;
     }
+    /* glTF keeps its normal texture in the glTF 2 slot as well (mtl.c maps it the same way) */
+    struct aiString tp;
+    if (r == PM_OK && !is_obj && mm->normal < 0 &&
+        aiGetMaterialTexture(am, aiTextureType_NORMAL_CAMERA, 0, &tp, NULL, NULL, NULL, NULL, NULL, NULL) ==
+            aiReturn_SUCCESS &&
+        tp.length > 0) {
+        if (!base[0])
+            texture_base(mesh, im, m->name, base, sizeof base);
+        r = tp.data[0] == '*' ? embedded_texture(c, im, tp.data, mesh, m, "normal texture", &mm->normal)
+                              : pm_scene_texture(c, base, tp.data, mesh, m, mi, "normal texture", &mm->normal);
+    }
+    /* A colour image in the bump slot is a normal map (Blender's OBJ exporter writes its normal
+     * maps as map_Bump): read as one, and said so. Heights are grey, R = G = B in every texel. */
+    if (r == PM_OK && mm->bump >= 0 && mm->normal < 0 && is_colour(&s->textures[mm->bump])) {
+        mm->normal = mm->bump, mm->bump = -1;
+        if ((r = pm_scene_note_unsupported(s, mi, "bump", 1, s->textures[mm->normal].path)) == PM_OK)
+            snprintf(s->unsupported[s->nunsupported - 1].note, sizeof s->unsupported[0].note,
+                     "a colour image: read as a tangent-space normal map");
+    }
+    /* MTL's -bm: assimp 5.2 puts it on the texture ($tex.bumpmult), some importers on the material */
+    float bm = 1.0f;
+    if (mm->bump >= 0 &&
+        (aiGetMaterialFloat(am, "$tex.bumpmult", aiTextureType_HEIGHT, 0, &bm) == aiReturn_SUCCESS ||
+         aiGetMaterialFloat(am, "$mat.bumpscaling", 0, 0, &bm) == aiReturn_SUCCESS) &&
+        isfinite(bm))
+        mm->bump_scale = bm;
     return r;
 }

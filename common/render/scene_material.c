@@ -192,17 +192,32 @@ pm_result_t pm_scene_load_material(const ctx_t *c, const char *mesh, int is_obj,
     if (!stand_in && (r = load_specular(mesh, is_obj, am, kdv, ksv, m)) != PM_OK)
         return r;
     int specular = m->kind != PM_MAT_STANDARD;
+    /* Kd + Ks above 1 (common in exported assets) is scaled down to 1 in the worst channel, both
+     * lobes by one factor so that the colour stays, with a warning naming the factor; a mirror's
+     * Ks is its reflectance and a PBR material's Ks unused: their sum is no constraint. */
+    float sum = 0.0f;
+    int worst = 0;
+    for (int i = 0; i < 3 && !specular && !pbr; i++)
+        if (kdv[i] + ksv[i] > sum && kdv[i] >= 0.0f && kdv[i] <= 1.0f && ksv[i] >= 0.0f && ksv[i] <= 1.0f)
+            sum = kdv[i] + ksv[i], worst = i;
+    if (sum > 1.0f + 1e-6f) {
+        float f = 1.0f / sum;
+        for (int i = 0; i < 3; i++)
+            kdv[i] *= f, ksv[i] *= f;
+        /* said once per material some triangle uses (an unused one is dropped with its notes) */
+        char value[64];
+        snprintf(value, sizeof value, "%.6g (channel %c)", (double)sum, "rgb"[worst]);
+        if ((r = pm_scene_note_unsupported(c->s, (uint32_t)(m - c->s->materials), "Kd + Ks", 0, value)) != PM_OK)
+            return r;
+        pm_scene_unsupported_t *u = &c->s->unsupported[c->s->nunsupported - 1];
+        if (strcmp(u->key, "Kd + Ks") == 0) /* the entry just made (not one kept from before) */
+            snprintf(u->note, sizeof u->note, "Kd and Ks scaled by %.6g so that they sum to 1", (double)f);
+    }
     for (int i = 0; i < 3; i++) {
         if (!(kdv[i] >= 0.0f && kdv[i] <= 1.0f) || !(ksv[i] >= 0.0f && ksv[i] <= 1.0f))
             return pm_error_set(PM_ERR_INPUT,
                                 "mesh '%s': material '%s': Kd %g and Ks %g in channel %c must lie in [0, 1]", mesh,
                                 m->name, kdv[i], ksv[i], "rgb"[i]);
-        /* a mirror's Ks is its reflectance and its Kd unused; a PBR material's Ks is unused (its
-         * metal or its dielectric coat replaces the Phong lobe): their sum is no constraint */
-        if (!specular && !pbr && kdv[i] + ksv[i] > 1.0f + 1e-6f)
-            return pm_error_set(
-                PM_ERR_INPUT, "mesh '%s': material '%s': Kd + Ks = %g in channel %c exceeds 1 (not energy conserving)",
-                mesh, m->name, kdv[i] + ksv[i], "rgb"[i]);
         if (!(kev[i] >= 0.0f && kev[i] <= 1e30f))
             return pm_error_set(PM_ERR_INPUT, "mesh '%s': material '%s': Ke %g in channel %c must lie in [0, 1e30]",
                                 mesh, m->name, kev[i], "rgb"[i]);
@@ -216,6 +231,5 @@ pm_result_t pm_scene_load_material(const ctx_t *c, const char *mesh, int is_obj,
     m->ns = specular || pbr ? 0.0f : (float)ns;
     if (pbr && !specular && (r = load_pbr(mesh, is_obj, am, kdv, m)) != PM_OK)
         return r;
-    (void)c;
     return PM_OK;
 }

@@ -29,7 +29,7 @@ pm_scene_needs_t pm_scene_needs(const pm_scene_t *s)
 
 /* ------------------------------------------------------------------ textures and normals */
 
-static const char *const map_keys[3] = {"map_Kd", "map_Ks", "map_d"};
+static const char *const map_keys[5] = {"map_Kd", "map_Ks", "map_d", "norm", "bump"};
 
 /* Texture t's channels as the file has them. */
 static const char *texture_channels(const pm_texture_t *t)
@@ -50,8 +50,8 @@ static int texture_missing(const pm_scene_t *s, const pm_texture_t *t)
 static void texture_users(const pm_scene_t *s, size_t i, void (*use)(void *, const char *, const char *), void *user)
 {
     for (size_t m = 0; s->maps && m < s->nmaterials; m++) {
-        const int32_t slot[3] = {s->maps[m].kd, s->maps[m].ks, s->maps[m].alpha};
-        for (int k = 0; k < 3; k++)
+        const int32_t slot[5] = {s->maps[m].kd, s->maps[m].ks, s->maps[m].alpha, s->maps[m].normal, s->maps[m].bump};
+        for (int k = 0; k < 5; k++)
             if (slot[k] == (int32_t)i)
                 use(user, s->materials[m].name, map_keys[k]);
     }
@@ -233,6 +233,8 @@ static void print_text(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, double
         if (sep[0] == ',')
             fprintf(out, "\n");
     }
+    for (size_t i = 0; i < s->nnotes; i++) /* what the loader changed or filled in */
+        fprintf(out, "%s: %s\n", s->notes[i].warning ? "changed" : "note", s->notes[i].text);
     /* the caustic branch of pipelines/render runs only where this says yes */
     fprintf(out, "specular: %s\n", s->any_specular ? "yes (mirror or glass: caustic paths)" : "no");
     print_textures(out, s);
@@ -394,6 +396,13 @@ pm_result_t pm_summary_json(const pm_scene_t *s, const pm_rt_t *rt, const pm_sum
     }
     if (s->two_sided_lights)
         json_object_set_new(j, "two_sided_lights", json_true());
+    if (s->nnotes) {
+        json_t *notes = json_array();
+        for (size_t i = 0; i < s->nnotes; i++)
+            json_array_append_new(notes, json_pack("{s:b, s:o}", "changed", s->notes[i].warning, "text",
+                                                   jstr(&js, "a loader note", s->notes[i].text)));
+        json_object_set_new(j, "notes", notes);
+    }
     for (int k = 0; k < 3; k++)
         json_array_append_new(power, json_real(p[k]));
     json_object_set_new(j, "power_w", power);

@@ -1,25 +1,16 @@
-/* texture.c: image textures for the scene loader (texture.h): PNG through libpng's simplified
- * reader, JPEG through libjpeg(-turbo), OpenEXR through base/exr.h, Truevision TGA (Crytek
- * Sponza's textures) through stb_image (Debian's libstb); all become 4 channels per
+/* texture.c: image textures for the scene loader (texture.h): files and embedded images decoded
+ * by base/imgdecode.h (PNG, JPEG, OpenEXR, TGA) within a byte budget; all become 4 channels per
  * texel, and lookups filter bilinearly with repeat addressing. Read once per stage by
  * pm_scene_load; read-only afterwards, so lookups are safe from any thread. */
 #include "render/texture.h"
 
-#include <errno.h>
 #include <math.h>
-#include <png.h>
-#include <setjmp.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
 
-/* after stdio.h: jpeglib.h uses FILE without including it */
-#include <jpeglib.h>
-#include <stb_image.h>
-
-#include "base/exr.h"
 #include "base/hash.h"
+#include "base/imgdecode.h"
 
 static float srgb_table[256];
 static int srgb_ready;
@@ -42,166 +33,21 @@ float pm_srgb_to_linear(uint8_t c)
     return srgb_table[c];
 }
 
-static pm_result_t check_size(const char *path, uint64_t w, uint64_t h)
+/* A decoded image (base/imgdecode.h) as a texture: 8-bit texels kept, OpenEXR values checked. */
+static pm_result_t from_image(pm_img_t *im, pm_texture_t *t)
 {
-    if (w == 0 || h == 0 || w > PM_TEXTURE_MAX_SIDE || h > PM_TEXTURE_MAX_SIDE)
-        return pm_error_set(PM_ERR_INPUT, "texture '%s': %llu x %llu pixels: each side must be 1 to %u", path,
-                            (unsigned long long)w, (unsigned long long)h, PM_TEXTURE_MAX_SIDE);
-    return PM_OK;
-}
-
-static pm_result_t load_png(const char *path, pm_texture_t *t)
-{
-    png_image im;
-    memset(&im, 0, sizeof im);
-    im.version = PNG_IMAGE_VERSION;
-    if (!png_image_begin_read_from_file(&im, path))
-        return pm_error_set(PM_ERR_INPUT, "texture '%s': libpng: %s", path, im.message);
-    pm_result_t r = check_size(path, im.width, im.height);
-    if (r != PM_OK) {
-        png_image_free(&im);
-        return r;
-    }
-    t->has_alpha = (im.format & PNG_FORMAT_FLAG_ALPHA) != 0;
-    t->grey = (im.format & PNG_FORMAT_FLAG_COLOR) == 0;
-    t->w = im.width, t->h = im.height;
-    im.format = PNG_FORMAT_RGBA; /* 8-bit sRGB colour, linear alpha */
-    t->u8 = malloc((size_t)t->w * t->h * 4);
-    if (!t->u8) {
-        png_image_free(&im);
-        return pm_error_set(PM_ERR_NOMEM, "out of memory for texture '%s' (%u x %u)", path, t->w, t->h);
-    }
-    if (!png_image_finish_read(&im, NULL, t->u8, 0, NULL))
-        return pm_error_set(PM_ERR_INPUT, "texture '%s': libpng: %s", path, im.message);
-    return PM_OK;
-}
-
-typedef struct {
-    struct jpeg_error_mgr pub;
-    jmp_buf jump;
-    char message[JMSG_LENGTH_MAX];
-} jpeg_fail_t;
-
-static void jpeg_on_error(j_common_ptr cinfo)
-{
-    jpeg_fail_t *f = (jpeg_fail_t *)cinfo->err;
-    f->pub.format_message(cinfo, f->message);
-    longjmp(f->jump, 1);
-}
-
-static void jpeg_on_message(j_common_ptr cinfo, int level)
-{
-    (void)cinfo, (void)level; /* warnings about recoverable corruption: the decoder goes on */
-}
-
-static pm_result_t load_jpeg(const char *path, FILE *f, pm_texture_t *t)
-{
-    struct jpeg_decompress_struct cinfo;
-    jpeg_fail_t err;
-    memset(&err, 0, sizeof err);
-    cinfo.err = jpeg_std_error(&err.pub);
-    err.pub.error_exit = jpeg_on_error;
-    err.pub.emit_message = jpeg_on_message;
-    uint8_t *row = NULL;
-    if (setjmp(err.jump)) {
-        jpeg_destroy_decompress(&cinfo);
-        free(row);
-        return pm_error_set(PM_ERR_INPUT, "texture '%s': libjpeg: %s", path, err.message);
-    }
-    jpeg_create_decompress(&cinfo);
-    jpeg_stdio_src(&cinfo, f);
-    jpeg_read_header(&cinfo, TRUE);
-    if (cinfo.jpeg_color_space == JCS_CMYK || cinfo.jpeg_color_space == JCS_YCCK) {
-        jpeg_destroy_decompress(&cinfo);
-        return pm_error_set(PM_ERR_INPUT, "texture '%s': a CMYK JPEG: only grey and RGB JPEGs are read", path);
-    }
-    pm_result_t r = check_size(path, cinfo.image_width, cinfo.image_height);
-    if (r != PM_OK) {
-        jpeg_destroy_decompress(&cinfo);
-        return r;
-    }
-    t->grey = cinfo.num_components == 1;
-    cinfo.out_color_space = JCS_RGB;
-    jpeg_start_decompress(&cinfo);
-    t->w = cinfo.output_width, t->h = cinfo.output_height;
-    t->u8 = malloc((size_t)t->w * t->h * 4);
-    row = malloc((size_t)t->w * 3);
-    if (!t->u8 || !row) {
-        jpeg_destroy_decompress(&cinfo);
-        free(row);
-        return pm_error_set(PM_ERR_NOMEM, "out of memory for texture '%s' (%u x %u)", path, t->w, t->h);
-    }
-    while (cinfo.output_scanline < cinfo.output_height) {
-        uint32_t y = cinfo.output_scanline;
-        JSAMPROW rp = row;
-        jpeg_read_scanlines(&cinfo, &rp, 1);
-        uint8_t *o = t->u8 + (size_t)4 * t->w * y;
-        for (uint32_t x = 0; x < t->w; x++)
-            o[4 * x] = row[3 * x], o[4 * x + 1] = row[3 * x + 1], o[4 * x + 2] = row[3 * x + 2], o[4 * x + 3] = 255;
-    }
-    jpeg_finish_decompress(&cinfo);
-    jpeg_destroy_decompress(&cinfo);
-    free(row);
-    return PM_OK;
-}
-
-static pm_result_t load_exr(const char *path, pm_texture_t *t)
-{
-    uint32_t w = 0, h = 0;
-    float *rgb = NULL;
-    pm_result_t r = pm_exr_read_rgb(path, &w, &h, &rgb);
-    if (r != PM_OK) {
-        pm_error_prefix("texture '%s'", path);
-        return r;
-    }
-    if ((r = check_size(path, w, h)) != PM_OK) {
-        free(rgb);
-        return r;
-    }
-    t->w = w, t->h = h;
-    t->f32 = malloc((size_t)w * h * 4 * sizeof(float));
-    if (!t->f32) {
-        free(rgb);
-        return pm_error_set(PM_ERR_NOMEM, "out of memory for texture '%s' (%u x %u)", path, w, h);
-    }
-    for (size_t i = 0; i < (size_t)w * h; i++) {
+    t->w = im->w, t->h = im->h, t->grey = im->grey, t->has_alpha = im->has_alpha;
+    t->u8 = im->u8, t->f32 = im->f32;
+    im->u8 = NULL, im->f32 = NULL;
+    for (size_t i = 0; t->f32 && i < (size_t)t->w * t->h; i++)
         for (int c = 0; c < 3; c++) {
-            float v = rgb[3 * i + c];
+            float v = t->f32[4 * i + c];
             /* a texture scales an albedo in [0, 1]: anything else breaks energy conservation */
-            if (!(v >= 0.0f && v <= 1.0f)) {
-                free(rgb);
+            if (!(v >= 0.0f && v <= 1.0f))
                 return pm_error_set(PM_ERR_INPUT, "texture '%s': pixel (%zu, %zu) channel %c = %g is outside [0, 1]",
-                                    path, i % w, i / w, "rgb"[c], v);
-            }
-            t->f32[4 * i + c] = v;
+                                    t->path, i % t->w, i / t->w, "rgb"[c], v);
         }
-        t->f32[4 * i + 3] = 1.0f;
-    }
-    free(rgb);
     return PM_OK;
-}
-
-/* TGA has no signature: a file named .tga that is none of the others. stb_image reads its
- * size first, so that a huge image is refused before it is decoded. */
-static pm_result_t load_tga(const char *path, pm_texture_t *t)
-{
-    int w = 0, h = 0, n = 0;
-    if (!stbi_info(path, &w, &h, &n))
-        return pm_error_set(PM_ERR_INPUT, "texture '%s': stb_image: %s", path, stbi_failure_reason());
-    pm_result_t r = check_size(path, (uint64_t)(w > 0 ? w : 0), (uint64_t)(h > 0 ? h : 0));
-    if (r != PM_OK)
-        return r;
-    stbi_uc *px = stbi_load(path, &w, &h, &n, 4); /* rows from the top, RGBA */
-    if (!px)
-        return pm_error_set(PM_ERR_INPUT, "texture '%s': stb_image: %s", path, stbi_failure_reason());
-    t->w = (uint32_t)w, t->h = (uint32_t)h;
-    t->has_alpha = n == 2 || n == 4;
-    t->grey = n <= 2;
-    t->u8 = malloc((size_t)t->w * t->h * 4);
-    if (t->u8)
-        memcpy(t->u8, px, (size_t)t->w * t->h * 4);
-    stbi_image_free(px);
-    return t->u8 ? PM_OK : pm_error_set(PM_ERR_NOMEM, "out of memory for texture '%s' (%u x %u)", path, t->w, t->h);
 }
 
 static void texture_hash(pm_texture_t *t)
@@ -212,45 +58,72 @@ static void texture_hash(pm_texture_t *t)
     t->hash = pm_hash_bytes(h, sizeof h);
 }
 
-pm_result_t pm_texture_load(const char *path, pm_texture_t *out)
+static pm_img_limits_t texture_limits(uint64_t max_bytes, const char *budget)
 {
-    memset(out, 0, sizeof *out);
-    snprintf(out->path, sizeof out->path, "%s", path);
-    srgb_init();
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return pm_error_set(pm_result_of_errno(errno), "cannot open texture '%s': %s", path, strerror(errno));
-    uint8_t magic[8] = {0};
-    size_t n = fread(magic, 1, sizeof magic, f);
-    pm_result_t r;
-    if (n >= 8 && memcmp(magic, "\x89PNG\r\n\x1a\n", 8) == 0) {
-        fclose(f);
-        r = load_png(path, out);
-    } else if (n >= 3 && magic[0] == 0xff && magic[1] == 0xd8 && magic[2] == 0xff) {
-        rewind(f);
-        r = load_jpeg(path, f, out);
-        fclose(f);
-    } else if (n >= 4 && memcmp(magic, "\x76\x2f\x31\x01", 4) == 0) {
-        fclose(f);
-        r = load_exr(path, out);
-    } else if (strlen(path) > 4 && strcasecmp(path + strlen(path) - 4, ".tga") == 0) {
-        fclose(f);
-        r = load_tga(path, out);
-    } else {
-        int was_error = ferror(f);
-        fclose(f);
-        r = was_error ? pm_error_set(PM_ERR_IO, "cannot read texture '%s'", path)
-                      : pm_error_set(PM_ERR_INPUT,
-                                     "texture '%s': not a PNG, JPEG, OpenEXR or TGA image (%zu bytes read; convert "
-                                     "other formats, DDS or BMP, to PNG)",
-                                     path, n);
-    }
+    pm_img_limits_t lim = {PM_IMG_PNG | PM_IMG_JPEG | PM_IMG_EXR | PM_IMG_TGA, max_bytes, 4, "texture", budget};
+    return lim;
+}
+
+static pm_result_t finish(pm_result_t r, pm_img_t *im, pm_texture_t *out)
+{
+    if (r == PM_OK)
+        r = from_image(im, out);
+    pm_img_free(im);
     if (r == PM_OK)
         texture_hash(out);
     else
         pm_texture_free(out);
     return r;
 }
+
+pm_result_t pm_texture_load_budget(const char *path, uint64_t max_bytes, const char *budget, pm_texture_t *out)
+{
+    memset(out, 0, sizeof *out);
+    snprintf(out->path, sizeof out->path, "%s", path);
+    srgb_init();
+    pm_img_limits_t lim = texture_limits(max_bytes, budget);
+    pm_img_t im;
+    return finish(pm_img_load(path, &lim, &im), &im, out);
+}
+
+pm_result_t pm_texture_load(const char *path, pm_texture_t *out)
+{
+    return pm_texture_load_budget(path, PM_TEXTURE_BUDGET_DEFAULT, NULL, out);
+}
+
+pm_result_t pm_texture_decode(const char *name, const char *hint, const void *data, size_t size, uint64_t max_bytes,
+                              const char *budget, pm_texture_t *out)
+{
+    memset(out, 0, sizeof *out);
+    snprintf(out->path, sizeof out->path, "%s", name);
+    srgb_init();
+    pm_img_limits_t lim = texture_limits(max_bytes, budget);
+    pm_img_t im;
+    return finish(pm_img_decode(name, hint, data, size, &lim, &im), &im, out);
+}
+
+pm_result_t pm_texture_from_bgra(const char *name, uint32_t w, uint32_t h, const uint8_t *bgra, uint64_t max_bytes,
+                                 const char *budget, pm_texture_t *out)
+{
+    memset(out, 0, sizeof *out);
+    snprintf(out->path, sizeof out->path, "%s", name);
+    srgb_init();
+    if (w == 0 || h == 0 || w > PM_TEXTURE_MAX_SIDE || h > PM_TEXTURE_MAX_SIDE || (uint64_t)w * h * 4 > max_bytes)
+        return pm_error_set(PM_ERR_INPUT,
+                            "texture '%s': %u x %u texels: each side must be 1 to %u, within its budget (%s)", name, w,
+                            h, PM_TEXTURE_MAX_SIDE, budget ? budget : "image_budgets");
+    out->w = w, out->h = h, out->has_alpha = 1;
+    if (!(out->u8 = malloc((size_t)w * h * 4)))
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for texture '%s' (%u x %u)", name, w, h);
+    for (size_t i = 0; i < (size_t)w * h; i++) {
+        out->u8[4 * i] = bgra[4 * i + 2], out->u8[4 * i + 1] = bgra[4 * i + 1];
+        out->u8[4 * i + 2] = bgra[4 * i], out->u8[4 * i + 3] = bgra[4 * i + 3];
+    }
+    texture_hash(out);
+    return PM_OK;
+}
+
+uint64_t pm_texture_bytes(const pm_texture_t *t) { return (uint64_t)t->w * t->h * (t->u8 ? 4u : 4u * sizeof(float)); }
 
 pm_result_t pm_texture_solid(const char *name, const float rgb[3], pm_texture_t *out)
 {

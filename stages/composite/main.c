@@ -58,6 +58,8 @@ typedef struct {
     const char *pass_log; /* --pass-log FILE: a line per pass added (--stream --accumulate) */
     double weight;        /* --weight W: the pass's weight in the running image */
     const char *weights;  /* --weights FILE: a line "PASS WEIGHT" per pass (--stream --accumulate) */
+    const char *aov;      /* --aov LIST: denoiser layers beside R G B (albedo,normal,depth,variance), NULL for none */
+    const char *aov_file; /* --aov-buffer FILE: the aov file albedo, normal and depth come from */
 } composite_options_t;
 
 /* pattern with its one %d (or %0Nd, N < 10) replaced by frame; NULL pattern gives NULL. */
@@ -339,6 +341,8 @@ static pm_result_t run_stream(pm_stage_t *st, const composite_options_t *o)
 
 static pm_result_t run(pm_stage_t *st, const composite_options_t *o)
 {
+    if ((o->aov || o->aov_file) && o->stream)
+        return pm_error_set(PM_ERR_USAGE, "--aov and --aov-buffer are not done for --stream (one image at a time)");
     if (o->stream)
         return run_stream(st, o);
     for (int i = 0; i < st->args.nargs; i++) {
@@ -358,6 +362,24 @@ static pm_result_t run(pm_stage_t *st, const composite_options_t *o)
         return pm_error_set(PM_ERR_USAGE, "--pass %" PRId64 " needs --accumulate STATE (the running image)", o->pass);
     if (pm_args_given(&st->args, "weight") && !o->state)
         return pm_error_set(PM_ERR_USAGE, "--weight %g is a pass's weight: it needs --accumulate STATE", o->weight);
+    unsigned aov = 0;
+    if (o->aov) {
+        pm_result_t ra = pm_exr_aov_parse("--aov", o->aov, &aov);
+        if (ra != PM_OK)
+            return ra;
+        if (!to_exr)
+            return pm_error_set(PM_ERR_USAGE, "--aov %s: the layers go into the EXR: give -o IMAGE.exr", o->aov);
+        if ((aov & PM_EXR_AOV_VARIANCE) && !o->state)
+            return pm_error_set(PM_ERR_USAGE, "--aov variance is the running image's: give --accumulate STATE");
+        if ((aov & PM_EXR_AOV_SURFACE) && !o->aov_file)
+            return pm_error_set(PM_ERR_USAGE,
+                                "--aov %s: albedo, normal and depth come from --aov-buffer FILE "
+                                "(trace-gather-points --aov)",
+                                o->aov);
+    }
+    if (o->aov_file && !(aov & PM_EXR_AOV_SURFACE))
+        return pm_error_set(PM_ERR_USAGE, "--aov-buffer %s is read for --aov albedo, normal or depth: none asked for",
+                            o->aov_file);
     pm_stage_output_set(st); /* the EXR, the PNG, the radiance buffer and the running image appear together, or none */
     pm_composite_t *c;
     pm_result_t r = pm_composite_open(&c, st->args.args, st->args.nargs, (pm_composite_only_t)o->only);
@@ -369,6 +391,8 @@ static pm_result_t run(pm_stage_t *st, const composite_options_t *o)
     double t1 = pm_time_wall(), clipped = 0.0;
     if (r == PM_OK)
         r = pm_composite_finish(c, o->half);
+    if (r == PM_OK && aov)
+        r = pm_composite_set_aov(c, aov, o->aov_file);
     if (r == PM_OK && to_exr)
         r = pm_composite_write_exr(c, st->output, (pm_exr_compression_t)o->compression);
     if (r == PM_OK && o->png)
@@ -442,6 +466,12 @@ int main(int argc, char **argv)
         {"weights", 0, PM_OPT_STRING, &o.weights, "FILE",
          "with --stream --accumulate: a line 'PASS WEIGHT' per pass, read as each pass arrives (a driver's pipe)", 1, 0,
          NULL},
+        {"aov", 0, PM_OPT_STRING, &o.aov, "LIST",
+         "also write these layers into the EXR for a denoiser, comma-separated: albedo (albedo.R/G/B), normal "
+         "(normal.X/Y/Z), depth (Z) from --aov-buffer, variance (variance.R/G/B) of the running image (--accumulate)",
+         1, 0, NULL},
+        {"aov-buffer", 0, PM_OPT_STRING, &o.aov_file, "FILE",
+         "the aov file (trace-gather-points --aov) that --aov albedo, normal and depth come from", 1, 0, NULL},
         {"pass-log", 0, PM_OPT_OUTPUT, &o.pass_log, "FILE",
          "with --stream --accumulate: a line 'PASS PASSES RELATIVE_ERROR' here as each pass's outputs are in place "
          "(- for the error until a second pass)",

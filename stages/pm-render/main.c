@@ -39,6 +39,7 @@ static const char *const param_help =
     "  GATHER=simd-gather  the gather program (any program with simd-gather's command line; for\n"
     "                   knn-gather RADIUS is its --max-radius), or none: the direct light alone\n"
     "  EXPOSURE=EV TONE=srgb|filmic HALF=0|1   composite's preview exposure, tone curve, half EXR\n"
+    "  AOV=albedo,normal,depth   denoiser layers in image.exr (composite --aov; one-pass renders only)\n"
     "  SEED=N           the tracers' --seed (trace-photons, trace-gather-points)\n"
     "  PASSES=N         progressive passes (default 1: one render)\n"
     "  TIME=SECONDS     progressive: passes while the time so far plus the longest pass fits\n"

@@ -31,6 +31,7 @@
 #include "base/spool.h"
 #include "base/stage.h"
 #include "formats/formats.h"
+#include "render/aov.h"
 #include "render/eyetrace.h"
 #include "render/photontrace.h"
 #include "render/rt.h"
@@ -40,6 +41,7 @@
 typedef struct {
     const char *direct;    /* --direct FILE, NULL for none */
     const char *caustic;   /* --caustic-queries FILE, NULL for none */
+    const char *aov;       /* --aov FILE: the denoiser's surface buffers (render/aov.h), NULL for none */
     int64_t spp;           /* secondary rays per primary hit; 0: the scene's render.spp */
     int64_t primary;       /* primary rays per pixel */
     int64_t light_samples; /* area-light samples per primary hit */
@@ -114,7 +116,36 @@ static pm_result_t write_caustic(pm_stage_t *st, const tgp_options_t *o, const p
 }
 
 /* Every output: headers, then records; all renamed into place together by pm_stage_end. */
-static pm_result_t write_outputs(pm_stage_t *st, const tgp_options_t *o, const pm_eye_t *e, tgp_sink_t *k)
+static pm_result_t write_aov(pm_stage_t *st, const tgp_options_t *o, const pm_eye_t *e, const pm_scene_t *s,
+                             const pm_rt_t *rt)
+{
+    const pm_eye_info_t *in = pm_eye_info(e);
+    float *v = malloc((size_t)in->width * in->height * PM_AOV_FLOATS * sizeof *v);
+    if (!v)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for a %" PRIu32 "x%" PRIu32 " AOV buffer", in->width,
+                            in->height);
+    pm_header_t h;
+    pm_header_init(&h, &pm_aov_schema);
+    pm_writer_t *w = NULL;
+    pm_result_t r = pm_aov_trace(s, rt, in->width, in->height, in->primary, in->pixel, in->seed, st->threads_used, v);
+    if (r == PM_OK)
+        r = pm_aov_header(&h, st->argc, st->argv, s, in->width, in->height, in->primary, in->pixel, in->seed);
+    if (r == PM_OK)
+        r = pm_writer_open(o->aov, &h, &w);
+    if (r == PM_OK) /* the record is albedo, normal, depth: the 7 floats a pixel as they lie */
+        r = pm_writer_write(w, v, h.count);
+    if (r == PM_OK) {
+        r = pm_writer_commit(w);
+        w = NULL;
+    }
+    pm_writer_abort(w);
+    pm_header_free(&h);
+    free(v);
+    return r;
+}
+
+static pm_result_t write_outputs(pm_stage_t *st, const tgp_options_t *o, const pm_eye_t *e, tgp_sink_t *k,
+                                 const pm_scene_t *s, const pm_rt_t *rt)
 {
     pm_header_t qh, dh;
     pm_writer_t *qw = NULL, *dw = NULL;
@@ -154,6 +185,8 @@ static pm_result_t write_outputs(pm_stage_t *st, const tgp_options_t *o, const p
     pm_header_free(&dh);
     if (r == PM_OK && o->caustic)
         r = write_caustic(st, o, e, k);
+    if (r == PM_OK && o->aov)
+        r = write_aov(st, o, e, s, rt);
     return r;
 }
 
@@ -208,7 +241,7 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
     if (r == PM_OK)
         r = pm_eye_trace(e, &sink, &x);
     if (r == PM_OK)
-        r = write_outputs(st, o, e, &k);
+        r = write_outputs(st, o, e, &k, s, rt);
     if (r == PM_OK)
         pm_eye_report(st, in, &x, o->schedule, pm_spool_spilled(&k.spool), isa);
     pm_spool_free(&k.spool);
@@ -301,6 +334,10 @@ int main(int argc, char **argv)
         PM_STAGE_COMMON_OPTIONS(st),
         {"direct", 0, PM_OPT_OUTPUT, &o.direct, "FILE",
          "also write the direct radiance buffer (emission seen directly plus direct light) here", 1, 0, NULL},
+        {"aov", 0, PM_OPT_OUTPUT, &o.aov, "FILE",
+         "also write the denoiser's surface buffers here (format aov: per pixel the first surface's albedo, shading "
+         "normal and distance, for composite --aov-buffer); one scene, no passes",
+         1, 0, NULL},
         {"caustic-queries", 0, PM_OPT_OUTPUT, &o.caustic, "FILE",
          "also write the caustic queries here: the first hit past mirrors and glass of every primary ray, for "
          "simd-gather against the caustic map (a scene with mirrors or glass; --mode gather)",
@@ -374,12 +411,15 @@ int main(int argc, char **argv)
         return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE,
                                               "--spp %" PRId64 " is not a multiple of %d (%d samples per stratum cell)",
                                               o.spp, PM_EYE_PER_CELL, PM_EYE_PER_CELL));
+    if (o.aov && (st.args.nargs != 1 || o.passes || o.plan || !strcmp(o.aov, "-")))
+        return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "--aov writes one file for one scene: not with several "
+                                                            "scenes, --passes, --plan or stdout"));
     if (o.no_queries && (!o.direct || o.caustic || pm_args_given(&st.args, "output")))
         return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "--no-queries writes the --direct buffer alone: give "
                                                             "--direct FILE and neither -o nor --caustic-queries"));
     const char *qout = o.no_queries ? NULL : st.output;
     if ((r = check_writable(qout)) != PM_OK || (r = check_writable(o.direct)) != PM_OK ||
-        (r = check_writable(o.caustic)) != PM_OK)
+        (r = check_writable(o.caustic)) != PM_OK || (r = check_writable(o.aov)) != PM_OK)
         return pm_stage_end(&st, r);
     int frames = st.args.nargs;
     o.single = frames == 1;

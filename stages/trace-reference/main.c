@@ -9,10 +9,13 @@
  * --resume. The same settings give the same bits for any --threads. */
 #include <inttypes.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
+#include "base/exr.h"
 #include "base/stage.h"
 #include "formats/formats.h"
+#include "render/aov.h"
 #include "render/light.h"
 #include "render/pathtrace.h"
 #include "render/rt.h"
@@ -28,6 +31,7 @@ typedef struct {
     int pixel, component;
     const char *radiance; /* --radiance FILE: f64 mean and variance per pixel */
     const char *resume;   /* --resume FILE: a --radiance file to continue */
+    const char *aov;      /* --aov LIST: denoiser layers beside R G B, NULL for none */
 } ref_options_t;
 
 /* The counters and timings of a finished render as --stats and the closing note. */
@@ -92,13 +96,34 @@ static pm_result_t run(pm_stage_t *st, const ref_options_t *o, const pm_scene_t 
     }
     char cmd[4096];
     pm_stage_command_line(st, cmd, sizeof cmd);
-    const pm_pathtrace_output_t out = {st->output, o->radiance, st->argc, st->argv, cmd};
+    unsigned aov = 0;
+    float *surf = NULL;
+    if (o->aov) {
+        pm_result_t ra = pm_exr_aov_parse("--aov", o->aov, &aov);
+        if (ra == PM_OK && (aov & PM_EXR_AOV_SURFACE)) {
+            /* The first surface of each pixel, seen through the reference's own pixel footprint:
+             * 64 rays a box pixel, one through a centre. */
+            uint32_t nray = o->pixel == PM_PIXEL_BOX ? 64 : 1;
+            if (!(surf = malloc((size_t)set.width * set.height * PM_AOV_FLOATS * sizeof *surf)))
+                ra = pm_error_set(PM_ERR_NOMEM, "out of memory for a %" PRIu32 "x%" PRIu32 " AOV image", set.width,
+                                  set.height);
+            else
+                ra = pm_aov_trace(s, rt, set.width, set.height, nray, o->pixel, set.seed, set.threads, surf);
+        }
+        if (ra != PM_OK) {
+            free(surf);
+            return ra;
+        }
+    }
+    const pm_pathtrace_output_t out = {st->output, o->radiance, st->argc, st->argv, cmd, aov, surf};
     const pm_pathtrace_plan_t plan = {(uint64_t)o->spp, (uint64_t)o->pass, o->time_s, pm_stage_progress(st)};
     pm_pathtracer_t pt;
     pm_pathtrace_run_t ran;
     pm_result_t r = pm_pathtracer_init(&pt, s, rt, &set);
-    if (r != PM_OK)
+    if (r != PM_OK) {
+        free(surf);
         return r;
+    }
     if (o->resume)
         r = pm_pathtrace_resume(&pt, o->resume);
     if (r == PM_OK)
@@ -106,6 +131,7 @@ static pm_result_t run(pm_stage_t *st, const ref_options_t *o, const pm_scene_t 
     if (r == PM_OK)
         report(st, &pt, &ran);
     pm_pathtracer_free(&pt);
+    free(surf);
     return r;
 }
 
@@ -121,6 +147,10 @@ int main(int argc, char **argv)
          4e9, NULL},
         {"time", 0, PM_OPT_DOUBLE, &o.time_s, "S",
          "stop after S seconds, at the end of a pass (at least one pass runs); 0: no limit", 0, 1e9, NULL},
+        {"aov", 0, PM_OPT_STRING, &o.aov, "LIST",
+         "also write these layers into the image for a denoiser, comma-separated: albedo (albedo.R/G/B), normal "
+         "(normal.X/Y/Z), depth (Z) of the first surface, variance (variance.R/G/B) of each pixel's mean",
+         1, 0, NULL},
         {"radiance", 0, PM_OPT_OUTPUT, &o.radiance, "FILE",
          "also write the f64 radiance buffer with each pixel's variance (for measure-error and --resume)", 1, 0, NULL},
         {"resume", 0, PM_OPT_STRING, &o.resume, "FILE",

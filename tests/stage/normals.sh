@@ -61,6 +61,7 @@ FNR == NR {
     if ($1 ~ /^[0-9]+$/ && NF >= 11) {
         px = $NF; x = $2; y = $3; z = $4
         if (tilt) { nx = sin(tilt * pi / 180); ny = cos(tilt * pi / 180); nz = 0 } # the tilted plane's ns
+        else if (nsy) { l = sqrt(nsx * nsx + nsy * nsy + nsz * nsz); nx = nsx / l; ny = nsy / l; nz = nsz / l } # or one given
         else { l = sqrt(x * x + y * y + z * z); nx = x / l; ny = y / l; nz = z / l }
         dx = lx - x; dy = ly - y; dz = lz - z; r2 = dx * dx + dy * dy + dz * dz; r = sqrt(r2)
         c = (nx * dx + ny * dy + nz * dz) / r
@@ -142,14 +143,109 @@ printf 'newmtl white\nKd 0.6 0.6 0.6\n' >"$TMP/tilt/s.mtl"
 scene "$TMP/tilt" "0, 1, 0"
 sed -i 's|"eye": \[0, 0, 4\], "look_at": \[0, 0, 0\], "up": \[0, 1, 0\], "fov_y": 36|"eye": [0, 1.5, 0], "look_at": [0, 0, 0], "up": [0, 0, 1], "fov_y": 90|' "$TMP/tilt/scene.json"
 TV="-v lx=0 -v ly=1 -v lz=0 -v tilt=30"
+# judge_plane NAME T AWK-VARS...: render T's photon map (a density estimate: mean within 3%,
+# RMS below 15%), direct buffer and trace-reference (exact up to rounding) against the closed form.
+judge_plane() {
+    local name=$1 t=$TMP/$2
+    shift 2
+    judge "$name, photon map" "$t.hits" "$t.i.txt" "$@" -v tmean=0.03 -v trms=0.15 -v tmax=0.6
+    judge "$name, direct buffer" "$t.hits" "$t.d.txt" "$@" -v tmean=1e-3 -v trms=1e-3 -v tmax=1e-3
+    judge "$name, trace-reference" "$t.hits" "$t.r.txt" "$@" -v tmean=1e-3 -v trms=1e-3 -v tmax=1e-3
+}
 if render tilt "$TMP/tilt/scene.json"; then
-    judge "plane with normals tilted 30 degrees, photon map" "$TMP/tilt.hits" "$TMP/tilt.i.txt" $TV -v tmean=0.03 -v trms=0.15 -v tmax=0.6
-    judge "plane with normals tilted 30 degrees, direct buffer" "$TMP/tilt.hits" "$TMP/tilt.d.txt" $TV -v tmean=1e-3 -v trms=1e-3 -v tmax=1e-3
-    judge "plane with normals tilted 30 degrees, trace-reference" "$TMP/tilt.hits" "$TMP/tilt.r.txt" $TV -v tmean=1e-3 -v trms=1e-3 -v tmax=1e-3
+    judge_plane "plane with normals tilted 30 degrees" tilt $TV
 else
     fail "plane with tilted normals" "a stage failed"
 fi
 
+# Normal maps and bump maps (docs/scene-format.md, Normal and bump maps): the same plane without
+# vertex normals, its texture coordinates u along +x and v along +z over its 6 m, bent by
+# - a normal map (MTL norm) of one texel value everywhere, (191, 128, 238) of 255: the tangent-
+#   space normal (2 c / 255 - 1) = (0.49804, 0.00392, 0.86667) with x along dp/du (+x), y along
+#   dp/dv (+z), z the surface's normal (+y): 29.9 degrees toward +x, the world normal
+#   (0.49804, 0.86667, 0.00392) normalized;
+# - a bump map (MTL bump -bm B) of heights B (255 - x) / 255 m along its 256 columns: with
+#   bilinear lookup the height falls by B 256 / 255 m per unit of u, that is per 6 m, so that
+#   the bumped surface leans toward +x by atan(B 256 / (255 * 6)): 30 degrees for B = 3.4505859.
+# Each must shade as a tilted plane: the closed form of the tilted plane above with that normal,
+# in the direct buffer and trace-reference (exact up to rounding) and the photon map (a density
+# estimate: photons arrive with the geometric cosine and are weighed by ns.w / ng.w, as for
+# vertex normals). The camera sees u in [0.25, 0.75], away from the map's wrap at the edges.
+# tga FILE W H HEX-PIXELS: an uncompressed 24-bit TGA, top row first (BGR per pixel)
+tga() {
+    local hdr
+    hdr=$(printf '000002000000000000000000%02x%02x%02x%02x1820' $(($2 & 255)) $(($2 >> 8)) $(($3 & 255)) $(($3 >> 8)))
+    printf "$(echo "$hdr$4" | sed 's/../\\x&/g')" >"$1"
+}
+bent_plane() {
+    mkdir -p "$1"
+    printf 'mtllib s.mtl\nv -3 0 -3\nv 3 0 -3\nv 3 0 3\nv -3 0 3\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl white\nf 1/1 4/4 3/3 2/2\n' >"$1/s.obj"
+    printf 'newmtl white\nKd 0.6 0.6 0.6\n%s\n' "$2" >"$1/s.mtl"
+    cp "$TMP/tilt/scene.json" "$1/scene.json"
+}
+bent_plane "$TMP/nmap" "norm n.tga"
+tga "$TMP/nmap/n.tga" 2 2 "$(printf 'ee80bf%.0s' 1 2 3 4)"
+ramp=$(awk 'BEGIN { for (r = 0; r < 2; r++) for (x = 0; x < 256; x++) printf "%02x%02x%02x", 255 - x, 255 - x, 255 - x }')
+for key in bump map_Bump; do
+    bent_plane "$TMP/bmap-$key" "$key -bm 3.4505859 ramp.tga"
+    tga "$TMP/bmap-$key/ramp.tga" 256 2 "$ramp"
+done
+NV="-v lx=0 -v ly=1 -v lz=0 -v nsx=0.49803922 -v nsy=0.86666667 -v nsz=0.00392157"
+if render nmap "$TMP/nmap/scene.json"; then
+    judge_plane "flat plane, normal map of a 29.9 degree slope = the tilted plane" nmap $NV
+else
+    fail "plane with a normal map" "a stage failed: $("$BIN/scene-info" "$TMP/nmap/scene.json" 2>&1 >/dev/null | head -c 300)"
+fi
+for key in bump map_Bump; do
+    if render bmap-$key "$TMP/bmap-$key/scene.json"; then
+        judge_plane "flat plane, $key ramp of a 30 degree slope = the tilted plane" bmap-$key $TV
+    else
+        fail "plane with a bump map ($key)" "a stage failed: $("$BIN/scene-info" "$TMP/bmap-$key/scene.json" 2>&1 >/dev/null | head -c 300)"
+    fi
+done
+# glTF's normalTexture: the same plane and normal map as glTF (texture coordinates in
+# TEXCOORD_0, u along +x; glTF's v runs down the image, which assimp turns to run up, so that
+# dp/dv is -z and the map's small green component leans the normal toward -z).
+mkdir -p "$TMP/nmapgl" && cp "$TMP/nmap/n.tga" "$TMP/nmapgl/"
+printf '{"asset":{"version":"2.0"},"extensionsUsed":["KHR_materials_ior"],"scenes":[{"nodes":[0]}],"scene":0,"nodes":[{"mesh":0}],
+"meshes":[{"primitives":[{"attributes":{"POSITION":0,"TEXCOORD_0":1},"indices":2,"material":0}]}],
+"materials":[{"name":"white","normalTexture":{"index":0},"pbrMetallicRoughness":{"baseColorFactor":[0.6,0.6,0.6,1],"metallicFactor":0,"roughnessFactor":1},"extensions":{"KHR_materials_ior":{"ior":1}}}],
+"textures":[{"source":0}],"images":[{"uri":"n.tga"}],
+"buffers":[{"byteLength":92,"uri":"data:application/octet-stream;base64,AABAwAAAAAAAAEDAAABAQAAAAAAAAEDAAABAQAAAAAAAAEBAAABAwAAAAAAAAEBAAAAAAAAAAAAAAIA/AAAAAAAAgD8AAIA/AAAAAAAAgD8AAAMAAgAAAAIAAQA="}],
+"bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":48},{"buffer":0,"byteOffset":48,"byteLength":32},{"buffer":0,"byteOffset":80,"byteLength":12}],
+"accessors":[{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-3,0,-3],"max":[3,0,3]},
+{"bufferView":1,"componentType":5126,"count":4,"type":"VEC2"},{"bufferView":2,"componentType":5123,"count":6,"type":"SCALAR"}]}\n' >"$TMP/nmapgl/s.gltf"
+sed 's/"s.obj"/"s.gltf"/' "$TMP/tilt/scene.json" >"$TMP/nmapgl/scene.json"
+NVG="-v lx=0 -v ly=1 -v lz=0 -v nsx=0.49803922 -v nsy=0.86666667 -v nsz=-0.00392157"
+if render nmapgl "$TMP/nmapgl/scene.json"; then
+    judge_plane "glTF flat plane, normalTexture of a 29.9 degree slope = the tilted plane" nmapgl $NVG
+else
+    fail "glTF plane with a normal texture" "a stage failed: $("$BIN/scene-info" "$TMP/nmapgl/scene.json" 2>&1 >/dev/null | head -c 300)"
+fi
+# A colour image in map_Bump (Blender's OBJ exporter writes normal maps so) is read as a normal
+# map, and scene-info says so: the normal map's plane again, through the direct buffer.
+bent_plane "$TMP/nbump" "map_Bump n.tga"
+cp "$TMP/nmap/n.tga" "$TMP/nbump/"
+if "$BIN/trace-gather-points" "$TMP/nbump/scene.json" --pixel center --mode direct-vis -q -o "$TMP/nbump.q.pm" --direct "$TMP/nbump.d.pm" &&
+    "$BIN/pm-info" -r "$TMP/nbump.q.pm" >"$TMP/nbump.hits" && "$BIN/composite" "$TMP/nbump.d.pm" -q -o "$TMP/nbump.d.exr" &&
+    "$BUILD/tests/pm-exrdump" "$TMP/nbump.d.exr" >"$TMP/nbump.d.txt"; then
+    judge "map_Bump holding a colour normal map = the normal map's tilted plane, direct buffer" "$TMP/nbump.hits" "$TMP/nbump.d.txt" $NV -v tmean=1e-3 -v trms=1e-3 -v tmax=1e-3
+else
+    fail "map_Bump holding a colour normal map" "a stage failed"
+fi
+if "$BIN/scene-info" -q "$TMP/nbump/scene.json" | grep -q "bump '.*n.tga' (approximated: a colour image: read as a tangent-space normal map)"; then
+    pass "scene-info: a colour map_Bump is listed as read as a normal map"
+else
+    fail "scene-info on a colour map_Bump" "$("$BIN/scene-info" -q "$TMP/nbump/scene.json" | grep -i -A1 unsupported)"
+fi
+# scene-info lists the maps as used (norm, bump) and reports nothing of them unsupported
+si_maps() { "$BIN/scene-info" -q --json "$1" | jq -r '[(.textures[].used_by[] | "\(.material) \(.map)"), (.materials[].unsupported // [] | length | tostring)] | join(" ")'; }
+got="$(si_maps "$TMP/nmap/scene.json"); $(si_maps "$TMP/bmap-bump/scene.json")"
+if [ "$got" = "white norm 0; white bump 0" ]; then
+    pass "scene-info: the normal map and the bump map used by their material, nothing unsupported"
+else
+    fail "scene-info on normal and bump maps" "'$got', want 'white norm 0; white bump 0'"
+fi
 # The same tilted plane as glTF (vertex normals in its NORMAL attribute, a base colour of 0.6,
 # not metallic, fully rough, of index 1 by KHR_materials_ior: Lambertian, where glTF's default
 # index 1.5 would put a coat over it, docs/materials.md): assimp reads them as it reads OBJ's

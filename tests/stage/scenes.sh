@@ -65,8 +65,8 @@ fi
 
 # ---- issue 17, item 4: MTL keys pmtk does not honour are reported once per material ----
 S=tests/scenes/unsupported-mtl/scene.json
-want="material 'textured': bump 'bump.png'
-material 'textured': d 0.8
+want="material 'textured': d 0.8
+material 'textured': disp 'disp.png'
 material 'textured': illum 6
 material 'textured': map_Ka 'tex.png'
 material 'textured': Ni 1.5
@@ -74,14 +74,14 @@ material 'textured': Tf 0.9 0.8 0.7"
 unsupported_warnings() { sed -n 's/^[a-z-]*: warning: \(material .*\) is not supported (ignored)$/\1/p' "$1" | LC_ALL=C sort -f; }
 "$BIN/scene-info" "$S" >"$TMP/out" 2>"$TMP/err"
 if [ "$(unsupported_warnings "$TMP/err")" = "$want" ]; then
-    pass "scene-info warns once for each of map_Ka, bump, d/Tr, illum 6, Ni, Tf"
+    pass "scene-info warns once for each of map_Ka, disp, d/Tr, illum 6, Ni, Tf"
 else
     fail "scene-info unsupported warnings" "$(head -c 600 "$TMP/err")"
 fi
 grep -q "^scene-info: warning: material 'unused'" "$TMP/err" && fail "a material no face uses" "is reported" ||
     pass "a material no face uses is not reported"
 if [ "$(grep -c '^    unsupported' "$TMP/out")" = 1 ] &&
-    grep -qx "    unsupported (ignored): illum 6, d 0.8, Tf 0.9 0.8 0.7, Ni 1.5, map_Ka 'tex.png', bump 'bump.png'" "$TMP/out"; then
+    grep -qx "    unsupported (ignored): illum 6, d 0.8, Tf 0.9 0.8 0.7, Ni 1.5, map_Ka 'tex.png', disp 'disp.png'" "$TMP/out"; then
     pass "scene-info's text lists them under their material"
 else
     fail "scene-info text unsupported" "$(grep -A1 '^  0 ' "$TMP/out")"

@@ -56,6 +56,44 @@ static void test_exr_float_roundtrip(void **state)
     roundtrip(PM_EXR_FLOAT, PM_EXR_PIZ, 1, 1);
 }
 
+/* One pixel is a 12-byte chunk (6 in half) that zip cannot shrink: the writer must store it
+ * uncompressed, not the deflated bytes under the raw size, which reads back as garbage. */
+static void test_exr_one_pixel(void **state)
+{
+    for (int t = 0; t < 2; t++)
+        for (int c = 0; c < 3; c++) {
+            roundtrip((pm_exr_pixel_t)t, (pm_exr_compression_t)c, 1, 1);
+            roundtrip((pm_exr_pixel_t)t, (pm_exr_compression_t)c, 2, 1);
+            roundtrip((pm_exr_pixel_t)t, (pm_exr_compression_t)c, 1, 2);
+        }
+}
+
+/* Named layers beside R G B: the RGB reads back as it was, a repeated name or a NaN in a layer
+ * is refused. */
+static void test_exr_channels(void **state)
+{
+    char path[600];
+    snprintf(path, sizeof path, "%s/layers.exr", unit_tmpdir());
+    float rgb[6] = {1, 2, 3, 4, 5, 6}, nrm[6] = {0, 0, 1, 0, -1, 0}, z[2] = {2.5f, 0};
+    pm_exr_channel_t ch[] = {{"R", rgb, 3, 0},        {"G", rgb + 1, 3, 0},        {"B", rgb + 2, 3, 0},
+                             {"normal.X", nrm, 3, 1}, {"normal.Y", nrm + 1, 3, 1}, {"normal.Z", nrm + 2, 3, 1},
+                             {"Z", z, 1, 1}};
+    assert_int_equal(pm_exr_write_channels(path, 2, 1, ch, 7, PM_EXR_FLOAT, PM_EXR_ZIP, NULL, 0), PM_OK);
+    uint32_t w, h;
+    float *got;
+    assert_int_equal(pm_exr_read_rgb(path, &w, &h, &got), PM_OK);
+    assert_int_equal(w, 2);
+    for (int i = 0; i < 6; i++)
+        assert_true(got[i] == rgb[i]);
+    free(got);
+    ch[6].name = "R";
+    assert_int_equal(pm_exr_write_channels(path, 2, 1, ch, 7, PM_EXR_FLOAT, PM_EXR_ZIP, NULL, 0), PM_ERR_INTERNAL);
+    ch[6].name = "Z";
+    z[1] = NAN;
+    assert_int_equal(pm_exr_write_channels(path, 2, 1, ch, 7, PM_EXR_HALF, PM_EXR_ZIP, NULL, 0), PM_ERR_INTERNAL);
+    assert_non_null(strstr(pm_error_message(), "channel Z"));
+}
+
 static void test_exr_half_roundtrip(void **state)
 {
     roundtrip(PM_EXR_HALF, PM_EXR_ZIP, 17, 33);
@@ -68,7 +106,7 @@ static void test_exr_refusals(void **state)
     snprintf(path, sizeof path, "%s/bad.exr", unit_tmpdir());
     float px[3] = {1.0f, NAN, 0.0f};
     assert_int_equal(pm_exr_write_rgb(path, 1, 1, px, PM_EXR_FLOAT, PM_EXR_ZIP, NULL, 0), PM_ERR_INTERNAL);
-    assert_non_null(strstr(pm_error_message(), "channel 1 is nan"));
+    assert_non_null(strstr(pm_error_message(), "channel G is nan"));
     px[1] = 70000.0f; /* fine as float, beyond half */
     assert_int_equal(pm_exr_write_rgb(path, 1, 1, px, PM_EXR_HALF, PM_EXR_ZIP, NULL, 0), PM_ERR_INTERNAL);
     assert_int_equal(access(path, F_OK), -1); /* nothing left behind */
@@ -91,8 +129,8 @@ static void test_exr_refusals(void **state)
 }
 
 static const struct CMUnitTest tests[] = {
-    cmocka_unit_test(test_exr_float_roundtrip),
-    cmocka_unit_test(test_exr_half_roundtrip),
+    cmocka_unit_test(test_exr_float_roundtrip), cmocka_unit_test(test_exr_one_pixel),
+    cmocka_unit_test(test_exr_channels),        cmocka_unit_test(test_exr_half_roundtrip),
     cmocka_unit_test(test_exr_refusals),
 };
 UNIT_GROUP(unit_exr, "exr", tests);

@@ -748,6 +748,84 @@ static void test_light_envmap_sampler(void **state)
     assert_non_null(strstr(pm_error_message(), "pixel (2, 0) channel B = nan"));
 }
 
+/* The sky's frame (sky.up, sky.rotate): its axes for +y, +z and -y up (rotate 90 shows the map's
+ * longitude 0 at azimuth 90: +z), elevation and azimuth as directions, and a turned map against
+ * the same map unturned: for random world directions w, the turned map's pixel and pdf at w are
+ * the plain map's at the frame's image of w, and its sample from (u1, u2) is the plain map's
+ * sample turned back into the world. A rotated map is then the rotated scene, in sampling, pdf
+ * and lookup alike. */
+static void test_light_envmap_frame(void **state)
+{
+    (void)state;
+    static const struct {
+        double up[3], rot, want[9];
+    } cases[] = {
+        {{0, 1, 0}, 0, {1, 0, 0, 0, 1, 0, 0, 0, 1}},
+        {{0, 1, 0}, 90, {0, 0, 1, 0, 1, 0, -1, 0, 0}},
+        {{0, 0, 3}, 0, {1, 0, 0, 0, 0, 1, 0, -1, 0}},
+        {{0, -1, 0}, 0, {1, 0, 0, 0, -1, 0, 0, 0, -1}},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        double f[9];
+        pm_sky_frame(cases[i].up, cases[i].rot, f);
+        for (int k = 0; k < 9; k++)
+            if (!(fabs(f[k] - cases[i].want[k]) < 1e-12))
+                fail_msg("sky frame %zu: element %d is %.17g, want %g", i, k, f[k], cases[i].want[k]);
+    }
+    double f[9], d[3], up[3] = {1, 2, 0.5};
+    pm_sky_frame((double[3]){0, 1, 0}, 0, f);
+    pm_sky_frame_direction(f, 30, 90, d);
+    if (!(fabs(d[0]) < 1e-12 && fabs(d[1] - 0.5) < 1e-12 && fabs(d[2] - sqrt(0.75)) < 1e-12))
+        fail_msg("elevation 30, azimuth 90: %g %g %g, want 0 0.5 0.866", d[0], d[1], d[2]);
+    pm_sky_frame(up, 37, f);
+    for (int a = 0; a < 3; a++)
+        for (int b = 0; b < 3; b++) {
+            double dot = f[3 * a] * f[3 * b] + f[3 * a + 1] * f[3 * b + 1] + f[3 * a + 2] * f[3 * b + 2];
+            if (!(fabs(dot - (a == b)) < 1e-12))
+                fail_msg("sky frame for up 1 2 0.5: rows %d, %d have dot %.17g", a, b, dot);
+        }
+    if (!(fabs(f[3] - 1 / sqrt(5.25)) < 1e-12 && fabs(f[4] - 2 / sqrt(5.25)) < 1e-12))
+        fail_msg("sky frame for up 1 2 0.5: its y row is %g %g %g", f[3], f[4], f[5]);
+    /* the y row is up, and the determinant +1 (a turn, no mirror) */
+    double det =
+        f[0] * (f[4] * f[8] - f[5] * f[7]) - f[1] * (f[3] * f[8] - f[5] * f[6]) + f[2] * (f[3] * f[7] - f[4] * f[6]);
+    if (!(fabs(det - 1.0) < 1e-12))
+        fail_msg("sky frame for up 1 2 0.5: determinant %.17g", det);
+
+    pm_envmap_t *plain = make_map(), *turned = make_map();
+    pm_envmap_set_frame(turned, f);
+    assert_int_equal(turned->framed, 1);
+    pm_rng_t r;
+    pm_rng_init(&r, 7, 3);
+    for (int i = 0; i < 20000; i++) {
+        float w[3], m[3], ws[3], wp[3];
+        pm_v3_store(w, pm_sample_sphere(pm_rng_float(&r), pm_rng_float(&r)));
+        for (int k = 0; k < 3; k++)
+            m[k] = (float)(f[3 * k] * w[0] + f[3 * k + 1] * w[1] + f[3 * k + 2] * w[2]);
+        uint32_t x1, y1, x2, y2;
+        pm_envmap_pixel(turned, w, &x1, &y1);
+        pm_envmap_pixel(plain, m, &x2, &y2);
+        float p1 = pm_envmap_pdf(turned, w), p2 = pm_envmap_pdf(plain, m);
+        /* a direction within float rounding of a pixel's edge may fall either side */
+        if (x1 == x2 && y1 == y2 && !(fabsf(p1 - p2) <= 1e-5f * p2))
+            fail_msg("turned map: pdf %.9g at w, the plain map's %.9g at its image", p1, p2);
+        if ((x1 != x2 || y1 != y2) && i % 1000 == 0)
+            print_message("turned map: w on a pixel edge (%u %u vs %u %u)\n", x1, y1, x2, y2);
+        float u1 = pm_rng_float(&r), u2 = pm_rng_float(&r);
+        pm_envmap_sample(turned, u1, u2, ws);
+        pm_envmap_sample(plain, u1, u2, wp);
+        for (int k = 0; k < 3; k++) {
+            float back = (float)(wp[0] * f[k] + wp[1] * f[3 + k] + wp[2] * f[6 + k]);
+            if (!(fabsf(back - ws[k]) < 1e-5f))
+                fail_msg("turned map: sample %d component %d is %.9g, the plain map's turned %.9g", i, k, ws[k], back);
+        }
+    }
+    pm_envmap_free(plain);
+    pm_envmap_free(turned);
+    free(plain);
+    free(turned);
+}
+
 static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_light_set),
     cmocka_unit_test(test_light_area_uniform),
@@ -758,5 +836,6 @@ static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_light_pdfs_integrate_to_one),
     cmocka_unit_test(test_light_samplers_match_pdf),
     cmocka_unit_test(test_light_envmap_sampler),
+    cmocka_unit_test(test_light_envmap_frame),
 };
 UNIT_GROUP(light_group, "light", tests)

@@ -99,12 +99,23 @@ static void test_scene_bad_input(void **state)
                        "camera.look_at: equals camera.eye");
     expect_scene_error("{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"nope.obj\"}], " CAM "}",
                        "cannot open mesh");
-    expect_scene_error("{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"m.obj\"}], " CAM "}",
-                       "Kd + Ks = 1.1 in channel r exceeds 1");
     expect_scene_error("{\"pmtk_scene\": 1, \"name\": \"x\", " CAM ", \"point_lights\": [{\"position\": [0,0,0], "
                        "\"intensity\": [1,-1,1]}]}",
                        "point_lights[0].intensity: element 1 = -1 is outside");
     expect_scene_error("{\"pmtk_scene\": 1, \"name\": \"x\", \"name\": \"y\", " CAM "}", "duplicate");
+    /* Kd + Ks above 1 is read, both scaled by one factor to sum to 1, and said once (issue 29) */
+    char path[256];
+    write_file("kdks.json", "{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"m.obj\"}], " CAM "}", path,
+               sizeof path);
+    pm_scene_t s;
+    assert_int_equal(pm_scene_load(path, &s), PM_OK);
+    assert_float_equal(s.materials[0].kd[0], 0.9f / 1.1f, 1e-6);
+    assert_float_equal(s.materials[0].ks[0], 0.2f / 1.1f, 1e-6);
+    assert_float_equal(s.materials[0].kd[1], 0.5f / 1.1f, 1e-6);
+    assert_int_equal(s.nunsupported, 1);
+    assert_string_equal(s.unsupported[0].key, "Kd + Ks");
+    assert_non_null(strstr(s.unsupported[0].note, "scaled by 0.909091"));
+    pm_scene_free(&s);
 }
 
 static void test_scene_mesh_faults(void **state)
@@ -126,7 +137,6 @@ static void test_scene_mesh_faults(void **state)
                "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
                p, sizeof p);
     static const char *const cases[][2] = {
-        {"nomtl.obj", "face 1 (line 4) comes before any usemtl"},
         {"lastmtl.obj", "face 1 (line 6, group 'floor') comes before any usemtl"},
         {"latelib.obj", "mtllib on line 5 comes after the usemtl on line 4"},
         {"badmtl.obj", "failed to locate material nosuch"},
@@ -159,6 +169,63 @@ static void test_scene_mesh_faults(void **state)
     assert_int_equal(s.nmaterials, 1);
     assert_true(s.materials[0].kd[0] == 0.8f && s.materials[0].ks[0] == 0.0f);
     assert_int_equal(s.materials[0].kind, PM_MAT_STANDARD);
+    pm_scene_free(&s);
+    /* an OBJ with no mtllib and no usemtl is geometry: the same grey, and a note (issue 29) */
+    write_file("nomtl.json", "{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"nomtl.obj\"}], " CAM "}",
+               path, sizeof path);
+    if ((r = pm_scene_load(path, &s)) != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_int_equal(s.nmaterials, 1);
+    assert_true(s.materials[0].kd[0] == 0.8f && s.materials[0].ks[0] == 0.0f);
+    assert_int_equal(s.nnotes, 1);
+    assert_non_null(strstr(s.notes[0].text, "names no material: its faces are the default grey (Kd 0.8)"));
+    pm_scene_free(&s);
+}
+
+/* Shapes (issue 29): every triangle of a sphere, a box and a disk wound with its front face
+ * outward (away from the centre; a disk's and a rectangle's toward +z before their transform),
+ * a sphere's and a disk's facets of the curved area exactly (to float rounding), a box's its
+ * six faces; a mirroring matrix keeps the fronts outward. */
+static void test_scene_shapes(void **state)
+{
+    (void)state;
+    char path[256];
+    write_file("shapes.json",
+               "{\"pmtk_scene\": 1, \"name\": \"x\", \"shapes\": ["
+               "{\"type\": \"sphere\", \"radius\": 0.5, \"segments\": 12, \"translate\": [3, 0, 0]},"
+               "{\"type\": \"box\", \"size\": [1, 2, 3], \"translate\": [-3, 0, 0]},"
+               "{\"type\": \"disk\", \"radius\": 2, \"segments\": 5, \"rotate\": {\"axis\": [1, 0, 0], "
+               "\"degrees\": -90}, \"translate\": [0, -5, 0]},"
+               "{\"type\": \"sphere\", \"radius\": 1, \"matrix\": [-1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 9, 0, 0, 0, 1]}"
+               "], " CAM "}",
+               path, sizeof path);
+    pm_scene_t s;
+    if (pm_scene_load(path, &s) != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_int_equal(s.nplacements, 4);
+    static const double centre[4][3] = {{3, 0, 0}, {-3, 0, 0}, {0, -6, 0}, {0, 0, 9}};
+    const double want[4] = {M_PI, 2 * (2 + 3 + 6), 4 * M_PI, 4 * M_PI};
+    for (size_t p = 0; p < 4; p++) {
+        const pm_placement_t *pl = &s.placements[p];
+        double area = 0.0;
+        for (uint32_t t = pl->tri0; t < pl->tri0 + pl->ntris; t++) {
+            const float *a = &s.verts[3 * s.tris[3 * t]], *b = &s.verts[3 * s.tris[3 * t + 1]],
+                        *c = &s.verts[3 * s.tris[3 * t + 2]];
+            double e1[3], e2[3], n[3], d = 0.0;
+            for (int k = 0; k < 3; k++)
+                e1[k] = (double)b[k] - a[k], e2[k] = (double)c[k] - a[k];
+            n[0] = e1[1] * e2[2] - e1[2] * e2[1], n[1] = e1[2] * e2[0] - e1[0] * e2[2],
+            n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+            /* a disk: away from the point below its centre (its front faces +y after the turn) */
+            for (int k = 0; k < 3; k++)
+                d += n[k] * (((double)a[k] + b[k] + c[k]) / 3.0 - centre[p][k]);
+            if (!(d > 0.0))
+                fail_msg("shape %zu triangle %u faces inward", p, t);
+            area += pm_scene_triangle_area(&s, t);
+        }
+        if (fabs(area / want[p] - 1.0) > 1e-6)
+            fail_msg("shape %zu: area %.9g, expected %.9g", p, area, want[p]);
+    }
     pm_scene_free(&s);
 }
 
@@ -237,7 +304,7 @@ static void test_scene_unsupported(void **state)
 {
     char p[256];
     write_file("u.mtl",
-               "newmtl tex\nKd 0.5 0.5 0.5\nmap_Ka tex.png\nbump b.png\nd 0.5\nTr 0.25\nillum 6\nNi 1.5\n"
+               "newmtl tex\nKd 0.5 0.5 0.5\nmap_Ka tex.png\ndisp b.png\nd 0.5\nTr 0.25\nillum 6\nNi 1.5\n"
                "Tf 0.9 0.8 0.7\nsharpness 60\nrefl -type sphere r.png\nnewmtl plain\nKd 0.5 0.5 0.5\nd 1\nillum "
                "2\nnewmtl unused\nKd 0.1 0.1 0.1\n"
                "map_Kd u.png\n",
@@ -252,7 +319,7 @@ static void test_scene_unsupported(void **state)
         fail_msg("%s", pm_error_message());
     assert_int_equal(s.nmaterials, 2);
     static const char *const want[][2] = {
-        {"map_Ka", "tex.png"}, {"bump", "b.png"},     {"d", "0.75"},       {"illum", "6"},
+        {"map_Ka", "tex.png"}, {"disp", "b.png"},     {"d", "0.75"},       {"illum", "6"},
         {"Ni", "1.5"},         {"Tf", "0.9 0.8 0.7"}, {"sharpness", "60"}, {"refl", "-type sphere r.png"}};
     assert_int_equal(s.nunsupported, sizeof want / sizeof want[0]);
     for (size_t i = 0; i < sizeof want / sizeof want[0]; i++) {
@@ -566,6 +633,7 @@ static void make_material(pm_material_t *m, int kind, unsigned char fill)
     memset(m, fill, sizeof *m);
     snprintf(m->name, sizeof m->name, "brass");
     m->kind = kind;
+    m->two_sided = 0; /* read (for an emitter) like the kind */
     for (size_t f = 0; f < sizeof mat_fields / sizeof mat_fields[0]; f++)
         for (size_t i = 0; i < mat_fields[f].n; i++)
             ((float *)((char *)m + mat_fields[f].offset))[i] = 0.25f + 0.125f * (float)(f + i);
@@ -602,6 +670,13 @@ static void test_scene_identity_fields(void **state)
         c = a;
         c.kind = kind == PM_MAT_PLASTIC ? PM_MAT_STANDARD : kind + 1;
         assert_true(pm_scene_materials_hash(&c, 1) != h);
+        c = a; /* an emitter lighting from both faces is another light */
+        c.two_sided = 1;
+        assert_true(pm_scene_materials_hash(&c, 1) != h);
+        c.ke[0] = c.ke[1] = c.ke[2] = 0.0f; /* not read where nothing is emitted */
+        pm_material_t d = c;
+        d.two_sided = 0;
+        assert_true(pm_scene_materials_hash(&c, 1) == pm_scene_materials_hash(&d, 1));
     }
     /* a conductor by complex index reads eta and k, not f0 */
     pm_material_t a, b;
@@ -689,11 +764,18 @@ static void test_scene_identity_parts(void **state)
 }
 
 static const struct CMUnitTest tests[] = {
-    cmocka_unit_test(test_scene_cornell_box),     cmocka_unit_test(test_scene_bad_input),
-    cmocka_unit_test(test_scene_mesh_faults),     cmocka_unit_test(test_scene_degenerate_triangles),
-    cmocka_unit_test(test_scene_unsupported),     cmocka_unit_test(test_scene_unsupported_gltf),
-    cmocka_unit_test(test_scene_pbr_mtl),         cmocka_unit_test(test_scene_phong_formats_stay_phong),
-    cmocka_unit_test(test_scene_pbr_gltf),        cmocka_unit_test(test_scene_pbr_texture),
-    cmocka_unit_test(test_scene_identity_fields), cmocka_unit_test(test_scene_identity_parts),
+    cmocka_unit_test(test_scene_cornell_box),
+    cmocka_unit_test(test_scene_bad_input),
+    cmocka_unit_test(test_scene_mesh_faults),
+    cmocka_unit_test(test_scene_shapes),
+    cmocka_unit_test(test_scene_degenerate_triangles),
+    cmocka_unit_test(test_scene_unsupported),
+    cmocka_unit_test(test_scene_unsupported_gltf),
+    cmocka_unit_test(test_scene_pbr_mtl),
+    cmocka_unit_test(test_scene_phong_formats_stay_phong),
+    cmocka_unit_test(test_scene_pbr_gltf),
+    cmocka_unit_test(test_scene_pbr_texture),
+    cmocka_unit_test(test_scene_identity_fields),
+    cmocka_unit_test(test_scene_identity_parts),
 };
 UNIT_GROUP(unit_scene, "scene", tests);

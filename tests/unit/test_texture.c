@@ -206,10 +206,12 @@ static void test_texture_bad_images(void **state)
 {
     (void)state;
     expect_texture_error("none.png", "cannot open texture");
-    write_text("t.tga", "\0\0\2\0\0\0\0\0\0\0\0\0\1\0\1\0\x18\0"); /* a header, no pixel */
-    expect_texture_error("t.tga", "stb_image");
+    write_text("t.tga", ""); /* empty */
+    expect_texture_error("t.tga", "truncated TGA: 0 bytes");
     write_text("t.bmp", "BM not really");
-    expect_texture_error("t.bmp", "not a PNG, JPEG, OpenEXR or TGA image");
+    expect_texture_error("t.bmp", "a BMP image");
+    write_text("t.xyz", "not an image");
+    expect_texture_error("t.xyz", "not a PNG, JPEG, OpenEXR or (named .tga) TGA image");
     write_png_header("wide.png", 70000, 1);
     expect_texture_error("wide.png", "70000 x 1 pixels: each side must be 1 to 65536");
     write_png_header("tall.png", 1, 65537);

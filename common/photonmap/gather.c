@@ -198,7 +198,7 @@ void pm_gather_brute(const pm_gather_map_t *m, const pm_gather_queries_t *q, uin
             /* the same float arithmetic as the kernels, so that ties at the sphere agree */
             float dx = y[0] - x[0], dy = y[1] - x[1], dz = y[2] - x[2];
             float d2 = dx * dx + dy * dy + dz * dz;
-            float h = p->variable ? m->width[j] : (float)p->radius;
+            float h = p->variable ? m->width[j] : p->per_query ? q->radius[i] : (float)p->radius;
             if (!(d2 < h * h))
                 continue;
             if (!(n[0] * pn[0] + n[1] * pn[1] + n[2] * pn[2] >= p->normal_cos))
@@ -210,7 +210,7 @@ void pm_gather_brute(const pm_gather_map_t *m, const pm_gather_queries_t *q, uin
                 s[k] += kv * f[k] * m->power[3 * (size_t)j + k];
         }
         for (int k = 0; k < 3; k++)
-            out[3 * (i - begin) + k] = s[k] * q->weight[3 * i + k];
+            out[3 * (i - begin) + k] = q->weight ? s[k] * q->weight[3 * i + k] : s[k];
     }
 }
 
@@ -235,7 +235,12 @@ pm_result_t pm_gather_run(const pm_gather_map_t *m, const pm_gather_queries_t *q
 {
     memset(stats, 0, sizeof *stats);
     pm_result_t res = pm_gather_check_range(q, begin, end);
-    if (res == PM_OK && !p->variable)
+    if (res == PM_OK && p->per_query && (p->variable || !q->radius))
+        res = pm_error_set(PM_ERR_INTERNAL, "per-query widths need the queries' radius array and fixed photon widths");
+    for (uint64_t i = begin; res == PM_OK && p->per_query && i < end; i++)
+        if ((res = pm_gather_check_radius(q->radius[i])) != PM_OK)
+            pm_error_prefix("query %" PRIu64, i);
+    if (res == PM_OK && !p->variable && !p->per_query)
         res = pm_gather_check_radius(p->radius);
     if (res != PM_OK)
         return res;
@@ -264,21 +269,24 @@ pm_result_t pm_gather_run(const pm_gather_map_t *m, const pm_gather_queries_t *q
                       .mat_fdr = fdr};
     const double inv_pi = 0.31830988618379067;
     c.kscale_unit = (float)((p->kernel == PM_KERNEL_UNIFORM ? 1.0 : 2.0) * inv_pi);
-    double r = p->variable ? 0.0 : p->radius;
+    double r = p->variable || p->per_query ? 0.0 : p->radius;
     if (p->variable)
         for (uint32_t i = 0; i < m->n; i++)
             r = fmax(r, m->width[i]);
+    if (p->per_query)
+        for (uint64_t i = begin; i < end; i++)
+            r = fmax(r, q->radius[i]);
     /* A plane is the photon's coordinate to within 3 ulp, and q - split rounds by half an
      * ulp of the larger: 2^-20 of the largest magnitude in play covers both. */
     c.slack = (float)(((double)m->max_abs + r) * 0x1p-20);
-    if (!p->variable) {
+    if (!p->variable && !p->per_query) {
         c.r = (float)p->radius;
         c.r2 = c.r * c.r;
         c.inv_r2 = 1.0f / c.r2;
         c.r_trav = c.r + c.slack;
         c.kscale = c.kscale_unit * c.inv_r2;
     }
-    gather_fn_t fn = gather_kernel_for(p->isa, p->variable);
+    gather_fn_t fn = gather_kernel_for(p->isa, p->per_query ? 2 : p->variable);
     uint64_t nblocks = (end - begin + BLOCK_QUERIES - 1) / BLOCK_QUERIES;
     pm_gather_stats_t total = {0};
 #pragma omp parallel

@@ -56,10 +56,11 @@ typedef struct {
 /* The queries as the gather reads them (structure of arrays, from a queries table). */
 typedef struct {
     uint64_t n;
-    const float *pos, *normal, *weight; /* n * 3 each */
+    const float *pos, *normal, *weight; /* n * 3 each; weight NULL: 1 (pm_gather_run and brute only) */
     const uint32_t *pixel;
     const uint16_t *material;       /* NULL: every query has material 0 */
     const float *dir;               /* n * 3 or NULL */
+    const float *radius;            /* n or NULL: each query's kernel width h, m (params' per_query) */
     const pm_material_t *materials; /* the file's material table */
     uint32_t nmaterials;
 } pm_gather_queries_t;
@@ -68,6 +69,7 @@ typedef struct {
     double radius; /* m: fixed kernel width h (ignored with variable widths) */
     pm_kernel_t kernel;
     int variable;     /* 1: each photon's own width from the map's width channel */
+    int per_query;    /* 1: each query's own width from q->radius (radius ignored; not with variable) */
     float normal_cos; /* a photon counts when dot(n_photon, n_query) >= this */
     pm_isa_t isa;
 } pm_gather_params_t;

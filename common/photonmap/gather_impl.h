@@ -63,7 +63,7 @@ typedef void (*gather_fn_t)(const gather_ctx_t *c, uint64_t begin, uint64_t end,
  * value k (K / h^2): adds k f(wi, wo) power to dacc[channel * w + l]. */
 void gather_glossy_lane(const gather_ctx_t *c, uint64_t qi, uint32_t ni, float k, double *dacc, uint32_t w, uint32_t l);
 
-/* The kernels of gather_isa.c: [isa][variable]. */
-gather_fn_t gather_kernel_for(pm_isa_t isa, int variable);
+/* The kernels of gather_isa.c: [isa][widths], widths 0 fixed, 1 per photon, 2 per query. */
+gather_fn_t gather_kernel_for(pm_isa_t isa, int widths);
 
 #endif

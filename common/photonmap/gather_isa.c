@@ -171,12 +171,12 @@ typedef int vi16 __attribute__((vector_size(64)));
 #pragma GCC pop_options
 #endif
 
-gather_fn_t gather_kernel_for(pm_isa_t isa, int variable)
+gather_fn_t gather_kernel_for(pm_isa_t isa, int widths)
 {
-    switch (isa) {
-    case PM_ISA_SSE4: return variable ? gather_packets_sse4_var : gather_packets_sse4_fixed;
-    case PM_ISA_AVX2: return variable ? gather_packets_avx2_var : gather_packets_avx2_fixed;
-    case PM_ISA_AVX512: return variable ? gather_packets_avx512_var : gather_packets_avx512_fixed;
-    default: return variable ? gather_packets_scalar_var : gather_packets_scalar_fixed;
-    }
+    static const gather_fn_t fns[PM_ISA_COUNT][3] = {
+        [PM_ISA_SCALAR] = {gather_packets_scalar_fixed, gather_packets_scalar_var, gather_packets_scalar_perq},
+        [PM_ISA_SSE4] = {gather_packets_sse4_fixed, gather_packets_sse4_var, gather_packets_sse4_perq},
+        [PM_ISA_AVX2] = {gather_packets_avx2_fixed, gather_packets_avx2_var, gather_packets_avx2_perq},
+        [PM_ISA_AVX512] = {gather_packets_avx512_fixed, gather_packets_avx512_var, gather_packets_avx512_perq}};
+    return fns[(unsigned)isa < PM_ISA_COUNT ? isa : PM_ISA_SCALAR][widths >= 0 && widths <= 2 ? widths : 0];
 }

@@ -1,5 +1,5 @@
-/* gather_isa_inst.h: instantiates gather_kernel.h for one ISA, fixed and variable widths
- * (gather_packets_ISA_fixed, gather_packets_ISA_var), then clears that ISA's macros so the
+/* gather_isa_inst.h: instantiates gather_kernel.h for one ISA, fixed, per-photon and
+ * per-query widths (gather_packets_ISA_fixed, _var, _perq), then clears that ISA's macros so the
  * next one can define its own. Included by gather_isa.c with ISA_NAME and the vector
  * macros of gather_kernel.h defined. */
 #define GATHER_CAT3(a, b, c) a##b##c
@@ -12,6 +12,11 @@
 #undef FN
 #define VAR 1
 #define FN(x) GATHER_NAME(x, ISA_NAME, _var)
+#include "photonmap/gather_kernel.h"
+#undef VAR
+#undef FN
+#define VAR 2
+#define FN(x) GATHER_NAME(x, ISA_NAME, _perq)
 #include "photonmap/gather_kernel.h"
 #undef VAR
 #undef FN

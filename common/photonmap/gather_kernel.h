@@ -2,7 +2,8 @@
  * SIMD width. Included by gather_isa.c once per ISA, with these defined:
  *
  *   W            lanes (1, 4, 8, 16)           FN(x)        name suffix for this ISA and VAR
- *   VAR          0: one fixed width h; 1: per-photon widths (the map's width channel)
+ *   VAR          0: one fixed width h; 1: per-photon widths (the map's width channel);
+ *                2: per-query widths (the queries' radius array, the library's API)
  *   V            the vector type               VSET1(x), VLOAD(p), VSTORE(p, v), VADD,
  *   VSUB, VMUL, VFMA(a, b, c) = a b + c        BLE(a, b), BLT, BGE: lane bits of a <= b, ...
  *   VMASKED(bits, v): v in the lanes of bits, 0 elsewhere; VSQRTF(x): the square root of a VF
@@ -195,10 +196,11 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
     const float *pnor = m->normal, *ppow = m->power;
     uint64_t ops = 0, steps = 0, lanes = 0, straddling = 0, visits = 0, packets = 0;
     const uint32_t full = W == 32 ? 0xffffffffu : (1u << W) - 1u;
-#if !VAR
+#if VAR == 0
     const V rt = VSET1(c->r_trav), nrt = VSET1(-c->r_trav), r2 = VSET1(c->r2);
+    const V kscale = VSET1(c->kscale), kinv = VSET1(c->inv_r2);
 #endif
-    const V ncos = VSET1(c->normal_cos), one = VSET1(1.0f), kscale = VSET1(c->kscale), kinv = VSET1(c->inv_r2);
+    const V ncos = VSET1(c->normal_cos), one = VSET1(1.0f);
     const int epan = c->kernel == PM_KERNEL_EPANECHNIKOV;
 
     for (uint64_t b = begin; b < end; b += W) {
@@ -224,6 +226,20 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
         if (glossy)
             FN(glossy_lanes)(c, b, glossy, gl, lwo, &ggx, &slow);
 #endif
+#if VAR == 2
+        /* Per-query widths: each lane's own h, h grown by the slack, h^2, 1/h^2 and K(0)/h^2;
+         * the walk and the shading are those of one fixed width, lane by lane. */
+        _Alignas(64) float lr[5][W];
+        for (uint32_t l = 0; l < W; l++) {
+            float h = q->radius[b + (l < nl ? l : 0)], h2 = h * h;
+            lr[0][l] = h + c->slack;
+            lr[1][l] = -(h + c->slack);
+            lr[2][l] = h2;
+            lr[3][l] = 1.0f / h2;
+            lr[4][l] = c->kscale_unit * lr[3][l]; /* as gather.c's fixed kscale, to the bit */
+        }
+        const V rt = VLOAD(lr[0]), nrt = VLOAD(lr[1]), r2 = VLOAD(lr[2]), kinv = VLOAD(lr[3]), kscale = VLOAD(lr[4]);
+#endif
         const V qx = VLOAD(lq[0]), qy = VLOAD(lq[1]), qz = VLOAD(lq[2]);
         const V nx = VLOAD(lq[3]), ny = VLOAD(lq[4]), nz = VLOAD(lq[5]);
         V qa[3] = {qx, qy, qz};
@@ -244,7 +260,7 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
             const pm_gather_hot_t *hp = &hot[ni];
             const uint32_t link = hp->link;
             uint32_t axis = link >> 30, shade = mask, straddle = mask, ml = 0, mr = 0, right = PM_KD_NONE;
-#if VAR
+#if VAR == 1
             const float wi = m->width[ni];
 #endif
             if (axis != PM_KD_LEAF) {
@@ -252,7 +268,7 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
                 uint32_t child = link & PM_GATHER_NO_CHILD;
                 int has_left = child != ni + 1;
                 right = child == PM_GATHER_NO_CHILD ? PM_KD_NONE : child; /* child == ni + 1: right only */
-#if VAR
+#if VAR == 1
                 float wl = has_left ? m->subtree_width[ni + 1] + c->slack : 0.0f;
                 float wr = right != PM_KD_NONE ? m->subtree_width[right] + c->slack : 0.0f;
                 float ws = wi + c->slack;
@@ -275,7 +291,7 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
                 const float *pp = hp->p;
                 V dx = VSUB(qx, VSET1(pp[0])), dy = VSUB(qy, VSET1(pp[1])), dz = VSUB(qz, VSET1(pp[2]));
                 V d2 = VFMA(dx, dx, VFMA(dy, dy, VMUL(dz, dz)));
-#if VAR
+#if VAR == 1
                 const float h2 = wi * wi;
                 uint32_t hit = shade & BLT(d2, VSET1(h2));
 #else
@@ -291,10 +307,9 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
                 }
                 if (hit) {
                     ops += (uint64_t)__builtin_popcount(hit);
-#if VAR
+#if VAR == 1
                     const float ks = c->kscale_unit / h2, ki = 1.0f / h2;
                     V kv = epan ? VMUL(VSET1(ks), VSUB(one, VMUL(d2, VSET1(ki)))) : VSET1(ks);
-                    (void)kscale, (void)kinv;
 #else
                     V kv = epan ? VMUL(kscale, VSUB(one, VMUL(d2, kinv))) : kscale;
 #endif
@@ -362,10 +377,10 @@ static void FN(gather_packets)(const gather_ctx_t *c, uint64_t begin, uint64_t e
         }
         FLUSH(ar, ag, ab, dacc);
         for (uint32_t l = 0; l < nl; l++) {
-            const float *w = &q->weight[3 * (b + l)];
+            const float *w = q->weight ? &q->weight[3 * (b + l)] : NULL; /* NULL: weights of 1 */
             double *o = &out[3 * (b + l - begin)];
             for (int k = 0; k < 3; k++)
-                o[k] = dacc[k][l] * w[k];
+                o[k] = w ? dacc[k][l] * w[k] : dacc[k][l];
         }
     }
     st->shader_ops += ops;

@@ -44,6 +44,7 @@
 # On the plane nothing lies above the floor: no secondary ray hits, there are no queries, the
 # indirect buffer is zero and the full image is the direct buffer's exact f I cos / r^2
 # (float arithmetic: within 1e-5).
+# programs: build-photonmap composite hilbert-sort simd-gather trace-gather-points trace-photons pm-render
 source tests/scenes/make-analytic.sh
 PI=3.141592653589793
 TOL_DV="-v tmean=0.02 -v trms=0.15 -v tmax=0.5"

@@ -3,6 +3,7 @@
 # any thread count; composite --aov lays them beside R G B as Open Image Denoise and Blender name
 # them (albedo.R/G/B, normal.X/Y/Z, Z, variance.R/G/B) and only when asked; trace-reference --aov
 # and pm-render AOV= likewise; what cannot be done is refused with exit 2 and says why.
+# programs: composite trace-gather-points trace-reference pm-render
 BOX=tests/scenes/closed-box/scene.json
 DUMP=$BUILD/tests/pm-exrdump
 TGP=$BIN/trace-gather-points

@@ -2,6 +2,7 @@
 # Cornell box inputs: reverse equals simd-gather (same radius, both kernels, and --k);
 # knn-gather equals an O(n m) k-nearest-neighbour reference written here in awk; both are
 # bit-identical over thread counts; bad inputs are refused with one line and no file.
+# programs: knn-gather reverse-gather simd-gather trace-gather-points
 G=tests/golden
 MAP=$G/build-photonmap-cornell.pm
 Q=$G/gather-cornell-16x16-spp8.pm

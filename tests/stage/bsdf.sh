@@ -19,6 +19,7 @@
 #      walls' Fresnel moves the floor by far more.
 #   4. A small lamp that a floor sees only through a frosted slab: trace-reference against the
 #      direct buffer of trace-gather-points, where only transmitted BSDF samples find it.
+# programs: build-photonmap composite measure-error scene-info simd-gather trace-gather-points trace-photons trace-reference
 R=$BIN/trace-reference
 DUMP=$BUILD/tests/pm-exrdump
 

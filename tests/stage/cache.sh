@@ -4,6 +4,7 @@
 # corrupt intermediate is named and rebuilt, a failing stage is called failed, paths holding
 # '#', '$', ':' and spaces render, every parameter is judged before anything runs (exit 2, one
 # line, no OUTDIR), and the scene's unsupported material keys reach the user once per render.
+# programs: simd-gather pm-render
 R=pipelines/render
 CORNELL=scenes/cornell-box/scene.json
 TINY="PHOTONS=5000 SPP=4 WIDTH=16 HEIGHT=12"

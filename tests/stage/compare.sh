@@ -1,5 +1,6 @@
 # compare.sh: pm-compare agrees with itself, sees differences, honours tolerances and
 # ignores only the volatile header keys.
+# programs: pm-compare pm-info
 G=tests/golden
 TG=$BUILD/tests/pm-testgen
 expect_exit "identical files agree" 0 "$BIN/pm-compare" "$G/photons-all.pm" "$G/photons-all.pm"

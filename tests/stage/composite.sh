@@ -1,6 +1,7 @@
 # composite.sh: radiance buffers into OpenEXR and PNG. The EXR is read back two ways: pixel
 # values through the OpenEXR C API (build/tests/pm-exrdump, common/base/exr.c's reader), channels
 # and attributes through OpenEXR's own exrheader. No timing here.
+# programs: composite
 G=tests/golden
 C=$BIN/composite
 GEN=$BUILD/tests/pm-testgen

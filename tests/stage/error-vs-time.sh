@@ -3,6 +3,7 @@
 # written by composite, a PFM, or trace-reference's own with area pixels), keeps the best per
 # budget, refuses a reference of another size before writing anything, and draws the
 # progressive curve (a row per pass of one render) falling.
+# programs: pm-render measure-error
 E=pipelines/error-vs-time
 CORNELL=scenes/cornell-box/scene.json
 SIZE="WIDTH=16 HEIGHT=16"

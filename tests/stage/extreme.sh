@@ -6,6 +6,7 @@
 # Everywhere: no NaN or Inf in any output. The readers reject a non-finite value in any
 # channel of any pmtk file, so `pm-info FILE` exiting 0 proves a file finite; EXR images are
 # read back with pm-exrdump and every value checked.
+# programs: build-photonmap composite hilbert-sort measure-error scene-info simd-gather trace-gather-points trace-photons trace-reference
 source tests/scenes/make-box.sh
 source tests/scenes/make-extreme.sh
 PI=3.141592653589793

@@ -1,6 +1,7 @@
 # formats.sh: every format against its golden file, pm-info's text against its golden
 # text, version-1 files read as before, and the bad-input corpus: each corrupt file gets
 # its one-line error and exit 1.
+# programs: build-photonmap hilbert-sort simd-gather trace-photons
 G=tests/golden
 TG=$BUILD/tests/pm-testgen
 

@@ -8,6 +8,7 @@
 # secondary paths continue past the floor; rough glass holds no photons and is always passed.
 # Measured (seed 1, 24 x 24, 200,000 photons, k 50): conductor 0.25 -1.0%, plastic 0.25 -0.7%,
 # conductor 0.09 -0.5%, plastic 0.04 -0.5%, rough glass 0.25 -0.9%.
+# programs: build-photonmap composite measure-error scene-info simd-gather trace-gather-points trace-photons trace-reference
 G=$TMP/kinds
 mkdir -p "$G"
 lamp_box_obj "$G/box.obj" floor

@@ -5,6 +5,7 @@
 # Ns 10000) under a 0.6 m square lamp in the ceiling, seen from a camera that looks at the back
 # wall and never sees the lamp: the walls' indirect light is mostly the lamp's image in the floor,
 # which a gather on the floor estimates from the few photons inside its lobe (speckle).
+# programs: build-photonmap composite measure-error simd-gather trace-gather-points trace-photons trace-reference
 G=$TMP/glossy
 mkdir -p "$G"
 lamp_box_obj "$G/box.obj" gloss

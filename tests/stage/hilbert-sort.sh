@@ -1,6 +1,7 @@
 # hilbert-sort.sh: the output is a permutation of the input, in the golden order; --order none
 # passes records through byte for byte; degenerate inputs end with a valid file; bad input
 # gives one line, exit 1 and no output; pipes work; thread counts agree bit for bit.
+# programs: hilbert-sort
 G=tests/golden
 TG=$BUILD/tests/pm-testgen
 HS=$BIN/hilbert-sort

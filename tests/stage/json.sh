@@ -1,6 +1,7 @@
 # json.sh: pm-info --json and scene-info --json, the outputs the pipelines read with jq. Every
 # value is checked against the text the same program prints for the same file or scene (whose
 # bytes tests/golden/*.txt and scenes.sh pin down), so the two outputs cannot drift apart.
+# programs: pm-info scene-info
 command -v jq >/dev/null || { fail "json.sh needs jq" "jq is not installed (make deps)"; return; }
 G=tests/golden
 PI=$BIN/pm-info

@@ -4,6 +4,7 @@
 # file may include only its own layer and the layers below it, so that dependencies point
 # one way. A ../ path, a layer reached upwards, or an include of a header that does not
 # exist fails here, with the file, the line and the rule it broke.
+# programs: none
 
 # layer: the layers its files may include (itself first).
 layer_allows() {
@@ -16,7 +17,8 @@ layer_allows() {
     photonmap) echo "photonmap physics math formats base" ;;
     image) echo "image math formats base" ;;
     engine) echo "engine render photonmap image physics math formats base" ;;
-    top) echo "engine render photonmap image physics math formats base" ;; # stages/, tests/: anything in the library
+    api) echo "api engine render photonmap image physics math formats base" ;; # the public API: over everything
+    top) echo "api engine render photonmap image physics math formats base" ;; # stages/, tests/: anything in the library
     esac
 }
 
@@ -30,6 +32,7 @@ layer_of() {
     common/photonmap/*) echo photonmap ;;
     common/image/*) echo image ;;
     common/engine/*) echo engine ;;
+    common/api/*) echo api ;;
     common/*) echo stray ;; # a file directly in common/ belongs to no layer
     *) echo top ;;
     esac
@@ -43,7 +46,7 @@ check_layers() (
             [ -f "$f" ] || continue
             l=$(layer_of "$f")
             if [ "$l" = stray ]; then
-                echo "$f: not in a layer folder (common/base, math, physics, render, photonmap, image, engine)"
+                echo "$f: not in a layer folder (common/base, math, physics, render, photonmap, image, engine, api)"
                 continue
             fi
             allowed=$(layer_allows "$l")
@@ -56,6 +59,14 @@ check_layers() (
                         continue
                         ;;
                     */*) ;;
+                    pmtk.h)
+                        # The public header (include/pmtk.h): for the api layer and above.
+                        case " $allowed " in
+                        *" api "*) ;;
+                        *) echo "$f:$n: layer $l includes the public pmtk.h, which only the api layer and above may" ;;
+                        esac
+                        continue
+                        ;;
                     *)
                         # A bare name is a file beside the includer (tests' own unit.h).
                         [ -f "$(dirname "$f")/$inc" ] || echo "$f:$n: include '$inc' names no layer"

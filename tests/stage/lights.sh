@@ -17,6 +17,7 @@
 # reach of the cone's edge (3 degrees) are left out of the ratio, and beyond it the photon
 # image must be exactly 0 (no photon leaves the cone). Next-event estimation of a delta light
 # is exact up to float rounding (1e-4).
+# programs: build-photonmap composite scene-info simd-gather trace-gather-points trace-photons trace-reference
 PI=3.141592653589793
 
 # lit_plane DIR KD LIGHTS-JSON [HALF]: the plane (half-width HALF m, default 20) and the camera,

@@ -2,6 +2,7 @@
 # against twice itself (error = the reference), an EXR against its own radiance file, references
 # as another renderer writes them (PFM in both byte orders, tiled and ripmapped EXR), and bad
 # inputs (a reference of another size, a truncated PFM).
+# programs: build-photonmap composite measure-error simd-gather trace-gather-points trace-photons
 source tests/scenes/make-analytic.sh
 ME=$BIN/measure-error
 make_lit_plane "$TMP/plane" 1 3.141592653589793 0.5

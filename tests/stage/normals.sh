@@ -14,6 +14,7 @@
 # sphere written without normals, and they are off the smooth closed form; a light at the
 # horizon of every hit (grazing) gives finite pixels everywhere, and photons grazing a plane whose
 # normals lean 60 degrees carry the adjoint factor capped at 10.
+# programs: build-photonmap composite scene-info simd-gather trace-gather-points trace-photons trace-reference
 PI=3.141592653589793
 
 # sphere DIR WITH-VN: the sphere's OBJ and MTL (KD 0.6) in DIR.

@@ -5,6 +5,7 @@
 # output name works; the file is fsync'ed before its rename.
 # Device nodes are made here with mknod (as root): an unfixed program would replace the node it
 # writes to, so the system's /dev/null and /dev/full are never named as outputs by root.
+# programs: composite hilbert-sort measure-error trace-gather-points trace-reference
 TG=$BUILD/tests/pm-testgen
 HS=$BIN/hilbert-sort
 C=$BIN/composite

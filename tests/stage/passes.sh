@@ -8,6 +8,7 @@
 # no byte, the image whole after every pass, an interrupted run) and the pass directories of
 # KEEP=all (pass files, reuse of finished passes, a pass that fails, an interrupted run, bad
 # input). The closed-form check of convergence is in analytic.sh.
+# programs: build-photonmap composite hilbert-sort knn-gather reverse-gather simd-gather trace-gather-points trace-photons pm-render
 R=pipelines/render
 CORNELL=scenes/cornell-box/scene.json
 SMALL="PHOTONS=20000 SPP=4 WIDTH=32 HEIGHT=24"

@@ -2,6 +2,7 @@
 # left out, and writes image.exr, image.png and stats.json; pipelines/frames and the documented
 # examples run. The dependency logic is checked with a stand-in gather (GATHER=PATH) that is
 # fast and whose output is known, then the whole render with the real simd-gather.
+# programs: pm-render trace-photons build-photonmap trace-gather-points hilbert-sort simd-gather composite
 R=pipelines/render
 CORNELL=scenes/cornell-box/scene.json
 SMALL="PHOTONS=20000 SPP=4 WIDTH=32 HEIGHT=24"

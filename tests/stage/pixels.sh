@@ -4,6 +4,7 @@
 # fraction times Ke: 1, 1, 0.25, 0, ... of Ke = (1, 0.5, 0.25) W/(m^2 sr). Checked through
 # trace-gather-points' direct buffer and trace-reference's radiance buffer; --pixel center
 # (every ray through the centre, which column 2's misses) must fail the same check.
+# programs: measure-error trace-gather-points trace-reference
 EDGE=tests/scenes/edge/scene.json
 T=$BIN/trace-gather-points
 R=$BIN/trace-reference

@@ -4,6 +4,7 @@
 # scene, a deleted, truncated or corrupt intermediate is named and remade (issue 28 item 1: a
 # lost queries.pm never blocks a later render), and a rerun with nothing to do runs nothing and
 # touches no file. Outputs are the same bytes for any THREADS and VERBOSE.
+# programs: pm-render
 PR=$BIN/pm-render
 TINY="PHOTONS=4000 SPP=4 WIDTH=16 HEIGHT=12"
 sorted() { tr ' ' '\n' | grep -v '^$' | sort | tr '\n' ' ' | sed 's/ $//'; }

@@ -1,6 +1,7 @@
 # progress.sh: pipelines/render and pipelines/frames show progress on a terminal (issue 21,
 # point 3): which stage runs, its place, the time left and the stage's own progress line;
 # nothing of it off a terminal or with QUIET=1. The terminal is script(1)'s pty.
+# programs: pm-render trace-photons trace-gather-points simd-gather
 R=pipelines/render
 CORNELL=scenes/cornell-box/scene.json
 TINY="PHOTONS=20000 SPP=4 WIDTH=24 HEIGHT=16"

@@ -4,6 +4,7 @@
 # pm-info does; the writer refuses what a reader would; the programs run from Python with their
 # exit class; a 1M-record photon map read in under 0.1 s (reported; checked against a loose 1 s
 # here, since the machine is shared); libpmtk through ctypes when it is built.
+# programs: libpmtk build-photonmap trace-gather-points pm-info
 PY=/usr/bin/python3
 export PYTHONPATH=$PWD/python PMTK_BIN=$BIN
 G=tests/golden

@@ -2,6 +2,7 @@
 # Against closed-form scenes (tests/scenes/make-analytic.sh) pixel by pixel, with tolerances
 # from its own reported standard error; against the photon pipeline on the Cornell box; and
 # its contract: bit-identical for any --threads, --resume continues exactly, refusals.
+# programs: build-photonmap composite hilbert-sort measure-error simd-gather trace-gather-points trace-photons trace-reference
 source tests/scenes/make-analytic.sh
 PI=3.141592653589793
 R=$BIN/trace-reference

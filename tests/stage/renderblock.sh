@@ -4,6 +4,7 @@
 # reverse-gather and hilbert-sort read them from the queries header (render.k, render.radius,
 # render.leaf), which trace-gather-points copies from the scene. One check per key, each with
 # a value no default has.
+# programs: build-photonmap hilbert-sort knn-gather trace-gather-points trace-photons trace-reference
 CB=$PWD/scenes/cornell-box
 # scene NAME JQ: the Cornell box with its render block edited by JQ, as $TMP/NAME.json
 scene() { jq --arg d "$CB" ".meshes |= map(.file = (\$d + \"/\" + .file)) | $2" "$CB/scene.json" >"$TMP/$1.json"; }

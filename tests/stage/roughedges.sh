@@ -2,6 +2,7 @@
 # pipelines/render (its own command line, rows labelled by program, bad usage exit 2 before
 # anything runs), composite's PNG preview of an OpenEXR image, the warning for an emitter
 # wound away from the scene, and a glTF metallic factor between 0 and 1 reported where pmtk approximates it.
+# programs: composite scene-info trace-photons pm-render
 R=pipelines/render
 CORNELL=scenes/cornell-box/scene.json
 TINY="PHOTONS=5000 SPP=4 WIDTH=16 HEIGHT=12"

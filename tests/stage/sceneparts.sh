@@ -4,6 +4,7 @@
 # they were, so hilbert-sort does not run; scene-info reports each part; the gather takes a
 # map and queries of the same scene whose keys name different parts, and refuses another
 # scene's.
+# programs: scene-info simd-gather trace-reference pm-render trace-photons build-photonmap trace-gather-points composite
 R=pipelines/render
 TINY="PHOTONS=5000 SPP=4"
 sorted() { tr ' ' '\n' | grep -v '^$' | sort | tr '\n' ' ' | sed 's/ $//'; }

@@ -1,4 +1,5 @@
 # scenes.sh: the shipped scenes load, and scene-info reports them; bad scenes fail clearly.
+# programs: scene-info trace-gather-points trace-photons trace-reference
 "$BIN/scene-info" --probe --stats "$TMP/s.json" scenes/cornell-box/scene.json >"$TMP/out" 2>"$TMP/err"
 if [ $? = 0 ] && grep -q '^triangles: 32 ' "$TMP/out" && grep -q '"probe_hits"' "$TMP/s.json"; then
     pass "scene-info loads the Cornell box and probes it"

@@ -3,6 +3,7 @@
 # Golden file (regenerate only when a change is meant to alter it, and say why):
 #   bin/simd-gather tests/golden/build-photonmap-cornell.pm tests/golden/gather-cornell-16x16-spp8.pm \
 #       --radius 0.05 -o tests/golden/simd-gather-cornell.pm
+# programs: build-photonmap hilbert-sort simd-gather trace-gather-points
 G=tests/golden
 MAP=$G/build-photonmap-cornell.pm
 Q=$G/gather-cornell-16x16-spp8.pm

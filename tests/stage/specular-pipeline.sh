@@ -7,6 +7,7 @@
 # specular chain (E S* L) and next-event estimation at the first diffuse hit (E S* D L);
 # caustic = the caustic map at that hit (E S* D S+ L); indirect = the global map at the hits
 # of the secondary rays, through specular chains too (E S* D S* D ... L).
+# programs: build-photonmap composite measure-error simd-gather trace-gather-points trace-photons trace-reference pm-render
 source tests/scenes/make-analytic.sh
 PI=3.141592653589793
 D=$TMP/specpipe

@@ -2,6 +2,7 @@
 # a mirror ceiling doubles a light by its image, a lossless glass sphere leaves the furnace
 # unchanged, a glass slab reflects 2R / (1 + R) at normal incidence and conserves energy, index
 # 1 is invisible; and the stiff cases: index 3, inverted normals, 100-bounce mirror chains.
+# programs: trace-reference
 source tests/scenes/make-analytic.sh
 R=$BIN/trace-reference
 PI=3.141592653589793

@@ -1,6 +1,7 @@
 # specular.sh: mirrors and glass (issue 18): what the loader makes of MTL illum 3, 5 and 7, Ni
 # and Tf, and of glTF transmission, ior, metallic and roughness; bad values fail with one line
 # naming the material, the key and the value, and nothing is written.
+# programs: scene-info trace-gather-points trace-photons trace-reference
 D=$TMP/spec
 mkdir -p "$D"
 # one triangle per material, facing +y, side by side along x

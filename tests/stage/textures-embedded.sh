@@ -4,6 +4,7 @@
 # (pixels of image.exr) to the same model with its texture as an external PNG (the .gltf of
 # BoxTextured-glTF beside the PNG taken out of the data URI). Before: "embedded texture '*0'"
 # was reported and the box rendered untextured.
+# programs: scene-info
 M=/usr/share/assimp/models/glTF2
 if [ ! -f "$M/BoxTextured-glTF-Binary/BoxTextured.glb" ]; then
     skip "embedded glTF textures" "assimp-testmodels is not installed (make deps)"

@@ -17,6 +17,7 @@
 #      within 5% (measured 1%); gathering with the untextured Kd and Ks gave 3.5 times it.
 # The images are written byte by byte (a few dozen bytes each, made once with zlib), so that the
 # test needs no image tool.
+# programs: build-photonmap composite measure-error scene-info trace-gather-points trace-photons trace-reference pm-render
 PI=3.141592653589793
 
 # png NAME HEX: writes the bytes of HEX to NAME.
@@ -268,10 +269,14 @@ if BIN=$BIN pipelines/render "$D/magenta.json" "$TMP/ms-render" PHOTONS=50000 SP
 else
     fail "Sponza-like render" "$(tail -c 600 "$TMP/ms.err")"
 fi
-if "$BIN/trace-reference" "$D/magenta.json" --spp 16 -q -o "$TMP/ms-ref.exr" && [ -s "$TMP/ms-ref.exr" ]; then
-    pass "the Sponza-like scene renders through trace-reference"
+# that it ran is not enough: the same magenta wall and warm floor, and no NaN
+if "$BIN/trace-reference" "$D/magenta.json" --spp 16 -q -o "$TMP/ms-ref.exr" 2>"$TMP/msr.err" &&
+    "$BUILD/tests/pm-exrdump" "$TMP/ms-ref.exr" >"$TMP/ms-ref.txt" &&
+    awk '$1 ~ /^[0-9]+$/ && NF == 5 { if ($3 > 0.01 && $5 > 0.01 && $4 < 0.02 * $3) mag++; if ($3 > 1.5 * $5 && $4 > 0.01) warm++; if ($3 != $3 || $4 != $4 || $5 != $5) nan++ }
+        END { printf "%d magenta pixels, %d warm pixels\n", mag, warm; exit !(mag > 50 && warm > 50 && !nan) }' "$TMP/ms-ref.txt" >"$TMP/why"; then
+    pass "the Sponza-like scene renders through trace-reference ($(cat "$TMP/why"))"
 else
-    fail "Sponza-like trace-reference" "it failed"
+    fail "Sponza-like trace-reference" "$(cat "$TMP/why" 2>/dev/null) $(head -c 300 "$TMP/msr.err")"
 fi
 
 # ---- 4. a glossy textured material: the gathers evaluate the textured Kd and Ks

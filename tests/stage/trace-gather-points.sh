@@ -1,5 +1,6 @@
 # trace-gather-points.sh: gather points and direct light on golden files, analytic scenes
 # and bad inputs. No timing here: speed is tests/bench/30-trace-gather-points.sh.
+# programs: composite trace-gather-points
 G=tests/golden
 TS=tests/scenes
 T=$BIN/trace-gather-points

@@ -3,6 +3,7 @@
 # closed-form irradiance E = I h / (h^2 + x^2)^(3/2) at every pixel's hit; the same placement
 # written as one `matrix` renders the same pixels; bad transforms are refused in one line and
 # nothing is written.
+# programs: composite trace-gather-points
 source tests/scenes/make-analytic.sh
 PI=3.141592653589793
 

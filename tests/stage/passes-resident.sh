@@ -4,6 +4,7 @@
 # directory) and makes the running image and the image the pass files make (KEEP=all,
 # pipelines/lib/render-make), record for record and pixel for pixel; the caustic branch also
 # when a rerun adds a pass, and for any THREADS.
+# programs: pm-render simd-gather trace-photons trace-gather-points build-photonmap hilbert-sort composite pm-info
 R=pipelines/render
 CORNELL=scenes/cornell-box/scene.json
 CAUSTIC=scenes/caustic/scene.json

@@ -228,4 +228,14 @@ int pm_engine_lock(const char *me, const char *outdir, int wait, const char *cmd
  * stage's class passed through). */
 int pm_render_fixed(const pm_settings_t *s, const char *me, const char *bin, const char *cmdline);
 
+/* A progressive render whose passes are kept as files, OUTDIR/pass-NNNN/ (KEEP=all given,
+ * PASS_RANGE for pipelines/slurm's tasks, and what the resident passes do not run: MODE=direct-vis,
+ * SHARDS, another GATHER, ORDER=none, the caustic branch): each pass the chain with --pass, judged
+ * by provenance as one render is, its buffers added by composite --accumulate to OUTDIR/running.pm
+ * and the images, OUTDIR/passes.txt listing the passes in it. PASS_RANGE=A:B makes passes A to B
+ * alone (stopped at the TARGETs: gather-inputs, indirect.I.pm) and says "pass P made (STAGES)" on
+ * stdout for each. t0 is when the command started (TIME counts from it). Returns the exit status
+ * as pm_render_fixed does. */
+int pm_render_passes(const pm_settings_t *s, const char *me, const char *bin, const char *cmdline, double t0);
+
 #endif

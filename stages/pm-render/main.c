@@ -169,7 +169,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "%s: %s\n", me, pm_error_message());
         return 2;
     }
-    char self[PATH_MAX], bin[PATH_MAX], root[PATH_MAX];
+    char self[PATH_MAX], bin[PATH_MAX];
     ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
     self[n > 0 ? n : 0] = '\0';
     const char *env_bin = getenv("BIN");
@@ -197,43 +197,11 @@ int main(int argc, char **argv)
         if (status >= 0)
             return status; /* else a scene it cannot render (mirrors or glass): the pass files below */
     }
-    if (s.progressive) {
-        /* Passes: the shell driver, until the resident passes of common/engine/progressive land. */
-        const char *env_root = getenv("PM_ROOT");
-        if (env_root && env_root[0])
-            snprintf(root, sizeof root, "%s", env_root);
-        else
-            parent(bin, root, sizeof root);
-        char script[PATH_MAX + 64];
-        snprintf(script, sizeof script, "%s/pipelines/lib/render-make", root);
-        char **av = calloc((size_t)nargs + 4, sizeof *av);
-        if (!av) {
-            fprintf(stderr, "%s: out of memory\n", me);
-            return 3;
-        }
-        int k = 0;
-        av[k++] = script;
-        for (int i = 0; i < nargs; i++)
-            av[k++] = args[i];
-        char tp[48], sp[48];
-        if (threads[0]) {
-            snprintf(tp, sizeof tp, "THREADS=%s", threads);
-            av[k++] = tp;
-        }
-        if (seed[0]) {
-            snprintf(sp, sizeof sp, "SEED=%s", seed);
-            av[k++] = sp;
-        }
-        av[k] = NULL;
-        setenv("PM_RENDER_SELF", argv[0], 1);
-        setenv("BIN", bin, 1);
-        execv(script, av);
-        fprintf(stderr, "%s: cannot run '%s' for the passes: %s\n", me, script, strerror(errno));
-        return 3;
-    }
     if (pm_settings_check_stages(&s, bin) != PM_OK) {
         fprintf(stderr, "%s: %s\n", me, pm_error_message());
         return 2;
     }
+    if (s.progressive) /* passes as files: common/engine/fixed.c */
+        return pm_render_passes(&s, me, bin, cmdline, t0);
     return pm_render_fixed(&s, me, bin, cmdline);
 }

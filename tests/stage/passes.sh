@@ -249,7 +249,7 @@ grep -q "does not take --pass" "$TMP/err" && [ ! -e "$TMP/knn/pass-0001" ] &&
     pass "... and says so before any pass" || fail "knn-gather with passes" "$(cat "$TMP/err")"
 
 # ---- pipelines/render PASSES KEEP=all: pass directories, the schedule, the running image
-# (KEEP=all given asks for every pass's files, made by pipelines/lib/render-make)
+# (KEEP=all given asks for every pass's files, made by pm-render's pass files, common/engine/fixed.c)
 O=$TMP/prog
 if "$R" "$CORNELL" "$O" $SMALL PASSES=2 KEEP=all >"$TMP/r1.out" 2>&1; then
     pass "render PASSES=2 KEEP=all runs"

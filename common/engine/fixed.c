@@ -1369,8 +1369,8 @@ typedef struct {
     int nouts;
     const char *ins[MAX_FILES];
     int nins;
-    int external; /* its last command is a gather outside the program directory */
-    int shard;    /* -1 or the shard (its --range is set from the queries' count) */
+    int external;      /* its last command is a gather outside the program directory */
+    int shard;         /* -1 or the shard (its --range is set from the queries' count) */
     int needed, state; /* state: 0 not made, 1 cached, 2 ran, 3 failed */
 } unit_t;
 
@@ -1817,14 +1817,13 @@ static int run_pipe(passgraph_t *g, unit_t *u, int a, int b, int out_fd, int ext
         }
     }
     close_fd(&in);
-    for (int i = b - 1; i >= a; i--) {
-        if (!p[i])
-            continue;
-        int code = cmd_wait(g, u, i, p[i]);
-        if (code && !status)
-            status = code;
+    int right = 0; /* the rightmost failure, as bash's pipefail reports it */
+    for (int i = a; i < b; i++) {
+        int code = p[i] ? cmd_wait(g, u, i, p[i]) : 0;
+        if (code)
+            right = code;
     }
-    return status;
+    return status ? status : right;
 }
 
 /* The fused pass: the photon side beside the queries' pipe, the gather started on the sorted
@@ -1985,10 +1984,7 @@ typedef struct {
     double t0;
 } passes_t;
 
-static double since(const passes_t *P)
-{
-    return pm_time_wall() - P->t0;
-}
+static double since(const passes_t *P) { return pm_time_wall() - P->t0; }
 
 static void pass_dir(const passes_t *P, int pass, char *out, size_t cap)
 {
@@ -2075,8 +2071,12 @@ static int accumulate(passes_t *P, int p, const char *hash)
         snprintf(bufs[i], sizeof bufs[i], "%s/%s", d, P->buffers[i]);
         argv[n++] = bufs[i];
     }
-    const char *fixed[] = {"--accumulate", "running.pm", "--pass", pp, "-o", ".pass.exr", "--png", ".pass.png",
-                           "--exposure", r->s->value[PM_P_EXPOSURE], "--tone", r->s->value[PM_P_TONE]};
+    const char *fixed[] = {"--accumulate", "running.pm",
+                           "--pass",       pp,
+                           "-o",           ".pass.exr",
+                           "--png",        ".pass.png",
+                           "--exposure",   r->s->value[PM_P_EXPOSURE],
+                           "--tone",       r->s->value[PM_P_TONE]};
     for (size_t i = 0; i < sizeof fixed / sizeof fixed[0]; i++)
         argv[n++] = (char *)fixed[i];
     if (!strcmp(r->s->value[PM_P_HALF], "1"))
@@ -2247,11 +2247,30 @@ static void keep_passes(passes_t *P)
     render_t *r = P->r;
     if (r->s->keep == PM_KEEP_ALL)
         return;
-    static const char *const made[] = {"photons.pm", "photonmap.pm", "caustic-photons.pm", "caustic-map.pm",
-                                       "queries.pm", ".queries.new.pm", "sorted.pm", "caustic-queries.pm",
-                                       "direct.pm", "indirect.pm", "caustic.pm", "Makefile", "ran.txt",
-                                       "failed.txt", "scene-info.json", "scene-info.err", ".state.err", ".prov.err",
-                                       ".pass.exr", ".pass.png", ".stamps", "stats", "times", NULL};
+    static const char *const made[] = {"photons.pm",
+                                       "photonmap.pm",
+                                       "caustic-photons.pm",
+                                       "caustic-map.pm",
+                                       "queries.pm",
+                                       ".queries.new.pm",
+                                       "sorted.pm",
+                                       "caustic-queries.pm",
+                                       "direct.pm",
+                                       "indirect.pm",
+                                       "caustic.pm",
+                                       "Makefile",
+                                       "ran.txt",
+                                       "failed.txt",
+                                       "scene-info.json",
+                                       "scene-info.err",
+                                       ".state.err",
+                                       ".prov.err",
+                                       ".pass.exr",
+                                       ".pass.png",
+                                       ".stamps",
+                                       "stats",
+                                       "times",
+                                       NULL};
     char p[PATH_MAX + 300];
     for (int i = 0; made[i]; i++) {
         snprintf(p, sizeof p, "%s/%s", r->out, made[i]);
@@ -2367,16 +2386,6 @@ int pm_render_passes(const pm_settings_t *s_in, const char *me, const char *bin,
         ps.value[k] = defaults[i][1];
         size_t len = strlen(defaulted);
         snprintf(defaulted + len, sizeof defaulted - len, "%s%s=%s", len ? " " : "", defaults[i][0], defaults[i][1]);
-    }
-    if (strcmp(s->value[PM_P_WIDTHS], "variable") == 0) {
-        fprintf(stderr, "%s: WIDTHS=variable with progressive passes: the schedule shrinks one fixed width\n", me);
-        return 2;
-    }
-    if (s->ntargets && !s->value[PM_P_PASS_RANGE][0]) {
-        fprintf(stderr,
-                "%s: TARGETs with progressive passes: every pass makes its whole graph (a TARGET is for PASS_RANGE)\n",
-                me);
-        return 2;
     }
     memset(P, 0, sizeof *P);
     P->r = r;
@@ -2656,8 +2665,7 @@ int pm_render_passes(const pm_settings_t *s_in, const char *me, const char *bin,
         if (s->value[PM_P_ALPHA][0])
             pm_parse_double(s->value[PM_P_ALPHA], &a);
         json_object_set_new(tot, "alpha", json_real(a));
-        json_object_set_new(tot, "radius1",
-                            pm_parse_double(P->st_r1, &r1) == PM_OK ? json_real(r1) : json_null());
+        json_object_set_new(tot, "radius1", pm_parse_double(P->st_r1, &r1) == PM_OK ? json_real(r1) : json_null());
         json_object_set_new(root, "scene", json_string(r->scene_all));
         json_object_set_new(root, "params", params);
         json_object_set_new(root, "passes", arr);

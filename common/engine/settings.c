@@ -168,6 +168,12 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
     s->wait = s->value[PM_P_WAIT][0] == '1';
     s->progressive = s->value[PM_P_TIME][0] || s->value[PM_P_TARGET_ERROR][0] || s->value[PM_P_PASS_RANGE][0] ||
                      (s->value[PM_P_PASSES][0] && strcmp(s->value[PM_P_PASSES], "1") != 0);
+    if (s->progressive && strcmp(s->value[PM_P_WIDTHS], "variable") == 0)
+        return pm_error_set(PM_ERR_USAGE,
+                            "WIDTHS=variable with progressive passes: the schedule shrinks one fixed width");
+    if (s->progressive && s->ntargets && !s->value[PM_P_PASS_RANGE][0])
+        return pm_error_set(PM_ERR_USAGE, "TARGETs with progressive passes: every pass makes its whole graph (a "
+                                          "TARGET is for PASS_RANGE)");
     return PM_OK;
 }
 

@@ -119,11 +119,19 @@ int main(int argc, char **argv)
         fprintf(stderr, "usage: %s SCENE OUTDIR [NAME=VALUE ...] [TARGET ...] (try --help)\n", argv[0]);
         return 2;
     }
+    /* --check-settings (first): judge the parameters as a render would, render nothing, exit 0
+     * or 2 with the first bad one (pipelines/slurm asks before it submits anything) */
+    int check_only = argc > 1 && strcmp(argv[1], "--check-settings") == 0;
+    if (check_only) {
+        argv[1] = argv[0];
+        argv++;
+        argc--;
+    }
     static pm_stage_t st; /* static: free_stage_args runs after main has returned */
     pm_stage_defaults(&st);
     const pm_option_t opts[] = {PM_STAGE_COMMON_OPTIONS(st), {0}};
     const pm_cli_t cli = {.program = "pm-render",
-                          .synopsis = "[options] SCENE OUTDIR [NAME=VALUE ...] [TARGET ...]",
+                          .synopsis = "[--check-settings] [options] SCENE OUTDIR [NAME=VALUE ...] [TARGET ...]",
                           .summary = "render SCENE into OUTDIR through the stage programs, remaking only what the "
                                      "settings change (by provenance); --threads is THREADS, --seed SEED, -q QUIET=1",
                           .options = opts,
@@ -188,6 +196,13 @@ int main(int argc, char **argv)
     append_word(cmdline, sizeof cmdline, argv[0]);
     for (int i = 1; i < argc; i++)
         append_word(cmdline, sizeof cmdline, argv[i]);
+    if (check_only) {
+        if (pm_settings_check_stages(&s, bin) != PM_OK) {
+            fprintf(stderr, "%s: %s\n", me, pm_error_message());
+            return 2;
+        }
+        return 0;
+    }
     if (s.progressive && pm_progressive_handles(&s, NULL, 0)) { /* resident passes: common/engine/progressive.c */
         if (pm_settings_check_stages(&s, bin) != PM_OK) {
             fprintf(stderr, "%s: %s\n", me, pm_error_message());

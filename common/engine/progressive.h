@@ -30,7 +30,7 @@
 #include "engine/engine.h"
 
 /* 1 when the resident passes render these settings; else 0 and why (the caller then makes
- * the passes as files, pipelines/lib/render-make): KEEP=all given on the command line or
+ * the passes as files, pm_render_passes in fixed.c): KEEP=all given on the command line or
  * PASS_RANGE (pass files asked for), and what the resident chain does not run yet (MODE other
  * than gather, GATHER other than simd-gather, SHARDS, WIDTHS=variable, ORDER=none, TARGETs). */
 int pm_progressive_handles(const pm_settings_t *s, char *why, size_t cap);

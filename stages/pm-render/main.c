@@ -7,8 +7,10 @@
  * Runs trace-photons, build-photonmap, trace-gather-points, hilbert-sort, the gather and
  * composite as programs (posix_spawn) in OUTDIR, keeps every intermediate there, and on a rerun
  * remakes only the files whose headers do not record what these settings would make
- * (common/engine). Progressive passes (PASSES > 1, TIME, TARGET_ERROR, PASS_RANGE) still run
- * through the shell driver pipelines/lib/render-make, which pm-render hands them to whole. */
+ * (common/engine). Progressive passes (PASSES > 1, TIME, TARGET_ERROR, PASS_RANGE) run through
+ * resident stages (common/engine/progressive.c) when those handle the settings, else as pass
+ * files, OUTDIR/pass-NNNN (common/engine/fixed.c, pm_render_passes). --check-settings judges
+ * the settings alone. */
 #include <errno.h>
 #include <limits.h>
 #include <stdio.h>

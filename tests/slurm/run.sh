@@ -215,8 +215,9 @@ all_same "SHARDS=3 through Slurm, CPUS=2 THREADS=2 = pipelines/render THREADS=1"
 nseal=0
 for d in "$TMP/s"/pass-*; do [ -e "$d/.checked" ] && nseal=$((nseal + 1)); done
 [ $nseal = 0 ] && pass "SHARDS=3: no pass carries a seal" || fail "SHARDS=3 seals" "$nseal passes carry a .checked"
-# ... and the composite job's render finds a flipped byte in pass 2's map, its date put back,
-# and remakes the map: nothing is trusted by date or seal
+# ... and a flipped byte in pass 2's map, its date put back, is found and the map remade (by
+# the render of the running image while the jobs run, or by the composite job's): nothing is
+# trusted by date or seal
 cp "$TMP/s/pass-0002/photonmap.pm" "$TMP/map2.pm"
 t=$(stat -c %.9Y "$TMP/s/pass-0002/photonmap.pm")
 printf '\x55' | dd of="$TMP/s/pass-0002/photonmap.pm" bs=1 seek=$(($(stat -c %s "$TMP/map2.pm") - 100)) conv=notrunc status=none
@@ -235,8 +236,8 @@ else
     fail "landed shards kept" "exit $rc: $(head -n 1 "$TMP/s2.log"); new logs: $(echo $new)"
 fi
 clog=$(ls -t "$TMP/s/.slurm/logs"/composite.*.out | head -n 1)
-if [ $rc = 0 ] && grep -q 'pass-0002/photonmap.pm is corrupt' "$clog" && cmp -s "$TMP/s/pass-0002/photonmap.pm" "$TMP/map2.pm"; then
-    pass "the composite job finds a flipped byte in a pass's map (date put back) and remakes the map"
+if [ $rc = 0 ] && cmp -s "$TMP/s/pass-0002/photonmap.pm" "$TMP/map2.pm"; then
+    pass "a flipped byte in a landed pass's map (date put back) is found and the map remade"
 else
     fail "composite job and a flipped map" "$(grep -m 2 'corrupt\|  2 ' "$clog")"
 fi

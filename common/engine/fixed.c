@@ -751,6 +751,27 @@ static int finish_job(render_t *r, job_t *j, const pm_proc_status_t *st)
 
 /* ---- the table and stats.json ---- */
 
+/* OUTDIR/stats.json, whole or not at all: {"scene", "params", KEY: items, "total": tot}
+ * (items and tot are taken over). */
+static void stats_write(render_t *r, const pm_settings_t *s, const char *key, json_t *items, json_t *tot)
+{
+    json_t *params = json_object(), *root = json_object();
+    for (int p = 0; p < PM_P_COUNT; p++)
+        json_object_set_new(params, pm_param_name((pm_param_t)p), json_string(s->value[p]));
+    json_object_set_new(root, "scene", json_string(r->scene_all));
+    json_object_set_new(root, "params", params);
+    json_object_set_new(root, key, items);
+    json_object_set_new(root, "total", tot);
+    char tmp[PATH_MAX + 64], dst[PATH_MAX + 64];
+    snprintf(tmp, sizeof tmp, "%s/.stats.json.tmp", r->out);
+    snprintf(dst, sizeof dst, "%s/stats.json", r->out);
+    if (json_dump_file(root, tmp, JSON_SORT_KEYS | JSON_INDENT(1)) != 0 || rename(tmp, dst) != 0) {
+        unlink(tmp);
+        say(r, "could not write '%s'", dst);
+    }
+    json_decref(root);
+}
+
 static void report(render_t *r, double run_s)
 {
     int sw = r->need_caustic ? 24 : 22;
@@ -792,47 +813,40 @@ static void report(render_t *r, double run_s)
     }
     printf("  %-*s %-8s %9.3f   (this run: %.3f s)\n", sw, "total of the stages", "", total, run_s);
     fflush(stdout);
-    json_t *params = json_object();
-    for (int p = 0; p < PM_P_COUNT; p++)
-        json_object_set_new(params, pm_param_name((pm_param_t)p), json_string(r->s->value[p]));
     json_t *tot = json_object();
     json_object_set_new(tot, "pipeline_wall_s", json_real(total));
     json_object_set_new(tot, "wall_s", json_real(wall));
     json_object_set_new(tot, "cpu_s", json_real(cpu));
     json_object_set_new(tot, "this_run_s", json_real(run_s));
     json_object_set_new(tot, "ran", ran);
-    json_t *root = json_object();
-    json_object_set_new(root, "scene", json_string(r->scene_all));
-    json_object_set_new(root, "params", params);
-    json_object_set_new(root, "stages", stages);
-    json_object_set_new(root, "total", tot);
-    char tmp[PATH_MAX + 64], dst[PATH_MAX + 64];
-    snprintf(tmp, sizeof tmp, "%s/.stats.json.tmp", r->out);
-    snprintf(dst, sizeof dst, "%s/stats.json", r->out);
-    if (json_dump_file(root, tmp, JSON_SORT_KEYS | JSON_INDENT(1)) != 0 || rename(tmp, dst) != 0) {
-        unlink(tmp);
-        say(r, "could not write '%s'", dst);
-    }
-    json_decref(root);
+    stats_write(r, r->s, "stages", stages, tot);
 }
 
 /* ---- KEEP: what OUTDIR keeps after a render that succeeded (only files render makes, by name) ---- */
 
-static void remove_dir_files(const char *dir)
+/* Removes path: a file, or a directory and all it holds. */
+static void remove_tree(const char *path)
 {
-    DIR *d = opendir(dir);
-    if (!d)
+    struct stat sb;
+    if (lstat(path, &sb) != 0)
         return;
-    struct dirent *e;
-    while ((e = readdir(d))) {
-        if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
-            continue;
-        char p[PATH_MAX + 300];
-        snprintf(p, sizeof p, "%s/%s", dir, e->d_name);
-        unlink(p);
+    if (!S_ISDIR(sb.st_mode)) {
+        unlink(path);
+        return;
     }
-    closedir(d);
-    rmdir(dir);
+    DIR *d = opendir(path);
+    if (d) {
+        struct dirent *e;
+        while ((e = readdir(d))) {
+            if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
+                continue;
+            char p[PATH_MAX + 300];
+            snprintf(p, sizeof p, "%s/%s", path, e->d_name);
+            remove_tree(p);
+        }
+        closedir(d);
+    }
+    rmdir(path);
 }
 
 static void keep_only(render_t *r)
@@ -866,11 +880,11 @@ static void keep_only(render_t *r)
         }
     }
     snprintf(p, sizeof p, "%s/times", r->out);
-    remove_dir_files(p);
+    remove_tree(p);
     snprintf(p, sizeof p, "%s/stats", r->out);
-    remove_dir_files(p);
+    remove_tree(p);
     snprintf(p, sizeof p, "%s/.stamps", r->out);
-    remove_dir_files(p);
+    remove_tree(p);
 }
 
 /* ---- the whole render ---- */
@@ -1350,11 +1364,7 @@ done:
 
 enum { U_PHOTONS, U_QUERIES, U_FUSED, U_ONE };
 
-typedef struct {
-    char name[96]; /* its row and stats/NAME.json */
-    char *argv[MAX_ARGS + 1];
-    int argc;
-} pcmd_t;
+typedef job_t pcmd_t; /* a command of a pass: its name (row, stats/NAME.json) and argv */
 
 /* A pipe of stages and the files it makes. U_PHOTONS: cmd 0 | cmd 1, then cmd 2 (the caustic map)
  * when there is one; U_QUERIES: cmd 0, or cmd 0 | cmd 1 (the sort); U_FUSED: U_PHOTONS's commands
@@ -1386,48 +1396,23 @@ typedef struct {
     int dry; /* pass_make only judges: 0 when nothing would run, 1 when something would */
 } passgraph_t;
 
-static void pc_arg(pcmd_t *c, const char *w)
-{
-    if (c->argc < MAX_ARGS)
-        c->argv[c->argc++] = strdup(w);
-}
-static void pc_opt(pcmd_t *c, const char *flag, const char *v)
-{
-    if (v && v[0]) {
-        pc_arg(c, flag);
-        pc_arg(c, v);
-    }
-}
 static pcmd_t *pc_new(render_t *r, unit_t *u, const char *name, const char *program)
 {
     pcmd_t *c = &u->cmd[u->ncmd++];
     memset(c, 0, sizeof *c);
     snprintf(c->name, sizeof c->name, "%s", name);
-    if (program[0] == '/') {
-        pc_arg(c, program);
-    } else {
-        char p[PATH_MAX + 64];
-        snprintf(p, sizeof p, "%s/%s", r->bin, program);
-        pc_arg(c, p);
-    }
+    if (program[0] == '/')
+        arg(c, program);
+    else
+        arg_prog(r, c, program);
     return c;
-}
-static void pc_common(render_t *r, pcmd_t *c)
-{
-    if (!r->s->verbose)
-        pc_arg(c, "-q");
-    pc_opt(c, "--threads", r->s->value[PM_P_THREADS]);
-    char st[160];
-    snprintf(st, sizeof st, "stats/%s.json", c->name);
-    pc_arg(c, "--stats");
-    pc_arg(c, st);
 }
 static void pc_pass(pcmd_t *c, int pass)
 {
     char p[32];
     snprintf(p, sizeof p, "%d", pass);
-    pc_arg(c, "--pass");
-    pc_arg(c, p);
+    arg(c, "--pass");
+    arg(c, p);
 }
 static void unit_out(unit_t *u, const char *file, int first, int n)
 {
@@ -1450,35 +1435,35 @@ static void pass_photons(passgraph_t *g, unit_t *u)
     render_t *r = g->r;
     const pm_settings_t *s = r->s;
     pcmd_t *c = pc_new(r, u, "trace-photons", "trace-photons");
-    pc_arg(c, r->scene);
-    pc_arg(c, "-o");
-    pc_arg(c, "-");
+    arg(c, r->scene);
+    arg(c, "-o");
+    arg(c, "-");
     if (r->need_caustic) {
-        pc_arg(c, "--caustic-output");
-        pc_arg(c, "caustic-photons.pm");
+        arg(c, "--caustic-output");
+        arg(c, "caustic-photons.pm");
     }
-    pc_opt(c, "--photons", s->value[PM_P_PHOTONS]);
-    pc_opt(c, "--seed", s->value[PM_P_SEED]);
+    arg_opt(c, "--photons", s->value[PM_P_PHOTONS]);
+    arg_opt(c, "--seed", s->value[PM_P_SEED]);
     pc_pass(c, g->pass);
-    pc_common(r, c);
+    arg_common(r, c);
     c = pc_new(r, u, "build-photonmap", "build-photonmap");
-    pc_arg(c, "-");
-    pc_arg(c, "-o");
-    pc_arg(c, "photonmap.pm");
-    pc_arg(c, "--map");
-    pc_arg(c, r->map);
-    pc_opt(c, "--width-k", r->width_k);
-    pc_common(r, c);
+    arg(c, "-");
+    arg(c, "-o");
+    arg(c, "photonmap.pm");
+    arg(c, "--map");
+    arg(c, r->map);
+    arg_opt(c, "--width-k", r->width_k);
+    arg_common(r, c);
     unit_out(u, "photonmap.pm", 0, 2);
     if (r->need_caustic) {
         unit_out(u, "caustic-photons.pm", 0, 1);
         c = pc_new(r, u, "build-photonmap.caustic", "build-photonmap");
-        pc_arg(c, "caustic-photons.pm");
-        pc_arg(c, "-o");
-        pc_arg(c, "caustic-map.pm");
-        pc_arg(c, "--map");
-        pc_arg(c, "caustic");
-        pc_common(r, c);
+        arg(c, "caustic-photons.pm");
+        arg(c, "-o");
+        arg(c, "caustic-map.pm");
+        arg(c, "--map");
+        arg(c, "caustic");
+        arg_common(r, c);
         unit_out(u, "caustic-map.pm", 2, 1);
     }
     u->nph = u->ncmd;
@@ -1491,27 +1476,27 @@ static void pass_queries(passgraph_t *g, unit_t *u)
     const pm_settings_t *s = r->s;
     int sorted = strcmp(r->order, "none") != 0, first = u->ncmd;
     pcmd_t *c = pc_new(r, u, "trace-gather-points", "trace-gather-points");
-    pc_arg(c, r->scene);
-    pc_arg(c, "-o");
-    pc_arg(c, sorted ? "-" : "queries.pm");
+    arg(c, r->scene);
+    arg(c, "-o");
+    arg(c, sorted ? "-" : "queries.pm");
     if (r->need_direct) {
-        pc_arg(c, "--direct");
-        pc_arg(c, "direct.pm");
+        arg(c, "--direct");
+        arg(c, "direct.pm");
     }
     if (r->need_caustic) {
-        pc_arg(c, "--caustic-queries");
-        pc_arg(c, "caustic-queries.pm");
+        arg(c, "--caustic-queries");
+        arg(c, "caustic-queries.pm");
     }
-    pc_arg(c, "--mode");
-    pc_arg(c, r->mode);
-    pc_opt(c, "--spp", s->value[PM_P_SPP]);
-    pc_opt(c, "--width", s->value[PM_P_WIDTH]);
-    pc_opt(c, "--height", s->value[PM_P_HEIGHT]);
-    pc_opt(c, "--primary", s->value[PM_P_PRIMARY]);
-    pc_opt(c, "--light-samples", r->light_samples);
-    pc_opt(c, "--seed", s->value[PM_P_SEED]);
+    arg(c, "--mode");
+    arg(c, r->mode);
+    arg_opt(c, "--spp", s->value[PM_P_SPP]);
+    arg_opt(c, "--width", s->value[PM_P_WIDTH]);
+    arg_opt(c, "--height", s->value[PM_P_HEIGHT]);
+    arg_opt(c, "--primary", s->value[PM_P_PRIMARY]);
+    arg_opt(c, "--light-samples", r->light_samples);
+    arg_opt(c, "--seed", s->value[PM_P_SEED]);
     pc_pass(c, g->pass);
-    pc_common(r, c);
+    arg_common(r, c);
     if (!sorted)
         unit_out(u, "queries.pm", first, 1);
     if (r->need_direct)
@@ -1520,13 +1505,13 @@ static void pass_queries(passgraph_t *g, unit_t *u)
         unit_out(u, "caustic-queries.pm", first, 1);
     if (sorted) {
         c = pc_new(r, u, "hilbert-sort", "hilbert-sort");
-        pc_arg(c, "-");
-        pc_arg(c, "-o");
-        pc_arg(c, u->kind == U_FUSED ? "-" : "sorted.pm");
-        pc_arg(c, "--order");
-        pc_arg(c, r->order);
-        pc_opt(c, "--leaf", s->value[PM_P_LEAF]);
-        pc_common(r, c);
+        arg(c, "-");
+        arg(c, "-o");
+        arg(c, u->kind == U_FUSED ? "-" : "sorted.pm");
+        arg(c, "--order");
+        arg(c, r->order);
+        arg_opt(c, "--leaf", s->value[PM_P_LEAF]);
+        arg_common(r, c);
         if (u->kind != U_FUSED)
             unit_out(u, "sorted.pm", first, 2);
     }
@@ -1538,15 +1523,15 @@ static void pass_gather_opts(passgraph_t *g, pcmd_t *c, int caustic)
     render_t *r = g->r;
     const pm_settings_t *s = r->s;
     if (g->pass == 1 || caustic) {
-        pc_opt(c, r->knn ? "--max-radius" : "--radius", s->value[PM_P_RADIUS]);
-        pc_opt(c, "--k", s->value[PM_P_K]);
+        arg_opt(c, r->knn ? "--max-radius" : "--radius", s->value[PM_P_RADIUS]);
+        arg_opt(c, "--k", s->value[PM_P_K]);
     } else {
-        pc_opt(c, "--radius", g->r1);
+        arg_opt(c, "--radius", g->r1);
     }
-    pc_opt(c, "--kernel", s->value[PM_P_KERNEL]);
-    pc_opt(c, "--isa", s->value[PM_P_ISA]);
+    arg_opt(c, "--kernel", s->value[PM_P_KERNEL]);
+    arg_opt(c, "--isa", s->value[PM_P_ISA]);
     pc_pass(c, g->pass);
-    pc_opt(c, "--alpha", s->value[PM_P_ALPHA]);
+    arg_opt(c, "--alpha", s->value[PM_P_ALPHA]);
 }
 
 /* The graph of pass g->pass in g->dir, as units in the order they run. */
@@ -1564,12 +1549,12 @@ static void pass_graph(passgraph_t *g)
         pass_queries(g, u);
         int q0 = u->nph;
         pcmd_t *c = pc_new(r, u, r->gname, r->gather_bin);
-        pc_arg(c, "photonmap.pm");
-        pc_arg(c, "-");
-        pc_arg(c, "-o");
-        pc_arg(c, "indirect.pm");
+        arg(c, "photonmap.pm");
+        arg(c, "-");
+        arg(c, "-o");
+        arg(c, "indirect.pm");
         pass_gather_opts(g, c, 0);
-        pc_common(r, c);
+        arg_common(r, c);
         unit_out(u, "indirect.pm", q0, 3);
         u->external = r->ext_gather;
         g->shards[g->nshards++] = "indirect.pm";
@@ -1588,17 +1573,17 @@ static void pass_graph(passgraph_t *g)
                 snprintf(shard_out[i], sizeof shard_out[i], "indirect.%d.pm", i);
             }
             pcmd_t *c = pc_new(r, u, name, r->gather_bin);
-            pc_arg(c, "photonmap.pm");
-            pc_arg(c, r->queries);
-            pc_arg(c, "-o");
-            pc_arg(c, shard_out[i]);
+            arg(c, "photonmap.pm");
+            arg(c, r->queries);
+            arg(c, "-o");
+            arg(c, shard_out[i]);
             if (N > 1) {
                 u->shard = i;
-                pc_arg(c, "--range");
-                pc_arg(c, "0:0");
+                arg(c, "--range");
+                arg(c, "0:0");
             }
             pass_gather_opts(g, c, 0);
-            pc_common(r, c);
+            arg_common(r, c);
             u->external = r->ext_gather;
             u->ins[u->nins++] = "photonmap.pm";
             u->ins[u->nins++] = r->queries;
@@ -1609,12 +1594,12 @@ static void pass_graph(passgraph_t *g)
     if (r->need_caustic) {
         unit_t *u = unit_new(g, U_ONE);
         pcmd_t *c = pc_new(r, u, "simd-gather.caustic", r->gather_bin);
-        pc_arg(c, "caustic-map.pm");
-        pc_arg(c, "caustic-queries.pm");
-        pc_arg(c, "-o");
-        pc_arg(c, "caustic.pm");
+        arg(c, "caustic-map.pm");
+        arg(c, "caustic-queries.pm");
+        arg(c, "-o");
+        arg(c, "caustic.pm");
         pass_gather_opts(g, c, 1);
-        pc_common(r, c);
+        arg_common(r, c);
         u->external = r->ext_gather;
         u->ins[u->nins++] = "caustic-map.pm";
         u->ins[u->nins++] = "caustic-queries.pm";
@@ -2216,30 +2201,6 @@ static json_t *pass_stats(const passes_t *P, int pass)
     return o;
 }
 
-static void remove_tree(const char *path)
-{
-    struct stat sb;
-    if (lstat(path, &sb) != 0)
-        return;
-    if (!S_ISDIR(sb.st_mode)) {
-        unlink(path);
-        return;
-    }
-    DIR *d = opendir(path);
-    if (d) {
-        struct dirent *e;
-        while ((e = readdir(d))) {
-            if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
-                continue;
-            char p[PATH_MAX + 300];
-            snprintf(p, sizeof p, "%s/%s", path, e->d_name);
-            remove_tree(p);
-        }
-        closedir(d);
-    }
-    rmdir(path);
-}
-
 /* KEEP for passes: buffers keeps running.pm, passes.txt and each pass's buffers; image the images
  * and stats.json alone. Only what render makes is removed, by name. */
 static void keep_passes(passes_t *P)
@@ -2642,9 +2603,7 @@ int pm_render_passes(const pm_settings_t *s_in, const char *me, const char *bin,
      * "stages": {NAME: STATS}}], "total": {"passes", "relative_error", "wall_s", "stopped_by",
      * "alpha", "radius1"}} */
     {
-        json_t *root = json_object(), *params = json_object(), *arr = json_array(), *tot = json_object();
-        for (int k = 0; k < PM_P_COUNT; k++)
-            json_object_set_new(params, pm_param_name((pm_param_t)k), json_string(s->value[k]));
+        json_t *arr = json_array(), *tot = json_object();
         for (int i = 0; i < nrows; i++) {
             json_t *o = json_object();
             double e;
@@ -2666,18 +2625,7 @@ int pm_render_passes(const pm_settings_t *s_in, const char *me, const char *bin,
             pm_parse_double(s->value[PM_P_ALPHA], &a);
         json_object_set_new(tot, "alpha", json_real(a));
         json_object_set_new(tot, "radius1", pm_parse_double(P->st_r1, &r1) == PM_OK ? json_real(r1) : json_null());
-        json_object_set_new(root, "scene", json_string(r->scene_all));
-        json_object_set_new(root, "params", params);
-        json_object_set_new(root, "passes", arr);
-        json_object_set_new(root, "total", tot);
-        char tmp[PATH_MAX + 64], dst[PATH_MAX + 64];
-        snprintf(tmp, sizeof tmp, "%s/.stats.json.tmp", r->out);
-        snprintf(dst, sizeof dst, "%s/stats.json", r->out);
-        if (json_dump_file(root, tmp, JSON_SORT_KEYS | JSON_INDENT(1)) != 0 || rename(tmp, dst) != 0) {
-            unlink(tmp);
-            say(r, "could not write '%s'", dst);
-        }
-        json_decref(root);
+        stats_write(r, s, "passes", arr, tot);
     }
     keep_passes(P);
     if (s->keep == PM_KEEP_ALL)

@@ -114,6 +114,8 @@ typedef struct {
     const int *close_fds; /* fds the child must not inherit (the other ends of its pipes), */
     int nclose;           /* so that a reader sees end of file when its writer exits */
     char *const *env;     /* environment; NULL: the driver's */
+    int extra_fd;         /* with extra_to > 2: an fd to give the program as extra_to as well */
+    int extra_to;         /* (pipelines/frames' --direct /dev/fd/3); 0: none */
 } pm_spawn_t;
 
 /* How a program ended. */
@@ -237,5 +239,13 @@ int pm_render_fixed(const pm_settings_t *s, const char *me, const char *bin, con
  * stdout for each. t0 is when the command started (TIME counts from it). Returns the exit status
  * as pm_render_fixed does. */
 int pm_render_passes(const pm_settings_t *s, const char *me, const char *bin, const char *cmdline, double t0);
+
+/* pipelines/frames (bin/pm-frames): a camera or point-light path as frames, SCENE's scene file per
+ * frame in OUTDIR, the stages resident on streams of documents (STREAM=1) or run per frame, the
+ * NAME=VALUE parameters argv[0..argc) judged first (exit 2), OUTDIR held by pm_engine_lock for the
+ * run (a second run is refused, exit 1). Messages start with "me: "; bin is the program
+ * directory; cmdline is what the lock file records. Returns the exit status (docs/cli.md). */
+int pm_frames_run(const char *me, const char *scene, const char *outdir, int argc, char **argv, const char *bin,
+                  const char *cmdline);
 
 #endif

@@ -65,6 +65,8 @@ pm_result_t pm_proc_spawn(const pm_spawn_t *sp, pm_proc_t **out)
         posix_spawn_file_actions_adddup2(&fa, sp->stdout_fd, 1);
     if (errp[1] >= 0)
         posix_spawn_file_actions_adddup2(&fa, errp[1], 2);
+    if (sp->extra_to > 2 && sp->extra_fd >= 0)
+        posix_spawn_file_actions_adddup2(&fa, sp->extra_fd, sp->extra_to);
     for (int i = 0; i < sp->nclose; i++)
         if (sp->close_fds[i] > 2)
             posix_spawn_file_actions_addclose(&fa, sp->close_fds[i]);

@@ -155,7 +155,9 @@ static void scenes(const frames_t *F, cmd_t *c)
     }
 }
 
-/* The class of a set of stage statuses (pipelines' rule): 4 before 3 before 1; 0 when all are 0. */
+/* The class of a set of stage statuses: 4 (a bug) before 3 (the system) before 1; 0 when all are
+ * 0. Any other status, a signal's too, is 1: in a pipe the stages after a failing one die of
+ * the short stream (SIGPIPE), which is not what counts. */
 static int worst(const int *codes, int n)
 {
     int w = 0;
@@ -165,7 +167,7 @@ static int worst(const int *codes, int n)
             continue;
         if (c == 4)
             w = 4;
-        else if (c != 1 && c != 2 && w != 4)
+        else if (c == 3 && w != 4)
             w = 3;
         else if (w == 0)
             w = 1;
@@ -288,7 +290,8 @@ static void *progress_thread(void *arg)
     const frames_t *F = arg;
     int shown = -1;
     double f0 = 0;
-    while (!progress_stop) {
+    for (;;) {
+        int last = progress_stop; /* set once every stage has ended: one more look, then done */
         int done = 0;
         while (done < F->n && frame_mtime(F, done) >= 0)
             done++;
@@ -299,6 +302,8 @@ static void *progress_thread(void *arg)
             double t = shown > 0 ? frame_mtime(F, shown - 1) : epoch_now();
             progress_line(F, shown, t, f0);
         }
+        if (last)
+            break;
         struct timespec ts = {0, 50000000};
         nanosleep(&ts, NULL);
     }
@@ -343,10 +348,11 @@ static int write_scenes(frames_t *F, json_t *scene)
         }
         char p[PATH_MAX + 32];
         scene_path(F, f, p, sizeof p);
+        errno = 0;
         if (json_dump_file(scene, p, JSON_COMPACT | JSON_REAL_PRECISION(17)) != 0) {
             free(lx);
-            fsay(F, "cannot write the frames' scenes into '%s'", F->out);
-            return 1;
+            fsay(F, "cannot write the frame's scene '%s': %s", p, strerror(errno ? errno : EIO));
+            return 3;
         }
     }
     free(lx);

@@ -197,7 +197,7 @@ pipelines/frames $CB "$TMP/fl" $F >"$TMP/fl2.out" 2>"$TMP/fl2.err"
 status=$?
 wait $first
 status1=$?
-if [ $status = 1 ] && [ "$(wc -l <"$TMP/fl2.err")" = 1 ] && grep -q "is in use by another run (pid $first: " "$TMP/fl2.err" &&
+if [ $status = 1 ] && [ "$(wc -l <"$TMP/fl2.err")" = 1 ] && grep -q "is in use by another render (pid $first: " "$TMP/fl2.err" &&
     [ $status1 = 0 ] && [ "$(ls "$TMP/fl"/frame-*.exr | wc -l)" = 12 ] && [ "$(ls "$TMP/fl"/frame-*.png | wc -l)" = 12 ]; then
     pass "frames: a second run into a held OUTDIR is refused (exit 1, one line naming the holder); the first ends whole"
 else

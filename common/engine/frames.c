@@ -415,6 +415,8 @@ static int run_stream(frames_t *F)
                 fsay(F, "cannot write '%s': %s", sorted, strerror(errno));
                 close(fds[0]);
                 close(fds[1]);
+                cmd_free(&c[0]);
+                cmd_free(&c[1]);
                 return 3;
             }
         }
@@ -601,6 +603,8 @@ static int run_per_frame(frames_t *F, json_t *per)
     int sort = strcmp(F->v[F_ORDER], "none") != 0;
     printf("  %5s %8s %8s %8s %8s  (s)\n", "frame", "photons", "eye", "gather", "total");
     double frame0 = 0;
+    int status = 0;
+    cmd_t c[4] = {0}, g = {0}, co = {0}; /* freed at the end, whichever way the loop ends */
     for (int f = 0; f < F->n; f++) {
         char sc[PATH_MAX + 32];
         scene_path(F, f, sc, sizeof sc);
@@ -609,11 +613,12 @@ static int run_per_frame(frames_t *F, json_t *per)
         double t0 = epoch_now(), t1, t2, t3, t4;
         int reused = f > 0 && F->camera && reuse;
         run_t PH = {.fifo_rd = -1, .composite = -1}; /* the photon side, then the eye side */
-        cmd_t c[4] = {0};
         if (!reused) {
             int fds[2];
-            if (pipe_or_say(F, fds))
-                return 3;
+            if (pipe_or_say(F, fds)) {
+                status = 3;
+                goto out;
+            }
             prog(F, &c[0], "trace-photons");
             add(&c[0], sc);
             opt(&c[0], "--photons", F->v[F_PHOTONS]);
@@ -635,7 +640,10 @@ static int run_per_frame(frames_t *F, json_t *per)
             int s = wait_range(F, &PH, 0, nph);
             if (s) {
                 fsay(F, "frame %d: the photon stages failed", f);
-                return s;
+                {
+                    status = s;
+                    goto out;
+                }
             }
         }
         t1 = epoch_now();
@@ -644,8 +652,10 @@ static int run_per_frame(frames_t *F, json_t *per)
             run_t *E = &PH;
             int e0 = PH.n;
             int fds[2];
-            if (pipe_or_say(F, fds))
-                return 3;
+            if (pipe_or_say(F, fds)) {
+                status = 3;
+                goto out;
+            }
             prog(F, &c[2], "trace-gather-points");
             add(&c[2], sc);
             eye_opts(F, &c[2]);
@@ -659,7 +669,10 @@ static int run_per_frame(frames_t *F, json_t *per)
             int out = open(sorted, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
             if (out < 0) {
                 fsay(F, "cannot write '%s': %s", sorted, strerror(errno));
-                return 3;
+                {
+                    status = 3;
+                    goto out;
+                }
             }
             start(F, E, &c[2], -1, sort ? fds[1] : out, -1);
             close(fds[1]);
@@ -679,20 +692,25 @@ static int run_per_frame(frames_t *F, json_t *per)
             if (s) {
                 wait_all(F, &PH);
                 fsay(F, "frame %d: the eye stages failed", f);
-                return s;
+                {
+                    status = s;
+                    goto out;
+                }
             }
         }
         t2 = epoch_now();
         int sp_ = nph ? wait_range(F, &PH, 0, nph) : 0;
         if (sp_) {
             fsay(F, "frame %d: the photon stages failed", f);
-            return sp_;
+            {
+                status = sp_;
+                goto out;
+            }
         }
         t3 = epoch_now();
         for (int i = 0; i < 4; i++)
             cmd_free(&c[i]);
         /* the gather: frame 0 settles the kernel width, the later frames keep it */
-        cmd_t g = {0};
         prog(F, &g, "simd-gather");
         opt(&g, "--radius", F->v[F_RADIUS]);
         opt(&g, "--k", F->v[F_K]);
@@ -712,7 +730,10 @@ static int run_per_frame(frames_t *F, json_t *per)
         cmd_free(&g);
         if (code) {
             fsay(F, "frame %d: simd-gather failed", f);
-            return worst(&code, 1);
+            {
+                status = worst(&code, 1);
+                goto out;
+            }
         }
         if (f == 0 && !F->v[F_RADIUS][0]) {
             json_t *j = NULL;
@@ -720,7 +741,10 @@ static int run_per_frame(frames_t *F, json_t *per)
             if (!json_is_number(r)) {
                 json_decref(j);
                 fsay(F, "frame 0: no radius in simd-gather's stats");
-                return 1;
+                {
+                    status = 1;
+                    goto out;
+                }
             }
             /* the shortest text that reads back as the same double */
             double rv = json_number_value(r);
@@ -731,7 +755,6 @@ static int run_per_frame(frames_t *F, json_t *per)
             }
             json_decref(j);
         }
-        cmd_t co = {0};
         char fe[PATH_MAX + 32], fp[PATH_MAX + 32];
         snprintf(fe, sizeof fe, "%s/frame-%04d.exr", F->out, f);
         snprintf(fp, sizeof fp, "%s/frame-%04d.png", F->out, f);
@@ -751,7 +774,10 @@ static int run_per_frame(frames_t *F, json_t *per)
         cmd_free(&co);
         if (code) {
             fsay(F, "frame %d: composite failed", f);
-            return worst(&code, 1);
+            {
+                status = worst(&code, 1);
+                goto out;
+            }
         }
         t4 = epoch_now();
         if (f == 0)
@@ -767,7 +793,13 @@ static int run_per_frame(frames_t *F, json_t *per)
                               json_pack("{s:i, s:f, s:b, s:f, s:f, s:f}", "frame", f, "photons_s", ph, "map_reused",
                                         reused, "eye_s", t2 - t1, "gather_composite_s", t4 - t3, "total_s", t4 - t0));
     }
-    return 0;
+    status = 0;
+out:
+    for (int i = 0; i < 4; i++)
+        cmd_free(&c[i]);
+    cmd_free(&g);
+    cmd_free(&co);
+    return status;
 }
 
 /* One-line checks of the parameters (exit 2 with the message set). */

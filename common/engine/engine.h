@@ -139,6 +139,10 @@ void pm_proc_status_free(pm_proc_status_t *st);
  * its handle freed (the caller sets procs[*which_out] to NULL). For programs whose stderr is
  * passed through: a captured one is read only once the program has ended. */
 pm_result_t pm_proc_wait_any(pm_proc_t *const *procs, int n, int *which_out, pm_proc_status_t *status_out);
+/* The program directory the drivers start the stages from: BIN in the environment when set
+ * (absolute; PM_ERR_USAGE "no program directory 'X'" when it is none), else the directory of
+ * the running program. */
+pm_result_t pm_engine_bin(char *out, size_t cap);
 /* Runs one program to its end (pm_proc_spawn then pm_proc_wait). */
 pm_result_t pm_proc_run(const pm_spawn_t *sp, pm_proc_status_t *status_out);
 /* A stage's --stats file as JSON (*j_out the caller's to json_decref); PM_ERR_INPUT when it is

@@ -142,6 +142,35 @@ static void eye_opts(const frames_t *F, cmd_t *c)
         add(c, "direct-vis");
     }
 }
+/* hilbert-sort on a stream of documents, stdin to stdout */
+static void sort_stream(const frames_t *F, cmd_t *h)
+{
+    prog(F, h, "hilbert-sort");
+    add(h, "--stream");
+    add(h, "-");
+    add(h, "--order");
+    add(h, F->v[F_ORDER]);
+    threads(F, h);
+    add(h, "-o");
+    add(h, "-");
+    stats(F, h, "hilbert-sort");
+}
+/* simd-gather on a stream: of queries against map (a file), or of maps against queries */
+static void gather_stream(const frames_t *F, cmd_t *g, const char *stream, const char *a, const char *b)
+{
+    prog(F, g, "simd-gather");
+    add(g, "--stream");
+    add(g, stream);
+    opt(g, "--radius", F->v[F_RADIUS]);
+    opt(g, "--k", F->v[F_K]);
+    threads(F, g);
+    add(g, a);
+    add(g, b);
+    add(g, "-o");
+    add(g, "-");
+    stats(F, g, "simd-gather");
+}
+
 static void scene_path(const frames_t *F, int f, char *out, size_t cap)
 {
     snprintf(out, cap, "%s/scene-%04d.json", F->out, f);
@@ -399,17 +428,8 @@ static int run_stream(frames_t *F)
             threads(F, &c[0]);
             add(&c[0], "-o");
             add(&c[0], "-");
-            if (sort) {
-                prog(F, &c[1], "hilbert-sort");
-                add(&c[1], "--stream");
-                add(&c[1], "-");
-                add(&c[1], "--order");
-                add(&c[1], F->v[F_ORDER]);
-                threads(F, &c[1]);
-                add(&c[1], "-o");
-                add(&c[1], "-");
-                stats(F, &c[1], "hilbert-sort");
-            }
+            if (sort)
+                sort_stream(F, &c[1]);
             out = open(sorted, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
             if (out < 0) {
                 fsay(F, "cannot write '%s': %s", sorted, strerror(errno));
@@ -461,30 +481,9 @@ static int run_stream(frames_t *F)
             add(tg, "/dev/fd/3");
         }
         stats(F, tg, "trace-gather-points");
-        if (sort) {
-            cmd_t *h = &c[nc++];
-            prog(F, h, "hilbert-sort");
-            add(h, "--stream");
-            add(h, "-");
-            add(h, "--order");
-            add(h, F->v[F_ORDER]);
-            threads(F, h);
-            add(h, "-o");
-            add(h, "-");
-            stats(F, h, "hilbert-sort");
-        }
-        cmd_t *g = &c[nc++];
-        prog(F, g, "simd-gather");
-        add(g, "--stream");
-        add(g, "queries");
-        opt(g, "--radius", F->v[F_RADIUS]);
-        opt(g, "--k", F->v[F_K]);
-        threads(F, g);
-        add(g, map);
-        add(g, "-");
-        add(g, "-o");
-        add(g, "-");
-        stats(F, g, "simd-gather");
+        if (sort)
+            sort_stream(F, &c[nc++]);
+        gather_stream(F, &c[nc++], "queries", map, "-");
     } else {
         cmd_t *t = &c[nc++];
         prog(F, t, "trace-photons");
@@ -502,18 +501,7 @@ static int run_stream(frames_t *F)
         add(b, "-o");
         add(b, "-");
         stats(F, b, "build-photonmap");
-        cmd_t *g = &c[nc++];
-        prog(F, g, "simd-gather");
-        add(g, "--stream");
-        add(g, "map");
-        opt(g, "--radius", F->v[F_RADIUS]);
-        opt(g, "--k", F->v[F_K]);
-        threads(F, g);
-        add(g, "-");
-        add(g, sorted);
-        add(g, "-o");
-        add(g, "-");
-        stats(F, g, "simd-gather");
+        gather_stream(F, &c[nc++], "map", "-", sorted);
     }
     cmd_t *co = &c[nc++];
     prog(F, co, "composite");

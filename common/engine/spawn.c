@@ -202,3 +202,24 @@ pm_result_t pm_proc_stats_load(const char *path, json_t **j_out)
         return pm_error_set(PM_ERR_INPUT, "cannot read the stage's statistics '%s': %s", path, e.text);
     return PM_OK;
 }
+
+pm_result_t pm_engine_bin(char *out, size_t cap)
+{
+    const char *env = getenv("BIN");
+    if (env && env[0]) {
+        char *real = realpath(env, NULL);
+        if (!real)
+            return pm_error_set(PM_ERR_USAGE, "no program directory '%s'", env);
+        snprintf(out, cap, "%s", real);
+        free(real);
+        return PM_OK;
+    }
+    char self[4096];
+    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+    self[n > 0 ? n : 0] = '\0';
+    char *slash = strrchr(self, '/');
+    if (slash)
+        *slash = '\0';
+    snprintf(out, cap, "%s", self);
+    return PM_OK;
+}

@@ -60,23 +60,10 @@ int main(int argc, char **argv)
             fputs(param_help, stdout);
         return rc;
     }
-    char self[PATH_MAX], bin[PATH_MAX];
-    const char *env_bin = getenv("BIN");
-    if (env_bin && env_bin[0]) {
-        char *real = realpath(env_bin, NULL);
-        if (!real) {
-            fprintf(stderr, "%s: no program directory '%s'\n", me, env_bin);
-            return 2;
-        }
-        snprintf(bin, sizeof bin, "%s", real);
-        free(real);
-    } else {
-        ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
-        self[n > 0 ? n : 0] = '\0';
-        char *s = strrchr(self, '/');
-        if (s)
-            *s = '\0';
-        snprintf(bin, sizeof bin, "%s", self);
+    char bin[PATH_MAX];
+    if (pm_engine_bin(bin, sizeof bin) != PM_OK) {
+        fprintf(stderr, "%s: %s\n", me, pm_error_message());
+        return 2;
     }
     char cmdline[8192] = "";
     for (int i = 0; i < argc; i++) {

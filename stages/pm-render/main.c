@@ -88,15 +88,6 @@ static void append_word(char *out, size_t cap, const char *w)
         out[n++] = '\'', out[n] = '\0';
 }
 
-/* The directory a path names the parent of ("/a/bin/pm-render" -> "/a/bin"), into out. */
-static void parent(const char *path, char *out, size_t cap)
-{
-    snprintf(out, cap, "%s", path);
-    char *s = strrchr(out, '/');
-    if (s)
-        *s = '\0';
-}
-
 /* The parsed command line, freed at exit whichever of main's many returns is taken (a leak
  * checker counts it otherwise, and under LeakSanitizer a leak turns the exit status into 1). */
 static pm_stage_t *stage_at_exit;
@@ -179,20 +170,10 @@ int main(int argc, char **argv)
         fprintf(stderr, "%s: %s\n", me, pm_error_message());
         return 2;
     }
-    char self[PATH_MAX], bin[PATH_MAX];
-    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
-    self[n > 0 ? n : 0] = '\0';
-    const char *env_bin = getenv("BIN");
-    if (env_bin && env_bin[0]) {
-        char *real = realpath(env_bin, NULL);
-        if (!real) {
-            fprintf(stderr, "%s: no program directory '%s'\n", me, env_bin);
-            return 2;
-        }
-        snprintf(bin, sizeof bin, "%s", real);
-        free(real);
-    } else {
-        parent(self, bin, sizeof bin);
+    char bin[PATH_MAX];
+    if (pm_engine_bin(bin, sizeof bin) != PM_OK) {
+        fprintf(stderr, "%s: %s\n", me, pm_error_message());
+        return 2;
     }
     char cmdline[8192] = "";
     append_word(cmdline, sizeof cmdline, argv[0]);

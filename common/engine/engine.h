@@ -116,6 +116,8 @@ typedef struct {
     const int *close_fds; /* fds the child must not inherit (the other ends of its pipes), */
     int nclose;           /* so that a reader sees end of file when its writer exits */
     char *const *env;     /* environment; NULL: the driver's */
+    int extra_fd;         /* with extra_to > 2: an fd to give the program as extra_to as well */
+    int extra_to;         /* (pipelines/frames' --direct /dev/fd/3); 0: none */
 } pm_spawn_t;
 
 /* How a program ended. */
@@ -144,6 +146,10 @@ pm_result_t pm_proc_wait_any(pm_proc_t *const *procs, int n, int *which_out, pm_
  * resident stage's use between two readings is its compute in that span: one blocked on a pipe
  * uses none. */
 double pm_proc_cpu_s(const pm_proc_t *p);
+/* The program directory the drivers start the stages from: BIN in the environment when set
+ * (absolute; PM_ERR_USAGE "no program directory 'X'" when it is none), else the directory of
+ * the running program. */
+pm_result_t pm_engine_bin(char *out, size_t cap);
 /* Runs one program to its end (pm_proc_spawn then pm_proc_wait). */
 pm_result_t pm_proc_run(const pm_spawn_t *sp, pm_proc_status_t *status_out);
 /* A stage's --stats file as JSON (*j_out the caller's to json_decref); PM_ERR_INPUT when it is
@@ -234,5 +240,23 @@ int pm_engine_lock(const char *me, const char *outdir, int wait, const char *cmd
  * 1 bad input (or OUTDIR held with WAIT=0), 2 usage, 3 I/O or out of memory, 4 internal (a
  * stage's class passed through). */
 int pm_render_fixed(const pm_settings_t *s, const char *me, const char *bin, const char *cmdline);
+
+/* A progressive render whose passes are kept as files, OUTDIR/pass-NNNN/ (KEEP=all given,
+ * PASS_RANGE for pipelines/slurm's tasks, and what the resident passes do not run: MODE=direct-vis,
+ * SHARDS, another GATHER, ORDER=none, the caustic branch): each pass the chain with --pass, judged
+ * by provenance as one render is, its buffers added by composite --accumulate to OUTDIR/running.pm
+ * and the images, OUTDIR/passes.txt listing the passes in it. PASS_RANGE=A:B makes passes A to B
+ * alone (stopped at the TARGETs: gather-inputs, indirect.I.pm) and says "pass P made (STAGES)" on
+ * stdout for each. t0 is when the command started (TIME counts from it). Returns the exit status
+ * as pm_render_fixed does. */
+int pm_render_passes(const pm_settings_t *s, const char *me, const char *bin, const char *cmdline, double t0);
+
+/* pipelines/frames (bin/pm-frames): a camera or point-light path as frames, SCENE's scene file per
+ * frame in OUTDIR, the stages resident on streams of documents (STREAM=1) or run per frame, the
+ * NAME=VALUE parameters argv[0..argc) judged first (exit 2), OUTDIR held by pm_engine_lock for the
+ * run (a second run is refused, exit 1). Messages start with "me: "; bin is the program
+ * directory; cmdline is what the lock file records. Returns the exit status (docs/cli.md). */
+int pm_frames_run(const char *me, const char *scene, const char *outdir, int argc, char **argv, const char *bin,
+                  const char *cmdline);
 
 #endif

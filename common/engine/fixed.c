@@ -26,10 +26,13 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "base/args.h"
 #include "base/exr.h"
+#include "base/hash.h"
 #include "base/stage.h"
 #include "base/timer.h"
 #include "engine/engine.h"
+#include "formats/formats.h"
 #include "formats/pmfile.h"
 #include "render/light.h"
 #include "render/scene.h"
@@ -765,6 +768,27 @@ static int finish_job(render_t *r, job_t *j, const pm_proc_status_t *st)
 
 /* ---- the table and stats.json ---- */
 
+/* OUTDIR/stats.json, whole or not at all: {"scene", "params", KEY: items, "total": tot}
+ * (items and tot are taken over). */
+static void stats_write(render_t *r, const pm_settings_t *s, const char *key, json_t *items, json_t *tot)
+{
+    json_t *params = json_object(), *root = json_object();
+    for (int p = 0; p < PM_P_COUNT; p++)
+        json_object_set_new(params, pm_param_name((pm_param_t)p), json_string(s->value[p]));
+    json_object_set_new(root, "scene", json_string(r->scene_all));
+    json_object_set_new(root, "params", params);
+    json_object_set_new(root, key, items);
+    json_object_set_new(root, "total", tot);
+    char tmp[PATH_MAX + 64], dst[PATH_MAX + 64];
+    snprintf(tmp, sizeof tmp, "%s/.stats.json.tmp", r->out);
+    snprintf(dst, sizeof dst, "%s/stats.json", r->out);
+    if (json_dump_file(root, tmp, JSON_SORT_KEYS | JSON_INDENT(1)) != 0 || rename(tmp, dst) != 0) {
+        unlink(tmp);
+        say(r, "could not write '%s'", dst);
+    }
+    json_decref(root);
+}
+
 static void report(render_t *r, double run_s)
 {
     int sw = r->need_caustic ? 24 : 22;
@@ -806,47 +830,40 @@ static void report(render_t *r, double run_s)
     }
     printf("  %-*s %-8s %9.3f   (this run: %.3f s)\n", sw, "total of the stages", "", total, run_s);
     fflush(stdout);
-    json_t *params = json_object();
-    for (int p = 0; p < PM_P_COUNT; p++)
-        json_object_set_new(params, pm_param_name((pm_param_t)p), json_string(r->s->value[p]));
     json_t *tot = json_object();
     json_object_set_new(tot, "pipeline_wall_s", json_real(total));
     json_object_set_new(tot, "wall_s", json_real(wall));
     json_object_set_new(tot, "cpu_s", json_real(cpu));
     json_object_set_new(tot, "this_run_s", json_real(run_s));
     json_object_set_new(tot, "ran", ran);
-    json_t *root = json_object();
-    json_object_set_new(root, "scene", json_string(r->scene_all));
-    json_object_set_new(root, "params", params);
-    json_object_set_new(root, "stages", stages);
-    json_object_set_new(root, "total", tot);
-    char tmp[PATH_MAX + 64], dst[PATH_MAX + 64];
-    snprintf(tmp, sizeof tmp, "%s/.stats.json.tmp", r->out);
-    snprintf(dst, sizeof dst, "%s/stats.json", r->out);
-    if (json_dump_file(root, tmp, JSON_SORT_KEYS | JSON_INDENT(1)) != 0 || rename(tmp, dst) != 0) {
-        unlink(tmp);
-        say(r, "could not write '%s'", dst);
-    }
-    json_decref(root);
+    stats_write(r, r->s, "stages", stages, tot);
 }
 
 /* ---- KEEP: what OUTDIR keeps after a render that succeeded (only files render makes, by name) ---- */
 
-static void remove_dir_files(const char *dir)
+/* Removes path: a file, or a directory and all it holds. */
+static void remove_tree(const char *path)
 {
-    DIR *d = opendir(dir);
-    if (!d)
+    struct stat sb;
+    if (lstat(path, &sb) != 0)
         return;
-    struct dirent *e;
-    while ((e = readdir(d))) {
-        if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
-            continue;
-        char p[PATH_MAX + 300];
-        snprintf(p, sizeof p, "%s/%s", dir, e->d_name);
-        unlink(p);
+    if (!S_ISDIR(sb.st_mode)) {
+        unlink(path);
+        return;
     }
-    closedir(d);
-    rmdir(dir);
+    DIR *d = opendir(path);
+    if (d) {
+        struct dirent *e;
+        while ((e = readdir(d))) {
+            if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
+                continue;
+            char p[PATH_MAX + 300];
+            snprintf(p, sizeof p, "%s/%s", path, e->d_name);
+            remove_tree(p);
+        }
+        closedir(d);
+    }
+    rmdir(path);
 }
 
 static void keep_only(render_t *r)
@@ -880,11 +897,11 @@ static void keep_only(render_t *r)
         }
     }
     snprintf(p, sizeof p, "%s/times", r->out);
-    remove_dir_files(p);
+    remove_tree(p);
     snprintf(p, sizeof p, "%s/stats", r->out);
-    remove_dir_files(p);
+    remove_tree(p);
     snprintf(p, sizeof p, "%s/.stamps", r->out);
-    remove_dir_files(p);
+    remove_tree(p);
 }
 
 /* ---- the whole render ---- */
@@ -1044,10 +1061,12 @@ static int mkdir_p(const char *path)
     return mkdir(p, 0777) != 0 && errno != EEXIST ? -1 : 0;
 }
 
-int pm_render_fixed(const pm_settings_t *s, const char *me, const char *bin, const char *cmdline)
+/* What one render and a render of pass files share before any graph: the scene by its absolute
+ * path, the decisions and their notes, the programs, the scene loaded, OUTDIR made and locked,
+ * its records started, the scene's warnings said. Returns 0, or the exit status (what it took is
+ * undone by render_end). */
+static int render_begin(render_t *r, const pm_settings_t *s, const char *me, const char *bin, const char *cmdline)
 {
-    static render_t rr;
-    render_t *r = &rr;
     memset(r, 0, sizeof *r);
     r->s = s;
     r->me = me;
@@ -1145,6 +1164,30 @@ int pm_render_fixed(const pm_settings_t *s, const char *me, const char *bin, con
                 "leaks out as fireflies (scene-info names the first)",
                 nf);
     }
+done:
+    return status;
+}
+
+/* Frees what render_begin and the graph took, and lets OUTDIR go. */
+static void render_end(render_t *r)
+{
+    fflush(stdout);
+    for (int i = 0; i < r->njobs; i++)
+        for (int k = 0; k < r->jobs[i].argc; k++)
+            free(r->jobs[i].argv[k]);
+    pm_scene_free(&r->sc);
+    if (r->lock_fd >= 0)
+        close(r->lock_fd);
+}
+
+int pm_render_fixed(const pm_settings_t *s, const char *me, const char *bin, const char *cmdline)
+{
+    static render_t rr;
+    render_t *r = &rr;
+    pm_result_t res;
+    int status = render_begin(r, s, me, bin, cmdline);
+    if (status != 0)
+        goto done;
     printf("%s: %s -> %s (MODE=%s MAP=%s ORDER=%s GATHER=%s SHARDS=%d)\n", r->me, r->scene_all, r->out, r->mode, r->map,
            r->order, s->value[PM_P_GATHER], s->shards);
     for (int i = 0; i < r->nnotes; i++)
@@ -1319,12 +1362,1308 @@ int pm_render_fixed(const pm_settings_t *s, const char *me, const char *bin, con
                s->keep != PM_KEEP_ALL ? " (KEEP=" : "", s->keep != PM_KEEP_ALL ? s->value[PM_P_KEEP] : "",
                s->keep != PM_KEEP_ALL ? ": the rest removed)" : "");
 done:
+    render_end(r);
+    return status;
+}
+
+/* ---- pass files: progressive passes kept as files, OUTDIR/pass-NNNN/ (KEEP=all given, PASS_RANGE
+ * for pipelines/slurm's tasks, and what the resident passes of progressive.c do not run) ----
+ *
+ * Pass p is the chain above in its own directory with --pass p on the tracers and the gather (and
+ * from pass 2 on --radius r_1, pass 1's width), ending at the pass's buffers, which composite
+ * --accumulate adds to OUTDIR/running.pm and the images. Within a pass the photons are piped into
+ * the map and, when they are sorted, the queries into hilbert-sort and on into the gather, so no
+ * photons.pm or queries.pm is written: the pipe is the unit a pass keeps or remakes, judged by
+ * the provenance of the files it makes (the COMMAND lines of every stage of the pipe). */
+
+#define MAX_CMDS 6
+#define MAX_UNITS 72
+
+enum { U_PHOTONS, U_QUERIES, U_FUSED, U_ONE };
+
+typedef job_t pcmd_t; /* a command of a pass: its name (row, stats/NAME.json) and argv */
+
+/* A pipe of stages and the files it makes. U_PHOTONS: cmd 0 | cmd 1, then cmd 2 (the caustic map)
+ * when there is one; U_QUERIES: cmd 0, or cmd 0 | cmd 1 (the sort); U_FUSED: U_PHOTONS's commands
+ * (nph of them) beside cmd nph | cmd nph+1 | cmd nph+2 (the gather, started once the map is made);
+ * U_ONE: cmd 0. */
+typedef struct {
+    int kind, nph;
+    pcmd_t cmd[MAX_CMDS];
+    int ncmd;
+    const char *outs[MAX_FILES + 2];
+    int first[MAX_FILES + 2], nwant[MAX_FILES + 2]; /* the COMMAND lines output k records: cmd[first..first+nwant) */
+    int nouts;
+    const char *ins[MAX_FILES];
+    int nins;
+    int external;      /* its last command is a gather outside the program directory */
+    int shard;         /* -1 or the shard (its --range is set from the queries' count) */
+    int needed, state; /* state: 0 not made, 1 cached, 2 ran, 3 failed */
+} unit_t;
+
+typedef struct {
+    render_t *r;
+    unit_t u[MAX_UNITS];
+    int nu;
+    char dir[PATH_MAX + 32]; /* the pass's directory */
+    int pass;
+    char r1[64]; /* pass 1's radius1, for passes after it */
+    const char *shards[64];
+    int nshards;
+    int dry; /* pass_make only judges: 0 when nothing would run, 1 when something would */
+} passgraph_t;
+
+static pcmd_t *pc_new(render_t *r, unit_t *u, const char *name, const char *program)
+{
+    pcmd_t *c = &u->cmd[u->ncmd++];
+    memset(c, 0, sizeof *c);
+    snprintf(c->name, sizeof c->name, "%s", name);
+    if (program[0] == '/')
+        arg(c, program);
+    else
+        arg_prog(r, c, program);
+    return c;
+}
+static void pc_pass(pcmd_t *c, int pass)
+{
+    char p[32];
+    snprintf(p, sizeof p, "%d", pass);
+    arg(c, "--pass");
+    arg(c, p);
+}
+static void unit_out(unit_t *u, const char *file, int first, int n)
+{
+    u->outs[u->nouts] = file;
+    u->first[u->nouts] = first;
+    u->nwant[u->nouts++] = n;
+}
+static unit_t *unit_new(passgraph_t *g, int kind)
+{
+    unit_t *u = &g->u[g->nu++];
+    memset(u, 0, sizeof *u);
+    u->kind = kind;
+    u->shard = -1;
+    return u;
+}
+
+/* The photon side of a pass: trace-photons | build-photonmap, then the caustic map. */
+static void pass_photons(passgraph_t *g, unit_t *u)
+{
+    render_t *r = g->r;
+    const pm_settings_t *s = r->s;
+    pcmd_t *c = pc_new(r, u, "trace-photons", "trace-photons");
+    arg(c, r->scene);
+    arg(c, "-o");
+    arg(c, "-");
+    if (r->need_caustic) {
+        arg(c, "--caustic-output");
+        arg(c, "caustic-photons.pm");
+    }
+    arg_opt(c, "--photons", s->value[PM_P_PHOTONS]);
+    arg_opt(c, "--seed", s->value[PM_P_SEED]);
+    pc_pass(c, g->pass);
+    arg_common(r, c);
+    c = pc_new(r, u, "build-photonmap", "build-photonmap");
+    arg(c, "-");
+    arg(c, "-o");
+    arg(c, "photonmap.pm");
+    arg(c, "--map");
+    arg(c, r->map);
+    arg_opt(c, "--width-k", r->width_k);
+    arg_common(r, c);
+    unit_out(u, "photonmap.pm", 0, 2);
+    if (r->need_caustic) {
+        unit_out(u, "caustic-photons.pm", 0, 1);
+        c = pc_new(r, u, "build-photonmap.caustic", "build-photonmap");
+        arg(c, "caustic-photons.pm");
+        arg(c, "-o");
+        arg(c, "caustic-map.pm");
+        arg(c, "--map");
+        arg(c, "caustic");
+        arg_common(r, c);
+        unit_out(u, "caustic-map.pm", 2, 1);
+    }
+    u->nph = u->ncmd;
+}
+
+/* The queries of a pass: trace-gather-points, into hilbert-sort when they are sorted. */
+static void pass_queries(passgraph_t *g, unit_t *u)
+{
+    render_t *r = g->r;
+    const pm_settings_t *s = r->s;
+    int sorted = strcmp(r->order, "none") != 0, first = u->ncmd;
+    pcmd_t *c = pc_new(r, u, "trace-gather-points", "trace-gather-points");
+    arg(c, r->scene);
+    arg(c, "-o");
+    arg(c, sorted ? "-" : "queries.pm");
+    if (r->need_direct) {
+        arg(c, "--direct");
+        arg(c, "direct.pm");
+    }
+    if (r->need_caustic) {
+        arg(c, "--caustic-queries");
+        arg(c, "caustic-queries.pm");
+    }
+    arg(c, "--mode");
+    arg(c, r->mode);
+    arg_opt(c, "--spp", s->value[PM_P_SPP]);
+    arg_opt(c, "--width", s->value[PM_P_WIDTH]);
+    arg_opt(c, "--height", s->value[PM_P_HEIGHT]);
+    arg_opt(c, "--primary", s->value[PM_P_PRIMARY]);
+    arg_opt(c, "--light-samples", r->light_samples);
+    arg_opt(c, "--seed", s->value[PM_P_SEED]);
+    pc_pass(c, g->pass);
+    arg_common(r, c);
+    if (!sorted)
+        unit_out(u, "queries.pm", first, 1);
+    if (r->need_direct)
+        unit_out(u, "direct.pm", first, 1);
+    if (r->need_caustic)
+        unit_out(u, "caustic-queries.pm", first, 1);
+    if (sorted) {
+        c = pc_new(r, u, "hilbert-sort", "hilbert-sort");
+        arg(c, "-");
+        arg(c, "-o");
+        arg(c, u->kind == U_FUSED ? "-" : "sorted.pm");
+        arg(c, "--order");
+        arg(c, r->order);
+        arg_opt(c, "--leaf", s->value[PM_P_LEAF]);
+        arg_common(r, c);
+        if (u->kind != U_FUSED)
+            unit_out(u, "sorted.pm", first, 2);
+    }
+}
+
+/* The gather's options in a pass: pass 1's radius or K, from pass 2 on r_1; the schedule. */
+static void pass_gather_opts(passgraph_t *g, pcmd_t *c, int caustic)
+{
+    render_t *r = g->r;
+    const pm_settings_t *s = r->s;
+    if (g->pass == 1 || caustic) {
+        arg_opt(c, r->knn ? "--max-radius" : "--radius", s->value[PM_P_RADIUS]);
+        arg_opt(c, "--k", s->value[PM_P_K]);
+    } else {
+        arg_opt(c, "--radius", g->r1);
+    }
+    arg_opt(c, "--kernel", s->value[PM_P_KERNEL]);
+    arg_opt(c, "--isa", s->value[PM_P_ISA]);
+    pc_pass(c, g->pass);
+    arg_opt(c, "--alpha", s->value[PM_P_ALPHA]);
+}
+
+/* The graph of pass g->pass in g->dir, as units in the order they run. */
+static void pass_graph(passgraph_t *g)
+{
+    render_t *r = g->r;
+    static char shard_out[64][32];
+    int N = r->s->shards, sorted = strcmp(r->order, "none") != 0;
+    g->nu = 0;
+    g->nshards = 0;
+    int fused = sorted && N == 1 && r->need_gather;
+    if (fused) {
+        unit_t *u = unit_new(g, U_FUSED);
+        pass_photons(g, u);
+        pass_queries(g, u);
+        int q0 = u->nph;
+        pcmd_t *c = pc_new(r, u, r->gname, r->gather_bin);
+        arg(c, "photonmap.pm");
+        arg(c, "-");
+        arg(c, "-o");
+        arg(c, "indirect.pm");
+        pass_gather_opts(g, c, 0);
+        arg_common(r, c);
+        unit_out(u, "indirect.pm", q0, 3);
+        u->external = r->ext_gather;
+        g->shards[g->nshards++] = "indirect.pm";
+    } else {
+        if (r->need_gather)
+            pass_photons(g, unit_new(g, U_PHOTONS));
+        pass_queries(g, unit_new(g, U_QUERIES));
+        for (int i = 0; r->need_gather && i < N && i < 64; i++) {
+            unit_t *u = unit_new(g, U_ONE);
+            char name[96];
+            if (N == 1) {
+                snprintf(name, sizeof name, "%s", r->gname);
+                snprintf(shard_out[i], sizeof shard_out[i], "indirect.pm");
+            } else {
+                snprintf(name, sizeof name, "%s.%d", r->gname, i);
+                snprintf(shard_out[i], sizeof shard_out[i], "indirect.%d.pm", i);
+            }
+            pcmd_t *c = pc_new(r, u, name, r->gather_bin);
+            arg(c, "photonmap.pm");
+            arg(c, r->queries);
+            arg(c, "-o");
+            arg(c, shard_out[i]);
+            if (N > 1) {
+                u->shard = i;
+                arg(c, "--range");
+                arg(c, "0:0");
+            }
+            pass_gather_opts(g, c, 0);
+            arg_common(r, c);
+            u->external = r->ext_gather;
+            u->ins[u->nins++] = "photonmap.pm";
+            u->ins[u->nins++] = r->queries;
+            unit_out(u, shard_out[i], 0, 1);
+            g->shards[g->nshards++] = shard_out[i];
+        }
+    }
+    if (r->need_caustic) {
+        unit_t *u = unit_new(g, U_ONE);
+        pcmd_t *c = pc_new(r, u, "simd-gather.caustic", r->gather_bin);
+        arg(c, "caustic-map.pm");
+        arg(c, "caustic-queries.pm");
+        arg(c, "-o");
+        arg(c, "caustic.pm");
+        pass_gather_opts(g, c, 1);
+        arg_common(r, c);
+        u->external = r->ext_gather;
+        u->ins[u->nins++] = "caustic-map.pm";
+        u->ins[u->nins++] = "caustic-queries.pm";
+        unit_out(u, "caustic.pm", 0, 1);
+    }
+}
+
+static void pass_graph_free(passgraph_t *g)
+{
+    for (int i = 0; i < g->nu; i++)
+        for (int k = 0; k < g->u[i].ncmd; k++)
+            for (int a = 0; a < g->u[i].cmd[k].argc; a++)
+                free(g->u[i].cmd[k].argv[a]);
+    g->nu = 0;
+}
+
+static unit_t *unit_making(passgraph_t *g, const char *file)
+{
+    for (int i = 0; i < g->nu; i++)
+        for (int k = 0; k < g->u[i].nouts; k++)
+            if (!strcmp(g->u[i].outs[k], file))
+                return &g->u[i];
+    return NULL;
+}
+
+static void unit_need(passgraph_t *g, unit_t *u)
+{
+    if (u->needed)
+        return;
+    u->needed = 1;
+    for (int i = 0; i < u->nins; i++) {
+        unit_t *p = unit_making(g, u->ins[i]);
+        if (p)
+            unit_need(g, p);
+    }
+}
+
+/* The targets of a pass (PASS_RANGE's): all, gather-inputs (with SHARDS, all a pass makes but
+ * the gather's shards) or a file of the graph and what it needs. PM_ERR_USAGE for another. */
+static pm_result_t pass_targets(passgraph_t *g)
+{
+    const pm_settings_t *s = g->r->s;
+    int all = s->ntargets == 0;
+    for (int t = 0; t < s->ntargets; t++) {
+        const char *w = s->targets[t];
+        if (!strcmp(w, "all")) {
+            all = 1;
+        } else if (!strcmp(w, "gather-inputs") && s->shards > 1 && g->r->need_gather) {
+            for (int i = 0; i < g->nu; i++)
+                if (g->u[i].shard < 0)
+                    unit_need(g, &g->u[i]);
+        } else {
+            unit_t *u = unit_making(g, w);
+            if (!u)
+                return pm_error_set(PM_ERR_USAGE, "no target '%s' in a pass's graph", w);
+            unit_need(g, u);
+        }
+    }
+    for (int i = 0; all && i < g->nu; i++)
+        unit_need(g, &g->u[i]);
+    return PM_OK;
+}
+
+/* Judges the outputs of u as they are now (after the units before it). 1 when all are what the
+ * settings would make; says why a file is remade as the single render does. */
+static int unit_current(passgraph_t *g, unit_t *u, int *err)
+{
+    render_t *r = g->r;
+    int ok = 1;
+    for (int k = 0; k < u->nouts; k++) {
+        char *lines[MAX_CMDS] = {0};
+        int n = u->nwant[k];
+        for (int i = 0; i < n; i++)
+            if (pm_prov_command_line(u->cmd[u->first[k] + i].argc, u->cmd[u->first[k] + i].argv, &lines[i]) != PM_OK)
+                *err = 1;
+        pm_prov_want_t w = {.dir = g->dir,
+                            .name = u->outs[k],
+                            .commands = (const char *const *)lines,
+                            .ncommands = (size_t)n,
+                            .scene = scene_of(r, u->outs[k]),
+                            .external = u->external && u->first[k] + n == u->ncmd,
+                            .scene_arg = n == 1 && (!strcmp(u->cmd[u->first[k]].name, "trace-photons") ||
+                                                    !strcmp(u->cmd[u->first[k]].name, "trace-gather-points"))};
+        pm_prov_t p;
+        if (*err || pm_prov_check(&w, &p) != PM_OK)
+            *err = 1;
+        for (int i = 0; i < n; i++)
+            free(lines[i]);
+        if (*err)
+            return 0;
+        if (g->dry)
+            ;
+        else if (p.verdict == PM_PROV_CORRUPT)
+            say(r, "pass-%04d/%s is corrupt (%s): rebuilding it", g->pass, u->outs[k], p.why);
+        else if (p.verdict == PM_PROV_OTHER && r->s->verbose)
+            say(r, "pass-%04d/%s was made otherwise (%s): remaking it", g->pass, u->outs[k], p.why);
+        if (p.verdict != PM_PROV_OK)
+            ok = 0;
+    }
+    return ok;
+}
+
+static void pass_record(const passgraph_t *g, const char *file, const char *line)
+{
+    char p[PATH_MAX + 96];
+    snprintf(p, sizeof p, "%s/%s", g->dir, file);
+    FILE *f = fopen(p, "a");
+    if (f) {
+        fprintf(f, "%s\n", line);
+        fclose(f);
+    }
+}
+
+/* A command of u has ended as st says: its time, ran.txt or failed.txt. */
+static void cmd_ended(passgraph_t *g, const pcmd_t *c, const pm_proc_status_t *st)
+{
+    if (st->exit_code != 0) {
+        say(g->r, "pass %d: stage %s failed (exit %d)", g->pass, c->name, st->exit_code);
+        pass_record(g, "failed.txt", c->name);
+        return;
+    }
+    char p[PATH_MAX + 200];
+    snprintf(p, sizeof p, "%s/times/%s", g->dir, c->name);
+    FILE *f = fopen(p, "w");
+    if (f) {
+        fprintf(f, "%.6f\n", st->wall_s);
+        fclose(f);
+    }
+    pass_record(g, "ran.txt", c->name);
+}
+
+/* Starts command i of u with the given stdin and stdout (-1: none), closing the fds in cl in it. */
+static int cmd_start(passgraph_t *g, unit_t *u, int i, int in, int out, const int *cl, int ncl, pm_proc_t **p)
+{
+    pcmd_t *c = &u->cmd[i];
+    if (g->r->s->verbose) {
+        fputs("+", stderr);
+        for (int k = 0; k < c->argc; k++)
+            fprintf(stderr, " %s", c->argv[k]);
+        fputc('\n', stderr);
+    }
+    pm_spawn_t sp = {.argv = c->argv, .cwd = g->dir, .stdin_fd = in, .stdout_fd = out, .close_fds = cl, .nclose = ncl};
+    if (pm_proc_spawn(&sp, p) != PM_OK) {
+        say(g->r, "%s", pm_error_message());
+        pass_record(g, "failed.txt", c->name);
+        *p = NULL;
+        return 3;
+    }
+    return 0;
+}
+
+/* Waits for p (command i of u); its exit status (3 when it cannot be waited for). */
+static int cmd_wait(passgraph_t *g, unit_t *u, int i, pm_proc_t *p)
+{
+    if (!p)
+        return 3;
+    pm_proc_status_t st;
+    if (pm_proc_wait(p, &st) != PM_OK) {
+        say(g->r, "%s", pm_error_message());
+        return 3;
+    }
+    cmd_ended(g, &u->cmd[i], &st);
+    int code = st.exit_code;
+    pm_proc_status_free(&st);
+    return code;
+}
+
+static void close_fd(int *fd)
+{
+    if (*fd >= 0)
+        close(*fd);
+    *fd = -1;
+}
+
+/* Runs commands [a, b) of u as one pipe, the last one's stdout into out_fd (-1: its own -o);
+ * the first failure's status, from the right as bash's pipefail reports it. */
+static int run_pipe(passgraph_t *g, unit_t *u, int a, int b, int out_fd, int extra_close)
+{
+    pm_proc_t *p[MAX_CMDS] = {0};
+    int in = -1, status = 0;
+    for (int i = a; i < b; i++) {
+        int fds[2] = {-1, -1};
+        if (i + 1 < b && pm_proc_pipe(fds) != PM_OK) {
+            say(g->r, "%s", pm_error_message());
+            status = 3;
+            break;
+        }
+        int cl[2], ncl = 0; /* the pipes close on exec; named too, for a spawn that dup2s */
+        if (fds[0] >= 0)
+            cl[ncl++] = fds[0];
+        if (extra_close >= 0)
+            cl[ncl++] = extra_close;
+        int code = cmd_start(g, u, i, in, i + 1 < b ? fds[1] : out_fd, cl, ncl, &p[i]);
+        close_fd(&in);
+        close_fd(&fds[1]);
+        in = fds[0];
+        if (code) {
+            status = code;
+            break;
+        }
+    }
+    close_fd(&in);
+    int right = 0; /* the rightmost failure, as bash's pipefail reports it */
+    for (int i = a; i < b; i++) {
+        int code = p[i] ? cmd_wait(g, u, i, p[i]) : 0;
+        if (code)
+            right = code;
+    }
+    return status ? status : right;
+}
+
+/* The fused pass: the photon side beside the queries' pipe, the gather started on the sorted
+ * queries once the map is made (nothing, and a failed pass, when it is not). */
+static int run_fused(passgraph_t *g, unit_t *u)
+{
+    int q0 = u->nph, fds[2], qp[2];
+    if (pm_proc_pipe(fds) != PM_OK || pm_proc_pipe(qp) != PM_OK) {
+        say(g->r, "%s", pm_error_message());
+        return 3;
+    }
+    /* trace-gather-points | hilbert-sort > qp[1] */
+    pm_proc_t *tg = NULL, *hs = NULL;
+    int cl1[2] = {fds[0], qp[0]};
+    int status = cmd_start(g, u, q0, -1, fds[1], cl1, 2, &tg);
+    close_fd(&fds[1]);
+    int cl2[1] = {qp[0]};
+    if (!status)
+        status = cmd_start(g, u, q0 + 1, fds[0], qp[1], cl2, 1, &hs);
+    close_fd(&fds[0]);
+    close_fd(&qp[1]);
+    int w = status ? status : run_pipe(g, u, 0, 2, -1, qp[0]);
+    if (!w && !status && u->nph > 2)
+        w = run_pipe(g, u, 2, 3, -1, qp[0]);
+    int s = 0;
+    pm_proc_t *ga = NULL;
+    if (!w && !status)
+        s = cmd_start(g, u, q0 + 2, qp[0], -1, NULL, 0, &ga);
+    close_fd(&qp[0]); /* without a gather the sort's writes fail: it ends quietly */
+    int c = cmd_wait(g, u, q0, tg), h = cmd_wait(g, u, q0 + 1, hs), x = ga ? cmd_wait(g, u, q0 + 2, ga) : 0;
+    if (status)
+        return status;
+    if (w)
+        return w;
+    return s ? s : x ? x : h ? h : c;
+}
+
+/* Runs u; its exit status. What a failed unit leaves is removed, as make's .DELETE_ON_ERROR did. */
+static int run_unit(passgraph_t *g, unit_t *u)
+{
+    int status;
+    switch (u->kind) {
+    case U_FUSED: status = run_fused(g, u); break;
+    case U_PHOTONS:
+        status = run_pipe(g, u, 0, 2, -1, -1);
+        if (!status && u->ncmd > 2)
+            status = run_pipe(g, u, 2, 3, -1, -1);
+        break;
+    default: status = run_pipe(g, u, 0, u->ncmd, -1, -1); break;
+    }
+    if (status) {
+        for (int k = 0; k < u->nouts; k++) {
+            char p[PATH_MAX + 96];
+            snprintf(p, sizeof p, "%s/%s", g->dir, u->outs[k]);
+            unlink(p);
+        }
+    }
+    return status;
+}
+
+/* Makes pass g->pass in g->dir (created): each needed unit whose files are not what the settings
+ * make runs. *ran_out: a stage ran. Returns the exit status. */
+static int pass_make(passgraph_t *g, int *ran_out)
+{
+    render_t *r = g->r;
+    *ran_out = 0;
+    pass_graph_free(g);
+    char p[PATH_MAX + 96];
+    snprintf(p, sizeof p, "%s/stats", g->dir);
+    if (g->dry) {
+        struct stat sb;
+        if (stat(g->dir, &sb) != 0) {
+            *ran_out = 1;
+            return 0;
+        }
+    } else if (mkdir_p(p) != 0) {
+        say(r, "cannot create '%s': %s", p, strerror(errno));
+        return 3;
+    }
+    if (!g->dry) {
+        snprintf(p, sizeof p, "%s/times", g->dir);
+        mkdir(p, 0777);
+        snprintf(p, sizeof p, "%s/ran.txt", g->dir);
+        FILE *f = fopen(p, "w");
+        if (!f) {
+            say(r, "cannot write '%s': %s", p, strerror(errno));
+            return 3;
+        }
+        fclose(f);
+        snprintf(p, sizeof p, "%s/failed.txt", g->dir);
+        unlink(p);
+    }
+    pass_graph(g);
+    if (pass_targets(g) != PM_OK) {
+        say(r, "%s", pm_error_message());
+        return 2;
+    }
+    for (int i = 0; i < g->nu; i++) {
+        unit_t *u = &g->u[i];
+        if (!u->needed)
+            continue;
+        if (u->shard >= 0) {
+            char rel[PATH_MAX + 96];
+            snprintf(rel, sizeof rel, "pass-%04d/%s", g->pass, r->queries);
+            uint64_t n;
+            if (count_records(r, rel, &n) != PM_OK) {
+                if (g->dry) {
+                    *ran_out = 1;
+                    return 0;
+                }
+                say(r, "%s", pm_error_message());
+                return 1;
+            }
+            char range[64];
+            uint64_t N = (uint64_t)r->s->shards, s = (uint64_t)u->shard;
+            snprintf(range, sizeof range, "%" PRIu64 ":%" PRIu64, n * s / N, n * (s + 1) / N);
+            pcmd_t *c = &u->cmd[0];
+            for (int k = 0; k < c->argc; k++)
+                if (!strcmp(c->argv[k], "--range")) {
+                    free(c->argv[k + 1]);
+                    c->argv[k + 1] = strdup(range);
+                }
+        }
+        int err = 0;
+        if (unit_current(g, u, &err)) {
+            u->state = 1;
+            continue;
+        }
+        if (err) {
+            say(r, "%s", pm_error_message());
+            return 3;
+        }
+        *ran_out = 1;
+        if (g->dry)
+            return 0;
+        int code = run_unit(g, u);
+        if (code) {
+            u->state = 3;
+            return stage_status(code);
+        }
+        u->state = 2;
+    }
+    return 0;
+}
+
+/* ---- the passes' driver ---- */
+
+typedef struct {
+    render_t *r;
+    passgraph_t g;
+    char state[PATH_MAX + 32], list[PATH_MAX + 32];
+    char **lines; /* passes.txt: "PASS HASH ERROR" */
+    int nlines;
+    long st_passes; /* the running image's passes, relative error and radius1 */
+    char st_err[64], st_r1[64];
+    const char *buffers[72];
+    int nbuffers;
+    double t0;
+} passes_t;
+
+static double since(const passes_t *P) { return pm_time_wall() - P->t0; }
+
+static void pass_dir(const passes_t *P, int pass, char *out, size_t cap)
+{
+    snprintf(out, cap, "%s/pass-%04d", P->r->out, pass);
+}
+
+static void list_read(passes_t *P)
+{
+    for (int i = 0; i < P->nlines; i++)
+        free(P->lines[i]);
+    P->nlines = 0;
+    FILE *f = fopen(P->list, "r");
+    if (!f)
+        return;
+    char line[512];
+    while (fgets(line, sizeof line, f)) {
+        line[strcspn(line, "\n")] = '\0';
+        char **nl = realloc(P->lines, sizeof *nl * (size_t)(P->nlines + 1));
+        if (!nl)
+            break;
+        P->lines = nl;
+        P->lines[P->nlines++] = strdup(line);
+    }
+    fclose(f);
+}
+
+/* The running image's header, read whole: a damaged one is removed, and the passes rebuild it. */
+static void state_read(passes_t *P)
+{
+    P->st_passes = 0;
+    P->st_err[0] = P->st_r1[0] = '\0';
+    struct stat sb;
+    if (stat(P->state, &sb) != 0)
+        return;
+    pm_table_t t = {0};
+    if (pm_table_read(P->state, &pm_radiance_schema, 0, &t) != PM_OK) {
+        say(P->r, "the running image is damaged (%s): rebuilding it from the passes", pm_error_message());
+        unlink(P->state);
+        return;
+    }
+    const char *v = pm_header_get(&t.hdr, "passes");
+    P->st_passes = v ? strtol(v, NULL, 10) : 0;
+    v = pm_header_get(&t.hdr, "relative_error");
+    snprintf(P->st_err, sizeof P->st_err, "%s", v ? v : "");
+    v = pm_header_get(&t.hdr, "radius1");
+    snprintf(P->st_r1, sizeof P->st_r1, "%s", v ? v : "");
+    pm_table_free(&t);
+}
+
+/* The content hash of a pass's buffers (of their checksums), as hex; "" when one cannot be read. */
+static void buffers_hash(passes_t *P, int pass, char *out, size_t cap)
+{
+    uint64_t h[72];
+    char d[PATH_MAX + 32], f[PATH_MAX + 128];
+    pass_dir(P, pass, d, sizeof d);
+    out[0] = '\0';
+    for (int i = 0; i < P->nbuffers; i++) {
+        snprintf(f, sizeof f, "%s/%s", d, P->buffers[i]);
+        if (pm_prov_trailer(f, &h[i]) != PM_OK)
+            return;
+    }
+    snprintf(out, cap, "xxh3:%016" PRIx64, pm_hash_bytes(h, sizeof h[0] * (size_t)P->nbuffers));
+}
+
+/* Adds pass p's buffers to the running image (composite --accumulate), writes the images beside
+ * their names and renames them once composite has written every output, then passes.txt. */
+static int accumulate(passes_t *P, int p, const char *hash)
+{
+    render_t *r = P->r;
+    char h[64], d[32], pp[32], st[96];
+    if (!hash) {
+        buffers_hash(P, p, h, sizeof h);
+        hash = h;
+    }
+    snprintf(d, sizeof d, "pass-%04d", p);
+    snprintf(pp, sizeof pp, "%d", p);
+    snprintf(st, sizeof st, "%s/stats/composite.json", d);
+    char *argv[MAX_ARGS + 80];
+    char bufs[72][128], prog[PATH_MAX + 32];
+    int n = 0;
+    snprintf(prog, sizeof prog, "%s/composite", r->bin);
+    argv[n++] = prog;
+    for (int i = 0; i < P->nbuffers; i++) {
+        snprintf(bufs[i], sizeof bufs[i], "%s/%s", d, P->buffers[i]);
+        argv[n++] = bufs[i];
+    }
+    const char *fixed[] = {"--accumulate", "running.pm",
+                           "--pass",       pp,
+                           "-o",           ".pass.exr",
+                           "--png",        ".pass.png",
+                           "--exposure",   r->s->value[PM_P_EXPOSURE],
+                           "--tone",       r->s->value[PM_P_TONE]};
+    for (size_t i = 0; i < sizeof fixed / sizeof fixed[0]; i++)
+        argv[n++] = (char *)fixed[i];
+    if (!strcmp(r->s->value[PM_P_HALF], "1"))
+        argv[n++] = "--half";
+    if (!r->s->verbose)
+        argv[n++] = "-q";
+    if (r->s->value[PM_P_THREADS][0]) {
+        argv[n++] = "--threads";
+        argv[n++] = (char *)r->s->value[PM_P_THREADS];
+    }
+    argv[n++] = "--stats";
+    argv[n++] = st;
+    argv[n] = NULL;
+    pm_spawn_t sp = {.argv = argv, .cwd = r->out, .stdin_fd = -1, .stdout_fd = -1};
+    pm_proc_status_t ps;
+    if (pm_proc_run(&sp, &ps) != PM_OK) {
+        say(r, "%s", pm_error_message());
+        return 3;
+    }
+    int code = ps.exit_code;
+    double wall = ps.wall_s;
+    pm_proc_status_free(&ps);
+    if (code != 0)
+        return stage_status(code);
+    char a[PATH_MAX + 32], b[PATH_MAX + 32];
+    snprintf(a, sizeof a, "%s/.pass.exr", r->out);
+    snprintf(b, sizeof b, "%s/image.exr", r->out);
+    if (rename(a, b) != 0)
+        return 3;
+    snprintf(a, sizeof a, "%s/.pass.png", r->out);
+    snprintf(b, sizeof b, "%s/image.png", r->out);
+    if (rename(a, b) != 0)
+        return 3;
+    snprintf(a, sizeof a, "%s/%s/times/composite", r->out, d);
+    FILE *f = fopen(a, "w");
+    if (f) {
+        fprintf(f, "%.6f\n", wall);
+        fclose(f);
+    }
+    state_read(P);
+    list_read(P);
+    snprintf(a, sizeof a, "%s.tmp", P->list);
+    f = fopen(a, "w");
+    if (!f)
+        return 3;
+    for (int i = 0; i < p - 1 && i < P->nlines; i++)
+        fprintf(f, "%s\n", P->lines[i]);
+    fprintf(f, "%d %s %s\n", p, hash, P->st_err);
+    if (fclose(f) != 0 || rename(a, P->list) != 0)
+        return 3;
+    list_read(P);
+    return 0;
+}
+
+/* The running image of passes 1 to k alone, from their buffers. */
+static int rebuild(passes_t *P, int k)
+{
+    unlink(P->state);
+    unlink(P->list);
+    for (int q = 1; q <= k; q++) {
+        int code = accumulate(P, q, NULL);
+        if (code)
+            return code;
+    }
+    return 0;
+}
+
+/* A header key of a pmtk file ("" when it has none or cannot be read). */
+static void header_key(const char *path, const char *key, char *out, size_t cap)
+{
+    out[0] = '\0';
+    pm_reader_t *rd;
+    if (pm_reader_open(path, NULL, 0, &rd) != PM_OK)
+        return;
+    const char *v = pm_header_get(pm_reader_header(rd), key);
+    snprintf(out, cap, "%s", v ? v : "");
+    pm_reader_close(rd);
+}
+
+/* Whether the gather takes --pass (its --help says so): the schedule needs it. */
+static int gather_takes_pass(const render_t *r)
+{
+    int fds[2];
+    if (pm_proc_pipe(fds) != PM_OK)
+        return 0;
+    char *argv[] = {(char *)r->gather_bin, "--help", NULL};
+    pm_spawn_t sp = {.argv = argv, .stdin_fd = -1, .stdout_fd = fds[1], .capture_stderr = 1};
+    pm_proc_t *p;
+    if (pm_proc_spawn(&sp, &p) != PM_OK) {
+        close(fds[0]);
+        close(fds[1]);
+        return 0;
+    }
+    close(fds[1]);
+    char buf[4096], tail[16] = "";
+    int found = 0;
+    ssize_t n;
+    while ((n = read(fds[0], buf, sizeof buf - 1)) > 0) {
+        buf[n] = '\0';
+        char joined[sizeof tail + sizeof buf];
+        snprintf(joined, sizeof joined, "%s%s", tail, buf);
+        found = found || strstr(joined, "--pass");
+        size_t len = strlen(joined);
+        snprintf(tail, sizeof tail, "%s", len > 8 ? joined + len - 8 : joined);
+    }
+    close(fds[0]);
+    pm_proc_status_t st;
+    if (pm_proc_wait(p, &st) == PM_OK)
+        pm_proc_status_free(&st);
+    return found;
+}
+
+/* The stats of every stage of a pass (its stats/NAME.json), by name. */
+static json_t *pass_stats(const passes_t *P, int pass)
+{
+    char d[PATH_MAX + 32], f[PATH_MAX + 400];
+    pass_dir(P, pass, d, sizeof d);
+    json_t *o = json_object();
+    snprintf(f, sizeof f, "%s/stats", d);
+    DIR *dir = opendir(f);
+    if (!dir)
+        return o;
+    struct dirent *e;
+    while ((e = readdir(dir))) {
+        size_t len = strlen(e->d_name);
+        if (len < 6 || strcmp(e->d_name + len - 5, ".json") != 0)
+            continue;
+        snprintf(f, sizeof f, "%s/stats/%s", d, e->d_name);
+        json_t *j = NULL;
+        if (pm_proc_stats_load(f, &j) == PM_OK && j) {
+            char name[256];
+            snprintf(name, sizeof name, "%.*s", (int)(len - 5), e->d_name);
+            json_object_set_new(o, name, j);
+        }
+    }
+    closedir(dir);
+    return o;
+}
+
+/* KEEP for passes: buffers keeps running.pm, passes.txt and each pass's buffers; image the images
+ * and stats.json alone. Only what render makes is removed, by name. */
+static void keep_passes(passes_t *P)
+{
+    render_t *r = P->r;
+    if (r->s->keep == PM_KEEP_ALL)
+        return;
+    static const char *const made[] = {"photons.pm",
+                                       "photonmap.pm",
+                                       "caustic-photons.pm",
+                                       "caustic-map.pm",
+                                       "queries.pm",
+                                       ".queries.new.pm",
+                                       "sorted.pm",
+                                       "caustic-queries.pm",
+                                       "direct.pm",
+                                       "indirect.pm",
+                                       "caustic.pm",
+                                       "Makefile",
+                                       "ran.txt",
+                                       "failed.txt",
+                                       "scene-info.json",
+                                       "scene-info.err",
+                                       ".state.err",
+                                       ".prov.err",
+                                       ".pass.exr",
+                                       ".pass.png",
+                                       ".stamps",
+                                       "stats",
+                                       "times",
+                                       NULL};
+    char p[PATH_MAX + 300];
+    for (int i = 0; made[i]; i++) {
+        snprintf(p, sizeof p, "%s/%s", r->out, made[i]);
+        remove_tree(p);
+    }
+    for (int i = 0; i < 64; i++) {
+        snprintf(p, sizeof p, "%s/indirect.%d.pm", r->out, i);
+        unlink(p);
+    }
+    if (r->s->keep == PM_KEEP_IMAGE) {
+        unlink(P->state);
+        unlink(P->list);
+    }
+    DIR *d = opendir(r->out);
+    if (!d)
+        return;
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        const char *n = e->d_name;
+        size_t len = strlen(n);
+        int digits = len >= 9 && strncmp(n, "pass-", 5) == 0;
+        for (size_t k = 5; digits && k < len; k++)
+            digits = n[k] >= '0' && n[k] <= '9';
+        if (!digits)
+            continue;
+        snprintf(p, sizeof p, "%s/%s", r->out, n);
+        if (r->s->keep == PM_KEEP_IMAGE) {
+            remove_tree(p);
+            continue;
+        }
+        DIR *pd = opendir(p);
+        if (!pd)
+            continue;
+        struct dirent *f;
+        while ((f = readdir(pd))) {
+            if (!strcmp(f->d_name, ".") || !strcmp(f->d_name, ".."))
+                continue;
+            int keep = 0;
+            for (int b = 0; b < P->nbuffers; b++)
+                keep |= !strcmp(f->d_name, P->buffers[b]);
+            if (!keep) {
+                char q[PATH_MAX + 600];
+                snprintf(q, sizeof q, "%s/%s", p, f->d_name);
+                remove_tree(q);
+            }
+        }
+        closedir(pd);
+    }
+    closedir(d);
+}
+
+static void fsync_path(const char *path)
+{
+    int fd = open(path, O_RDONLY);
+    if (fd >= 0) {
+        fsync(fd);
+        close(fd);
+    }
+}
+
+/* Makes pass p into P->g (directory, number, r_1 given). Returns the exit status; *ran_out. */
+static int make_pass(passes_t *P, int p, int *ran_out)
+{
+    pass_dir(P, p, P->g.dir, sizeof P->g.dir);
+    P->g.pass = p;
+    P->g.dry = 0;
+    return pass_make(&P->g, ran_out);
+}
+
+/* pass 1's radius1, for the passes after it */
+static int read_r1(passes_t *P, const char *why_prefix)
+{
+    if (!P->r->need_gather || P->g.r1[0])
+        return 0;
+    char f[PATH_MAX + 200];
+    snprintf(f, sizeof f, "%s/pass-0001/%s", P->r->out, P->g.shards[0] ? P->g.shards[0] : "indirect.pm");
+    header_key(f, "radius1", P->g.r1, sizeof P->g.r1);
+    if (P->g.r1[0])
+        return 0;
+    say(P->r, "%s'%s' does not give radius1 %s", why_prefix, f,
+        why_prefix[0] == 'P' ? "(make pass 1 first)" : "(does GATHER take --pass?)");
+    return 1;
+}
+
+typedef struct {
+    int pass;
+    char status[32];
+    double wall;
+    char err[64];
+} row_t;
+
+int pm_render_passes(const pm_settings_t *s_in, const char *me, const char *bin, const char *cmdline, double t0)
+{
+    row_t *rows = NULL;
+    int nrows = 0;
+    static render_t rr;
+    static passes_t PP;
+    static pm_settings_t ps;
+    render_t *r = &rr;
+    passes_t *P = &PP;
+    ps = *s_in;
+    const pm_settings_t *s = &ps;
+    /* Per-pass defaults for the parameters not given (the scene's render block sizes one render,
+     * not a pass): docs/accuracy.md, "Progressive defaults". */
+    static const char *const defaults[][2] = {{"PHOTONS", "300000"}, {"PRIMARY", "16"}, {"SPP", "4"}, {"K", "5"}};
+    char defaulted[160] = "";
+    for (size_t i = 0; i < sizeof defaults / sizeof defaults[0]; i++) {
+        pm_param_t k = pm_param_find(defaults[i][0]);
+        if (strcmp(ps.value[PM_P_MODE], "direct-vis") == 0 && k != PM_P_PHOTONS)
+            continue; /* one query per primary hit: no SPP */
+        if (ps.value[k][0])
+            continue;
+        ps.value[k] = defaults[i][1];
+        size_t len = strlen(defaulted);
+        snprintf(defaulted + len, sizeof defaulted - len, "%s%s=%s", len ? " " : "", defaults[i][0], defaults[i][1]);
+    }
+    memset(P, 0, sizeof *P);
+    P->r = r;
+    P->g.r = r;
+    P->t0 = t0;
+    int status = render_begin(r, s, me, bin, cmdline);
+    if (status != 0)
+        goto done;
+    if (defaulted[0])
+        note(r, "per-pass defaults: %s (give them to change them)", defaulted);
+    if (r->need_gather && !gather_takes_pass(r)) {
+        say(r,
+            "GATHER=%s does not take --pass: progressive passes need a gather with the radius schedule (simd-gather, "
+            "reverse-gather)",
+            s->value[PM_P_GATHER]);
+        status = 2;
+        goto done;
+    }
+    /* What a pass's stages run with: no fsync (every file is read whole, checksum included,
+     * before it is trusted; the running image and the images are synced once at the end), and
+     * threads that wait without spinning, since a pass runs the stages of a pipe at once. */
+    setenv("PMTK_FSYNC", "0", 1);
+    setenv("OMP_WAIT_POLICY", "passive", 0);
+    snprintf(P->state, sizeof P->state, "%s/running.pm", r->out);
+    snprintf(P->list, sizeof P->list, "%s/passes.txt", r->out);
+    if (r->need_direct)
+        P->buffers[P->nbuffers++] = "direct.pm";
+    static char shard_names[64][32];
+    for (int i = 0; r->need_gather && i < s->shards && i < 64; i++) {
+        if (s->shards == 1)
+            snprintf(shard_names[i], sizeof shard_names[i], "indirect.pm");
+        else
+            snprintf(shard_names[i], sizeof shard_names[i], "indirect.%d.pm", i);
+        P->buffers[P->nbuffers++] = shard_names[i];
+    }
+    P->g.shards[0] = r->need_gather ? shard_names[0] : NULL;
+    if (r->need_caustic)
+        P->buffers[P->nbuffers++] = "caustic.pm";
+    const char *range = s->value[PM_P_PASS_RANGE];
+    if (range[0]) {
+        /* PASS_RANGE=A:B (pipelines/slurm's tasks): passes A to B alone, nothing added to the
+         * running image; TARGETs stop each pass's graph there. */
+        int first = atoi(range), last = atoi(strchr(range, ':') + 1);
+        for (int p = first; p <= last; p++) {
+            char prefix[128];
+            snprintf(prefix, sizeof prefix, "PASS_RANGE=%s: pass 1's gather ", range);
+            if (p > 1 && read_r1(P, prefix)) {
+                status = 1;
+                goto done;
+            }
+            double ts = pm_time_wall();
+            int ran;
+            status = make_pass(P, p, &ran);
+            if (status) {
+                say(r, "pass %d failed", p);
+                goto done;
+            }
+            double t = pm_time_wall() - ts;
+            char f[PATH_MAX + 64];
+            snprintf(f, sizeof f, "%s/pass_s", P->g.dir);
+            if (ran) {
+                FILE *fp = fopen(f, "w");
+                if (fp) {
+                    fprintf(fp, "%.6f\n", t);
+                    fclose(fp);
+                }
+            }
+            /* the stages that ran, as ran.txt lists them */
+            char made[1024] = "";
+            snprintf(f, sizeof f, "%s/ran.txt", P->g.dir);
+            FILE *fr = fopen(f, "r");
+            char line[160];
+            while (fr && fgets(line, sizeof line, fr)) {
+                line[strcspn(line, "\n")] = '\0';
+                size_t len = strlen(made);
+                snprintf(made + len, sizeof made - len, "%s%s", len ? " " : "", line);
+            }
+            if (fr)
+                fclose(fr);
+            printf("%s: pass %d made (%s)\n", me, p, made);
+            fflush(stdout);
+        }
+        goto done;
+    }
+    char alpha_show[64];
+    snprintf(alpha_show, sizeof alpha_show, "%s", s->value[PM_P_ALPHA][0] ? s->value[PM_P_ALPHA] : "2/3");
+    printf("%s: %s -> %s (MODE=%s MAP=%s ORDER=%s GATHER=%s SHARDS=%d, progressive: PASSES=%s TIME=%s "
+           "TARGET_ERROR=%s ALPHA=%s)\n",
+           me, r->scene_all, r->out, r->mode, r->map, r->order, s->value[PM_P_GATHER], s->shards,
+           s->value[PM_P_PASSES][0] ? s->value[PM_P_PASSES] : "unlimited",
+           s->value[PM_P_TIME][0] ? s->value[PM_P_TIME] : "none",
+           s->value[PM_P_TARGET_ERROR][0] ? s->value[PM_P_TARGET_ERROR] : "none", alpha_show);
+    for (int i = 0; i < r->nnotes; i++)
+        printf("%s: %s\n", me, r->notes[i]);
     fflush(stdout);
-    for (int i = 0; i < r->njobs; i++)
-        for (int k = 0; k < r->jobs[i].argc; k++)
-            free(r->jobs[i].argv[k]);
-    pm_scene_free(&r->sc);
-    if (r->lock_fd >= 0)
-        close(r->lock_fd);
+    long maxp = s->value[PM_P_PASSES][0] ? atol(s->value[PM_P_PASSES]) : 0;
+    double limit = 0, target = 0;
+    if (s->value[PM_P_TIME][0])
+        pm_parse_double(s->value[PM_P_TIME], &limit);
+    if (s->value[PM_P_TARGET_ERROR][0])
+        pm_parse_double(s->value[PM_P_TARGET_ERROR], &target);
+    int p = 0;
+    double longest = 0;
+    char stop[96] = "";
+    for (;;) {
+        p++;
+        if (maxp && p > maxp) {
+            snprintf(stop, sizeof stop, "PASSES=%ld", maxp);
+            p--;
+            break;
+        }
+        /* TIME: the next pass must fit; a pass whose graph is current costs only its composite */
+        if (p > 1 && s->value[PM_P_TIME][0]) {
+            double est = longest;
+            pass_dir(P, p, P->g.dir, sizeof P->g.dir);
+            P->g.pass = p;
+            P->g.dry = 1;
+            int would;
+            if (pass_make(&P->g, &would) == 0 && !would)
+                est = 0;
+            P->g.dry = 0;
+            if (!(since(P) + est <= limit)) {
+                snprintf(stop, sizeof stop, "TIME=%s", s->value[PM_P_TIME]);
+                p--;
+                break;
+            }
+        }
+        double ts = pm_time_wall();
+        int ran;
+        int code = make_pass(P, p, &ran);
+        if (code) {
+            say(r, "pass %d failed; %s/image.exr and running.pm hold the %d finished passes", p, r->out, p - 1);
+            status = code;
+            goto done;
+        }
+        if (p == 1 && read_r1(P, "pass 1's gather ")) {
+            status = 1;
+            goto done;
+        }
+        if (p == 1)
+            state_read(P);
+        list_read(P);
+        char hash[64];
+        buffers_hash(P, p, hash, sizeof hash);
+        char want[128];
+        snprintf(want, sizeof want, "%d %s", p, hash);
+        const char *line = p - 1 < P->nlines ? P->lines[p - 1] : "";
+        const char *sp = strrchr(line, ' ');
+        int held = P->st_passes >= p && sp && (size_t)(sp - line) == strlen(want) && !strncmp(line, want, strlen(want));
+        char status_s[32];
+        snprintf(status_s, sizeof status_s, "%s", ran ? "ran" : "cached");
+        if (!held) {
+            if (P->st_passes != p - 1 || P->nlines != p - 1) {
+                if ((code = rebuild(P, p - 1)) != 0) {
+                    say(r, "could not rebuild the running image of passes 1 to %d", p - 1);
+                    status = code;
+                    goto done;
+                }
+            }
+            if ((code = accumulate(P, p, hash)) != 0) {
+                say(r, "pass %d: composite failed; %s/image.exr and running.pm hold the %d finished passes", p, r->out,
+                    p - 1);
+                status = code;
+                goto done;
+            }
+            snprintf(status_s + strlen(status_s), sizeof status_s - strlen(status_s), ", added");
+            /* RENDER_PASS_HOOK (pipelines/error-vs-time): run as HOOK PASS SECONDS IMAGE once the
+             * image holds passes 1 to PASS alone; a failing hook is reported and the render goes on */
+            const char *hook = getenv("RENDER_PASS_HOOK");
+            if (hook && hook[0]) {
+                char pa[32], sec[32], img[PATH_MAX + 32];
+                snprintf(pa, sizeof pa, "%d", p);
+                snprintf(sec, sizeof sec, "%.3f", since(P));
+                snprintf(img, sizeof img, "%s/image.exr", r->out);
+                char *hv[] = {(char *)hook, pa, sec, img, NULL};
+                pm_spawn_t sp2 = {.argv = hv, .stdin_fd = -1, .stdout_fd = -1};
+                pm_proc_status_t hs;
+                if (pm_proc_run(&sp2, &hs) == PM_OK) {
+                    if (hs.exit_code)
+                        say(r, "pass %d: RENDER_PASS_HOOK '%s' failed (exit %d)", p, hook, hs.exit_code);
+                    pm_proc_status_free(&hs);
+                } else {
+                    say(r, "pass %d: RENDER_PASS_HOOK '%s' failed (exit %d)", p, hook, 127);
+                }
+            }
+        }
+        double t = pm_time_wall() - ts;
+        char f[PATH_MAX + 64];
+        snprintf(f, sizeof f, "%s/pass_s", P->g.dir);
+        if (ran) {
+            FILE *fp = fopen(f, "w");
+            if (fp) {
+                fprintf(fp, "%.6f\n", t);
+                fclose(fp);
+            }
+        }
+        FILE *fp = fopen(f, "r");
+        double pst;
+        if (fp && fscanf(fp, "%lf", &pst) == 1 && pst > longest && pst < 1e9)
+            longest = pst;
+        if (fp)
+            fclose(fp);
+        list_read(P);
+        char err[64] = "";
+        if (p - 1 < P->nlines) {
+            const char *e = strrchr(P->lines[p - 1], ' ');
+            int spaces = 0;
+            for (const char *c = P->lines[p - 1]; *c; c++)
+                spaces += *c == ' ';
+            if (e && spaces >= 2)
+                snprintf(err, sizeof err, "%s", e + 1);
+        }
+        row_t *nr = realloc(rows, sizeof *rows * (size_t)(nrows + 1));
+        if (!nr) {
+            status = 3;
+            goto done;
+        }
+        rows = nr;
+        rows[nrows].pass = p;
+        snprintf(rows[nrows].status, sizeof rows[nrows].status, "%s", status_s);
+        rows[nrows].wall = t;
+        snprintf(rows[nrows].err, sizeof rows[nrows].err, "%s", err[0] ? err : "-");
+        nrows++;
+        double e;
+        if (s->value[PM_P_TARGET_ERROR][0] && err[0] && pm_parse_double(err, &e) == PM_OK && e <= target) {
+            snprintf(stop, sizeof stop, "TARGET_ERROR=%s", s->value[PM_P_TARGET_ERROR]);
+            break;
+        }
+    }
+    /* a rerun with fewer passes than the running image holds shows those passes alone */
+    state_read(P);
+    if (P->st_passes > p && (status = rebuild(P, p)) != 0) {
+        say(r, "could not rebuild the running image of passes 1 to %d", p);
+        goto done;
+    }
+    /* synced once here, not after every pass: a power loss mid-run leaves them torn, which the
+     * next run finds (running.pm's checksum, passes.txt against it) and mends from the passes */
+    const char *sync_files[] = {P->state, P->list, NULL, NULL};
+    char ie[PATH_MAX + 32], ip[PATH_MAX + 32];
+    snprintf(ie, sizeof ie, "%s/image.exr", r->out);
+    snprintf(ip, sizeof ip, "%s/image.png", r->out);
+    sync_files[2] = ie;
+    for (int i = 0; i < 3; i++)
+        fsync_path(sync_files[i]);
+    fsync_path(ip);
+    fsync_path(r->out);
+    printf("  %-6s %-14s %9s %12s\n", "pass", "status", "wall s", "rel. error");
+    for (int i = 0; i < nrows; i++)
+        printf("  %-6d %-14s %9.3f %12s\n", rows[i].pass, rows[i].status, rows[i].wall, rows[i].err);
+    double total = since(P);
+    printf("  %-21s %9.3f   (%d passes, stopped by %s)\n", "total", total, p, stop);
+    fflush(stdout);
+    /* stats.json: {"scene", "params", "passes": [{"pass", "status", "wall_s", "relative_error",
+     * "stages": {NAME: STATS}}], "total": {"passes", "relative_error", "wall_s", "stopped_by",
+     * "alpha", "radius1"}} */
+    {
+        json_t *arr = json_array(), *tot = json_object();
+        for (int i = 0; i < nrows; i++) {
+            json_t *o = json_object();
+            double e;
+            json_object_set_new(o, "pass", json_integer(rows[i].pass));
+            json_object_set_new(o, "status", json_string(rows[i].status));
+            json_object_set_new(o, "wall_s", json_real(rows[i].wall));
+            json_object_set_new(o, "relative_error",
+                                pm_parse_double(rows[i].err, &e) == PM_OK ? json_real(e) : json_null());
+            json_object_set_new(o, "stages", pass_stats(P, rows[i].pass));
+            json_array_append_new(arr, o);
+        }
+        double e, a = 0.666666667, r1;
+        json_object_set_new(tot, "passes", json_integer(p));
+        json_object_set_new(tot, "relative_error",
+                            pm_parse_double(P->st_err, &e) == PM_OK ? json_real(e) : json_null());
+        json_object_set_new(tot, "wall_s", json_real(total));
+        json_object_set_new(tot, "stopped_by", json_string(stop));
+        if (s->value[PM_P_ALPHA][0])
+            pm_parse_double(s->value[PM_P_ALPHA], &a);
+        json_object_set_new(tot, "alpha", json_real(a));
+        json_object_set_new(tot, "radius1", pm_parse_double(P->st_r1, &r1) == PM_OK ? json_real(r1) : json_null());
+        stats_write(r, s, "passes", arr, tot);
+    }
+    keep_passes(P);
+    if (s->keep == PM_KEEP_ALL)
+        printf("%s: wrote %s/image.exr, %s/image.png (%d passes), %s/running.pm, %s/stats.json\n", me, r->out, r->out,
+               p, r->out, r->out);
+    else if (s->keep == PM_KEEP_BUFFERS)
+        printf("%s: wrote %s/image.exr, %s/image.png (%d passes), %s/running.pm, %s/stats.json (KEEP=buffers: each "
+               "pass's buffers kept, the rest removed)\n",
+               me, r->out, r->out, p, r->out, r->out);
+    else
+        printf("%s: wrote %s/image.exr, %s/image.png (%d passes), %s/stats.json (KEEP=image: the rest removed)\n", me,
+               r->out, r->out, p, r->out);
+    free(rows);
+    rows = NULL;
+done:
+    free(rows);
+    pass_graph_free(&P->g);
+    for (int i = 0; i < P->nlines; i++)
+        free(P->lines[i]);
+    free(P->lines);
+    P->lines = NULL;
+    render_end(r);
     return status;
 }

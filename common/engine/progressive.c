@@ -999,7 +999,7 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
     int specular = sc.any_specular, scene_primary = (int)sc.defaults.primary;
     p.light_samples_zero = sc.nemissive == 0 && !sc.has_sun && !sc.has_sky;
     pm_scene_free(&sc);
-    /* the stages, as the pass files' driver (pipelines/lib/render-make) chooses them */
+    /* the stages, as the pass files' driver (pm_render_passes in fixed.c) chooses them */
     p.mode = s->value[PM_P_MODE];
     int vis = !strcmp(p.mode, "direct-vis"), gather = strcmp(s->value[PM_P_GATHER], "none") != 0;
     p.map = strcmp(s->value[PM_P_MAP], "auto") ? s->value[PM_P_MAP] : "global";

@@ -39,7 +39,7 @@
 #include "engine/engine.h"
 
 /* 1 when the resident passes render these settings; else 0 and why (the caller then makes
- * the passes as files, pipelines/lib/render-make): KEEP=all given on the command line or
+ * the passes as files, pm_render_passes in fixed.c): KEEP=all given on the command line or
  * PASS_RANGE (pass files asked for), and what the resident chain does not run yet (GATHER
  * other than simd-gather or none, SHARDS, WIDTHS=variable, TARGETs), or refuses with the
  * pass files' own message (MAP=indirect in gather mode; GATHER=none with nothing to add). */

@@ -3,6 +3,7 @@
  * stages. The names, defaults and messages are pipelines/render's, which pm-render replaces. */
 #include <errno.h>
 #include <fcntl.h>
+#include <math.h>
 #include <regex.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -151,7 +152,8 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
     if (s->value[PM_P_PASSES][0] && !matches(COUNT_RE, s->value[PM_P_PASSES]))
         return pm_error_set(PM_ERR_USAGE, "bad value for PASSES '%s': expected a count of at least 1",
                             s->value[PM_P_PASSES]);
-    if (s->value[PM_P_TIME][0] && !matches(NUM_RE, s->value[PM_P_TIME]))
+    if (s->value[PM_P_TIME][0] &&
+        (!matches(NUM_RE, s->value[PM_P_TIME]) || !isfinite(strtod(s->value[PM_P_TIME], NULL))))
         return pm_error_set(PM_ERR_USAGE, "bad value for TIME '%s': expected seconds, a number of at least 0",
                             s->value[PM_P_TIME]);
     if (s->value[PM_P_TARGET_ERROR][0] &&
@@ -185,6 +187,24 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
                                 "and AOV is done for one pass only: ask for albedo, normal or depth",
                                 s->value[PM_P_AOV]);
     }
+    const char *range = s->value[PM_P_PASS_RANGE];
+    if (range[0]) {
+        if (!matches("^[1-9][0-9]{0,8}:[1-9][0-9]{0,8}$", range) ||
+            strtol(range, NULL, 10) > strtol(strchr(range, ':') + 1, NULL, 10))
+            return pm_error_set(PM_ERR_USAGE, "bad value for PASS_RANGE '%s': expected A:B, passes 1 <= A <= B", range);
+        if (s->value[PM_P_TIME][0] || s->value[PM_P_TARGET_ERROR][0])
+            return pm_error_set(PM_ERR_USAGE, "PASS_RANGE with TIME or TARGET_ERROR: a range is a fixed set of passes");
+        if (s->keep != PM_KEEP_ALL)
+            return pm_error_set(PM_ERR_USAGE,
+                                "KEEP=%s with PASS_RANGE: the passes of a range are made to be added later",
+                                s->value[PM_P_KEEP]);
+    }
+    if (s->progressive && strcmp(s->value[PM_P_WIDTHS], "variable") == 0)
+        return pm_error_set(PM_ERR_USAGE,
+                            "WIDTHS=variable with progressive passes: the schedule shrinks one fixed width");
+    if (s->progressive && s->ntargets && !s->value[PM_P_PASS_RANGE][0])
+        return pm_error_set(PM_ERR_USAGE, "TARGETs with progressive passes: every pass makes its whole graph (a "
+                                          "TARGET is for PASS_RANGE)");
     return PM_OK;
 }
 

@@ -84,6 +84,8 @@ pm_result_t pm_proc_spawn(const pm_spawn_t *sp, pm_proc_t **out)
         posix_spawn_file_actions_adddup2(&fa, sp->stdout_fd, 1);
     if (errp[1] >= 0)
         posix_spawn_file_actions_adddup2(&fa, errp[1], 2);
+    if (sp->extra_to > 2 && sp->extra_fd >= 0)
+        posix_spawn_file_actions_adddup2(&fa, sp->extra_fd, sp->extra_to);
     for (int i = 0; i < sp->nclose; i++)
         if (sp->close_fds[i] > 2)
             posix_spawn_file_actions_addclose(&fa, sp->close_fds[i]);
@@ -217,5 +219,26 @@ pm_result_t pm_proc_stats_load(const char *path, json_t **j_out)
     *j_out = json_load_file(path, 0, &e);
     if (!*j_out)
         return pm_error_set(PM_ERR_INPUT, "cannot read the stage's statistics '%s': %s", path, e.text);
+    return PM_OK;
+}
+
+pm_result_t pm_engine_bin(char *out, size_t cap)
+{
+    const char *env = getenv("BIN");
+    if (env && env[0]) {
+        char *real = realpath(env, NULL);
+        if (!real)
+            return pm_error_set(PM_ERR_USAGE, "no program directory '%s'", env);
+        snprintf(out, cap, "%s", real);
+        free(real);
+        return PM_OK;
+    }
+    char self[4096];
+    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+    self[n > 0 ? n : 0] = '\0';
+    char *slash = strrchr(self, '/');
+    if (slash)
+        *slash = '\0';
+    snprintf(out, cap, "%s", self);
     return PM_OK;
 }

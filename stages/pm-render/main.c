@@ -7,10 +7,10 @@
  * Runs trace-photons, build-photonmap, trace-gather-points, hilbert-sort, the gather and
  * composite as programs (posix_spawn) in OUTDIR, keeps every intermediate there, and on a rerun
  * remakes only the files whose headers do not record what these settings would make
- * (common/engine). Progressive passes (PASSES > 1, TIME, TARGET_ERROR) run on resident stages
- * (common/engine/progressive.c); those asked to write pass files (KEEP=all, PASS_RANGE) and the
- * settings the resident chain does not run (SHARDS, WIDTHS=variable, another GATHER, TARGETs)
- * go through the shell driver pipelines/lib/render-make, which pm-render hands them to whole. */
+ * (common/engine). Progressive passes (PASSES > 1, TIME, TARGET_ERROR, PASS_RANGE) run through
+ * resident stages (common/engine/progressive.c) when those handle the settings, else as pass
+ * files, OUTDIR/pass-NNNN (common/engine/fixed.c, pm_render_passes). --check-settings judges
+ * the settings alone. */
 #include <errno.h>
 #include <limits.h>
 #include <stdio.h>
@@ -89,15 +89,6 @@ static void append_word(char *out, size_t cap, const char *w)
         out[n++] = '\'', out[n] = '\0';
 }
 
-/* The directory a path names the parent of ("/a/bin/pm-render" -> "/a/bin"), into out. */
-static void parent(const char *path, char *out, size_t cap)
-{
-    snprintf(out, cap, "%s", path);
-    char *s = strrchr(out, '/');
-    if (s)
-        *s = '\0';
-}
-
 /* The parsed command line, freed at exit whichever of main's many returns is taken (a leak
  * checker counts it otherwise, and under LeakSanitizer a leak turns the exit status into 1). */
 static pm_stage_t *stage_at_exit;
@@ -122,11 +113,19 @@ int main(int argc, char **argv)
         fprintf(stderr, "usage: %s SCENE OUTDIR [NAME=VALUE ...] [TARGET ...] (try --help)\n", argv[0]);
         return 2;
     }
+    /* --check-settings (first): judge the parameters as a render would, render nothing, exit 0
+     * or 2 with the first bad one (pipelines/slurm asks before it submits anything) */
+    int check_only = argc > 1 && strcmp(argv[1], "--check-settings") == 0;
+    if (check_only) {
+        argv[1] = argv[0];
+        argv++;
+        argc--;
+    }
     static pm_stage_t st; /* static: free_stage_args runs after main has returned */
     pm_stage_defaults(&st);
     const pm_option_t opts[] = {PM_STAGE_COMMON_OPTIONS(st), {0}};
     const pm_cli_t cli = {.program = "pm-render",
-                          .synopsis = "[options] SCENE OUTDIR [NAME=VALUE ...] [TARGET ...]",
+                          .synopsis = "[--check-settings] [options] SCENE OUTDIR [NAME=VALUE ...] [TARGET ...]",
                           .summary = "render SCENE into OUTDIR through the stage programs, remaking only what the "
                                      "settings change (by provenance); --threads is THREADS, --seed SEED, -q QUIET=1",
                           .options = opts,
@@ -172,25 +171,22 @@ int main(int argc, char **argv)
         fprintf(stderr, "%s: %s\n", me, pm_error_message());
         return 2;
     }
-    char self[PATH_MAX], bin[PATH_MAX], root[PATH_MAX];
-    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
-    self[n > 0 ? n : 0] = '\0';
-    const char *env_bin = getenv("BIN");
-    if (env_bin && env_bin[0]) {
-        char *real = realpath(env_bin, NULL);
-        if (!real) {
-            fprintf(stderr, "%s: no program directory '%s'\n", me, env_bin);
-            return 2;
-        }
-        snprintf(bin, sizeof bin, "%s", real);
-        free(real);
-    } else {
-        parent(self, bin, sizeof bin);
+    char bin[PATH_MAX];
+    if (pm_engine_bin(bin, sizeof bin) != PM_OK) {
+        fprintf(stderr, "%s: %s\n", me, pm_error_message());
+        return 2;
     }
     char cmdline[8192] = "";
     append_word(cmdline, sizeof cmdline, argv[0]);
     for (int i = 1; i < argc; i++)
         append_word(cmdline, sizeof cmdline, argv[i]);
+    if (check_only) {
+        if (pm_settings_check_stages(&s, bin) != PM_OK) {
+            fprintf(stderr, "%s: %s\n", me, pm_error_message());
+            return 2;
+        }
+        return 0;
+    }
     if (s.progressive && pm_progressive_handles(&s, NULL, 0)) { /* resident passes: common/engine/progressive.c */
         if (pm_settings_check_stages(&s, bin) != PM_OK) {
             fprintf(stderr, "%s: %s\n", me, pm_error_message());
@@ -200,43 +196,11 @@ int main(int argc, char **argv)
         if (status >= 0)
             return status; /* else an OUTDIR of pass directories: the pass files below */
     }
-    if (s.progressive) {
-        /* Passes: the shell driver, until the resident passes of common/engine/progressive land. */
-        const char *env_root = getenv("PM_ROOT");
-        if (env_root && env_root[0])
-            snprintf(root, sizeof root, "%s", env_root);
-        else
-            parent(bin, root, sizeof root);
-        char script[PATH_MAX + 64];
-        snprintf(script, sizeof script, "%s/pipelines/lib/render-make", root);
-        char **av = calloc((size_t)nargs + 4, sizeof *av);
-        if (!av) {
-            fprintf(stderr, "%s: out of memory\n", me);
-            return 3;
-        }
-        int k = 0;
-        av[k++] = script;
-        for (int i = 0; i < nargs; i++)
-            av[k++] = args[i];
-        char tp[48], sp[48];
-        if (threads[0]) {
-            snprintf(tp, sizeof tp, "THREADS=%s", threads);
-            av[k++] = tp;
-        }
-        if (seed[0]) {
-            snprintf(sp, sizeof sp, "SEED=%s", seed);
-            av[k++] = sp;
-        }
-        av[k] = NULL;
-        setenv("PM_RENDER_SELF", argv[0], 1);
-        setenv("BIN", bin, 1);
-        execv(script, av);
-        fprintf(stderr, "%s: cannot run '%s' for the passes: %s\n", me, script, strerror(errno));
-        return 3;
-    }
     if (pm_settings_check_stages(&s, bin) != PM_OK) {
         fprintf(stderr, "%s: %s\n", me, pm_error_message());
         return 2;
     }
+    if (s.progressive) /* passes as files: common/engine/fixed.c */
+        return pm_render_passes(&s, me, bin, cmdline, t0);
     return pm_render_fixed(&s, me, bin, cmdline);
 }

@@ -141,17 +141,18 @@ status=$?
     pass "passes: a corrupt pass-0002/photonmap.pm is named and rebuilt, pass 1 is kept" ||
     fail "passes: corrupt map" "exit $status: $(head -c 400 "$TMP/p2.err")"
 
-# A pass's seal (pipelines/lib/provenance): a rerun with nothing to make trusts the files of a
-# pass whose inode, size and date are those the seal recorded, but reads its buffers whole
-# every time, and checks the pass whole as soon as a stage would read a file.
+# No seal: a made pass's files are read whole on every rerun, whatever their inode, size and
+# date (pm-render's pass files, common/engine/fixed.c): a pass directory keeps no seal
+# (.checked), Makefile or stamps, and a flipped byte with its date put back is still found.
 redate() { touch -d "@$1" "$2"; } # redate SECONDS.NS FILE: put the date back
 mtime() { stat -c %.9Y "$1"; }
 P3=$TMP/p3
 $R "$CORNELL" "$P3" $TINY PASSES=3 KEEP=all >/dev/null 2>&1
 cp "$P3/image.exr" "$TMP/p3.exr"
-[ -s "$P3/pass-0002/.checked" ] && grep -q '^stat photonmap.pm ' "$P3/pass-0002/.checked" &&
-    pass "passes: each pass made is sealed (.checked names its files' inode, size and date)" ||
-    fail "passes: seal" "$(ls -a "$P3/pass-0002")"
+[ -s "$P3/pass-0002/photonmap.pm" ] && [ ! -e "$P3/pass-0002/.checked" ] && [ ! -e "$P3/pass-0002/Makefile" ] &&
+    [ ! -e "$P3/pass-0002/.stamps" ] &&
+    pass "passes: a pass keeps its files and records alone (no seal, Makefile or stamps)" ||
+    fail "passes: no seal" "$(ls -a "$P3/pass-0002")"
 # a flipped byte in a buffer, its date put back: still read whole, named and remade
 t=$(mtime "$P3/pass-0002/indirect.pm")
 flip "$P3/pass-0002/indirect.pm"
@@ -160,9 +161,9 @@ $R "$CORNELL" "$P3" $TINY PASSES=3 >"$TMP/p3.out" 2>"$TMP/p3.err"
 status=$?
 [ $status = 0 ] && grep -qx 'render: pass-0002/indirect.pm is corrupt (checksum mismatch): rebuilding it' "$TMP/p3.err" &&
     [ -s "$P3/pass-0002/ran.txt" ] && [ ! -s "$P3/pass-0003/ran.txt" ] && cmp -s "$P3/image.exr" "$TMP/p3.exr" &&
-    pass "passes: a flipped byte in a sealed pass's buffer (date put back) is named, the pass remade, the image the same" ||
-    fail "passes: corrupt sealed buffer" "exit $status: $(head -c 400 "$TMP/p3.err")"
-# a truncated map, its date put back: another size, so the pass is checked whole
+    pass "passes: a flipped byte in a pass's buffer (date put back) is named, the pass remade, the image the same" ||
+    fail "passes: corrupt buffer, date put back" "exit $status: $(head -c 400 "$TMP/p3.err")"
+# a truncated map, its date put back
 t=$(mtime "$P3/pass-0003/photonmap.pm")
 truncate -s -44 "$P3/pass-0003/photonmap.pm"
 redate "$t" "$P3/pass-0003/photonmap.pm"
@@ -170,8 +171,8 @@ $R "$CORNELL" "$P3" $TINY PASSES=3 >"$TMP/p3.out" 2>"$TMP/p3.err"
 status=$?
 [ $status = 0 ] && grep -q '^render: pass-0003/photonmap.pm is corrupt (truncated' "$TMP/p3.err" &&
     [ -s "$P3/pass-0003/ran.txt" ] && cmp -s "$P3/image.exr" "$TMP/p3.exr" &&
-    pass "passes: a truncated map in a sealed pass (date put back) is named and remade" ||
-    fail "passes: truncated sealed map" "exit $status: $(head -c 400 "$TMP/p3.err")"
+    pass "passes: a truncated map in a pass (date put back) is named and remade" ||
+    fail "passes: truncated map, date put back" "exit $status: $(head -c 400 "$TMP/p3.err")"
 # a buffer whose input changed: pass 3's map in pass 2's place (cp keeps the inode; its date
 # put back): the gather's buffer records another map, so the pass is remade
 t=$(mtime "$P3/pass-0002/photonmap.pm")
@@ -182,13 +183,13 @@ $R "$CORNELL" "$P3" $TINY PASSES=3 >"$TMP/p3.out" 2>"$TMP/p3.err"
 status=$?
 [ $status = 0 ] && [ -s "$P3/pass-0002/ran.txt" ] && cmp -s "$P3/pass-0002/photonmap.pm" "$TMP/p3-map2.pm" &&
     cmp -s "$P3/image.exr" "$TMP/p3.exr" &&
-    pass "passes: another pass's map in a sealed pass (date put back) is found and the pass remade" ||
-    fail "passes: replaced sealed map" "exit $status: $(head -c 400 "$TMP/p3.err")"
+    pass "passes: another pass's map in a pass (date put back) is found and the pass remade" ||
+    fail "passes: replaced map, date put back" "exit $status: $(head -c 400 "$TMP/p3.err")"
 $R "$CORNELL" "$P3" $TINY PASSES=3 >"$TMP/p3.out" 2>&1
 grep -qE '^  2 +cached' "$TMP/p3.out" && grep -qE '^  3 +cached' "$TMP/p3.out" &&
     pass "... and a rerun after them makes nothing" || fail "passes: rerun after remakes" "$(cat "$TMP/p3.out")"
-# With SHARDS a stage reads the map: a flipped byte, the date put back, in a sealed pass whose
-# shard is missing is found by the whole check before the shard's gather runs
+# With SHARDS a stage reads the map: a flipped byte, the date put back, in a pass whose shard
+# is missing is found before the shard's gather runs
 P4=$TMP/p4
 $R "$CORNELL" "$P4" $TINY PASSES=2 SHARDS=2 >/dev/null 2>&1
 cp "$P4/image.exr" "$TMP/p4.exr"
@@ -200,15 +201,13 @@ $R "$CORNELL" "$P4" $TINY PASSES=2 SHARDS=2 >"$TMP/p4.out" 2>"$TMP/p4.err"
 status=$?
 [ $status = 0 ] && grep -qx 'render: pass-0002/photonmap.pm is corrupt (checksum mismatch): rebuilding it' "$TMP/p4.err" &&
     cmp -s "$P4/image.exr" "$TMP/p4.exr" &&
-    pass "passes: a sealed pass whose stage would read a flipped map is checked whole first, the map rebuilt" ||
-    fail "passes: sealed map read by a shard" "exit $status: $(head -c 400 "$TMP/p4.err")"
+    pass "passes: a pass whose stage would read a flipped map is checked first, the map rebuilt" ||
+    fail "passes: flipped map read by a shard" "exit $status: $(head -c 400 "$TMP/p4.err")"
 # pipelines/slurm's shard tasks (pipelines/lib/slurm-task, run here by hand, no Slurm needed: a
-# task is the script, its spec and SLURM_ARRAY_TASK_ID): the prep task's render seals a pass
-# before its shards exist, so the task that lands the last shard seals it again, and the
-# composite job's render trusts the seal. Seen by a flipped byte in the map, its date put back,
-# which only a whole check would find: the composite job finds none, and its files are the
-# local render's. A flipped byte in a sealed shard's buffer is still found (buffers are read
-# whole every time).
+# task is the script, its spec and SLURM_ARRAY_TASK_ID): the task that lands a pass's last shard
+# lands the pass whole, and the composite job's render reads every file whole, so that a flipped
+# byte in the map, its date put back, is found and remade there, and its files are the local
+# render's; so is a flipped byte in a shard's buffer.
 P5=$TMP/p5
 mkdir -p "$P5/.slurm/logs" "$P5/.slurm/done"
 (
@@ -219,12 +218,11 @@ mkdir -p "$P5/.slurm/logs" "$P5/.slurm/done"
 task() { SLURM_ARRAY_TASK_ID=$1 SLURM_JOB_ID=$2 pipelines/lib/slurm-task "$3" "$P5/.slurm/spec" "${@:4}"; }
 { task 0 11 prep && task 0 12 shard 0 && task 1 12 shard 0 && task 1 13 prep && task 1 14 shard 1 && task 0 14 shard 1; } \
     >"$TMP/p5.tasks" 2>&1 || fail "slurm-task by hand" "$(tail -n 3 "$TMP/p5.tasks")"
-if grep -q '^stat indirect\.0\.pm ' "$P5/pass-0002/.checked" && grep -q '^stat indirect\.1\.pm ' "$P5/pass-0002/.checked" &&
-    [ "$(sorted <"$P5/pass-0002/ran.txt")" = "build-photonmap hilbert-sort simd-gather.0 simd-gather.1 trace-gather-points trace-photons" ] &&
-    [ -z "$(ls -A "$P5/.slurm/work")$(ls -A "$P5/.slurm/stage")" ]; then
-    pass "slurm shard tasks: the task landing a pass's last shard seals it again (its shards in the seal, ran.txt kept)"
+if [ "$(sorted <"$P5/pass-0002/ran.txt")" = "build-photonmap hilbert-sort simd-gather.0 simd-gather.1 trace-gather-points trace-photons" ] &&
+    [ -s "$P5/pass-0002/indirect.1.pm" ] && [ -z "$(ls -A "$P5/.slurm/work")$(ls -A "$P5/.slurm/stage")" ]; then
+    pass "slurm shard tasks: the task landing a pass's last shard lands it whole (ran.txt kept, nothing left staged)"
 else
-    fail "slurm shard tasks: seal" "$(grep '^stat' "$P5/pass-0002/.checked" | cut -d' ' -f2 | paste -sd' '); ran $(paste -sd' ' "$P5/pass-0002/ran.txt"); left $(ls -A "$P5/.slurm/work" "$P5/.slurm/stage" | paste -sd' ')"
+    fail "slurm shard tasks: landing" "ran $(paste -sd' ' "$P5/pass-0002/ran.txt"); left $(ls -A "$P5/.slurm/work" "$P5/.slurm/stage" | paste -sd' ')"
 fi
 cp "$P5/pass-0002/photonmap.pm" "$TMP/p5-map.pm"
 t=$(mtime "$P5/pass-0002/photonmap.pm")
@@ -236,11 +234,10 @@ bad=""
 for f in pass-0001/direct.pm pass-0002/indirect.0.pm pass-0002/indirect.1.pm running.pm passes.txt image.exr image.png; do
     cmp -s "$P5/$f" "$P4/$f" || bad+=" $f"
 done
-[ $status = 0 ] && ! grep -q 'corrupt\|rebuilding' "$TMP/p5.out" && grep -qE '^  2 +cached, added' "$TMP/p5.out" && [ -z "$bad" ] &&
-    pass "... and the composite job's render trusts that seal (a flipped byte in the map, date put back, goes unread), its files the local render's" ||
-    fail "slurm composite job and the seal" "exit $status, differ:${bad:- none}: $(grep -m 3 'corrupt\|failed\|  2 ' "$TMP/p5.out")"
-cp "$TMP/p5-map.pm" "$P5/pass-0002/photonmap.pm" # cp keeps the inode
-redate "$t" "$P5/pass-0002/photonmap.pm"
+[ $status = 0 ] && grep -qx 'render: pass-0002/photonmap.pm is corrupt (checksum mismatch): rebuilding it' "$TMP/p5.out" &&
+    grep -qE '^  2 +ran, added' "$TMP/p5.out" && [ -z "$bad" ] &&
+    pass "... and the composite job's render finds a flipped byte in the map (date put back) and remakes it, its files the local render's" ||
+    fail "slurm composite job, flipped map" "exit $status, differ:${bad:- none}: $(grep -m 3 'corrupt\|failed\|  2 ' "$TMP/p5.out")"
 t=$(mtime "$P5/pass-0002/indirect.1.pm")
 flip "$P5/pass-0002/indirect.1.pm"
 redate "$t" "$P5/pass-0002/indirect.1.pm"
@@ -248,8 +245,8 @@ task 0 16 composite >"$TMP/p5.out" 2>&1
 status=$?
 [ $status = 0 ] && grep -qx 'render: pass-0002/indirect.1.pm is corrupt (checksum mismatch): rebuilding it' "$TMP/p5.out" &&
     cmp -s "$P5/pass-0002/indirect.1.pm" "$P4/pass-0002/indirect.1.pm" && cmp -s "$P5/image.exr" "$P4/image.exr" &&
-    pass "... and a flipped byte in a sealed shard's buffer (date put back) is named and remade, the image the same" ||
-    fail "slurm: corrupt sealed shard" "exit $status: $(grep -m 3 'corrupt\|failed' "$TMP/p5.out")"
+    pass "... and a flipped byte in a shard's buffer (date put back) is named and remade, the image the same" ||
+    fail "slurm: corrupt shard, date put back" "exit $status: $(grep -m 3 'corrupt\|failed' "$TMP/p5.out")"
 
 # ---- 11: '#', '$', ':' and spaces in the scene's path and in OUTDIR
 D="$TMP/a #b \$c: d"

@@ -89,6 +89,7 @@ for p in "$BIN"/*; do
     [ "$n" = pm-compare ] && continue # below: it answers as cmp does
     [ "$n" = pm-render ] && continue  # below: a driver, whose lines name no class
     [ "$n" = pmtk ] && continue       # the command over the others passes their status on: pmtk.sh
+    [ "$n" = pm-frames ] && continue  # below: a driver too (pipelines/frames)
     if [ -z "${BAD[$n]+set}" ]; then
         fail "$n has a row in exitcodes.sh" "no corrupt input, missing input or system failure given for it"
         continue
@@ -235,3 +236,10 @@ expect_render "pm-render: a corrupt scene exits 1" 1 corrupt.json "$BIN/pm-rende
 expect_render "pm-render: a scene that does not exist exits 1" 1 none.json "$BIN/pm-render" -q "$TMP/none.json" "$TMP/r2"
 expect_render "pm-render: an OUTDIR the system refuses exits 3 (limited)" 3 "File too large" \
     limited "$BIN/pm-render" -q "$CB" "$TMP/r3" WIDTH=4 HEIGHT=4 PHOTONS=100
+# pm-frames (pipelines/frames), the frames driver: the same statuses
+expect_render "pm-frames: usage (an unknown option) exits 2" 2 no-such-option "$BIN/pm-frames" --no-such-option
+expect_render "pm-frames: a bad parameter exits 2" 2 "DEGREES 'nan'" "$BIN/pm-frames" "$CB" "$TMP/f0" DEGREES=nan
+expect_render "pm-frames: a corrupt scene exits 1" 1 corrupt.json "$BIN/pm-frames" -q "$TMP/corrupt.json" "$TMP/f1"
+expect_render "pm-frames: a scene that does not exist exits 1" 1 none.json "$BIN/pm-frames" -q "$TMP/none.json" "$TMP/f2"
+expect_render "pm-frames: an OUTDIR the system refuses exits 3 (limited)" 3 "File too large" \
+    limited "$BIN/pm-frames" -q "$CB" "$TMP/f3" FRAMES=2 WIDTH=4 HEIGHT=4 PHOTONS=100

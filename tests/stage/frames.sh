@@ -176,3 +176,31 @@ for move in camera light; do
     fi
     rm -rf "$TMP/fc"
 done
+
+# ---- issue 28, item 7: settings that are not finite numbers, and two runs into one OUTDIR ----
+for v in DEGREES=nan DEGREES=inf DEGREES=-inf DEGREES=1e400 DEGREES=abc SHIFT=nan SHIFT=1e999; do
+    rm -rf "$TMP/fn"
+    pipelines/frames $CB "$TMP/fn" $F "$v" >"$TMP/fn.out" 2>"$TMP/fn.err"
+    status=$?
+    if [ $status = 2 ] && [ "$(wc -l <"$TMP/fn.err")" = 1 ] && grep -q "^frames: bad value for ${v%%=*} '${v#*=}'" "$TMP/fn.err" &&
+        [ ! -e "$TMP/fn" ]; then
+        pass "frames $v: refused, exit 2, one line naming the value, no OUTDIR"
+    else
+        fail "frames $v" "exit $status: $(head -c 300 "$TMP/fn.err")"
+    fi
+done
+# the first run holds OUTDIR (its lock names it); a second into the same OUTDIR is refused at
+# once, one line, exit 1, and the first ends with every frame whole
+pipelines/frames $CB "$TMP/fl" FRAMES=12 PHOTONS=200000 SPP=4 WIDTH=64 HEIGHT=48 >"$TMP/fl1.out" 2>&1 &
+first=$!
+for _ in $(seq 200); do grep -q '^pid ' "$TMP/fl/.lock" 2>/dev/null && break; sleep 0.05; done
+pipelines/frames $CB "$TMP/fl" $F >"$TMP/fl2.out" 2>"$TMP/fl2.err"
+status=$?
+wait $first
+status1=$?
+if [ $status = 1 ] && [ "$(wc -l <"$TMP/fl2.err")" = 1 ] && grep -q "is in use by another render (pid $first: " "$TMP/fl2.err" &&
+    [ $status1 = 0 ] && [ "$(ls "$TMP/fl"/frame-*.exr | wc -l)" = 12 ] && [ "$(ls "$TMP/fl"/frame-*.png | wc -l)" = 12 ]; then
+    pass "frames: a second run into a held OUTDIR is refused (exit 1, one line naming the holder); the first ends whole"
+else
+    fail "frames: two runs into one OUTDIR" "second exit $status: $(head -c 300 "$TMP/fl2.err"); first exit $status1: $(tail -2 "$TMP/fl1.out")"
+fi

@@ -2,7 +2,7 @@
 # default (issue 26, item 2): the caustic branch of a scene with mirrors or glass, MODE=direct-vis
 # (over a global and an indirect map), ORDER=none and GATHER=none. Each runs resident (no pass
 # directory) and makes the running image and the image the pass files make (KEEP=all,
-# pipelines/lib/render-make), record for record and pixel for pixel; the caustic branch also
+# pm_render_passes), record for record and pixel for pixel; the caustic branch also
 # when a rerun adds a pass, and for any THREADS.
 # programs: pm-render simd-gather trace-photons trace-gather-points build-photonmap hilbert-sort composite pm-info
 R=pipelines/render

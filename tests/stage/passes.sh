@@ -249,8 +249,17 @@ expect_exit "render PASSES=2 with a gather that takes no --pass (knn-gather): ex
 grep -q "does not take --pass" "$TMP/err" && [ ! -e "$TMP/knn/pass-0001" ] &&
     pass "... and says so before any pass" || fail "knn-gather with passes" "$(cat "$TMP/err")"
 
+# ---- pass files of the direct light alone (GATHER=none): every pass made (the make graph once
+# failed at pass 2 with "No rule to make target 'all'")
+"$R" "$CORNELL" "$TMP/gnone" $SMALL PASSES=2 GATHER=none >"$TMP/gnone.out" 2>&1
+status=$?
+[ $status = 0 ] && [ -s "$TMP/gnone/pass-0002/direct.pm" ] && [ ! -e "$TMP/gnone/pass-0002/indirect.pm" ] &&
+    [ "$(hdr "$TMP/gnone/running.pm" passes)" = 2 ] &&
+    pass "GATHER=none PASSES=2: two passes of the direct light as files, the running image holds both" ||
+    fail "GATHER=none passes" "exit $status: $(tail -n 3 "$TMP/gnone.out")"
+
 # ---- pipelines/render PASSES KEEP=all: pass directories, the schedule, the running image
-# (KEEP=all given asks for every pass's files, made by pipelines/lib/render-make)
+# (KEEP=all given asks for every pass's files, made by pm-render's pass files, common/engine/fixed.c)
 O=$TMP/prog
 if "$R" "$CORNELL" "$O" $SMALL PASSES=2 KEEP=all >"$TMP/r1.out" 2>&1; then
     pass "render PASSES=2 KEEP=all runs"

@@ -108,3 +108,15 @@ expect_exit "a missing scene is bad input" 1 "$PR" "$TMP/none.json" "$TMP/u"
 printf '{"pmtk_scene": 1, "name": "x", "meshes": [' >"$TMP/bad.json"
 expect_exit "a scene that does not load is bad input" 1 "$PR" "$TMP/bad.json" "$TMP/u" $TINY
 expect_exit "an unknown TARGET is bad usage" 2 "$PR" "$S/shot1.json" "$TMP/u" $TINY nothing.pm
+
+# --check-settings: the settings judged as a render would (each stage's values by the stage),
+# nothing rendered, no OUTDIR made (pipelines/slurm asks it before it submits anything).
+rm -rf "$TMP/cs"
+expect_exit "--check-settings: good settings, exit 0" 0 "$PR" --check-settings "$S/shot1.json" "$TMP/cs" $TINY PASSES=3 SHARDS=2
+for v in TIME=nan TIME=1e400 TARGET_ERROR=inf RADIUS=-1 KEEP=most WIDTHS=variable PASS_RANGE=2:1 PASS_RANGE=1; do
+    "$PR" --check-settings "$S/shot1.json" "$TMP/cs" $TINY PASSES=3 "$v" >"$TMP/cs.out" 2>"$TMP/cs.err"
+    status=$?
+    [ $status = 2 ] && [ "$(wc -l <"$TMP/cs.err")" = 1 ] && grep -q "^pm-render: .*${v%%=*}" "$TMP/cs.err" && [ ! -s "$TMP/cs.out" ] &&
+        pass "--check-settings $v: exit 2, one line naming it" || fail "--check-settings $v" "exit $status: $(head -c 300 "$TMP/cs.err")"
+done
+[ ! -e "$TMP/cs" ] && pass "--check-settings makes no OUTDIR" || fail "--check-settings made OUTDIR" "$(ls -a "$TMP/cs")"

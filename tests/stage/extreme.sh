@@ -357,6 +357,7 @@ done
 # vector of 1e-30 or 1e18 is the same as (0, 1, 0).
 records() { "$BIN/pm-info" -r "$1" | grep -E '^ *[0-9]+ '; }
 make_box "$TMP/eye" 0.5 "$LIGHT"
+set -f # the up vectors below are words, not globs
 for v in "near -1e-25 [0,1,0]" "far -1 [0,1,0]" "tinyup -1e-25 [0,1e-30,0]" "hugeup -1 [0,1e18,0]"; do
     set -- $v
     jq ".camera.eye = [0.0123, 0.0071, 0] | .camera.look_at = [0.0123, 0.0071, $2] | .camera.up = $3" \
@@ -367,6 +368,7 @@ for v in "near -1e-25 [0,1,0]" "far -1 [0,1,0]" "tinyup -1e-25 [0,1e-30,0]" "hug
         "$BIN/trace-reference" "$TMP/eye/$1.json" --spp 4 -q -o "$TMP/eye-$1.exr" --radiance "$TMP/eye-$1.r.pm"
     expect_exit "camera $1: scene-info --probe runs" 0 "$BIN/scene-info" --probe "$TMP/eye/$1.json"
 done
+set +f
 for v in near tinyup hugeup; do
     if cmp -s <(records "$TMP/eye-$v.d.pm") <(records "$TMP/eye-far.d.pm") &&
         cmp -s <(records "$TMP/eye-$v.r.pm") <(records "$TMP/eye-far.r.pm") &&

@@ -106,32 +106,130 @@ void pm_scene_power(const pm_scene_t *s, double p[3])
         p[k] += pm_sky_power(s, k);
 }
 
+/* Whether vertex p lies in front of the plane of a triangle (corner a, unit normal n): by more
+ * than 1e-2 of its distance from a (0.6 degrees: a ceiling a hair above a lamp set into it does not count,
+ * whatever the scene's size or where its lights are) plus the rounding of float coordinates of
+ * magnitude mag. */
+static int sees_vertex(const double a[3], const double n[3], const float *p, double mag)
+{
+    double d[3] = {(double)p[0] - a[0], (double)p[1] - a[1], (double)p[2] - a[2]};
+    double h = d[0] * n[0] + d[1] * n[1] + d[2] * n[2];
+    return h > 1e-2 * sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) + 1e-6 * mag;
+}
+
+typedef struct {
+    int32_t key[3]; /* the unit normal on a grid of 1/4096 */
+    uint32_t tri;   /* an emissive triangle */
+} flip_item_t;
+
+static int flip_item_cmp(const void *pa, const void *pb)
+{
+    const flip_item_t *a = pa, *b = pb;
+    for (int k = 0; k < 3; k++)
+        if (a->key[k] != b->key[k])
+            return a->key[k] < b->key[k] ? -1 : 1;
+    return a->tri < b->tri ? -1 : a->tri > b->tri;
+}
+
+/* The unit normal of triangle t in double; 0 when it has none. */
+static int unit_normal(const pm_scene_t *s, uint32_t t, double a_out[3], double n_out[3])
+{
+    const uint32_t *v = &s->tris[3 * (size_t)t];
+    const float *a = &s->verts[3 * (size_t)v[0]], *b = &s->verts[3 * (size_t)v[1]], *c = &s->verts[3 * (size_t)v[2]];
+    double e1[3], e2[3];
+    for (int k = 0; k < 3; k++) {
+        a_out[k] = a[k];
+        e1[k] = (double)b[k] - a[k];
+        e2[k] = (double)c[k] - a[k];
+    }
+    double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+    double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (!(len > 0.0) || !isfinite(len))
+        return 0;
+    for (int k = 0; k < 3; k++)
+        n_out[k] = n[k] / len;
+    return 1;
+}
+
+/* Emitters facing one way (a lamp placed N times) share one pass over the vertices: sorted by
+ * their normal on a grid, each run keeps the first member's normal n0, the vertex farthest
+ * along it and that distance M. A member (corner a, normal n) sees the scene when that vertex
+ * is in front of it; it sees nothing when even the bound M - a.n0 + R |n - n0| on every
+ * vertex's height above its plane (R: the largest distance of a vertex from a) is within the
+ * rounding allowance; only between the two are all vertices tried. So N placements of a lamp
+ * cost N + the vertices, not N times them. */
 size_t pm_scene_flipped_emitters(const pm_scene_t *s, uint32_t *first_out)
 {
-    float ext[3] = {s->bounds[3] - s->bounds[0], s->bounds[4] - s->bounds[1], s->bounds[5] - s->bounds[2]};
-    float eps = 1e-3f * sqrtf(pm_dot3(ext, ext)); /* m */
     size_t n = 0;
     *first_out = 0;
-    if (s->two_sided_lights)
+    if (s->two_sided_lights || !s->nemissive)
         return 0; /* both faces emit: no winding faces away */
-    for (size_t i = 0; i < s->nemissive; i++) {
-        const uint32_t *t = &s->tris[3 * (size_t)s->emissive[i]];
-        const float *a = &s->verts[3 * (size_t)t[0]], *b = &s->verts[3 * (size_t)t[1]],
-                    *c = &s->verts[3 * (size_t)t[2]];
-        float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-        float nrm[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
-        float len = sqrtf(pm_dot3(nrm, nrm));
-        if (!(len > 0.0f))
-            continue;
-        int sees = 0;
-        for (size_t v = 0; v < s->nverts && !sees; v++) {
-            const float *p = &s->verts[3 * v];
-            float d[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
-            sees = pm_dot3(d, nrm) > eps * len;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, mag = 0.0;
+    for (size_t v = 0; v < s->nverts; v++)
+        for (int k = 0; k < 3; k++) {
+            lo[k] = fmin(lo[k], s->verts[3 * v + k]);
+            hi[k] = fmax(hi[k], s->verts[3 * v + k]);
         }
-        if (!sees && n++ == 0)
-            *first_out = s->emissive[i];
+    for (int k = 0; k < 3; k++)
+        mag = fmax(mag, fmax(fabs(lo[k]), fabs(hi[k])));
+    flip_item_t *items = malloc(s->nemissive * sizeof *items);
+    size_t ni = 0;
+    for (size_t i = 0; i < s->nemissive; i++) {
+        double a[3], nrm[3];
+        if (!unit_normal(s, s->emissive[i], a, nrm))
+            continue;
+        if (!items) { /* no memory for the shortcut: every vertex for every emitter */
+            int sees = 0;
+            for (size_t v = 0; v < s->nverts && !sees; v++)
+                sees = sees_vertex(a, nrm, &s->verts[3 * v], mag);
+            if (!sees && n++ == 0)
+                *first_out = s->emissive[i];
+            continue;
+        }
+        items[ni].tri = s->emissive[i];
+        for (int k = 0; k < 3; k++)
+            items[ni].key[k] = (int32_t)lround(nrm[k] * 4096.0);
+        ni++;
     }
+    if (!items)
+        return n;
+    qsort(items, ni, sizeof *items, flip_item_cmp);
+    uint32_t first = UINT32_MAX;
+    double n0[3] = {0, 0, 0}, top = 0.0;
+    size_t far = 0;
+    for (size_t i = 0; i < ni; i++) {
+        double a[3], nrm[3];
+        unit_normal(s, items[i].tri, a, nrm);
+        if (i == 0 || memcmp(items[i].key, items[i - 1].key, sizeof items[i].key) != 0) {
+            memcpy(n0, nrm, sizeof n0);
+            top = -INFINITY;
+            for (size_t v = 0; v < s->nverts; v++) {
+                const float *p = &s->verts[3 * v];
+                double h = p[0] * n0[0] + p[1] * n0[1] + p[2] * n0[2];
+                if (h > top)
+                    top = h, far = v;
+            }
+        }
+        if (sees_vertex(a, nrm, &s->verts[3 * far], mag))
+            continue;
+        double dn = 0.0, r2 = 0.0;
+        for (int k = 0; k < 3; k++) {
+            dn += (nrm[k] - n0[k]) * (nrm[k] - n0[k]);
+            double ext = fmax(fabs(hi[k] - a[k]), fabs(lo[k] - a[k]));
+            r2 += ext * ext;
+        }
+        double bound = top - (a[0] * n0[0] + a[1] * n0[1] + a[2] * n0[2]) + sqrt(r2) * sqrt(dn);
+        int sees = 0;
+        if (!(bound <= 1e-6 * mag))
+            for (size_t v = 0; v < s->nverts && !sees; v++)
+                sees = sees_vertex(a, nrm, &s->verts[3 * v], mag);
+        if (!sees) {
+            n++;
+            first = items[i].tri < first ? items[i].tri : first;
+        }
+    }
+    free(items);
+    *first_out = n ? first : 0;
     return n;
 }
 

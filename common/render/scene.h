@@ -243,9 +243,11 @@ int pm_scene_shading_normal(const pm_scene_t *s, uint32_t tri, const float p[3],
 
 /* The emissive triangles whose front face (the side their winding's normal points to, the
  * only side that emits) sees none of the scene: no vertex of the scene lies in front of
- * their plane by more than 1e-3 of the bounds' diagonal (a light wound the wrong way under
+ * their plane by more than 1e-2 of its distance (plus float rounding; a lamp far from the rest
+ * of the scene changes nothing) (a light wound the wrong way under
  * a ceiling sees only the ceiling's underside a hair above it, and its light leaks out as
- * sparse fireflies). Returns how many; *first_out the first of them (a triangle index). */
+ * sparse fireflies). Returns how many; *first_out the first of them (a triangle index). Time
+ * linear in emitters and vertices for emitters facing few ways (a lamp placed N times). */
 size_t pm_scene_flipped_emitters(const pm_scene_t *s, uint32_t *first_out);
 
 /* Which parts of the scene a file's SCENE key names (docs/formats.md, SCENE): what photon

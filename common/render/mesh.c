@@ -94,6 +94,11 @@ static pm_result_t check_obj_materials(const char *path, char *libs_out, size_t 
                 if ((unsigned char)*p < 0x20 || *p == '\\')
                     *p = ' ';
         } else if (strcmp(word, "usemtl") == 0) {
+            if (!rest[0])
+                r = pm_error_set(PM_ERR_INPUT,
+                                 "mesh '%s': usemtl on line %" PRIu64 " names no material (assimp would take the "
+                                 "last one of the .mtl)",
+                                 path, lineno);
             if (!first_usemtl)
                 first_usemtl = lineno;
         } else if (strcmp(word, "f") == 0 || strcmp(word, "fo") == 0) {
@@ -174,6 +179,8 @@ static pm_result_t import_file(ctx_t *c, const char *path, int is_obj, import_t 
     snprintf(im->path, sizeof im->path, "%s", path);
     snprintf(im->libs, sizeof im->libs, "%s", libs_read);
     *im_out = im;
+    if (is_obj && (r = pm_scene_mtl_check(path, libs_read, im->as)) != PM_OK)
+        return r;
     return is_obj ? pm_scene_mtl_homes(path, libs_read, im) : PM_OK;
 }
 

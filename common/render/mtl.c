@@ -4,7 +4,10 @@
 #include "render/scene.h"
 
 #include <assimp/material.h>
+#include <assimp/scene.h>
 #include <ctype.h>
+#include <inttypes.h>
+#include <math.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -374,6 +377,134 @@ pm_result_t pm_scene_mtl_homes(const char *obj, const char *libs, import_t *im)
             mtl_home_t *h = &im->homes[im->nhomes++];
             snprintf(h->name, sizeof h->name, "%s", mname);
             snprintf(h->lib, sizeof h->lib, "%s", lpath);
+        }
+        free(line);
+        fclose(f);
+    }
+    return r;
+}
+
+/* The MTL keys whose values are numbers (assimp reads them with fast_atof, which takes "0.5,"
+ * as 0.5, "0x1p-1" as 0 and "inf" as a number), and among them the colours, whose g and b
+ * default to r when only r is given (assimp 5.2 leaves them 0: Kd 0.5 was red). */
+static const struct {
+    const char *word, *ai_key; /* as MTL names it; assimp's colour key, NULL for a scalar */
+} mtl_numbers[] = {
+    {"Ka", "$clr.ambient"},
+    {"Kd", "$clr.diffuse"},
+    {"Ks", "$clr.specular"},
+    {"Ke", "$clr.emissive"},
+    {"Tf", "$clr.transparent"},
+    {"Ns", NULL},
+    {"Ni", NULL},
+    {"d", NULL},
+    {"Tr", NULL},
+    {"Pr", NULL},
+    {"Pm", NULL},
+    {"Ps", NULL},
+    {"Pc", NULL},
+    {"Pcr", NULL},
+    {"aniso", NULL},
+    {"illum", NULL},
+};
+
+/* Whether token t (len bytes) is a plain finite decimal number: digits, one point, an exponent;
+ * no comma, no hex float, no inf or nan. */
+static int mtl_plain_number(const char *t, size_t len, double *out)
+{
+    char buf[64];
+    if (len == 0 || len >= sizeof buf)
+        return 0;
+    memcpy(buf, t, len);
+    buf[len] = '\0';
+    for (size_t i = 0; i < len; i++)
+        if (!strchr("0123456789+-.eE", buf[i]))
+            return 0;
+    char *end;
+    double v = strtod(buf, &end);
+    if (*end || end == buf || !isfinite(v))
+        return 0;
+    *out = v;
+    return 1;
+}
+
+/* The assimp material of as that newmtl line rest defines, or NULL. */
+static struct aiMaterial *mtl_material(const struct aiScene *as, const char *rest)
+{
+    for (unsigned i = 0; i < as->mNumMaterials; i++) {
+        struct aiString an;
+        if (aiGetMaterialString(as->mMaterials[i], AI_MATKEY_NAME, &an) == aiReturn_SUCCESS &&
+            strcmp(an.data, rest) == 0)
+            return as->mMaterials[i];
+    }
+    return NULL;
+}
+
+/* Reads the .mtl files an OBJ names (libs as check_obj_materials lists them) for the values assimp
+ * reads wrong without a word: a number key's values must be one or three plain decimal numbers
+ * (a comma, a hex float, inf or nan is an error naming the file, line and value); a colour given
+ * as one number is grey (assimp's material as is changed so: g and b take r); a texture line of
+ * 1024 bytes or more (assimp's aiString drops it) is an error. */
+pm_result_t pm_scene_mtl_check(const char *obj, const char *libs, const struct aiScene *as)
+{
+    pm_result_t r = PM_OK;
+    char path[1200];
+    const char *lib = libs;
+    for (FILE *f; r == PM_OK && (f = next_mtl(obj, &lib, path, sizeof path));) {
+        char *line = NULL, word[64];
+        size_t cap = 0;
+        uint64_t lineno = 0;
+        struct aiMaterial *cur = NULL;
+        for (ssize_t len; r == PM_OK && (len = mtl_getline(&line, &cap, f)) >= 0;) {
+            lineno++;
+            const char *rest = pm_scene_obj_word(line, word, sizeof word);
+            if (!word[0] || word[0] == '#')
+                continue;
+            if (strcmp(word, "newmtl") == 0) {
+                cur = mtl_material(as, rest);
+                continue;
+            }
+            if (strncmp(word, "map_", 4) == 0 || !strcmp(word, "bump") || !strcmp(word, "norm") ||
+                !strcmp(word, "disp") || !strcmp(word, "refl")) {
+                if (strlen(rest) >= 1024)
+                    r = pm_error_set(PM_ERR_INPUT,
+                                     "mesh '%s': '%s' line %" PRIu64 ": %s path of %zu bytes, beyond the 1023 assimp "
+                                     "keeps",
+                                     obj, path, lineno, word, strlen(rest));
+                continue;
+            }
+            size_t k = 0, nk = sizeof mtl_numbers / sizeof *mtl_numbers;
+            while (k < nk && strcasecmp(mtl_numbers[k].word, word) != 0)
+                k++;
+            if (k == nk || !strncmp(rest, "spectral", 8) || !strncmp(rest, "xyz", 3))
+                continue; /* not a number key; or Kd spectral / xyz, reported as it is */
+            double v[4];
+            int n = 0;
+            for (const char *t = rest; *t && r == PM_OK;) {
+                size_t tl = strcspn(t, " \t");
+                if (n == 4 || !mtl_plain_number(t, tl, &v[n]))
+                    r = pm_error_set(PM_ERR_INPUT,
+                                     "mesh '%s': '%s' line %" PRIu64 ": %s '%s' is not %s plain decimal number%s "
+                                     "(no commas, hex floats, inf or nan)",
+                                     obj, path, lineno, word, rest, mtl_numbers[k].ai_key ? "one or three" : "a",
+                                     mtl_numbers[k].ai_key ? "s" : "");
+                n++;
+                t += tl;
+                t += strspn(t, " \t");
+            }
+            if (r == PM_OK && (n == 0 || n == 2 || n > 3 || (!mtl_numbers[k].ai_key && n != 1)))
+                r = pm_error_set(PM_ERR_INPUT, "mesh '%s': '%s' line %" PRIu64 ": %s '%s' has %d values, expected %s",
+                                 obj, path, lineno, word, rest, n, mtl_numbers[k].ai_key ? "1 or 3" : "1");
+            if (r != PM_OK || n != 1 || !mtl_numbers[k].ai_key || !cur)
+                continue;
+            /* One value: grey. The import is this loader's own (aiImportFile's result). */
+            struct aiMaterialProperty *p = NULL;
+            if (aiGetMaterialProperty(cur, mtl_numbers[k].ai_key, 0, 0, (const struct aiMaterialProperty **)&p) ==
+                    aiReturn_SUCCESS &&
+                p->mType == aiPTI_Float && p->mDataLength >= 3 * sizeof(float)) {
+                float *c = (float *)(void *)p->mData;
+                c[1] = c[2] = c[0];
+            }
         }
         free(line);
         fclose(f);

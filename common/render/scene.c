@@ -361,8 +361,12 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     if (r == PM_OK)
         r = pm_scene_get_int(&c, root, "pmtk_scene", "pmtk_scene", 1, 1, 1, &version);
     const char *name = json_string_value(json_object_get(root, "name"));
-    if (r == PM_OK && (!name || !*name || strlen(name) >= sizeof s->name || strpbrk(name, " \t\n")))
-        r = pm_scene_bad(&c, "name", "must be a non-empty string without spaces, under %zu bytes", sizeof s->name);
+    int name_control = 0; /* a control byte (files and terminals would show it as a space) */
+    for (const char *p = name; p && *p; p++)
+        name_control |= (unsigned char)*p < 0x20 || *p == 0x7f;
+    if (r == PM_OK && (!name || !*name || strlen(name) >= sizeof s->name || strchr(name, ' ') || name_control))
+        r = pm_scene_bad(&c, "name", "must be a non-empty string without spaces or control bytes, under %zu bytes",
+                         sizeof s->name);
     if (r == PM_OK)
         snprintf(s->name, sizeof s->name, "%s", name);
     json_t *mt = json_object_get(root, "missing_textures");

@@ -103,6 +103,9 @@ pm_result_t pm_scene_scan_material(pm_scene_t *s, int is_obj, const struct aiMat
 pm_result_t pm_scene_scan_mtl_dropped(pm_scene_t *s, const char *obj, const char *libs, size_t mat0, size_t n,
                                       const unsigned char *pbr);
 pm_result_t pm_scene_mtl_homes(const char *obj, const char *libs, import_t *im);
+/* The .mtl values assimp reads wrong: number syntax and counts, one-value colours (made grey in as),
+ * texture lines too long for assimp (mtl.c). */
+pm_result_t pm_scene_mtl_check(const char *obj, const char *libs, const struct aiScene *as);
 pm_result_t pm_scene_note_unsupported(pm_scene_t *s, uint32_t m, const char *key, int is_file, const char *value);
 
 /* ---- scene_maps.c: a material's textures. */

@@ -35,3 +35,42 @@ if timeout 10 "$BIN/scene-info" "$H/lamps.json" >"$H/lamps.out" 2>/dev/null; the
 else
     fail "30,000 placements of a flipped lamp" "scene-info did not finish within 10 s (exit $?)"
 fi
+
+# ---- item 5: MTL values assimp reads wrong without a word, and a scene name with a control byte
+# quad_scene DIR MTL-BODY [OBJ-USEMTL]: a floor quad (material 'grey' from m.mtl = MTL-BODY) seen
+# from above, lit by a point light
+quad_scene() {
+    mkdir -p "$1"
+    printf 'mtllib m.mtl\nv -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\n%s\nf 1 4 3 2\n' "${3:-usemtl grey}" >"$1/m.obj"
+    printf 'newmtl lamp\nKd 0 0 0\nKe 1 1 1\nnewmtl grey\n%s\n' "$2" >"$1/m.mtl"
+    printf '{"pmtk_scene": 1, "name": "quad", "meshes": [{"file": "m.obj"}], "point_lights": [{"position": [0, 1, 0], "intensity": [1, 1, 1]}], "camera": {"eye": [0, 1, 0], "look_at": [0, 0, 0], "up": [0, 0, 1], "fov_y": 60, "width": 8, "height": 8}}\n' >"$1/scene.json"
+}
+quad_scene "$H/kd1" 'Kd 0.5'
+"$BIN/scene-info" "$H/kd1/scene.json" 2>"$H/kd1.err" | grep -q '^  0 grey kd 0.5 0.5 0.5 ' &&
+    pass "MTL: Kd 0.5 is grey (g and b default to r)" || fail "Kd with one value" "$("$BIN/scene-info" "$H/kd1/scene.json" 2>&1 | grep grey)"
+quad_scene "$H/ke1" 'Kd 0.2 0.3 0.4
+Ke 2'
+"$BIN/scene-info" "$H/ke1/scene.json" 2>/dev/null | grep -q ' ke 2 2 2$' && pass "MTL: Ke 2 is white" ||
+    fail "Ke with one value" "$("$BIN/scene-info" "$H/ke1/scene.json" 2>&1 | grep grey)"
+n=0
+for v in 'Kd 0.5,0.5,0.5' 'Kd 0x1p-1 0.5 0.5' 'Kd inf 0.5 0.5' 'Kd 0.5 nan 0.5' 'Ks 0.1 0.1 0.1 0.1' 'Ns 1,5' 'Ns 10 20'; do
+    n=$((n + 1))
+    quad_scene "$H/bad$n" "$v"
+    expect_error "MTL: '$v' is refused naming the file, line and value" \
+        "mesh '.*m.obj': '.*m.mtl' line 5: ${v%% *} '${v#* }' (is not|has)" "$BIN/scene-info" "$H/bad$n/scene.json"
+done
+quad_scene "$H/long" "Kd 0.5
+map_Kd $(head -c 1100 /dev/zero | tr '\0' a).png"
+expect_error "MTL: a map_Kd path of 1104 bytes is refused, not dropped" \
+    "'.*m.mtl' line 6: map_Kd path of 1104 bytes, beyond the 1023 assimp keeps" "$BIN/scene-info" "$H/long/scene.json"
+quad_scene "$H/bare" 'Kd 0.5' 'usemtl'
+expect_error "OBJ: a bare usemtl is an error, not the .mtl's last material" \
+    "mesh '.*m.obj': usemtl on line 6 names no material" "$BIN/scene-info" "$H/bare/scene.json"
+quad_scene "$H/ctl" 'Kd 0.5'
+jq '.name = "a\u0001b"' "$H/ctl/scene.json" >"$H/ctl/c.json"
+expect_error "a scene name with a control byte is refused" "scene '.*c.json': name: .*control bytes" \
+    "$BIN/scene-info" "$H/ctl/c.json"
+# TARGET_ERROR below the smallest normal double: bad usage, not a stop "as if met" after pass 2
+expect_exit "TARGET_ERROR=1e-320 (subnormal) is bad usage" 2 pipelines/render "$H/kd1/scene.json" "$H/te" TARGET_ERROR=1e-320
+grep -q "bad value for TARGET_ERROR '1e-320'.*at least 2.22507e-308" "$TMP/err" && pass "... named with the smallest it takes" ||
+    fail "TARGET_ERROR subnormal message" "$(cat "$TMP/err")"

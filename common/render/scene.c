@@ -406,7 +406,7 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     if (r == PM_OK && inst && !json_is_boolean(inst))
         r = pm_scene_bad(&c, "instancing", "must be true (the default) or false");
     if (r == PM_OK)
-        r = pm_scene_find_instances(&c, !inst || json_is_true(inst));
+        r = pm_scene_find_instances(&c, !inst || json_is_true(inst), &s->instances_flat);
     for (size_t i = 0; i < c.nimports; i++) {
         if (c.imports[i].as)
             aiReleaseImport(c.imports[i].as);

@@ -99,6 +99,12 @@ typedef struct {
     int32_t kd, ks, alpha;
 } pm_material_maps_t;
 
+/* The range Embree's instances are built in (mesh.c, instance_xf_ok): a prototype's coordinates in
+ * its own units, and each placement's scale; outside it a repeated mesh is built flat. */
+#define PM_SCENE_INSTANCE_COORD_MAX 1e8
+#define PM_SCENE_INSTANCE_SCALE_MIN 1e-4
+#define PM_SCENE_INSTANCE_SCALE_MAX 1e4
+
 /* Where one mesh entry of the scene file put its triangles. Every triangle is also in the
  * flattened arrays (verts, tris, tri_material) that the tracers read; a mesh file placed by
  * several entries is, in addition, built into Embree once and placed by instances (rt.c). */
@@ -158,7 +164,8 @@ typedef struct {
     int any_alpha;              /* some material has map_d: render/rt.c installs the cut-out filter */
     pm_placement_t *placements; /* one per mesh entry */
     size_t nplacements;
-    float *local_verts; /* prototypes' vertices in mesh units; NULL when no mesh is instanced */
+    size_t instances_flat; /* placements of repeated meshes built flat: outside instancing's range */
+    float *local_verts;    /* prototypes' vertices in mesh units; NULL when no mesh is instanced */
 } pm_scene_t;
 
 /* Loads and checks a scene file. Errors name the file and the line (JSON syntax) or the

@@ -86,7 +86,7 @@ pm_result_t pm_scene_grow(void **p, size_t n, size_t size);
 /* ---- mesh.c: assimp imports. */
 pm_result_t pm_scene_load_mesh(ctx_t *c, json_t *mj, size_t index);
 void pm_scene_release_import(ctx_t *c, json_t *meshes, size_t i);
-pm_result_t pm_scene_find_instances(ctx_t *c, int allowed);
+pm_result_t pm_scene_find_instances(ctx_t *c, int allowed, size_t *flattened_out);
 /* The first word of an OBJ or MTL line into word (cut to cap), and where the rest begins. */
 const char *pm_scene_obj_word(const char *line, char *word, size_t cap);
 
@@ -97,6 +97,10 @@ pm_result_t pm_scene_load_material(const ctx_t *c, const char *mesh, int is_obj,
 int pm_scene_pbr_inputs(int is_obj, const struct aiMaterial *am, float *metallic_out, float *roughness_out);
 /* A material name as pmtk keeps it: spaces and control characters become '_'. */
 void pm_scene_material_word(char *name);
+
+/* Refuses a file to read that is not a regular file (a FIFO would block the load; opened without
+ * blocking to find out); what names it in the message ("mesh"). mesh.c. */
+pm_result_t pm_scene_check_regular(const char *path, const char *what);
 
 /* ---- mtl.c: what a material sets and pmtk does not honour. */
 pm_result_t pm_scene_scan_material(pm_scene_t *s, int is_obj, const struct aiMaterial *am, uint32_t m);

@@ -1,7 +1,7 @@
 # hostile-meshes.sh: issue 28, meshes and scenes built to break the loader (items 2, 4, 5, 6, 7
 # and 8): each case ends in its right answer or in one line naming the file and the value, never
 # a crash, a hang or a silently wrong scene.
-# programs: scene-info trace-photons
+# programs: scene-info trace-photons trace-gather-points pm-render
 
 # ---- item 8: a correctly facing lamp is not called flipped because a point light is 1 km away
 # (the tolerance was 1e-3 of the bounds' diagonal, which the far light made 1 m)
@@ -74,3 +74,63 @@ expect_error "a scene name with a control byte is refused" "scene '.*c.json': na
 expect_exit "TARGET_ERROR=1e-320 (subnormal) is bad usage" 2 pipelines/render "$H/kd1/scene.json" "$H/te" TARGET_ERROR=1e-320
 grep -q "bad value for TARGET_ERROR '1e-320'.*at least 2.22507e-308" "$TMP/err" && pass "... named with the smallest it takes" ||
     fail "TARGET_ERROR subnormal message" "$(cat "$TMP/err")"
+
+# ---- item 7: a FIFO named as a mesh or a material library is refused at once, not waited on
+quad_scene "$H/fifo" 'Kd 0.5'
+mv "$H/fifo/m.obj" "$H/fifo/real.obj" && mkfifo "$H/fifo/m.obj"
+expect_error "a FIFO named as a mesh is refused without blocking" "mesh '.*fifo/m.obj' is not a regular file \\(a FIFO\\)" \
+    timeout 10 "$BIN/scene-info" "$H/fifo/scene.json"
+rm "$H/fifo/m.obj" && mv "$H/fifo/real.obj" "$H/fifo/m.obj" && mv "$H/fifo/m.mtl" "$H/fifo/real.mtl" && mkfifo "$H/fifo/m.mtl"
+expect_error "a FIFO named as an OBJ's mtllib is refused without blocking" \
+    "material library '.*fifo/m.mtl' is not a regular file \\(a FIFO\\)" timeout 10 "$BIN/scene-info" "$H/fifo/scene.json"
+
+# -o - and a name of stdout for another output are one output (they interleaved): usage, exit 2
+TGP=("$BIN/trace-gather-points" -q "$H/kd1/scene.json" --spp 4 --width 8 --height 8)
+for other in "--direct /dev/stdout" "--direct /dev/fd/1" "--stats /dev/stdout"; do
+    "${TGP[@]}" -o - $other 2>"$H/dup.err" | cat >"$H/dup.out"
+    st=${PIPESTATUS[0]}
+    [ "$st" = 2 ] && grep -q "two outputs to one file: stdout and '/dev/" "$H/dup.err" && [ ! -s "$H/dup.out" ] &&
+        pass "-o - with $other is one output: exit 2, nothing written" || fail "-o - with $other" "exit $st: $(head -c 200 "$H/dup.err")"
+done
+"${TGP[@]}" -o - --direct "$H/d.pm" >"$H/q.pm" 2>"$H/dup.err" && "${TGP[@]}" -o - --direct "$H/q2.pm" >"$H/q2.pm" 2>"$H/dup.err"
+[ $? = 2 ] && grep -q "stdout and '.*q2.pm'" "$H/dup.err" && pass "-o - with --direct naming the file stdout goes to: exit 2" ||
+    fail "-o - and --direct on stdout's file" "$(head -c 200 "$H/dup.err")"
+
+# a file-size limit: a clean I/O error (exit 3), no hidden temporary file left (SIGXFSZ killed it)
+mkdir -p "$H/fsz"
+(ulimit -f 8 && exec "$BIN/trace-gather-points" -q "$H/kd1/scene.json" --spp 4 --width 64 --height 64 \
+    -o "$H/fsz/q.pm" --direct "$H/fsz/d.pm") 2>"$H/fsz.err"
+st=$?
+[ "$st" = 3 ] && grep -q "File too large" "$H/fsz.err" && [ -z "$(ls -A "$H/fsz")" ] &&
+    pass "ulimit -f: exit 3 'File too large', no file left behind" || fail "file-size limit" "exit $st, left: $(ls -A "$H/fsz") $(head -c 200 "$H/fsz.err")"
+
+# ---- item 2: a mesh in units of its own, placed twice: instancing only within its range
+# (mesh coordinates up to 1e8, scales 1e-4 to 1e4), otherwise built flat and said so; the image
+# is the flat build's ("instancing": false), never an Embree abort (exit 134) nor black
+printf 'mtllib p.mtl\nv -1e14 0 -1e14\nv 1e14 0 -1e14\nv 1e14 0 1e14\nv -1e14 0 1e14\nusemtl grey\nf 1 4 3 2\n' >"$H/p.obj"
+printf 'newmtl grey\nKd 0.5 0.5 0.5\n' >"$H/p.mtl"
+cat >"$H/inst.json" <<'JSON'
+{"pmtk_scene": 1, "name": "inst",
+ "meshes": [{"file": "p.obj", "scale": 1e-14}, {"file": "p.obj", "scale": 1e-14, "translate": [0, -0.5, 0]}],
+ "point_lights": [{"position": [0, 1, 0], "intensity": [1, 1, 1]}],
+ "camera": {"eye": [0, 1, 0], "look_at": [0, 0, 0], "up": [0, 0, 1], "fov_y": 60, "width": 16, "height": 16}}
+JSON
+jq '.instancing = false' "$H/inst.json" >"$H/flat.json"
+"$BIN/scene-info" "$H/inst.json" 2>&1 | grep -q '^instancing: 2 placements of repeated meshes built flat' &&
+    pass "a plane at +-1e14 placed twice with scale 1e-14: built flat, and scene-info says so" ||
+    fail "instancing range" "$("$BIN/scene-info" "$H/inst.json" 2>&1 | head -c 300)"
+small="PHOTONS=2000 SPP=4"
+pipelines/render "$H/inst.json" "$H/inst" $small >/dev/null 2>"$H/inst.err" &&
+    pipelines/render "$H/flat.json" "$H/flat" $small >/dev/null 2>&1 &&
+    cmp -s <("$BIN/pm-info" -r "$H/inst/direct.pm" | grep -E '^[0-9]+ ') <("$BIN/pm-info" -r "$H/flat/direct.pm" | grep -E '^[0-9]+ ') &&
+    "$BIN/pm-info" -r "$H/inst/direct.pm" | awk '/^[0-9]+ / { s += $2 } END { exit !(s > 0) }' &&
+    pass "... and renders as with \"instancing\": false, not black, no abort" ||
+    fail "instanced plane of +-1e14" "$(head -c 300 "$H/inst.err")"
+# the Cornell box in units of 1e16 mm, placed twice
+awk '/^v / { printf "v %.17g %.17g %.17g\n", $2 * 1e16, $3 * 1e16, $4 * 1e16; next } { print }' \
+    scenes/cornell-box/cornell-box.obj >"$H/big.obj"
+jq '.meshes = [{"file": "big.obj", "scale": 1e-19}, {"file": "big.obj", "scale": 1e-19, "translate": [2, 0, 0]}] | .name = "big"' \
+    scenes/cornell-box/scene.json >"$H/big.json"
+pipelines/render "$H/big.json" "$H/big" $small WIDTH=16 HEIGHT=12 >/dev/null 2>"$H/big.err" &&
+    "$BIN/pm-info" -r "$H/big/direct.pm" | awk '/^[0-9]+ / { s += $2 } END { exit !(s > 0) }' &&
+    pass "the Cornell box in units of 1e16 mm placed twice is not black" || fail "Cornell box in 1e16 mm" "$(head -c 300 "$H/big.err")"

@@ -29,7 +29,8 @@ WERROR ?= 1
 
 # Debian packages this project builds, tests and runs with (README says why each).
 DEBS := gcc make pkg-config libembree-dev libopenexr-dev libassimp-dev libjansson-dev \
-        libpng-dev libjpeg62-turbo-dev libstb-dev libxxhash-dev libcmocka-dev openexr jq gnuplot-nox clang-format
+        libpng-dev libjpeg62-turbo-dev libstb-dev libxxhash-dev libcmocka-dev openexr jq gnuplot-nox clang-format \
+        assimp-testmodels
 
 ifeq ($(V),1)
 Q :=

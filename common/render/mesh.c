@@ -34,9 +34,14 @@ static const char *const ai_benign_errors[] = {
     NULL,
 };
 
+/* assimp's warning that it dropped faces naming vertices out of range (glTF): an error. */
+static int ai_dropped_faces;
+
 static void on_assimp_log(const char *msg, char *user)
 {
     (void)user;
+    if (strncmp(msg, "Warn,", 5) == 0 && strstr(msg, "faces had out-of-range indices"))
+        ai_dropped_faces = 1;
     if (ai_first_error[0] || strncmp(msg, "Error,", 6) != 0)
         return;
     for (const char *const *b = ai_benign_errors; *b; b++)
@@ -188,15 +193,22 @@ static pm_result_t import_file(ctx_t *c, const char *path, int is_obj, import_t 
         return r;
     /* Triangulate polygons, merge shared vertices, flatten node transforms, drop points
      * and lines; vertex normals come as the file has them (none are made up). */
+    const unsigned flags = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_PreTransformVertices |
+                           aiProcess_SortByPType | aiProcess_ValidateDataStructure;
+    if ((r = pm_scene_mesh_precheck(path)) != PM_OK || (r = pm_scene_mesh_trial(path, flags)) != PM_OK)
+        return r;
     struct aiLogStream log = {on_assimp_log, NULL};
     ai_first_error[0] = '\0';
+    ai_dropped_faces = 0;
     aiAttachLogStream(&log);
-    const struct aiScene *imported =
-        aiImportFile(path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_PreTransformVertices |
-                               aiProcess_SortByPType | aiProcess_ValidateDataStructure);
+    const struct aiScene *imported = aiImportFile(path, flags);
     aiDetachAllLogStreams();
     if (!imported)
         return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, aiGetErrorString());
+    if (ai_dropped_faces) {
+        aiReleaseImport(imported);
+        return pm_scene_gltf_bad_face(path);
+    }
     if (ai_first_error[0]) {
         aiReleaseImport(imported);
         return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, ai_first_error);

@@ -102,6 +102,18 @@ void pm_scene_material_word(char *name);
  * blocking to find out); what names it in the message ("mesh"). mesh.c. */
 pm_result_t pm_scene_check_regular(const char *path, const char *what);
 
+/* ---- mesh_guard.c: between an untrusted mesh file and assimp. */
+/* The header of a PLY (by content or name), OFF or STL file checked against its size, before assimp
+ * reads it (its readers crash, loop or over-allocate on damaged headers). */
+pm_result_t pm_scene_mesh_precheck(const char *path);
+/* assimp's import of path with flags tried in a forked child within PMTK_IMPORT_SECONDS (default 60)
+ * and PMTK_IMPORT_MB (resident MiB it adds, default 4096; 0 turns a limit off): a crash, a hang or a memory
+ * blow-up is an input error naming the file; PM_OK when the import may run in this process. */
+pm_result_t pm_scene_mesh_trial(const char *path, unsigned flags);
+/* The error for a file whose faces assimp dropped as naming vertices out of range: for glTF, the
+ * first such face (mesh, primitive, face, vertex) read from the file itself. */
+pm_result_t pm_scene_gltf_bad_face(const char *path);
+
 /* ---- mtl.c: what a material sets and pmtk does not honour. */
 pm_result_t pm_scene_scan_material(pm_scene_t *s, int is_obj, const struct aiMaterial *am, uint32_t m);
 pm_result_t pm_scene_scan_mtl_dropped(pm_scene_t *s, const char *obj, const char *libs, size_t mat0, size_t n,

@@ -134,3 +134,45 @@ jq '.meshes = [{"file": "big.obj", "scale": 1e-19}, {"file": "big.obj", "scale":
 pipelines/render "$H/big.json" "$H/big" $small WIDTH=16 HEIGHT=12 >/dev/null 2>"$H/big.err" &&
     "$BIN/pm-info" -r "$H/big/direct.pm" | awk '/^[0-9]+ / { s += $2 } END { exit !(s > 0) }' &&
     pass "the Cornell box in units of 1e16 mm placed twice is not black" || fail "Cornell box in 1e16 mm" "$(head -c 300 "$H/big.err")"
+
+# ---- item 4: meshes through assimp. tests/fuzz/meshes: mutants of assimp-testmodels' cube.ply
+# that hang (24- and 31-byte headers; end_header at the end of a property line) or abort
+# (an ai_assert in TriangulateProcess) inside libassimp 5.2: each is one line, exit 1
+mesh_scene() { # mesh_scene JSON MESH: a scene placing MESH (a path) once, lit, seen from z = 3
+    printf '{"pmtk_scene": 1, "name": "m", "meshes": [{"file": "%s"}], "point_lights": [{"position": [0, 1, 0], "intensity": [1, 1, 1]}], "camera": {"eye": [0, 0, 3], "look_at": [0, 0, 0], "up": [0, 1, 0], "fov_y": 60, "width": 8, "height": 8}}\n' "$2" >"$1"
+}
+for m in ply-header-24-bytes ply-header-31-bytes ply-end-header-in-line; do
+    mesh_scene "$H/$m.json" "$PWD/tests/fuzz/meshes/$m.ply"
+    expect_error "PLY $m: its header is refused before assimp reads it (assimp looped)" \
+        "mesh '.*$m.ply': PLY header has no end_header line" timeout 20 "$BIN/scene-info" "$H/$m.json"
+done
+mesh_scene "$H/assert.json" "$PWD/tests/fuzz/meshes/ply-assert-triangulate.ply"
+expect_error "PLY whose import aborts inside assimp: one line from the trial import" \
+    "mesh '.*ply-assert-triangulate.ply': assimp's import crashed \\(signal 6" timeout 20 "$BIN/scene-info" "$H/assert.json"
+M=/usr/share/assimp/models
+if [ -d "$M" ]; then
+    mesh_scene "$H/oom.json" "$M/invalid/OutOfMemory.off"
+    expect_error "assimp's invalid/OutOfMemory.off: its counts are refused (it grew toward 16 GB)" \
+        "mesh '.*OutOfMemory.off': OFF header declares 353535235358 vertices and 6 faces, more than its 309 bytes" \
+        timeout 20 "$BIN/scene-info" "$H/oom.json"
+    mesh_scene "$H/wuson.json" "$M/PLY/Wuson.ply"
+    "$BIN/scene-info" "$H/wuson.json" 2>&1 | grep -q '^triangles: 3732 ' && pass "a good PLY (Wuson.ply) loads through the checks" ||
+        fail "Wuson.ply" "$("$BIN/scene-info" "$H/wuson.json" 2>&1 | tail -1)"
+    PMTK_IMPORT_MB=1 expect_error "PMTK_IMPORT_MB=1: an import that takes more is stopped, one line" \
+        "mesh '.*Wuson.ply': assimp's import took more than 1 MiB \\(PMTK_IMPORT_MB\\)" "$BIN/scene-info" "$H/wuson.json"
+    PMTK_IMPORT_MB=x expect_exit "PMTK_IMPORT_MB=x is bad usage" 2 "$BIN/scene-info" "$H/wuson.json"
+    for s in Spider_binary.stl Spider_ascii.stl; do
+        mesh_scene "$H/$s.json" "$M/STL/$s"
+        "$BIN/scene-info" "$H/$s.json" 2>&1 | grep -q '^triangles: 1312 ' && pass "STL $s loads through the checks" ||
+            fail "STL $s" "$("$BIN/scene-info" "$H/$s.json" 2>&1 | tail -1)"
+    done
+    head -c 150 "$M/STL/Spider_binary.stl" >"$H/short.stl"
+    mesh_scene "$H/short.json" "$H/short.stl"
+    expect_error "a binary STL cut short is refused by its size" "STL file of 150 bytes is neither binary" "$BIN/scene-info" "$H/short.json"
+    mesh_scene "$H/ior.json" "$M/glTF2/IndexOutOfRange/IndexOutOfRange.gltf"
+    expect_error "a glTF face with an out-of-range index is an error naming the face (assimp dropped it)" \
+        "mesh '.*IndexOutOfRange.gltf': glTF mesh 0 \\('Mesh'\\) primitive 0: face 0 names vertex 255 of 24" \
+        "$BIN/scene-info" "$H/ior.json"
+else
+    skip "assimp-testmodels" "$M is missing (Debian package assimp-testmodels)"
+fi

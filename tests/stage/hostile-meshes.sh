@@ -176,3 +176,10 @@ if [ -d "$M" ]; then
 else
     skip "assimp-testmodels" "$M is missing (Debian package assimp-testmodels)"
 fi
+
+# ---- item 6: a photon count the machine cannot hold is refused up front (it grew to the OOM killer)
+expect_exit "trace-photons --photons 5e11: refused at once, out of memory (exit 3)" 3 \
+    timeout 20 "$BIN/trace-photons" scenes/cornell-box/scene.json --photons 500000000000 -o "$H/p.pm"
+grep -q "500000000000 photons need at least .* GB .* more than this machine's .* GB of physical memory" "$TMP/err" &&
+    [ "$(wc -l <"$TMP/err")" = 1 ] && [ ! -e "$H/p.pm" ] && pass "... in one line naming the count and the memory, no output" ||
+    fail "photon count beyond memory" "$(head -c 300 "$TMP/err")"

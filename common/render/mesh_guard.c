@@ -75,8 +75,10 @@ static pm_result_t check_ply(const char *path, const char *buf, size_t n, uint64
         if (len >= sizeof text)
             return pm_error_set(PM_ERR_INPUT, "mesh '%s': PLY header line %d is %zu bytes long", path, lineno, len);
         memcpy(text, line, len);
-        text[len] = '\0';
         line += len + 1;
+        while (len && (text[len - 1] == '\r' || text[len - 1] == ' ' || text[len - 1] == '\t'))
+            len--;
+        text[len] = '\0';
         int nw = sscanf(text, "%63s %63s %63s %63s", w[0], w[1], w[2], w[3]);
         if (lineno == 1) {
             if (strcmp(w[0], "ply") != 0 || nw != 1)

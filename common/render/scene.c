@@ -106,6 +106,18 @@ void pm_scene_power(const pm_scene_t *s, double p[3])
         p[k] += pm_sky_power(s, k);
 }
 
+/* The box around every vertex loaded (those of left-out triangles too), m; inverted when none. */
+static void vertex_box(const pm_scene_t *s, double lo[3], double hi[3])
+{
+    for (int k = 0; k < 3; k++)
+        lo[k] = INFINITY, hi[k] = -INFINITY;
+    for (size_t v = 0; v < s->nverts; v++)
+        for (int k = 0; k < 3; k++) {
+            lo[k] = fmin(lo[k], s->verts[3 * v + k]);
+            hi[k] = fmax(hi[k], s->verts[3 * v + k]);
+        }
+}
+
 /* Whether vertex p lies in front of the plane of a triangle (corner a, unit normal n): by more
  * than 1e-2 of its distance from a (0.6 degrees: a ceiling a hair above a lamp set into it does not count,
  * whatever the scene's size or where its lights are) plus the rounding of float coordinates of
@@ -164,12 +176,8 @@ size_t pm_scene_flipped_emitters(const pm_scene_t *s, uint32_t *first_out)
     *first_out = 0;
     if (s->two_sided_lights || !s->nemissive)
         return 0; /* both faces emit: no winding faces away */
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, mag = 0.0;
-    for (size_t v = 0; v < s->nverts; v++)
-        for (int k = 0; k < 3; k++) {
-            lo[k] = fmin(lo[k], s->verts[3 * v + k]);
-            hi[k] = fmax(hi[k], s->verts[3 * v + k]);
-        }
+    double lo[3], hi[3], mag = 0.0;
+    vertex_box(s, lo, hi);
     for (int k = 0; k < 3; k++)
         mag = fmax(mag, fmax(fabs(lo[k]), fabs(hi[k])));
     flip_item_t *items = malloc(s->nemissive * sizeof *items);
@@ -322,12 +330,8 @@ static pm_result_t check_size(const ctx_t *c)
     const pm_scene_t *s = c->s;
     if (!s->nverts)
         return PM_OK;
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, size = 0.0;
-    for (size_t v = 0; v < s->nverts; v++)
-        for (int k = 0; k < 3; k++) {
-            lo[k] = fmin(lo[k], s->verts[3 * v + k]);
-            hi[k] = fmax(hi[k], s->verts[3 * v + k]);
-        }
+    double lo[3], hi[3], size = 0.0;
+    vertex_box(s, lo, hi);
     for (int k = 0; k < 3; k++)
         size = fmax(size, hi[k] - lo[k]);
     if (size < PM_SCENE_SIZE_MIN)

@@ -304,6 +304,8 @@ fuzz:
 	    case $$t in \
 	    fuzz_scene) cp scenes/cornell-box/scene.json $$seeds/ ;; \
 	    fuzz_img_*) bash tests/fuzz/image-seeds.sh $${t#fuzz_img_} $$seeds ;; \
+	    fuzz_mesh_header) cp /usr/share/assimp/models/PLY/*.ply /usr/share/assimp/models/OFF/*.off \
+	        /usr/share/assimp/models/STL/*.stl /usr/share/assimp/models/invalid/OutOfMemory.off tests/fuzz/meshes/* $$seeds/ ;; \
 	    fuzz_photonmap|fuzz_queries|fuzz_radiance) \
 	        for f in tests/golden/*.pm; do \
 	            head -c 200 $$f | grep -qx "FORMAT=$${t#fuzz_}" && cp $$f $$seeds/; \

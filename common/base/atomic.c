@@ -51,6 +51,9 @@ void pm_atomic_install_cleanup(void)
         sigemptyset(&sa.sa_mask);
         sigaction(sigs[i], &sa, NULL);
     }
+    /* A file-size limit (ulimit -f) then fails the write with EFBIG: an I/O error (exit 3)
+     * that removes the temporary file, not a death by SIGXFSZ that leaves it behind. */
+    signal(SIGXFSZ, SIG_IGN);
 }
 
 static int register_path(char *p)
@@ -544,9 +547,17 @@ static char *canonical(const char *path)
 
 int pm_atomic_same_file(const char *a, const char *b)
 {
-    if (strcmp(a, "-") == 0 || strcmp(b, "-") == 0)
-        return strcmp(a, b) == 0;
     struct stat sa, sb, sn;
+    if (strcmp(a, "-") == 0 && strcmp(b, "-") == 0)
+        return 1;
+    if (strcmp(a, "-") == 0 || strcmp(b, "-") == 0) {
+        /* stdout and a name for it (/dev/stdout, /dev/fd/1, the file or FIFO it was opened
+         * on): one output by device and inode, unless both are /dev/null */
+        const char *named = strcmp(a, "-") == 0 ? b : a;
+        if (fstat(STDOUT_FILENO, &sa) != 0 || stat(named, &sb) != 0 || sa.st_dev != sb.st_dev || sa.st_ino != sb.st_ino)
+            return 0;
+        return !(stat("/dev/null", &sn) == 0 && sn.st_dev == sa.st_dev && sn.st_ino == sa.st_ino);
+    }
     int ea = stat(a, &sa) == 0, eb = stat(b, &sb) == 0;
     if (ea && eb) {
         if (sa.st_dev != sb.st_dev || sa.st_ino != sb.st_ino)

@@ -94,7 +94,8 @@ pm_result_t pm_atomic_set_end(pm_atomic_set_t *s, pm_result_t result);
 
 /* Whether two output paths name one file: the same words, the same existing file (device and
  * inode; /dev/null excepted: it takes any number of outputs), or the same name in the same
- * directory once that is resolved. "-" is compared as a word. */
+ * directory once that is resolved. "-" is stdout: the same as a name of the file or pipe stdout
+ * is open on (/dev/stdout, /dev/fd/1), by device and inode. */
 int pm_atomic_same_file(const char *a, const char *b);
 
 #endif

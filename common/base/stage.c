@@ -69,6 +69,9 @@ static pm_result_t check_outputs(const pm_stage_t *st)
             const char *b = o[j].kind == PM_OPT_OUTPUT && st->args.given[j] ? *(const char **)o[j].dest : NULL;
             if (!b || (o[j].dest == &st->stats_path && !strcmp(b, "-")))
                 continue;
+            if (pm_atomic_same_file(a, b) && (strcmp(a, "-") == 0) != (strcmp(b, "-") == 0))
+                return pm_error_set(PM_ERR_USAGE, "two outputs to one file: stdout and '%s' (--%s and --%s)",
+                                    strcmp(b, "-") ? b : a, o[j].name, o[i].name);
             if (pm_atomic_same_file(a, b))
                 return pm_error_set(PM_ERR_USAGE, "two outputs to one file '%s': --%s and --%s",
                                     strcmp(b, "-") ? b : "stdout", o[j].name, o[i].name);

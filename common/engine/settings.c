@@ -3,6 +3,7 @@
  * stages. The names, defaults and messages are pipelines/render's, which pm-render replaces. */
 #include <errno.h>
 #include <fcntl.h>
+#include <float.h>
 #include <math.h>
 #include <regex.h>
 #include <stdio.h>
@@ -156,10 +157,13 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
         (!matches(NUM_RE, s->value[PM_P_TIME]) || !isfinite(strtod(s->value[PM_P_TIME], NULL))))
         return pm_error_set(PM_ERR_USAGE, "bad value for TIME '%s': expected seconds, a number of at least 0",
                             s->value[PM_P_TIME]);
+    /* At least the smallest normal double: a subnormal one would be compared as 0 (the stages
+     * set DAZ) or, by a driver reading it as text, as a string; either stops wrong. */
     if (s->value[PM_P_TARGET_ERROR][0] &&
-        (!matches(NUM_RE, s->value[PM_P_TARGET_ERROR]) || !(strtod(s->value[PM_P_TARGET_ERROR], NULL) > 0)))
-        return pm_error_set(PM_ERR_USAGE, "bad value for TARGET_ERROR '%s': expected a relative error above 0",
-                            s->value[PM_P_TARGET_ERROR]);
+        (!matches(NUM_RE, s->value[PM_P_TARGET_ERROR]) || !(strtod(s->value[PM_P_TARGET_ERROR], NULL) >= DBL_MIN)))
+        return pm_error_set(PM_ERR_USAGE,
+                            "bad value for TARGET_ERROR '%s': expected a relative error above 0, at least %g",
+                            s->value[PM_P_TARGET_ERROR], DBL_MIN);
     if (s->value[PM_P_ALPHA][0]) {
         double a = strtod(s->value[PM_P_ALPHA], NULL);
         if (!matches(NUM_RE, s->value[PM_P_ALPHA]) || !(a > 0 && a < 1))

@@ -7,12 +7,15 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <inttypes.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "base/hash.h"
 #include "render/scene_load.h"
@@ -34,9 +37,14 @@ static const char *const ai_benign_errors[] = {
     NULL,
 };
 
+/* assimp's warning that it dropped faces naming vertices out of range (glTF): an error. */
+static int ai_dropped_faces;
+
 static void on_assimp_log(const char *msg, char *user)
 {
     (void)user;
+    if (strncmp(msg, "Warn,", 5) == 0 && strstr(msg, "faces had out-of-range indices"))
+        ai_dropped_faces = 1;
     if (ai_first_error[0] || strncmp(msg, "Error,", 6) != 0)
         return;
     for (const char *const *b = ai_benign_errors; *b; b++)
@@ -100,6 +108,11 @@ static pm_result_t check_obj_materials(const char *path, char *libs_out, size_t 
                 if ((unsigned char)*p < 0x20 || *p == '\\')
                     *p = ' ';
         } else if (strcmp(word, "usemtl") == 0) {
+            if (!rest[0])
+                r = pm_error_set(PM_ERR_INPUT,
+                                 "mesh '%s': usemtl on line %" PRIu64 " names no material (assimp would take the "
+                                 "last one of the .mtl)",
+                                 path, lineno);
             if (!first_usemtl)
                 first_usemtl = lineno;
         } else if (strcmp(word, "f") == 0 || strcmp(word, "fo") == 0) {
@@ -143,6 +156,29 @@ static pm_result_t check_obj_materials(const char *path, char *libs_out, size_t 
     return r;
 }
 
+pm_result_t pm_scene_check_regular(const char *path, const char *what)
+{
+    /* O_NONBLOCK: a FIFO opens at once instead of waiting for a writer, and is then refused */
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0)
+        return pm_error_set(pm_result_of_errno(errno), "cannot open %s '%s': %s", what, path, strerror(errno));
+    struct stat st;
+    int ok = fstat(fd, &st) == 0;
+    int e = errno;
+    close(fd);
+    if (!ok)
+        return pm_error_set(pm_result_of_errno(e), "cannot read %s '%s': %s", what, path, strerror(e));
+    if (!S_ISREG(st.st_mode))
+        return pm_error_set(PM_ERR_INPUT, "%s '%s' is not a regular file (a %s)", what, path,
+                            S_ISFIFO(st.st_mode)   ? "FIFO"
+                            : S_ISDIR(st.st_mode)  ? "directory"
+                            : S_ISCHR(st.st_mode)  ? "character device"
+                            : S_ISBLK(st.st_mode)  ? "block device"
+                            : S_ISSOCK(st.st_mode) ? "socket"
+                                                   : "special file");
+    return PM_OK;
+}
+
 /* The import of mesh file path, made now unless an earlier entry made it: assimp's scene, the OBJ
  * order checked (faces before usemtl, late mtllib), the .mtl files' materials located. */
 static pm_result_t import_file(ctx_t *c, const char *path, int is_obj, import_t **im_out)
@@ -153,28 +189,42 @@ static pm_result_t import_file(ctx_t *c, const char *path, int is_obj, import_t 
             *im_out = &c->imports[i];
             return PM_OK;
         }
-    FILE *probe = fopen(path, "rb");
-    if (!probe)
-        return pm_error_set(pm_result_of_errno(errno), "cannot open mesh '%s': %s", path, strerror(errno));
-    fclose(probe);
+    if ((r = pm_scene_check_regular(path, "mesh")) != PM_OK)
+        return r;
+    /* assimp opens an OBJ's .mtl files itself: each must be a regular file too (a missing one
+     * is assimp's to report) */
+    char libs_read[4096] = "";
+    int no_materials = 0;
+    pm_result_t r_obj = is_obj ? check_obj_materials(path, libs_read, sizeof libs_read, &no_materials) : PM_OK;
+    if (r_obj == PM_OK)
+        for (const char *lib = libs_read, *eol; (eol = strchr(lib, '\n')); lib = eol + 1) {
+            char name[1024], lpath[1200];
+            snprintf(name, sizeof name, "%.*s", (int)(eol - lib), lib);
+            pm_scene_resolve(path, name, lpath, sizeof lpath);
+            if (access(lpath, F_OK) == 0 && (r = pm_scene_check_regular(lpath, "material library")) != PM_OK)
+                return r;
+        }
     if ((r = pm_scene_grow((void **)&c->imports, c->nimports + 1, sizeof *c->imports)) != PM_OK)
         return r;
     /* Triangulate polygons, merge shared vertices, flatten node transforms, drop points
      * and lines; vertex normals come as the file has them (none are made up). */
-    char libs_read[4096] = "";
-    int no_materials = 0;
-    if (is_obj && (r = check_obj_materials(path, libs_read, sizeof libs_read, &no_materials)) != PM_OK)
+    const unsigned flags = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_PreTransformVertices |
+                           aiProcess_SortByPType | aiProcess_ValidateDataStructure;
+    if ((r = pm_scene_mesh_precheck(path)) != PM_OK || (r = pm_scene_mesh_trial(path, flags)) != PM_OK)
         return r;
     struct aiLogStream log = {on_assimp_log, NULL};
     ai_first_error[0] = '\0';
+    ai_dropped_faces = 0;
     ai_obj_without_mtllib = no_materials;
     aiAttachLogStream(&log);
-    const struct aiScene *imported =
-        aiImportFile(path, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_PreTransformVertices |
-                               aiProcess_SortByPType | aiProcess_ValidateDataStructure);
+    const struct aiScene *imported = aiImportFile(path, flags);
     aiDetachAllLogStreams();
     if (!imported)
         return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, aiGetErrorString());
+    if (ai_dropped_faces) {
+        aiReleaseImport(imported);
+        return pm_scene_gltf_bad_face(path);
+    }
     if (ai_first_error[0]) {
         aiReleaseImport(imported);
         return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, ai_first_error);
@@ -183,11 +233,17 @@ static pm_result_t import_file(ctx_t *c, const char *path, int is_obj, import_t 
      * assimp's default material, or the .mtl's last one; rendering either would be
      * silently wrong. The OBJ's own order of lines tells; the default material is checked
      * after it. */
+    if (r_obj != PM_OK) { /* its message stands: nothing since has set one */
+        aiReleaseImport(imported);
+        return r_obj;
+    }
     import_t *im = &c->imports[c->nimports++];
     *im = (import_t){.as = imported, .no_materials = no_materials};
     snprintf(im->path, sizeof im->path, "%s", path);
     snprintf(im->libs, sizeof im->libs, "%s", libs_read);
     *im_out = im;
+    if (is_obj && (r = pm_scene_mtl_check(path, libs_read, im->as)) != PM_OK)
+        return r;
     return is_obj ? pm_scene_mtl_homes(path, libs_read, im) : PM_OK;
 }
 
@@ -490,26 +546,90 @@ void pm_scene_release_import(ctx_t *c, json_t *meshes, size_t i)
         }
 }
 
+/* Which placements Embree may instance: those whose mesh units and transform keep Embree in
+ * the range it is built for (docs/scene-format.md, Instancing). A prototype with a coordinate
+ * beyond PM_SCENE_INSTANCE_COORD_MAX, or a transform whose scale (each column's length and the
+ * cube root of the determinant) lies outside [PM_SCENE_INSTANCE_SCALE_MIN,
+ * PM_SCENE_INSTANCE_SCALE_MAX], is built flat in scene units instead: Embree aborted on a
+ * plane at +-1e14 placed with scale 1e-14, and rendered a box in units of 1e16 mm black. */
+static int instance_xf_ok(const float xf[12])
+{
+    double det = 0.0;
+    for (int j = 0; j < 3; j++) {
+        double len = sqrt((double)xf[j] * xf[j] + (double)xf[4 + j] * xf[4 + j] + (double)xf[8 + j] * xf[8 + j]);
+        if (!(len >= PM_SCENE_INSTANCE_SCALE_MIN && len <= PM_SCENE_INSTANCE_SCALE_MAX))
+            return 0;
+    }
+    det = (double)xf[0] * ((double)xf[5] * xf[10] - (double)xf[6] * xf[9]) -
+          (double)xf[1] * ((double)xf[4] * xf[10] - (double)xf[6] * xf[8]) +
+          (double)xf[2] * ((double)xf[4] * xf[9] - (double)xf[5] * xf[8]);
+    double s = cbrt(fabs(det));
+    return s >= PM_SCENE_INSTANCE_SCALE_MIN && s <= PM_SCENE_INSTANCE_SCALE_MAX;
+}
+
+static int local_ok(const float *local, size_t n)
+{
+    for (size_t i = 0; i < 3 * n; i++)
+        if (!(fabsf(local[i]) <= (float)PM_SCENE_INSTANCE_COORD_MAX))
+            return 0;
+    return 1;
+}
+
+static const pm_placement_t *sort_placements; /* qsort's context: scenes load on one thread */
+
+static int placement_cmp(const void *pa, const void *pb)
+{
+    uint32_t ia = *(const uint32_t *)pa, ib = *(const uint32_t *)pb;
+    const pm_placement_t *a = &sort_placements[ia], *b = &sort_placements[ib];
+    if (a->key != b->key)
+        return a->key < b->key ? -1 : 1;
+    if (a->ntris != b->ntris)
+        return a->ntris < b->ntris ? -1 : 1;
+    if (a->nverts != b->nverts)
+        return a->nverts < b->nverts ? -1 : 1;
+    return ia < ib ? -1 : ia > ib;
+}
+
 /* Marks the placements Embree may instance (a key placed more than once, unless the scene
- * says "instancing": false) and keeps their prototype's vertices in mesh units. */
-pm_result_t pm_scene_find_instances(ctx_t *c, int allowed)
+ * says "instancing": false, within the range above) and keeps their prototype's vertices in
+ * mesh units. Placements are grouped by sorting, in time N log N; each group's prototype is
+ * its first placement in scene order. *flattened_out: how many placements of repeated meshes
+ * were built flat for the range. */
+pm_result_t pm_scene_find_instances(ctx_t *c, int allowed, size_t *flattened_out)
 {
     pm_scene_t *s = c->s;
-    size_t nlocal = 0;
-    for (size_t i = 0; allowed && i < s->nplacements; i++) {
-        pm_placement_t *p = &s->placements[i];
-        for (size_t j = 0; j < i && p->proto < 0; j++) {
-            pm_placement_t *q = &s->placements[j];
-            if (q->key == p->key && q->ntris == p->ntris && q->nverts == p->nverts && p->ntris > 0) {
-                if (q->proto < 0) { /* q becomes the prototype */
-                    q->proto = (int32_t)j;
-                    q->local0 = (uint32_t)nlocal;
-                    nlocal += q->nverts;
-                }
-                p->proto = q->proto;
-            }
+    size_t nlocal = 0, n = s->nplacements;
+    *flattened_out = 0;
+    if (!allowed || n < 2)
+        return PM_OK;
+    uint32_t *order = malloc(n * sizeof *order);
+    if (!order)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for %zu placements", n);
+    for (size_t i = 0; i < n; i++)
+        order[i] = (uint32_t)i;
+    sort_placements = s->placements;
+    qsort(order, n, sizeof *order, placement_cmp);
+    for (size_t g = 0, e; g < n; g = e) {
+        const pm_placement_t *first = &s->placements[order[g]];
+        int ok = first->ntris > 0 && local_ok(c->local + 3 * (size_t)first->vert0, first->nverts);
+        for (e = g; e < n; e++) {
+            const pm_placement_t *p = &s->placements[order[e]];
+            if (p->key != first->key || p->ntris != first->ntris || p->nverts != first->nverts)
+                break;
+            ok &= instance_xf_ok(p->xf);
         }
+        if (e - g < 2)
+            continue;
+        if (!ok) {
+            *flattened_out += e - g;
+            continue;
+        }
+        for (size_t k = g; k < e; k++)
+            s->placements[order[k]].proto = (int32_t)order[g];
+        s->placements[order[g]].local0 = (uint32_t)nlocal;
+        nlocal += first->nverts;
     }
+    free(order);
     if (!nlocal)
         return PM_OK;
     s->local_verts = malloc(3 * nlocal * sizeof(float));

@@ -4,7 +4,10 @@
 #include "render/scene.h"
 
 #include <assimp/material.h>
+#include <assimp/scene.h>
 #include <ctype.h>
+#include <inttypes.h>
+#include <math.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -38,6 +41,31 @@ static ssize_t mtl_getline(char **line, size_t *cap, FILE *f)
     while (len > 0 && ((*line)[len - 1] == '\n' || (*line)[len - 1] == '\r' || (*line)[len - 1] == ' '))
         (*line)[--len] = '\0';
     return len;
+}
+
+/* What each_mtl_line calls for every line of an .mtl that has a word and is no comment: the
+ * library's path, the line's number, its first word and the rest. Non-OK stops the walk. */
+typedef pm_result_t (*mtl_line_fn)(void *ctx, const char *path, uint64_t lineno, const char *word, const char *rest);
+
+/* Walks the lines of the .mtl files an OBJ names (libs as check_obj_materials lists them; one
+ * that cannot be opened is left to assimp, which has said so already). */
+static pm_result_t each_mtl_line(const char *obj, const char *libs, mtl_line_fn fn, void *ctx)
+{
+    pm_result_t r = PM_OK;
+    char path[1200];
+    const char *lib = libs;
+    for (FILE *f; r == PM_OK && (f = next_mtl(obj, &lib, path, sizeof path));) {
+        char *line = NULL, word[64];
+        size_t cap = 0;
+        for (uint64_t lineno = 1; r == PM_OK && mtl_getline(&line, &cap, f) >= 0; lineno++) {
+            const char *rest = pm_scene_obj_word(line, word, sizeof word);
+            if (word[0] && word[0] != '#')
+                r = fn(ctx, path, lineno, word, rest);
+        }
+        free(line);
+        fclose(f);
+    }
+    return r;
 }
 
 /* How the loader treats an assimp material key (the table below). */
@@ -305,80 +333,200 @@ static int unused_colour(const pm_material_t *m, int pbr, const char *word, cons
     return n < 1 || v[0] != 0.0f || v[1] != 0.0f || v[2] != 0.0f;
 }
 
+typedef struct {
+    pm_scene_t *s;
+    size_t mat0, n;
+    const unsigned char *pbr;
+    uint32_t current; /* the material the lines belong to, none (UINT32_MAX) before newmtl */
+} scan_ctx_t;
+
+static pm_result_t scan_line(void *ctx, const char *path, uint64_t lineno, const char *word, const char *rest)
+{
+    scan_ctx_t *x = ctx;
+    pm_scene_t *s = x->s;
+    (void)path, (void)lineno;
+    if (strcmp(word, "newmtl") == 0) {
+        char mname[sizeof s->materials[0].name]; /* named as load_material names it */
+        snprintf(mname, sizeof mname, "%s", rest);
+        pm_scene_material_word(mname);
+        x->current = UINT32_MAX;
+        for (size_t m = x->mat0; m < x->mat0 + x->n && x->current == UINT32_MAX; m++)
+            if (strcmp(s->materials[m].name, mname) == 0)
+                x->current = (uint32_t)m;
+        return PM_OK;
+    }
+    uint32_t current = x->current;
+    if (current == UINT32_MAX)
+        return PM_OK;
+    if (!mtl_key_exposed(word))
+        return pm_scene_note_unsupported(s, current, word, 0, rest);
+    if (rest[0] == '-' && (strcmp(word, "map_Kd") == 0 || strcmp(word, "map_Ks") == 0 || strcmp(word, "map_d") == 0)) {
+        /* a texture pmtk reads, with options it does not (-clamp, -o, -s, -imfchan, ...;
+         * assimp drops most without a word): the texture is used as if they were absent */
+        char key[64];
+        snprintf(key, sizeof key, "%s options", word);
+        return pm_scene_note_unsupported(s, current, key, 0, rest);
+    }
+    if (unused_colour(&s->materials[current], x->pbr[current - x->mat0], word, rest))
+        return pm_scene_note_unsupported(s, current, word, 0, rest);
+    return PM_OK;
+}
+
 /* Reads the .mtl files an OBJ names (libs: one a line, relative to the OBJ) for the keys assimp
  * drops, and notes each against the material of this mesh (materials mat0 to mat0 + n - 1) its
- * newmtl names; pbr[i] is 1 when material mat0 + i has a Pr or a Pm. A file that cannot be
- * opened is left to assimp, which has said so already. */
+ * newmtl names; pbr[i] is 1 when material mat0 + i has a Pr or a Pm. */
 pm_result_t pm_scene_scan_mtl_dropped(pm_scene_t *s, const char *obj, const char *libs, size_t mat0, size_t n,
                                       const unsigned char *pbr)
 {
-    pm_result_t r = PM_OK;
-    char path[1200];
-    const char *lib = libs;
-    for (FILE *f; r == PM_OK && (f = next_mtl(obj, &lib, path, sizeof path));) {
-        char *line = NULL, word[64];
-        size_t cap = 0;
-        uint32_t current = UINT32_MAX; /* the material the lines belong to, none before newmtl */
-        while (r == PM_OK && mtl_getline(&line, &cap, f) >= 0) {
-            const char *rest = pm_scene_obj_word(line, word, sizeof word);
-            if (!word[0] || word[0] == '#')
-                continue;
-            if (strcmp(word, "newmtl") == 0) {
-                char mname[sizeof s->materials[0].name]; /* named as load_material names it */
-                snprintf(mname, sizeof mname, "%s", rest);
-                pm_scene_material_word(mname);
-                current = UINT32_MAX;
-                for (size_t m = mat0; m < mat0 + n && current == UINT32_MAX; m++)
-                    if (strcmp(s->materials[m].name, mname) == 0)
-                        current = (uint32_t)m;
-            } else if (current != UINT32_MAX && !mtl_key_exposed(word)) {
-                r = pm_scene_note_unsupported(s, current, word, 0, rest);
-            } else if (current != UINT32_MAX && rest[0] == '-' &&
-                       (strcmp(word, "map_Kd") == 0 || strcmp(word, "map_Ks") == 0 || strcmp(word, "map_d") == 0)) {
-                /* a texture pmtk reads, with options it does not (-clamp, -o, -s, -imfchan, ...;
-                 * assimp drops most without a word): the texture is used as if they were absent */
-                char key[64];
-                snprintf(key, sizeof key, "%s options", word);
-                r = pm_scene_note_unsupported(s, current, key, 0, rest);
-            } else if (current != UINT32_MAX &&
-                       unused_colour(&s->materials[current], pbr[current - mat0], word, rest)) {
-                r = pm_scene_note_unsupported(s, current, word, 0, rest);
-            }
-        }
-        free(line);
-        fclose(f);
-    }
-    return r;
+    scan_ctx_t x = {s, mat0, n, pbr, UINT32_MAX};
+    return each_mtl_line(obj, libs, scan_line, &x);
+}
+
+static pm_result_t home_line(void *ctx, const char *path, uint64_t lineno, const char *word, const char *rest)
+{
+    import_t *im = ctx;
+    (void)lineno;
+    if (strcmp(word, "newmtl") != 0)
+        return PM_OK;
+    char mname[sizeof im->homes[0].name];
+    snprintf(mname, sizeof mname, "%s", rest);
+    pm_scene_material_word(mname);
+    for (size_t i = 0; i < im->nhomes; i++)
+        if (strcmp(im->homes[i].name, mname) == 0)
+            return PM_OK;
+    pm_result_t r = pm_scene_grow((void **)&im->homes, im->nhomes + 1, sizeof *im->homes);
+    if (r != PM_OK)
+        return r;
+    mtl_home_t *h = &im->homes[im->nhomes++];
+    snprintf(h->name, sizeof h->name, "%s", mname);
+    snprintf(h->lib, sizeof h->lib, "%s", path);
+    return PM_OK;
 }
 
 /* Reads the .mtl files an OBJ names (libs as check_obj_materials lists them), each once, into
  * im->homes: every material name they define and the first library defining it. */
 pm_result_t pm_scene_mtl_homes(const char *obj, const char *libs, import_t *im)
 {
-    pm_result_t r = PM_OK;
-    char lpath[1200];
-    const char *lib = libs;
-    for (FILE *f; r == PM_OK && (f = next_mtl(obj, &lib, lpath, sizeof lpath));) {
-        char *line = NULL, word[16];
-        size_t lcap = 0;
-        while (r == PM_OK && mtl_getline(&line, &lcap, f) >= 0) {
-            const char *rest = pm_scene_obj_word(line, word, sizeof word);
-            if (strcmp(word, "newmtl") != 0)
-                continue;
-            char mname[sizeof im->homes[0].name];
-            snprintf(mname, sizeof mname, "%s", rest);
-            pm_scene_material_word(mname);
-            int known = 0;
-            for (size_t i = 0; i < im->nhomes && !known; i++)
-                known = strcmp(im->homes[i].name, mname) == 0;
-            if (known || (r = pm_scene_grow((void **)&im->homes, im->nhomes + 1, sizeof *im->homes)) != PM_OK)
-                continue;
-            mtl_home_t *h = &im->homes[im->nhomes++];
-            snprintf(h->name, sizeof h->name, "%s", mname);
-            snprintf(h->lib, sizeof h->lib, "%s", lpath);
-        }
-        free(line);
-        fclose(f);
+    return each_mtl_line(obj, libs, home_line, im);
+}
+
+/* The MTL keys whose values are numbers (assimp reads them with fast_atof, which takes "0.5,"
+ * as 0.5, "0x1p-1" as 0 and "inf" as a number), and among them the colours, whose g and b
+ * default to r when only r is given (assimp 5.2 leaves them 0: Kd 0.5 was red). */
+static const struct {
+    const char *word, *ai_key; /* as MTL names it; assimp's colour key, NULL for a scalar */
+} mtl_numbers[] = {
+    {"Ka", "$clr.ambient"},
+    {"Kd", "$clr.diffuse"},
+    {"Ks", "$clr.specular"},
+    {"Ke", "$clr.emissive"},
+    {"Tf", "$clr.transparent"},
+    {"Ns", NULL},
+    {"Ni", NULL},
+    {"d", NULL},
+    {"Tr", NULL},
+    {"Pr", NULL},
+    {"Pm", NULL},
+    {"Ps", NULL},
+    {"Pc", NULL},
+    {"Pcr", NULL},
+    {"aniso", NULL},
+    {"illum", NULL},
+};
+
+/* Whether token t (len bytes) is a plain finite decimal number: digits, one point, an exponent;
+ * no comma, no hex float, no inf or nan. */
+static int mtl_plain_number(const char *t, size_t len, double *out)
+{
+    char buf[64];
+    if (len == 0 || len >= sizeof buf)
+        return 0;
+    memcpy(buf, t, len);
+    buf[len] = '\0';
+    for (size_t i = 0; i < len; i++)
+        if (!strchr("0123456789+-.eE", buf[i]))
+            return 0;
+    char *end;
+    double v = strtod(buf, &end);
+    if (*end || end == buf || !isfinite(v))
+        return 0;
+    *out = v;
+    return 1;
+}
+
+/* The assimp material of as that newmtl line rest defines, or NULL. */
+static struct aiMaterial *mtl_material(const struct aiScene *as, const char *rest)
+{
+    for (unsigned i = 0; i < as->mNumMaterials; i++) {
+        struct aiString an;
+        if (aiGetMaterialString(as->mMaterials[i], AI_MATKEY_NAME, &an) == aiReturn_SUCCESS &&
+            strcmp(an.data, rest) == 0)
+            return as->mMaterials[i];
     }
-    return r;
+    return NULL;
+}
+
+/* Reads the .mtl files an OBJ names (libs as check_obj_materials lists them) for the values assimp
+ * reads wrong without a word: a number key's values must be one or three plain decimal numbers
+ * (a comma, a hex float, inf or nan is an error naming the file, line and value); a colour given
+ * as one number is grey (assimp's material as is changed so: g and b take r); a texture line of
+ * 1024 bytes or more (assimp's aiString drops it) is an error. */
+typedef struct {
+    const char *obj;
+    const struct aiScene *as;
+    struct aiMaterial *cur; /* the material of newmtl's lines, NULL before one (or one assimp lacks) */
+} check_ctx_t;
+
+static pm_result_t check_line(void *ctx, const char *path, uint64_t lineno, const char *word, const char *rest)
+{
+    check_ctx_t *x = ctx;
+    const char *obj = x->obj;
+    if (strcmp(word, "newmtl") == 0) {
+        x->cur = mtl_material(x->as, rest);
+        return PM_OK;
+    }
+    if (strncmp(word, "map_", 4) == 0 || !strcmp(word, "bump") || !strcmp(word, "norm") || !strcmp(word, "disp") ||
+        !strcmp(word, "refl")) {
+        if (strlen(rest) >= 1024)
+            return pm_error_set(PM_ERR_INPUT,
+                                "mesh '%s': '%s' line %" PRIu64 ": %s path of %zu bytes, beyond the 1023 assimp keeps",
+                                obj, path, lineno, word, strlen(rest));
+        return PM_OK;
+    }
+    size_t k = 0, nk = sizeof mtl_numbers / sizeof *mtl_numbers;
+    while (k < nk && strcasecmp(mtl_numbers[k].word, word) != 0)
+        k++;
+    if (k == nk || !strncmp(rest, "spectral", 8) || !strncmp(rest, "xyz", 3))
+        return PM_OK; /* not a number key; or Kd spectral / xyz, reported as it is */
+    const char *colour = mtl_numbers[k].ai_key;
+    double v[4];
+    int n = 0;
+    for (const char *t = rest; *t; n++) {
+        size_t tl = strcspn(t, " \t");
+        if (n == 4 || !mtl_plain_number(t, tl, &v[n]))
+            return pm_error_set(PM_ERR_INPUT,
+                                "mesh '%s': '%s' line %" PRIu64 ": %s '%s' is not %s plain decimal number%s (no "
+                                "commas, hex floats, inf or nan)",
+                                obj, path, lineno, word, rest, colour ? "one or three" : "a", colour ? "s" : "");
+        t += tl;
+        t += strspn(t, " \t");
+    }
+    if (n == 0 || n == 2 || n > 3 || (!colour && n != 1))
+        return pm_error_set(PM_ERR_INPUT, "mesh '%s': '%s' line %" PRIu64 ": %s '%s' has %d values, expected %s", obj,
+                            path, lineno, word, rest, n, colour ? "1 or 3" : "1");
+    /* One value of a colour: grey. The import is this loader's own (aiImportFile's result). */
+    struct aiMaterialProperty *p = NULL;
+    if (n == 1 && colour && x->cur &&
+        aiGetMaterialProperty(x->cur, colour, 0, 0, (const struct aiMaterialProperty **)&p) == aiReturn_SUCCESS &&
+        p->mType == aiPTI_Float && p->mDataLength >= 3 * sizeof(float)) {
+        float *c = (float *)(void *)p->mData;
+        c[1] = c[2] = c[0];
+    }
+    return PM_OK;
+}
+
+pm_result_t pm_scene_mtl_check(const char *obj, const char *libs, const struct aiScene *as)
+{
+    check_ctx_t x = {obj, as, NULL};
+    return each_mtl_line(obj, libs, check_line, &x);
 }

@@ -12,6 +12,7 @@
 #include <omp.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "base/memory.h"
 #include "base/progress.h"
@@ -70,6 +71,20 @@ typedef struct {
     uint32_t rs, off_pos, off_pow, off_nor, off_dir, off_depth;
 } tracer_t;
 
+/* The bytes the arenas of the running trace hold, and the most they may: the physical memory,
+ * so that a photon count too large for the machine ends in an out-of-memory error (exit 3)
+ * instead of the OOM killer. One trace runs at a time in a process. */
+static size_t arena_bytes, arena_budget;
+
+/* This machine's physical memory, bytes (SIZE_MAX when unknown). */
+static size_t physical_memory(void)
+{
+    long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
+    if (pages <= 0 || page <= 0)
+        return SIZE_MAX;
+    return (double)pages * (double)page >= (double)SIZE_MAX ? SIZE_MAX : (size_t)pages * (size_t)page;
+}
+
 /* Room for one more record of rs bytes at the end of run c. */
 static int run_reserve(run_t *c, size_t rs)
 {
@@ -79,6 +94,8 @@ static int run_reserve(run_t *c, size_t rs)
     size_t have = c->n * rs, cap = ARENA_BLOCK;
     while (cap < 2 * (have + rs))
         cap *= 2;
+    if (__atomic_add_fetch(&arena_bytes, cap, __ATOMIC_RELAXED) > arena_budget)
+        return -1;
     unsigned char **bl = realloc(a->blocks, (a->nblocks + 1) * sizeof *bl);
     if (!bl)
         return -1;
@@ -370,6 +387,20 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
                                    s->name, p, t.lights.total);
         }
     uint64_t nchunks = (o->photons + CHUNK - 1) / CHUNK;
+    /* Every photon is kept in memory until the file is written: a count whose chunk table and
+     * one stored record a path (a closed scene stores at least that) exceed the physical memory
+     * cannot finish; say so now rather than after hours of tracing. */
+    size_t phys = physical_memory();
+    uint32_t rs_min = pm_schema_record_size(&pm_photons_schema, pm_schema_required(&pm_photons_schema));
+    double need = (double)nchunks * sizeof(chunk_t) + (double)o->photons * rs_min;
+    if (res == PM_OK && need > (double)phys)
+        res = pm_error_set(PM_ERR_NOMEM,
+                           "%" PRIu64 " photons need at least %.3g GB (a %u-byte record a path, kept in memory until "
+                           "written), more than this machine's %.3g GB of physical memory: trace fewer, or split "
+                           "them into progressive passes",
+                           o->photons, need / 1e9, rs_min, (double)phys / 1e9);
+    arena_bytes = 0;
+    arena_budget = phys;
     chunk_t *chunks = res == PM_OK ? aligned_alloc(64, nchunks * sizeof *chunks) : NULL;
     if (chunks)
         memset(chunks, 0, nchunks * sizeof *chunks);

@@ -8,6 +8,7 @@
 #include <errno.h>
 #include <inttypes.h>
 #include <jansson.h>
+#include <malloc.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -29,11 +30,30 @@ void pm_scene_resolve(const char *scene_path, const char *file, char *out, size_
 
 pm_result_t pm_scene_grow(void **p, size_t n, size_t size)
 {
-    void *q = realloc(*p, (n ? n : 1) * size);
+    /* Geometric: the loaders grow their arrays an element or a mesh at a time, and a realloc
+     * that copies every time (AddressSanitizer's always does) made N placements quadratic
+     * (30,000: 269 s under ASan). The block's usable size is its capacity. */
+    size_t want = (n ? n : 1) * size, have = *p ? malloc_usable_size(*p) : 0;
+    if (want <= have)
+        return PM_OK;
+    size_t cap = want < 2 * have ? 2 * have : want;
+    void *q = realloc(*p, cap);
+    if (!q && cap > want)
+        q = realloc(*p, cap = want);
     if (!q)
         return pm_error_set(PM_ERR_NOMEM, "out of memory loading meshes");
     *p = q;
     return PM_OK;
+}
+
+/* Shrinks the block at *p to bytes (at least 1) when that frees much; a failure keeps it. */
+static void trim(void **p, size_t bytes)
+{
+    if (!*p || malloc_usable_size(*p) < bytes + bytes / 8 + 4096)
+        return;
+    void *q = realloc(*p, bytes ? bytes : 1);
+    if (q)
+        *p = q;
 }
 
 void pm_scene_sphere(const pm_scene_t *s, double c[3], double *radius_out)
@@ -107,34 +127,140 @@ void pm_scene_power(const pm_scene_t *s, double p[3])
         p[k] += pm_sky_power(s, k);
 }
 
+/* The box around every vertex loaded (those of left-out triangles too), m; inverted when none. */
+static void vertex_box(const pm_scene_t *s, double lo[3], double hi[3])
+{
+    for (int k = 0; k < 3; k++)
+        lo[k] = INFINITY, hi[k] = -INFINITY;
+    for (size_t v = 0; v < s->nverts; v++)
+        for (int k = 0; k < 3; k++) {
+            lo[k] = fmin(lo[k], s->verts[3 * v + k]);
+            hi[k] = fmax(hi[k], s->verts[3 * v + k]);
+        }
+}
+
+/* Whether vertex p lies in front of the plane of a triangle (corner a, unit normal n): by more
+ * than 1e-2 of its distance from a (0.6 degrees: a ceiling a hair above a lamp set into it does not count,
+ * whatever the scene's size or where its lights are) plus the rounding of float coordinates of
+ * magnitude mag. */
+static int sees_vertex(const double a[3], const double n[3], const float *p, double mag)
+{
+    double d[3] = {(double)p[0] - a[0], (double)p[1] - a[1], (double)p[2] - a[2]};
+    double h = d[0] * n[0] + d[1] * n[1] + d[2] * n[2];
+    return h > 1e-2 * sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) + 1e-6 * mag;
+}
+
+typedef struct {
+    int32_t key[3]; /* the unit normal on a grid of 1/4096 */
+    uint32_t tri;   /* an emissive triangle */
+} flip_item_t;
+
+static int flip_item_cmp(const void *pa, const void *pb)
+{
+    const flip_item_t *a = pa, *b = pb;
+    for (int k = 0; k < 3; k++)
+        if (a->key[k] != b->key[k])
+            return a->key[k] < b->key[k] ? -1 : 1;
+    return a->tri < b->tri ? -1 : a->tri > b->tri;
+}
+
+/* The unit normal of triangle t in double; 0 when it has none. */
+static int unit_normal(const pm_scene_t *s, uint32_t t, double a_out[3], double n_out[3])
+{
+    const uint32_t *v = &s->tris[3 * (size_t)t];
+    const float *a = &s->verts[3 * (size_t)v[0]], *b = &s->verts[3 * (size_t)v[1]], *c = &s->verts[3 * (size_t)v[2]];
+    double e1[3], e2[3];
+    for (int k = 0; k < 3; k++) {
+        a_out[k] = a[k];
+        e1[k] = (double)b[k] - a[k];
+        e2[k] = (double)c[k] - a[k];
+    }
+    double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+    double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (!(len > 0.0) || !isfinite(len))
+        return 0;
+    for (int k = 0; k < 3; k++)
+        n_out[k] = n[k] / len;
+    return 1;
+}
+
+/* Emitters facing one way (a lamp placed N times) share one pass over the vertices: sorted by
+ * their normal on a grid, each run keeps the first member's normal n0, the vertex farthest
+ * along it and that distance M. A member (corner a, normal n) sees the scene when that vertex
+ * is in front of it; it sees nothing when even the bound M - a.n0 + R |n - n0| on every
+ * vertex's height above its plane (R: the largest distance of a vertex from a) is within the
+ * rounding allowance; only between the two are all vertices tried. So N placements of a lamp
+ * cost N + the vertices, not N times them. */
 size_t pm_scene_flipped_emitters(const pm_scene_t *s, uint32_t *first_out)
 {
-    float ext[3] = {s->bounds[3] - s->bounds[0], s->bounds[4] - s->bounds[1], s->bounds[5] - s->bounds[2]};
-    float eps = 1e-3f * sqrtf(pm_dot3(ext, ext)); /* m */
     size_t n = 0;
     *first_out = 0;
-    if (s->two_sided_lights)
+    if (s->two_sided_lights || !s->nemissive)
         return 0; /* both faces emit: no winding faces away */
+    double lo[3], hi[3], mag = 0.0;
+    vertex_box(s, lo, hi);
+    for (int k = 0; k < 3; k++)
+        mag = fmax(mag, fmax(fabs(lo[k]), fabs(hi[k])));
+    flip_item_t *items = malloc(s->nemissive * sizeof *items);
+    size_t ni = 0;
     for (size_t i = 0; i < s->nemissive; i++) {
         if (pm_scene_emits_both(s, s->emissive[i]))
             continue; /* both faces emit: no winding faces away */
-        const uint32_t *t = &s->tris[3 * (size_t)s->emissive[i]];
-        const float *a = &s->verts[3 * (size_t)t[0]], *b = &s->verts[3 * (size_t)t[1]],
-                    *c = &s->verts[3 * (size_t)t[2]];
-        float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-        float nrm[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
-        float len = sqrtf(pm_dot3(nrm, nrm));
-        if (!(len > 0.0f))
+        double a[3], nrm[3];
+        if (!unit_normal(s, s->emissive[i], a, nrm))
             continue;
-        int sees = 0;
-        for (size_t v = 0; v < s->nverts && !sees; v++) {
-            const float *p = &s->verts[3 * v];
-            float d[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
-            sees = pm_dot3(d, nrm) > eps * len;
+        if (!items) { /* no memory for the shortcut: every vertex for every emitter */
+            int sees = 0;
+            for (size_t v = 0; v < s->nverts && !sees; v++)
+                sees = sees_vertex(a, nrm, &s->verts[3 * v], mag);
+            if (!sees && n++ == 0)
+                *first_out = s->emissive[i];
+            continue;
         }
-        if (!sees && n++ == 0)
-            *first_out = s->emissive[i];
+        items[ni].tri = s->emissive[i];
+        for (int k = 0; k < 3; k++)
+            items[ni].key[k] = (int32_t)lround(nrm[k] * 4096.0);
+        ni++;
     }
+    if (!items)
+        return n;
+    qsort(items, ni, sizeof *items, flip_item_cmp);
+    uint32_t first = UINT32_MAX;
+    double n0[3] = {0, 0, 0}, top = 0.0;
+    size_t far = 0;
+    for (size_t i = 0; i < ni; i++) {
+        double a[3], nrm[3];
+        unit_normal(s, items[i].tri, a, nrm);
+        if (i == 0 || memcmp(items[i].key, items[i - 1].key, sizeof items[i].key) != 0) {
+            memcpy(n0, nrm, sizeof n0);
+            top = -INFINITY;
+            for (size_t v = 0; v < s->nverts; v++) {
+                const float *p = &s->verts[3 * v];
+                double h = p[0] * n0[0] + p[1] * n0[1] + p[2] * n0[2];
+                if (h > top)
+                    top = h, far = v;
+            }
+        }
+        if (sees_vertex(a, nrm, &s->verts[3 * far], mag))
+            continue;
+        double dn = 0.0, r2 = 0.0;
+        for (int k = 0; k < 3; k++) {
+            dn += (nrm[k] - n0[k]) * (nrm[k] - n0[k]);
+            double ext = fmax(fabs(hi[k] - a[k]), fabs(lo[k] - a[k]));
+            r2 += ext * ext;
+        }
+        double bound = top - (a[0] * n0[0] + a[1] * n0[1] + a[2] * n0[2]) + sqrt(r2) * sqrt(dn);
+        int sees = 0;
+        if (!(bound <= 1e-6 * mag))
+            for (size_t v = 0; v < s->nverts && !sees; v++)
+                sees = sees_vertex(a, nrm, &s->verts[3 * v], mag);
+        if (!sees) {
+            n++;
+            first = items[i].tri < first ? items[i].tri : first;
+        }
+    }
+    free(items);
+    *first_out = n ? first : 0;
     return n;
 }
 
@@ -257,12 +383,8 @@ static pm_result_t check_size(const ctx_t *c)
     const pm_scene_t *s = c->s;
     if (!s->nverts)
         return PM_OK;
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, size = 0.0;
-    for (size_t v = 0; v < s->nverts; v++)
-        for (int k = 0; k < 3; k++) {
-            lo[k] = fmin(lo[k], s->verts[3 * v + k]);
-            hi[k] = fmax(hi[k], s->verts[3 * v + k]);
-        }
+    double lo[3], hi[3], size = 0.0;
+    vertex_box(s, lo, hi);
     for (int k = 0; k < 3; k++)
         size = fmax(size, hi[k] - lo[k]);
     if (size < PM_SCENE_SIZE_MIN)
@@ -296,8 +418,12 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     if (r == PM_OK)
         r = pm_scene_get_int(&c, root, "pmtk_scene", "pmtk_scene", 1, 1, 1, &version);
     const char *name = json_string_value(json_object_get(root, "name"));
-    if (r == PM_OK && (!name || !*name || strlen(name) >= sizeof s->name || strpbrk(name, " \t\n")))
-        r = pm_scene_bad(&c, "name", "must be a non-empty string without spaces, under %zu bytes", sizeof s->name);
+    int name_control = 0; /* a control byte (files and terminals would show it as a space) */
+    for (const char *p = name; p && *p; p++)
+        name_control |= (unsigned char)*p < 0x20 || *p == 0x7f;
+    if (r == PM_OK && (!name || !*name || strlen(name) >= sizeof s->name || strchr(name, ' ') || name_control))
+        r = pm_scene_bad(&c, "name", "must be a non-empty string without spaces or control bytes, under %zu bytes",
+                         sizeof s->name);
     if (r == PM_OK)
         snprintf(s->name, sizeof s->name, "%s", name);
     json_t *mt = json_object_get(root, "missing_textures");
@@ -329,6 +455,14 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     }
     if (r == PM_OK)
         r = pm_scene_load_shapes(&c, json_object_get(root, "shapes"));
+    /* the arrays grew geometrically (pm_scene_grow): give the slack back for the render */
+    if (r == PM_OK) {
+        trim((void **)&s->verts, 3 * s->nverts * sizeof(float));
+        trim((void **)&s->uvs, 2 * s->nverts * sizeof(float));
+        trim((void **)&s->normals, 3 * s->nverts * sizeof(float));
+        trim((void **)&s->tris, 3 * s->ntris * sizeof(uint32_t));
+        trim((void **)&s->tri_material, s->ntris * sizeof(uint32_t));
+    }
     json_t *two = json_object_get(root, "two_sided_lights");
     if (r == PM_OK && two && !json_is_boolean(two))
         r = pm_scene_bad(&c, "two_sided_lights",
@@ -348,7 +482,7 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     if (r == PM_OK && inst && !json_is_boolean(inst))
         r = pm_scene_bad(&c, "instancing", "must be true (the default) or false");
     if (r == PM_OK)
-        r = pm_scene_find_instances(&c, !inst || json_is_true(inst));
+        r = pm_scene_find_instances(&c, !inst || json_is_true(inst), &s->instances_flat);
     for (size_t i = 0; i < c.nimports; i++) {
         if (c.imports[i].as)
             aiReleaseImport(c.imports[i].as);

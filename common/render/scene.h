@@ -129,6 +129,12 @@ typedef struct {
     float bump_scale; /* MTL -bm: m of height per unit of texel, 1 by default */
 } pm_material_maps_t;
 
+/* The range Embree's instances are built in (mesh.c, instance_xf_ok): a prototype's coordinates in
+ * its own units, and each placement's scale; outside it a repeated mesh is built flat. */
+#define PM_SCENE_INSTANCE_COORD_MAX 1e8
+#define PM_SCENE_INSTANCE_SCALE_MIN 1e-4
+#define PM_SCENE_INSTANCE_SCALE_MAX 1e4
+
 /* Where one mesh entry of the scene file put its triangles. Every triangle is also in the
  * flattened arrays (verts, tris, tri_material) that the tracers read; a mesh file placed by
  * several entries is, in addition, built into Embree once and placed by instances (rt.c). */
@@ -200,6 +206,7 @@ typedef struct {
     int any_alpha;              /* some material has map_d: render/rt.c installs the cut-out filter */
     pm_placement_t *placements; /* one per mesh entry */
     size_t nplacements;
+    size_t instances_flat;  /* placements of repeated meshes built flat: outside instancing's range */
     float *local_verts;     /* prototypes' vertices in mesh units; NULL when no mesh is instanced */
     pm_scene_note_t *notes; /* what the loader changed or filled in, in load order */
     size_t nnotes;
@@ -296,9 +303,11 @@ int pm_scene_shading_normal(const pm_scene_t *s, uint32_t tri, const float p[3],
 
 /* The emissive triangles whose front face (the side their winding's normal points to, the
  * only side that emits) sees none of the scene: no vertex of the scene lies in front of
- * their plane by more than 1e-3 of the bounds' diagonal (a light wound the wrong way under
+ * their plane by more than 1e-2 of its distance (plus float rounding; a lamp far from the rest
+ * of the scene changes nothing) (a light wound the wrong way under
  * a ceiling sees only the ceiling's underside a hair above it, and its light leaks out as
- * sparse fireflies). Returns how many; *first_out the first of them (a triangle index). */
+ * sparse fireflies). Returns how many; *first_out the first of them (a triangle index). Time
+ * linear in emitters and vertices for emitters facing few ways (a lamp placed N times). */
 size_t pm_scene_flipped_emitters(const pm_scene_t *s, uint32_t *first_out);
 
 /* Which parts of the scene a file's SCENE key names (docs/formats.md, SCENE): what photon

@@ -109,7 +109,7 @@ pm_result_t pm_scene_grow(void **p, size_t n, size_t size);
 /* ---- mesh.c: assimp imports. */
 pm_result_t pm_scene_load_mesh(ctx_t *c, json_t *mj, size_t index);
 void pm_scene_release_import(ctx_t *c, json_t *meshes, size_t i);
-pm_result_t pm_scene_find_instances(ctx_t *c, int allowed);
+pm_result_t pm_scene_find_instances(ctx_t *c, int allowed, size_t *flattened_out);
 /* The first word of an OBJ or MTL line into word (cut to cap), and where the rest begins. */
 const char *pm_scene_obj_word(const char *line, char *word, size_t cap);
 
@@ -121,11 +121,30 @@ int pm_scene_pbr_inputs(int is_obj, const struct aiMaterial *am, float *metallic
 /* A material name as pmtk keeps it: spaces and control characters become '_'. */
 void pm_scene_material_word(char *name);
 
+/* Refuses a file to read that is not a regular file (a FIFO would block the load; opened without
+ * blocking to find out); what names it in the message ("mesh"). mesh.c. */
+pm_result_t pm_scene_check_regular(const char *path, const char *what);
+
+/* ---- mesh_guard.c: between an untrusted mesh file and assimp. */
+/* The header of a PLY (by content or name), OFF or STL file checked against its size, before assimp
+ * reads it (its readers crash, loop or over-allocate on damaged headers). */
+pm_result_t pm_scene_mesh_precheck(const char *path);
+/* assimp's import of path with flags tried in a forked child within PMTK_IMPORT_SECONDS (default 60)
+ * and PMTK_IMPORT_MB (resident MiB it adds, default 4096; 0 turns a limit off): a crash, a hang or a memory
+ * blow-up is an input error naming the file; PM_OK when the import may run in this process. */
+pm_result_t pm_scene_mesh_trial(const char *path, unsigned flags);
+/* The error for a file whose faces assimp dropped as naming vertices out of range: for glTF, the
+ * first such face (mesh, primitive, face, vertex) read from the file itself. */
+pm_result_t pm_scene_gltf_bad_face(const char *path);
+
 /* ---- mtl.c: what a material sets and pmtk does not honour. */
 pm_result_t pm_scene_scan_material(pm_scene_t *s, int is_obj, const struct aiMaterial *am, uint32_t m);
 pm_result_t pm_scene_scan_mtl_dropped(pm_scene_t *s, const char *obj, const char *libs, size_t mat0, size_t n,
                                       const unsigned char *pbr);
 pm_result_t pm_scene_mtl_homes(const char *obj, const char *libs, import_t *im);
+/* The .mtl values assimp reads wrong: number syntax and counts, one-value colours (made grey in as),
+ * texture lines too long for assimp (mtl.c). */
+pm_result_t pm_scene_mtl_check(const char *obj, const char *libs, const struct aiScene *as);
 pm_result_t pm_scene_note_unsupported(pm_scene_t *s, uint32_t m, const char *key, int is_file, const char *value);
 
 /* ---- scene_maps.c: a material's textures. */

@@ -199,6 +199,12 @@ static void print_text(FILE *out, const pm_scene_t *s, const pm_rt_t *rt, double
     fprintf(out, "file: %s\n", s->path);
     fprintf(out, "triangles: %zu (%zu degenerate left out)\n", s->ntris, s->ndropped);
     fprintf(out, "vertices: %zu\n", s->nverts);
+    if (s->instances_flat)
+        fprintf(out,
+                "instancing: %zu placements of repeated meshes built flat (mesh coordinates beyond %g or a scale "
+                "outside [%g, %g])\n",
+                s->instances_flat, PM_SCENE_INSTANCE_COORD_MAX, PM_SCENE_INSTANCE_SCALE_MIN,
+                PM_SCENE_INSTANCE_SCALE_MAX);
     fprintf(out, "materials: %zu%s\n", s->nmaterials,
             s->any_glossy && s->any_specular ? " (some glossy, some specular)"
             : s->any_specular                ? " (some specular)"
@@ -322,6 +328,7 @@ pm_result_t pm_summary_json(const pm_scene_t *s, const pm_rt_t *rt, const pm_sum
     json_object_set_new(j, "triangles", json_integer((json_int_t)s->ntris));
     json_object_set_new(j, "degenerate_triangles", json_integer((json_int_t)s->ndropped));
     json_object_set_new(j, "vertices", json_integer((json_int_t)s->nverts));
+    json_object_set_new(j, "instances_flat", json_integer((json_int_t)s->instances_flat));
     json_object_set_new(j, "glossy", json_boolean(s->any_glossy));
     json_object_set_new(j, "any_specular", json_boolean(s->any_specular));
     for (size_t i = 0; i < s->nmaterials; i++) {

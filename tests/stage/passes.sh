@@ -249,9 +249,10 @@ expect_exit "render PASSES=2 with a gather that takes no --pass (knn-gather): ex
 grep -q "does not take --pass" "$TMP/err" && [ ! -e "$TMP/knn/pass-0001" ] &&
     pass "... and says so before any pass" || fail "knn-gather with passes" "$(cat "$TMP/err")"
 
-# ---- pass files of the direct light alone (GATHER=none): every pass made (the make graph once
-# failed at pass 2 with "No rule to make target 'all'")
-"$R" "$CORNELL" "$TMP/gnone" $SMALL PASSES=2 GATHER=none >"$TMP/gnone.out" 2>&1
+# ---- pass files of the direct light alone (GATHER=none, KEEP=all; without KEEP=all the passes
+# run resident: passes-resident.sh): every pass made (the make graph once failed at pass 2 with
+# "No rule to make target 'all'")
+"$R" "$CORNELL" "$TMP/gnone" $SMALL PASSES=2 GATHER=none KEEP=all >"$TMP/gnone.out" 2>&1
 status=$?
 [ $status = 0 ] && [ -s "$TMP/gnone/pass-0002/direct.pm" ] && [ ! -e "$TMP/gnone/pass-0002/indirect.pm" ] &&
     [ "$(hdr "$TMP/gnone/running.pm" passes)" = 2 ] &&

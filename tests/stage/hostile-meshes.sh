@@ -1,6 +1,7 @@
 # hostile-meshes.sh: issue 28, meshes and scenes built to break the loader (items 2, 4, 5, 6, 7
 # and 8): each case ends in its right answer or in one line naming the file and the value, never
 # a crash, a hang or a silently wrong scene.
+# programs: scene-info trace-photons trace-gather-points pm-info pm-render
 
 # ---- item 8: a correctly facing lamp is not called flipped because a point light is 1 km away
 # (the tolerance was 1e-3 of the bounds' diagonal, which the far light made 1 m)

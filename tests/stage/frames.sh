@@ -4,7 +4,7 @@
 # visualization, and for one thread as for two; the kernel width measured on frame 0 is kept by
 # both. A stream holding a truncated or corrupt document, or a document of another scene, stops
 # the stage with one line naming the frame and exit 1, and the frame is not written.
-# programs: build-photonmap composite hilbert-sort simd-gather trace-gather-points trace-photons pm-render
+# programs: build-photonmap composite hilbert-sort simd-gather trace-gather-points trace-photons pm-render pm-frames
 F="FRAMES=3 PHOTONS=20000 SPP=4 WIDTH=32 HEIGHT=24"
 CB=scenes/cornell-box/scene.json
 dump() { "$BUILD/tests/pm-exrdump" "$1"; }

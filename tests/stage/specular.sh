@@ -103,7 +103,11 @@ bad_mtl() { # bad_mtl NAME PATTERN MTL-TEXT
 }
 bad_mtl ni-negative "Ni -1 must be a finite number > 0" $'newmtl x\nNi -1\nillum 7\n'
 bad_mtl ni-zero "Ni 0 must be a finite number > 0" $'newmtl x\nNi 0\nillum 7\n'
-bad_mtl ni-nan "Ni nan must be a finite number > 0" $'newmtl x\nNi nan\nillum 7\n'
+# nan is refused as it is read from the .mtl (mtl.c), before the material exists: its line
+spec_scene ni-nan $'newmtl x\nNi nan\nillum 7\n' x
+expect_error "ni-nan: trace-photons refuses it" "ni-nan.mtl' line 2: Ni 'nan' is not a plain decimal number" \
+    "$BIN/trace-photons" "$D/ni-nan.json" -o "$D/ni-nan.pm"
+[ ! -e "$D/ni-nan.pm" ] && pass "... and writes nothing" || fail "ni-nan output" "$D/ni-nan.pm exists"
 bad_mtl ni-inf "Ni inf must be a finite number > 0" $'newmtl x\nNi 1e39\nillum 7\n'
 bad_mtl tf-high "Tf 1.5 in channel r must lie in \[0, 1\]" $'newmtl x\nNi 1.5\nTf 1.5 1 1\nillum 7\n'
 bad_mtl tf-negative "Tf -0.25 in channel b must lie in \[0, 1\]" $'newmtl x\nNi 1.5\nTf 1 1 -0.25\nillum 7\n'

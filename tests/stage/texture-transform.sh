@@ -81,4 +81,25 @@ JSON
     else
         pass "an honoured transform is not reported as unsupported"
     fi
+    # an OBJ: MTL's -o/-s stay reported and unapplied, its coordinates as they were
+    mkdir -p "$TMP/uvx-obj"
+    cp "$M/CesiumLogoFlat.png" "$TMP/uvx-obj/tex.png"
+    printf 'mtllib q.mtl\nv -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl m\nf 1/1 4/4 3/3 2/2\n' \
+        >"$TMP/uvx-obj/q.obj"
+    for o in plain opts; do
+        mkdir -p "$TMP/uvx-$o-obj"
+        cp "$TMP/uvx-obj/q.obj" "$TMP/uvx-obj/tex.png" "$TMP/uvx-$o-obj/"
+        opt=$([ $o = opts ] && echo "-o 0.5 0.5 0 -s 2 2 1 ")
+        printf 'newmtl m\nKd 1 1 1\nmap_Kd %stex.png\n' "$opt" >"$TMP/uvx-$o-obj/q.mtl"
+        sed "s|$TMP/uvx-plain/BoxTextured.gltf|$TMP/uvx-$o-obj/q.obj|" "$TMP/uvx-plain/scene.json" \
+            >"$TMP/uvx-$o-obj/scene.json"
+    done
+    "$BIN/scene-info" -q "$TMP/uvx-opts-obj/scene.json" >"$TMP/uvx-obj.info" 2>&1
+    if [ -n "$(hash plain-obj)" ] && [ "$(hash plain-obj)" = "$(hash opts-obj)" ] &&
+        grep -q "unsupported (ignored): map_Kd options -o 0.5 0.5 0 -s 2 2 1 tex.png" "$TMP/uvx-obj.info" &&
+        ! grep -qi "transform" "$TMP/uvx-obj.info"; then
+        pass "an OBJ's map_Kd -o/-s: reported as before, its coordinates untouched"
+    else
+        fail "an OBJ's map_Kd -o/-s untouched" "$(hash plain-obj) $(hash opts-obj) $(head -c 300 "$TMP/uvx-obj.info")"
+    fi
 fi

@@ -207,8 +207,11 @@ pm_result_t pm_gather_stream(pm_gather_inputs_t *in, const pm_gather_params_t *p
 {
     memset(stats, 0, sizeof *stats);
     *gather_s_out = 0.0;
-    size_t npx = (size_t)in->width * in->height * 3;
-    if (!(in->pixels = calloc(npx ? npx : 1, sizeof *in->pixels)))
+    /* The sums grow with the pixels the queries name, not with the image the header declares:
+     * a few records under a header of a large image take little memory. */
+    uint64_t npx = (uint64_t)in->width * in->height, cap = 1;
+    in->pixels_used = 0;
+    if (!(in->pixels = calloc(3 * cap, sizeof *in->pixels)))
         return pm_error_set(PM_ERR_NOMEM, "out of memory for a %" PRIu32 "x%" PRIu32 " image", in->width, in->height);
     uint64_t n = 0;
     for (;;) {
@@ -239,6 +242,21 @@ pm_result_t pm_gather_stream(pm_gather_inputs_t *in, const pm_gather_params_t *p
             return r;
         /* Queries into pixels, in file order: the sums of pm_gather_output_init. */
         const double *pq = in->per_query;
+        uint64_t need = in->pixels_used;
+        for (uint64_t i = 0; i < m; i++)
+            need = in->q.pixel[i] >= need ? (uint64_t)in->q.pixel[i] + 1 : need;
+        if (need > cap) {
+            uint64_t grow = 2 * cap < npx ? 2 * cap : npx;
+            grow = grow > need ? grow : need;
+            double *px = realloc(in->pixels, (size_t)grow * 3 * sizeof *px);
+            if (!px)
+                return pm_error_set(PM_ERR_NOMEM,
+                                    "out of memory for %" PRIu64 " pixels of a %" PRIu32 "x%" PRIu32 " image", grow,
+                                    in->width, in->height);
+            memset(px + 3 * cap, 0, (size_t)(grow - cap) * 3 * sizeof *px);
+            in->pixels = px, cap = grow;
+        }
+        in->pixels_used = need;
         for (uint64_t i = 0; i < m; i++) {
             uint32_t pi = in->q.pixel[i];
             for (int k = 0; k < 3; k++)
@@ -431,14 +449,20 @@ pm_result_t pm_gather_output_init(pm_table_t *out, const pm_gather_inputs_t *in,
                                   const char *widths)
 {
     const double *per_query = in->per_query;
-    pm_result_t r = pm_table_alloc(out, &pm_radiance_schema, pm_schema_required(&pm_radiance_schema),
-                                   (uint64_t)in->width * in->height);
+    /* The pixels up to the last one a query names: the rest are zero, written as such by
+     * pm_gather_table_write, so that a queries header declaring a large image with few
+     * records makes no buffer of its size (the image's pixels past them cost nothing). */
+    uint64_t npx = (uint64_t)in->width * in->height, used = in->pixels ? in->pixels_used : 0;
+    for (uint64_t i = 0; !in->pixels && i < in->q.n; i++)
+        used = in->q.pixel[i] >= used ? (uint64_t)in->q.pixel[i] + 1 : used;
+    pm_result_t r = pm_table_alloc(out, &pm_radiance_schema, pm_schema_required(&pm_radiance_schema), used);
     if (r != PM_OK)
         return r;
+    out->hdr.count = npx;
     /* Queries into pixels, in file order: the same sums for any thread count. */
     double *px = out->col[PM_RADIANCE_RGB];
     if (in->pixels)
-        memcpy(px, in->pixels, (size_t)in->width * in->height * 3 * sizeof *px);
+        memcpy(px, in->pixels, (size_t)used * 3 * sizeof *px);
     for (uint64_t i = 0; !in->pixels && i < in->q.n; i++) {
         uint32_t pi = in->q.pixel[i];
         for (int k = 0; k < 3; k++)
@@ -459,12 +483,41 @@ pm_result_t pm_gather_output_init(pm_table_t *out, const pm_gather_inputs_t *in,
     return pm_header_set(h, "widths", "%s", widths);
 }
 
+pm_result_t pm_gather_table_write(const pm_table_t *out, const char *path)
+{
+    if (out->count == out->hdr.count)
+        return pm_table_write(out, path);
+    /* A buffer of pm_gather_output_init: its RGB column is the records (the one channel,
+     * f64 x 3 little-endian), then zero records up to the header's count. */
+    if (out->hdr.channels != (1u << PM_RADIANCE_RGB) || out->hdr.record_size != 3 * sizeof(double) ||
+        out->count > out->hdr.count)
+        return pm_error_set(PM_ERR_INTERNAL, "radiance table of %" PRIu64 " records for a header of %" PRIu64,
+                            out->count, out->hdr.count);
+    enum { ZERO_ROWS = 4096 };
+    double *zero = calloc((size_t)ZERO_ROWS * 3, sizeof *zero);
+    if (!zero)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory writing '%s'", path);
+    pm_writer_t *w;
+    pm_result_t r = pm_writer_open(path, &out->hdr, &w);
+    if (r == PM_OK) {
+        r = out->count ? pm_writer_write(w, out->col[PM_RADIANCE_RGB], out->count) : PM_OK;
+        for (uint64_t at = out->count; at < out->hdr.count && r == PM_OK; at += ZERO_ROWS)
+            r = pm_writer_write_checked(w, zero, out->hdr.count - at < ZERO_ROWS ? out->hdr.count - at : ZERO_ROWS);
+        if (r == PM_OK)
+            r = pm_writer_commit(w);
+        else
+            pm_writer_abort(w);
+    }
+    free(zero);
+    return r;
+}
+
 pm_result_t pm_gather_output_write(pm_table_t *out, const pm_gather_inputs_t *in, const char *path)
 {
     pm_result_t r;
     if (in->ranged && (r = pm_header_set(&out->hdr, "range", "%" PRIu64 ":%" PRIu64, in->begin, in->end)) != PM_OK)
         return r;
-    return pm_table_write(out, path);
+    return pm_gather_table_write(out, path);
 }
 
 pm_result_t pm_gather_check_finite(const pm_gather_inputs_t *in, const char *what)

@@ -68,7 +68,9 @@ typedef struct {
     double read_s;              /* wall seconds spent reading and checking both files */
     double *per_query;          /* owned, 3 per row of q: for the gather's weighted radiance, W/(m^2 sr) */
     pm_reader_t *stream;        /* streamed queries (pm_gather_inputs_open): the reader, NULL once read whole */
-    double *pixels;             /* owned, with a stream: width * height RGB sums, filled by pm_gather_stream */
+    double *pixels;             /* owned, with a stream: RGB sums of the pixels up to the last one a
+                                 * query names (pixels_used), filled by pm_gather_stream */
+    uint64_t pixels_used;       /* with a stream: the pixels in pixels (grown as the queries name them) */
 } pm_gather_inputs_t;
 
 /* Reads MAP and QUERIES (range "B:E" or NULL for all; QUERIES may be "-"), checks the
@@ -133,6 +135,10 @@ pm_result_t pm_gather_inputs_radius_for_k(const pm_gather_inputs_t *in, double k
  * and then calls pm_gather_output_write. */
 pm_result_t pm_gather_output_init(pm_table_t *out, const pm_gather_inputs_t *in, int argc, char **argv, int kernel,
                                   const char *widths);
+
+/* Writes a table of pm_gather_output_init to path atomically: its records, then zero ones up
+ * to its header's count (the pixels past the last one a query names, which it does not hold). */
+pm_result_t pm_gather_table_write(const pm_table_t *out, const char *path);
 
 /* Adds range=B:E for a shard and writes `out` to path atomically. */
 pm_result_t pm_gather_output_write(pm_table_t *out, const pm_gather_inputs_t *in, const char *path);

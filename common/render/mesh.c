@@ -284,7 +284,7 @@ static pm_result_t load_materials(ctx_t *c, json_t *mj, const char *path, int is
         (r = pm_scene_grow((void **)&s->maps, mat0 + as->mNumMaterials, sizeof *s->maps)) != PM_OK)
         return r;
     for (size_t i = mat0; i < mat0 + as->mNumMaterials; i++)
-        s->maps[i] = (pm_material_maps_t){-1, -1, -1, -1, -1, 1.0f};
+        s->maps[i] = (pm_material_maps_t){-1, -1, -1, -1, -1, 1.0f, 0, {0}};
     for (unsigned i = 0; i < as->mNumMaterials && r == PM_OK; i++) {
         /* one the scene file replaces is not read (nor refused, nor its textures loaded): a
          * placeholder of its name until pm_scene_apply_mesh_overrides puts the scene's in */
@@ -341,9 +341,10 @@ static pm_result_t load_materials(ctx_t *c, json_t *mj, const char *path, int is
 
 /* The vertices of assimp mesh m into the scene from index v0 (room made by the caller): placed
  * by xf (rows of [3x3 | t]; general 0: scale and translate only), with their first texture
- * coordinates and their normals (by the cofactor matrix of xf), and in mesh units in c->local. */
+ * coordinates (through the texture transform of their material's maps mm, if it has one) and
+ * their normals (by the cofactor matrix of xf), and in mesh units in c->local. */
 static pm_result_t load_vertices(ctx_t *c, const struct aiMesh *m, const char *path, const double xf[3][4], int general,
-                                 size_t v0)
+                                 const pm_material_maps_t *mm, size_t v0)
 {
     pm_scene_t *s = c->s;
     for (unsigned v = 0; v < m->mNumVertices; v++) {
@@ -361,6 +362,11 @@ static pm_result_t load_vertices(ctx_t *c, const struct aiMesh *m, const char *p
         /* the first set of texture coordinates; none: every point reads texel (0, 0) */
         const struct aiVector3D *uv = m->mTextureCoords[0] ? &m->mTextureCoords[0][v] : NULL;
         float uu = uv ? uv->x : 0.0f, vv = uv ? uv->y : 0.0f;
+        if (mm->has_uvxf) { /* glTF KHR_texture_transform (scene_maps.c) */
+            const float *a = mm->uvxf;
+            float u1 = a[0] * uu + a[1] * vv + a[2], v1 = a[3] * uu + a[4] * vv + a[5];
+            uu = u1, vv = v1;
+        }
         s->uvs[2 * (v0 + v)] = isfinite(uu) ? uu : 0.0f;
         s->uvs[2 * (v0 + v) + 1] = isfinite(vv) ? vv : 0.0f;
         /* The vertex normal by the cofactor matrix of the map (normals transform by the
@@ -457,7 +463,7 @@ static pm_result_t load_meshes(ctx_t *c, const struct aiScene *as, const char *p
             (r = pm_scene_grow((void **)&c->local, 3 * (v0 + m->mNumVertices), sizeof(float))) != PM_OK ||
             (r = pm_scene_grow((void **)&s->tris, 3 * (s->ntris + m->mNumFaces), sizeof(uint32_t))) != PM_OK ||
             (r = pm_scene_grow((void **)&s->tri_material, s->ntris + m->mNumFaces, sizeof(uint32_t))) != PM_OK ||
-            (r = load_vertices(c, m, path, xf, general, v0)) != PM_OK)
+            (r = load_vertices(c, m, path, xf, general, mm, v0)) != PM_OK)
             return r;
         s->nverts += m->mNumVertices;
         r = load_faces(s, m, mi, path, flip, v0, (uint32_t)(mat0 + m->mMaterialIndex), kept);

@@ -127,6 +127,12 @@ typedef struct {
     int32_t kd, ks, alpha;
     int32_t normal, bump;
     float bump_scale; /* MTL -bm: m of height per unit of texel, 1 by default */
+    /* glTF KHR_texture_transform of the material's textures, as assimp gives it ($tex.uvtrafo),
+     * turned into pmtk's uv space: u' = uvxf[0] u + uvxf[1] v + uvxf[2], v' = uvxf[3] u + uvxf[4] v
+     * + uvxf[5]. mesh.c applies it to the vertices' texture coordinates at load (so they hash with
+     * it); has_uvxf 0: none (the identity). */
+    int has_uvxf;
+    float uvxf[6];
 } pm_material_maps_t;
 
 /* The range Embree's instances are built in (mesh.c, instance_xf_ok): a prototype's coordinates in

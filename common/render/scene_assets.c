@@ -76,7 +76,7 @@ static pm_result_t load_one(ctx_t *c, const char *name, json_t *v, pm_material_t
     if (r != PM_OK)
         return r;
     memset(m, 0, sizeof *m);
-    *mm = (pm_material_maps_t){-1, -1, -1, -1, -1, 1.0f};
+    *mm = (pm_material_maps_t){-1, -1, -1, -1, -1, 1.0f, 0, {0}};
     snprintf(m->name, sizeof m->name, "%s", name);
     m->kind = k->kind;
     m->ior = 1.5f;
@@ -603,7 +603,7 @@ static pm_result_t load_shape(ctx_t *c, json_t *sj, size_t index)
         return r;
     s->materials[mi] = (pm_material_t){.kd = {0.8f, 0.8f, 0.8f}};
     snprintf(s->materials[mi].name, sizeof s->materials[mi].name, "shape%zu", index);
-    s->maps[mi] = (pm_material_maps_t){-1, -1, -1, -1, -1, 1.0f};
+    s->maps[mi] = (pm_material_maps_t){-1, -1, -1, -1, -1, 1.0f, 0, {0}};
     s->nmaterials++;
     json_t *mat = json_object_get(sj, "material");
     size_t si = 0;

@@ -12,6 +12,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <sys/stat.h>
 
 #include "render/scene_load.h"
@@ -176,6 +177,74 @@ static int is_colour(const pm_texture_t *t)
     return 0;
 }
 
+/* glTF's KHR_texture_transform of texture slot `type`, as assimp 5.2's glTF 2 importer stores it
+ * ($tex.uvtrafo: scaling, the rotation negated, and a translation that folds in its flip of v and
+ * a turn about the image centre), taken back to the extension's offset o, rotation r and scale s
+ * and then into pmtk's uv space (v = 1 - v_glTF): the extension's T(o) R(r) S(s) acting on
+ * (u, 1 - v), R's columns (cos r, -sin r) and (sin r, cos r) (u' = cos r u + sin r v: Khronos's
+ * TextureTransformTest sample shows its green markers so; the other sign shows the red one), as
+ * xf (pm_material_maps_t uvxf). 1: a finite transform; 0: none; -1: one with a value that is
+ * not finite. */
+static int gltf_uv_transform(const struct aiMaterial *am, enum aiTextureType type, float xf[6])
+{
+    ai_real t[5]; /* aiUVTransform: mTranslation x, y; mScaling x, y; mRotation */
+    unsigned n = 5;
+    if (aiGetMaterialFloatArray(am, _AI_MATKEY_UVTRANSFORM_BASE, type, 0, t, &n) != aiReturn_SUCCESS || n != 5)
+        return 0;
+    double sx = t[2], sy = t[3], r = -(double)t[4], c = cos(r), sn = sin(r);
+    double ox = t[0] - 0.5 * sx * (1.0 - c + sn), oy = 0.5 * sy * (sn + c - 1.0) + 1.0 - sy - t[1];
+    /* u' = ox + c sx u_g + sn sy v_g, v_g' = oy - sn sx u_g + c sy v_g, with v_g = 1 - v, v' = 1 - v_g' */
+    double m[6] = {c * sx, -sn * sy, ox + sn * sy, sn * sx, c * sy, 1.0 - oy - c * sy};
+    for (int k = 0; k < 6; k++) {
+        if (!isfinite(m[k]) || fabs(m[k]) > 1e30)
+            return -1;
+        xf[k] = (float)m[k];
+    }
+    return 1;
+}
+
+/* The texture transform (glTF KHR_texture_transform) and texture coordinate set of material
+ * mi's textured slots: pmtk reads the first set, transformed per material (it moves the
+ * vertices' coordinates), so the first textured slot's transform is the material's; a slot that
+ * names another set or another transform, or a transform in a format whose convention pmtk does
+ * not know, is reported once per material. */
+static pm_result_t uv_transform(pm_scene_t *s, const struct aiMaterial *am, int gltf, uint32_t mi,
+                                const enum aiTextureType *types, const int32_t *tex, size_t nslots)
+{
+    pm_material_maps_t *mm = &s->maps[mi];
+    pm_result_t r = PM_OK;
+    int seen = 0;
+    for (size_t k = 0; k < nslots && r == PM_OK; k++) {
+        if (tex[k] < 0)
+            continue;
+        int src = 0;
+        char value[160];
+        const char *slot = aiTextureTypeToString(types[k]);
+        if (aiGetMaterialInteger(am, _AI_MATKEY_UVWSRC_BASE, types[k], 0, &src) == aiReturn_SUCCESS && src != 0) {
+            snprintf(value, sizeof value, "%d on the %s texture (set 0 used)", src, slot);
+            if ((r = pm_scene_note_unsupported(s, mi, "texCoord", 0, value)) != PM_OK)
+                break;
+        }
+        float xf[6];
+        int got = gltf_uv_transform(am, types[k], xf);
+        if (got != 0 && !gltf) {
+            snprintf(value, sizeof value, "on the %s texture (not applied)", slot);
+            r = pm_scene_note_unsupported(s, mi, "texture transform", 0, value);
+        } else if (got < 0) {
+            snprintf(value, sizeof value, "not finite on the %s texture (not applied)", slot);
+            r = pm_scene_note_unsupported(s, mi, "KHR_texture_transform", 0, value);
+        } else if (!seen) {
+            if ((mm->has_uvxf = got) != 0)
+                memcpy(mm->uvxf, xf, sizeof xf);
+        } else if (got != mm->has_uvxf || (got && memcmp(mm->uvxf, xf, sizeof xf) != 0)) {
+            snprintf(value, sizeof value, "differs on the %s texture (the first textured slot's used)", slot);
+            r = pm_scene_note_unsupported(s, mi, "KHR_texture_transform", 0, value);
+        }
+        seen = 1;
+    }
+    return r;
+}
+
 /* The textures pmtk honours of assimp material am (scene material mi): map_Kd, map_Ks, map_d,
  * norm and bump/map_Bump (with its -bm) of an MTL, the base colour and the normal texture of
  * glTF and the rest (assimp's diffuse and normals slots). */
@@ -217,6 +286,7 @@ pm_result_t pm_scene_load_material_maps(const ctx_t *c, const char *mesh, int is
     }
     /* glTF keeps its normal texture in the glTF 2 slot as well (mtl.c maps it the same way) */
     struct aiString tp;
+    int from_camera = 0;
     if (r == PM_OK && !is_obj && mm->normal < 0 &&
         aiGetMaterialTexture(am, aiTextureType_NORMAL_CAMERA, 0, &tp, NULL, NULL, NULL, NULL, NULL, NULL) ==
             aiReturn_SUCCESS &&
@@ -225,7 +295,17 @@ pm_result_t pm_scene_load_material_maps(const ctx_t *c, const char *mesh, int is
             texture_base(mesh, im, m->name, base, sizeof base);
         r = tp.data[0] == '*' ? embedded_texture(c, im, tp.data, mesh, m, "normal texture", &mm->normal)
                               : pm_scene_texture(c, base, tp.data, mesh, m, mi, "normal texture", &mm->normal);
+        from_camera = 1;
     }
+    /* texture transforms, from the slots as assimp filled them (the normal texture in one of two) */
+    const enum aiTextureType types[] = {aiTextureType_DIFFUSE, aiTextureType_SPECULAR, aiTextureType_OPACITY,
+                                        aiTextureType_NORMALS, aiTextureType_HEIGHT,   aiTextureType_NORMAL_CAMERA};
+    const int32_t tex[] = {
+        mm->kd, mm->ks, mm->alpha, from_camera ? -1 : mm->normal, mm->bump, from_camera ? mm->normal : -1};
+    size_t n = strlen(mesh);
+    int gltf = (n > 5 && strcasecmp(mesh + n - 5, ".gltf") == 0) || (n > 4 && strcasecmp(mesh + n - 4, ".glb") == 0);
+    if (r == PM_OK)
+        r = uv_transform(s, am, gltf, mi, types, tex, sizeof tex / sizeof tex[0]);
     /* A colour image in the bump slot is a normal map (Blender's OBJ exporter writes its normal
      * maps as map_Bump): read as one, and said so. Heights are grey, R = G = B in every texel. */
     if (r == PM_OK && mm->bump >= 0 && mm->normal < 0 && is_colour(&s->textures[mm->bump])) {

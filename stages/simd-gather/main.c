@@ -189,7 +189,7 @@ static pm_result_t run_stream(pm_stage_t *st, const gather_options_t *opt, pm_is
         if ((r = pm_gather_output_init(&out, &in, st->argc, st->argv, o->kernel, width_names[0])) != PM_OK ||
             (r = pm_header_set(&out.hdr, "radius", "%.9g", radius)) != PM_OK ||
             (r = pm_gather_pass_header(&out.hdr, (uint64_t)o->pass, o->alpha, radius1)) != PM_OK ||
-            (r = pm_table_write(&out, st->output)) != PM_OK)
+            (r = pm_gather_table_write(&out, st->output)) != PM_OK)
             break;
         t_write += pm_time_wall() - t0;
         frames++;
@@ -358,7 +358,7 @@ static pm_result_t run_pairs(pm_stage_t *st, const gather_options_t *opt, pm_isa
         if ((r = pm_gather_output_init(&out, &in, argc1, argv1, o->kernel, width_names[0])) == PM_OK &&
             (r = pm_header_set(&out.hdr, "radius", "%.9g", radius)) == PM_OK &&
             (r = pm_gather_pass_header(&out.hdr, pass, o->alpha, radius1)) == PM_OK)
-            r = pm_table_write(&out, st->output);
+            r = pm_gather_table_write(&out, st->output);
         free(argv1);
         if (r != PM_OK)
             break;

@@ -150,6 +150,9 @@ double pm_proc_cpu_s(const pm_proc_t *p);
  * (absolute; PM_ERR_USAGE "no program directory 'X'" when it is none), else the directory of
  * the running program. */
 pm_result_t pm_engine_bin(char *out, size_t cap);
+/* A driver's line on stderr: "ME: message" (its progress, notes and errors; never under
+ * QUIET's control: the callers decide). */
+void pm_engine_say(const char *me, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 /* Runs one program to its end (pm_proc_spawn then pm_proc_wait). */
 pm_result_t pm_proc_run(const pm_spawn_t *sp, pm_proc_status_t *status_out);
 /* A stage's --stats file as JSON (*j_out the caller's to json_decref); PM_ERR_INPUT when it is

@@ -83,16 +83,8 @@ typedef struct {
     int lock_fd;
 } render_t;
 
-static void say(const render_t *r, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-static void say(const render_t *r, const char *fmt, ...)
-{
-    va_list ap;
-    va_start(ap, fmt);
-    fprintf(stderr, "%s: ", r->me);
-    vfprintf(stderr, fmt, ap);
-    fputc('\n', stderr);
-    va_end(ap);
-}
+/* the driver's lines on stderr, "ME: ..." (pm_engine_say) */
+#define say(r, ...) pm_engine_say((r)->me, __VA_ARGS__)
 
 static void note(render_t *r, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 static void note(render_t *r, const char *fmt, ...)

@@ -78,16 +78,8 @@ typedef struct {
     char radius[64]; /* STREAM=0: frame 0's kernel width, for the later frames */
 } frames_t;
 
-static void fsay(const frames_t *F, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-static void fsay(const frames_t *F, const char *fmt, ...)
-{
-    va_list ap;
-    va_start(ap, fmt);
-    fprintf(stderr, "%s: ", F->me);
-    vfprintf(stderr, fmt, ap);
-    fputc('\n', stderr);
-    va_end(ap);
-}
+/* the driver's lines on stderr, "ME: ..." (pm_engine_say) */
+#define fsay(F, ...) pm_engine_say((F)->me, __VA_ARGS__)
 
 /* A command line being built: argv words owned here. */
 typedef struct {

@@ -126,16 +126,8 @@ typedef struct {
     const char *order;      /* hilbert-sort --order (ORDER=auto resolved; hilbert-sort off for none) */
 } prog_t;
 
-static void say(const prog_t *p, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-static void say(const prog_t *p, const char *fmt, ...)
-{
-    va_list ap;
-    va_start(ap, fmt);
-    fprintf(stderr, "%s: ", p->me);
-    vfprintf(stderr, fmt, ap);
-    fputc('\n', stderr);
-    va_end(ap);
-}
+/* the driver's lines on stderr, "ME: ..." (pm_engine_say) */
+#define say(p, ...) pm_engine_say((p)->me, __VA_ARGS__)
 
 static const char *val(const prog_t *p, pm_param_t k) { return p->s->value[k]; }
 

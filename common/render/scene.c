@@ -303,9 +303,12 @@ static pm_result_t compact_materials(pm_scene_t *s)
 static pm_result_t drop_unused_maps(pm_scene_t *s)
 {
     int any = 0;
-    for (size_t m = 0; s->maps && m < s->nmaterials; m++)
-        any |= s->maps[m].kd >= 0 || s->maps[m].ks >= 0 || s->maps[m].alpha >= 0 || s->maps[m].normal >= 0 ||
-               s->maps[m].bump >= 0;
+    for (size_t m = 0; s->maps && m < s->nmaterials; m++) {
+        int32_t *slot[PM_MAP_SLOTS];
+        pm_material_map_slots(&s->maps[m], slot);
+        for (int k = 0; k < PM_MAP_SLOTS; k++)
+            any |= *slot[k] >= 0;
+    }
     if (!any) {
         free(s->maps);
         free(s->uvs);
@@ -323,9 +326,9 @@ static pm_result_t drop_unused_maps(pm_scene_t *s)
     if (!keep)
         return pm_error_set(PM_ERR_NOMEM, "out of memory");
     for (size_t m = 0; s->maps && m < s->nmaterials; m++) {
-        const int32_t *slot[5] = {&s->maps[m].kd, &s->maps[m].ks, &s->maps[m].alpha, &s->maps[m].normal,
-                                  &s->maps[m].bump};
-        for (int k = 0; k < 5; k++)
+        int32_t *slot[PM_MAP_SLOTS];
+        pm_material_map_slots(&s->maps[m], slot);
+        for (int k = 0; k < PM_MAP_SLOTS; k++)
             if (*slot[k] >= 0)
                 keep[*slot[k]] = 1;
     }
@@ -340,8 +343,9 @@ static pm_result_t drop_unused_maps(pm_scene_t *s)
     }
     s->ntextures = n;
     for (size_t m = 0; s->maps && m < s->nmaterials; m++) {
-        int32_t *slot[5] = {&s->maps[m].kd, &s->maps[m].ks, &s->maps[m].alpha, &s->maps[m].normal, &s->maps[m].bump};
-        for (int k = 0; k < 5; k++)
+        int32_t *slot[PM_MAP_SLOTS];
+        pm_material_map_slots(&s->maps[m], slot);
+        for (int k = 0; k < PM_MAP_SLOTS; k++)
             if (*slot[k] >= 0)
                 *slot[k] = keep[*slot[k]];
     }

@@ -135,6 +135,14 @@ typedef struct {
     float uvxf[6];
 } pm_material_maps_t;
 
+/* A material's texture slots in one order, kd, ks, alpha, normal, bump (each an index into
+ * pm_scene_t.textures or -1): what every walk over the textures a material reads goes through. */
+enum { PM_MAP_SLOTS = 5 };
+static inline void pm_material_map_slots(pm_material_maps_t *mm, int32_t *slot[PM_MAP_SLOTS])
+{
+    slot[0] = &mm->kd, slot[1] = &mm->ks, slot[2] = &mm->alpha, slot[3] = &mm->normal, slot[4] = &mm->bump;
+}
+
 /* The range Embree's instances are built in (mesh.c, instance_xf_ok): a prototype's coordinates in
  * its own units, and each placement's scale; outside it a repeated mesh is built flat. */
 #define PM_SCENE_INSTANCE_COORD_MAX 1e8

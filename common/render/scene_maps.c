@@ -262,7 +262,9 @@ pm_result_t pm_scene_load_material_maps(const ctx_t *c, const char *mesh, int is
                  {aiTextureType_OPACITY, "map_d", NULL},
                  {aiTextureType_NORMALS, "norm", "normal texture"},
                  {aiTextureType_HEIGHT, "bump", NULL}};
-    int32_t *const where[] = {&mm->kd, &mm->ks, &mm->alpha, &mm->normal, &mm->bump};
+    _Static_assert(sizeof slots / sizeof slots[0] == PM_MAP_SLOTS, "a texture slot per map slot");
+    int32_t *where[PM_MAP_SLOTS]; /* the slots in the order of slots[] */
+    pm_material_map_slots(mm, where);
     char base[1200] = "";
     pm_result_t r = PM_OK;
     for (size_t k = 0; k < sizeof slots / sizeof slots[0] && r == PM_OK; k++) {

@@ -41,6 +41,21 @@ static pm_result_t inputs_setup(pm_gather_inputs_t *in, int variable, uint64_t r
                             in->map_path, cmap ? "a caustic map" : "not a caustic map", in->q_path,
                             cq ? "caustic queries" : "not caustic queries");
     in->caustic = cq;
+    /* Queries with secondary direct light (trace-gather-points --secondary-direct) have the direct
+     * light at their points in the direct buffer: a map with first-hit photons would count it
+     * again, and gather-mode queries without it need those photons (docs/accuracy.md). */
+    const char *qd = pm_header_get(qh, "secondary_direct"), *qm = pm_header_get(qh, "mode");
+    int sd = qd && !strcmp(qd, "1"), imap = mk && !strcmp(mk, "indirect");
+    if (!cq && !cmap && (sd ? !imap : imap && qm && !strcmp(qm, "gather")))
+        return pm_error_set(
+            PM_ERR_INPUT,
+            sd ? "photon map '%s' holds first-hit photons but queries '%s' have secondary direct light: "
+                 "the direct light at the gather points would count twice (trace-photons "
+                 "--indirect-only or build-photonmap --map indirect)"
+               : "photon map '%s' holds no first-hit photons but queries '%s' have no secondary "
+                 "direct light: the direct light at the gather points would be lost "
+                 "(trace-gather-points --secondary-direct)",
+            in->map_path, in->q_path);
     if ((r = pm_header_get_image_size(qh, in->q_path, &in->width, &in->height)) != PM_OK ||
         (map_too && (r = pm_gather_map_init(&in->map, &in->map_table, variable)) != PM_OK))
         return r;

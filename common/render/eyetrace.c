@@ -101,6 +101,7 @@ struct pm_eye {
     int direct_only;       /* pm_eye_options_t's: no queries, secondary rays only for emitters they find */
     unsigned glossy_depth; /* glossy bounces a secondary path continues through before it gathers */
     int cont;              /* some material continues (continues()): glossy paths are followed */
+    int sec_direct;        /* next-event estimation at the gather points too (gather_direct): asked, and lights */
     uint32_t record_size, off_pos, off_nor, off_w, off_pix, off_mat, off_dir; /* bytes */
     uint64_t seed;
     float eps; /* m, ray-origin offset along the normal */
@@ -357,18 +358,19 @@ static int shadow_room(const pm_eye_t *c, scratch_t *sc)
 /* Next-event estimation at surface v for pixel column x: a shadow ray per light sample into
  * sc->shadow, with the radiance it adds when unblocked times inv_p and the path weight tp.
  * nb is the number of BSDF samples that can also find an area light from v (the MIS weight's
- * count); mis 0 gives the light samples weight 1 (no ray leaves v to find a light). */
-static void direct_lights(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, float inv_p, const float tp[3],
-                          float nb, int mis, pm_rng_t *light_rng)
+ * count); mis 0 gives the light samples weight 1 (no ray leaves v to find a light). ls is the
+ * samples per light that is not a delta (direct_lights: the options' light_samples). */
+static void direct_lights_n(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, float inv_p,
+                            const float tp[3], float nb, int mis, pm_rng_t *light_rng, unsigned ls)
 {
     const pm_lights_t *lights = &c->lights;
     const pm_material_t *m = v->m;
     const float *p = v->p, *n = v->n, *gn = v->gn, *o = v->o, *wo = v->wo, *bn = v->bn;
     int shaded = v->shaded, glossy = pm_material_is_glossy(m);
-    /* Each delta light once, every other light light_samples times, f Li cos / pdf averaged
-     * over its samples (render/light.h). */
+    /* Each delta light once, every other light ls times, f Li cos / pdf averaged over its
+     * samples (render/light.h). */
     for (size_t l = 0; l < lights->ndirect; l++) {
-        unsigned nsamples = l < lights->ndelta ? 1 : c->light_samples;
+        unsigned nsamples = l < lights->ndelta ? 1 : ls;
         for (unsigned q = 0; q < nsamples; q++) {
             pm_light_li_t li;
             if (!pm_lights_sample_li(lights, l, light_rng, p, n, &li) || (shaded && !(pm_dot3(gn, li.wi) > 0.0f)))
@@ -400,6 +402,12 @@ static void direct_lights(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uin
             pm_rays_push(&sc->shadow, o, li.wi, 0.0f, pm_light_shadow_tmax(&li, c->eps));
         }
     }
+}
+
+static void direct_lights(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, float inv_p, const float tp[3],
+                          float nb, int mis, pm_rng_t *light_rng)
+{
+    direct_lights_n(c, sc, v, x, inv_p, tp, nb, mis, light_rng, c->light_samples);
 }
 
 /* Traces the shadow rays gathered in sc->shadow; each unblocked one adds its radiance to
@@ -674,7 +682,7 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
         return 1;
     }
 
-    if (c->direct_only && !pm_lights_has_emitters(&c->lights) && !c->cont)
+    if (c->direct_only && !pm_lights_has_emitters(&c->lights) && !c->cont && !c->sec_direct)
         return 1; /* no emitter for a secondary ray to find nor glossy path to follow: no secondary rays */
     float scale = inv_p / (float)c->spp;
     if (c->cont && !sec_room(c, sc)) /* glossy chains (shade_diffuse_part) may have taken the row's */
@@ -767,6 +775,34 @@ static int path_query(const pm_eye_t *c, scratch_t *sc, const path_t *a, bytebuf
     if (!put_query(c, out, q, n, w, a->pixel, mi, wo))
         return 0;
     sc->n_queries++;
+    return 1;
+}
+
+/* Secondary direct light (pm_eye_options_t's secondary_direct): next-event estimation at path
+ * a's gather point, as at a primary hit (direct_lights, the whole BSDF there) with one sample
+ * per light that is not a delta (the pixel's spp gather points are its samples), weight 1: no
+ * ray leaves a gather point to find a light, and the map it is gathered against holds no
+ * first-hit photons, so this is the only estimate of the direct light there. Times the path
+ * weight, shadow rays into sc->shadow. 0 when out of memory. */
+static int gather_direct(const pm_eye_t *c, scratch_t *sc, const path_t *a)
+{
+    const float *ng = c->geom.tri_n + 3 * (size_t)a->tri;
+    pm_material_t textured;
+    surf_t v;
+    if (!isfinite(a->w[0] + a->w[1] + a->w[2]))
+        return 1;
+    for (int k = 0; k < 3; k++)
+        v.p[k] = a->o[k] + a->t * a->d[k], v.wo[k] = -a->d[k];
+    float side = pm_dot3(ng, v.wo) >= 0.0f ? 1.0f : -1.0f;
+    for (int k = 0; k < 3; k++)
+        v.gn[k] = side * ng[k], v.o[k] = v.p[k] + c->eps * v.gn[k];
+    v.m = pm_scene_material_at(c->s, a->tri, v.p, &textured);
+    if (!(v.m->kd[0] > 0.0f || v.m->kd[1] > 0.0f || v.m->kd[2] > 0.0f || pm_material_is_glossy(v.m)))
+        return 1; /* black */
+    surf_normals(c->s, a->tri, side, &v);
+    if (!shadow_room(c, sc))
+        return 0;
+    direct_lights_n(c, sc, &v, a->x, 1.0f, a->w, 0.0f, 0, a->rng, 1);
     return 1;
 }
 
@@ -868,6 +904,16 @@ static int glossy_bounce(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCo
                 return -1;
             sc->n_queries++;
         }
+        if (c->sec_direct && (wd[0] > 0.0f || wd[1] > 0.0f || wd[2] > 0.0f)) {
+            /* its direct light, which that query no longer holds (gather_direct) */
+            pm_material_t diffuse = *m;
+            surf_t vd = v;
+            diffuse.ks[0] = diffuse.ks[1] = diffuse.ks[2] = 0.0f;
+            vd.m = &diffuse;
+            if (!shadow_room(c, sc))
+                return -1;
+            direct_lights_n(c, sc, &vd, a->x, 1.0f, a->w, 0.0f, 0, a->rng, 1);
+        }
         /* The lobe alone: the material without its diffuse part. */
         lobe = *m;
         lobe.kd[0] = lobe.kd[1] = lobe.kd[2] = 0.0f;
@@ -926,8 +972,13 @@ static int follow_path(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCont
         uint32_t mi = s->tri_material[a->tri];
         /* past glossy_depth bounces the path gathers where it is; through rough glass, which
          * holds no photons, it goes on (to PM_EYE_MAX_SPECULAR bounces, then its light is lost) */
-        if (!m || !continues(c, m, mi) || depth >= depth_limit(c, m, mi))
-            return c->direct_only || (m && (rough_transmits(m) || varies(s, mi))) || path_query(c, sc, a, out);
+        if (!m || !continues(c, m, mi) || depth >= depth_limit(c, m, mi)) {
+            if (m && (rough_transmits(m) || varies(s, mi)))
+                return 1; /* no query, so no light of its own either */
+            if (c->sec_direct && !gather_direct(c, sc, a))
+                return 0;
+            return c->direct_only || path_query(c, sc, a, out);
+        }
         int on = glossy_bounce(c, sc, ctx, a, depth, direct, out);
         if (on <= 0)
             return on == 0;
@@ -1230,14 +1281,14 @@ static int secondary_hit(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCo
             env_add(c, sc->sec_env + 4 * j + 1, a.d, sc->sec_env[4 * j], a.w, a.x, direct);
         return 1; /* escaped: no query */
     }
-    if (c->specular || c->cont) /* each secondary ray's chain draws from a sub-stream of its own */
+    if (c->specular || c->cont || c->sec_direct) /* each secondary ray's chain draws from a sub-stream of its own */
         specular_rng(&rng, c->seed, a.pixel, 1 + in_px);
     if (c->specular && pm_material_is_specular(&s->materials[s->tri_material[a.tri]])) {
         /* Through mirrors and glass to the first other surface. Light found at the end of such
          * a chain is L S+ D at the primary hit, the caustic queries' (with the caustic map) or
          * lost without them: never counted here, so a direct-only run, which makes no queries,
          * need not follow the chain unless a glossy surface past it may continue. */
-        if (c->direct_only && !c->cont)
+        if (c->direct_only && !c->cont && !c->sec_direct)
             return 1;
         follow_specular(c, sc, ctx, &rng, -1.0f, &a.tri, a.o, a.d, &a.t, thr);
         if (a.tri == PM_RAY_MISS)
@@ -1253,7 +1304,7 @@ static int secondary_hit(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCo
                                                (float)c->light_samples * pm_lights_pdf_li_hit(&c->lights, a.t, cosy)),
                       direct);
     }
-    if (c->direct_only && !c->cont)
+    if (c->direct_only && !c->cont && !c->sec_direct)
         return 1; /* the direct buffer alone: the query's normal and fold are not needed */
     for (int k = 0; k < 3; k++)
         a.w[k] = sc->sec_w[3 * j + k] * thr[k];
@@ -1292,7 +1343,8 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
 
     /* The secondary rays' only part in the direct light is the emitters they find (and the
      * light of the glossy paths they continue). */
-    if (c->mode != PM_EYE_GATHER || (c->direct_only && !pm_lights_has_emitters(&c->lights) && !c->cont))
+    if (c->mode != PM_EYE_GATHER ||
+        (c->direct_only && !pm_lights_has_emitters(&c->lights) && !c->cont && !c->sec_direct))
         return PM_OK;
     /* Secondary rays: consecutive rays share a cell or a pixel, so packets stay coherent. */
     double t0 = pm_time_wall();
@@ -1397,6 +1449,13 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
         pm_eye_destroy(c);
         return pm_error_set(PM_ERR_USAGE, "caustic queries are queries: not with the direct light alone");
     }
+    if (o->secondary_direct && o->mode != PM_EYE_GATHER) {
+        pm_eye_destroy(c);
+        return pm_error_set(PM_ERR_USAGE,
+                            "secondary direct light is the gather points' (--mode gather): in %s mode "
+                            "the primary hits have their direct light already",
+                            pm_eye_mode_names[o->mode]);
+    }
     if (o->caustics && !s->any_specular)
         r = pm_error_set(PM_ERR_INPUT, "scene '%s' has no mirror or glass: it has no caustic queries", s->path);
     else if (o->caustics && o->mode != PM_EYE_GATHER)
@@ -1445,6 +1504,8 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
         r = pm_shade_geom_init(s, &c->geom);
     if (r == PM_OK)
         r = pm_lights_init(s, &c->lights);
+    /* nothing to sample at the gather points in a scene whose only light is emission seen */
+    c->sec_direct = r == PM_OK && o->secondary_direct && c->lights.ndirect > 0;
     if (r != PM_OK) {
         pm_eye_destroy(c);
         return r;
@@ -1462,6 +1523,7 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
                               .specular = c->specular,
                               .caustics = c->caustics,
                               .glossy_depth = c->cont ? c->glossy_depth : 0,
+                              .secondary_direct = o->secondary_direct,
                               .record_size = c->record_size};
     *out = c;
     return PM_OK;
@@ -1593,6 +1655,8 @@ static pm_result_t header_common(const pm_eye_t *c, int argc, char **argv, pm_he
         r = pm_header_set(h, "pixel", "%s", pm_pixel_names[c->pixel]);
     if (r == PM_OK)
         r = pm_header_set(h, "seed", "%" PRIu64, c->seed);
+    if (r == PM_OK && c->info.secondary_direct) /* absent otherwise: files as they were before */
+        r = pm_header_set(h, "secondary_direct", "1");
     return r;
 }
 
@@ -1671,6 +1735,8 @@ void pm_eye_report(pm_stage_t *st, const pm_eye_info_t *in, const pm_eye_stats_t
         pm_stage_stat_int(st, "caustic_queries", (int64_t)x->caustic_queries);
     if (in->glossy_depth)
         pm_stage_stat_int(st, "glossy_rays", (int64_t)x->glossy_rays);
+    if (in->secondary_direct)
+        pm_stage_stat_int(st, "secondary_direct", 1);
     pm_stage_stat_double(st, "trace_s", tt);
     pm_stage_stat_double(st, "spool_s", x->sink_s);
     pm_stage_stat_double(st, "rays_per_s", tt > 0 ? (double)rays / tt : 0.0);

@@ -66,6 +66,9 @@ typedef struct {
                       * emissive triangles, for the light they find there (the same direct buffer, bit for bit) */
     unsigned glossy_depth; /* glossy bounces a secondary path may continue through before it gathers (gather
                             * mode); 0 gathers on every glossy surface */
+    int secondary_direct;  /* gather mode: next-event estimation at every gather point too, into the direct
+                            * buffer, so that the queries ask the map for indirect light alone (a map without
+                            * first-hit photons: trace-photons --indirect-only, build-photonmap --map indirect) */
 } pm_eye_options_t;
 
 /* What a context settled on: sizes, the effective spp, the queries' record layout. */
@@ -82,6 +85,7 @@ typedef struct {
     int specular;          /* the scene has mirrors or glass: eye paths pass through them */
     int caustics;          /* caustic queries are delivered */
     unsigned glossy_depth; /* glossy paths are followed up to this many bounces (0: the scene has none, or off) */
+    int secondary_direct;  /* the gather points' direct light is in the direct buffer (header secondary_direct=1) */
 } pm_eye_info_t;
 
 /* Counters of one pm_eye_trace. */

@@ -135,6 +135,13 @@ static void store_photon(const tracer_t *t, chunk_t *c, int which, const float p
                          const float n[3], const float back[3], uint32_t depth)
 {
     run_t *run = &c->out[which];
+    if (which == OUT_GLOBAL && depth == 0 && t->o->indirect_only) {
+        /* counted, not stored: a first hit is direct light, the shadow rays' */
+        c->first++;
+        for (int k = 0; k < 3; k++)
+            c->power_first[k] += (float)power[k];
+        return;
+    }
     if (run_reserve(run, t->rs) != 0) {
         c->failed = 1;
         return;

@@ -36,6 +36,8 @@ typedef struct {
     double rr_max;        /* highest survival probability of Russian roulette, in (0, 1] */
     int direction;        /* store the direction channel (scenes with glossy materials) */
     int caustics;         /* also collect the caustic photons (L S+ D) as a second output */
+    int indirect_only;    /* store no first hit (depth 0) in the main output: the direct light comes from shadow
+                           * rays (trace-gather-points --secondary-direct); first_hits still counts them */
     int record_rays;      /* keep every ray for pm_trace_replay (benchmark baseline) */
     int progress;         /* progress bar on a terminal */
 } pm_trace_options_t;

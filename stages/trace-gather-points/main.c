@@ -57,6 +57,7 @@ typedef struct {
     int64_t plan_primary; /* the pass's primary rays per pixel from the plan; 0: the options' */
     int single;           /* one document per output: the outputs are one set */
     int64_t glossy_depth; /* glossy bounces a secondary path continues through; 0 gathers on them */
+    int secondary_direct; /* --secondary-direct: light samples at the gather points too */
 } tgp_options_t;
 
 /* Where the eye tracer's results go: the queries into the spool, the direct rows into one
@@ -213,7 +214,8 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
         .progress = pm_stage_progress(st),
         .caustics = o->caustic != NULL,
         .direct_only = o->no_queries,
-        .glossy_depth = (unsigned)o->glossy_depth};
+        .glossy_depth = (unsigned)o->glossy_depth,
+        .secondary_direct = o->secondary_direct};
     /* The scene's own camera is within the image limits (scene.c): only --width or --height
      * can take it beyond them, a usage error. */
     if (pm_image_size_check(o->width ? (uint64_t)o->width : s->camera.width,
@@ -369,6 +371,11 @@ int main(int argc, char **argv)
          "glossy bounces (a Phong Ns of 50 or more) a secondary ray continues through before it gathers, the "
          "light found on the way into the direct buffer; 0 gathers on the glossy surface",
          0, 64, NULL},
+        {"secondary-direct", 0, PM_OPT_FLAG, &o.secondary_direct, NULL,
+         "also sample the lights at every gather point (one sample per area light, sun and sky; the point lights) into "
+         "the direct buffer, so that the queries gather indirect light alone: gather them against a map without "
+         "first-hit photons (trace-photons --indirect-only); headers say secondary_direct=1",
+         1, 0, NULL},
         {0},
     };
     static const char about[] =

@@ -37,6 +37,7 @@ typedef struct {
     const char *caustic; /* --caustic-output FILE, NULL for none */
     const char *passes;  /* --passes A:B, NULL for none */
     const char *plan;    /* --plan FILE, NULL for none */
+    int indirect_only;   /* --indirect-only: no first hits in -o */
 } trace_options_t;
 
 /* One photons file: the global photons (caustic 0) or the caustic ones (caustic 1), whose
@@ -59,6 +60,7 @@ static pm_result_t write_photons(pm_stage_t *st, const trace_options_t *o, const
         (r = pm_header_set(&h, "emitted", "%" PRIu64, tr->emitted)) == PM_OK &&
         (!o->pass || (r = pm_header_set(&h, "pass", "%" PRId64, o->pass)) == PM_OK) &&
         (!caustic || (r = pm_header_set(&h, "kind", "caustic")) == PM_OK) &&
+        (caustic || !o->indirect_only || (r = pm_header_set(&h, "indirect_only", "1")) == PM_OK) &&
         (r = pm_writer_open(caustic ? o->caustic : st->output, &h, &w)) == PM_OK) {
         const unsigned char **data = caustic ? tr->caustic_data : tr->chunk_data;
         const uint64_t *count = caustic ? tr->caustic_count : tr->chunk_count;
@@ -108,6 +110,7 @@ static pm_result_t trace(pm_stage_t *st, const trace_options_t *o, const pm_scen
         .rr_max = o->rr_max,
         .direction = s->any_glossy,
         .caustics = o->caustic != NULL,
+        .indirect_only = o->indirect_only,
         .record_rays = o->baseline,
         .progress = pm_stage_progress(st),
     };
@@ -249,6 +252,10 @@ int main(int argc, char **argv)
         {"caustic-output", 0, PM_OPT_OUTPUT, &o.caustic, "FILE",
          "also write the caustic photons (reached a diffuse or glossy surface through mirrors or glass alone since "
          "the light) here, for build-photonmap --map caustic; only for a scene with mirrors or glass",
+         1, 0, NULL},
+        {"indirect-only", 0, PM_OPT_FLAG, &o.indirect_only, NULL,
+         "store no first hit (depth 0) in -o: the map of a render whose direct light at the gather points comes from "
+         "shadow rays (trace-gather-points --secondary-direct); the header says indirect_only=1",
          1, 0, NULL},
         {"baseline", 0, PM_OPT_FLAG, &o.baseline, NULL,
          "also re-trace every ray with bare rtcIntersect1 and report Embree's rate (for benchmarks)", 1, 0, NULL},

@@ -174,6 +174,8 @@ static void build_graph(render_t *r)
         }
         arg_opt(j, "--photons", s->value[PM_P_PHOTONS]);
         arg_opt(j, "--seed", s->value[PM_P_SEED]);
+        if (s->secondary_direct)
+            arg(j, "--indirect-only");
         arg_common(r, j);
 
         j = job_new(r, "build-photonmap");
@@ -229,6 +231,8 @@ static void build_graph(render_t *r)
     arg_opt(j, "--primary", s->value[PM_P_PRIMARY]);
     arg_opt(j, "--light-samples", r->light_samples);
     arg_opt(j, "--seed", s->value[PM_P_SEED]);
+    if (s->secondary_direct)
+        arg(j, "--secondary-direct");
     arg_common(r, j);
     if (strcmp(r->order, "none") != 0) {
         j = job_new(r, "hilbert-sort");
@@ -919,11 +923,12 @@ static pm_result_t decide(render_t *r)
 {
     const pm_settings_t *s = r->s;
     snprintf(r->mode, sizeof r->mode, "%s", s->value[PM_P_MODE]);
-    snprintf(r->map, sizeof r->map, "%s", strcmp(s->value[PM_P_MAP], "auto") ? s->value[PM_P_MAP] : "global");
+    snprintf(r->map, sizeof r->map, "%s", pm_settings_map(s));
     int gathermode = strcmp(r->mode, "gather") == 0;
-    if (gathermode && strcmp(r->map, "indirect") == 0)
-        return pm_error_set(PM_ERR_USAGE, "MAP=indirect with MODE=gather: the gather asks the map for all light at "
-                                          "secondary hits, so it needs the first-hit photons (MAP=global)");
+    if (gathermode && strcmp(r->map, "indirect") == 0 && !s->secondary_direct)
+        return pm_error_set(PM_ERR_USAGE, "MAP=indirect with MODE=gather and SECONDARY_DIRECT=0: the gather asks the "
+                                          "map for all light at secondary hits, so it needs the first-hit photons "
+                                          "(MAP=global, or SECONDARY_DIRECT=1)");
     snprintf(r->order, sizeof r->order, "%s", s->value[PM_P_ORDER]);
     if (strcmp(r->order, "auto") == 0) {
         if (!gathermode) {
@@ -1453,6 +1458,8 @@ static void pass_photons(passgraph_t *g, unit_t *u)
     }
     arg_opt(c, "--photons", s->value[PM_P_PHOTONS]);
     arg_opt(c, "--seed", s->value[PM_P_SEED]);
+    if (s->secondary_direct)
+        arg(c, "--indirect-only");
     pc_pass(c, g->pass);
     arg_common(r, c);
     c = pc_new(r, u, "build-photonmap", "build-photonmap");
@@ -1504,6 +1511,8 @@ static void pass_queries(passgraph_t *g, unit_t *u)
     arg_opt(c, "--primary", s->value[PM_P_PRIMARY]);
     arg_opt(c, "--light-samples", r->light_samples);
     arg_opt(c, "--seed", s->value[PM_P_SEED]);
+    if (s->secondary_direct)
+        arg(c, "--secondary-direct");
     pc_pass(c, g->pass);
     arg_common(r, c);
     if (!sorted)

@@ -146,7 +146,7 @@ int pm_progressive_handles(const pm_settings_t *s, char *why, size_t cap)
         w = "SHARDS";
     else if (strcmp(s->value[PM_P_WIDTHS], "fixed"))
         w = "WIDTHS=variable";
-    else if (!strcmp(s->value[PM_P_MAP], "indirect") && !strcmp(s->value[PM_P_MODE], "gather"))
+    else if (!strcmp(s->value[PM_P_MAP], "indirect") && !strcmp(s->value[PM_P_MODE], "gather") && !s->secondary_direct)
         w = "MAP=indirect with MODE=gather"; /* refused, with the reason, by the pass files' driver */
     else if (!strcmp(s->value[PM_P_GATHER], "none") && !strcmp(s->value[PM_P_MODE], "direct-vis") &&
              strcmp(s->value[PM_P_MAP], "indirect"))
@@ -377,6 +377,8 @@ static void stage_argv(const prog_t *p, argv_t a[NSTAGE], const int fd[NPIPE][2]
         pushf(&a[TP], "--photons");
         pushf(&a[TP], "%" PRId64, p->photons);
         opt(&a[TP], "--seed", val(p, PM_P_SEED));
+        if (p->s->secondary_direct)
+            push(&a[TP], "--indirect-only");
         push(&a[TP], "--plan");
         push(&a[TP], "-");
         push(&a[TP], "-o");
@@ -407,6 +409,8 @@ static void stage_argv(const prog_t *p, argv_t a[NSTAGE], const int fd[NPIPE][2]
     pushf(&a[TG], "%d", p->kmax);
     opt(&a[TG], "--light-samples", p->light_samples_zero ? "0" : val(p, PM_P_LIGHT_SAMPLES));
     opt(&a[TG], "--seed", val(p, PM_P_SEED));
+    if (p->s->secondary_direct)
+        push(&a[TG], "--secondary-direct");
     push(&a[TG], "--plan");
     push(&a[TG], "-");
     if (p->on[SG]) {
@@ -506,6 +510,8 @@ static void make_settings(prog_t *p)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " MAP=%s", p->map);
     if (!p->on[SG] && at < sizeof p->settings)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " GATHER=none");
+    if (p->s->secondary_direct && at < sizeof p->settings)
+        at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " SECONDARY_DIRECT=1");
     snprintf(p->request, sizeof p->request, "PASSES=%s TIME=%s TARGET_ERROR=%s EXPOSURE=%s TONE=%s HALF=%s",
              val(p, PM_P_PASSES), val(p, PM_P_TIME), val(p, PM_P_TARGET_ERROR), val(p, PM_P_EXPOSURE),
              val(p, PM_P_TONE), val(p, PM_P_HALF));
@@ -994,7 +1000,7 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
     /* the stages, as the pass files' driver (pm_render_passes in fixed.c) chooses them */
     p.mode = s->value[PM_P_MODE];
     int vis = !strcmp(p.mode, "direct-vis"), gather = strcmp(s->value[PM_P_GATHER], "none") != 0;
-    p.map = strcmp(s->value[PM_P_MAP], "auto") ? s->value[PM_P_MAP] : "global";
+    p.map = pm_settings_map(s);
     p.order = strcmp(s->value[PM_P_ORDER], "auto") ? s->value[PM_P_ORDER] : vis ? "none" : "hilbert";
     if (!gather)
         p.order = "none"; /* nothing reads the queries */

@@ -89,8 +89,8 @@ typedef struct {
     int wait;             /* WAIT=1 */
     int keep;             /* 0 all, 1 buffers, 2 image (KEEP) */
     int secondary_direct; /* SECONDARY_DIRECT=1 with MODE=gather: light samples at the gather points
-                           * (trace-gather-points --secondary-direct) and photons without first hits
-                           * (trace-photons --indirect-only) */
+                           * (trace-gather-points --secondary-direct) and photons without the first
+                           * hits of the lights they sample (trace-photons --indirect-only) */
 } pm_settings_t;
 
 enum { PM_KEEP_ALL = 0, PM_KEEP_BUFFERS = 1, PM_KEEP_IMAGE = 2 };
@@ -103,9 +103,6 @@ void pm_settings_init(pm_settings_t *s);
  * first bad one; the values the stages judge themselves (PHOTONS, RADIUS, ...) are left to
  * pm_settings_check_stages. */
 pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv);
-/* The map build-photonmap makes (--map): MAP, or for MAP=auto indirect with secondary direct
- * light and global otherwise. */
-const char *pm_settings_map(const pm_settings_t *s);
 /* Asks each stage to judge the values it reads (PROGRAM --option VALUE --print-settings, which
  * parses and exits without reading input): PM_ERR_USAGE with "bad value for NAME 'V': the
  * stage's message" on the first it refuses. bin is the program directory. */

@@ -923,12 +923,11 @@ static pm_result_t decide(render_t *r)
 {
     const pm_settings_t *s = r->s;
     snprintf(r->mode, sizeof r->mode, "%s", s->value[PM_P_MODE]);
-    snprintf(r->map, sizeof r->map, "%s", pm_settings_map(s));
+    snprintf(r->map, sizeof r->map, "%s", strcmp(s->value[PM_P_MAP], "auto") ? s->value[PM_P_MAP] : "global");
     int gathermode = strcmp(r->mode, "gather") == 0;
-    if (gathermode && strcmp(r->map, "indirect") == 0 && !s->secondary_direct)
-        return pm_error_set(PM_ERR_USAGE, "MAP=indirect with MODE=gather and SECONDARY_DIRECT=0: the gather asks the "
-                                          "map for all light at secondary hits, so it needs the first-hit photons "
-                                          "(MAP=global, or SECONDARY_DIRECT=1)");
+    if (gathermode && strcmp(r->map, "indirect") == 0)
+        return pm_error_set(PM_ERR_USAGE, "MAP=indirect with MODE=gather: the gather asks the map for all light at "
+                                          "secondary hits, so it needs the first-hit photons (MAP=global)");
     snprintf(r->order, sizeof r->order, "%s", s->value[PM_P_ORDER]);
     if (strcmp(r->order, "auto") == 0) {
         if (!gathermode) {

@@ -146,7 +146,7 @@ int pm_progressive_handles(const pm_settings_t *s, char *why, size_t cap)
         w = "SHARDS";
     else if (strcmp(s->value[PM_P_WIDTHS], "fixed"))
         w = "WIDTHS=variable";
-    else if (!strcmp(s->value[PM_P_MAP], "indirect") && !strcmp(s->value[PM_P_MODE], "gather") && !s->secondary_direct)
+    else if (!strcmp(s->value[PM_P_MAP], "indirect") && !strcmp(s->value[PM_P_MODE], "gather"))
         w = "MAP=indirect with MODE=gather"; /* refused, with the reason, by the pass files' driver */
     else if (!strcmp(s->value[PM_P_GATHER], "none") && !strcmp(s->value[PM_P_MODE], "direct-vis") &&
              strcmp(s->value[PM_P_MAP], "indirect"))
@@ -1000,7 +1000,7 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
     /* the stages, as the pass files' driver (pm_render_passes in fixed.c) chooses them */
     p.mode = s->value[PM_P_MODE];
     int vis = !strcmp(p.mode, "direct-vis"), gather = strcmp(s->value[PM_P_GATHER], "none") != 0;
-    p.map = pm_settings_map(s);
+    p.map = strcmp(s->value[PM_P_MAP], "auto") ? s->value[PM_P_MAP] : "global";
     p.order = strcmp(s->value[PM_P_ORDER], "auto") ? s->value[PM_P_ORDER] : vis ? "none" : "hilbert";
     if (!gather)
         p.order = "none"; /* nothing reads the queries */

@@ -54,12 +54,6 @@ static const struct {
     [PM_P_SECONDARY_DIRECT] = {"SECONDARY_DIRECT", "0"},
 };
 
-const char *pm_settings_map(const pm_settings_t *s)
-{
-    const char *m = s->value[PM_P_MAP];
-    return strcmp(m, "auto") ? m : s->secondary_direct ? "indirect" : "global";
-}
-
 const char *pm_param_name(pm_param_t p) { return p < PM_P_COUNT ? params[p].name : ""; }
 const char *pm_param_default(pm_param_t p) { return p < PM_P_COUNT ? params[p].def : ""; }
 
@@ -148,10 +142,10 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
         return r;
     /* Direct-vis queries are the primary hits, which have their light samples already. */
     s->secondary_direct = s->value[PM_P_SECONDARY_DIRECT][0] == '1' && !strcmp(s->value[PM_P_MODE], "gather");
-    if (s->secondary_direct && !strcmp(s->value[PM_P_MAP], "global"))
-        return pm_error_set(PM_ERR_USAGE, "MAP=global with SECONDARY_DIRECT=1: the gather points' light samples and "
-                                          "the map's first-hit photons would count their direct light twice "
-                                          "(MAP=auto or indirect, or SECONDARY_DIRECT=0)");
+    if (s->secondary_direct && !strcmp(s->value[PM_P_MAP], "indirect"))
+        return pm_error_set(PM_ERR_USAGE, "MAP=indirect with SECONDARY_DIRECT=1: the gather points sample the point "
+                                          "lights, sun and sky and leave the area lights to the map, which then "
+                                          "needs their first-hit photons (MAP=auto or global)");
     s->keep = strcmp(s->value[PM_P_KEEP], "all") == 0       ? PM_KEEP_ALL
               : strcmp(s->value[PM_P_KEEP], "buffers") == 0 ? PM_KEEP_BUFFERS
                                                             : PM_KEEP_IMAGE;

@@ -42,20 +42,34 @@ static pm_result_t inputs_setup(pm_gather_inputs_t *in, int variable, uint64_t r
                             cq ? "caustic queries" : "not caustic queries");
     in->caustic = cq;
     /* Queries with secondary direct light (trace-gather-points --secondary-direct) have the direct
-     * light at their points in the direct buffer: a map with first-hit photons would count it
-     * again, and gather-mode queries without it need those photons (docs/accuracy.md). */
-    const char *qd = pm_header_get(qh, "secondary_direct"), *qm = pm_header_get(qh, "mode");
-    int sd = qd && !strcmp(qd, "1"), imap = mk && !strcmp(mk, "indirect");
-    if (!cq && !cmap && (sd ? !imap : imap && qm && !strcmp(qm, "gather")))
-        return pm_error_set(
-            PM_ERR_INPUT,
-            sd ? "photon map '%s' holds first-hit photons but queries '%s' have secondary direct light: "
-                 "the direct light at the gather points would count twice (trace-photons "
-                 "--indirect-only or build-photonmap --map indirect)"
-               : "photon map '%s' holds no first-hit photons but queries '%s' have no secondary "
-                 "direct light: the direct light at the gather points would be lost "
-                 "(trace-gather-points --secondary-direct)",
-            in->map_path, in->q_path);
+     * light of the point lights, the sun and the sky at their points in the direct buffer, and
+     * need a global map without those lights' first hits (trace-photons --indirect-only, which
+     * keeps the area lights'); other queries need the first hits they lack, and gather-mode
+     * queries an area light's too (docs/accuracy.md). */
+    const char *qd = pm_header_get(qh, "secondary_direct"), *qm = pm_header_get(qh, "mode"),
+               *mi = pm_header_get(mh, "indirect_only");
+    int sd = qd && !strcmp(qd, "1"), imap = mk && !strcmp(mk, "indirect"), io = mi && !strcmp(mi, "1");
+    const char *map = NULL, *queries = NULL; /* what each holds, when they disagree */
+    if (cq || cmap)
+        map = NULL;
+    else if (sd && !io && !imap)
+        map = "holds the first-hit photons of every light",
+        queries = "have secondary direct light: the direct light of the point lights, sun and sky at the gather "
+                  "points would count twice (trace-photons --indirect-only)";
+    else if (sd && imap)
+        map = "holds no first-hit photons",
+        queries = "have secondary direct light, which leaves the area lights to the map: their direct light at the "
+                  "gather points would be lost (trace-photons --indirect-only, build-photonmap --map global)";
+    else if (!sd && io)
+        map = "lacks the first hits of the point lights, sun and sky (trace-photons --indirect-only)",
+        queries = "have no secondary direct light: that light would be lost (trace-gather-points --secondary-direct)";
+    else if (!sd && imap && qm && !strcmp(qm, "gather"))
+        map = "holds no first-hit photons",
+        queries = "are gather-mode queries without secondary direct light: the direct light at the gather points "
+                  "would be lost (build-photonmap --map global)";
+    if (map)
+        return pm_error_set(PM_ERR_INPUT, "photon map '%s' %s but queries '%s' %s", in->map_path, map, in->q_path,
+                            queries);
     if ((r = pm_header_get_image_size(qh, in->q_path, &in->width, &in->height)) != PM_OK ||
         (map_too && (r = pm_gather_map_init(&in->map, &in->map_table, variable)) != PM_OK))
         return r;

@@ -240,14 +240,14 @@ pm_result_t pm_map_build_header(pm_table_t *map, const pm_table_t *ph, const cha
     pm_header_t *h = &map->hdr;
     const char *emitted = pm_header_get(&ph->hdr, "emitted");
     const char *pass = pm_header_get(&ph->hdr, "pass"); /* a progressive pass's map says which */
-    /* What the map holds, which the gathers check against their queries: photons traced without
-     * their first hits (trace-photons --indirect-only) make an indirect map whatever was asked. */
+    /* photons without the first hits the gather points sample (trace-photons --indirect-only):
+     * the gathers check it against their queries */
     const char *io = pm_header_get(&ph->hdr, "indirect_only");
-    pm_map_kind_t kind = p->map == PM_MAP_GLOBAL && io && !strcmp(io, "1") ? PM_MAP_INDIRECT : p->map;
     pm_result_t r;
     if ((r = pm_header_inherit(h, &ph->hdr)) != PM_OK || (r = pm_header_add_input(h, path, ph->checksum)) != PM_OK ||
         (r = pm_header_add_command(h, argc, argv)) != PM_OK ||
-        (r = pm_header_set(h, "map", "%s", pm_map_kind_names[kind])) != PM_OK ||
+        (r = pm_header_set(h, "map", "%s", pm_map_kind_names[p->map])) != PM_OK ||
+        (io && (r = pm_header_set(h, "indirect_only", "%s", io)) != PM_OK) ||
         (r = pm_header_set(h, "split", "%s", pm_split_names[p->split])) != PM_OK ||
         (p->split == PM_SPLIT_VVH && (r = pm_header_set(h, "vvh_radius", "%.9g", stats->vvh_radius)) != PM_OK) ||
         (emitted && (r = pm_header_set(h, "emitted", "%s", emitted)) != PM_OK) ||

@@ -52,7 +52,7 @@ typedef struct {
 } run_t;
 
 /* The outputs of a chunk: every stored photon, and the caustic photons (L S+ D). */
-enum { OUT_GLOBAL = 0, OUT_CAUSTIC = 1, NOUT = 2 };
+enum { OUT_GLOBAL = 0, OUT_CAUSTIC = 1, NOUT = 2, OUT_DROP = 3 /* a first hit counted, not stored */ };
 
 typedef struct {
     _Alignas(64) run_t out[NOUT];
@@ -130,18 +130,18 @@ static int keep_ray(chunk_t *c, const float o[3], const float d[3], float tnear)
 }
 
 /* A photon at p (m) of `power` (W) on the side n faces, arrived from direction back, into
- * output `which` of chunk c. */
+ * output `which` of chunk c (OUT_DROP: a first hit only counted, pm_trace_options_t's
+ * indirect_only). */
 static void store_photon(const tracer_t *t, chunk_t *c, int which, const float p[3], const double power[3],
                          const float n[3], const float back[3], uint32_t depth)
 {
-    run_t *run = &c->out[which];
-    if (which == OUT_GLOBAL && depth == 0 && t->o->indirect_only) {
-        /* counted, not stored: a first hit is direct light, the shadow rays' */
+    if (which == OUT_DROP) {
         c->first++;
         for (int k = 0; k < 3; k++)
             c->power_first[k] += (float)power[k];
         return;
     }
+    run_t *run = &c->out[which];
     if (run_reserve(run, t->rs) != 0) {
         c->failed = 1;
         return;
@@ -259,6 +259,8 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
     /* spec_only: no diffuse or glossy bounce since the light; caustic: that, and at least one
      * specular bounce (the path so far is L S+, so a photon stored next is a caustic one). */
     int spec_only = 1, caustic = 0;
+    /* indirect_only: the first hits of the lights the gather points sample (not an area light's) */
+    int drop_first = t->o->indirect_only && (l->delta || l->infinite);
     for (uint32_t depth = 0;; depth++) {
         if (t->o->record_rays && keep_ray(c, org, dir, 0.0f) != 0) {
             c->failed = 1;
@@ -307,7 +309,7 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
         float pd, ps;
         pm_bsdf_albedo(m, &pd, &ps);
         if (m->kind == PM_MAT_STANDARD ? pd + ps > 0.0f : pm_bsdf_stores_photons(m)) {
-            store_photon(t, c, OUT_GLOBAL, p, power, ns, wo, depth);
+            store_photon(t, c, depth == 0 && drop_first ? OUT_DROP : OUT_GLOBAL, p, power, ns, wo, depth);
             if (caustic && t->o->caustics)
                 store_photon(t, c, OUT_CAUSTIC, p, power, ns, wo, depth);
         }

@@ -36,8 +36,10 @@ typedef struct {
     double rr_max;        /* highest survival probability of Russian roulette, in (0, 1] */
     int direction;        /* store the direction channel (scenes with glossy materials) */
     int caustics;         /* also collect the caustic photons (L S+ D) as a second output */
-    int indirect_only;    /* store no first hit (depth 0) in the main output: the direct light comes from shadow
-                           * rays (trace-gather-points --secondary-direct); first_hits still counts them */
+    int indirect_only;    /* store no first hit (depth 0) of a point, spot or directional light, the sun or the sky
+                           * in the main output: the gather points' shadow rays bring that light
+                           * (trace-gather-points --secondary-direct); an area light's stay (its light samples
+                           * beside the emitter would be fireflies); first_hits still counts those dropped */
     int record_rays;      /* keep every ray for pm_trace_replay (benchmark baseline) */
     int progress;         /* progress bar on a terminal */
 } pm_trace_options_t;

@@ -258,8 +258,9 @@ else
 fi
 
 # ---- gather mode with secondary direct light (trace-gather-points --secondary-direct): the
-# light samples at every gather point go to the direct buffer, and the map holds no first hit
-# (trace-photons --indirect-only), so the gather is the indirect light alone. The sphere of (a),
+# light samples of the point lights, sun and sky at every gather point go to the direct buffer,
+# and the map holds none of their first hits (trace-photons --indirect-only; an area light's
+# stay), so here, lit by a point light, the gather is the indirect light alone. The sphere of (a),
 # kd 0.5, the same 400,000 paths: the full image is the same formula; the indirect buffer is kd
 # times the indirect radiance kd/pi * ei at the secondary hits, kd/pi * kd * ei; and since the
 # point light's direct light at the gather points is now exact, the per-pixel error against
@@ -270,11 +271,12 @@ if "$BIN/trace-photons" "$TMP/sphere/scene.json" --photons 400000 --indirect-onl
     ng=$("$BIN/pm-info" "$TMP/st.map.pm" | sed -n 's/^COUNT=//p') # the same paths, every photon stored
     ni=$("$BIN/pm-info" "$TMP/sdi.ph.pm" | sed -n 's/^COUNT=//p')
     d0=$("$BIN/pm-info" -r "$TMP/sdi.ph.pm" | awk '$1 ~ /^[0-9]+$/ && $NF == 0' | wc -l)
-    mk=$("$BIN/pm-info" "$TMP/sdi.map.pm" | sed -n 's/^map=//p')
-    if [ -n "$ng" ] && [ -n "$ni" ] && [ "$ni" -lt "$ng" ] && [ "$d0" = 0 ] && [ "$mk" = indirect ]; then
-        pass "trace-photons --indirect-only: $ni photons of $ng, none at depth 0, map=indirect"
+    mk=$("$BIN/pm-info" "$TMP/sdi.map.pm" | sed -n 's/^indirect_only=//p')
+    if [ -n "$ng" ] && [ -n "$ni" ] && [ "$ni" -lt "$ng" ] && [ "$d0" = 0 ] && [ "$mk" = 1 ]; then
+        pass "trace-photons --indirect-only: $ni photons of $ng, none at depth 0, the map says indirect_only=1"
     else
-        fail "trace-photons --indirect-only drops the first hits" "$ni of $ng photons, $d0 at depth 0, map=$mk"
+        fail "trace-photons --indirect-only drops the point light's first hits" \
+            "$ni of $ng photons, $d0 at depth 0, indirect_only=$mk"
     fi
 else
     fail "indirect-only photons" "a stage failed"
@@ -299,7 +301,7 @@ else
     fail "sphere secondary-direct pipeline" "a stage failed"
 fi
 # A map and queries that disagree: one error naming both files, exit 1, no output.
-for c in "st sdg twice" "sdi stg lost"; do
+for c in "st sdg twice" "sdi stg lost" "si sdg lost"; do
     set -- $c
     "$BIN/simd-gather" "$TMP/$1.map.pm" "$TMP/$2.qs.pm" -q -o "$TMP/mix.i.pm" 2>"$TMP/mix.err"
     rc=$?

@@ -144,7 +144,7 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
     s->secondary_direct = s->value[PM_P_SECONDARY_DIRECT][0] == '1' && !strcmp(s->value[PM_P_MODE], "gather");
     if (s->secondary_direct && !strcmp(s->value[PM_P_MAP], "indirect"))
         return pm_error_set(PM_ERR_USAGE, "MAP=indirect with SECONDARY_DIRECT=1: the gather points sample the point "
-                                          "lights, sun and sky and leave the area lights to the map, which then "
+                                          "lights, spots, sun and sky and leave the area lights to the map, which then "
                                           "needs their first-hit photons (MAP=auto or global)");
     s->keep = strcmp(s->value[PM_P_KEEP], "all") == 0       ? PM_KEEP_ALL
               : strcmp(s->value[PM_P_KEEP], "buffers") == 0 ? PM_KEEP_BUFFERS

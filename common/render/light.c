@@ -154,6 +154,8 @@ size_t pm_lights_sampled(const pm_lights_t *L) { return L->nlights - L->ndelta; 
 
 int pm_lights_has_emitters(const pm_lights_t *L) { return L->s->nemissive > 0; }
 
+int pm_light_at_gather(const pm_light_t *l) { return l->kind != PM_LIGHT_AREA; }
+
 /* ------------------------------------------------------------------ per kind */
 
 float pm_spot_factor(const pm_point_light_t *l, const float w[3])

@@ -259,8 +259,8 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
     /* spec_only: no diffuse or glossy bounce since the light; caustic: that, and at least one
      * specular bounce (the path so far is L S+, so a photon stored next is a caustic one). */
     int spec_only = 1, caustic = 0;
-    /* indirect_only: the first hits of the lights the gather points sample (not an area light's) */
-    int drop_first = t->o->indirect_only && (l->delta || l->infinite);
+    /* indirect_only: the first hits of the lights the gather points sample */
+    int drop_first = t->o->indirect_only && pm_light_at_gather(l);
     for (uint32_t depth = 0;; depth++) {
         if (t->o->record_rays && keep_ray(c, org, dir, 0.0f) != 0) {
             c->failed = 1;

@@ -36,10 +36,9 @@ typedef struct {
     double rr_max;        /* highest survival probability of Russian roulette, in (0, 1] */
     int direction;        /* store the direction channel (scenes with glossy materials) */
     int caustics;         /* also collect the caustic photons (L S+ D) as a second output */
-    int indirect_only;    /* store no first hit (depth 0) of a point, spot or directional light, the sun or the sky
-                           * in the main output: the gather points' shadow rays bring that light
-                           * (trace-gather-points --secondary-direct); an area light's stay (its light samples
-                           * beside the emitter would be fireflies); first_hits still counts those dropped */
+    int indirect_only;    /* store in the main output no first hit (depth 0) of a light the gather points sample
+                           * (pm_light_at_gather: every light but an area light), whose shadow rays bring that
+                           * light (trace-gather-points --secondary-direct); first_hits still counts them */
     int record_rays;      /* keep every ray for pm_trace_replay (benchmark baseline) */
     int progress;         /* progress bar on a terminal */
 } pm_trace_options_t;

@@ -372,9 +372,9 @@ int main(int argc, char **argv)
          "light found on the way into the direct buffer; 0 gathers on the glossy surface",
          0, 64, NULL},
         {"secondary-direct", 0, PM_OPT_FLAG, &o.secondary_direct, NULL,
-         "also sample the lights at every gather point (one sample per area light, sun and sky; the point lights) into "
-         "the direct buffer, so that the queries gather indirect light alone: gather them against a map without "
-         "first-hit photons (trace-photons --indirect-only); headers say secondary_direct=1",
+         "also sample the point lights, spots, the sun and the sky at every gather point into the direct buffer "
+         "(the area lights stay the map's): gather the queries against a map without those lights' first hits "
+         "(trace-photons --indirect-only); headers say secondary_direct=1",
          1, 0, NULL},
         {0},
     };

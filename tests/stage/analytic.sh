@@ -258,7 +258,7 @@ else
 fi
 
 # ---- gather mode with secondary direct light (trace-gather-points --secondary-direct): the
-# light samples of the point lights, sun and sky at every gather point go to the direct buffer,
+# light samples of the point lights, spots, sun and sky at every gather point go to the direct buffer,
 # and the map holds none of their first hits (trace-photons --indirect-only; an area light's
 # stay), so here, lit by a point light, the gather is the indirect light alone. The sphere of (a),
 # kd 0.5, the same 400,000 paths: the full image is the same formula; the indirect buffer is kd

@@ -71,6 +71,7 @@ typedef struct {
     pm_scene_t sc;
     char scene_all[256], scene_photons[256], scene_view[256];
     char mode[16], map[16], order[16], light_samples[32], width_k[32];
+    int secondary_direct; /* SECONDARY_DIRECT on, and the scene has a light the gather points sample */
     int need_direct, need_gather, need_caustic;
     const char *queries; /* queries.pm or sorted.pm: what the gather reads */
     const char *buffers[72];
@@ -174,7 +175,7 @@ static void build_graph(render_t *r)
         }
         arg_opt(j, "--photons", s->value[PM_P_PHOTONS]);
         arg_opt(j, "--seed", s->value[PM_P_SEED]);
-        if (s->secondary_direct)
+        if (r->secondary_direct)
             arg(j, "--indirect-only");
         arg_common(r, j);
 
@@ -231,7 +232,7 @@ static void build_graph(render_t *r)
     arg_opt(j, "--primary", s->value[PM_P_PRIMARY]);
     arg_opt(j, "--light-samples", r->light_samples);
     arg_opt(j, "--seed", s->value[PM_P_SEED]);
-    if (s->secondary_direct)
+    if (r->secondary_direct)
         arg(j, "--secondary-direct");
     arg_common(r, j);
     if (strcmp(r->order, "none") != 0) {
@@ -987,6 +988,9 @@ static void decide_scene(render_t *r)
         if (lights_total == 0)
             note(r, "warning: the scene has no lights; the image is black");
     }
+    r->secondary_direct = r->s->secondary_direct && r->need_gather && pm_lights_count_at_gather(sc) > 0;
+    if (r->s->secondary_direct && r->need_gather && !r->secondary_direct)
+        note(r, "skipped secondary direct light: the scene's lights are area lights, which stay the map's");
     r->width_k[0] = '\0';
     if (strcmp(r->s->value[PM_P_WIDTHS], "variable") == 0)
         snprintf(r->width_k, sizeof r->width_k, "%s",
@@ -1457,7 +1461,7 @@ static void pass_photons(passgraph_t *g, unit_t *u)
     }
     arg_opt(c, "--photons", s->value[PM_P_PHOTONS]);
     arg_opt(c, "--seed", s->value[PM_P_SEED]);
-    if (s->secondary_direct)
+    if (r->secondary_direct)
         arg(c, "--indirect-only");
     pc_pass(c, g->pass);
     arg_common(r, c);
@@ -1510,7 +1514,7 @@ static void pass_queries(passgraph_t *g, unit_t *u)
     arg_opt(c, "--primary", s->value[PM_P_PRIMARY]);
     arg_opt(c, "--light-samples", r->light_samples);
     arg_opt(c, "--seed", s->value[PM_P_SEED]);
-    if (s->secondary_direct)
+    if (r->secondary_direct)
         arg(c, "--secondary-direct");
     pc_pass(c, g->pass);
     arg_common(r, c);

@@ -22,6 +22,7 @@
 #include "base/timer.h"
 #include "formats/formats.h"
 #include "photonmap/gather_stage.h"
+#include "render/light.h"
 #include "render/scene.h"
 
 extern char **environ;
@@ -113,6 +114,7 @@ typedef struct {
     int kmax;        /* PRIMARY per full pass: the units a full pass has */
     const char *spp, *k;
     int light_samples_zero; /* no emissive triangle, sun or sky: LIGHT_SAMPLES=0 */
+    int secondary_direct;   /* SECONDARY_DIRECT on, and the scene has a light the gather points sample */
     char settings[8192];    /* what the running image depends on, one line */
     char request[512];      /* PASSES, TIME, TARGET_ERROR, EXPOSURE, TONE, HALF of this run */
     char old_request[512];  /* passes.txt's, when the state is kept */
@@ -377,7 +379,7 @@ static void stage_argv(const prog_t *p, argv_t a[NSTAGE], const int fd[NPIPE][2]
         pushf(&a[TP], "--photons");
         pushf(&a[TP], "%" PRId64, p->photons);
         opt(&a[TP], "--seed", val(p, PM_P_SEED));
-        if (p->s->secondary_direct)
+        if (p->secondary_direct)
             push(&a[TP], "--indirect-only");
         push(&a[TP], "--plan");
         push(&a[TP], "-");
@@ -409,7 +411,7 @@ static void stage_argv(const prog_t *p, argv_t a[NSTAGE], const int fd[NPIPE][2]
     pushf(&a[TG], "%d", p->kmax);
     opt(&a[TG], "--light-samples", p->light_samples_zero ? "0" : val(p, PM_P_LIGHT_SAMPLES));
     opt(&a[TG], "--seed", val(p, PM_P_SEED));
-    if (p->s->secondary_direct)
+    if (p->secondary_direct)
         push(&a[TG], "--secondary-direct");
     push(&a[TG], "--plan");
     push(&a[TG], "-");
@@ -510,7 +512,7 @@ static void make_settings(prog_t *p)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " MAP=%s", p->map);
     if (!p->on[SG] && at < sizeof p->settings)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " GATHER=none");
-    if (p->s->secondary_direct && at < sizeof p->settings)
+    if (p->secondary_direct && at < sizeof p->settings)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " SECONDARY_DIRECT=1");
     snprintf(p->request, sizeof p->request, "PASSES=%s TIME=%s TARGET_ERROR=%s EXPOSURE=%s TONE=%s HALF=%s",
              val(p, PM_P_PASSES), val(p, PM_P_TIME), val(p, PM_P_TARGET_ERROR), val(p, PM_P_EXPOSURE),
@@ -996,6 +998,7 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
     pm_scene_id(&sc, p.scene_id, sizeof p.scene_id);
     int specular = sc.any_specular, scene_primary = (int)sc.defaults.primary;
     p.light_samples_zero = sc.nemissive == 0 && !sc.has_sun && !sc.has_sky;
+    p.secondary_direct = s->secondary_direct && strcmp(s->value[PM_P_GATHER], "none") && pm_lights_count_at_gather(&sc);
     pm_scene_free(&sc);
     /* the stages, as the pass files' driver (pm_render_passes in fixed.c) chooses them */
     p.mode = s->value[PM_P_MODE];

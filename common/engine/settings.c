@@ -51,7 +51,7 @@ static const struct {
     [PM_P_QUIET] = {"QUIET", "0"},
     [PM_P_WAIT] = {"WAIT", "1"},
     [PM_P_KEEP] = {"KEEP", "all"},
-    [PM_P_SECONDARY_DIRECT] = {"SECONDARY_DIRECT", "0"},
+    [PM_P_SECONDARY_DIRECT] = {"SECONDARY_DIRECT", "auto"},
 };
 
 const char *pm_param_name(pm_param_t p) { return p < PM_P_COUNT ? params[p].name : ""; }
@@ -99,6 +99,7 @@ static int matches(const char *re, const char *s)
 }
 
 #define COUNT_RE "^[1-9][0-9]*$"
+#define SECONDARY_DIRECT_TIME 10.0 /* s: SECONDARY_DIRECT=auto's TIME from which it is on */
 /* A number of at least 0 as pipelines/render's isnum took it (no sign, no hex, no inf). */
 #define NUM_RE "^([0-9]+([.][0-9]*)?|[.][0-9]+)([eE][-+]?[0-9]+)?$"
 
@@ -133,19 +134,14 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
                              *const maps[] = {"auto", "global", "indirect", NULL},
                              *const orders[] = {"auto", "hilbert", "morton", "none", NULL},
                              *const widths[] = {"fixed", "variable", NULL}, *const tones[] = {"srgb", "filmic", NULL},
-                             *const bits[] = {"0", "1", NULL}, *const keeps[] = {"all", "buffers", "image", NULL};
+                             *const bits[] = {"0", "1", NULL}, *const keeps[] = {"all", "buffers", "image", NULL},
+                             *const autobits[] = {"auto", "0", "1", NULL};
     pm_result_t r;
     if ((r = choice(s, PM_P_MODE, modes)) || (r = choice(s, PM_P_MAP, maps)) || (r = choice(s, PM_P_ORDER, orders)) ||
         (r = choice(s, PM_P_WIDTHS, widths)) || (r = choice(s, PM_P_TONE, tones)) || (r = choice(s, PM_P_HALF, bits)) ||
         (r = choice(s, PM_P_VERBOSE, bits)) || (r = choice(s, PM_P_WAIT, bits)) || (r = choice(s, PM_P_QUIET, bits)) ||
-        (r = choice(s, PM_P_KEEP, keeps)) || (r = choice(s, PM_P_SECONDARY_DIRECT, bits)))
+        (r = choice(s, PM_P_KEEP, keeps)) || (r = choice(s, PM_P_SECONDARY_DIRECT, autobits)))
         return r;
-    /* Direct-vis queries are the primary hits, which have their light samples already. */
-    s->secondary_direct = s->value[PM_P_SECONDARY_DIRECT][0] == '1' && !strcmp(s->value[PM_P_MODE], "gather");
-    if (s->secondary_direct && !strcmp(s->value[PM_P_MAP], "indirect"))
-        return pm_error_set(PM_ERR_USAGE, "MAP=indirect with SECONDARY_DIRECT=1: the gather points sample the point "
-                                          "lights, spots, sun and sky and leave the area lights to the map, which then "
-                                          "needs their first-hit photons (MAP=auto or global)");
     s->keep = strcmp(s->value[PM_P_KEEP], "all") == 0       ? PM_KEEP_ALL
               : strcmp(s->value[PM_P_KEEP], "buffers") == 0 ? PM_KEEP_BUFFERS
                                                             : PM_KEEP_IMAGE;
@@ -177,6 +173,14 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
             return pm_error_set(PM_ERR_USAGE, "bad value for ALPHA '%s': expected a number in (0, 1)",
                                 s->value[PM_P_ALPHA]);
     }
+    /* Secondary direct light: gather mode only (direct-vis queries are the primary hits, which have
+     * their light samples already); auto turns it on for a TIME budget of SECONDARY_DIRECT_TIME s or
+     * more, where it measured better (docs/accuracy.md: it costs more per pass and wins from the
+     * passes of about 8 to 10 s on; below, the passes it loses cost more than it gains). */
+    const char *sd = s->value[PM_P_SECONDARY_DIRECT];
+    s->secondary_direct = !strcmp(s->value[PM_P_MODE], "gather") &&
+                          (!strcmp(sd, "1") || (!strcmp(sd, "auto") && s->value[PM_P_TIME][0] &&
+                                                strtod(s->value[PM_P_TIME], NULL) >= SECONDARY_DIRECT_TIME));
     s->shards = atoi(s->value[PM_P_SHARDS]);
     s->verbose = s->value[PM_P_VERBOSE][0] == '1';
     s->quiet = s->value[PM_P_QUIET][0] == '1';

@@ -156,6 +156,13 @@ int pm_lights_has_emitters(const pm_lights_t *L) { return L->s->nemissive > 0; }
 
 int pm_light_at_gather(const pm_light_t *l) { return l->kind != PM_LIGHT_AREA; }
 
+size_t pm_lights_count_at_gather(const pm_scene_t *s)
+{
+    size_t total, sampled;
+    pm_lights_count(s, &total, &sampled);
+    return total - s->nemissive; /* all but the area lights */
+}
+
 /* ------------------------------------------------------------------ per kind */
 
 float pm_spot_factor(const pm_point_light_t *l, const float w[3])

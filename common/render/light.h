@@ -165,6 +165,8 @@ int pm_lights_has_emitters(const pm_lights_t *L);
  * carries 1/r^2, with no BSDF sample there to share it by MIS). Measured on the sky-lit textured
  * atrium: leaving the sky to the map too gave 1.2 times the relative MSE at 32 s. */
 int pm_light_at_gather(const pm_light_t *l);
+/* How many lights of scene s pm_light_at_gather takes (0: secondary direct light has nothing to do). */
+size_t pm_lights_count_at_gather(const pm_scene_t *s);
 
 /* ---- per-kind primitives (light.c's switch calls them; exposed for the unit tests) ---- */
 

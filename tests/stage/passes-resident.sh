@@ -40,8 +40,8 @@ same direct-vis "$CORNELL" MODE=direct-vis
 same direct-vis-indirect "$CORNELL" MODE=direct-vis MAP=indirect
 same order-none "$CORNELL" ORDER=none
 same gather-none "$CORNELL" GATHER=none
-same secondary-direct "$CORNELL" SECONDARY_DIRECT=1
-same secondary-direct-caustic "$CAUSTIC" SECONDARY_DIRECT=1
+same secondary-direct tests/scenes/closed-box/scene.json SECONDARY_DIRECT=1
+same secondary-direct-sky scenes/atrium/textured.json SECONDARY_DIRECT=1
 same caustic-gather-none "$CAUSTIC" GATHER=none
 
 # the caustic branch's stages, each named in stats.json; GATHER=none warns of the missing caustics

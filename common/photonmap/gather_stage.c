@@ -60,7 +60,7 @@ static pm_result_t inputs_setup(pm_gather_inputs_t *in, int variable, uint64_t r
         map = "holds no first-hit photons",
         queries = "have secondary direct light, which leaves the area lights to the map: their direct light at the "
                   "gather points would be lost (trace-photons --indirect-only, build-photonmap --map global)";
-    else if (!sd && io)
+    else if (!sd && io && !imap)
         map = "lacks the first hits of the point lights, spots, sun and sky (trace-photons --indirect-only)",
         queries = "have no secondary direct light: that light would be lost (trace-gather-points --secondary-direct)";
     else if (!sd && imap && qm && !strcmp(qm, "gather"))

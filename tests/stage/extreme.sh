@@ -33,7 +33,9 @@ finite() {
 }
 
 # chain SCENE NAME [trace-photons options]: the whole pipeline in gather mode into $TMP/NAME.*:
-# photons, an indirect map (direct light comes from trace-gather-points' shadow rays),
+# photons without the first hits of point lights, sun and sky and queries with secondary direct
+# light (that light comes from trace-gather-points' shadow rays, at the gather points too; an
+# indirect map with plain queries, as here before, lost it, which simd-gather now refuses),
 # queries sorted along the Hilbert curve, the gather ($GATHER, default k 50), composite to
 # EXR and PNG.
 # Fails (returns non-zero) when any stage does; NAME.err holds the stages' stderr.
@@ -43,9 +45,10 @@ chain() {
     local scene=$1 n=$2; shift 2
     local o=$TMP/$n
     {
-        "$BIN/trace-photons" "$scene" -q --stats "$o.tp.json" "$@" -o "$o.ph.pm" &&
-            "$BIN/build-photonmap" "$o.ph.pm" --map indirect -q -o "$o.map.pm" &&
-            "$BIN/trace-gather-points" "$scene" --spp 8 --pixel center -q -o "$o.q.pm" --direct "$o.d.pm" &&
+        "$BIN/trace-photons" "$scene" -q --stats "$o.tp.json" --indirect-only "$@" -o "$o.ph.pm" &&
+            "$BIN/build-photonmap" "$o.ph.pm" -q -o "$o.map.pm" &&
+            "$BIN/trace-gather-points" "$scene" --spp 8 --pixel center --secondary-direct -q -o "$o.q.pm" \
+                --direct "$o.d.pm" &&
             "$BIN/hilbert-sort" "$o.q.pm" -q -o "$o.s.pm" &&
             "$BIN/simd-gather" "$o.map.pm" "$o.s.pm" ${GATHER:---k 50} -q -o "$o.i.pm" &&
             "$BIN/composite" "$o.d.pm" "$o.i.pm" -q -o "$o.exr" --png "$o.png" &&
@@ -188,7 +191,7 @@ done
 for s in 1 1e-4 1e5; do
     sc=$TMP/s$s/scene.json
     D=$(awk -v s=$s 'BEGIN { printf "%.9g", 2 * s }')
-    "$BIN/build-photonmap" "$TMP/s$s.ph.pm" -q -o "$TMP/g$s.map.pm" &&
+    "$BIN/build-photonmap" "$TMP/s$s.ph.pm" --map indirect -q -o "$TMP/g$s.map.pm" &&
         "$BIN/trace-gather-points" "$sc" --mode direct-vis -q -o "$TMP/g$s.q.pm" || fail "radius, scale $s" "map or queries failed"
     for f in 1e-6 1e3; do
         h=$(awk -v d=$D -v f=$f 'BEGIN { printf "%.9g", d * f }')

@@ -990,7 +990,7 @@ static void decide_scene(render_t *r)
     }
     r->secondary_direct = r->s->secondary_direct && r->need_gather && pm_lights_count_at_gather(sc) > 0;
     if (r->s->secondary_direct && r->need_gather && !r->secondary_direct)
-        note(r, "skipped secondary direct light: the scene's lights are area lights, which stay the map's");
+        note(r, "skipped secondary direct light: the scene has no lights");
     r->width_k[0] = '\0';
     if (strcmp(r->s->value[PM_P_WIDTHS], "variable") == 0)
         snprintf(r->width_k, sizeof r->width_k, "%s",

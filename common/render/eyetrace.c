@@ -360,7 +360,7 @@ static int shadow_room(const pm_eye_t *c, scratch_t *sc)
  * nb is the number of BSDF samples that can also find an area light from v (the MIS weight's
  * count); mis 0 gives the light samples weight 1 (no ray leaves v to find a light). ls is the
  * samples per light that is not a delta (direct_lights: the options' light_samples); area 0
- * takes only the lights pm_light_at_gather names (gather_direct). */
+ * keeps only the samples pm_light_at_gather gives the gather point (gather_direct). */
 static void direct_lights_n(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, float inv_p,
                             const float tp[3], float nb, int mis, pm_rng_t *light_rng, unsigned ls, int area)
 {
@@ -371,13 +371,13 @@ static void direct_lights_n(const pm_eye_t *c, scratch_t *sc, const surf_t *v, u
     /* Each delta light once, every other light ls times, f Li cos / pdf averaged over its
      * samples (render/light.h). */
     for (size_t l = 0; l < lights->ndirect; l++) {
-        if (!area && !pm_light_at_gather(&lights->direct[l]))
-            continue;
         unsigned nsamples = l < lights->ndelta ? 1 : ls;
         for (unsigned q = 0; q < nsamples; q++) {
             pm_light_li_t li;
             if (!pm_lights_sample_li(lights, l, light_rng, p, n, &li) || (shaded && !(pm_dot3(gn, li.wi) > 0.0f)))
                 continue; /* behind the shading or the geometric surface */
+            if (!area && !pm_light_at_gather(lights, &lights->direct[l], li.r2))
+                continue; /* near an area light: the map's */
             float f[3], g = li.cosx / li.pdf / (float)nsamples * inv_p;
             /* MIS (pm_power_heuristic, render/shade.h) of the lights that the BSDF samples from v
              * can find as well: a and b are sample counts times solid-angle pdfs at one
@@ -782,16 +782,16 @@ static int path_query(const pm_eye_t *c, scratch_t *sc, const path_t *a, bytebuf
 }
 
 /* Secondary direct light (pm_eye_options_t's secondary_direct): next-event estimation at path
- * a's gather point, as at a primary hit (direct_lights, the whole BSDF there), of the point
- * lights, spots, the sun and the sky (pm_light_at_gather; one sample of the sun and one of the
- * sky: the pixel's spp gather points are its samples), weight 1: no ray leaves a gather point to
- * find a light, and the map it is gathered against holds none of their first-hit photons
- * (trace-photons --indirect-only), so this is the only estimate of their direct light there. The
- * area lights are left to the map: a light sample of an emitter beside the gather point carries
- * 1/r^2, and with no BSDF sample to share it by MIS (as the primary hits' secondary rays do) it
- * makes fireflies no pass averages out (measured: the atrium's sky panel, relative MSE 1.05
- * after three passes). Times the path weight, shadow rays into sc->shadow. 0 when out of
- * memory. */
+ * a's gather point, as at a primary hit (direct_lights, the whole BSDF there), one sample of
+ * each light (the pixel's spp gather points are its samples; a point light or spot exactly),
+ * weight 1: no ray leaves a gather point to find a light, and the map it is gathered against
+ * holds none of the first-hit photons these samples stand for (trace-photons --indirect-only),
+ * so this is the only estimate of that light there. A sample of an area light nearer than
+ * pm_light_at_gather's radius is dropped and its light left to the map's photons: such a
+ * sample carries 1/r^2 and, with no BSDF sample to share it by MIS (as the primary hits'
+ * secondary rays do), makes fireflies no pass averages out (measured: the atrium's sky panel
+ * sampled at every distance, relative MSE 1.05 after three passes). Times the path weight,
+ * shadow rays into sc->shadow. 0 when out of memory. */
 static int gather_direct(const pm_eye_t *c, scratch_t *sc, const path_t *a)
 {
     const float *ng = c->geom.tri_n + 3 * (size_t)a->tri;
@@ -1512,10 +1512,7 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
         r = pm_shade_geom_init(s, &c->geom);
     if (r == PM_OK)
         r = pm_lights_init(s, &c->lights);
-    /* nothing to sample at the gather points in a scene whose only lights are area lights */
-    c->sec_direct = 0;
-    for (size_t l = 0; r == PM_OK && o->secondary_direct && l < c->lights.ndirect; l++)
-        c->sec_direct |= pm_light_at_gather(&c->lights.direct[l]);
+    c->sec_direct = r == PM_OK && o->secondary_direct && c->lights.ndirect > 0;
     if (r != PM_OK) {
         pm_eye_destroy(c);
         return r;

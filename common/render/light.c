@@ -154,13 +154,17 @@ size_t pm_lights_sampled(const pm_lights_t *L) { return L->nlights - L->ndelta; 
 
 int pm_lights_has_emitters(const pm_lights_t *L) { return L->s->nemissive > 0; }
 
-int pm_light_at_gather(const pm_light_t *l) { return l->kind != PM_LIGHT_AREA; }
+int pm_light_at_gather(const pm_lights_t *L, const pm_light_t *l, float r2)
+{
+    return l->kind != PM_LIGHT_AREA || r2 >= (float)L->area;
+}
 
 size_t pm_lights_count_at_gather(const pm_scene_t *s)
 {
     size_t total, sampled;
     pm_lights_count(s, &total, &sampled);
-    return total - s->nemissive; /* all but the area lights */
+    (void)sampled;
+    return total;
 }
 
 /* ------------------------------------------------------------------ per kind */

@@ -158,14 +158,16 @@ json_t *pm_lights_describe_json(const pm_scene_t *s);
  * the sky: scene-info's sampled_lights), and whether a ray can hit one (some triangle emits). */
 size_t pm_lights_sampled(const pm_lights_t *L);
 int pm_lights_has_emitters(const pm_lights_t *L);
-/* Whether light l is sampled at the gather points with secondary direct light (trace-gather-points
+/* Whether the light that light l brings straight to a gather point r2 m^2 from where it left l
+ * is the gather point's light samples' (secondary direct light, trace-gather-points
  * --secondary-direct), its first-hit photons then left out of the map (trace-photons
- * --indirect-only): the point lights, spots, the sun and the sky, whose sharp shadows and sunlit
- * patches the map blurs; not an area light (a sample of an emitter beside the gather point
- * carries 1/r^2, with no BSDF sample there to share it by MIS). Measured on the sky-lit textured
- * atrium: leaving the sky to the map too gave 1.2 times the relative MSE at 32 s. */
-int pm_light_at_gather(const pm_light_t *l);
-/* How many lights of scene s pm_light_at_gather takes (0: secondary direct light has nothing to do). */
+ * --indirect-only), or the map's (0): the point lights, spots, the sun and the sky always; an
+ * area light only from r2 >= L->area (its total emissive area) on. Nearer, a light sample
+ * carries the emitter's 1/r^2 with no BSDF sample at the gather point to share it by MIS, and
+ * made fireflies (the atrium's sky panel); the photons there stay. The same function of the
+ * light point and the gather point on both sides, so each path is counted once. */
+int pm_light_at_gather(const pm_lights_t *L, const pm_light_t *l, float r2);
+/* How many lights of scene s secondary direct light may sample (0: it has nothing to do). */
 size_t pm_lights_count_at_gather(const pm_scene_t *s);
 
 /* ---- per-kind primitives (light.c's switch calls them; exposed for the unit tests) ---- */

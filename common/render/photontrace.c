@@ -259,8 +259,7 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
     /* spec_only: no diffuse or glossy bounce since the light; caustic: that, and at least one
      * specular bounce (the path so far is L S+, so a photon stored next is a caustic one). */
     int spec_only = 1, caustic = 0;
-    /* indirect_only: the first hits of the lights the gather points sample */
-    int drop_first = t->o->indirect_only && pm_light_at_gather(l);
+    float org0[3] = {org[0], org[1], org[2]}; /* where it left the light (pm_light_at_gather) */
     for (uint32_t depth = 0;; depth++) {
         if (t->o->record_rays && keep_ray(c, org, dir, 0.0f) != 0) {
             c->failed = 1;
@@ -309,7 +308,12 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
         float pd, ps;
         pm_bsdf_albedo(m, &pd, &ps);
         if (m->kind == PM_MAT_STANDARD ? pd + ps > 0.0f : pm_bsdf_stores_photons(m)) {
-            store_photon(t, c, depth == 0 && drop_first ? OUT_DROP : OUT_GLOBAL, p, power, ns, wo, depth);
+            /* indirect_only: a first hit whose light the gather points' light samples bring */
+            int drop = depth == 0 && t->o->indirect_only &&
+                       pm_light_at_gather(&t->lights, l,
+                                          (p[0] - org0[0]) * (p[0] - org0[0]) + (p[1] - org0[1]) * (p[1] - org0[1]) +
+                                              (p[2] - org0[2]) * (p[2] - org0[2]));
+            store_photon(t, c, drop ? OUT_DROP : OUT_GLOBAL, p, power, ns, wo, depth);
             if (caustic && t->o->caustics)
                 store_photon(t, c, OUT_CAUSTIC, p, power, ns, wo, depth);
         }

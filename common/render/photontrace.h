@@ -37,7 +37,7 @@ typedef struct {
     int direction;        /* store the direction channel (scenes with glossy materials) */
     int caustics;         /* also collect the caustic photons (L S+ D) as a second output */
     int indirect_only;    /* store in the main output no first hit (depth 0) of a light the gather points sample
-                           * (pm_light_at_gather: every light but an area light), whose shadow rays bring that
+                           * (pm_light_at_gather: every light but an area light near the hit), whose shadow rays bring that
                            * light (trace-gather-points --secondary-direct); first_hits still counts them */
     int record_rays;      /* keep every ray for pm_trace_replay (benchmark baseline) */
     int progress;         /* progress bar on a terminal */

@@ -42,10 +42,10 @@ static pm_result_t inputs_setup(pm_gather_inputs_t *in, int variable, uint64_t r
                             cq ? "caustic queries" : "not caustic queries");
     in->caustic = cq;
     /* Queries with secondary direct light (trace-gather-points --secondary-direct) have the direct
-     * light of the point lights, spots, sun and sky at their points in the direct buffer, and
-     * need a global map without those lights' first hits (trace-photons --indirect-only, which
-     * keeps the area lights'); other queries need the first hits they lack, and gather-mode
-     * queries an area light's too (docs/accuracy.md). */
+     * light at their points in the direct buffer, but for an area light's near field, and need a
+     * global map without the first hits that light stands for (trace-photons --indirect-only,
+     * which keeps the near field's); other queries need every first hit, or in direct-vis mode
+     * none (docs/accuracy.md). */
     const char *qd = pm_header_get(qh, "secondary_direct"), *qm = pm_header_get(qh, "mode"),
                *mi = pm_header_get(mh, "indirect_only");
     int sd = qd && !strcmp(qd, "1"), imap = mk && !strcmp(mk, "indirect"), io = mi && !strcmp(mi, "1");
@@ -54,14 +54,14 @@ static pm_result_t inputs_setup(pm_gather_inputs_t *in, int variable, uint64_t r
         map = NULL;
     else if (sd && !io && !imap)
         map = "holds the first-hit photons of every light",
-        queries = "have secondary direct light: the direct light of the point lights, spots, sun and sky at the gather "
-                  "points would count twice (trace-photons --indirect-only)";
+        queries = "have secondary direct light: the direct light at the gather points would count twice "
+                  "(trace-photons --indirect-only)";
     else if (sd && imap)
         map = "holds no first-hit photons",
-        queries = "have secondary direct light, which leaves the area lights to the map: their direct light at the "
-                  "gather points would be lost (trace-photons --indirect-only, build-photonmap --map global)";
+        queries = "have secondary direct light, which leaves an area light's near field to the map: that light "
+                  "would be lost (trace-photons --indirect-only, build-photonmap --map global)";
     else if (!sd && io && !imap)
-        map = "lacks the first hits of the point lights, spots, sun and sky (trace-photons --indirect-only)",
+        map = "lacks the first hits the gather points' light samples stand for (trace-photons --indirect-only)",
         queries = "have no secondary direct light: that light would be lost (trace-gather-points --secondary-direct)";
     else if (!sd && imap && qm && !strcmp(qm, "gather"))
         map = "holds no first-hit photons",

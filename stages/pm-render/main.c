@@ -33,7 +33,7 @@ static const char *const param_help =
     "  WIDTH=N HEIGHT=N image size (default: the scene camera's)\n"
     "  PRIMARY=N        primary rays per pixel\n"
     "  LIGHT_SAMPLES=N  area-light (and sun and sky) samples per primary hit (0 when the scene has none)\n"
-    "  SECONDARY_DIRECT=auto  1: the gather points sample the point lights, spots, sun and sky too, and\n"
+    "  SECONDARY_DIRECT=auto  1: the gather points sample the lights too (an area light beyond sqrt(A)), and\n"
     "                   the map lacks their first hits (gather mode); auto: 1 for TIME of 10 s or more\n"
     "  ORDER=auto       hilbert|morton|none query order; auto: hilbert for gather, none for direct-vis\n"
     "  LEAF=N|auto      hilbert-sort --leaf\n"

@@ -372,8 +372,8 @@ int main(int argc, char **argv)
          "light found on the way into the direct buffer; 0 gathers on the glossy surface",
          0, 64, NULL},
         {"secondary-direct", 0, PM_OPT_FLAG, &o.secondary_direct, NULL,
-         "also sample the point lights, spots, the sun and the sky at every gather point into the direct buffer "
-         "(the area lights stay the map's): gather the queries against a map without those lights' first hits "
+         "also take a light sample of each light at every gather point into the direct buffer (an area light's "
+         "near field stays the map's): gather the queries against a map without the first hits they stand for "
          "(trace-photons --indirect-only); headers say secondary_direct=1",
          1, 0, NULL},
         {0},

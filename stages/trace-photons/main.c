@@ -254,9 +254,8 @@ int main(int argc, char **argv)
          "the light) here, for build-photonmap --map caustic; only for a scene with mirrors or glass",
          1, 0, NULL},
         {"indirect-only", 0, PM_OPT_FLAG, &o.indirect_only, NULL,
-         "store in -o no first hit (depth 0) of a point light, spot, the sun or the sky, which the gather points "
-         "sample "
-         "with shadow rays (trace-gather-points --secondary-direct); the header says indirect_only=1",
+         "store in -o no first hit (depth 0) whose light the gather points sample with shadow rays (all but an "
+         "area light's near field; trace-gather-points --secondary-direct); the header says indirect_only=1",
          1, 0, NULL},
         {"baseline", 0, PM_OPT_FLAG, &o.baseline, NULL,
          "also re-trace every ray with bare rtcIntersect1 and report Embree's rate (for benchmarks)", 1, 0, NULL},

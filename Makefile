@@ -106,15 +106,17 @@ FORMAT_SRC = $(shell git ls-files '*.c' '*.h' 2>/dev/null)
 
 .PHONY: format format-check all test test-run test-extreme test-slurm asan test-asan demo bench bench-quick fuzz deps clean check-deps
 # Keep the stages' objects: they are intermediate to the pattern rule, and make would
-# otherwise delete them and rebuild them next time.
-.SECONDARY:
+# otherwise delete them and rebuild them next time. Only they are named: a bare .SECONDARY:
+# makes every target an intermediate, and make then never builds a new tests/unit/*.c's
+# object while the unit-test binary is newer than its sources.
+.SECONDARY: $(STAGES:%=$(BUILD)/stages/%/main.o)
 all: $(PROGS) $(ATRIUM_OBJ) $(ATRIUM_SKY) $(CAUSTIC_OBJ) $(SHLIB)
 
 # Rebuild everything when the flags change.
 FLAGS_FILE := $(BUILD)/.flags
 FLAGS_NOW := $(CC) $(ALL_CFLAGS) $(ALL_LDFLAGS) $(LIBS)
-# FORCE is phony: under the bare .SECONDARY: above a missing FORCE counted as an intermediate
-# file and never made .flags out of date, so a change of flags rebuilt nothing.
+# FORCE is phony: were it an intermediate file (as under a bare .SECONDARY:), a missing FORCE
+# would never make .flags out of date, and a change of flags would rebuild nothing.
 .PHONY: FORCE
 $(FLAGS_FILE): FORCE
 	@mkdir -p $(@D)

@@ -181,7 +181,7 @@ last_prog=$(awk -F, -v ce="$ce" -v cp="$cpass" '$1 == "progressive" { e = $ce; p
 best_pt=$(awk -F, -v ce="$ce" '$1 == "trace-reference" && (b == "" || $ce < b) { b = $ce } END { print b }' "$out/cornell-box/results.csv" 2>/dev/null)
 row30=$(awk -F, '$1 == "cornell-box" && $2 == 30 { print $3, $4, $6 }' "$out/ratios.csv" 2>/dev/null)
 if [ $status = 0 ] && [ "$(grep -c '^cornell-box,\|^skylight,' "$out/ratios.csv")" = 6 ] &&
-    awk -F, 'NR > 1 && $9 != "" { r = $3 / $6; if ((r - $9) ^ 2 > (0.002 * r) ^ 2) bad = 1; n++ } END { exit bad || n < 4 }' "$out/ratios.csv" &&
+    awk -F, 'NR > 1 && $9 != "" { r = $3 / $6; if ((r - $9) ^ 2 > (0.006 * r) ^ 2) bad = 1; n++ } END { exit bad || n < 4 }' "$out/ratios.csv" &&
     [ "$row30" = "$last_prog $best_pt" ] &&
     ! awk -F, '$1 == "simd-gather"' "$out"/*/results.csv | grep -q . &&
     grep -q '^| budget | cornell-box | skylight |$' "$out/summary.md" && grep -q '^| 30 s | [0-9.e-]* (' "$out/summary.md" &&

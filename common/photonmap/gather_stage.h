@@ -43,11 +43,12 @@ extern const char *const pm_kernel_names[];
          1e-9, 1 - 1e-9, NULL},                                                                                        \
         {"pass-photons", 0, PM_OPT_INT, &(before), "B",                                                                \
          "with --pass and --unit-photons: the photons emitted in the passes before this one; the pass then sits at "   \
-         "n = 1 + B / U of the schedule (the product's continuous form), not at N",                                    \
-         0, (double)((int64_t)1 << 62), NULL},                                                                         \
+         "n = 1 + B / U of the schedule (the product's continuous form), not at N; -1: not given",                    \
+         -1, (double)((int64_t)1 << 62), NULL},                                                                        \
         {"unit-photons", 0, PM_OPT_INT, &(unit), "U",                                                                  \
-         "with --pass-photons: the photons of pass 1, the schedule's unit (passes of U photons each: n = N exactly)",   \
-         1, (double)((int64_t)1 << 62), NULL}
+         "with --pass-photons: the photons of pass 1, the schedule's unit (passes of U photons each: n = N exactly); "  \
+         "0: not given",                                                                                               \
+         0, (double)((int64_t)1 << 62), NULL}
 /* clang-format on */
 
 /* The default alpha of the schedule, the value Knaus and Zwicker recommend. */

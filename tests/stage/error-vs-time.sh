@@ -171,7 +171,7 @@ fi
 # alone), then one table of progressive / path tracer per budget and the fitted slopes. Two
 # scenes on tiny images: the Cornell box and the skylight room (by folder name).
 out=$TMP/all
-pipelines/error-vs-time-all "$out" SCENES="cornell-box skylight" $SIZE REF_SPP=64 PT_SPP="1 16" PROG_TIME=1 \
+pipelines/error-vs-time-all "$out" SCENES="cornell-box skylight" $SIZE REF_SPP=64 PT_SPP="1 16" PROG_TIME=30 PROG_PASSES=3 \
     PROG_PHOTONS=20000 PROG_PRIMARY=1 PROG_SPP=4 PROG_K=20 BUDGETS="0.5 1 30" SLOPE_FROM=0.01 SLOPE_TO=30 PLOT=0 \
     >"$TMP/all.log" 2>&1
 status=$?

@@ -1541,6 +1541,20 @@ static void pass_gather_opts(passgraph_t *g, pcmd_t *c, int caustic)
     arg_opt(c, "--isa", s->value[PM_P_ISA]);
     pc_pass(c, g->pass);
     arg_opt(c, "--alpha", s->value[PM_P_ALPHA]);
+    /* the pass's place on the schedule by photons: every pass file has PHOTONS (or the scene's
+     * count), so pass p has (p - 1) of them before it, the schedule's r_p as ever */
+    int64_t n = 0;
+    if (!s->value[PM_P_PHOTONS][0] || pm_parse_i64(s->value[PM_P_PHOTONS], &n) != PM_OK || n < 1)
+        n = r->sc.defaults.photons;
+    if (n >= 1) {
+        char b[32], u[32];
+        snprintf(b, sizeof b, "%" PRId64, n * (g->pass - 1));
+        snprintf(u, sizeof u, "%" PRId64, n);
+        arg(c, "--pass-photons");
+        arg(c, b);
+        arg(c, "--unit-photons");
+        arg(c, u);
+    }
 }
 
 /* The graph of pass g->pass in g->dir, as units in the order they run. */

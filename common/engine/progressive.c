@@ -454,6 +454,17 @@ static void stage_argv(const prog_t *p, argv_t a[NSTAGE], const int fd[NPIPE][2]
         opt(&a[i], "--kernel", val(p, PM_P_KERNEL));
         opt(&a[i], "--isa", val(p, PM_P_ISA));
         opt(&a[i], "--alpha", val(p, PM_P_ALPHA));
+        /* a rerun: where its first pass sits on the schedule, from the photons of the passes
+         * the running image holds (the stage counts on from the maps' own photon counts) */
+        if (first > 1 && p->npasses >= first - 1) {
+            int64_t before = 0;
+            for (int j = 0; j < first - 1; j++)
+                before += p->passes[j].photons;
+            pushf(&a[i], "--unit-photons");
+            pushf(&a[i], "%" PRId64, p->passes[0].photons);
+            pushf(&a[i], "--pass-photons");
+            pushf(&a[i], "%" PRId64, before);
+        }
     }
 
     /* the buffers in the order the pass files add them: direct, indirect, caustic */
@@ -585,7 +596,8 @@ static void write_stats(prog_t *p, double wall, double first_image, const char *
         r1 = 0.0;
     int64_t spp = 0;
     pm_parse_i64(p->spp, &spp);
-    for (int i = 0; i < p->npasses; i++) {
+    uint64_t before = 0; /* the photons of the passes before pass i: its place on the schedule */
+    for (int i = 0; i < p->npasses; before += (uint64_t)p->passes[i].photons, i++) {
         const pass_t *ps = &p->passes[i];
         json_t *o = json_object(), *st = json_object(), *tp = json_object(), *tg = json_object(), *sg = json_object();
         json_object_set_new(tp, "emitted", json_integer(ps->photons));
@@ -600,7 +612,10 @@ static void write_stats(prog_t *p, double wall, double first_image, const char *
                 json_object_set_new(sg, "k", json_real(kk));
         }
         if (r1 > 0.0)
-            json_object_set_new(sg, "radius_m", json_real(pm_gather_pass_radius(r1, (uint64_t)ps->pass, a)));
+            json_object_set_new(
+                sg, "radius_m",
+                json_real(pm_gather_schedule_radius(
+                    r1, pm_gather_pass_index((uint64_t)ps->pass, before, (uint64_t)p->passes[0].photons), a)));
         json_object_set_new(sg, "pass", json_integer(ps->pass));
         if (p->on[TP])
             json_object_set_new(st, "trace-photons", tp);

@@ -174,6 +174,8 @@ static void build_graph(render_t *r)
         }
         arg_opt(j, "--photons", s->value[PM_P_PHOTONS]);
         arg_opt(j, "--seed", s->value[PM_P_SEED]);
+        if (s->guide) /* the guide reads where each photon came from */
+            arg(j, "--direction");
         arg_common(r, j);
 
         j = job_new(r, "build-photonmap");
@@ -229,6 +231,11 @@ static void build_graph(render_t *r)
     arg_opt(j, "--primary", s->value[PM_P_PRIMARY]);
     arg_opt(j, "--light-samples", r->light_samples);
     arg_opt(j, "--seed", s->value[PM_P_SEED]);
+    if (s->guide && r->need_gather) { /* GUIDE=1: after trace-photons, from its photons */
+        arg(j, "--guide");
+        arg(j, "photons.pm");
+        j->ins[j->nins++] = "photons.pm";
+    }
     arg_common(r, j);
     if (strcmp(r->order, "none") != 0) {
         j = job_new(r, "hilbert-sort");

@@ -103,6 +103,7 @@ struct pm_eye {
     int direct_only;         /* pm_eye_options_t's: no queries, secondary rays only for emitters they find */
     unsigned glossy_depth;   /* glossy bounces a secondary path continues through before it gathers */
     const pm_guide_t *guide; /* photon guide of the Lambertian hits' secondary rays, NULL for none */
+    int env_mis;             /* gather mode with a sun or a sky: a Lambertian hit's escaping rays share them */
     int cont;                /* some material continues (continues()): glossy paths are followed */
     uint32_t record_size, off_pos, off_nor, off_w, off_pix, off_mat, off_dir; /* bytes */
     uint64_t seed;
@@ -395,10 +396,13 @@ static void direct_lights(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uin
              * can find as well: a and b are sample counts times solid-angle pdfs at one
              * direction. Emitters are found by the secondary rays (in gather mode) and by the
              * rays of glossy paths. Lights at infinity (li.infinite) are found only by rays that
-             * escape: at a Lambertian surface those add nothing, so the light samples keep
-             * weight 1; at a glossy one, whose lobe the cosine-weighted sky samples hardly find
-             * (the speckle of a windshield under the sky), they share the light with the BSDF
-             * samples that escape (env_add). Any weights that sum to one at every direction keep
+             * escape, and share the light with the BSDF samples that escape (env_add): at a glossy
+             * surface, whose lobe the cosine-weighted sky samples hardly find (the speckle of a
+             * windshield under the sky), and at a Lambertian one in gather mode (c->env_mis),
+             * whose spp secondary rays are drawn as the sky's light samples are (cos / pi), or
+             * guided: counting the ones that escape takes the speckle of a shadowed floor that
+             * sees a sliver of sky out of the direct buffer (docs/accuracy.md, the sky-lit
+             * atrium). Any weights that sum to one at every direction keep
              * the estimate unbiased; the counts only tune the variance. The secondary rays count
              * as spp / PER_CELL, their stratum cells (the four rays of a cell land close
              * together), not as spp: counting every ray hands the weight to the rays where a
@@ -406,7 +410,7 @@ static void direct_lights(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uin
              * a large emitter to light samples alone, whose variance is unbounded next to it (the
              * 1/r^2 of a sample landing beside the receiver). The measurements behind this
              * choice are in docs/programs/trace-gather-points.md. */
-            if (mis && !li.delta && (!li.infinite || glossy))
+            if (mis && !li.delta && (!li.infinite || glossy || (c->env_mis && m->kind == PM_MAT_STANDARD)))
                 g *= pm_power_heuristic((float)nsamples * li.pdf, glossy ? nb * pm_bsdf_pdf(m, bn, li.wi, wo)
                                                                          : nb * lambert_pdf(gc, li.cosx, li.wi));
             pm_brdf(m, bn, li.wi, wo, f);
@@ -540,7 +544,7 @@ static void spawn_guided(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint
             w[k] = m->kd[k] * f * scale * tp[k];
         sc->sec_px[j] = x;
         sc->sec_cos[j] = PM_PI * p;
-        sc->sec_env[4 * j] = 0.0f; /* escaping, they add nothing: the light samples' weight is 1 */
+        env_keep(sc, j, n, c->env_mis ? p : 0.0f, (float)(c->spp / PER_CELL)); /* as unguided */
     }
     sc->n_guided_hits++;
 }
@@ -581,8 +585,9 @@ static void spawn_lambertian(const pm_eye_t *c, scratch_t *sc, const surf_t *v, 
         w[3 * q] = w0, w[3 * q + 1] = w1, w[3 * q + 2] = w2;
         px[q] = x;
     }
-    for (unsigned q = 0; q < nq; q++) /* escaping, they add nothing: the light samples' weight is 1 */
-        sc->sec_env[4 * (j0 + q)] = 0.0f;
+    /* escaping, they find the sun and the sky the light samples drew too (env_add, c->env_mis) */
+    for (unsigned q = 0; q < nq; q++)
+        env_keep(sc, j0 + q, n, c->env_mis ? lz[q] * (1.0f / PM_PI) : 0.0f, (float)(c->spp / PER_CELL));
     if (v->shaded) /* drawn about the shading normal: one below the geometric surface is not taken */
         for (unsigned q = 0; q < nq; q++)
             if (!(dx[q] * gn[0] + dy[q] * gn[1] + dz[q] * gn[2] > 0.0f))
@@ -750,7 +755,7 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
         return 1;
     }
 
-    if (c->direct_only && !pm_lights_has_emitters(&c->lights) && !c->cont)
+    if (c->direct_only && !pm_lights_has_emitters(&c->lights) && !c->cont && !c->env_mis)
         return 1; /* no emitter for a secondary ray to find nor glossy path to follow: no secondary rays */
     float scale = inv_p / (float)c->spp;
     if (c->cont && !sec_room(c, sc)) /* glossy chains (shade_diffuse_part) may have taken the row's */
@@ -1369,7 +1374,8 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
 
     /* The secondary rays' only part in the direct light is the emitters they find (and the
      * light of the glossy paths they continue). */
-    if (c->mode != PM_EYE_GATHER || (c->direct_only && !pm_lights_has_emitters(&c->lights) && !c->cont))
+    if (c->mode != PM_EYE_GATHER ||
+        (c->direct_only && !pm_lights_has_emitters(&c->lights) && !c->cont && !c->env_mis))
         return PM_OK;
     /* Secondary rays: consecutive rays share a cell or a pixel, so packets stay coherent. */
     double t0 = pm_time_wall();
@@ -1523,6 +1529,8 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
         r = pm_shade_geom_init(s, &c->geom);
     if (r == PM_OK)
         r = pm_lights_init(s, &c->lights);
+    for (size_t l = c->lights.ndelta; r == PM_OK && c->mode == PM_EYE_GATHER && l < c->lights.ndirect; l++)
+        c->env_mis |= c->lights.direct[l].infinite;
     if (r != PM_OK) {
         pm_eye_destroy(c);
         return r;

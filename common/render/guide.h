@@ -30,7 +30,7 @@
 #define PM_GUIDE_NZ 8
 #define PM_GUIDE_NPHI 16
 #define PM_GUIDE_BINS (PM_GUIDE_NZ * PM_GUIDE_NPHI)
-#define PM_GUIDE_TARGET 256 /* photons an occupied cell holds on average, about */
+#define PM_GUIDE_TARGET 128 /* photons an occupied cell holds on average, about */
 #define PM_GUIDE_MIN 32     /* fewer photons: the cell is not used (cosine sampling alone there) */
 /* Share of the secondary rays drawn by cosine at a guided surface: the mixture
  * p = PM_GUIDE_COSINE cos / pi + (1 - PM_GUIDE_COSINE) p_guide keeps every direction above the

@@ -107,7 +107,54 @@ unsigned pm_guide_bin(const float wi[3])
     return (unsigned)(iz * PM_GUIDE_NPHI + ip);
 }
 
-pm_result_t pm_guide_build(const pm_guide_photons_t *ph, pm_guide_t **out)
+/* Marks each cell used or not (guide.h, PM_GUIDE_GAIN); returns the cells left out. wh holds the
+ * cells' bin fluxes of the two halves of their photons (even and odd index: PM_GUIDE_BINS each,
+ * half 0 then half 1), axis their normals' classes. For the photons i of a cell, each drawn in
+ * proportion to f = L cos, the second moment of f / p is proportional to sum_i w_i f(w_i) / p(w_i).
+ * Cross-validated, so that the histogram's noise counts against it: f(w_i) is the flux of photon
+ * i's bin in its own half without it, the guide's pdf the other half's histogram. cos is the cell
+ * axis's (the surfaces' normals lie near it). */
+static uint64_t keep_helpful(pm_guide_t *g, const pm_guide_photons_t *ph, const double *wh, const unsigned char *axis,
+                             uint64_t ncells)
+{
+    double *mom = calloc(4 * (ncells ? ncells : 1), sizeof *mom), *tot = mom ? mom + 2 * ncells : NULL;
+    for (uint64_t ci = 0; mom && ci < 2 * ncells; ci++)
+        for (int k = 0; k < PM_GUIDE_BINS; k++)
+            tot[ci] += wh[ci * PM_GUIDE_BINS + k];
+    const double omega = 4.0 * PM_PI / PM_GUIDE_BINS, C = PM_GUIDE_COSINE;
+    for (uint64_t i = 0; mom && i < ph->n; i++) {
+        if (!usable(ph, i))
+            continue;
+        uint64_t key = cell_key(g->lo, g->inv_edge, ph->pos + 3 * i, ph->normal + 3 * i);
+        int added = 0;
+        if (key == EMPTY)
+            continue;
+        uint64_t h = table_find(g->keys, g->mask, key, 0, &added);
+        if (g->slot[h] == UINT32_MAX)
+            continue;
+        uint32_t ci = g->slot[h];
+        const float *d = ph->dir + 3 * i;
+        unsigned b = pm_guide_bin(d), a = axis[ci] >> 1;
+        size_t own = 2 * (size_t)ci + (i & 1u), other = 2 * (size_t)ci + 1u - (i & 1u);
+        double cosn = (axis[ci] & 1u ? -1.0 : 1.0) * d[a];
+        double wi = luminance(ph->power + 3 * i), wb = wh[own * PM_GUIDE_BINS + b] - wi;
+        if (!(tot[other] > 0.0) || !(wb > 0.0))
+            continue; /* alone in its bin: no estimate of f there */
+        double f = wb / omega, pc = (cosn > 0.05 ? cosn : 0.05) / PM_PI;
+        double pg = wh[other * PM_GUIDE_BINS + b] / tot[other] / omega;
+        mom[2 * ci] += wi * f / pc;
+        mom[2 * ci + 1] += wi * f / (C * pc + (1.0 - C) * pg);
+    }
+    uint64_t even = 0;
+    for (uint64_t ci = 0; ci < ncells; ci++) {
+        g->cells[ci].used = mom && mom[2 * ci + 1] < PM_GUIDE_GAIN * mom[2 * ci];
+        even += !g->cells[ci].used;
+    }
+    free(mom);
+    return even;
+}
+
+pm_result_t pm_guide_build(const pm_guide_photons_t *ph, int all, pm_guide_t **out)
 {
     *out = NULL;
     pm_guide_t *g = calloc(1, sizeof *g);
@@ -184,13 +231,20 @@ pm_result_t pm_guide_build(const pm_guide_photons_t *ph, pm_guide_t **out)
         }
     }
     g->cells = calloc(ncells ? ncells : 1, sizeof *g->cells);
-    double *w = calloc((ncells ? ncells : 1) * PM_GUIDE_BINS, sizeof *w);
+    double *w = calloc((ncells ? ncells : 1) * PM_GUIDE_BINS * 3, sizeof *w),
+           *wh = w ? w + ncells * PM_GUIDE_BINS : NULL;
     if (!g->cells || !w) {
         free(count), free(w);
         pm_guide_destroy(g);
         return pm_error_set(PM_ERR_NOMEM, "out of memory for %llu guide cells", (unsigned long long)ncells);
     }
     uint32_t next = 0;
+    unsigned char *axis = calloc(ncells ? ncells : 1, 1);
+    if (!axis) {
+        free(count), free(w);
+        pm_guide_destroy(g);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for %llu guide cells", (unsigned long long)ncells);
+    }
     for (uint64_t i = 0; i < ph->n; i++) {
         if (!usable(ph, i))
             continue;
@@ -201,13 +255,17 @@ pm_result_t pm_guide_build(const pm_guide_photons_t *ph, pm_guide_t **out)
         uint64_t h = table_find(g->keys, g->mask, key, 0, &added);
         if (count[h] < PM_GUIDE_MIN)
             continue;
-        if (g->slot[h] == UINT32_MAX)
+        if (g->slot[h] == UINT32_MAX) {
+            axis[next] = (unsigned char)(key & 7u);
             g->slot[h] = next++;
+        }
         pm_guide_cell_t *c = &g->cells[g->slot[h]];
         c->photons++;
-        w[(size_t)g->slot[h] * PM_GUIDE_BINS + pm_guide_bin(ph->dir + 3 * i)] += (double)luminance(ph->power + 3 * i);
+        unsigned b = pm_guide_bin(ph->dir + 3 * i);
+        double lum = luminance(ph->power + 3 * i);
+        w[(size_t)g->slot[h] * PM_GUIDE_BINS + b] += lum;
+        wh[(2 * (size_t)g->slot[h] + (i & 1u)) * PM_GUIDE_BINS + b] += lum;
     }
-    free(count);
     for (uint64_t ci = 0; ci < ncells; ci++) {
         pm_guide_cell_t *c = &g->cells[ci];
         const double *wc = w + ci * PM_GUIDE_BINS;
@@ -221,8 +279,15 @@ pm_result_t pm_guide_build(const pm_guide_photons_t *ph, pm_guide_t **out)
         }
         c->cdf[PM_GUIDE_BINS - 1] = 1.0f;
     }
+    uint64_t even = keep_helpful(g, ph, wh, axis, ncells);
+    for (uint64_t ci = 0; all && ci < ncells; ci++)
+        g->cells[ci].used = 1;
+    even = all ? 0 : even;
+    free(count);
     free(w);
-    g->info.cells = ncells;
+    free(axis);
+    g->info.cells = ncells - even;
+    g->info.cells_even = even;
     g->info.cells_sparse = sparse;
     *out = g;
     return PM_OK;
@@ -249,7 +314,7 @@ const pm_guide_cell_t *pm_guide_find(const pm_guide_t *g, const float p[3], cons
         return NULL;
     int added = 0;
     uint64_t h = table_find(g->keys, g->mask, key, 0, &added);
-    if (g->keys[h] != key || g->slot[h] == UINT32_MAX)
+    if (g->keys[h] != key || g->slot[h] == UINT32_MAX || !g->cells[g->slot[h]].used)
         return NULL;
     return &g->cells[g->slot[h]];
 }

@@ -17,7 +17,12 @@
  * angle 4 pi / PM_GUIDE_BINS; with y as the pole and sector edges at multiples of 22.5 degrees,
  * the hemisphere above a surface facing any axis is exactly half the bins (none straddle it).
  * A cell with fewer than PM_GUIDE_MIN photons is left out: its lookups find nothing, and the
- * caller falls back to cosine sampling alone.
+ * caller falls back to cosine sampling alone. So is a cell where the guide would not help: cosine
+ * sampling is exact for light that arrives evenly (the furnace), and a mixture with a histogram
+ * only adds its own spread there. The build estimates, from the cell's photons themselves (each
+ * a sample of L cos, its bin's flux without it standing in for the integrand), the second moment
+ * of one secondary ray's estimate under cosine sampling and under the mixture, and keeps the cell
+ * only when the mixture's is below PM_GUIDE_GAIN times the cosine's.
  *
  * The guide is read-only once built: any number of threads may look up, sample and evaluate it. */
 #ifndef PM_GUIDE_H
@@ -36,6 +41,7 @@
  * p = PM_GUIDE_COSINE cos / pi + (1 - PM_GUIDE_COSINE) p_guide keeps every direction above the
  * surface reachable, so the estimate stays unbiased whatever the histogram says. */
 #define PM_GUIDE_COSINE 0.5f
+#define PM_GUIDE_GAIN 0.7f /* a cell is kept when the mixture's second moment is below this times cosine's */
 
 /* The photons a guide is built from: n records as the photons format's columns. */
 typedef struct {
@@ -52,6 +58,7 @@ typedef struct {
     float pdf[PM_GUIDE_BINS]; /* each bin's probability (they sum to 1) */
     float cdf[PM_GUIDE_BINS]; /* running sums, the last exactly 1 */
     uint32_t photons;         /* photons it holds */
+    int used;                 /* the guide helps here (PM_GUIDE_GAIN); else lookups find nothing */
 } pm_guide_cell_t;
 
 typedef struct pm_guide pm_guide_t;
@@ -61,11 +68,13 @@ typedef struct {
     uint64_t photons_used; /* depth >= 1 photons of non-zero power */
     uint64_t cells;        /* cells with at least PM_GUIDE_MIN photons */
     uint64_t cells_sparse; /* occupied cells left out for holding fewer */
+    uint64_t cells_even;   /* cells left out for light so even that cosine sampling does better */
     double edge;           /* m, a cell's edge */
 } pm_guide_info_t;
 
-/* Builds the guide; PM_ERR_NOMEM. A set with no usable photon gives a guide of no cells. */
-pm_result_t pm_guide_build(const pm_guide_photons_t *ph, pm_guide_t **out);
+/* Builds the guide; PM_ERR_NOMEM. A set with no usable photon gives a guide of no cells. With
+ * all, every cell of PM_GUIDE_MIN photons is used, whether it helps or not (tests of the weights). */
+pm_result_t pm_guide_build(const pm_guide_photons_t *ph, int all, pm_guide_t **out);
 void pm_guide_destroy(pm_guide_t *g);
 const pm_guide_info_t *pm_guide_info(const pm_guide_t *g);
 

@@ -41,6 +41,8 @@
 #include "render/scene.h"
 #include "render/shade.h"
 
+static const char *const guide_cells_names[] = {"helpful", "all", NULL};
+
 typedef struct {
     const char *direct;    /* --direct FILE, NULL for none */
     const char *caustic;   /* --caustic-queries FILE, NULL for none */
@@ -61,6 +63,7 @@ typedef struct {
     int single;           /* one document per output: the outputs are one set */
     int64_t glossy_depth; /* glossy bounces a secondary path continues through; 0 gathers on them */
     const char *guide;    /* --guide PHOTONS, NULL for none */
+    int guide_cells;      /* --guide-cells: 0 helpful, 1 all */
     uint64_t guide_hash;  /* its content hash, once read */
 } tgp_options_t;
 
@@ -229,7 +232,7 @@ static pm_result_t load_guide(pm_stage_t *st, tgp_options_t *o, const pm_scene_t
                                        .dir = t.col[PM_PHOTON_DIRECTION],
                                        .depth = t.col[PM_PHOTON_DEPTH],
                                        .n = t.count};
-        r = pm_guide_build(&ph, out);
+        r = pm_guide_build(&ph, o->guide_cells, out);
         o->guide_hash = t.checksum;
     }
     if (r == PM_OK) {
@@ -237,9 +240,12 @@ static pm_result_t load_guide(pm_stage_t *st, tgp_options_t *o, const pm_scene_t
         pm_stage_stat_int(st, "guide_photons", (int64_t)gi->photons_used);
         pm_stage_stat_int(st, "guide_cells", (int64_t)gi->cells);
         pm_stage_stat_int(st, "guide_cells_sparse", (int64_t)gi->cells_sparse);
+        pm_stage_stat_int(st, "guide_cells_even", (int64_t)gi->cells_even);
         pm_stage_stat_double(st, "guide_cell_edge_m", gi->edge);
-        pm_stage_note(st, "guide: %" PRIu64 " indirect photons in %" PRIu64 " cells of %.3g m (%" PRIu64 " sparse)",
-                      gi->photons_used, gi->cells, gi->edge, gi->cells_sparse);
+        pm_stage_note(st,
+                      "guide: %" PRIu64 " indirect photons, %" PRIu64 " cells of %.3g m used (%" PRIu64
+                      " too sparse, %" PRIu64 " lit so evenly that cosine sampling does better)",
+                      gi->photons_used, gi->cells, gi->edge, gi->cells_sparse, gi->cells_even);
     }
     pm_table_free(&t);
     return r;
@@ -436,6 +442,10 @@ int main(int argc, char **argv)
          "--direction): half of them drawn from the incoming directions of the indirect photons nearby, weighted "
          "by multiple importance sampling; one scene, no passes",
          1, 0, NULL},
+        {"guide-cells", 0, PM_OPT_CHOICE, &o.guide_cells, "WHICH",
+         "with --guide: helpful (the cells where the guide lowers the variance, estimated from their photons) or "
+         "all (every cell of enough photons: tests of the weights)",
+         1, 0, guide_cells_names},
         {"glossy-depth", 0, PM_OPT_INT, &o.glossy_depth, "N",
          "glossy bounces (a Phong Ns of 50 or more) a secondary ray continues through before it gathers, the "
          "light found on the way into the direct buffer; 0 gathers on the glossy surface",

@@ -1374,8 +1374,7 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
 
     /* The secondary rays' only part in the direct light is the emitters they find (and the
      * light of the glossy paths they continue). */
-    if (c->mode != PM_EYE_GATHER ||
-        (c->direct_only && !pm_lights_has_emitters(&c->lights) && !c->cont && !c->env_mis))
+    if (c->mode != PM_EYE_GATHER || (c->direct_only && !pm_lights_has_emitters(&c->lights) && !c->cont && !c->env_mis))
         return PM_OK;
     /* Secondary rays: consecutive rays share a cell or a pixel, so packets stay coherent. */
     double t0 = pm_time_wall();

@@ -1372,8 +1372,8 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
                             out->count + 1);
     shadow_rays(c, sc, direct);
 
-    /* The secondary rays' only part in the direct light is the emitters they find (and the
-     * light of the glossy paths they continue). */
+    /* The secondary rays' only part in the direct light is the emitters, the sun and the sky
+     * they find (and the light of the glossy paths they continue). */
     if (c->mode != PM_EYE_GATHER || (c->direct_only && !pm_lights_has_emitters(&c->lights) && !c->cont && !c->env_mis))
         return PM_OK;
     /* Secondary rays: consecutive rays share a cell or a pixel, so packets stay coherent. */

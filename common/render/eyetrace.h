@@ -64,7 +64,8 @@ typedef struct {
     int progress;    /* a progress line on a terminal */
     int caustics;    /* also deliver the caustic queries (sink->caustic); a scene with mirrors or glass, gather mode */
     int direct_only; /* the direct radiance alone, no queries: secondary rays are traced only in a scene with
-                      * emissive triangles, for the light they find there (the same direct buffer, bit for bit) */
+                      * emissive triangles, a sun or a sky, for the light they find there (the same direct buffer,
+                      * bit for bit) */
     unsigned glossy_depth;   /* glossy bounces a secondary path may continue through before it gathers (gather
                               * mode); 0 gathers on every glossy surface */
     const pm_guide_t *guide; /* photon guide of the secondary rays at Lambertian hits (render/guide.h), NULL for

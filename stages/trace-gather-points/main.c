@@ -427,7 +427,7 @@ int main(int argc, char **argv)
          (double)((int64_t)1 << 40), NULL},
         {"no-queries", 0, PM_OPT_FLAG, &o.no_queries, NULL,
          "write the --direct buffer alone, no queries (no -o): secondary rays are traced only in a scene with "
-         "emissive triangles, for the light they find there; the buffer is the one a full run writes",
+         "emissive triangles, a sun or a sky, for the light they find there; the buffer is the one a full run writes",
          1, 0, NULL},
         {"passes", 0, PM_OPT_STRING, &o.passes, "A:B",
          "progressive passes A to B, the scene loaded once: a document per pass to each output (streams), each the "

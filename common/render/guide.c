@@ -97,6 +97,17 @@ static uint64_t count_cells(const pm_guide_photons_t *ph, const float lo[3], flo
     return cells;
 }
 
+/* The table entry of photon i's cell once the table holds every cell; EMPTY for a photon the
+ * guide does not use or outside the grid. */
+static uint64_t photon_entry(const pm_guide_t *g, const pm_guide_photons_t *ph, uint64_t i)
+{
+    if (!usable(ph, i))
+        return EMPTY;
+    uint64_t key = cell_key(g->lo, g->inv_edge, ph->pos + 3 * i, ph->normal + 3 * i);
+    int added = 0;
+    return key == EMPTY ? EMPTY : table_find(g->keys, g->mask, key, 0, &added);
+}
+
 unsigned pm_guide_bin(const float wi[3])
 {
     int iz = (int)((wi[1] + 1.0f) * (0.5f * PM_GUIDE_NZ));
@@ -123,13 +134,9 @@ static uint64_t keep_helpful(pm_guide_t *g, const pm_guide_photons_t *ph, const 
             tot[ci] += wh[ci * PM_GUIDE_BINS + k];
     const double omega = 4.0 * PM_PI / PM_GUIDE_BINS, C = PM_GUIDE_COSINE;
     for (uint64_t i = 0; mom && i < ph->n; i++) {
-        if (!usable(ph, i))
+        uint64_t h = photon_entry(g, ph, i);
+        if (h == EMPTY)
             continue;
-        uint64_t key = cell_key(g->lo, g->inv_edge, ph->pos + 3 * i, ph->normal + 3 * i);
-        int added = 0;
-        if (key == EMPTY)
-            continue;
-        uint64_t h = table_find(g->keys, g->mask, key, 0, &added);
         if (g->slot[h] == UINT32_MAX)
             continue;
         uint32_t ci = g->slot[h];
@@ -213,12 +220,9 @@ pm_result_t pm_guide_build(const pm_guide_photons_t *ph, int all, pm_guide_t **o
         return pm_error_set(PM_ERR_NOMEM, "out of memory for the photon guide's counts");
     }
     for (uint64_t i = 0; i < ph->n; i++) {
-        if (!usable(ph, i))
-            continue;
-        uint64_t key = cell_key(g->lo, g->inv_edge, ph->pos + 3 * i, ph->normal + 3 * i);
-        int added = 0;
-        if (key != EMPTY)
-            count[table_find(g->keys, g->mask, key, 0, &added)]++;
+        uint64_t h = photon_entry(g, ph, i);
+        if (h != EMPTY)
+            count[h]++;
     }
     uint64_t ncells = 0, sparse = 0;
     for (uint64_t h = 0; h < cap; h++) {
@@ -246,17 +250,13 @@ pm_result_t pm_guide_build(const pm_guide_photons_t *ph, int all, pm_guide_t **o
         return pm_error_set(PM_ERR_NOMEM, "out of memory for %llu guide cells", (unsigned long long)ncells);
     }
     for (uint64_t i = 0; i < ph->n; i++) {
-        if (!usable(ph, i))
+        uint64_t h = photon_entry(g, ph, i);
+        if (h == EMPTY)
             continue;
-        uint64_t key = cell_key(g->lo, g->inv_edge, ph->pos + 3 * i, ph->normal + 3 * i);
-        int added = 0;
-        if (key == EMPTY)
-            continue;
-        uint64_t h = table_find(g->keys, g->mask, key, 0, &added);
         if (count[h] < PM_GUIDE_MIN)
             continue;
         if (g->slot[h] == UINT32_MAX) {
-            axis[next] = (unsigned char)(key & 7u);
+            axis[next] = (unsigned char)(g->keys[h] & 7u);
             g->slot[h] = next++;
         }
         pm_guide_cell_t *c = &g->cells[g->slot[h]];

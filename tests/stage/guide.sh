@@ -43,20 +43,6 @@ photons() {
         "$BIN/build-photonmap" "$TMP/$name.ph.pm" -q -o "$TMP/$name.map.pm"
 }
 
-image() {
-    local img=$1; shift
-    "$BIN/composite" "$@" -q -o "$TMP/$img.exr" && "$BUILD/tests/pm-exrdump" "$TMP/$img.exr" >"$TMP/$img.txt"
-}
-
-check() {
-    local name=$1 hits=$2 img=$3; shift 3
-    if awk "$@" -f tests/scenes/analytic.awk "$TMP/$hits.hits.txt" "$TMP/$img.txt" >"$TMP/why"; then
-        pass "$name ($(cat "$TMP/why"))"
-    else
-        fail "$name" "$(tr '\n' ' ' <"$TMP/why")"
-    fi
-}
-
 # ---- unbiased: the closed forms, guided
 
 make_furnace "$TMP/furnace5" 1 0.5

@@ -169,6 +169,31 @@ static void test_guide_sparse_and_sides(void **state)
     photons_free(&p);
 }
 
+/* Light that arrives evenly (photon directions cosine-weighted about the normal): cosine
+ * sampling is exact there, the cell is left out (cells_even), unless every cell is asked for. */
+static void test_guide_even_light_left_out(void **state)
+{
+    photons_t p;
+    photons_make(&p, 20000, 1.0f, up, 0.0f);
+    pm_rng_t r;
+    pm_rng_init(&r, 3, 0);
+    for (uint64_t i = 0; i < p.n; i++) {
+        pm_vec3_t d = pm_sample_cosine_hemisphere(pm_rng_float(&r), pm_rng_float(&r)); /* about +z */
+        p.dir[3 * i] = d.x, p.dir[3 * i + 1] = d.z, p.dir[3 * i + 2] = d.y;
+    }
+    float at[3] = {0.5f, 0.0f, 0.5f};
+    pm_guide_t *g = build(&p);
+    assert_null(pm_guide_find(g, at, up));
+    assert_true(pm_guide_info(g)->cells_even >= 1);
+    pm_guide_destroy(g);
+    const pm_guide_photons_t ph = {p.pos, p.power, p.normal, p.dir, p.depth, p.n};
+    assert_int_equal(pm_guide_build(&ph, 1, &g), PM_OK);
+    assert_non_null(pm_guide_find(g, at, up));
+    assert_int_equal(pm_guide_info(g)->cells_even, 0);
+    pm_guide_destroy(g);
+    photons_free(&p);
+}
+
 /* No photons at all: an empty guide, no lookups. */
 static void test_guide_empty(void **state)
 {
@@ -181,10 +206,8 @@ static void test_guide_empty(void **state)
 }
 
 static const struct CMUnitTest tests[] = {
-    cmocka_unit_test(test_guide_pdf_integrates_to_one),
-    cmocka_unit_test(test_guide_samples_follow_pdf),
-    cmocka_unit_test(test_guide_first_hits_left_out),
-    cmocka_unit_test(test_guide_sparse_and_sides),
-    cmocka_unit_test(test_guide_empty),
+    cmocka_unit_test(test_guide_pdf_integrates_to_one), cmocka_unit_test(test_guide_samples_follow_pdf),
+    cmocka_unit_test(test_guide_first_hits_left_out),   cmocka_unit_test(test_guide_sparse_and_sides),
+    cmocka_unit_test(test_guide_even_light_left_out),   cmocka_unit_test(test_guide_empty),
 };
 UNIT_GROUP(unit_guide, "guide", tests);

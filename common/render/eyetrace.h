@@ -6,12 +6,11 @@
  * filter), or all through its centre (PM_PIXEL_CENTER). At each
  * primary hit adds emission seen directly and direct light (shadow rays to point lights and to
  * sampled points of emissive triangles) into the direct radiance buffer; and spawns `spp`
- * secondary rays (cosine-weighted at a Lambertian surface, drawn from the BSDF mixture at a
- * glossy one), stratified with PM_EYE_PER_CELL samples per cell so that
- * groups of four share origin and direction, also traced as packets. Each secondary hit becomes
- * one gather point, a record of the queries format (formats/formats.h) with the weight contract
- * of docs/formats.md. PM_EYE_DIRECT_VIS makes the primary hits themselves the queries (the
- * paper's Figure 4, left).
+ * secondary rays (cosine-weighted at a Lambertian surface, or half of them from a photon guide,
+ * render/guide.h, where one is given; drawn from the BSDF mixture at a glossy one), stratified with PM_EYE_PER_CELL
+ * samples per cell so that groups of four share origin and direction, also traced as packets. Each secondary hit
+ * becomes one gather point, a record of the queries format (formats/formats.h) with the weight contract of
+ * docs/formats.md. PM_EYE_DIRECT_VIS makes the primary hits themselves the queries (the paper's Figure 4, left).
  *
  * Rows are the unit of work: rows of a band run in parallel, and the caller's sink receives their
  * records and direct radiance on the calling thread in pixel order, so what it receives is the

@@ -480,6 +480,14 @@ int main(int argc, char **argv)
     if (o.aov && (st.args.nargs != 1 || o.passes || o.plan || !strcmp(o.aov, "-")))
         return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "--aov writes one file for one scene: not with several "
                                                             "scenes, --passes, --plan or stdout"));
+    if (o.guide && o.mode != PM_EYE_GATHER)
+        return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE,
+                                              "--guide guides the secondary rays of --mode gather, "
+                                              "not --mode %s",
+                                              pm_eye_mode_names[o.mode]));
+    if (!o.guide && pm_args_given(&st.args, "guide-cells"))
+        return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "--guide-cells chooses the cells of --guide: give "
+                                                            "--guide PHOTONS"));
     if (o.guide && (st.args.nargs != 1 || o.passes || o.plan))
         return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "--guide reads the photons of one scene: not with several "
                                                             "scenes, --passes or --plan"));

@@ -197,6 +197,10 @@ if photons "$R" room && "$BIN/trace-reference" "$R" --spp 1024 -q -o "$TMP/room.
     "$BIN/trace-photons" "$R" --photons 20000 -q -o "$TMP/room.nodir.pm"
     expect_error "--guide: photons without directions" "no direction channel: trace its photons with trace-photons --direction" \
         "$BIN/trace-gather-points" "$R" -q --guide "$TMP/room.nodir.pm" -o "$TMP/bad.q.pm"
+    expect_exit "--guide with --mode direct-vis is a usage error" 2 \
+        "$BIN/trace-gather-points" "$R" -q --guide "$TMP/room.ph.pm" --mode direct-vis -o "$TMP/bad.q.pm"
+    expect_exit "--guide-cells without --guide is a usage error" 2 \
+        "$BIN/trace-gather-points" "$R" -q --guide-cells all -o "$TMP/bad.q.pm"
     expect_exit "--guide with --passes is a usage error" 2 \
         "$BIN/trace-gather-points" "$R" -q --guide "$TMP/room.ph.pm" --passes 1:2 -o "$TMP/bad.q.pm"
     if [ ! -e "$TMP/bad.q.pm" ]; then pass "a refused guide leaves no output"; else fail "a refused guide leaves no output" "bad.q.pm exists"; fi

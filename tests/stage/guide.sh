@@ -184,6 +184,13 @@ if photons "$R" room && "$BIN/trace-reference" "$R" --spp 1024 -q -o "$TMP/room.
     else
         fail "guided runs on 1 and 3 threads" "a stage failed"
     fi
+    # --no-queries traces the same secondary rays for the sky they find: the same direct buffer
+    if (cd "$TMP/t1" && "$BIN/trace-gather-points" "$R" -q --guide "$TMP/room.ph.pm" --no-queries --direct dn.pm) &&
+        "$BIN/pm-compare" -q "$TMP/t1/d.pm" "$TMP/t1/dn.pm" >/dev/null; then
+        pass "guided --no-queries: the full run's direct buffer, value for value"
+    else
+        fail "guided --no-queries: the full run's direct buffer" "pm-compare: $("$BIN/pm-compare" "$TMP/t1/d.pm" "$TMP/t1/dn.pm" 2>&1 | tail -2)"
+    fi
     # the guide is an input of the outputs
     h=$("$BIN/pm-info" "$TMP/room.guided.q.pm")
     if grep -q "^INPUT=$TMP/room.ph.pm xxh3:" <<<"$h" && grep -q '^guide=photons$' <<<"$h"; then

@@ -33,6 +33,7 @@
 #include "base/passplan.h"
 #include "base/spool.h"
 #include "base/stage.h"
+#include "base/timer.h"
 #include "formats/formats.h"
 #include "render/aov.h"
 #include "render/eyetrace.h"
@@ -209,6 +210,7 @@ static pm_result_t write_outputs(pm_stage_t *st, const tgp_options_t *o, const p
 static pm_result_t load_guide(pm_stage_t *st, tgp_options_t *o, const pm_scene_t *s, pm_guide_t **out)
 {
     *out = NULL;
+    double t0 = pm_time_wall();
     pm_table_t t;
     pm_result_t r = pm_table_read(o->guide, &pm_photons_schema, pm_schema_required(&pm_photons_schema), &t);
     if (r != PM_OK)
@@ -242,6 +244,7 @@ static pm_result_t load_guide(pm_stage_t *st, tgp_options_t *o, const pm_scene_t
         pm_stage_stat_int(st, "guide_cells_sparse", (int64_t)gi->cells_sparse);
         pm_stage_stat_int(st, "guide_cells_even", (int64_t)gi->cells_even);
         pm_stage_stat_double(st, "guide_cell_edge_m", gi->edge);
+        pm_stage_stat_double(st, "guide_s", pm_time_wall() - t0); /* reading the photons and building */
         pm_stage_note(st,
                       "guide: %" PRIu64 " indirect photons, %" PRIu64 " cells of %.3g m used (%" PRIu64
                       " too sparse, %" PRIu64 " lit so evenly that cosine sampling does better)",

@@ -56,15 +56,23 @@ static pm_guide_t *build(const photons_t *p)
 
 static const float up[3] = {0.0f, 1.0f, 0.0f};
 
+/* The two-lobed floor of 20,000 photons (photons_make), its guide in *g and the cell at its middle. */
+static const pm_guide_cell_t *floor_cell(photons_t *p, pm_guide_t **g)
+{
+    photons_make(p, 20000, 1.0f, up, 0.0f);
+    *g = build(p);
+    float at[3] = {0.5f, 0.0f, 0.5f};
+    const pm_guide_cell_t *c = pm_guide_find(*g, at, up);
+    assert_non_null(c);
+    return c;
+}
+
 /* The pdf over a fine equal-area grid of the sphere sums to one. */
 static void test_guide_pdf_integrates_to_one(void **state)
 {
     photons_t p;
-    photons_make(&p, 20000, 1.0f, up, 0.0f);
-    pm_guide_t *g = build(&p);
-    float at[3] = {0.5f, 0.0f, 0.5f};
-    const pm_guide_cell_t *c = pm_guide_find(g, at, up);
-    assert_non_null(c);
+    pm_guide_t *g;
+    const pm_guide_cell_t *c = floor_cell(&p, &g);
     enum { NZ = 256, NP = 512 };
     double sum = 0.0, dA = 4.0 * PM_PI / (NZ * NP);
     for (int i = 0; i < NZ; i++)
@@ -83,11 +91,8 @@ static void test_guide_pdf_integrates_to_one(void **state)
 static void test_guide_samples_follow_pdf(void **state)
 {
     photons_t p;
-    photons_make(&p, 20000, 1.0f, up, 0.0f);
-    pm_guide_t *g = build(&p);
-    float at[3] = {0.5f, 0.0f, 0.5f};
-    const pm_guide_cell_t *c = pm_guide_find(g, at, up);
-    assert_non_null(c);
+    pm_guide_t *g;
+    const pm_guide_cell_t *c = floor_cell(&p, &g);
     enum { N = 200000 };
     static unsigned hist[PM_GUIDE_BINS];
     memset(hist, 0, sizeof hist);

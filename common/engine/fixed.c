@@ -2350,6 +2350,11 @@ int pm_render_passes(const pm_settings_t *s_in, const char *me, const char *bin,
     passes_t *P = &PP;
     ps = *s_in;
     const pm_settings_t *s = &ps;
+    if (s->guide) { /* the resident passes have a guide (progressive.c, make_guide); the pass files not */
+        pm_engine_say(me, "GUIDE=1 with pass files (KEEP=all, SHARDS, WIDTHS=variable, another GATHER or "
+                          "TARGETs with passes): not done; the resident passes and one-pass renders are guided");
+        return 2;
+    }
     /* Per-pass defaults for the parameters not given (the scene's render block sizes one render,
      * not a pass): docs/accuracy.md, "Progressive defaults". */
     static const char *const defaults[][2] = {{"PHOTONS", "300000"}, {"PRIMARY", "16"}, {"SPP", "4"}, {"K", "5"}};

@@ -184,11 +184,10 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
     if (s->guide && strcmp(s->value[PM_P_GATHER], "none") == 0)
         return pm_error_set(PM_ERR_USAGE,
                             "GUIDE=1 guides by the pass's photons: not with GATHER=none, which traces none");
-    /* The resident passes would need the guide from each pass's photons: not done yet. */
-    if (s->guide && s->progressive)
-        return pm_error_set(PM_ERR_USAGE,
-                            "GUIDE=1 is done for a one-pass render only, not with PASSES, TIME, TARGET_ERROR or "
-                            "PASS_RANGE");
+    /* The pass files (PASS_RANGE, KEEP=all given, ...) have no guide: resident passes only. */
+    if (s->guide && s->value[PM_P_PASS_RANGE][0])
+        return pm_error_set(PM_ERR_USAGE, "GUIDE=1 with PASS_RANGE: the pass files have no guide (the resident "
+                                          "passes and one-pass renders have)");
     if (s->value[PM_P_AOV][0]) {
         if ((r = pm_exr_aov_parse("AOV", s->value[PM_P_AOV], &s->aov)) != PM_OK)
             return r;

@@ -57,15 +57,16 @@ typedef struct {
     int mode, schedule;
     int pixel; /* PM_PIXEL_BOX or PM_PIXEL_CENTER */
     const char *isa;
-    int no_queries;       /* --no-queries: the direct buffer alone */
-    const char *passes;   /* --passes A:B, NULL for none */
-    const char *plan;     /* --plan FILE, NULL for none */
-    int64_t plan_primary; /* the pass's primary rays per pixel from the plan; 0: the options' */
-    int single;           /* one document per output: the outputs are one set */
-    int64_t glossy_depth; /* glossy bounces a secondary path continues through; 0 gathers on them */
-    const char *guide;    /* --guide PHOTONS, NULL for none */
-    int guide_cells;      /* --guide-cells: 0 helpful, 1 all */
-    uint64_t guide_hash;  /* its content hash, once read */
+    int no_queries;          /* --no-queries: the direct buffer alone */
+    const char *passes;      /* --passes A:B, NULL for none */
+    const char *plan;        /* --plan FILE, NULL for none */
+    int64_t plan_primary;    /* the pass's primary rays per pixel from the plan; 0: the options' */
+    int single;              /* one document per output: the outputs are one set */
+    int64_t glossy_depth;    /* glossy bounces a secondary path continues through; 0 gathers on them */
+    const char *guide;       /* --guide PHOTONS, NULL for none */
+    int guide_cells;         /* --guide-cells: 0 helpful, 1 all */
+    uint64_t guide_hash;     /* its content hash, once read */
+    const pm_guide_t *built; /* with --passes or --plan: the guide built once for every pass */
 } tgp_options_t;
 
 /* Where the eye tracer's results go: the queries into the spool, the direct rows into one
@@ -289,7 +290,8 @@ static pm_result_t run(pm_stage_t *st, tgp_options_t *o, const pm_scene_t *s, co
                             o->height, why);
     }
     pm_guide_t *guide = NULL;
-    if (o->guide) {
+    eo_g.guide = o->built;
+    if (o->guide && !o->built) {
         pm_result_t rg = load_guide(st, o, s, &guide);
         if (rg != PM_OK)
             return rg;
@@ -368,11 +370,16 @@ static pm_result_t run_passes(pm_stage_t *st, tgp_options_t *o, char **argv, pm_
     }
     pm_scene_warn_unsupported(&s, st);
     r = pm_rt_create(&s, 1, st->threads_used, &rt);
+    pm_guide_t *guide = NULL; /* one guide for every pass */
+    if (r == PM_OK && o->guide && (r = load_guide(st, o, &s, &guide)) == PM_OK)
+        o->built = guide;
     if (r == PM_OK) {
         const void *drop[] = {&o->passes, &o->plan, &o->primary};
         tgp_pass_t tp = {st, o, &s, &rt, isa};
         r = pm_passplan_run(&pp, st, argv, drop, 3, "--primary", 4096, tgp_pass, &tp); /* --primary's own limit */
     }
+    o->built = NULL;
+    pm_guide_destroy(guide);
     pm_rt_destroy(&rt);
     pm_scene_free(&s);
     pm_passplan_close(&pp);
@@ -443,7 +450,7 @@ int main(int argc, char **argv)
         {"guide", 0, PM_OPT_STRING, &o.guide, "PHOTONS",
          "guide the secondary rays at Lambertian hits by this photons file of the same scene (trace-photons "
          "--direction): half of them drawn from the incoming directions of the indirect photons nearby, weighted "
-         "by multiple importance sampling; one scene, no passes",
+         "by multiple importance sampling; one scene (with --passes or --plan, one guide for every pass)",
          1, 0, NULL},
         {"guide-cells", 0, PM_OPT_CHOICE, &o.guide_cells, "WHICH",
          "with --guide: helpful (the cells where the guide lowers the variance, estimated from their photons) or "
@@ -491,9 +498,11 @@ int main(int argc, char **argv)
     if (!o.guide && pm_args_given(&st.args, "guide-cells"))
         return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "--guide-cells chooses the cells of --guide: give "
                                                             "--guide PHOTONS"));
-    if (o.guide && (st.args.nargs != 1 || o.passes || o.plan))
-        return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "--guide reads the photons of one scene: not with several "
-                                                            "scenes, --passes or --plan"));
+    if (o.guide && st.args.nargs != 1)
+        return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE,
+                                              "--guide reads the photons of one scene: not with %d "
+                                              "scenes",
+                                              st.args.nargs));
     if (o.no_queries && (!o.direct || o.caustic || pm_args_given(&st.args, "output")))
         return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "--no-queries writes the --direct buffer alone: give "
                                                             "--direct FILE and neither -o nor --caustic-queries"));

@@ -13,7 +13,8 @@
 #     rays) against direct-vis mode's (light samples alone): the same mean, and seed-to-seed RMS
 #     difference below 0.9 times (measured 0.81);
 #   - deterministic for any thread count; bad guides (another scene's photons, no direction
-#     channel, a caustic photons file) are a one-line error and exit 1; pm-render GUIDE=1.
+#     channel, a caustic photons file) are a one-line error and exit 1; pm-render GUIDE=1, one
+#     pass and resident passes.
 # programs: trace-photons build-photonmap trace-gather-points simd-gather hilbert-sort composite trace-reference measure-error pm-render
 source tests/scenes/make-analytic.sh
 PI=3.141592653589793
@@ -208,8 +209,12 @@ if photons "$R" room && "$BIN/trace-reference" "$R" --spp 1024 -q -o "$TMP/room.
         "$BIN/trace-gather-points" "$R" -q --guide "$TMP/room.ph.pm" --mode direct-vis -o "$TMP/bad.q.pm"
     expect_exit "--guide-cells without --guide is a usage error" 2 \
         "$BIN/trace-gather-points" "$R" -q --guide-cells all -o "$TMP/bad.q.pm"
-    expect_exit "--guide with --passes is a usage error" 2 \
-        "$BIN/trace-gather-points" "$R" -q --guide "$TMP/room.ph.pm" --passes 1:2 -o "$TMP/bad.q.pm"
+    if "$BIN/trace-gather-points" "$R" -q --guide "$TMP/room.ph.pm" --passes 1:2 -o - --stats "$TMP/passes.json" |
+        wc -c >"$TMP/passes.bytes" && [ "$(jq -r '.guided_rays // 0' "$TMP/passes.json")" -gt 0 ]; then
+        pass "--guide with --passes 1:2: one guide for both passes ($(cat "$TMP/passes.bytes") bytes)"
+    else
+        fail "--guide with --passes 1:2: one guide for both passes" "$(cat "$TMP/passes.json" 2>/dev/null | head -c 200)"
+    fi
     if [ ! -e "$TMP/bad.q.pm" ]; then pass "a refused guide leaves no output"; else fail "a refused guide leaves no output" "bad.q.pm exists"; fi
 else
     fail "skylight room photons and reference" "a stage failed"
@@ -267,7 +272,21 @@ if "$BIN/pm-render" "$TMP/skyplane/scene.json" "$TMP/render" GUIDE=1 QUIET=1 2>"
 else
     fail "pm-render GUIDE=1" "$(head -c 300 "$TMP/err")"
 fi
-expect_exit "pm-render GUIDE=1 with PASSES=2 is a usage error" 2 "$BIN/pm-render" "$TMP/skyplane/scene.json" \
-    "$TMP/render2" GUIDE=1 PASSES=2
+# resident passes: the guide's photons made before them (pass 1's stream, with directions), read
+# by every pass's trace-gather-points, removed after
+if "$BIN/pm-render" "$R" "$TMP/prog" GUIDE=1 PASSES=2 QUIET=1 >"$TMP/err" 2>&1; then
+    gr=$(jq -r '.stages["trace-gather-points"].guided_rays // 0' "$TMP/prog/stats.json")
+    if [ "$gr" -gt 0 ] && [ ! -e "$TMP/prog/guide-photons.pm" ] && [ -s "$TMP/prog/image.exr" ]; then
+        pass "pm-render GUIDE=1 PASSES=2: resident passes guided ($gr rays in the last), the guide's photons removed"
+    else
+        fail "pm-render GUIDE=1 PASSES=2: resident passes guided" "guided_rays $gr; $(ls "$TMP/prog")"
+    fi
+else
+    fail "pm-render GUIDE=1 PASSES=2" "$(tail -c 300 "$TMP/err")"
+fi
+expect_exit "pm-render GUIDE=1 with PASS_RANGE (pass files) is a usage error" 2 "$BIN/pm-render" \
+    "$TMP/skyplane/scene.json" "$TMP/render2" GUIDE=1 PASS_RANGE=1:2
+expect_exit "pm-render GUIDE=1 with KEEP=all and passes (pass files) is a usage error" 2 "$BIN/pm-render" \
+    "$TMP/skyplane/scene.json" "$TMP/render3" GUIDE=1 PASSES=2 KEEP=all
 expect_exit "pm-render GUIDE=1 with MODE=direct-vis is a usage error" 2 "$BIN/pm-render" "$TMP/skyplane/scene.json" \
     "$TMP/render2" GUIDE=1 MODE=direct-vis

@@ -174,6 +174,8 @@ static void build_graph(render_t *r)
         }
         arg_opt(j, "--photons", s->value[PM_P_PHOTONS]);
         arg_opt(j, "--seed", s->value[PM_P_SEED]);
+        if (s->guide) /* the guide reads where each photon came from */
+            arg(j, "--direction");
         arg_common(r, j);
 
         j = job_new(r, "build-photonmap");
@@ -229,6 +231,11 @@ static void build_graph(render_t *r)
     arg_opt(j, "--primary", s->value[PM_P_PRIMARY]);
     arg_opt(j, "--light-samples", r->light_samples);
     arg_opt(j, "--seed", s->value[PM_P_SEED]);
+    if (s->guide && r->need_gather) { /* GUIDE=1: after trace-photons, from its photons */
+        arg(j, "--guide");
+        arg(j, "photons.pm");
+        j->ins[j->nins++] = "photons.pm";
+    }
     arg_common(r, j);
     if (strcmp(r->order, "none") != 0) {
         j = job_new(r, "hilbert-sort");
@@ -2357,6 +2364,11 @@ int pm_render_passes(const pm_settings_t *s_in, const char *me, const char *bin,
     passes_t *P = &PP;
     ps = *s_in;
     const pm_settings_t *s = &ps;
+    if (s->guide) { /* the resident passes have a guide (progressive.c, make_guide); the pass files not */
+        pm_engine_say(me, "GUIDE=1 with pass files (KEEP=all, SHARDS, WIDTHS=variable, another GATHER or "
+                          "TARGETs with passes): not done; the resident passes and one-pass renders are guided");
+        return 2;
+    }
     /* Per-pass defaults for the parameters not given (the scene's render block sizes one render,
      * not a pass): docs/accuracy.md, "Progressive defaults". */
     static const char *const defaults[][2] = {{"PHOTONS", "300000"}, {"PRIMARY", "16"}, {"SPP", "4"}, {"K", "5"}};

@@ -33,6 +33,8 @@ static const char *const param_help =
     "  WIDTH=N HEIGHT=N image size (default: the scene camera's)\n"
     "  PRIMARY=N        primary rays per pixel\n"
     "  LIGHT_SAMPLES=N  area-light (and sun and sky) samples per primary hit (0 when the scene has none)\n"
+    "  GUIDE=0|1        1: guide the secondary rays by the photons (trace-photons --direction, then\n"
+    "                   trace-gather-points --guide; MODE=gather; one pass or resident passes)\n"
     "  ORDER=auto       hilbert|morton|none query order; auto: hilbert for gather, none for direct-vis\n"
     "  LEAF=N|auto      hilbert-sort --leaf\n"
     "  RADIUS=R K=K KERNEL=uniform|epanechnikov WIDTHS=fixed|variable ISA=...   simd-gather options\n"

@@ -59,10 +59,20 @@ limit pipelines/render "$SCENE" "$TMP/local7" "${PR[@]}" SEED=7 KEEP=all >"$TMP/
 # ---- a render through the cluster, with one task killed while it runs ----
 limit pipelines/slurm "$SCENE" "$TMP/a" "${PR[@]}" "${SL[@]}" >"$TMP/a.log" 2>&1 &
 pid=$!
+# The task is killed for sure before it lands its pass: suspended first (scontrol suspend stops
+# its processes), killed when its log shows no pass made yet, else resumed and another one tried.
+# (A task killed as it ends may land its pass all the same, and its job end CANCELLED: the
+# checks after "a job that ends CANCELLED after it landed its work" below.)
 killed=""
 for ((i = 0; i < 600; i++)); do # up to 60 s
     j=$(squeue -h -r -n pm-pass -t RUNNING -o %i 2>/dev/null | grep -E '_[1-9][0-9]*$' | head -n 1)
-    if [ -n "$j" ]; then scancel "$j" && killed=$j && break; fi
+    if [ -n "$j" ] && scontrol suspend "$j" 2>/dev/null; then
+        if grep -qs '^slurm-task: passes' "$TMP/a/.slurm/logs/task-${j#*_}.${j%_*}.out" &&
+            ! grep -qs '^render: pass' "$TMP/a/.slurm/logs/task-${j#*_}.${j%_*}.out"; then
+            scancel "$j" && killed=$j && break
+        fi
+        scontrol resume "$j" 2>/dev/null
+    fi
     kill -0 $pid 2>/dev/null || break
     sleep 0.1
 done
@@ -214,7 +224,8 @@ pid=$!
 # The shard task is killed for sure before it lands its shard: this script holds the lock a
 # shard task takes to land (OUTDIR/.slurm/land.lock), kills a task that has made its shard and
 # waits for the lock, and lets the lock go once the task is gone. (A task killed as it ends may
-# land its shard all the same, and its job end CANCELLED: the check after this one.)
+# land its shard all the same, and its job end CANCELLED: the checks after
+# "a job that ends CANCELLED after it landed its work" below.)
 for ((i = 0; i < 600; i++)); do # up to 60 s
     [ -d "$TMP/s/.slurm" ] && exec 9<>"$TMP/s/.slurm/land.lock" && flock -n 9 && break
     kill -0 $pid 2>/dev/null || break

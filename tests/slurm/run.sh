@@ -6,8 +6,9 @@
 # system and one that keeps failing so (resubmitted), one that fails on bad input (not
 # resubmitted), two renders into two OUTDIRs at once, the cache (nothing resubmitted,
 # then only the new passes), the gather in shard tasks (one killed, one missing shard alone
-# resubmitted), the same bytes for any CPUS and THREADS, TARGET_ERROR and TIME in waves,
-# KEEP=image, and the bad input refused before anything is submitted.
+# resubmitted), the same bytes for any CPUS and THREADS, a job cancelled after its work landed
+# (the jobs waiting for it resubmitted), TARGET_ERROR and TIME in waves, KEEP=image, and the bad
+# input refused before anything is submitted. Every render has a time limit (SLURM_TEST_LIMIT).
 # The last line is "slurm: N passed, N failed"; the exit status is 1 when any check failed.
 set -u
 cd "$(dirname "$0")/../.."

@@ -343,6 +343,28 @@ late_cancel pm-pass 3 "the job of task 3 ends CANCELLED after it landed pass 4; 
     "$TMP/pc" "the composite job" "${PR[@]}"
 same_image "... the image is pipelines/render's" "$TMP/pc" "$TMP/local"
 
+# ---- the controller lost while a render waits: pipelines/slurm stops once squeue has failed for
+# QUEUE_WAIT seconds, in one line, exit 3 (a second cluster, stopped under the render) ----
+if tests/slurm/cluster start "$TMP/cl2" >/dev/null 2>"$TMP/cl2.err"; then
+    SLURM_CONF=$TMP/cl2/slurm.conf limit pipelines/slurm "$SCENE" "$TMP/q" "${PR[@]}" "${SL[@]}" QUEUE_WAIT=2 >"$TMP/q.out" 2>"$TMP/q.err" &
+    pid=$!
+    for ((i = 0; i < 600; i++)); do # up to 60 s: its jobs submitted
+        grep -qs '^slurm: .* submitted ' "$TMP/q.out" && break
+        kill -0 $pid 2>/dev/null || break
+        sleep 0.1
+    done
+    tests/slurm/cluster stop "$TMP/cl2"
+    wait $pid
+    rc=$?
+    if [ $rc = 3 ] && [ "$(wc -l <"$TMP/q.err")" = 1 ] && grep -q "^slurm: cannot read the queue for 2 s (squeue: .*); this render's jobs may still be queued" "$TMP/q.err"; then
+        pass "the controller gone while the render waits: it stops after QUEUE_WAIT=2 s, one line, exit 3"
+    else
+        fail "the controller gone" "exit $rc: $(tail -n 2 "$TMP/q.err")"
+    fi
+else
+    fail "a second cluster, for the controller gone" "$(tail -n 1 "$TMP/cl2.err")"
+fi
+
 # ---- TARGET_ERROR and TIME: passes in waves ----
 PT=("${PR[@]:0:5}") # PR without PASSES
 [ "${PT[*]}" = "WIDTH=48 HEIGHT=48 PHOTONS=20000 PRIMARY=4 SPP=4" ] || fail "test set-up" "PT is '${PT[*]}'"

@@ -251,10 +251,14 @@ test-run: all $(UNIT) $(TESTGEN) $(EXRDUMP)
 
 # pipelines/slurm on a one-node Slurm cluster started on this machine (tests/slurm/cluster:
 # munged, slurmctld and slurmd as root, torn down after); it fails when they cannot start.
+# The whole run has a limit (about 2 minutes here; each render in it has one of its own): past
+# it, timeout signals the run, whose renders cancel their jobs and whose cluster is torn down.
 SLURM_DEBS := slurm-wlm slurm-client munge iproute2
+SLURM_TEST_TIMEOUT ?= 1200
 test-slurm: all
 	@sh tests/install-deps.sh $(SLURM_DEBS)
-	$(Q)BIN=$(abspath $(BIN)) bash tests/slurm/cluster run bash tests/slurm/run.sh
+	$(Q)BIN=$(abspath $(BIN)) timeout -k 60 $(SLURM_TEST_TIMEOUT) bash tests/slurm/cluster run bash tests/slurm/run.sh; \
+	rc=$$?; [ $$rc != 124 ] || echo "FAIL slurm: make test-slurm did not end in $(SLURM_TEST_TIMEOUT) s: stopped, the cluster torn down"; exit $$rc
 
 # The stiff and extreme cases alone (docs/extreme-cases.md; tests/run's pattern also selects
 # any unit test named for them); `make test` runs them too.

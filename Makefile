@@ -106,15 +106,17 @@ FORMAT_SRC = $(shell git ls-files '*.c' '*.h' 2>/dev/null)
 
 .PHONY: format format-check all test test-run test-extreme test-slurm asan test-asan demo bench bench-quick fuzz deps clean check-deps
 # Keep the stages' objects: they are intermediate to the pattern rule, and make would
-# otherwise delete them and rebuild them next time.
-.SECONDARY:
+# otherwise delete them and rebuild them next time. Only they are named: a bare .SECONDARY:
+# makes every target an intermediate, and make then never builds a new tests/unit/*.c's
+# object while the unit-test binary is newer than its sources.
+.SECONDARY: $(STAGES:%=$(BUILD)/stages/%/main.o)
 all: $(PROGS) $(ATRIUM_OBJ) $(ATRIUM_SKY) $(CAUSTIC_OBJ) $(SHLIB)
 
 # Rebuild everything when the flags change.
 FLAGS_FILE := $(BUILD)/.flags
 FLAGS_NOW := $(CC) $(ALL_CFLAGS) $(ALL_LDFLAGS) $(LIBS)
-# FORCE is phony: under the bare .SECONDARY: above a missing FORCE counted as an intermediate
-# file and never made .flags out of date, so a change of flags rebuilt nothing.
+# FORCE is phony: were it an intermediate file (as under a bare .SECONDARY:), a missing FORCE
+# would never make .flags out of date, and a change of flags would rebuild nothing.
 .PHONY: FORCE
 $(FLAGS_FILE): FORCE
 	@mkdir -p $(@D)
@@ -249,10 +251,14 @@ test-run: all $(UNIT) $(TESTGEN) $(EXRDUMP)
 
 # pipelines/slurm on a one-node Slurm cluster started on this machine (tests/slurm/cluster:
 # munged, slurmctld and slurmd as root, torn down after); it fails when they cannot start.
+# The whole run has a limit (about 2 minutes here; each render in it has one of its own): past
+# it, timeout signals the run, whose renders cancel their jobs and whose cluster is torn down.
 SLURM_DEBS := slurm-wlm slurm-client munge iproute2
+SLURM_TEST_TIMEOUT ?= 1200
 test-slurm: all
 	@sh tests/install-deps.sh $(SLURM_DEBS)
-	$(Q)BIN=$(abspath $(BIN)) bash tests/slurm/cluster run bash tests/slurm/run.sh
+	$(Q)BIN=$(abspath $(BIN)) timeout -k 60 $(SLURM_TEST_TIMEOUT) bash tests/slurm/cluster run bash tests/slurm/run.sh; \
+	rc=$$?; [ $$rc != 124 ] || echo "FAIL slurm: make test-slurm did not end in $(SLURM_TEST_TIMEOUT) s: stopped, the cluster torn down"; exit $$rc
 
 # The stiff and extreme cases alone (docs/extreme-cases.md; tests/run's pattern also selects
 # any unit test named for them); `make test` runs them too.

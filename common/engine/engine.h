@@ -33,6 +33,7 @@ typedef enum {
     PM_P_HEIGHT,
     PM_P_PRIMARY,
     PM_P_LIGHT_SAMPLES,
+    PM_P_GUIDE,
     PM_P_ORDER,
     PM_P_LEAF,
     PM_P_RADIUS,
@@ -88,6 +89,7 @@ typedef struct {
     int verbose, quiet;   /* VERBOSE=1, QUIET=1 */
     int wait;             /* WAIT=1 */
     int keep;             /* 0 all, 1 buffers, 2 image (KEEP) */
+    int guide;            /* GUIDE=1: trace-gather-points --guide photons.pm (one-pass gather renders) */
     int secondary_direct; /* SECONDARY_DIRECT=1 with MODE=gather: light samples at the gather points
                            * (trace-gather-points --secondary-direct) and photons without the first
                            * hits of the lights they sample (trace-photons --indirect-only) */

@@ -177,6 +177,8 @@ static void build_graph(render_t *r)
         arg_opt(j, "--seed", s->value[PM_P_SEED]);
         if (r->secondary_direct)
             arg(j, "--indirect-only");
+        if (s->guide) /* the guide reads where each photon came from */
+            arg(j, "--direction");
         arg_common(r, j);
 
         j = job_new(r, "build-photonmap");
@@ -234,6 +236,11 @@ static void build_graph(render_t *r)
     arg_opt(j, "--seed", s->value[PM_P_SEED]);
     if (r->secondary_direct)
         arg(j, "--secondary-direct");
+    if (s->guide && r->need_gather) { /* GUIDE=1: after trace-photons, from its photons */
+        arg(j, "--guide");
+        arg(j, "photons.pm");
+        j->ins[j->nins++] = "photons.pm";
+    }
     arg_common(r, j);
     if (strcmp(r->order, "none") != 0) {
         j = job_new(r, "hilbert-sort");
@@ -1553,6 +1560,20 @@ static void pass_gather_opts(passgraph_t *g, pcmd_t *c, int caustic)
     arg_opt(c, "--isa", s->value[PM_P_ISA]);
     pc_pass(c, g->pass);
     arg_opt(c, "--alpha", s->value[PM_P_ALPHA]);
+    /* the pass's place on the schedule by photons: every pass file has PHOTONS (or the scene's
+     * count), so pass p has (p - 1) of them before it, the schedule's r_p as ever */
+    int64_t n = 0;
+    if (!s->value[PM_P_PHOTONS][0] || pm_parse_i64(s->value[PM_P_PHOTONS], &n) != PM_OK || n < 1)
+        n = r->sc.defaults.photons;
+    if (n >= 1) {
+        char b[32], u[32];
+        snprintf(b, sizeof b, "%" PRId64, n * (g->pass - 1));
+        snprintf(u, sizeof u, "%" PRId64, n);
+        arg(c, "--pass-photons");
+        arg(c, b);
+        arg(c, "--unit-photons");
+        arg(c, u);
+    }
 }
 
 /* The graph of pass g->pass in g->dir, as units in the order they run. */
@@ -2355,6 +2376,11 @@ int pm_render_passes(const pm_settings_t *s_in, const char *me, const char *bin,
     passes_t *P = &PP;
     ps = *s_in;
     const pm_settings_t *s = &ps;
+    if (s->guide) { /* the resident passes have a guide (progressive.c, make_guide); the pass files not */
+        pm_engine_say(me, "GUIDE=1 with pass files (KEEP=all, SHARDS, WIDTHS=variable, another GATHER or "
+                          "TARGETs with passes): not done; the resident passes and one-pass renders are guided");
+        return 2;
+    }
     /* Per-pass defaults for the parameters not given (the scene's render block sizes one render,
      * not a pass): docs/accuracy.md, "Progressive defaults". */
     static const char *const defaults[][2] = {{"PHOTONS", "300000"}, {"PRIMARY", "16"}, {"SPP", "4"}, {"K", "5"}};

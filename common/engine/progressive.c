@@ -413,6 +413,10 @@ static void stage_argv(const prog_t *p, argv_t a[NSTAGE], const int fd[NPIPE][2]
     opt(&a[TG], "--seed", val(p, PM_P_SEED));
     if (p->secondary_direct)
         push(&a[TG], "--secondary-direct");
+    if (p->s->guide) { /* GUIDE=1: every pass guided by the guide's photons (make_guide) */
+        push(&a[TG], "--guide");
+        pushf(&a[TG], "%s/guide-photons.pm", p->out);
+    }
     push(&a[TG], "--plan");
     push(&a[TG], "-");
     if (p->on[SG]) {
@@ -460,6 +464,17 @@ static void stage_argv(const prog_t *p, argv_t a[NSTAGE], const int fd[NPIPE][2]
         opt(&a[i], "--kernel", val(p, PM_P_KERNEL));
         opt(&a[i], "--isa", val(p, PM_P_ISA));
         opt(&a[i], "--alpha", val(p, PM_P_ALPHA));
+        /* a rerun: where its first pass sits on the schedule, from the photons of the passes
+         * the running image holds (the stage counts on from the maps' own photon counts) */
+        if (first > 1 && p->npasses >= first - 1) {
+            int64_t before = 0;
+            for (int j = 0; j < first - 1; j++)
+                before += p->passes[j].photons;
+            pushf(&a[i], "--unit-photons");
+            pushf(&a[i], "%" PRId64, p->passes[0].photons);
+            pushf(&a[i], "--pass-photons");
+            pushf(&a[i], "%" PRId64, before);
+        }
     }
 
     /* the buffers in the order the pass files add them: direct, indirect, caustic */
@@ -514,6 +529,8 @@ static void make_settings(prog_t *p)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " GATHER=none");
     if (p->secondary_direct && at < sizeof p->settings)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " SECONDARY_DIRECT=1");
+    if (p->s->guide && at < sizeof p->settings)
+        at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " GUIDE=1");
     snprintf(p->request, sizeof p->request, "PASSES=%s TIME=%s TARGET_ERROR=%s EXPOSURE=%s TONE=%s HALF=%s",
              val(p, PM_P_PASSES), val(p, PM_P_TIME), val(p, PM_P_TARGET_ERROR), val(p, PM_P_EXPOSURE),
              val(p, PM_P_TONE), val(p, PM_P_HALF));
@@ -593,7 +610,8 @@ static void write_stats(prog_t *p, double wall, double first_image, const char *
         r1 = 0.0;
     int64_t spp = 0;
     pm_parse_i64(p->spp, &spp);
-    for (int i = 0; i < p->npasses; i++) {
+    uint64_t before = 0; /* the photons of the passes before pass i: its place on the schedule */
+    for (int i = 0; i < p->npasses; before += (uint64_t)p->passes[i].photons, i++) {
         const pass_t *ps = &p->passes[i];
         json_t *o = json_object(), *st = json_object(), *tp = json_object(), *tg = json_object(), *sg = json_object();
         json_object_set_new(tp, "emitted", json_integer(ps->photons));
@@ -608,7 +626,10 @@ static void write_stats(prog_t *p, double wall, double first_image, const char *
                 json_object_set_new(sg, "k", json_real(kk));
         }
         if (r1 > 0.0)
-            json_object_set_new(sg, "radius_m", json_real(pm_gather_pass_radius(r1, (uint64_t)ps->pass, a)));
+            json_object_set_new(
+                sg, "radius_m",
+                json_real(pm_gather_schedule_radius(
+                    r1, pm_gather_pass_index((uint64_t)ps->pass, before, (uint64_t)p->passes[0].photons), a)));
         json_object_set_new(sg, "pass", json_integer(ps->pass));
         if (p->on[TP])
             json_object_set_new(st, "trace-photons", tp);
@@ -700,6 +721,39 @@ static void read_radius1(prog_t *p)
  * PASS SECONDS IMAGE once the image holds passes 1 to PASS, SECONDS the wall time since the
  * command started; its time counts in the render's. A failing hook is reported and the passes
  * go on. */
+/* GUIDE=1: the guide's photons, made before the passes into OUTDIR/guide-photons.pm (removed
+ * after them): pass 1's photon stream at a full pass's size, with their directions
+ * (trace-photons --pass 1 --direction). Every pass's trace-gather-points reads it, so pass 1 is
+ * guided by photons like its own and the later passes by pass 1's; any guide keeps each pass's
+ * estimate unbiased. Returns 0, or the exit status (1 the stage failed, 3 it could not run). */
+static int make_guide(const prog_t *p, char **env)
+{
+    argv_t a = {0};
+    pushf(&a, "%s/trace-photons", p->bin);
+    push(&a, p->scene);
+    push(&a, "--photons");
+    pushf(&a, "%" PRId64, p->photons);
+    opt(&a, "--seed", val(p, PM_P_SEED));
+    push(&a, "--pass");
+    push(&a, "1");
+    push(&a, "--direction");
+    push(&a, "-q");
+    opt(&a, "--threads", val(p, PM_P_THREADS));
+    push(&a, "-o");
+    pushf(&a, "%s/guide-photons.pm", p->out);
+    pm_spawn_t sp = {.argv = a.v, .stdin_fd = -1, .stdout_fd = -1, .env = env, .capture_stderr = 1};
+    pm_proc_status_t st;
+    if (pm_proc_run(&sp, &st) != PM_OK) {
+        say(p, "cannot run trace-photons for the guide: %s", pm_error_message());
+        return 3;
+    }
+    int rc = st.exit_code == 0 ? 0 : st.exit_code == 3 ? 3 : 1;
+    if (rc)
+        say(p, "trace-photons for the guide failed (exit %d): %.400s", st.exit_code, st.err ? st.err : "");
+    pm_proc_status_free(&st);
+    return rc;
+}
+
 static void run_hook(const prog_t *p, char **env, int pass, double seconds)
 {
     const char *hook = getenv("RENDER_PASS_HOOK");
@@ -1076,8 +1130,13 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
             rc = retone(&p, env);
         if (rc == 0 && write_list(&p) != 0)
             say(&p, "cannot write '%s/passes.txt'", p.out), rc = 3;
-    } else {
+    } else if (!s->guide || (rc = make_guide(&p, env)) == 0) {
         rc = run_passes(&p, env, t0, held + 1, &stop, &first_image);
+    }
+    if (s->guide) {
+        char path[4200];
+        snprintf(path, sizeof path, "%s/guide-photons.pm", p.out);
+        unlink(path);
     }
     free(env);
     if (p.npasses) {

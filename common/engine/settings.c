@@ -25,6 +25,7 @@ static const struct {
     [PM_P_HEIGHT] = {"HEIGHT", ""},
     [PM_P_PRIMARY] = {"PRIMARY", ""},
     [PM_P_LIGHT_SAMPLES] = {"LIGHT_SAMPLES", ""},
+    [PM_P_GUIDE] = {"GUIDE", "0"},
     [PM_P_ORDER] = {"ORDER", "auto"},
     [PM_P_LEAF] = {"LEAF", ""},
     [PM_P_RADIUS] = {"RADIUS", ""},
@@ -140,7 +141,8 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
     if ((r = choice(s, PM_P_MODE, modes)) || (r = choice(s, PM_P_MAP, maps)) || (r = choice(s, PM_P_ORDER, orders)) ||
         (r = choice(s, PM_P_WIDTHS, widths)) || (r = choice(s, PM_P_TONE, tones)) || (r = choice(s, PM_P_HALF, bits)) ||
         (r = choice(s, PM_P_VERBOSE, bits)) || (r = choice(s, PM_P_WAIT, bits)) || (r = choice(s, PM_P_QUIET, bits)) ||
-        (r = choice(s, PM_P_KEEP, keeps)) || (r = choice(s, PM_P_SECONDARY_DIRECT, autobits)))
+        (r = choice(s, PM_P_GUIDE, bits)) || (r = choice(s, PM_P_KEEP, keeps)) ||
+        (r = choice(s, PM_P_SECONDARY_DIRECT, autobits)))
         return r;
     s->keep = strcmp(s->value[PM_P_KEEP], "all") == 0       ? PM_KEEP_ALL
               : strcmp(s->value[PM_P_KEEP], "buffers") == 0 ? PM_KEEP_BUFFERS
@@ -187,6 +189,17 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
     s->wait = s->value[PM_P_WAIT][0] == '1';
     s->progressive = s->value[PM_P_TIME][0] || s->value[PM_P_TARGET_ERROR][0] || s->value[PM_P_PASS_RANGE][0] ||
                      (s->value[PM_P_PASSES][0] && strcmp(s->value[PM_P_PASSES], "1") != 0);
+    s->guide = s->value[PM_P_GUIDE][0] == '1';
+    if (s->guide && strcmp(s->value[PM_P_MODE], "gather") != 0)
+        return pm_error_set(PM_ERR_USAGE, "GUIDE=1 guides the secondary rays of MODE=gather, not MODE=%s",
+                            s->value[PM_P_MODE]);
+    if (s->guide && strcmp(s->value[PM_P_GATHER], "none") == 0)
+        return pm_error_set(PM_ERR_USAGE,
+                            "GUIDE=1 guides by the pass's photons: not with GATHER=none, which traces none");
+    /* The pass files (PASS_RANGE, KEEP=all given, ...) have no guide: resident passes only. */
+    if (s->guide && s->value[PM_P_PASS_RANGE][0])
+        return pm_error_set(PM_ERR_USAGE, "GUIDE=1 with PASS_RANGE: the pass files have no guide (the resident "
+                                          "passes and one-pass renders have)");
     if (s->value[PM_P_AOV][0]) {
         if ((r = pm_exr_aov_parse("AOV", s->value[PM_P_AOV], &s->aov)) != PM_OK)
             return r;

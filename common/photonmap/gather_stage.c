@@ -588,7 +588,26 @@ double pm_gather_pass_radius(double r1, uint64_t pass, double alpha)
     return r1 * sqrt(area);
 }
 
-pm_result_t pm_gather_pass_header(pm_header_t *h, uint64_t pass, double alpha, double r1)
+double pm_gather_schedule_radius(double r1, double n, double alpha)
+{
+    if (!(n > 1.0))
+        return r1;
+    /* an integral index: the product itself, so that passes of pass 1's size keep their bytes */
+    if (n == floor(n) && n < 9007199254740992.0)
+        return pm_gather_pass_radius(r1, (uint64_t)n, alpha);
+    double l = lgamma(n + alpha) - lgamma(1.0 + alpha) - lgamma(n + 1.0);
+    return r1 * sqrt(exp(l));
+}
+
+double pm_gather_pass_index(uint64_t pass, uint64_t before, uint64_t unit)
+{
+    if (unit == 0)
+        return (double)pass;
+    return 1.0 + (double)before / (double)unit;
+}
+
+pm_result_t pm_gather_pass_header(pm_header_t *h, uint64_t pass, double alpha, double r1, uint64_t before,
+                                  uint64_t unit)
 {
     if (pass == 0)
         return PM_OK;
@@ -597,5 +616,26 @@ pm_result_t pm_gather_pass_header(pm_header_t *h, uint64_t pass, double alpha, d
         r = pm_header_set(h, "alpha", "%.9g", alpha);
     if (r == PM_OK)
         r = pm_header_set(h, "radius1", "%.9g", r1);
+    if (r == PM_OK && unit)
+        r = pm_header_set(h, "pass_photons", "%" PRIu64, before);
+    if (r == PM_OK && unit)
+        r = pm_header_set(h, "unit_photons", "%" PRIu64, unit);
     return r;
+}
+
+pm_result_t pm_gather_pass_check(int64_t pass, int64_t before, int64_t unit)
+{
+    if ((before >= 0 || unit > 0) && pass == 0)
+        return pm_error_set(PM_ERR_USAGE, "--pass-photons and --unit-photons place a progressive pass: give --pass N");
+    if (before >= 0 && unit == 0)
+        return pm_error_set(PM_ERR_USAGE, "--pass-photons %" PRId64 " needs --unit-photons U (pass 1's photons)",
+                            before);
+    if (unit > 0 && before < 0 && pass > 1)
+        return pm_error_set(PM_ERR_USAGE,
+                            "--unit-photons %" PRId64 " places pass %" PRId64 " with --pass-photons B (the photons "
+                            "of the passes before it)",
+                            unit, pass);
+    if (pass == 1 && before > 0)
+        return pm_error_set(PM_ERR_USAGE, "--pass 1 has no photons before it, not --pass-photons %" PRId64, before);
+    return PM_OK;
 }

@@ -28,17 +28,27 @@ extern const char *const pm_kernel_names[];
          1, 0, NULL}
 /* clang-format on */
 
-/* The progressive passes' options (Knaus and Zwicker 2011): --pass N (1-based; 0: none) and
- * --alpha A, the schedule's parameter in (0, 1). */
+/* The progressive passes' options (Knaus and Zwicker 2011): --pass N (1-based; 0: none),
+ * --alpha A, the schedule's parameter in (0, 1), and the photons that place a pass on the
+ * schedule: --pass-photons B (emitted in the passes before it) and --unit-photons U (pass 1's),
+ * so that passes of any size shrink the kernel as their photons justify. */
 /* clang-format off */
-#define PM_GATHER_PASS_OPTIONS(pass, alpha)                                                                            \
+#define PM_GATHER_PASS_OPTIONS(pass, alpha, before, unit)                                                              \
     {"pass", 0, PM_OPT_INT, &(pass), "N",                                                                              \
      "progressive pass N (1-based): gather with r_N of the schedule r_(i+1)^2 = r_i^2 (i + A) / (i + 1), r_1 being "   \
      "--radius or the width --k measures; 0: no pass, the width as given",                                           \
      0, (double)((int64_t)1 << 40), NULL},                                                                             \
         {"alpha", 0, PM_OPT_DOUBLE, &(alpha), "A",                                                                     \
          "the schedule's alpha with --pass, in (0, 1): smaller shrinks the width faster (less bias, more noise)",       \
-         1e-9, 1 - 1e-9, NULL}
+         1e-9, 1 - 1e-9, NULL},                                                                                        \
+        {"pass-photons", 0, PM_OPT_INT, &(before), "B",                                                                \
+         "with --pass and --unit-photons: the photons emitted in the passes before this one; the pass then sits at "   \
+         "n = 1 + B / U of the schedule (the product's continuous form), not at N; -1: not given",                    \
+         -1, (double)((int64_t)1 << 62), NULL},                                                                        \
+        {"unit-photons", 0, PM_OPT_INT, &(unit), "U",                                                                  \
+         "with --pass-photons: the photons of pass 1, the schedule's unit (passes of U photons each: n = N exactly); "  \
+         "0: not given",                                                                                               \
+         0, (double)((int64_t)1 << 62), NULL}
 /* clang-format on */
 
 /* The default alpha of the schedule, the value Knaus and Zwicker recommend. */
@@ -49,9 +59,26 @@ extern const char *const pm_kernel_names[];
  * the average of the passes loses its bias and its noise together. pass 0 and 1 give r1. */
 double pm_gather_pass_radius(double r1, uint64_t pass, double alpha);
 
+/* The schedule at a real pass index n >= 1 (in units of pass 1's photons: n = 1 + photons
+ * emitted before the pass / pass 1's photons): r_1 times the square root of
+ * Gamma(n + alpha) / (Gamma(1 + alpha) Gamma(n + 1)), the product's continuous form. At an
+ * integral n it is pm_gather_pass_radius's value to the bit. */
+double pm_gather_schedule_radius(double r1, double n, double alpha);
+
+/* The real pass index of a pass with `before` photons emitted before it, pass 1 having `unit`:
+ * 1 + before / unit; `pass` itself when unit is 0 (no photon counts: every pass alike). */
+double pm_gather_pass_index(uint64_t pass, uint64_t before, uint64_t unit);
+
 /* The keys a pass's gather output carries: pass, alpha and radius1 (r_1; the caller's own
- * `radius` key is r_pass). Nothing when pass is 0. */
-pm_result_t pm_gather_pass_header(pm_header_t *h, uint64_t pass, double alpha, double r1);
+ * `radius` key is r_pass), and with unit > 0 pass_photons (before) and unit_photons (unit).
+ * Nothing when pass is 0. */
+pm_result_t pm_gather_pass_header(pm_header_t *h, uint64_t pass, double alpha, double r1, uint64_t before,
+                                  uint64_t unit);
+
+/* Checks --pass-photons (before; -1: not given) and --unit-photons (unit; 0: not given)
+ * against --pass: only with a pass, before only with unit, unit after pass 1 only with before,
+ * and pass 1 has no photons before it. */
+pm_result_t pm_gather_pass_check(int64_t pass, int64_t before, int64_t unit);
 
 /* A photon map and a queries file (or the range [begin, end) of one), as the gathers read
  * them. Row i of `q` is query begin + i of the file. */

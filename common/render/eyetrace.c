@@ -67,10 +67,12 @@ typedef struct {
     size_t sh_px_cap, sh_c_cap, sec_px_cap, sec_w_cap, sec_cos_cap, sec_env_cap; /* elements allocated */
     float *u1, *u2;                                                              /* spp stratified points */
     float *lx, *ly, *lz; /* their cosine-weighted directions in the local frame */
+    float *gsel;         /* guided hits: per ray 1 when the guide draws it, 0 when cosine */
     float *thr;          /* per primary ray: RGB throughput of its specular chain (1 1 1 without one) */
     float *emw;          /* per primary ray: the weight of the emission its last ray finds (MIS past a glossy bounce) */
     size_t thr_cap, emw_cap;
     uint64_t n_primary, n_secondary, n_shadow, n_queries, n_caustic, n_specular, n_specular_cut, n_glossy;
+    uint64_t n_guided_hits, n_guided_rays;
     uint32_t row;       /* the row being traced */
     double t_secondary; /* s inside Embree for secondary rays */
     double cpu_rows;    /* s of this thread's CPU time in trace_row */
@@ -96,12 +98,14 @@ struct pm_eye {
     unsigned spp, primary, light_samples, nx, ny;
     int pixel; /* PM_PIXEL_BOX or PM_PIXEL_CENTER */
     int mode, schedule, width, threads, progress, has_mat, has_dir;
-    int specular;          /* the scene has mirrors or glass: eye paths follow them */
-    int caustics;          /* also write the caustic queries (the first non-specular hits) */
-    int direct_only;       /* pm_eye_options_t's: no queries, secondary rays only for emitters they find */
-    unsigned glossy_depth; /* glossy bounces a secondary path continues through before it gathers */
-    int cont;              /* some material continues (continues()): glossy paths are followed */
-    int sec_direct;        /* next-event estimation at the gather points too (gather_direct): asked, and lights */
+    int specular;            /* the scene has mirrors or glass: eye paths follow them */
+    int caustics;            /* also write the caustic queries (the first non-specular hits) */
+    int direct_only;         /* pm_eye_options_t's: no queries, secondary rays only for emitters they find */
+    unsigned glossy_depth;   /* glossy bounces a secondary path continues through before it gathers */
+    const pm_guide_t *guide; /* photon guide of the Lambertian hits' secondary rays, NULL for none */
+    int env_mis;             /* gather mode with a sun or a sky: a Lambertian hit's escaping rays share them */
+    int cont;                /* some material continues (continues()): glossy paths are followed */
+    int sec_direct;          /* next-event estimation at the gather points too (gather_direct): asked, and lights */
     uint32_t record_size, off_pos, off_nor, off_w, off_pix, off_mat, off_dir; /* bytes */
     uint64_t seed;
     float eps; /* m, ray-origin offset along the normal */
@@ -141,7 +145,7 @@ static pm_result_t scratch_reserve(scratch_t *sc, uint32_t y, size_t nprim, size
                             "out of memory for the rays of row %" PRIu32 ": %zu primary, %zu shadow, %zu secondary", y,
                             nprim, nshadow, nsec);
     if (spp) {
-        float **a[] = {&sc->u1, &sc->u2, &sc->lx, &sc->ly, &sc->lz};
+        float **a[] = {&sc->u1, &sc->u2, &sc->lx, &sc->ly, &sc->lz, &sc->gsel};
         for (size_t k = 0; k < sizeof a / sizeof a[0]; k++)
             if (!*a[k] && !(*a[k] = malloc(spp * sizeof(float))))
                 return pm_error_set(PM_ERR_NOMEM, "out of memory for the directions of row %" PRIu32 ": %u samples", y,
@@ -155,7 +159,7 @@ static void scratch_free(scratch_t *sc)
     pm_rays_free(&sc->prim), pm_rays_free(&sc->shadow), pm_rays_free(&sc->sec);
     free(sc->hit), free(sc->sh_px), free(sc->sh_c), free(sc->sec_px), free(sc->sec_w), free(sc->sec_cos),
         free(sc->sec_env);
-    free(sc->u1), free(sc->u2), free(sc->lx), free(sc->ly), free(sc->lz), free(sc->thr);
+    free(sc->u1), free(sc->u2), free(sc->lx), free(sc->ly), free(sc->lz), free(sc->gsel), free(sc->thr);
     free(sc->emw);
 }
 
@@ -355,6 +359,20 @@ static int shadow_room(const pm_eye_t *c, scratch_t *sc)
            grow((void **)&sc->sh_c, 3 * sizeof(float), &sc->sh_c_cap, want);
 }
 
+/* The solid-angle pdf of a Lambertian hit's secondary rays at a direction of cosine cosn: cos / pi,
+ * or with a guide cell gc the mixture of that and the cell's distribution (spawn_guided). */
+static inline float lambert_pdf(const pm_guide_cell_t *gc, float cosn, const float wi[3])
+{
+    float pc = fmaxf(cosn, 0.0f) * (1.0f / PM_PI);
+    return gc ? PM_GUIDE_COSINE * pc + (1.0f - PM_GUIDE_COSINE) * pm_guide_pdf(gc, wi) : pc;
+}
+
+/* The guide cell of Lambertian surface v, NULL without a guide or where it has none. */
+static inline const pm_guide_cell_t *guide_cell(const pm_eye_t *c, const surf_t *v)
+{
+    return c->guide && c->mode == PM_EYE_GATHER ? pm_guide_find(c->guide, v->p, v->gn) : NULL;
+}
+
 /* Next-event estimation at surface v for pixel column x: a shadow ray per light sample into
  * sc->shadow, with the radiance it adds when unblocked times inv_p and the path weight tp.
  * nb is the number of BSDF samples that can also find an area light from v (the MIS weight's
@@ -362,7 +380,8 @@ static int shadow_room(const pm_eye_t *c, scratch_t *sc)
  * samples per light that is not a delta (direct_lights: the options' light_samples); area 0
  * keeps only the samples pm_light_at_gather gives the gather point (gather_direct). */
 static void direct_lights_n(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, float inv_p,
-                            const float tp[3], float nb, int mis, pm_rng_t *light_rng, unsigned ls, int area)
+                            const float tp[3], float nb, int mis, pm_rng_t *light_rng, const pm_guide_cell_t *gc,
+                            unsigned ls, int area)
 {
     const pm_lights_t *lights = &c->lights;
     const pm_material_t *m = v->m;
@@ -383,10 +402,13 @@ static void direct_lights_n(const pm_eye_t *c, scratch_t *sc, const surf_t *v, u
              * can find as well: a and b are sample counts times solid-angle pdfs at one
              * direction. Emitters are found by the secondary rays (in gather mode) and by the
              * rays of glossy paths. Lights at infinity (li.infinite) are found only by rays that
-             * escape: at a Lambertian surface those add nothing, so the light samples keep
-             * weight 1; at a glossy one, whose lobe the cosine-weighted sky samples hardly find
-             * (the speckle of a windshield under the sky), they share the light with the BSDF
-             * samples that escape (env_add). Any weights that sum to one at every direction keep
+             * escape, and share the light with the BSDF samples that escape (env_add): at a glossy
+             * surface, whose lobe the cosine-weighted sky samples hardly find (the speckle of a
+             * windshield under the sky), and at a Lambertian one in gather mode (c->env_mis),
+             * whose spp secondary rays are drawn as the sky's light samples are (cos / pi), or
+             * guided: counting the ones that escape takes the speckle of a shadowed floor that
+             * sees a sliver of sky out of the direct buffer (docs/accuracy.md, the sky-lit
+             * atrium). Any weights that sum to one at every direction keep
              * the estimate unbiased; the counts only tune the variance. The secondary rays count
              * as spp / PER_CELL, their stratum cells (the four rays of a cell land close
              * together), not as spp: counting every ray hands the weight to the rays where a
@@ -394,9 +416,9 @@ static void direct_lights_n(const pm_eye_t *c, scratch_t *sc, const surf_t *v, u
              * a large emitter to light samples alone, whose variance is unbounded next to it (the
              * 1/r^2 of a sample landing beside the receiver). The measurements behind this
              * choice are in docs/programs/trace-gather-points.md. */
-            if (mis && !li.delta && (!li.infinite || glossy))
-                g *= pm_power_heuristic((float)nsamples * li.pdf,
-                                        glossy ? nb * pm_bsdf_pdf(m, bn, li.wi, wo) : nb * li.cosx * (1.0f / PM_PI));
+            if (mis && !li.delta && (!li.infinite || glossy || (c->env_mis && m->kind == PM_MAT_STANDARD)))
+                g *= pm_power_heuristic((float)nsamples * li.pdf, glossy ? nb * pm_bsdf_pdf(m, bn, li.wi, wo)
+                                                                         : nb * lambert_pdf(gc, li.cosx, li.wi));
             pm_brdf(m, bn, li.wi, wo, f);
             size_t j = sc->shadow.n;
             for (int k = 0; k < 3; k++)
@@ -408,9 +430,9 @@ static void direct_lights_n(const pm_eye_t *c, scratch_t *sc, const surf_t *v, u
 }
 
 static void direct_lights(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, float inv_p, const float tp[3],
-                          float nb, int mis, pm_rng_t *light_rng)
+                          float nb, int mis, pm_rng_t *light_rng, const pm_guide_cell_t *gc)
 {
-    direct_lights_n(c, sc, v, x, inv_p, tp, nb, mis, light_rng, c->light_samples, 1);
+    direct_lights_n(c, sc, v, x, inv_p, tp, nb, mis, light_rng, gc, c->light_samples, 1);
 }
 
 /* Traces the shadow rays gathered in sc->shadow; each unblocked one adds its radiance to
@@ -487,11 +509,68 @@ static void secondary_directions(const pm_eye_t *c, scratch_t *sc, const float n
     pm_strata_cosine(sc->u1, sc->u2, c->spp, sc->lx, sc->ly, sc->lz);
 }
 
-/* Lambertian primary hit: spp cosine-weighted rays (pdf cos/pi), so f cos / pdf = pi f = kd
- * for every ray, over N; kd > 0 here. Whole arrays at once, in SIMD lanes. */
-static void spawn_lambertian(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, float scale,
-                             const float tp[3], pm_rng_t *gather_rng)
+/* The guided Lambertian hit (guide cell gc, render/guide.h): ray q is drawn by cosine when its
+ * stratified u1 falls under PM_GUIDE_COSINE, u1 rescaled into [0, 1), else from the cell's
+ * histogram, u1 rescaled the same way, so that the strata (and the four rays of a cell, mostly of
+ * one component) survive. The weight is f cos / p = kd cos / (pi p) over N with the mixture's pdf p
+ * (lambert_pdf: one-sample MIS, balance heuristic), and sec_cos pi p for the emitters the ray may
+ * find; a guide direction below the surface carries nothing (its pdf still counted) and is not
+ * traced. The escaping rays add nothing, as unguided. */
+static void spawn_guided(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, float scale, const float tp[3],
+                         pm_rng_t *gather_rng, const pm_guide_cell_t *gc)
 {
+    const float *n = v->n, *o = v->o, *gn = v->gn;
+    const float C = PM_GUIDE_COSINE;
+    pm_vec3_t tv, bv;
+    pm_onb(pm_v3_load(n), &tv, &bv);
+    float tb[3], bb[3];
+    pm_v3_store(tb, tv), pm_v3_store(bb, bv);
+    pm_strata_fill(gather_rng, c->nx, c->ny, PER_CELL, sc->u1, sc->u2);
+    pm_rays_t *sr = &sc->sec;
+    size_t j0 = sr->n;
+    unsigned nq = c->spp;
+    for (unsigned q = 0; q < nq; q++) {
+        float u = sc->u1[q];
+        sc->gsel[q] = u < C ? 0.0f : 1.0f;
+        u = u < C ? u / C : (u - C) / (1.0f - C);
+        sc->u1[q] = u < 1.0f ? u : 0x1.fffffep-1f; /* the rescaling can round up to 1 */
+    }
+    pm_strata_cosine(sc->u1, sc->u2, nq, sc->lx, sc->ly, sc->lz);
+    const pm_material_t *m = v->m;
+    for (unsigned q = 0; q < nq; q++) {
+        size_t j = j0 + q;
+        float d[3];
+        if (sc->gsel[q] > 0.0f) {
+            pm_guide_sample(gc, sc->u1[q], sc->u2[q], d);
+            sc->n_guided_rays++;
+        } else
+            for (int k = 0; k < 3; k++)
+                d[k] = sc->lx[q] * tb[k] + sc->ly[q] * bb[k] + sc->lz[q] * n[k];
+        float cosn = pm_dot3(d, n), p = lambert_pdf(gc, cosn, d), f = 0.0f;
+        int above = cosn > 0.0f && p > 0.0f && (!v->shaded || pm_dot3(d, gn) > 0.0f);
+        if (above)
+            f = cosn / (PM_PI * p); /* times kd: f cos / p */
+        pm_rays_push(sr, o, d, 0.0f, above ? INFINITY : 0.0f);
+        float *w = sc->sec_w + 3 * j;
+        for (int k = 0; k < 3; k++)
+            w[k] = m->kd[k] * f * scale * tp[k];
+        sc->sec_px[j] = x;
+        sc->sec_cos[j] = PM_PI * p;
+        env_keep(sc, j, n, c->env_mis ? p : 0.0f, (float)(c->spp / PER_CELL)); /* as unguided */
+    }
+    sc->n_guided_hits++;
+}
+
+/* Lambertian primary hit: spp cosine-weighted rays (pdf cos/pi), so f cos / pdf = pi f = kd
+ * for every ray, over N; kd > 0 here. Whole arrays at once, in SIMD lanes. With a guide cell gc,
+ * the rays of the mixture instead (spawn_guided). */
+static void spawn_lambertian(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, float scale,
+                             const float tp[3], pm_rng_t *gather_rng, const pm_guide_cell_t *gc)
+{
+    if (gc) {
+        spawn_guided(c, sc, v, x, scale, tp, gather_rng, gc);
+        return;
+    }
     float tb[3], bb[3];
     const float *n = v->n, *o = v->o, *gn = v->gn;
     secondary_directions(c, sc, n, gather_rng, tb, bb);
@@ -518,8 +597,9 @@ static void spawn_lambertian(const pm_eye_t *c, scratch_t *sc, const surf_t *v, 
         w[3 * q] = w0, w[3 * q + 1] = w1, w[3 * q + 2] = w2;
         px[q] = x;
     }
-    for (unsigned q = 0; q < nq; q++) /* escaping, they add nothing: the light samples' weight is 1 */
-        sc->sec_env[4 * (j0 + q)] = 0.0f;
+    /* escaping, they find the sun and the sky the light samples drew too (env_add, c->env_mis) */
+    for (unsigned q = 0; q < nq; q++)
+        env_keep(sc, j0 + q, n, c->env_mis ? lz[q] * (1.0f / PM_PI) : 0.0f, (float)(c->spp / PER_CELL));
     if (v->shaded) /* drawn about the shading normal: one below the geometric surface is not taken */
         for (unsigned q = 0; q < nq; q++)
             if (!(dx[q] * gn[0] + dy[q] * gn[1] + dz[q] * gn[2] > 0.0f))
@@ -671,7 +751,9 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
     /* the row's reservation, unless glossy chains (primary_glossy) took some of it */
     if (c->cont && !shadow_room(c, sc))
         return 0;
-    direct_lights(c, sc, &v, x, inv_p, tp, (float)(c->spp / PER_CELL), c->mode == PM_EYE_GATHER, light_rng);
+    /* a Lambertian hit's secondary rays may be guided: its light samples weigh against their pdf */
+    const pm_guide_cell_t *gc = m->kind == PM_MAT_STANDARD && !glossy ? guide_cell(c, &v) : NULL;
+    direct_lights(c, sc, &v, x, inv_p, tp, (float)(c->spp / PER_CELL), c->mode == PM_EYE_GATHER, light_rng, gc);
 
     if (c->mode == PM_EYE_DIRECT_VIS) {
         /* The primary hit is the query: path weight 1 (over the primary rays of the pixel). */
@@ -685,7 +767,7 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
         return 1;
     }
 
-    if (c->direct_only && !pm_lights_has_emitters(&c->lights) && !c->cont && !c->sec_direct)
+    if (c->direct_only && !pm_lights_has_emitters(&c->lights) && !c->cont && !c->env_mis && !c->sec_direct)
         return 1; /* no emitter for a secondary ray to find nor glossy path to follow: no secondary rays */
     float scale = inv_p / (float)c->spp;
     if (c->cont && !sec_room(c, sc)) /* glossy chains (shade_diffuse_part) may have taken the row's */
@@ -695,7 +777,7 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
     else if (glossy)
         spawn_glossy(c, sc, &v, x, scale, tp, gather_rng);
     else
-        spawn_lambertian(c, sc, &v, x, scale, tp, gather_rng);
+        spawn_lambertian(c, sc, &v, x, scale, tp, gather_rng, gc);
     return 1;
 }
 
@@ -810,7 +892,7 @@ static int gather_direct(const pm_eye_t *c, scratch_t *sc, const path_t *a)
     surf_normals(c->s, a->tri, side, &v);
     if (!shadow_room(c, sc))
         return 0;
-    direct_lights_n(c, sc, &v, a->x, 1.0f, a->w, 0.0f, 0, a->rng, 1, 0);
+    direct_lights_n(c, sc, &v, a->x, 1.0f, a->w, 0.0f, 0, a->rng, NULL, 1, 0);
     return 1;
 }
 
@@ -920,7 +1002,7 @@ static int glossy_bounce(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCo
             vd.m = &diffuse;
             if (!shadow_room(c, sc))
                 return -1;
-            direct_lights_n(c, sc, &vd, a->x, 1.0f, a->w, 0.0f, 0, a->rng, 1, 0);
+            direct_lights_n(c, sc, &vd, a->x, 1.0f, a->w, 0.0f, 0, a->rng, NULL, 1, 0);
         }
         /* The lobe alone: the material without its diffuse part. */
         lobe = *m;
@@ -929,7 +1011,7 @@ static int glossy_bounce(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCo
     }
     if (!shadow_room(c, sc))
         return -1;
-    direct_lights(c, sc, &v, a->x, 1.0f, a->w, 1.0f, 1, a->rng);
+    direct_lights(c, sc, &v, a->x, 1.0f, a->w, 1.0f, 1, a->rng, NULL);
     float wi[3], fc[3], o[3], pdf, u = pm_rng_float(a->rng), u1 = pm_rng_float(a->rng), u2 = pm_rng_float(a->rng),
                                    u3 = pm_rng_float(a->rng);
     memcpy(o, v.o, sizeof o);
@@ -1083,8 +1165,9 @@ static int shade_diffuse_part(const pm_eye_t *c, scratch_t *sc, const surf_t *v,
     }
     if (!shadow_room(c, sc) || !sec_room(c, sc))
         return 0;
-    direct_lights(c, sc, v, x, inv_p, thr, (float)(c->spp / PER_CELL), 1, light_rng);
-    spawn_lambertian(c, sc, v, x, inv_p / (float)c->spp, thr, gather_rng);
+    const pm_guide_cell_t *gc = guide_cell(c, v);
+    direct_lights(c, sc, v, x, inv_p, thr, (float)(c->spp / PER_CELL), 1, light_rng, gc);
+    spawn_lambertian(c, sc, v, x, inv_p / (float)c->spp, thr, gather_rng, gc);
     return 1;
 }
 
@@ -1153,7 +1236,7 @@ static int primary_glossy(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectC
         v.m = standard ? &lobe : m;
         if (!shadow_room(c, sc))
             return 0;
-        direct_lights(c, sc, &v, x, inv_p, thr, 1.0f, 1, rng);
+        direct_lights(c, sc, &v, x, inv_p, thr, 1.0f, 1, rng, NULL);
         float wi[3], fc[3], pdf;
         int tr = 0;
         if (standard) {
@@ -1349,10 +1432,10 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
                             out->count + 1);
     shadow_rays(c, sc, direct);
 
-    /* The secondary rays' only part in the direct light is the emitters they find (and the
-     * light of the glossy paths they continue). */
+    /* The secondary rays' only part in the direct light is the emitters, the sun and the sky
+     * they find (and the light of the glossy paths they continue, and of the gather points). */
     if (c->mode != PM_EYE_GATHER ||
-        (c->direct_only && !pm_lights_has_emitters(&c->lights) && !c->cont && !c->sec_direct))
+        (c->direct_only && !pm_lights_has_emitters(&c->lights) && !c->cont && !c->env_mis && !c->sec_direct))
         return PM_OK;
     /* Secondary rays: consecutive rays share a cell or a pixel, so packets stay coherent. */
     double t0 = pm_time_wall();
@@ -1450,6 +1533,7 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
     c->caustics = o->caustics;
     c->direct_only = o->direct_only;
     c->glossy_depth = o->glossy_depth;
+    c->guide = o->mode == PM_EYE_GATHER ? o->guide : NULL;
     for (size_t m = 0; c->mode == PM_EYE_GATHER && m < s->nmaterials; m++)
         c->cont |= material_continues(&s->materials[m], c->glossy_depth) || varies(s, (uint32_t)m);
     pm_result_t r = PM_OK;
@@ -1513,6 +1597,8 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
     if (r == PM_OK)
         r = pm_lights_init(s, &c->lights);
     c->sec_direct = r == PM_OK && o->secondary_direct && c->lights.ndirect > 0;
+    for (size_t l = c->lights.ndelta; r == PM_OK && c->mode == PM_EYE_GATHER && l < c->lights.ndirect; l++)
+        c->env_mis |= c->lights.direct[l].infinite;
     if (r != PM_OK) {
         pm_eye_destroy(c);
         return r;
@@ -1531,6 +1617,7 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
                               .caustics = c->caustics,
                               .glossy_depth = c->cont ? c->glossy_depth : 0,
                               .secondary_direct = o->secondary_direct,
+                              .guided = c->guide != NULL,
                               .record_size = c->record_size};
     *out = c;
     return PM_OK;
@@ -1632,6 +1719,8 @@ pm_result_t pm_eye_trace(pm_eye_t *c, const pm_eye_sink_t *sink, pm_eye_stats_t 
         stats_out->specular_rays += scr[t].n_specular;
         stats_out->specular_cut += scr[t].n_specular_cut;
         stats_out->glossy_rays += scr[t].n_glossy;
+        stats_out->guided_hits += scr[t].n_guided_hits;
+        stats_out->guided_rays += scr[t].n_guided_rays;
         stats_out->secondary_embree_s += scr[t].t_secondary;
     }
     if (r == PM_OK && stats_out->queries != delivered)
@@ -1664,6 +1753,8 @@ static pm_result_t header_common(const pm_eye_t *c, int argc, char **argv, pm_he
         r = pm_header_set(h, "seed", "%" PRIu64, c->seed);
     if (r == PM_OK && c->info.secondary_direct) /* absent otherwise: files as they were before */
         r = pm_header_set(h, "secondary_direct", "1");
+    if (r == PM_OK && c->guide) /* which photons: the stage's INPUT line */
+        r = pm_header_set(h, "guide", "photons");
     return r;
 }
 
@@ -1744,6 +1835,10 @@ void pm_eye_report(pm_stage_t *st, const pm_eye_info_t *in, const pm_eye_stats_t
         pm_stage_stat_int(st, "glossy_rays", (int64_t)x->glossy_rays);
     if (in->secondary_direct)
         pm_stage_stat_int(st, "secondary_direct", 1);
+    if (in->guided) {
+        pm_stage_stat_int(st, "guided_hits", (int64_t)x->guided_hits);
+        pm_stage_stat_int(st, "guided_rays", (int64_t)x->guided_rays);
+    }
     pm_stage_stat_double(st, "trace_s", tt);
     pm_stage_stat_double(st, "spool_s", x->sink_s);
     pm_stage_stat_double(st, "rays_per_s", tt > 0 ? (double)rays / tt : 0.0);

@@ -6,12 +6,11 @@
  * filter), or all through its centre (PM_PIXEL_CENTER). At each
  * primary hit adds emission seen directly and direct light (shadow rays to point lights and to
  * sampled points of emissive triangles) into the direct radiance buffer; and spawns `spp`
- * secondary rays (cosine-weighted at a Lambertian surface, drawn from the BSDF mixture at a
- * glossy one), stratified with PM_EYE_PER_CELL samples per cell so that
- * groups of four share origin and direction, also traced as packets. Each secondary hit becomes
- * one gather point, a record of the queries format (formats/formats.h) with the weight contract
- * of docs/formats.md. PM_EYE_DIRECT_VIS makes the primary hits themselves the queries (the
- * paper's Figure 4, left).
+ * secondary rays (cosine-weighted at a Lambertian surface, or half of them from a photon guide,
+ * render/guide.h, where one is given; drawn from the BSDF mixture at a glossy one), stratified with PM_EYE_PER_CELL
+ * samples per cell so that groups of four share origin and direction, also traced as packets. Each secondary hit
+ * becomes one gather point, a record of the queries format (formats/formats.h) with the weight contract of
+ * docs/formats.md. PM_EYE_DIRECT_VIS makes the primary hits themselves the queries (the paper's Figure 4, left).
  *
  * Rows are the unit of work: rows of a band run in parallel, and the caller's sink receives their
  * records and direct radiance on the calling thread in pixel order, so what it receives is the
@@ -26,6 +25,7 @@
 #include "base/error.h"
 #include "base/stage.h"
 #include "formats/pmfile.h"
+#include "render/guide.h"
 #include "render/rt.h"
 #include "render/scene.h"
 
@@ -63,12 +63,15 @@ typedef struct {
     int progress;    /* a progress line on a terminal */
     int caustics;    /* also deliver the caustic queries (sink->caustic); a scene with mirrors or glass, gather mode */
     int direct_only; /* the direct radiance alone, no queries: secondary rays are traced only in a scene with
-                      * emissive triangles, for the light they find there (the same direct buffer, bit for bit) */
-    unsigned glossy_depth; /* glossy bounces a secondary path may continue through before it gathers (gather
-                            * mode); 0 gathers on every glossy surface */
-    int secondary_direct;  /* gather mode: next-event estimation at every gather point too, into the direct
-                            * buffer, so that the queries ask the map for indirect light alone (a map without
-                            * first-hit photons: trace-photons --indirect-only, build-photonmap --map indirect) */
+                      * emissive triangles, a sun or a sky, for the light they find there (the same direct buffer,
+                      * bit for bit) */
+    unsigned glossy_depth;   /* glossy bounces a secondary path may continue through before it gathers (gather
+                              * mode); 0 gathers on every glossy surface */
+    const pm_guide_t *guide; /* photon guide of the secondary rays at Lambertian hits (render/guide.h), NULL for
+                              * none; read only, must outlive the context */
+    int secondary_direct;    /* gather mode: next-event estimation at every gather point too, into the direct
+                              * buffer, for a map without the first-hit photons it stands for (trace-photons
+                              * --indirect-only; render/light.h, pm_light_at_gather) */
 } pm_eye_options_t;
 
 /* What a context settled on: sizes, the effective spp, the queries' record layout. */
@@ -85,6 +88,7 @@ typedef struct {
     int specular;          /* the scene has mirrors or glass: eye paths pass through them */
     int caustics;          /* caustic queries are delivered */
     unsigned glossy_depth; /* glossy paths are followed up to this many bounces (0: the scene has none, or off) */
+    int guided;            /* secondary rays are guided by photons (pm_eye_options_t guide) */
     int secondary_direct;  /* the gather points' direct light is in the direct buffer (header secondary_direct=1) */
 } pm_eye_info_t;
 
@@ -95,6 +99,8 @@ typedef struct {
     uint64_t specular_rays;    /* single rays of the chains through mirrors and glass */
     uint64_t specular_cut;     /* chains cut at PM_EYE_MAX_SPECULAR bounces */
     uint64_t glossy_rays;      /* single rays of the glossy paths */
+    uint64_t guided_hits;      /* primary hits whose secondary rays a guide cell shaped */
+    uint64_t guided_rays;      /* secondary rays drawn from a guide cell (the rest: cosine) */
     double trace_s;            /* wall s of the row loop, without the time spent in the sink */
     double sink_s;             /* wall s spent in the sink (the caller's output cost) */
     double trace_cpu_s;        /* CPU s the threads spent tracing rows: immune to other processes' load */

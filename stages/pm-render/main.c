@@ -35,6 +35,8 @@ static const char *const param_help =
     "  LIGHT_SAMPLES=N  area-light (and sun and sky) samples per primary hit (0 when the scene has none)\n"
     "  SECONDARY_DIRECT=auto  1: the gather points sample the lights too (an area light beyond sqrt(A)), and\n"
     "                   the map lacks their first hits (gather mode); auto: 1 for TIME of 10 s or more\n"
+    "  GUIDE=0|1        1: guide the secondary rays by the photons (trace-photons --direction, then\n"
+    "                   trace-gather-points --guide; MODE=gather; one pass or resident passes)\n"
     "  ORDER=auto       hilbert|morton|none query order; auto: hilbert for gather, none for direct-vis\n"
     "  LEAF=N|auto      hilbert-sort --leaf\n"
     "  RADIUS=R K=K KERNEL=uniform|epanechnikov WIDTHS=fixed|variable ISA=...   simd-gather options\n"

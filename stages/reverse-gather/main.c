@@ -23,8 +23,9 @@ typedef struct {
     int kernel;
     double normal_cos;
     const char *range;
-    int64_t pass; /* progressive pass, 1-based; 0: none */
-    double alpha; /* the schedule's alpha with pass */
+    int64_t pass;                       /* progressive pass, 1-based; 0: none */
+    double alpha;                       /* the schedule's alpha with pass */
+    int64_t pass_photons, unit_photons; /* photons before the pass (-1: not given) and pass 1's (0: not given) */
 } reverse_options_t;
 
 static pm_result_t run(pm_stage_t *st, const reverse_options_t *opt)
@@ -35,7 +36,10 @@ static pm_result_t run(pm_stage_t *st, const reverse_options_t *opt)
     pm_table_t out = {0};
     if (o->radius == 0.0 && o->k <= 0.0)
         return pm_error_set(PM_ERR_USAGE, "give --radius R or --k K (photons per query) for the kernel width");
-    pm_result_t r = pm_gather_inputs_read(&in, st->args.args[0], st->args.args[1], o->range, 0);
+    pm_result_t r = pm_gather_pass_check(o->pass, o->pass_photons, o->unit_photons);
+    if (r != PM_OK)
+        return r;
+    r = pm_gather_inputs_read(&in, st->args.args[0], st->args.args[1], o->range, 0);
     if (r != PM_OK || (r = pm_gather_inputs_scene_kernel(&in, &st->args, &o->radius, &o->k, &width_from)) != PM_OK)
         goto done;
     double radius = o->radius, t_radius = 0.0, t0;
@@ -46,8 +50,9 @@ static pm_result_t run(pm_stage_t *st, const reverse_options_t *opt)
         t_radius = pm_time_wall() - t0;
     }
     double radius1 = radius;
+    uint64_t before = o->pass_photons > 0 ? (uint64_t)o->pass_photons : 0, unit = (uint64_t)o->unit_photons;
     if (o->pass)
-        radius = pm_gather_pass_radius(radius1, (uint64_t)o->pass, o->alpha);
+        radius = pm_gather_schedule_radius(radius1, pm_gather_pass_index((uint64_t)o->pass, before, unit), o->alpha);
     uint64_t nq = in.q.n;
     pm_reverse_params_t p = {.radius = radius, .kernel = (pm_kernel_t)o->kernel, .normal_cos = (float)o->normal_cos};
     pm_reverse_stats_t rs;
@@ -60,7 +65,7 @@ static pm_result_t run(pm_stage_t *st, const reverse_options_t *opt)
     pm_header_t *h = &out.hdr;
     if ((r = pm_gather_output_init(&out, &in, st->argc, st->argv, o->kernel, "fixed")) != PM_OK ||
         (r = pm_header_set(h, "radius", "%.9g", radius)) != PM_OK ||
-        (r = pm_gather_pass_header(h, (uint64_t)o->pass, o->alpha, radius1)) != PM_OK)
+        (r = pm_gather_pass_header(h, (uint64_t)o->pass, o->alpha, radius1, before, unit)) != PM_OK)
         goto done;
     t0 = pm_time_wall();
     if ((r = pm_gather_output_write(&out, &in, st->output)) != PM_OK)
@@ -82,6 +87,7 @@ static pm_result_t run(pm_stage_t *st, const reverse_options_t *opt)
     if (o->pass) {
         pm_stage_stat_int(st, "pass", o->pass);
         pm_stage_stat_double(st, "radius1_m", radius1);
+        pm_stage_stat_double(st, "pass_index", pm_gather_pass_index((uint64_t)o->pass, before, unit));
     }
     pm_stage_stat_double(st, "build_s", rs.build_s);
     pm_stage_stat_double(st, "search_s", rs.search_s);
@@ -98,7 +104,8 @@ int main(int argc, char **argv)
 {
     pm_stage_t st;
     pm_stage_defaults(&st);
-    reverse_options_t o = {.radius = 0.0, .k = 50.0, .kernel = 1, .normal_cos = 0.5, .alpha = PM_PASS_ALPHA_DEFAULT};
+    reverse_options_t o = {
+        .radius = 0.0, .k = 50.0, .kernel = 1, .normal_cos = 0.5, .alpha = PM_PASS_ALPHA_DEFAULT, .pass_photons = -1};
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
         {"radius", 'r', PM_OPT_DOUBLE, &o.radius, "R", "kernel width h, m (0: from --k)", 0, 1e18, NULL},
@@ -106,7 +113,7 @@ int main(int argc, char **argv)
          "choose h so that about K photons fall in a query's kernel on average (as simd-gather does)", 0, 1e7, NULL},
         {"kernel", 0, PM_OPT_CHOICE, &o.kernel, "K", "kernel shape, normalized over the plane", 0, 0, pm_kernel_names},
         PM_GATHER_COMMON_OPTIONS(o.normal_cos, o.range),
-        PM_GATHER_PASS_OPTIONS(o.pass, o.alpha),
+        PM_GATHER_PASS_OPTIONS(o.pass, o.alpha, o.pass_photons, o.unit_photons),
         {0},
     };
     static const char about[] =

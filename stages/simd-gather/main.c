@@ -53,7 +53,15 @@ typedef struct {
     double alpha; /* the schedule's alpha with pass */
     int stream;   /* STREAM_*: which input is a stream of documents */
     int k_each;   /* --k-each-pass: --stream pairs measures r_1 by --k on every pass's documents */
+    int64_t pass_photons, unit_photons; /* photons before the pass (-1: not given) and pass 1's (0: not given) */
 } gather_options_t;
+
+/* The real pass index of o's pass on the schedule (pm_gather_pass_index). */
+static double pass_index(const gather_options_t *o)
+{
+    return pm_gather_pass_index((uint64_t)o->pass, o->pass_photons > 0 ? (uint64_t)o->pass_photons : 0,
+                                (uint64_t)o->unit_photons);
+}
 
 /* The stats both paths report once the gather is done (t_* in wall seconds; with a stream,
  * the sums over its frames). */
@@ -86,6 +94,7 @@ static void report(pm_stage_t *st, const gather_options_t *o, const pm_gather_in
     if (o->pass) {
         pm_stage_stat_int(st, "pass", o->pass);
         pm_stage_stat_double(st, "radius1_m", radius1);
+        pm_stage_stat_double(st, "pass_index", pass_index(o));
     }
     pm_stage_stat_double(st, "gather_cpu_s", gs->cpu_s);
     pm_stage_note(st,
@@ -159,7 +168,7 @@ static pm_result_t run_stream(pm_stage_t *st, const gather_options_t *opt, pm_is
             t_radius = pm_time_wall() - t0;
             radius1 = radius;
             if (o->pass)
-                radius = pm_gather_pass_radius(radius1, (uint64_t)o->pass, o->alpha);
+                radius = pm_gather_schedule_radius(radius1, pass_index(o), o->alpha);
         }
         pm_gather_params_t p = {.radius = radius,
                                 .kernel = (pm_kernel_t)o->kernel,
@@ -188,7 +197,9 @@ static pm_result_t run_stream(pm_stage_t *st, const gather_options_t *opt, pm_is
         t0 = pm_time_wall();
         if ((r = pm_gather_output_init(&out, &in, st->argc, st->argv, o->kernel, width_names[0])) != PM_OK ||
             (r = pm_header_set(&out.hdr, "radius", "%.9g", radius)) != PM_OK ||
-            (r = pm_gather_pass_header(&out.hdr, (uint64_t)o->pass, o->alpha, radius1)) != PM_OK ||
+            (r = pm_gather_pass_header(&out.hdr, (uint64_t)o->pass, o->alpha, radius1,
+                                       o->pass_photons > 0 ? (uint64_t)o->pass_photons : 0,
+                                       (uint64_t)o->unit_photons)) != PM_OK ||
             (r = pm_gather_table_write(&out, st->output)) != PM_OK)
             break;
         t_write += pm_time_wall() - t0;
@@ -249,6 +260,9 @@ static pm_result_t run_pairs(pm_stage_t *st, const gather_options_t *opt, pm_isa
     double t_radius = 0.0, t_gather = 0.0, t_write = 0.0, t_read = 0.0, radius = 0.0, radius1 = opt->radius;
     const char *width_from = opt->radius > 0.0 ? "--radius" : "--k";
     uint64_t passes = 0, queries = 0, pass = 0;
+    /* the photons emitted before this pass and pass 1's: given for a stream that begins after
+     * pass 1, else counted from the maps' `emitted` */
+    uint64_t unit = (uint64_t)opt->unit_photons, before = opt->pass_photons > 0 ? (uint64_t)opt->pass_photons : 0;
     char mname[1200], qname[1200];
     for (;;) {
         if (opt->k_each) /* r_1 of this pass's own map (the caustic gather's, as a pass file's --k --pass P) */
@@ -302,6 +316,29 @@ static pm_result_t run_pairs(pm_stage_t *st, const gather_options_t *opt, pm_isa
                              mpass, qname, qpass);
             break;
         }
+        const char *ev = pm_header_get(&in.map_table.hdr, "emitted");
+        int64_t emitted = 0;
+        if (!ev || pm_parse_i64(ev, &emitted) != PM_OK || emitted < 1) {
+            r = pm_error_set(PM_ERR_INPUT, "--stream pairs: '%s' has no photon count (header key emitted '%s')", mname,
+                             ev ? ev : "absent");
+            break;
+        }
+        if (passes == 0 && pass > 1 && (unit == 0 || opt->pass_photons < 0)) {
+            r = pm_error_set(PM_ERR_INPUT,
+                             "--stream pairs begins at pass %" PRIu64 ": give --unit-photons U (pass 1's photons) "
+                             "and --pass-photons B (the photons of the passes before it)",
+                             pass);
+            break;
+        }
+        if (passes == 0 && pass == 1 && before > 0) {
+            r = pm_error_set(PM_ERR_INPUT,
+                             "--stream pairs begins at pass 1, which has no photons before it, not "
+                             "--pass-photons %" PRIu64,
+                             before);
+            break;
+        }
+        if (unit == 0)
+            unit = (uint64_t)emitted;
         if (radius1 == 0.0) {
             if (pass != 1 && !opt->k_each) {
                 r = pm_error_set(PM_ERR_INPUT,
@@ -318,7 +355,7 @@ static pm_result_t run_pairs(pm_stage_t *st, const gather_options_t *opt, pm_isa
                 break;
             t_radius = pm_time_wall() - t0;
         }
-        radius = pm_gather_pass_radius(radius1, pass, o->alpha);
+        radius = pm_gather_schedule_radius(radius1, pm_gather_pass_index(pass, before, unit), o->alpha);
         pm_gather_params_t p = {.radius = radius,
                                 .kernel = (pm_kernel_t)o->kernel,
                                 .variable = 0,
@@ -342,27 +379,33 @@ static pm_result_t run_pairs(pm_stage_t *st, const gather_options_t *opt, pm_isa
         queries += in.q.n;
         /* The command of this pass alone: --pass P for --stream pairs, and after pass 1 (or
          * with r_1 given) --radius r_1 for --radius and --k. */
-        char pw[32], rw[40];
+        char pw[32], rw[40], bw[32], uw[32];
         snprintf(pw, sizeof pw, "%" PRIu64, pass);
         snprintf(rw, sizeof rw, "%.9g", radius1);
+        snprintf(bw, sizeof bw, "%" PRIu64, before);
+        snprintf(uw, sizeof uw, "%" PRIu64, unit);
         int keep_k = (pass == 1 || opt->k_each) && opt->radius == 0.0;
-        char *add[] = {"--pass", pw, "--radius", rw};
-        const void *drop[] = {&opt->stream, &opt->k_each, &opt->radius, &opt->k};
+        char *add[] = {"--pass", pw, "--pass-photons", bw, "--unit-photons", uw, "--radius", rw};
+        const void *drop[] = {&opt->stream,       &opt->k_each, &opt->pass_photons,
+                              &opt->unit_photons, &opt->radius, &opt->k};
         int argc1;
         char **argv1 = NULL;
-        if ((r = pm_stage_pass_command(st, argv, drop, keep_k ? 2 : 4, add, keep_k ? 2 : 4, &argc1, &argv1)) != PM_OK)
+        if ((r = pm_stage_pass_command(st, argv, drop, keep_k ? 4 : 6, add, keep_k ? 6 : 8, &argc1, &argv1)) != PM_OK)
             break;
         pm_table_free(&out);
         memset(&out, 0, sizeof out);
         t0 = pm_time_wall();
         if ((r = pm_gather_output_init(&out, &in, argc1, argv1, o->kernel, width_names[0])) == PM_OK &&
             (r = pm_header_set(&out.hdr, "radius", "%.9g", radius)) == PM_OK &&
-            (r = pm_gather_pass_header(&out.hdr, pass, o->alpha, radius1)) == PM_OK)
+            (r = pm_gather_pass_header(&out.hdr, pass, o->alpha, radius1, before, unit)) == PM_OK)
             r = pm_gather_table_write(&out, st->output);
         free(argv1);
         if (r != PM_OK)
             break;
         t_write += pm_time_wall() - t0;
+        o->pass_photons = (int64_t)before;
+        o->unit_photons = (int64_t)unit;
+        before += (uint64_t)emitted;
         passes++;
     }
     if (r == PM_OK && passes == 0)
@@ -400,8 +443,13 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *opt, char **argv)
         if (o->widths || o->range || o->pass || strcmp(st->output, "-") != 0)
             return pm_error_set(PM_ERR_USAGE, "--stream pairs gathers whole passes of one width to stdout: no "
                                               "--widths variable, --range or --pass, and -o -");
+        if (o->pass_photons >= 0 && o->unit_photons == 0)
+            return pm_error_set(PM_ERR_USAGE, "--pass-photons %" PRId64 " needs --unit-photons U (pass 1's photons)",
+                                o->pass_photons);
         return run_pairs(st, opt, isa, argv);
     }
+    if ((r = pm_gather_pass_check(o->pass, o->pass_photons, o->unit_photons)) != PM_OK)
+        return r;
     if (o->stream != STREAM_NONE)
         return run_stream(st, o, isa);
     if (o->radius == 0.0 && o->k <= 0.0 && !o->widths)
@@ -430,7 +478,7 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *opt, char **argv)
     }
     double radius1 = radius;
     if (o->pass)
-        radius = pm_gather_pass_radius(radius1, (uint64_t)o->pass, o->alpha);
+        radius = pm_gather_schedule_radius(radius1, pass_index(o), o->alpha);
 
     pm_gather_params_t p = {.radius = radius,
                             .kernel = (pm_kernel_t)o->kernel,
@@ -454,7 +502,9 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *opt, char **argv)
         goto done;
     if (!o->widths && (r = pm_header_set(h, "radius", "%.9g", radius)) != PM_OK)
         goto done;
-    if ((r = pm_gather_pass_header(h, (uint64_t)o->pass, o->alpha, radius1)) != PM_OK)
+    if ((r = pm_gather_pass_header(h, (uint64_t)o->pass, o->alpha, radius1,
+                                   o->pass_photons > 0 ? (uint64_t)o->pass_photons : 0, (uint64_t)o->unit_photons)) !=
+        PM_OK)
         goto done;
     t0 = pm_time_wall();
     if ((r = pm_gather_output_write(&out, &in, st->output)) != PM_OK)
@@ -478,7 +528,8 @@ int main(int argc, char **argv)
                           .widths = 0,
                           .normal_cos = 0.5,
                           .isa = "auto",
-                          .alpha = PM_PASS_ALPHA_DEFAULT};
+                          .alpha = PM_PASS_ALPHA_DEFAULT,
+                          .pass_photons = -1};
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
         {"radius", 'r', PM_OPT_DOUBLE, &o.radius, "R", "kernel width h, m (0: from --k)", 0, 1e18, NULL},
@@ -489,7 +540,7 @@ int main(int argc, char **argv)
          "fixed: one h for all; variable: each photon's own h (a map built with --width-k)", 0, 0, width_names},
         {"isa", 0, PM_OPT_STRING, &o.isa, "ISA", "auto, scalar, sse4 (4 lanes), avx2 (8) or avx512 (16)", 1, 0, NULL},
         PM_GATHER_COMMON_OPTIONS(o.normal_cos, o.range),
-        PM_GATHER_PASS_OPTIONS(o.pass, o.alpha),
+        PM_GATHER_PASS_OPTIONS(o.pass, o.alpha, o.pass_photons, o.unit_photons),
         {"stream", 0, PM_OPT_CHOICE, &o.stream, "WHICH",
          "none; queries: keep MAP, gather each queries document of the stream QUERIES (a frame each); map: keep "
          "QUERIES, gather them against each map document of the stream MAP; pairs: MAP and QUERIES both streams, a "

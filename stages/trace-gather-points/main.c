@@ -20,7 +20,10 @@
  * light path whose queries are kept from the still camera). With --passes A:B or --plan FILE
  * (base/passplan.h) it loads the scene once and traces progressive passes, a document per
  * pass to each output, each the bytes `trace-gather-points --pass P` alone writes (its COMMAND
- * says --pass P, and --primary N when the plan sized the pass). */
+ * says --pass P, and --primary N when the plan sized the pass). With --guide PHOTONS it reads a
+ * photons file of the same scene (trace-photons --direction) and draws part of the secondary rays
+ * at Lambertian hits from the photons' directions (render/guide.h); every output names that
+ * file as an INPUT. */
 #include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -30,6 +33,7 @@
 #include "base/passplan.h"
 #include "base/spool.h"
 #include "base/stage.h"
+#include "base/timer.h"
 #include "formats/formats.h"
 #include "render/aov.h"
 #include "render/eyetrace.h"
@@ -37,6 +41,8 @@
 #include "render/rt.h"
 #include "render/scene.h"
 #include "render/shade.h"
+
+static const char *const guide_cells_names[] = {"helpful", "all", NULL};
 
 typedef struct {
     const char *direct;    /* --direct FILE, NULL for none */
@@ -51,13 +57,17 @@ typedef struct {
     int mode, schedule;
     int pixel; /* PM_PIXEL_BOX or PM_PIXEL_CENTER */
     const char *isa;
-    int no_queries;       /* --no-queries: the direct buffer alone */
-    const char *passes;   /* --passes A:B, NULL for none */
-    const char *plan;     /* --plan FILE, NULL for none */
-    int64_t plan_primary; /* the pass's primary rays per pixel from the plan; 0: the options' */
-    int single;           /* one document per output: the outputs are one set */
-    int64_t glossy_depth; /* glossy bounces a secondary path continues through; 0 gathers on them */
-    int secondary_direct; /* --secondary-direct: light samples at the gather points too */
+    int no_queries;          /* --no-queries: the direct buffer alone */
+    const char *passes;      /* --passes A:B, NULL for none */
+    const char *plan;        /* --plan FILE, NULL for none */
+    int64_t plan_primary;    /* the pass's primary rays per pixel from the plan; 0: the options' */
+    int single;              /* one document per output: the outputs are one set */
+    int64_t glossy_depth;    /* glossy bounces a secondary path continues through; 0 gathers on them */
+    const char *guide;       /* --guide PHOTONS, NULL for none */
+    int guide_cells;         /* --guide-cells: 0 helpful, 1 all */
+    uint64_t guide_hash;     /* its content hash, once read */
+    const pm_guide_t *built; /* with --passes or --plan: the guide built once for every pass */
+    int secondary_direct;    /* --secondary-direct: light samples at the gather points too */
 } tgp_options_t;
 
 /* Where the eye tracer's results go: the queries into the spool, the direct rows into one
@@ -101,6 +111,8 @@ static pm_result_t write_caustic(pm_stage_t *st, const tgp_options_t *o, const p
     pm_result_t r = pm_eye_queries_header(e, st->argc, st->argv, k->cspool.count, &h);
     if (r == PM_OK)
         r = pm_header_set(&h, "kind", "caustic");
+    if (r == PM_OK && o->guide)
+        r = pm_header_add_input(&h, o->guide, o->guide_hash);
     if (r == PM_OK && o->pass)
         r = pm_header_set(&h, "pass", "%" PRId64, o->pass);
     if (r == PM_OK)
@@ -158,6 +170,10 @@ static pm_result_t write_outputs(pm_stage_t *st, const tgp_options_t *o, const p
         pm_header_free(&dh);
         r = pm_eye_direct_header(e, st->argc, st->argv, &dh);
     }
+    if (r == PM_OK && o->guide)
+        r = pm_header_add_input(&qh, o->guide, o->guide_hash);
+    if (r == PM_OK && o->guide && o->direct)
+        r = pm_header_add_input(&dh, o->guide, o->guide_hash);
     if (r == PM_OK && o->pass)
         r = pm_header_set(&qh, "pass", "%" PRId64, o->pass);
     if (r == PM_OK && o->pass && o->direct)
@@ -191,7 +207,56 @@ static pm_result_t write_outputs(pm_stage_t *st, const tgp_options_t *o, const p
     return r;
 }
 
-static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t *s, const pm_rt_t *rt, pm_isa_t isa)
+/* The guide from --guide's photons file: the scene's own photons (its SCENE key names this
+ * scene's photon part: the same geometry and lights), with the direction channel. */
+static pm_result_t load_guide(pm_stage_t *st, tgp_options_t *o, const pm_scene_t *s, pm_guide_t **out)
+{
+    *out = NULL;
+    double t0 = pm_time_wall();
+    pm_table_t t;
+    pm_result_t r = pm_table_read(o->guide, &pm_photons_schema, pm_schema_required(&pm_photons_schema), &t);
+    if (r != PM_OK)
+        return r;
+    char id[256];
+    pm_scene_id_part(s, PM_SCENE_PHOTONS, id, sizeof id);
+    const char *key = pm_header_get(&t.hdr, "SCENE"), *kind = pm_header_get(&t.hdr, "kind");
+    if (!key || strcmp(key, id) != 0)
+        r = pm_error_set(PM_ERR_INPUT, "--guide '%s' holds the photons of scene '%s', not of '%s' ('%s')", o->guide,
+                         key ? key : "(none)", s->path, id);
+    else if (kind && strcmp(kind, "caustic") == 0)
+        r = pm_error_set(PM_ERR_INPUT, "--guide '%s' is a caustic photons file: give the global photons", o->guide);
+    else if (!((t.hdr.channels >> PM_PHOTON_DIRECTION) & 1u))
+        r = pm_error_set(PM_ERR_INPUT,
+                         "--guide '%s' has no direction channel: trace its photons with trace-photons --direction",
+                         o->guide);
+    if (r == PM_OK) {
+        const pm_guide_photons_t ph = {.pos = t.col[PM_PHOTON_POSITION],
+                                       .power = t.col[PM_PHOTON_POWER],
+                                       .normal = t.col[PM_PHOTON_NORMAL],
+                                       .dir = t.col[PM_PHOTON_DIRECTION],
+                                       .depth = t.col[PM_PHOTON_DEPTH],
+                                       .n = t.count};
+        r = pm_guide_build(&ph, o->guide_cells, out);
+        o->guide_hash = t.checksum;
+    }
+    if (r == PM_OK) {
+        const pm_guide_info_t *gi = pm_guide_info(*out);
+        pm_stage_stat_int(st, "guide_photons", (int64_t)gi->photons_used);
+        pm_stage_stat_int(st, "guide_cells", (int64_t)gi->cells);
+        pm_stage_stat_int(st, "guide_cells_sparse", (int64_t)gi->cells_sparse);
+        pm_stage_stat_int(st, "guide_cells_even", (int64_t)gi->cells_even);
+        pm_stage_stat_double(st, "guide_cell_edge_m", gi->edge);
+        pm_stage_stat_double(st, "guide_s", pm_time_wall() - t0); /* reading the photons and building */
+        pm_stage_note(st,
+                      "guide: %" PRIu64 " indirect photons, %" PRIu64 " cells of %.3g m used (%" PRIu64
+                      " too sparse, %" PRIu64 " lit so evenly that cosine sampling does better)",
+                      gi->photons_used, gi->cells, gi->edge, gi->cells_sparse, gi->cells_even);
+    }
+    pm_table_free(&t);
+    return r;
+}
+
+static pm_result_t run(pm_stage_t *st, tgp_options_t *o, const pm_scene_t *s, const pm_rt_t *rt, pm_isa_t isa)
 {
     /* One scene or a frame of several: the settings are the same for each. */
     /* The scene's render block stands in for an option not given: the command line wins. */
@@ -216,6 +281,7 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
         .direct_only = o->no_queries,
         .glossy_depth = (unsigned)o->glossy_depth,
         .secondary_direct = o->secondary_direct};
+    pm_eye_options_t eo_g = eo;
     /* The scene's own camera is within the image limits (scene.c): only --width or --height
      * can take it beyond them, a usage error. */
     if (pm_image_size_check(o->width ? (uint64_t)o->width : s->camera.width,
@@ -225,10 +291,20 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
         return pm_error_set(PM_ERR_USAGE, "--width %" PRId64 " --height %" PRId64 " (0: the camera's): %s", o->width,
                             o->height, why);
     }
+    pm_guide_t *guide = NULL;
+    eo_g.guide = o->built;
+    if (o->guide && !o->built) {
+        pm_result_t rg = load_guide(st, o, s, &guide);
+        if (rg != PM_OK)
+            return rg;
+        eo_g.guide = guide;
+    }
     pm_eye_t *e;
-    pm_result_t r = pm_eye_create(s, rt, &eo, &e);
-    if (r != PM_OK)
+    pm_result_t r = pm_eye_create(s, rt, &eo_g, &e);
+    if (r != PM_OK) {
+        pm_guide_destroy(guide);
         return r;
+    }
     const pm_eye_info_t *in = pm_eye_info(e);
     tgp_sink_t k = {.width = in->width};
     char dir[1024];
@@ -250,6 +326,7 @@ static pm_result_t run(pm_stage_t *st, const tgp_options_t *o, const pm_scene_t 
     pm_spool_free(&k.cspool);
     free(k.direct);
     pm_eye_destroy(e);
+    pm_guide_destroy(guide);
     return r;
 }
 
@@ -295,11 +372,16 @@ static pm_result_t run_passes(pm_stage_t *st, tgp_options_t *o, char **argv, pm_
     }
     pm_scene_warn_unsupported(&s, st);
     r = pm_rt_create(&s, 1, st->threads_used, &rt);
+    pm_guide_t *guide = NULL; /* one guide for every pass */
+    if (r == PM_OK && o->guide && (r = load_guide(st, o, &s, &guide)) == PM_OK)
+        o->built = guide;
     if (r == PM_OK) {
         const void *drop[] = {&o->passes, &o->plan, &o->primary};
         tgp_pass_t tp = {st, o, &s, &rt, isa};
         r = pm_passplan_run(&pp, st, argv, drop, 3, "--primary", 4096, tgp_pass, &tp); /* --primary's own limit */
     }
+    o->built = NULL;
+    pm_guide_destroy(guide);
     pm_rt_destroy(&rt);
     pm_scene_free(&s);
     pm_passplan_close(&pp);
@@ -357,7 +439,7 @@ int main(int argc, char **argv)
          (double)((int64_t)1 << 40), NULL},
         {"no-queries", 0, PM_OPT_FLAG, &o.no_queries, NULL,
          "write the --direct buffer alone, no queries (no -o): secondary rays are traced only in a scene with "
-         "emissive triangles, for the light they find there; the buffer is the one a full run writes",
+         "emissive triangles, a sun or a sky, for the light they find there; the buffer is the one a full run writes",
          1, 0, NULL},
         {"passes", 0, PM_OPT_STRING, &o.passes, "A:B",
          "progressive passes A to B, the scene loaded once: a document per pass to each output (streams), each the "
@@ -367,6 +449,15 @@ int main(int argc, char **argv)
          "progressive passes as a driver asks for them: a line 'PASS [PRIMARY]' per pass (- is stdin), a document "
          "each to each output, until the plan ends",
          1, 0, NULL},
+        {"guide", 0, PM_OPT_STRING, &o.guide, "PHOTONS",
+         "guide the secondary rays at Lambertian hits by this photons file of the same scene (trace-photons "
+         "--direction): half of them drawn from the incoming directions of the indirect photons nearby, weighted "
+         "by multiple importance sampling; one scene (with --passes or --plan, one guide for every pass)",
+         1, 0, NULL},
+        {"guide-cells", 0, PM_OPT_CHOICE, &o.guide_cells, "WHICH",
+         "with --guide: helpful (the cells where the guide lowers the variance, estimated from their photons) or "
+         "all (every cell of enough photons: tests of the weights)",
+         1, 0, guide_cells_names},
         {"glossy-depth", 0, PM_OPT_INT, &o.glossy_depth, "N",
          "glossy bounces (a Phong Ns of 50 or more) a secondary ray continues through before it gathers, the "
          "light found on the way into the direct buffer; 0 gathers on the glossy surface",
@@ -406,6 +497,19 @@ int main(int argc, char **argv)
     if (o.aov && (st.args.nargs != 1 || o.passes || o.plan || !strcmp(o.aov, "-")))
         return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "--aov writes one file for one scene: not with several "
                                                             "scenes, --passes, --plan or stdout"));
+    if (o.guide && o.mode != PM_EYE_GATHER)
+        return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE,
+                                              "--guide guides the secondary rays of --mode gather, "
+                                              "not --mode %s",
+                                              pm_eye_mode_names[o.mode]));
+    if (!o.guide && pm_args_given(&st.args, "guide-cells"))
+        return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "--guide-cells chooses the cells of --guide: give "
+                                                            "--guide PHOTONS"));
+    if (o.guide && st.args.nargs != 1)
+        return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE,
+                                              "--guide reads the photons of one scene: not with %d "
+                                              "scenes",
+                                              st.args.nargs));
     if (o.no_queries && (!o.direct || o.caustic || pm_args_given(&st.args, "output")))
         return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "--no-queries writes the --direct buffer alone: give "
                                                             "--direct FILE and neither -o nor --caustic-queries"));

@@ -3,8 +3,9 @@
  * Emits photons from the scene's point lights and emissive triangles, traces each with
  * single Embree rays (packets would bias which photons travel together; the paper keeps
  * single rays for that reason) and writes every photon stored at a reflecting surface,
- * first hits included with depth 0, in watts. The direction channel is written only for
- * scenes with glossy materials, where the gather needs it. Photons pass mirrors and glass
+ * first hits included with depth 0, in watts. The direction channel is written for scenes with
+ * glossy materials, where the gather needs it, and with --direction (trace-gather-points --guide
+ * reads it). Photons pass mirrors and glass
  * without being stored there; with --caustic-output (a scene with mirrors or glass only) the
  * caustic photons, those that reached a diffuse or glossy surface through specular bounces
  * alone (L S+ D), go to a second photons file (kind=caustic) as well, and both files are
@@ -38,6 +39,7 @@ typedef struct {
     const char *passes;  /* --passes A:B, NULL for none */
     const char *plan;    /* --plan FILE, NULL for none */
     int indirect_only;   /* --indirect-only: no first hits in -o */
+    int direction;       /* --direction: the direction channel whatever the scene */
 } trace_options_t;
 
 /* One photons file: the global photons (caustic 0) or the caustic ones (caustic 1), whose
@@ -108,7 +110,7 @@ static pm_result_t trace(pm_stage_t *st, const trace_options_t *o, const pm_scen
                                    (uint64_t)o->pass),
         .max_bounces = (uint32_t)o->max_bounces,
         .rr_max = o->rr_max,
-        .direction = s->any_glossy,
+        .direction = s->any_glossy || o->direction,
         .caustics = o->caustic != NULL,
         .indirect_only = o->indirect_only,
         .record_rays = o->baseline,
@@ -256,6 +258,10 @@ int main(int argc, char **argv)
         {"indirect-only", 0, PM_OPT_FLAG, &o.indirect_only, NULL,
          "store in -o no first hit (depth 0) whose light the gather points sample with shadow rays (all but an "
          "area light's near field; trace-gather-points --secondary-direct); the header says indirect_only=1",
+         1, 0, NULL},
+        {"direction", 0, PM_OPT_FLAG, &o.direction, NULL,
+         "write the direction channel (where each photon came from) in any scene, not only a glossy one: for "
+         "trace-gather-points --guide",
          1, 0, NULL},
         {"baseline", 0, PM_OPT_FLAG, &o.baseline, NULL,
          "also re-trace every ray with bare rtcIntersect1 and report Embree's rate (for benchmarks)", 1, 0, NULL},

@@ -86,24 +86,6 @@ gather() {
     "$BIN/pm-info" -r "$TMP/$name.hq.pm" >"$TMP/$name.hits.txt"
 }
 
-# image IMG BUFFER... [composite options]: composite into $TMP/IMG.exr, read back as text into
-# $TMP/IMG.txt.
-image() {
-    local img=$1; shift
-    "$BIN/composite" "$@" -q -o "$TMP/$img.exr" && "$BUILD/tests/pm-exrdump" "$TMP/$img.exr" >"$TMP/$img.txt"
-}
-
-# check NAME HITS IMG awk-options...: image $TMP/IMG.txt against the formula at the primary
-# hits of $TMP/HITS.hits.txt.
-check() {
-    local name=$1 hits=$2 img=$3; shift 3
-    if awk "$@" -f tests/scenes/analytic.awk "$TMP/$hits.hits.txt" "$TMP/$img.txt" >"$TMP/why"; then
-        pass "$name ($(cat "$TMP/why"))"
-    else
-        fail "$name" "$(tr '\n' ' ' <"$TMP/why")"
-    fi
-}
-
 # ---- direct-vis: the map's own estimate at the primary hits
 
 # (b) A point light of pi W/sr 1 m above an albedo-0.5 plane: E(x) = I h / (h^2 + x^2)^(3/2),

@@ -166,3 +166,31 @@ if [ $status = 0 ] && [ "$(echo "$prog" | cut -d' ' -f1 | tr '\n' ' ')" = "1 2 3
 else
     fail "error-vs-time progressive curve" "exit $status, rows (pass, s, relmse): $(echo $prog), render $render_s s: $(tail -3 "$TMP/prog.log")"
 fi
+
+# error-vs-time-all: every scene's curves (SWEEP=0: the path tracer's and the progressive
+# alone), then one table of progressive / path tracer per budget and the fitted slopes. Two
+# scenes on tiny images: the Cornell box and the skylight room (by folder name).
+out=$TMP/all
+pipelines/error-vs-time-all "$out" SCENES="cornell-box skylight" $SIZE REF_SPP=64 PT_SPP="1 16" PROG_TIME=30 PROG_PASSES=3 \
+    PROG_PHOTONS=20000 PROG_PRIMARY=1 PROG_SPP=4 PROG_K=20 BUDGETS="0.5 1 30" SLOPE_FROM=0.01 SLOPE_TO=30 PLOT=0 \
+    >"$TMP/all.log" 2>&1
+status=$?
+# every ratio is the progressive relMSE over the path tracer's of its row, and at 30 s (after
+# every image) the progressive one is its last pass and the path tracer's its best
+last_prog=$(awk -F, -v ce="$ce" -v cp="$cpass" '$1 == "progressive" { e = $ce; p = $cp } END { print e, p }' "$out/cornell-box/results.csv" 2>/dev/null)
+best_pt=$(awk -F, -v ce="$ce" '$1 == "trace-reference" && (b == "" || $ce < b) { b = $ce } END { print b }' "$out/cornell-box/results.csv" 2>/dev/null)
+row30=$(awk -F, '$1 == "cornell-box" && $2 == 30 { print $3, $4, $6 }' "$out/ratios.csv" 2>/dev/null)
+if [ $status = 0 ] && [ "$(grep -c '^cornell-box,\|^skylight,' "$out/ratios.csv")" = 6 ] &&
+    awk -F, 'NR > 1 && $9 != "" { r = $3 / $6; if ((r - $9) ^ 2 > (0.006 * r) ^ 2) bad = 1; n++ } END { exit bad || n < 4 }' "$out/ratios.csv" &&
+    [ "$row30" = "$last_prog $best_pt" ] &&
+    ! awk -F, '$1 == "simd-gather"' "$out"/*/results.csv | grep -q . &&
+    grep -q '^| budget | cornell-box | skylight |$' "$out/summary.md" && grep -q '^| 30 s | [0-9.e-]* (' "$out/summary.md" &&
+    awk -F, '$1 == "cornell-box" && $2 == "progressive" { exit !($3 < 0 && $4 >= 2) }' "$out/slopes.csv"; then
+    pass "error-vs-time-all: two scenes, ratios.csv (progressive / path tracer per budget), slopes.csv, summary.md"
+else
+    fail "error-vs-time-all" "exit $status, 30 s row '$row30' (want '$last_prog $best_pt'): $(tail -3 "$TMP/all.log")"
+fi
+expect_exit "error-vs-time-all: REFERENCE is one scene's" 2 pipelines/error-vs-time-all "$TMP/x" REFERENCE=a.exr
+expect_exit "error-vs-time-all: SLOPE_FROM not below SLOPE_TO" 2 pipelines/error-vs-time-all "$TMP/x" SLOPE_FROM=8 SLOPE_TO=8
+expect_exit "error-vs-time-all: a scene that is not there" 1 pipelines/error-vs-time-all "$TMP/x" SCENES="cornell-box nowhere"
+expect_exit "error-vs-time: a bad SWEEP" 2 $E "$CORNELL" "$TMP/x" SWEEP=2

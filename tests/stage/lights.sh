@@ -308,10 +308,13 @@ sky_scene "$TMP/fr-turned" "" ', "rotate": { "axis": [0, 1, 0], "degrees": 90 }'
 sky_scene "$TMP/fr-zup" ', "up": [0, 0, 1], "rotate": 90' \
     ', "matrix": [1, 0, 0, 0, 0, 0, -1, 0, 0, 1, 0, 0, 0, 0, 0, 1]' \
     "0, 0, 0.5" "1, -1, 0.5" "0, 0, 1"
-# frame_render NAME: its direct buffer (pixel centres) and trace-reference, as pm-exrdump text
+# frame_render NAME: its direct buffer (pixel centres) and trace-reference, as pm-exrdump text.
+# The direct buffer of direct-vis mode: the light samples alone. In gather mode the secondary
+# rays that escape share the sky with them (trace-gather-points.md, step 2), and those rays take
+# a tangent frame fixed in the world, as trace-reference's do, which the turn does not carry.
 frame_render() {
     local t=$TMP/fr-$1
-    "$BIN/trace-gather-points" "$t/scene.json" --pixel center -q -o "$t.q.pm" --direct "$t.d.pm" &&
+    "$BIN/trace-gather-points" "$t/scene.json" --mode direct-vis --pixel center -q -o "$t.q.pm" --direct "$t.d.pm" &&
         "$BIN/composite" "$t.d.pm" -q -o "$t.d.exr" && "$BUILD/tests/pm-exrdump" "$t.d.exr" >"$t.d.txt" &&
         "$BIN/trace-reference" "$t/scene.json" -q --pixel center --spp 16 -o "$t.r.exr" &&
         "$BUILD/tests/pm-exrdump" "$t.r.exr" >"$t.r.txt"

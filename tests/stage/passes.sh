@@ -196,7 +196,7 @@ if "$BIN/simd-gather" -q --stream pairs "$TMP/smaps.pm" "$TMP/squeries.pm" --k 5
     for p in 1 2 3; do
         cmp -s <(records "$TMP/si$p.pm") <(records "$TMP/sp-$((p - 1)).pm") || same=0
     done
-    [ $same = 1 ] && "$BIN/pm-info" "$TMP/sp-1.pm" | grep -q "^COMMAND=simd-gather --pass 2 --radius $r1 " &&
+    [ $same = 1 ] && "$BIN/pm-info" "$TMP/sp-1.pm" | grep -q "^COMMAND=simd-gather --pass 2 --pass-photons 5000 --unit-photons 5000 --radius $r1 " &&
         pass "simd-gather --stream pairs: 3 passes, the records of --pass P alone (r_1 $r1 by --k on pass 1, then --radius r_1)" ||
         fail "simd-gather --stream pairs" "records, radius or command differ"
 else
@@ -205,7 +205,45 @@ fi
 expect_error "simd-gather --stream pairs: documents of two passes" "is pass 1 but .* is pass 2" \
     "$BIN/simd-gather" -q --stream pairs "$TMP/smaps.pm" "$TMP/sq2.pm" --k 5 -o -
 expect_error "simd-gather --stream pairs from pass 2 without --radius" "begins at pass 2: r_1 is measured on pass 1" \
-    "$BIN/simd-gather" -q --stream pairs "$TMP/sm2.pm" "$TMP/sq2.pm" --k 5 -o -
+    "$BIN/simd-gather" -q --stream pairs "$TMP/sm2.pm" "$TMP/sq2.pm" --k 5 --unit-photons 5000 --pass-photons 5000 -o -
+expect_error "simd-gather --stream pairs from pass 2 without the photons before it" \
+    "begins at pass 2: give --unit-photons U .* and --pass-photons B" \
+    "$BIN/simd-gather" -q --stream pairs "$TMP/sm2.pm" "$TMP/sq2.pm" --radius "$r1" -o -
+"$BIN/simd-gather" -q --stream pairs "$TMP/sm2.pm" "$TMP/sq2.pm" --radius "$r1" --unit-photons 5000 --pass-photons 5000 \
+    -o - >"$TMP/spairs2.pm" && "$BIN/composite" -q --stream "$TMP/spairs2.pm" --radiance "$TMP/sp2-%d.pm" &&
+    cmp -s <(records "$TMP/si2.pm") <(records "$TMP/sp2-0.pm") &&
+    pass "simd-gather --stream pairs from pass 2 with --radius, --unit-photons and --pass-photons: --pass 2's records" ||
+    fail "simd-gather --stream pairs from pass 2" "records differ or the run failed"
+# the schedule by photons: pass 1 of 5000 photons, passes 2 and 3 of 1250 each sit at n = 2 and
+# 2.25 (not at 2 and 3), the radius of `--pass P --pass-photons B --unit-photons 5000` alone
+for p in 2 3; do
+    "$BIN/trace-photons" $CORNELL --photons 1250 -q --pass $p -o - | "$BIN/build-photonmap" -q - -o "$TMP/um$p.pm"
+done
+cat "$TMP/sm1.pm" "$TMP/um2.pm" "$TMP/um3.pm" >"$TMP/umaps.pm"
+"$BIN/simd-gather" -q "$TMP/um3.pm" "$TMP/sq3.pm" --radius "$r1" --pass 3 --pass-photons 6250 --unit-photons 5000 \
+    -o "$TMP/ui3.pm"
+"$BIN/reverse-gather" -q "$TMP/um3.pm" "$TMP/sq3.pm" --radius "$r1" --pass 3 --pass-photons 6250 --unit-photons 5000 \
+    -o "$TMP/ur3.pm"
+if "$BIN/simd-gather" -q --stream pairs "$TMP/umaps.pm" "$TMP/squeries.pm" --k 5 -o - >"$TMP/upairs.pm" &&
+    "$BIN/composite" -q --stream "$TMP/upairs.pm" --radiance "$TMP/up-%d.pm"; then
+    ru=$(hdr "$TMP/ui3.pm" radius)
+    r2=$(hdr "$TMP/si2.pm" radius) r3=$(hdr "$TMP/si3.pm" radius)
+    cmp -s <(records "$TMP/ui3.pm") <(records "$TMP/up-2.pm") &&
+        "$BIN/pm-info" "$TMP/up-2.pm" | grep -q "^COMMAND=simd-gather --pass 3 --pass-photons 6250 --unit-photons 5000 " &&
+        [ "$(hdr "$TMP/ur3.pm" radius)" = "$ru" ] &&
+        [ "$(hdr "$TMP/ui3.pm" pass_photons)" = 6250 ] && [ "$(hdr "$TMP/ui3.pm" unit_photons)" = 5000 ] &&
+        awk -v a="$ru" -v r2="$r2" -v r3="$r3" 'BEGIN { exit !(a < r2 && a > r3 + (r2 - r3) / 2) }' &&
+        pass "simd-gather --stream pairs: passes of 5000, 1250 and 1250 photons at n = 1, 2, 2.25 (r_3 $ru between r_2 $r2 and the old r_3 $r3), as --pass-photons alone and reverse-gather" ||
+        fail "simd-gather: the schedule by photons" "r_3 $ru (reverse-gather $(hdr "$TMP/ur3.pm" radius); r_2 $r2, old r_3 $r3), records or keys differ"
+else
+    fail "simd-gather: the schedule by photons" "the run failed"
+fi
+expect_exit "simd-gather --pass-photons without --unit-photons is a usage error" 2 \
+    "$BIN/simd-gather" -q "$TMP/um3.pm" "$TMP/sq3.pm" --radius "$r1" --pass 3 --pass-photons 6250 -o "$TMP/x.pm"
+expect_exit "simd-gather --unit-photons after pass 1 without --pass-photons is a usage error" 2 \
+    "$BIN/simd-gather" -q "$TMP/um3.pm" "$TMP/sq3.pm" --radius "$r1" --pass 3 --unit-photons 5000 -o "$TMP/x.pm"
+expect_exit "reverse-gather --pass-photons without --pass is a usage error" 2 \
+    "$BIN/reverse-gather" -q "$TMP/um3.pm" "$TMP/sq3.pm" --radius "$r1" --pass-photons 6250 --unit-photons 5000 -o "$TMP/x.pm"
 expect_exit "simd-gather --stream pairs to a file is a usage error" 2 \
     "$BIN/simd-gather" -q --stream pairs "$TMP/smaps.pm" "$TMP/squeries.pm" --k 5 -o "$TMP/x.pm"
 # composite --stream --accumulate: the running image of the stream's passes, the same records as
@@ -360,6 +398,23 @@ printf '\001' | dd of="$I/running.pm" bs=1 seek=$((sz - 100)) conv=notrunc statu
 "$R" "$CORNELL" "$TMP/t0" $SMALL TIME=0 >"$TMP/t.out" 2>&1 && [ "$(hdr "$TMP/t0/running.pm" passes)" = 1 ] &&
     [ ! -e "$TMP/t0/pass-0002" ] && grep -q "stopped by TIME=0" "$TMP/t.out" &&
     pass "TIME=0: the first pass runs, and only it" || fail "TIME=0" "$(tail -3 "$TMP/t.out")"
+# the resident gather places each pass by the photons before it, in pass 1's photons (a TIME
+# budget's passes start small and grow), and a rerun goes on from passes.txt's counts
+pidx() { # pidx DIR: 1 + the photons of the passes before the last / pass 1's, from passes.txt
+    awk '/^[0-9]/ { p[++n] = $2 } END { s = 0; for (i = 1; i < n; i++) s += p[i]; printf "%.10g", 1 + s / p[1] }' "$1/passes.txt"
+}
+T=$TMP/tidx
+"$R" "$CORNELL" "$T" $SMALL TIME=1 >"$TMP/ti.out" 2>&1
+n=$(grep -c '^[0-9]' "$T/passes.txt")
+got=$(jq '.stages."simd-gather".pass_index' "$T/stats.json")
+[ "$(awk '/^1 / { print $3 }' "$T/passes.txt")" = 1 ] && [ "$n" -ge 2 ] && [ "$(printf '%.10g' "$got")" = "$(pidx "$T")" ] &&
+    pass "TIME=1: $n passes from one unit up, the last gathered at n = $got (the photons before it / pass 1's)" ||
+    fail "TIME=1: the schedule by photons" "pass_index $got, want $(pidx "$T"): $(tail -3 "$TMP/ti.out")"
+"$R" "$CORNELL" "$T" $SMALL PASSES=$((n + 1)) >"$TMP/ti2.out" 2>&1
+got=$(jq '.stages."simd-gather".pass_index' "$T/stats.json")
+[ "$(hdr "$T/running.pm" passes)" = $((n + 1)) ] && [ "$(printf '%.10g' "$got")" = "$(pidx "$T")" ] &&
+    pass "a rerun adds pass $((n + 1)) at n = $got, from passes.txt's photon counts" ||
+    fail "rerun: the schedule by photons" "pass_index $got, want $(pidx "$T"): $(tail -3 "$TMP/ti2.out")"
 "$R" "$CORNELL" "$TMP/te" $SMALL TARGET_ERROR=10 PASSES=5 >"$TMP/e.out" 2>&1 && [ "$(hdr "$TMP/te/running.pm" passes)" = 2 ] &&
     grep -q "stopped by TARGET_ERROR=10" "$TMP/e.out" &&
     pass "TARGET_ERROR=10: stops after pass 2, the first with an error estimate" || fail "TARGET_ERROR" "$(tail -4 "$TMP/e.out")"

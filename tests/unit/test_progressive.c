@@ -1,13 +1,16 @@
 /* test_progressive.c: the anytime budget's pass sizes (common/engine/progressive.h,
- * pm_progressive_next_size) on made-up pass times, and the pass plan a resident tracer reads
- * (common/base/passplan.h): ranges, plan lines, and bad ones named by line. No timing: the
- * times here are numbers given to the functions. */
+ * pm_progressive_next_size) on made-up pass times, the pass plan a resident tracer reads
+ * (common/base/passplan.h): ranges, plan lines, and bad ones named by line, and the radius
+ * schedule by photons (common/photonmap/gather_stage.h). No timing: the times here are
+ * numbers given to the functions. */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "base/passplan.h"
 #include "engine/progressive.h"
+#include "photonmap/gather_stage.h"
 #include "unit.h"
 
 /* Passes of 1, 2, 4 units at exactly 0.1 + 0.2 k s: a pass of u units is bounded by the least
@@ -224,9 +227,50 @@ static void test_plan_run(void **state)
     pm_args_free(&st.args);
 }
 
+/* The schedule by photons: passes of pass 1's size sit at their own index, to the bit (the
+ * fixed-size renders keep their bytes); between them the continuous form is monotone and
+ * meets the product at both ends; small passes move the index by their photons alone. */
+static void test_schedule_by_photons(void **state)
+{
+    (void)state;
+    const double a = 2.0 / 3.0, r1 = 0.25;
+    for (uint64_t p = 1; p <= 300; p++) {
+        double n = pm_gather_pass_index(p, (p - 1) * 18750, 18750);
+        assert_true(n == (double)p);
+        assert_true(pm_gather_schedule_radius(r1, n, a) == pm_gather_pass_radius(r1, p, a));
+    }
+    assert_true(pm_gather_pass_index(7, 123, 0) == 7.0); /* no photon counts: the pass itself */
+    /* the continuous form at an integer, off the product's exact path, agrees to rounding */
+    for (uint64_t p = 2; p <= 1000; p *= 3) {
+        double lg = r1 * sqrt(exp(lgamma((double)p + a) - lgamma(1.0 + a) - lgamma((double)p + 1.0)));
+        assert_true(fabs(lg / pm_gather_pass_radius(r1, p, a) - 1.0) < 1e-12);
+    }
+    /* monotone between the integers, and continuous at them */
+    double last = r1;
+    for (double n = 1.0; n <= 20.0; n += 0.125) {
+        double r = pm_gather_schedule_radius(r1, n, a);
+        assert_true(r <= last);
+        last = r;
+    }
+    double below = pm_gather_schedule_radius(r1, 5.0 - 1e-9, a), at = pm_gather_schedule_radius(r1, 5.0, a);
+    assert_true(fabs(below / at - 1.0) < 1e-8);
+    /* 16 passes of 1/16 of pass 1's photons move the index by 1, not by 16 */
+    assert_true(pm_gather_pass_index(17, 16 * 1000, 16000) == 2.0);
+    /* the options: both counts or neither, only with a pass, none before pass 1 */
+    assert_int_equal(pm_gather_pass_check(0, -1, 0), PM_OK);
+    assert_int_equal(pm_gather_pass_check(3, 200, 100), PM_OK);
+    assert_int_equal(pm_gather_pass_check(1, 0, 100), PM_OK);
+    assert_int_equal(pm_gather_pass_check(1, -1, 100), PM_OK);
+    assert_int_equal(pm_gather_pass_check(0, 5, 100), PM_ERR_USAGE);
+    assert_int_equal(pm_gather_pass_check(3, 200, 0), PM_ERR_USAGE);
+    assert_int_equal(pm_gather_pass_check(3, -1, 100), PM_ERR_USAGE);
+    assert_int_equal(pm_gather_pass_check(1, 100, 100), PM_ERR_USAGE);
+}
+
 static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_sizes_grow_then_fill), cmocka_unit_test(test_sizes_first_pass),
     cmocka_unit_test(test_sizes_noisy),          cmocka_unit_test(test_plan_range),
     cmocka_unit_test(test_plan_lines),           cmocka_unit_test(test_plan_run),
+    cmocka_unit_test(test_schedule_by_photons),
 };
 UNIT_GROUP(progressive_group, "progressive", tests)

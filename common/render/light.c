@@ -316,11 +316,30 @@ static void triangle_point(const pm_scene_t *s, uint32_t t, float b0, float b1, 
 
 /* ------------------------------------------------------------------ emission */
 
+/* A point uniform over the portals' total area from u (picking the portal, then reused) and v;
+ * the index of its portal in *i_out. */
+static void portal_point(const pm_scene_t *s, float u, float v, float p_out[3], size_t *i_out)
+{
+    double target = (double)u * s->portal_area, acc = 0.0;
+    size_t i = 0;
+    while (i + 1 < s->nportals && acc + s->portals[i].area <= target)
+        acc += s->portals[i++].area;
+    const pm_portal_t *q = &s->portals[i];
+    double a = fmin(fmax((target - acc) / q->area, 0.0), 1.0);
+    for (int k = 0; k < 3; k++)
+        p_out[k] = (float)(q->corner[k] + a * q->edge_u[k] + (double)v * q->edge_v[k]);
+    *i_out = i;
+}
+
 /* A photon of the sun (sun 1) or of the sky (sun 0): the direction w it comes from, uniform in
  * the sun's cone, over the sphere (a constant sky) or by the map's pixels, then a point uniform on
  * the disc of radius R perpendicular to w, tangent to the scene's bounding sphere on w's side; the
  * photon starts there and travels along -w, so that every point of the ball receives radiance L
- * from each direction of the light. flux_out: L(w) pi R^2 / pdf(w), W. */
+ * from each direction of the light. flux_out: L(w) pi R^2 / pdf(w), W.
+ * With portals the point is uniform over their total area A instead and the flux L(w) A
+ * max(0, cos) / pdf(w), cos between -w and the portal's inward normal: the irradiance of every
+ * point the portals let light reach is the same in expectation; a constant sky's directions are
+ * then cosine-distributed about the inward normal (flux L pi A, none wasted leaving outward). */
 static void env_emit(const pm_scene_t *s, int sun, float u1, float u2, float u3, float u4, float org_out[3],
                      float dir_out[3], double flux_out[3])
 {
@@ -328,6 +347,11 @@ static void env_emit(const pm_scene_t *s, int sun, float u1, float u2, float u3,
     double c[3], r;
     pm_scene_sphere(s, c, &r);
     double disc = M_PI * r * r;
+    size_t pi = 0;
+    if (s->nportals) {
+        portal_point(s, u3, u4, org_out, &pi);
+        disc = s->portal_area;
+    }
     if (sun) {
         pm_sun_sample(&s->sun, u1, u2, w);
         for (int k = 0; k < 3; k++)
@@ -338,10 +362,22 @@ static void env_emit(const pm_scene_t *s, int sun, float u1, float u2, float u3,
         pm_sky_radiance(s, w, L);
         for (int k = 0; k < 3; k++)
             flux_out[k] = p > 0.0f ? L[k] / (double)p * disc : 0.0;
+    } else if (s->nportals) {
+        float d[3];
+        pm_sky_sample(s, s->portals[pi].inward, u1, u2, d); /* cosine about the inward normal */
+        for (int k = 0; k < 3; k++)
+            w[k] = -d[k], flux_out[k] = s->sky[k] * M_PI * disc, dir_out[k] = d[k];
+        return;
     } else {
         pm_v3_store(w, pm_sample_sphere(u1, u2));
         for (int k = 0; k < 3; k++)
             flux_out[k] = s->sky[k] * 4.0 * M_PI * disc;
+    }
+    if (s->nportals) {
+        float cs = -pm_dot3(w, s->portals[pi].inward);
+        for (int k = 0; k < 3; k++)
+            flux_out[k] = cs > 0.0f ? flux_out[k] * cs : 0.0, dir_out[k] = -w[k];
+        return;
     }
     pm_vec3_t wv = pm_v3_load(w), t, b;
     pm_onb(wv, &t, &b);
@@ -351,6 +387,41 @@ static void env_emit(const pm_scene_t *s, int sun, float u1, float u2, float u3,
     for (int k = 0; k < 3; k++) {
         org_out[k] = (float)(c[k] + r * ((double)w[k] + x * (double)tt[k] + y * (double)bb[k]));
         dir_out[k] = -w[k];
+    }
+}
+
+void pm_portals_power(const pm_scene_t *s, double power_out[2][3])
+{
+    memset(power_out, 0, 6 * sizeof(double));
+    const pm_envmap_t *e = s->envmap;
+    for (size_t i = 0; i < s->nportals; i++) {
+        const pm_portal_t *q = &s->portals[i];
+        /* The sun: E = L omega (1 + cos_max) / 2 at normal incidence, times the axis' cosine. */
+        double cs = -(double)pm_dot3(s->sun.direction, q->inward), e_sun = 0.5 * (1.0 + (double)s->sun.cos_max);
+        for (int k = 0; k < 3 && s->has_sun && cs > 0.0; k++)
+            power_out[0][k] += s->sun.radiance[k] * (double)s->sun.solid_angle * e_sun * cs * q->area;
+        if (!s->has_sky)
+            continue;
+        if (!e) { /* the integral of L cos over the hemisphere: pi L */
+            for (int k = 0; k < 3; k++)
+                power_out[1][k] += M_PI * s->sky[k] * q->area;
+            continue;
+        }
+        for (uint32_t py = 0; py < e->h; py++) {
+            double th = M_PI * (py + 0.5) / e->h, dw = (2.0 * M_PI / e->w) * (M_PI / e->h) * sin(th);
+            for (uint32_t px = 0; px < e->w; px++) {
+                double ph = 2.0 * M_PI * (px + 0.5) / e->w, m[3] = {sin(th) * cos(ph), cos(th), sin(th) * sin(ph)};
+                double c = 0.0;
+                for (int k = 0; k < 3; k++)
+                    c -= (e->framed ? m[0] * e->frame[k] + m[1] * e->frame[3 + k] + m[2] * e->frame[6 + k] : m[k]) *
+                         q->inward[k];
+                if (!(c > 0.0))
+                    continue;
+                const float *L = e->rgb + 3 * ((size_t)py * e->w + px);
+                for (int k = 0; k < 3; k++)
+                    power_out[1][k] += L[k] * dw * c * q->area;
+            }
+        }
     }
 }
 
@@ -605,6 +676,18 @@ void pm_lights_describe_text(const pm_scene_t *s, FILE *out)
         default: break;
         }
     }
+    if (s->nportals)
+        fprintf(out,
+                "portals: %zu, %.6g m^2 in all (the sun's and the sky's photons enter through them only; power "
+                "through them: sun %.6g W, sky %.6g W)\n",
+                s->nportals, s->portal_area, s->portal_power[0][0] + s->portal_power[0][1] + s->portal_power[0][2],
+                s->portal_power[1][0] + s->portal_power[1][1] + s->portal_power[1][2]);
+    for (size_t j = 0; j < s->nportals; j++) {
+        const pm_portal_t *q = &s->portals[j];
+        fprintf(out, "  portal %zu at %.6g %.6g %.6g edges %.6g %.6g %.6g and %.6g %.6g %.6g inward %.6g %.6g %.6g\n", j,
+                q->corner[0], q->corner[1], q->corner[2], q->edge_u[0], q->edge_u[1], q->edge_u[2], q->edge_v[0],
+                q->edge_v[1], q->edge_v[2], q->inward[0], q->inward[1], q->inward[2]);
+    }
 }
 
 static json_t *floats_json(const float *v, size_t n)
@@ -659,4 +742,17 @@ json_t *pm_lights_describe_json(const pm_scene_t *s)
             json_array_append_new(lights, lj);
     }
     return lights;
+}
+
+json_t *pm_portals_describe_json(const pm_scene_t *s)
+{
+    json_t *a = json_array();
+    for (size_t i = 0; i < s->nportals; i++) {
+        const pm_portal_t *q = &s->portals[i];
+        json_array_append_new(a, json_pack("{s:o, s:o, s:o, s:o, s:f}", "corner_m", floats_json(q->corner, 3),
+                                           "edge_u_m", floats_json(q->edge_u, 3), "edge_v_m",
+                                           floats_json(q->edge_v, 3), "inward", floats_json(q->inward, 3),
+                                           "area_m2", q->area));
+    }
+    return a;
 }

@@ -79,6 +79,11 @@ const char *pm_light_kind_name(pm_light_kind_t kind);
  * pm_sky_power). */
 double pm_light_power(const pm_scene_t *s, pm_light_kind_t kind, uint32_t index, int k);
 
+/* The sun's (power_out[0]) and the sky's (power_out[1]) power through s's portals, W, RGB: the
+ * mean flux pm_light_sample_le gives their photons. The sun's at its cone's axis, exact while the
+ * cone lies wholly in front of each portal; a sky map's summed over its pixels at their centres. */
+void pm_portals_power(const pm_scene_t *s, double power_out[2][3]);
+
 /* The emission light chosen by uniform u in [0, 1): index into L->light, in proportion to weight. */
 size_t pm_lights_pick(const pm_lights_t *L, double u);
 
@@ -88,7 +93,9 @@ size_t pm_lights_pick(const pm_lights_t *L, double u);
  * and the sky's differ by direction for a map: L(w) pi R^2 / pdf(w)). Point lights and spots:
  * a direction distributed as the intensity; triangles: a uniform point, cosine-weighted about the
  * emitting face (either face by half of u3 when two-sided); sun and sky: a direction of the
- * light, then a point on the disc of radius R facing it, tangent to pm_scene_sphere. */
+ * light, then a point on the disc of radius R facing it, tangent to pm_scene_sphere; with portals
+ * (s->portals), a point uniform over their area and flux L(w) A cos / pdf(w), 0 for a photon that
+ * would leave through a portal's back (a caller traces none of those, and counts them emitted). */
 void pm_light_sample_le(const pm_lights_t *L, const pm_light_t *l, float u1, float u2, float u3, float u4, float eps,
                         float org_out[3], float dir_out[3], double flux_out[3]);
 
@@ -153,6 +160,8 @@ void pm_lights_count(const pm_scene_t *s, size_t *total_out, size_t *sampled_out
  * (pm_light_kind_name) and its parameters, units in the keys (docs/programs/scene-info.md). */
 void pm_lights_describe_text(const pm_scene_t *s, FILE *out);
 json_t *pm_lights_describe_json(const pm_scene_t *s);
+/* The portals for scene-info --json: corner, edges, inward normal, area of each. */
+json_t *pm_portals_describe_json(const pm_scene_t *s);
 
 /* The lights that take LIGHT_SAMPLES direct-light samples a shading point (area lights, the sun,
  * the sky: scene-info's sampled_lights), and whether a ray can hit one (some triangle emits). */

@@ -58,7 +58,7 @@ typedef struct {
     _Alignas(64) run_t out[NOUT];
     float *rays;
     size_t nrays, rays_cap;
-    uint64_t rays_traced, escaped, absorbed, capped, first, longest, specular;
+    uint64_t rays_traced, escaped, absorbed, capped, first, longest, specular, portal_back;
     double power_emitted[3], power_first[3], power_caustic[3];
     int failed;
 } chunk_t;
@@ -254,6 +254,10 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
     for (int k = 0; k < 3; k++) {
         power[k] = flux[k] * scale; /* a map's photons differ by direction */
         c->power_emitted[k] += power[k];
+    }
+    if (!(flux[0] > 0.0 || flux[1] > 0.0 || flux[2] > 0.0) && s->nportals) {
+        c->portal_back++; /* would cross a portal outward: carries nothing, emitted but not traced */
+        return;
     }
 
     /* spec_only: no diffuse or glossy bounce since the light; caustic: that, and at least one
@@ -507,6 +511,7 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
         rat += c->nrays;
         out->rays += c->rays_traced;
         out->escaped += c->escaped;
+        out->portal_back += c->portal_back;
         out->absorbed += c->absorbed;
         out->capped += c->capped;
         out->first_hits += c->first;

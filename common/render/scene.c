@@ -70,6 +70,8 @@ void pm_scene_sphere(const pm_scene_t *s, double c[3], double *radius_out)
 
 double pm_sun_power(const pm_scene_t *s, int k)
 {
+    if (s->nportals)
+        return s->portal_power[0][k];
     double c[3], r;
     pm_scene_sphere(s, c, &r);
     /* L times the cone's solid angle times the disc's area pi R^2 (render/transport.h, pm_env_emit). */
@@ -78,6 +80,8 @@ double pm_sun_power(const pm_scene_t *s, int k)
 
 double pm_sky_power(const pm_scene_t *s, int k)
 {
+    if (s->nportals)
+        return s->portal_power[1][k];
     double c[3], r;
     pm_scene_sphere(s, c, &r);
     if (s->envmap)
@@ -415,7 +419,7 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     static const char *const keys[] = {
         "pmtk_scene", "name",   "meshes",           "camera",     "point_lights",     "sun",
         "sky",        "render", "missing_textures", "instancing", "two_sided_lights", "shading_normals",
-        "materials",  "shapes", "image_budgets",    NULL};
+        "materials",  "shapes", "image_budgets",    "portals",          NULL};
     pm_result_t r = json_is_object(root) ? pm_scene_only_keys(&c, root, "top level", keys)
                                          : pm_scene_bad(&c, "top level", "must be a JSON object");
     int64_t version = 0;
@@ -506,6 +510,8 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     if (r == PM_OK)
         r = pm_scene_load_sun_sky(&c, json_object_get(root, "sun"), json_object_get(root, "sky"));
     if (r == PM_OK)
+        r = pm_scene_load_portals(&c, json_object_get(root, "portals"));
+    if (r == PM_OK)
         r = pm_scene_add_asset_lights(&c);
     free(c.alights);
     if (r == PM_OK)
@@ -542,6 +548,7 @@ void pm_scene_free(pm_scene_t *s)
     if (s->envmap)
         pm_envmap_free(s->envmap);
     free(s->envmap);
+    free(s->portals);
     free(s->emissive);
     free(s->unsupported);
     free(s->maps);

@@ -42,6 +42,17 @@ typedef struct {
     float cos_max;      /* cosine of the cone's half-angle: 1 - omega / (2 pi) */
 } pm_sun_t;
 
+/* A portal (the scene key portals): a parallelogram through which alone the sun's and the sky's
+ * photons enter the scene (render/light.c, env_emit). Points corner + a edge_u + b edge_v for a,
+ * b in [0, 1]; the photons cross it toward `inward`, its front face (the rectangle's +z). */
+typedef struct {
+    float corner[3], edge_u[3], edge_v[3]; /* m */
+    float inward[3];                       /* unit */
+    double area;                           /* m^2 */
+} pm_portal_t;
+
+#define PM_SCENE_PORTALS_MAX 64
+
 /* A lat-long environment map (the sky's `map`): pixel (x, y) of w x h covers the directions of
  * polar angle theta from +y in [pi y / h, pi (y + 1) / h) and azimuth phi in [2 pi x / w,
  * 2 pi (x + 1) / w), direction (sin theta cos phi, cos theta, sin theta sin phi); radiance is
@@ -198,6 +209,10 @@ typedef struct {
     double sky_frame[9];  /* pm_sky_frame of the two: a map's and the sun's elevation/azimuth frame */
     double sky_turbidity; /* > 0: envmap is the Preetham model of this turbidity (sky.model), else 0 */
     pm_envmap_t *envmap;  /* the sky's lat-long map (its radiance then scales it), or NULL */
+    pm_portal_t *portals; /* the sun's and the sky's photons enter through these only, or NULL */
+    size_t nportals;
+    double portal_area;         /* m^2, the portals' total */
+    double portal_power[2][3];  /* W, RGB: the sun's [0] and the sky's [1] power through the portals */
     uint32_t *emissive;   /* indices of triangles whose material emits */
     size_t nemissive;
     size_t ndropped; /* degenerate (zero-area) triangles left out at load */
@@ -255,7 +270,8 @@ void pm_scene_unsupported_text(const pm_scene_unsupported_t *u, char *out, size_
 
 /* Total emitted power, W, RGB: point lights (4 pi I, spots less: pm_point_light_power)
  * plus area lights (pi Ke area, twice that when two-sided) plus the sun's and the sky's power into the scene's bounding
- * sphere (pm_scene_sphere): L omega pi R^2 and L 4 pi pi R^2. */
+ * sphere (pm_scene_sphere): L omega pi R^2 and L 4 pi pi R^2; with portals, their power through
+ * the portals instead (portal_power, render/light.h pm_portals_power). */
 void pm_scene_power(const pm_scene_t *s, double power_out[3]);
 
 /* Power of point light l in channel k, W: 4 pi I isotropic, 2 pi I (1 - cos_cone) /

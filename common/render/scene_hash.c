@@ -260,7 +260,7 @@ static uint64_t geometry_part(const pm_scene_t *s)
 }
 
 /* The photons' part: the geometry part, every light (point lights, two-sided emitters, the sun,
- * the sky and its map) and the render block's keys photon tracing and the map read. */
+ * the sky and its map, the portals) and the render block's keys photon tracing and the map read. */
 static uint64_t photons_part(const pm_scene_t *s)
 {
     const pm_render_defaults_t *d = &s->defaults;
@@ -289,6 +289,16 @@ static uint64_t photons_part(const pm_scene_t *s)
         if (s->envmap->framed) /* turned by sky.up and sky.rotate (an unturned map hashes as before) */
             for (int i = 0; i < 9; i++)
                 put_f64(&w, s->envmap->frame[i]);
+    }
+    if (s->nportals) { /* where the sun's and the sky's photons enter (a scene without keeps its hash) */
+        put_section(&w, "portals");
+        put_u64(&w, (uint64_t)s->nportals);
+        for (size_t i = 0; i < s->nportals; i++) {
+            put_f32s(&w, s->portals[i].corner, 3);
+            put_f32s(&w, s->portals[i].edge_u, 3);
+            put_f32s(&w, s->portals[i].edge_v, 3);
+            put_f32s(&w, s->portals[i].inward, 3);
+        }
     }
     put_section(&w, "photon keys");
     put_u64(&w, (uint64_t)d->photons);

@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "formats/formats.h"
+#include "render/light.h"
 #include "render/scene_load.h"
 #include "render/skymodel.h"
 
@@ -573,5 +574,72 @@ pm_result_t pm_scene_load_transform(const ctx_t *c, json_t *mj, const char *wher
         affine_after(xf_out, M);
         *general_out = 1;
     }
+    return PM_OK;
+}
+
+/* The portals (docs/scene-format.md, Portals): rectangles in the shapes' syntax (size, then the
+ * placement), each a parallelogram in the world whose front face looks into the scene. They need
+ * a sun or a sky to admit; their power per light is worked out here once (pm_portals_power). */
+pm_result_t pm_scene_load_portals(const ctx_t *c, json_t *portals)
+{
+    static const char *const keys[] = {"size", "scale", "rotate", "translate", "matrix", NULL};
+    pm_scene_t *s = c->s;
+    if (!portals)
+        return PM_OK;
+    if (!json_is_array(portals) || json_array_size(portals) == 0 || json_array_size(portals) > PM_SCENE_PORTALS_MAX)
+        return pm_scene_bad(c, "portals", "must be an array of 1 to %d rectangles, not %s of %zu",
+                            PM_SCENE_PORTALS_MAX, json_is_array(portals) ? "an array" : "a non-array",
+                            json_is_array(portals) ? json_array_size(portals) : (size_t)0);
+    if (!s->has_sun && !s->has_sky)
+        return pm_scene_bad(c, "portals", "admit the sun and the sky, and the scene has neither");
+    size_t n = json_array_size(portals);
+    s->portals = calloc(n, sizeof *s->portals);
+    if (!s->portals)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for %zu portals", n);
+    s->portal_area = 0.0;
+    for (size_t i = 0; i < n; i++) {
+        json_t *pj = json_array_get(portals, i);
+        char where[64], p[96];
+        snprintf(where, sizeof where, "portals[%zu]", i);
+        if (!json_is_object(pj))
+            return pm_scene_bad(c, where, "must be an object (a rectangle: size, rotate, translate, ...)");
+        pm_result_t r = pm_scene_only_keys(c, pj, where, keys);
+        double xf[3][4], size[2] = {1.0, 1.0};
+        int general;
+        if (r != PM_OK || (r = pm_scene_load_transform(c, pj, where, xf, &general)) != PM_OK)
+            return r;
+        json_t *sz = json_object_get(pj, "size");
+        snprintf(p, sizeof p, "%s.size", where);
+        if (sz && (!json_is_array(sz) || json_array_size(sz) != 2 || !json_is_number(json_array_get(sz, 0)) ||
+                   !json_is_number(json_array_get(sz, 1))))
+            return pm_scene_bad(c, p, "must be an array of 2 numbers (width along x, height along y)");
+        for (size_t k = 0; sz && k < 2; k++) {
+            size[k] = json_number_value(json_array_get(sz, k));
+            if (!(size[k] >= 1e-9 && size[k] <= PM_SCENE_COORD_MAX))
+                return pm_scene_bad(c, p, "element %zu = %.9g is outside [1e-09, %g]", k, size[k], PM_SCENE_COORD_MAX);
+        }
+        /* The rectangle's corner (-w/2, -h/2, 0) and edges (w, 0, 0), (0, h, 0) placed by xf; its
+         * front is +z as a normal transforms (the edges' cross product, turned by det's sign). */
+        double o[3], eu[3], ev[3], nn[3];
+        for (int k = 0; k < 3; k++) {
+            o[k] = xf[k][3] - 0.5 * size[0] * xf[k][0] - 0.5 * size[1] * xf[k][1];
+            eu[k] = size[0] * xf[k][0], ev[k] = size[1] * xf[k][1];
+        }
+        nn[0] = eu[1] * ev[2] - eu[2] * ev[1];
+        nn[1] = eu[2] * ev[0] - eu[0] * ev[2];
+        nn[2] = eu[0] * ev[1] - eu[1] * ev[0];
+        double a = sqrt(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]), sg = pm_scene_det3(xf) < 0.0 ? -1.0 : 1.0;
+        if (!(a >= 1e-12) || !isfinite(a))
+            return pm_scene_bad(c, where, "has area %.9g m^2 once placed: a portal must not be degenerate", a);
+        pm_portal_t *q = &s->portals[i];
+        for (int k = 0; k < 3; k++) {
+            q->corner[k] = (float)o[k], q->edge_u[k] = (float)eu[k], q->edge_v[k] = (float)ev[k];
+            q->inward[k] = (float)(sg * nn[k] / a);
+        }
+        q->area = a;
+        s->portal_area += a;
+        s->nportals = i + 1;
+    }
+    pm_portals_power(s, s->portal_power);
     return PM_OK;
 }

@@ -94,6 +94,8 @@ pm_result_t pm_scene_load_camera(const ctx_t *c, json_t *cam);
 pm_result_t pm_scene_load_lights(const ctx_t *c, json_t *lights);
 pm_result_t pm_scene_load_sun_sky(const ctx_t *c, json_t *sun, json_t *sky);
 pm_result_t pm_scene_load_defaults(const ctx_t *c, json_t *d);
+/* The portals (after the sun and the sky): s->portals, portal_area and portal_power. */
+pm_result_t pm_scene_load_portals(const ctx_t *c, json_t *portals);
 /* Mesh entry mj's placement (scale, rotate, translate, matrix) as one affine map, rows of [3x3 | t]. */
 pm_result_t pm_scene_load_transform(const ctx_t *c, json_t *mj, const char *where, double xf_out[3][4],
                                     int *general_out);

@@ -390,6 +390,8 @@ pm_result_t pm_summary_json(const pm_scene_t *s, const pm_rt_t *rt, const pm_sum
                                   (json_int_t)normal_vertices(s), "ignored", s->normals_ignored));
     json_object_set_new(j, "point_lights", json_integer((json_int_t)s->nlights));
     json_object_set_new(j, "lights", pm_lights_describe_json(s));
+    if (s->nportals)
+        json_object_set_new(j, "portals", pm_portals_describe_json(s));
     {
         uint32_t ft;
         json_object_set_new(j, "flipped_emitters", json_integer((json_int_t)pm_scene_flipped_emitters(s, &ft)));

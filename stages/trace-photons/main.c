@@ -138,6 +138,8 @@ static pm_result_t trace(pm_stage_t *st, const trace_options_t *o, const pm_scen
             pm_stage_stat_int(st, "escaped", (int64_t)tr.escaped);
             pm_stage_stat_int(st, "absorbed", (int64_t)tr.absorbed);
             pm_stage_stat_int(st, "capped", (int64_t)tr.capped);
+            if (s->nportals)
+                pm_stage_stat_int(st, "portal_back", (int64_t)tr.portal_back);
             pm_stage_stat_int(st, "longest_path", (int64_t)tr.longest);
             pm_stage_stat_double(st, "power_emitted_w",
                                  tr.power_emitted[0] + tr.power_emitted[1] + tr.power_emitted[2]);

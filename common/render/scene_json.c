@@ -586,12 +586,13 @@ pm_result_t pm_scene_load_portals(const ctx_t *c, json_t *portals)
     pm_scene_t *s = c->s;
     if (!portals)
         return PM_OK;
-    if (!json_is_array(portals) || json_array_size(portals) == 0 || json_array_size(portals) > PM_SCENE_PORTALS_MAX)
-        return pm_scene_bad(c, "portals", "must be an array of 1 to %d rectangles, not %s of %zu",
-                            PM_SCENE_PORTALS_MAX, json_is_array(portals) ? "an array" : "a non-array",
-                            json_is_array(portals) ? json_array_size(portals) : (size_t)0);
+    if (!json_is_array(portals))
+        return pm_scene_bad(c, "portals", "must be an array of rectangles (size, rotate, translate, ...)");
+    if (json_array_size(portals) == 0 || json_array_size(portals) > PM_SCENE_PORTALS_MAX)
+        return pm_scene_bad(c, "portals", "holds %zu rectangles, not 1 to %d", json_array_size(portals),
+                            PM_SCENE_PORTALS_MAX);
     if (!s->has_sun && !s->has_sky)
-        return pm_scene_bad(c, "portals", "admit the sun and the sky, and the scene has neither");
+        return pm_scene_bad(c, "portals", "let the sun and the sky in, and the scene has neither");
     size_t n = json_array_size(portals);
     s->portals = calloc(n, sizeof *s->portals);
     if (!s->portals)

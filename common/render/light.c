@@ -684,8 +684,8 @@ void pm_lights_describe_text(const pm_scene_t *s, FILE *out)
                 s->portal_power[1][0] + s->portal_power[1][1] + s->portal_power[1][2]);
     for (size_t j = 0; j < s->nportals; j++) {
         const pm_portal_t *q = &s->portals[j];
-        fprintf(out, "  portal %zu at %.6g %.6g %.6g edges %.6g %.6g %.6g and %.6g %.6g %.6g inward %.6g %.6g %.6g\n", j,
-                q->corner[0], q->corner[1], q->corner[2], q->edge_u[0], q->edge_u[1], q->edge_u[2], q->edge_v[0],
+        fprintf(out, "  portal %zu at %.6g %.6g %.6g edges %.6g %.6g %.6g and %.6g %.6g %.6g inward %.6g %.6g %.6g\n",
+                j, q->corner[0], q->corner[1], q->corner[2], q->edge_u[0], q->edge_u[1], q->edge_u[2], q->edge_v[0],
                 q->edge_v[1], q->edge_v[2], q->inward[0], q->inward[1], q->inward[2]);
     }
 }
@@ -750,9 +750,8 @@ json_t *pm_portals_describe_json(const pm_scene_t *s)
     for (size_t i = 0; i < s->nportals; i++) {
         const pm_portal_t *q = &s->portals[i];
         json_array_append_new(a, json_pack("{s:o, s:o, s:o, s:o, s:f}", "corner_m", floats_json(q->corner, 3),
-                                           "edge_u_m", floats_json(q->edge_u, 3), "edge_v_m",
-                                           floats_json(q->edge_v, 3), "inward", floats_json(q->inward, 3),
-                                           "area_m2", q->area));
+                                           "edge_u_m", floats_json(q->edge_u, 3), "edge_v_m", floats_json(q->edge_v, 3),
+                                           "inward", floats_json(q->inward, 3), "area_m2", q->area));
     }
     return a;
 }

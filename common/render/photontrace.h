@@ -78,7 +78,7 @@ typedef struct {
     uint64_t count;
     uint32_t channels, record_size;
     uint64_t emitted, first_hits, rays, escaped, absorbed, capped, longest;
-    uint64_t portal_back; /* photons that would have left through a portal's back: emitted, not traced */
+    uint64_t portal_back;      /* photons that would have left through a portal's back: emitted, not traced */
     double power_emitted[3];   /* W: sum over emitted photons */
     double power_first[3];     /* W: sum over stored first hits */
     double power_caustic[3];   /* W: sum over the caustic photons */

@@ -416,10 +416,12 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     fclose(f);
     if (!root)
         return pm_error_set(PM_ERR_INPUT, "scene '%s' line %d column %d: %s", path, je.line, je.column, je.text);
+    /* clang-format off */
     static const char *const keys[] = {
         "pmtk_scene", "name",   "meshes",           "camera",     "point_lights",     "sun",
         "sky",        "render", "missing_textures", "instancing", "two_sided_lights", "shading_normals",
-        "materials",  "shapes", "image_budgets",    "portals",          NULL};
+        "materials",  "shapes", "image_budgets",    "portals",    NULL};
+    /* clang-format on */
     pm_result_t r = json_is_object(root) ? pm_scene_only_keys(&c, root, "top level", keys)
                                          : pm_scene_bad(&c, "top level", "must be a JSON object");
     int64_t version = 0;

@@ -211,9 +211,9 @@ typedef struct {
     pm_envmap_t *envmap;  /* the sky's lat-long map (its radiance then scales it), or NULL */
     pm_portal_t *portals; /* the sun's and the sky's photons enter through these only, or NULL */
     size_t nportals;
-    double portal_area;         /* m^2, the portals' total */
-    double portal_power[2][3];  /* W, RGB: the sun's [0] and the sky's [1] power through the portals */
-    uint32_t *emissive;   /* indices of triangles whose material emits */
+    double portal_area;        /* m^2, the portals' total */
+    double portal_power[2][3]; /* W, RGB: the sun's [0] and the sky's [1] power through the portals */
+    uint32_t *emissive;        /* indices of triangles whose material emits */
     size_t nemissive;
     size_t ndropped; /* degenerate (zero-area) triangles left out at load */
     pm_camera_t camera;

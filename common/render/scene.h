@@ -186,9 +186,9 @@ typedef struct {
     /* The hash's parts by what reads them (XXH3-64 of a canonical serialisation of the loaded
      * content, not of the file nor of C structs' bytes: render/scene_hash.c):
      * geometry: triangles, materials, textures, vertex normals; photons: that, every light
-     * (point lights, sun, sky, two-sided emitters) and the render block's photon keys (photon tracing and the map);
-     * view: the geometry part, the camera, the image size and the render block's eye keys (the eye side's queries,
-     * which no point light changes); eye: photons and view (the direct light, the image). */
+     * (point lights, sun, sky, portals, two-sided emitters) and the render block's photon keys (photon tracing and the
+     * map); view: the geometry part, the camera, the image size and the render block's eye keys (the eye side's
+     * queries, which no point light changes); eye: photons and view (the direct light, the image). */
     struct {
         uint64_t geometry, photons, view, eye;
     } parts;

@@ -8,8 +8,9 @@
  * sample_le's flux averages to the light's power, a triangle's directions are cosine-weighted
  * (chi-square), a spot's, the sun's and the sky's directions follow their pdfs (chi-square)
  * and those pdfs integrate to 1, a sky map's sampler follows its pixels. Portals: sun and sky
- * photons start on them by area, carry flux only inward, and average to the power through them. The random numbers
- * are Philox streams of fixed seeds, so every run draws the same samples. */
+ * photons start on them by area, carry flux only inward, and average to the power through
+ * them. The random numbers are Philox streams of fixed seeds, so every run draws the same
+ * samples. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>

@@ -3,9 +3,11 @@
 #include "base/passplan.h"
 
 #include <errno.h>
+#include <fcntl.h>
 #include <inttypes.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "base/args.h"
 #include "base/timer.h"
@@ -84,14 +86,36 @@ void pm_passplan_close(pm_passplan_t *pp)
     pp->plan = NULL;
 }
 
+pm_result_t pm_passplan_tell_ready(const pm_passplan_t *pp, pm_stage_t *st)
+{
+    if (!pp->ready)
+        return PM_OK;
+    double wall = pm_timer_wall(&st->timer), cpu = pm_time_cpu();
+    pm_stage_stat_double(st, "ready_s", wall);
+    pm_stage_stat_double(st, "ready_cpu_s", cpu);
+    char line[128];
+    int n = snprintf(line, sizeof line, "%s ready %.6f %.6f\n", st->name, wall, cpu);
+    /* one write of less than PIPE_BUF bytes: whole on a pipe that other stages write too */
+    int fd = open(pp->ready, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+    if (fd < 0)
+        return pm_error_set(pm_result_of_errno(errno), "cannot open --ready '%s': %s", pp->ready, strerror(errno));
+    ssize_t w = write(fd, line, (size_t)n);
+    int e = errno;
+    close(fd);
+    if (w != n)
+        return pm_error_set(w < 0 ? pm_result_of_errno(e) : PM_ERR_IO, "cannot write --ready '%s': %s", pp->ready,
+                            w < 0 ? strerror(e) : "short write");
+    return PM_OK;
+}
+
 pm_result_t pm_passplan_run(pm_passplan_t *pp, pm_stage_t *st, char **argv, const void *const *drop, size_t ndrop,
                             const char *size_opt, int64_t max_size, pm_passplan_fn fn, void *user)
 {
     int argc0 = st->argc, done = 0;
     char **argv0 = st->argv;
     double cpu = 0.0;
-    pm_result_t r = PM_OK;
-    for (;;) {
+    pm_result_t r = pm_passplan_tell_ready(pp, st);
+    while (r == PM_OK) {
         int64_t pass, size;
         int end;
         if ((r = pm_passplan_next(pp, &pass, &size, &end)) != PM_OK || end)

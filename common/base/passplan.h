@@ -25,6 +25,7 @@ typedef struct {
     FILE *plan;          /* --plan's file (stdin for "-"), NULL for a range */
     const char *path;    /* --plan's path, for messages */
     int64_t line;        /* lines of the plan read */
+    const char *ready;   /* --ready FILE, NULL for none: told once the stage is ready for its first pass */
 } pm_passplan_t;
 
 /* Sets up from --passes (range, "A:B" with 1 <= A <= B, or NULL) or --plan (plan, a path or
@@ -42,6 +43,14 @@ int pm_passplan_single(const pm_passplan_t *pp);
 
 void pm_passplan_close(pm_passplan_t *pp);
 
+/* --ready FILE (a driver's pipe as /dev/fd/N): once the stage has loaded what every pass shares
+ * (the scene, the ray tracer) and before it reads the plan's first line, pm_passplan_run writes
+ * the line "PROGRAM ready WALL_S CPU_S" (s since the stage began, s of CPU since it started) to
+ * pp->ready and closes it, so that the driver times the passes apart from the stages' start
+ * (common/engine/progressive.c). A file that cannot be opened or written is an error of its
+ * errno's class naming it. */
+pm_result_t pm_passplan_tell_ready(const pm_passplan_t *pp, pm_stage_t *st);
+
 /* One pass of a resident tracer: pass, and size from the plan (0: the options' size). When it
  * is called, the stage's recorded command (st->argc, st->argv) is that pass's alone. */
 typedef pm_result_t (*pm_passplan_fn)(void *user, int64_t pass, int64_t size);
@@ -52,8 +61,10 @@ typedef pm_result_t (*pm_passplan_fn)(void *user, int64_t pass, int64_t size);
  * P" and, when the plan sizes the pass, "size_opt SIZE" put in; drop's last entry is size_opt's
  * destination, left out only then) and restored after. A size above max_size is an input error
  * naming the plan's line; a pass that fails is named (pm_stage_frame_error); a plan of no pass
- * is an input error. Adds the stats "passes" (the passes done) and "pass_cpu_s" (the CPU s the
- * stage used in its passes, not in loading). */
+ * is an input error. Tells pp->ready first (pm_passplan_tell_ready). Adds the stats "passes"
+ * (the passes done), "pass_cpu_s" (the CPU s the stage used in its passes, not in loading),
+ * "ready_s" and "ready_cpu_s" (the wall s from the stage's start and the CPU s from its exec
+ * to the first pass: its start-up). */
 pm_result_t pm_passplan_run(pm_passplan_t *pp, pm_stage_t *st, char **argv, const void *const *drop, size_t ndrop,
                             const char *size_opt, int64_t max_size, pm_passplan_fn fn, void *user);
 

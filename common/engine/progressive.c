@@ -51,8 +51,25 @@ static const char *const stage_progs[NSTAGE] = {"trace-photons",       "build-ph
                                                 "simd-gather",         "composite"};
 /* The pipes: the two plans, the photons (global, caustic), the maps (global, caustic), the
  * queries (as traced, sorted, caustic), the buffers (direct, indirect, caustic), the pass log,
- * the passes' weights. */
-enum { P_PLAN_TP, P_PLAN_TG, P_PH, P_CPH, P_MAP, P_CMAP, P_Q, P_SQ, P_CQ, P_DIR, P_IND, P_CAU, P_LOG, P_WTS, NPIPE };
+ * the passes' weights, the tracers' word that they are ready for pass 1 (--ready). */
+enum {
+    P_PLAN_TP,
+    P_PLAN_TG,
+    P_PH,
+    P_CPH,
+    P_MAP,
+    P_CMAP,
+    P_Q,
+    P_SQ,
+    P_CQ,
+    P_DIR,
+    P_IND,
+    P_CAU,
+    P_LOG,
+    P_WTS,
+    P_RDY,
+    NPIPE
+};
 
 /* An argv with its words' storage. */
 typedef struct {
@@ -126,6 +143,8 @@ typedef struct {
     int direct;             /* the direct buffer: not with MODE=direct-vis over a global map */
     const char *mode, *map; /* trace-gather-points --mode, build-photonmap --map (MAP=auto resolved) */
     const char *order;      /* hilbert-sort --order (ORDER=auto resolved; hilbert-sort off for none) */
+    double spawn_s;         /* s from the command's start to the stages' start: pm-render's own */
+    double ready_s[NSTAGE]; /* s from the command's start to a tracer's --ready line (-1: none) */
 } prog_t;
 
 /* the driver's lines on stderr, "ME: ..." (pm_engine_say) */
@@ -383,6 +402,8 @@ static void stage_argv(const prog_t *p, argv_t a[NSTAGE], const int fd[NPIPE][2]
             push(&a[TP], "--indirect-only");
         push(&a[TP], "--plan");
         push(&a[TP], "-");
+        push(&a[TP], "--ready");
+        pushf(&a[TP], "/dev/fd/%d", fd[P_RDY][1]);
         push(&a[TP], "-o");
         push(&a[TP], "-");
         if (p->on[CB]) {
@@ -419,6 +440,8 @@ static void stage_argv(const prog_t *p, argv_t a[NSTAGE], const int fd[NPIPE][2]
     }
     push(&a[TG], "--plan");
     push(&a[TG], "-");
+    push(&a[TG], "--ready");
+    pushf(&a[TG], "/dev/fd/%d", fd[P_RDY][1]);
     if (p->on[SG]) {
         push(&a[TG], "-o");
         push(&a[TG], "-");
@@ -689,6 +712,18 @@ static void write_stats(prog_t *p, double wall, double first_image, const char *
                                                                                                   : json_null());
     json_object_set_new(total, "wall_s", json_real(wall));
     json_object_set_new(total, "first_image_s", first_image >= 0 ? json_real(first_image) : json_null());
+    /* the start-up: pm-render's own (to the stages' start), then each tracer's scene and ray
+     * tracer until it said it was ready for pass 1 (s from the command's start) */
+    json_t *ready = json_object();
+    double last = -1.0;
+    for (int i = 0; i < NSTAGE; i++)
+        if (p->ready_s[i] >= 0.0) {
+            json_object_set_new(ready, stage_names[i], json_real(p->ready_s[i]));
+            last = p->ready_s[i] > last ? p->ready_s[i] : last;
+        }
+    json_object_set_new(total, "start_s", p->spawn_s > 0.0 ? json_real(p->spawn_s) : json_null());
+    json_object_set_new(total, "ready_s", last >= 0.0 ? json_real(last) : json_null());
+    json_object_set_new(total, "stages_ready_s", ready);
     json_object_set_new(total, "stopped_by", json_string(stop));
     json_object_set_new(total, "alpha", json_real(a));
     json_object_set_new(total, "radius1", r1 > 0.0 ? json_real(r1) : json_null());
@@ -773,6 +808,33 @@ static void run_hook(const prog_t *p, char **env, int pass, double seconds)
     pm_proc_status_free(&st);
 }
 
+/* Waits until the tracers have loaded the scene and built their ray tracers (each writes
+ * "PROGRAM ready WALL_S CPU_S" to --ready and closes it; a tracer that fails first just closes
+ * it), so that pass 1 is asked for, and timed, from there: its wall time is then its own, not
+ * the stages' start-up, and a TIME budget's next passes are sized from what passes cost
+ * (docs/pipelines.md, "Progressive passes"). Closes rfd. */
+static void wait_ready(prog_t *p, int rfd, double t0)
+{
+    FILE *f = fdopen(rfd, "r");
+    if (!f) {
+        close(rfd);
+        return;
+    }
+    char line[256];
+    int want = p->on[TP] + p->on[TG], got = 0;
+    while (got < want && fgets(line, sizeof line, f)) {
+        char name[64]; /* the stage's own wall and CPU s go to its --stats (ready_s, ready_cpu_s) */
+        if (sscanf(line, "%63s ready", name) != 1 || !strstr(line, " ready"))
+            continue;
+        for (int j = 0; j < 2; j++) {
+            int i = j ? TG : TP;
+            if (p->on[i] && !strcmp(name, stage_progs[i]) && p->ready_s[i] < 0.0)
+                p->ready_s[i] = pm_time_wall() - t0, got++;
+        }
+    }
+    fclose(f);
+}
+
 /* The passes: the six stages started, a pass at a time, the stages ended. Returns the exit
  * status; *stop_out says what stopped the passes, *first_out when the first image was in
  * place (s from t0; -1 if none). */
@@ -808,10 +870,10 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
     in_fd[SG] = p->on[HS] ? fd[P_SQ][0] : fd[P_Q][0];
     int out_fd[NSTAGE] = {fd[P_PH][1], fd[P_MAP][1], fd[P_CMAP][1], p->on[SG] ? fd[P_Q][1] : -1,
                           fd[P_SQ][1], fd[P_IND][1], fd[P_CAU][1],  -1};
-    int uses[NSTAGE][4] = {{p->on[CB] ? fd[P_CPH][1] : -1, -1, -1, -1},
+    int uses[NSTAGE][4] = {{p->on[CB] ? fd[P_CPH][1] : -1, fd[P_RDY][1], -1, -1},
                            {-1, -1, -1, -1},
                            {-1, -1, -1, -1},
-                           {p->direct ? fd[P_DIR][1] : -1, p->on[CG] ? fd[P_CQ][1] : -1, -1, -1},
+                           {p->direct ? fd[P_DIR][1] : -1, p->on[CG] ? fd[P_CQ][1] : -1, fd[P_RDY][1], -1},
                            {-1, -1, -1, -1},
                            {fd[P_MAP][0], -1, -1, -1},
                            {fd[P_CMAP][0], -1, -1, -1},
@@ -827,6 +889,7 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
     stage_argv(p, a, (const int(*)[2])fd, first);
     pm_proc_t *proc[NSTAGE] = {0};
     int rc = 0;
+    p->spawn_s = pm_time_wall() - t0;
     for (int i = 0; i < NSTAGE && rc == 0; i++) {
         if (!p->on[i])
             continue;
@@ -866,12 +929,16 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
     for (int i = 0; i < NPIPE; i++) {
         if (fd[i][1] != plan_tp && fd[i][1] != plan_tg && fd[i][1] != wts)
             close(fd[i][1]);
-        if (i != P_LOG)
+        if (i != P_LOG && i != P_RDY)
             close(fd[i][0]);
     }
     FILE *logf = rc == 0 ? fdopen(fd[P_LOG][0], "r") : NULL;
     if (!logf)
         close(fd[P_LOG][0]);
+    if (rc == 0)
+        wait_ready(p, fd[P_RDY][0], t0);
+    else
+        close(fd[P_RDY][0]);
     void (*old_pipe)(int) = signal(SIGPIPE, SIG_IGN); /* a plan whose tracer failed: EPIPE, not death */
     int k[4096];
     double sec[4096];
@@ -1024,6 +1091,8 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
 int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bin, const char *cmdline, double t0)
 {
     prog_t p = {.s = s, .me = me, .bin = bin, .lock_fd = -1};
+    for (int i = 0; i < NSTAGE; i++)
+        p.ready_s[i] = -1.0;
     /* an OUTDIR that holds pass directories (KEEP=all, pipelines/slurm's tasks) goes on with them */
     char pass1[4200];
     struct stat sb;

@@ -59,6 +59,7 @@ typedef struct {
     const char *isa;
     int no_queries;          /* --no-queries: the direct buffer alone */
     const char *passes;      /* --passes A:B, NULL for none */
+    const char *ready;       /* --ready FILE: told when the first pass may come (passplan.h) */
     const char *plan;        /* --plan FILE, NULL for none */
     int64_t plan_primary;    /* the pass's primary rays per pixel from the plan; 0: the options' */
     int single;              /* one document per output: the outputs are one set */
@@ -355,6 +356,7 @@ static pm_result_t run_passes(pm_stage_t *st, tgp_options_t *o, char **argv, pm_
     pm_result_t r = pm_passplan_open(&pp, o->passes, o->plan);
     if (r != PM_OK)
         return r;
+    pp.ready = o->ready;
     o->single = pm_passplan_single(&pp);
     if (!o->single && ((r = pm_writer_check_stream("-o", o->no_queries ? NULL : st->output)) != PM_OK ||
                        (r = pm_writer_check_stream("--direct", o->direct)) != PM_OK ||
@@ -376,9 +378,9 @@ static pm_result_t run_passes(pm_stage_t *st, tgp_options_t *o, char **argv, pm_
     if (r == PM_OK && o->guide && (r = load_guide(st, o, &s, &guide)) == PM_OK)
         o->built = guide;
     if (r == PM_OK) {
-        const void *drop[] = {&o->passes, &o->plan, &o->primary};
+        const void *drop[] = {&o->passes, &o->plan, &o->ready, &o->primary};
         tgp_pass_t tp = {st, o, &s, &rt, isa};
-        r = pm_passplan_run(&pp, st, argv, drop, 3, "--primary", 4096, tgp_pass, &tp); /* --primary's own limit */
+        r = pm_passplan_run(&pp, st, argv, drop, 4, "--primary", 4096, tgp_pass, &tp); /* --primary's own limit */
     }
     o->built = NULL;
     pm_guide_destroy(guide);
@@ -444,6 +446,10 @@ int main(int argc, char **argv)
         {"passes", 0, PM_OPT_STRING, &o.passes, "A:B",
          "progressive passes A to B, the scene loaded once: a document per pass to each output (streams), each the "
          "bytes --pass P alone writes",
+         1, 0, NULL},
+        {"ready", 0, PM_OPT_STRING, &o.ready, "FILE",
+         "with --passes or --plan: once the scene is loaded and the ray tracer built, write 'PROGRAM ready WALL_S "
+         "CPU_S' to FILE (a driver's pipe) and close it, before the first pass",
          1, 0, NULL},
         {"plan", 0, PM_OPT_STRING, &o.plan, "FILE",
          "progressive passes as a driver asks for them: a line 'PASS [PRIMARY]' per pass (- is stdin), a document "
@@ -532,6 +538,8 @@ int main(int argc, char **argv)
             r = run_passes(&st, &o, argv0, isa);
         return pm_stage_end(&st, r);
     }
+    if (o.ready)
+        return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "--ready tells a driver of --passes or --plan: give one"));
     if (frames > 1 && ((r = pm_writer_check_stream("-o", qout)) != PM_OK ||
                        (r = pm_writer_check_stream("--direct", o.direct)) != PM_OK ||
                        (r = pm_writer_check_stream("--caustic-queries", o.caustic)) != PM_OK))

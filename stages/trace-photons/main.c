@@ -37,6 +37,7 @@ typedef struct {
     int64_t pass;        /* progressive pass, 1-based; 0: none */
     const char *caustic; /* --caustic-output FILE, NULL for none */
     const char *passes;  /* --passes A:B, NULL for none */
+    const char *ready;   /* --ready FILE: told when the first pass may come (passplan.h) */
     const char *plan;    /* --plan FILE, NULL for none */
     int indirect_only;   /* --indirect-only: no first hits in -o */
     int direction;       /* --direction: the direction channel whatever the scene */
@@ -212,6 +213,7 @@ static pm_result_t run_passes(pm_stage_t *st, trace_options_t *o, char **argv)
     pm_result_t r = pm_passplan_open(&pp, o->passes, o->plan);
     if (r != PM_OK)
         return r;
+    pp.ready = o->ready;
     int single = pm_passplan_single(&pp);
     if (!single && ((r = pm_writer_check_stream("-o", st->output)) != PM_OK ||
                     (r = pm_writer_check_stream("--caustic-output", o->caustic)) != PM_OK)) {
@@ -226,9 +228,9 @@ static pm_result_t run_passes(pm_stage_t *st, trace_options_t *o, char **argv)
         pm_passplan_close(&pp);
         return r;
     }
-    const void *drop[] = {&o->passes, &o->plan, &o->photons};
+    const void *drop[] = {&o->passes, &o->plan, &o->ready, &o->photons};
     tp_pass_t tp = {st, o, &s, &rt, single, o->photons};
-    r = pm_passplan_run(&pp, st, argv, drop, 3, "--photons", INT64_MAX, tp_pass, &tp);
+    r = pm_passplan_run(&pp, st, argv, drop, 4, "--photons", INT64_MAX, tp_pass, &tp);
     pm_rt_destroy(&rt);
     pm_scene_free(&s);
     pm_passplan_close(&pp);
@@ -275,6 +277,10 @@ int main(int argc, char **argv)
          "progressive passes A to B, the scene loaded once: a photons document per pass (a stream), each the bytes "
          "--pass P alone writes",
          1, 0, NULL},
+        {"ready", 0, PM_OPT_STRING, &o.ready, "FILE",
+         "with --passes or --plan: once the scene is loaded and the ray tracer built, write 'PROGRAM ready WALL_S "
+         "CPU_S' to FILE (a driver's pipe) and close it, before the first pass",
+         1, 0, NULL},
         {"plan", 0, PM_OPT_STRING, &o.plan, "FILE",
          "progressive passes as a driver asks for them: a line 'PASS [PHOTONS]' per pass (- is stdin), a photons "
          "document each, until the plan ends",
@@ -301,6 +307,8 @@ int main(int argc, char **argv)
             r = run_passes(&st, &o, argv0);
         return pm_stage_end(&st, r);
     }
+    if (o.ready)
+        return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "--ready tells a driver of --passes or --plan: give one"));
     if (frames > 1 && ((r = pm_writer_check_stream("-o", st.output)) != PM_OK ||
                        (r = pm_writer_check_stream("--caustic-output", o.caustic)) != PM_OK))
         return pm_stage_end(&st, r);

@@ -164,6 +164,16 @@ printf '# a plan\n2 1000\n3\n' | $TP --plan - -o - >"$TMP/tpl.pm" &&
     pass "trace-photons --plan: '2 1000' is --pass 2 --photons 1000, '3' is --pass 3 at --photons" ||
     fail "trace-photons --plan" "the stream differs from the single passes"
 expect_exit "trace-photons --passes 1:2 to a regular file is a usage error" 2 $TP --passes 1:2 -o "$TMP/x.pm"
+# --ready: the line a driver waits for before it asks for (and times) pass 1; the documents are
+# the bytes of a plan without it (it is left out of the recorded command, as --plan is)
+printf '# a plan\n2 1000\n3\n' | $TP --plan - --ready "$TMP/tpready" -o - >"$TMP/tplr.pm" &&
+    cmp -s "$TMP/tplr.pm" "$TMP/tpl.pm" && grep -Eq '^trace-photons ready [0-9.]+ [0-9.]+$' "$TMP/tpready" &&
+    [ "$(wc -l <"$TMP/tpready")" = 1 ] &&
+    pass "trace-photons --ready: one line 'trace-photons ready WALL CPU', the documents of the plan without it" ||
+    fail "trace-photons --ready" "$(cat "$TMP/tpready" 2>/dev/null)"
+expect_exit "trace-photons --ready without --passes or --plan is a usage error" 2 $TP --ready "$TMP/x.txt" -o /dev/null
+expect_error "trace-photons --ready into a missing directory is named" "cannot open --ready '$TMP/no/r'" \
+    $TP --passes 1:1 --ready "$TMP/no/r" -o /dev/null
 expect_exit "trace-photons --passes 2:1 is a usage error" 2 $TP --passes 2:1 -o -
 expect_exit "trace-photons --passes with --pass is a usage error" 2 $TP --passes 1:2 --pass 1 -o -
 printf '1\n0 5\n' >"$TMP/badplan"
@@ -180,6 +190,12 @@ cat "$TMP/tgq1.pm" "$TMP/tgq2p.pm" | cmp -s - "$TMP/tgq.pm" && cat "$TMP/tgd1.pm
     cmp -s "$TMP/tgq2.pm" "$TMP/tgq2s.pm" && cmp -s "$TMP/tgd2.pm" "$TMP/tgd2s.pm" &&
     pass "trace-gather-points --passes 1:2 and --plan '2 2': the bytes of --pass P (--primary 2) alone, both outputs" ||
     fail "trace-gather-points --passes" "a stream differs from the single passes"
+printf '2 2\n' | $TG --plan - --ready /dev/fd/4 -o - --direct /dev/fd/3 3>"$TMP/tgd2r.pm" 4>"$TMP/tgready" >"$TMP/tgq2r.pm" &&
+    cmp -s "$TMP/tgq2r.pm" "$TMP/tgq2.pm" && cmp -s "$TMP/tgd2r.pm" "$TMP/tgd2.pm" &&
+    grep -Eq '^trace-gather-points ready [0-9.]+ [0-9.]+$' "$TMP/tgready" &&
+    pass "trace-gather-points --ready /dev/fd/4: its line, and the bytes of the plan without it" ||
+    fail "trace-gather-points --ready" "$(cat "$TMP/tgready" 2>/dev/null)"
+expect_exit "trace-gather-points --ready without --passes or --plan is a usage error" 2 $TG --ready "$TMP/x.txt" -o /dev/null
 # simd-gather --stream pairs: each pass with its width of the schedule, the records of --pass P
 for p in 1 2 3; do
     "$BIN/trace-photons" $CORNELL --photons 5000 -q --pass $p -o - | "$BIN/build-photonmap" -q - -o "$TMP/sm$p.pm"
@@ -410,6 +426,19 @@ got=$(jq '.stages."simd-gather".pass_index' "$T/stats.json")
 [ "$(awk '/^1 / { print $3 }' "$T/passes.txt")" = 1 ] && [ "$n" -ge 2 ] && [ "$(printf '%.10g' "$got")" = "$(pidx "$T")" ] &&
     pass "TIME=1: $n passes from one unit up, the last gathered at n = $got (the photons before it / pass 1's)" ||
     fail "TIME=1: the schedule by photons" "pass_index $got, want $(pidx "$T"): $(tail -3 "$TMP/ti.out")"
+# the start-up apart from the passes: pm-render's own start, then each tracer ready (its scene
+# and ray tracer), then pass 1, asked for and timed from there; no bound on the times here (a
+# loaded machine), only their order: start <= ready, and ready + pass 1's wall <= first image
+if jq -e '.total as $t | ($t.start_s > 0) and ($t.ready_s >= $t.start_s) and
+        ($t.stages_ready_s | has("trace-photons") and has("trace-gather-points")) and
+        ([$t.stages_ready_s[]] | max) == $t.ready_s and
+        ($t.ready_s + .passes[0].wall_s <= $t.first_image_s + 0.001) and
+        (.stages."trace-photons".ready_s > 0) and (.stages."trace-gather-points".ready_cpu_s > 0)' \
+    "$T/stats.json" >/dev/null; then
+    pass "TIME=1: stats.json times the start-up (start_s, ready_s per tracer) apart from pass 1's wall"
+else
+    fail "TIME=1: the start-up in stats.json" "$(jq -c '.total' "$T/stats.json")"
+fi
 "$R" "$CORNELL" "$T" $SMALL PASSES=$((n + 1)) >"$TMP/ti2.out" 2>&1
 got=$(jq '.stages."simd-gather".pass_index' "$T/stats.json")
 [ "$(hdr "$T/running.pm" passes)" = $((n + 1)) ] && [ "$(printf '%.10g' "$got")" = "$(pidx "$T")" ] &&

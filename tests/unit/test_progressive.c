@@ -227,6 +227,60 @@ static void test_plan_run(void **state)
     pm_args_free(&st.args);
 }
 
+/* --ready: the line is in the file before the first pass runs (the driver times pass 1 from
+ * it), once, naming the program; a file that cannot be opened is an error naming it. */
+static pm_result_t ready_seen(void *user, int64_t pass, int64_t size)
+{
+    (void)pass, (void)size;
+    const char *path = user;
+    char line[256] = "";
+    FILE *f = fopen(path, "r");
+    if (!f || !fgets(line, sizeof line, f) || strncmp(line, "unit-tracer ready ", 18)) {
+        if (f)
+            fclose(f);
+        return pm_error_set(PM_ERR_INTERNAL, "no ready line before the pass: '%s'", line);
+    }
+    fclose(f);
+    return PM_OK;
+}
+
+static void test_plan_ready(void **state)
+{
+    (void)state;
+    char ready[4096], bad[4096];
+    snprintf(ready, sizeof ready, "%s/plan-ready.txt", unit_tmpdir());
+    snprintf(bad, sizeof bad, "%s/no-such-dir/ready", unit_tmpdir());
+    remove(ready);
+    pm_stage_t st;
+    pm_stage_defaults(&st);
+    const pm_option_t opts[] = {PM_STAGE_COMMON_OPTIONS(st), {0}};
+    const pm_cli_t cli = {"unit-tracer", "[options]", "a tracer of passes", opts, 0, 0, NULL};
+    char *argv[] = {"unit-tracer", "-q", NULL};
+    assert_int_equal(pm_stage_begin(&st, &cli, 2, argv), -1);
+    const void *drop[] = {&st.seed};
+    pm_passplan_t pp;
+    assert_int_equal(pm_passplan_open(&pp, "1:2", NULL), PM_OK);
+    pp.ready = ready;
+    assert_int_equal(pm_passplan_run(&pp, &st, argv, drop, 1, "--photons", 100, ready_seen, ready), PM_OK);
+    pm_passplan_close(&pp);
+    char line[256] = "", name[64] = "";
+    double w = -1.0, c = -1.0;
+    FILE *f = fopen(ready, "r");
+    assert_non_null(f);
+    assert_non_null(fgets(line, sizeof line, f));
+    assert_null(fgets(line + 128, 128, f)); /* one line */
+    fclose(f);
+    assert_int_equal(sscanf(line, "%63s ready %lf %lf", name, &w, &c), 3);
+    assert_string_equal(name, "unit-tracer");
+    assert_true(w >= 0.0 && c >= 0.0);
+    assert_int_equal(pm_passplan_open(&pp, "1:1", NULL), PM_OK);
+    pp.ready = bad;
+    assert_int_equal(pm_passplan_run(&pp, &st, argv, drop, 1, "--photons", 100, ready_seen, ready), PM_ERR_INPUT);
+    assert_non_null(strstr(pm_error_message(), "no-such-dir/ready"));
+    pm_passplan_close(&pp);
+    pm_args_free(&st.args);
+}
+
 /* The schedule by photons: passes of pass 1's size sit at their own index, to the bit (the
  * fixed-size renders keep their bytes); between them the continuous form is monotone and
  * meets the product at both ends; small passes move the index by their photons alone. */
@@ -271,6 +325,6 @@ static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_sizes_grow_then_fill), cmocka_unit_test(test_sizes_first_pass),
     cmocka_unit_test(test_sizes_noisy),          cmocka_unit_test(test_plan_range),
     cmocka_unit_test(test_plan_lines),           cmocka_unit_test(test_plan_run),
-    cmocka_unit_test(test_schedule_by_photons),
+    cmocka_unit_test(test_plan_ready),           cmocka_unit_test(test_schedule_by_photons),
 };
 UNIT_GROUP(progressive_group, "progressive", tests)

@@ -350,18 +350,24 @@ static char **stage_env(void)
     size_t n = 0;
     while (environ[n])
         n++;
-    char **e = calloc(n + 3, sizeof *e);
+    char **e = calloc(n + 4, sizeof *e);
     if (!e)
         return NULL;
     size_t k = 0;
     int omp = 0;
+    /* the meshes the driver's own load tried in a child (render/mesh_guard.c): the tracers load
+     * the same bytes and skip the trial, which doubled their start (docs/scene-format.md) */
+    static char tried[4096] = "PMTK_IMPORT_TRIED=";
+    int have_tried = pm_scene_tried_imports(tried + 18, sizeof tried - 18);
     for (size_t i = 0; i < n; i++) {
-        if (!strncmp(environ[i], "PMTK_FSYNC=", 11))
+        if (!strncmp(environ[i], "PMTK_FSYNC=", 11) || (have_tried && !strncmp(environ[i], "PMTK_IMPORT_TRIED=", 18)))
             continue;
         omp |= !strncmp(environ[i], "OMP_WAIT_POLICY=", 16);
         e[k++] = environ[i];
     }
     e[k++] = "PMTK_FSYNC=0";
+    if (have_tried)
+        e[k++] = tried;
     if (!omp)
         e[k++] = "OMP_WAIT_POLICY=passive";
     e[k] = NULL;

@@ -210,7 +210,8 @@ static pm_result_t import_file(ctx_t *c, const char *path, int is_obj, import_t 
      * and lines; vertex normals come as the file has them (none are made up). */
     const unsigned flags = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_PreTransformVertices |
                            aiProcess_SortByPType | aiProcess_ValidateDataStructure;
-    if ((r = pm_scene_mesh_precheck(path)) != PM_OK || (r = pm_scene_mesh_trial(path, flags)) != PM_OK)
+    if ((r = pm_scene_mesh_precheck(path)) != PM_OK ||
+        (r = pm_scene_mesh_trial(path, flags, is_obj ? libs_read : NULL)) != PM_OK)
         return r;
     struct aiLogStream log = {on_assimp_log, NULL};
     ai_first_error[0] = '\0';

@@ -12,6 +12,7 @@
 #include <fcntl.h>
 #include <inttypes.h>
 #include <jansson.h>
+#include <pthread.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -23,6 +24,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "base/hash.h"
 #include "render/scene_load.h"
 
 #if defined(__SANITIZE_ADDRESS__)
@@ -254,7 +256,81 @@ static void statm_mib(pid_t pid, long *rss_out, long *data_out)
     *data_out = ok ? (long)((double)v[5] * page) : 0;
 }
 
-pm_result_t pm_scene_mesh_trial(const char *path, unsigned flags)
+/* The keys of the imports this process tried and found clean (pm_scene_tried_imports): the
+ * programs a driver starts import the same bytes again, and need not try them again. */
+enum { TRIED_MAX = 64 };
+static uint64_t tried[TRIED_MAX];
+static int ntried;
+static pthread_mutex_t tried_lock = PTHREAD_MUTEX_INITIALIZER; /* scenes loaded on several threads */
+
+/* The trial's key for path (libs: an OBJ's material libraries, a name a line; NULL for none),
+ * or 0 when its import may read files the key does not cover (any format but OBJ, PLY, OFF
+ * and STL) or a file cannot be read. */
+static uint64_t trial_key(const char *path, const char *libs, unsigned flags, long secs, long mib)
+{
+    const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
+    if (!dot || (slash && dot < slash) ||
+        (strcasecmp(dot, ".obj") && strcasecmp(dot, ".ply") && strcasecmp(dot, ".off") && strcasecmp(dot, ".stl")) ||
+        (libs && strcasecmp(dot, ".obj")))
+        return 0;
+    uint64_t h[4 + 32] = {(uint64_t)flags, (uint64_t)secs, (uint64_t)mib, 0};
+    size_t n = 4;
+    if (pm_hash_file(path, &h[3]) != PM_OK)
+        return 0;
+    for (const char *lib = libs ? libs : "", *eol; (eol = strchr(lib, '\n')); lib = eol + 1) {
+        char name[1024], lpath[1200];
+        snprintf(name, sizeof name, "%.*s", (int)(eol - lib), lib);
+        pm_scene_resolve(path, name, lpath, sizeof lpath);
+        if (n == sizeof h / sizeof *h)
+            return 0;
+        if (pm_hash_file(lpath, &h[n]) != PM_OK)
+            h[n] = 1; /* a library that is not there (assimp reports it; the import is what it is) */
+        n++;
+    }
+    uint64_t k = pm_hash_bytes(h, n * sizeof *h);
+    return k ? k : 1;
+}
+
+/* 1 when key is noted in PMTK_IMPORT_TRIED or by this process */
+static int tried_before(uint64_t key)
+{
+    int found = 0;
+    pthread_mutex_lock(&tried_lock);
+    for (int i = 0; i < ntried; i++)
+        found |= tried[i] == key;
+    pthread_mutex_unlock(&tried_lock);
+    if (found)
+        return 1;
+    const char *env = getenv("PMTK_IMPORT_TRIED");
+    char want[17];
+    snprintf(want, sizeof want, "%016" PRIx64, key);
+    for (const char *p = env ? env : ""; *p;) {
+        size_t len = strcspn(p, " ");
+        if (len == 16 && !strncmp(p, want, 16))
+            return 1;
+        p += len;
+        p += strspn(p, " ");
+    }
+    return 0;
+}
+
+int pm_scene_tried_imports(char *out, size_t cap)
+{
+    const char *env = getenv("PMTK_IMPORT_TRIED");
+    int n = snprintf(out, cap, "%s", env ? env : "");
+    pthread_mutex_lock(&tried_lock);
+    for (int i = 0; i < ntried && n >= 0 && (size_t)n < cap; i++)
+        n += snprintf(out + n, cap - (size_t)n, "%s%016" PRIx64, n ? " " : "", tried[i]);
+    pthread_mutex_unlock(&tried_lock);
+    if (n <= 0 || (size_t)n >= cap) {
+        if (cap)
+            out[0] = '\0';
+        return 0;
+    }
+    return 1;
+}
+
+pm_result_t pm_scene_mesh_trial(const char *path, unsigned flags, const char *libs)
 {
     long secs = env_limit("PMTK_IMPORT_SECONDS", 60), mib = env_limit("PMTK_IMPORT_MB", 4096);
     if (secs < 0 || mib < 0)
@@ -265,6 +341,9 @@ pm_result_t pm_scene_mesh_trial(const char *path, unsigned flags)
                             getenv("PMTK_IMPORT_MB") ? getenv("PMTK_IMPORT_MB") : "");
     if (secs == 0 && mib == 0)
         return PM_OK; /* both off: no trial */
+    uint64_t key = trial_key(path, libs, flags, secs, mib);
+    if (key && tried_before(key))
+        return PM_OK; /* these bytes imported cleanly in a trial under these limits */
     /* the limit is on what the import adds: the child starts with this process's memory */
     long rss0, data0, rss;
     statm_mib(0, &rss0, &data0);
@@ -335,6 +414,12 @@ pm_result_t pm_scene_mesh_trial(const char *path, unsigned flags)
                             "mesh '%s': assimp's import took more than %ld s (PMTK_IMPORT_SECONDS) and "
                             "was stopped",
                             path, secs);
+    if (WIFEXITED(status) && WEXITSTATUS(status) == 0 && key) {
+        pthread_mutex_lock(&tried_lock);
+        if (ntried < TRIED_MAX)
+            tried[ntried++] = key;
+        pthread_mutex_unlock(&tried_lock);
+    }
     if (WIFEXITED(status) && (WEXITSTATUS(status) == 0 || WEXITSTATUS(status) == 10))
         return PM_OK; /* it imports, or assimp says why not: the import in this process says it again */
     if (WIFSIGNALED(status))

@@ -251,6 +251,15 @@ static inline int pm_scene_emits_both(const pm_scene_t *s, uint32_t tri)
 /* Loads and checks a scene file. Errors name the file and the line (JSON syntax) or the
  * key path ("camera.fov_y") and the offending value. */
 pm_result_t pm_scene_load(const char *path, pm_scene_t *out);
+/* A mesh's trial import (docs/scene-format.md, "Untrusted meshes") is skipped for bytes already
+ * tried: a trial that imported cleanly notes a key of the file's bytes (an OBJ's with its
+ * material libraries; PLY, OFF and STL alone; other formats, which read more files, are never
+ * noted), the flags and the limits; a process whose environment holds that key in
+ * PMTK_IMPORT_TRIED (keys of 16 hex digits, spaces between) imports without the trial. This
+ * writes this process's keys (the environment's and its own) as that variable's value into
+ * out, for the programs a driver starts with the same limits; 0 when there are none or they
+ * do not fit. */
+int pm_scene_tried_imports(char *out, size_t cap);
 void pm_scene_free(pm_scene_t *s);
 
 /* Prints each of s->unsupported as a warning on stderr through pm_stage_note (nothing under

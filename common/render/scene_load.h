@@ -133,8 +133,10 @@ pm_result_t pm_scene_check_regular(const char *path, const char *what);
 pm_result_t pm_scene_mesh_precheck(const char *path);
 /* assimp's import of path with flags tried in a forked child within PMTK_IMPORT_SECONDS (default 60)
  * and PMTK_IMPORT_MB (resident MiB it adds, default 4096; 0 turns a limit off): a crash, a hang or a memory
- * blow-up is an input error naming the file; PM_OK when the import may run in this process. */
-pm_result_t pm_scene_mesh_trial(const char *path, unsigned flags);
+ * blow-up is an input error naming the file; PM_OK when the import may run in this process. libs:
+ * an OBJ's material libraries, a name a line (NULL for none), part of the key by which bytes
+ * already tried skip the trial (render/scene.h, pm_scene_tried_imports). */
+pm_result_t pm_scene_mesh_trial(const char *path, unsigned flags, const char *libs);
 /* The error for a file whose faces assimp dropped as naming vertices out of range: for glTF, the
  * first such face (mesh, primitive, face, vertex) read from the file itself. */
 pm_result_t pm_scene_gltf_bad_face(const char *path);

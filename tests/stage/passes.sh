@@ -439,6 +439,19 @@ if jq -e '.total as $t | ($t.start_s > 0) and ($t.ready_s >= $t.start_s) and
 else
     fail "TIME=1: the start-up in stats.json" "$(jq -c '.total' "$T/stats.json")"
 fi
+# the mesh's trial import (a forked child, docs/scene-format.md) runs once, in pm-render's own
+# load: the tracers load the same bytes with its key in PMTK_IMPORT_TRIED and fork no trial
+# (counted by strace: a fork is a clone without CLONE_VM; posix_spawn and threads share memory)
+if command -v strace >/dev/null; then
+    strace -f -e trace=clone,clone3,fork,vfork -o "$TMP/trial.strace" "$BIN/pm-render" "$CORNELL" "$TMP/trial" $SMALL PASSES=1 TIME=0 \
+        >"$TMP/trial.out" 2>&1
+    forks=$(grep -E 'clone\(' "$TMP/trial.strace" | grep -vc 'CLONE_VM')
+    [ "$forks" = 1 ] && [ "$(jq .total.passes "$TMP/trial/stats.json")" = 1 ] &&
+        pass "the mesh's trial import: once in a resident render (pm-render's), not again in the tracers" ||
+        fail "one trial import" "$forks forks: $(grep -E 'clone\(' "$TMP/trial.strace" | grep -v CLONE_VM | head -3)"
+else
+    skip "one trial import" "no strace"
+fi
 "$R" "$CORNELL" "$T" $SMALL PASSES=$((n + 1)) >"$TMP/ti2.out" 2>&1
 got=$(jq '.stages."simd-gather".pass_index' "$T/stats.json")
 [ "$(hdr "$T/running.pm" passes)" = $((n + 1)) ] && [ "$(printf '%.10g' "$got")" = "$(pidx "$T")" ] &&

@@ -51,32 +51,43 @@ static void test_sizes_first_pass(void **state)
     int k[2] = {1};
     double sec[2] = {0.4};
     assert_int_equal(pm_progressive_next_size(k, sec, 1, 16, 10.0), 2);
-    /* 0.9 s left: no room for 2 and then 4 units; the last pass, 2 units (0.8 x 1.05 s) */
-    assert_int_equal(pm_progressive_next_size(k, sec, 1, 16, 0.9), 2);
+    /* 0.9 s left: no room for 2 and then 4 units; the last pass: 2 units would end by it at
+     * 0.8 x 1.05 s, but twice the largest pass so far takes 10% more margin (0.8 x 1.15 =
+     * 0.92 s): 1 unit; 1 s left: 2 units */
+    assert_int_equal(pm_progressive_next_size(k, sec, 1, 16, 0.9), 1);
+    assert_int_equal(pm_progressive_next_size(k, sec, 1, 16, 1.0), 2);
     assert_int_equal(pm_progressive_next_size(k, sec, 1, 16, 0.3), 0);
     /* the first pass pays the stages' start: it loosens no bound the later passes give */
     int k3[4] = {1, 2, 4};
     double s3[4] = {2.0, 0.5, 0.9};
-    assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 5.5), 8);  /* 1.8 + 3.6 <= 5.5 */
-    assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 4.2), 16); /* 17 would fit (0.9 x 17 / 4 x 1.05 =
-                                                                              4.02): a full pass at most */
-    assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 3.0), 12); /* 0.9 x 12 / 4 x 1.05 = 2.84; 13: 3.07 */
+    assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 5.5), 8); /* 1.8 + 3.6 <= 5.5 */
+    /* the last pass, beyond the largest so far (4 units): 0.9 x u / 4 s, times 1.05 plus 0.1 for
+     * each multiple of 4 units beyond the first, at most 1.25: 14 units (3.15 x 1.25 = 3.94 s;
+     * 15: 4.22 s) in 4.2 s, 10 (2.25 x 1.2 = 2.7 s; 11: 2.475 x 1.225 = 3.03 s) in 3 s */
+    assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 4.2), 14);
+    assert_int_equal(pm_progressive_next_size(k3, s3, 3, 16, 3.0), 10);
+    /* no larger than the largest so far: 1.05 alone (16 units in 0.9 x 4 x 1.05 = 3.78 s) */
+    int k4[5] = {1, 2, 4, 16};
+    double s4[5] = {2.0, 0.5, 0.9, 3.6};
+    assert_int_equal(pm_progressive_next_size(k4, s4, 4, 16, 3.8), 16);
 }
 
 static void test_sizes_noisy(void **state)
 {
     (void)state;
     /* a larger pass that took less time (other work on the machine): the tightest bound,
-     * 5 units by pass 3's 0.8 x 5 / 4 = 1.0 s (x 1.05: 1.05 s) */
+     * 5 units by pass 3's 0.8 x 5 / 4 = 1.0 s (x 1.075, a quarter beyond the largest pass:
+     * 1.075 s), so in 1.06 s 4 units, in 1.08 s 5 */
     int k[3] = {1, 2, 4};
     double sec[3] = {0.3, 0.9, 0.8};
-    assert_int_equal(pm_progressive_next_size(k, sec, 3, 16, 1.06), 5);
+    assert_int_equal(pm_progressive_next_size(k, sec, 3, 16, 1.06), 4);
+    assert_int_equal(pm_progressive_next_size(k, sec, 3, 16, 1.08), 5);
     /* the measured case this rule replaced a line fit for: 1 unit in 1.753 s (the stages'
-     * start included), 3 units in 1.867 s, 3.96 s left: 6 units (bounded by 3.73 s, x 1.05:
-     * 3.92 s), not 41 */
+     * start included), 3 units in 1.867 s, 3.96 s left: 5 units (bounded by 3.11 s, x 1.117:
+     * 3.47 s; 6 units 3.73 x 1.15 = 4.29 s), not 41 */
     int km[2] = {1, 3};
     double sm[2] = {1.753, 1.867};
-    assert_int_equal(pm_progressive_next_size(km, sm, 2, 16, 3.96), 6);
+    assert_int_equal(pm_progressive_next_size(km, sm, 2, 16, 3.96), 5);
 }
 
 static void test_plan_range(void **state)

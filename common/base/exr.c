@@ -130,6 +130,27 @@ static void pack_rows(const pm_exr_channel_t *ch, size_t nch, uint32_t w, uint32
     }
 }
 
+/* OpenEXR Core 3.1 (Debian 12's) keeps a ZIP chunk's deflated bytes when they come out exactly
+ * as long as the packed pixels, and every reader takes a chunk of that size for raw pixels: it
+ * reads back as noise (OpenEXR issue 2306, fixed in 3.4; seen here as rows 64-79 of a 128 x 128
+ * path-traced image reading +-1e38). The format's rule is to store a chunk that does not shrink
+ * raw, so such a chunk is put back raw after the library's compressor. */
+typedef struct {
+    exr_result_t (*compress)(exr_encode_pipeline_t *);
+} zip_guard_t;
+
+static exr_result_t compress_guarded(exr_encode_pipeline_t *e)
+{
+    const zip_guard_t *g = e->encoding_user_data;
+    exr_result_t rv = g->compress(e);
+    if (rv == EXR_ERR_SUCCESS && e->compressed_buffer && e->compressed_buffer != e->packed_buffer &&
+        e->packed_bytes > 0 && e->compressed_bytes >= e->packed_bytes && e->compressed_alloc_size >= e->packed_bytes) {
+        memcpy(e->compressed_buffer, e->packed_buffer, e->packed_bytes);
+        e->compressed_bytes = e->packed_bytes;
+    }
+    return rv;
+}
+
 pm_result_t pm_exr_write_rgb(const char *path, uint32_t w, uint32_t h, const float *rgb, pm_exr_pixel_t type,
                              pm_exr_compression_t comp, const pm_exr_attr_t *attrs, size_t nattrs)
 {
@@ -168,6 +189,7 @@ pm_result_t pm_exr_write_channels(const char *path, uint32_t w, uint32_t h, cons
     exr_context_t ctx = NULL;
     exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
     int enc_live = 0, part = 0;
+    zip_guard_t guard = {NULL};
     void *planes[PM_EXR_MAX_CHANNELS] = {NULL};
     static const exr_compression_t comps[] = {EXR_COMPRESSION_ZIP, EXR_COMPRESSION_NONE, EXR_COMPRESSION_PIZ};
     exr_pixel_type_t ptype = type == PM_EXR_HALF ? EXR_PIXEL_HALF : EXR_PIXEL_FLOAT;
@@ -221,8 +243,14 @@ pm_result_t pm_exr_write_channels(const char *path, uint32_t w, uint32_t h, cons
             ec->user_line_stride = (int32_t)(esize * w);
             ec->encode_from_ptr = planes[c];
         }
-        if (y == 0)
+        if (y == 0) {
             rv = exr_encoding_choose_default_routines(ctx, part, &enc);
+            if (rv == EXR_ERR_SUCCESS && enc.compress_fn) {
+                guard.compress = enc.compress_fn;
+                enc.encoding_user_data = &guard;
+                enc.compress_fn = compress_guarded;
+            }
+        }
         if (rv == EXR_ERR_SUCCESS)
             rv = exr_encoding_run(ctx, part, &enc);
     }

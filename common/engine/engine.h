@@ -83,16 +83,18 @@ typedef struct {
     const char *targets[PM_ENGINE_MAX_TARGETS]; /* files of the graph to make, in order */
     int ntargets;
     /* derived */
-    int progressive;      /* PASSES > 1, TIME, TARGET_ERROR or PASS_RANGE */
-    unsigned aov;         /* AOV: the PM_EXR_AOV_* layers composite adds (base/exr.h); 0 none */
-    int shards;           /* SHARDS, >= 1 */
-    int verbose, quiet;   /* VERBOSE=1, QUIET=1 */
-    int wait;             /* WAIT=1 */
-    int keep;             /* 0 all, 1 buffers, 2 image (KEEP) */
-    int guide;            /* GUIDE=1: trace-gather-points --guide photons.pm (one-pass gather renders) */
-    int secondary_direct; /* SECONDARY_DIRECT=1 with MODE=gather: light samples at the gather points
-                           * (trace-gather-points --secondary-direct) and photons without the first
-                           * hits of the lights they sample (trace-photons --indirect-only) */
+    int progressive;          /* PASSES > 1, TIME, TARGET_ERROR or PASS_RANGE */
+    unsigned aov;             /* AOV: the PM_EXR_AOV_* layers composite adds (base/exr.h); 0 none */
+    int shards;               /* SHARDS, >= 1 */
+    int verbose, quiet;       /* VERBOSE=1, QUIET=1 */
+    int wait;                 /* WAIT=1 */
+    int keep;                 /* 0 all, 1 buffers, 2 image (KEEP) */
+    int guide;                /* GUIDE=1: trace-gather-points --guide photons.pm (one-pass gather renders) */
+    int secondary_direct;     /* SECONDARY_DIRECT=1 with MODE=gather: light samples at the gather points
+                               * (trace-gather-points --secondary-direct) and photons without the first
+                               * hits of the lights they sample (trace-photons --indirect-only) */
+    int secondary_direct_sky; /* SECONDARY_DIRECT=auto on a progressive render that it does not turn on by
+                               * TIME: on when the scene has a sun or a sky (the drivers decide, with the scene) */
 } pm_settings_t;
 
 enum { PM_KEEP_ALL = 0, PM_KEEP_BUFFERS = 1, PM_KEEP_IMAGE = 2 };

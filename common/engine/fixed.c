@@ -995,7 +995,8 @@ static void decide_scene(render_t *r)
         if (lights_total == 0)
             note(r, "warning: the scene has no lights; the image is black");
     }
-    r->secondary_direct = r->s->secondary_direct && r->need_gather && pm_lights_count_at_gather(sc) > 0;
+    r->secondary_direct = (r->s->secondary_direct || (r->s->secondary_direct_sky && (sc->has_sun || sc->has_sky))) &&
+                          r->need_gather && pm_lights_count_at_gather(sc) > 0;
     if (r->s->secondary_direct && r->need_gather && !r->secondary_direct)
         note(r, "skipped secondary direct light: the scene has no lights");
     r->width_k[0] = '\0';

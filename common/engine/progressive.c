@@ -1140,7 +1140,8 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
     pm_scene_id(&sc, p.scene_id, sizeof p.scene_id);
     int specular = sc.any_specular, scene_primary = (int)sc.defaults.primary;
     p.light_samples_zero = sc.nemissive == 0 && !sc.has_sun && !sc.has_sky;
-    p.secondary_direct = s->secondary_direct && strcmp(s->value[PM_P_GATHER], "none") && pm_lights_count_at_gather(&sc);
+    p.secondary_direct = (s->secondary_direct || (s->secondary_direct_sky && (sc.has_sun || sc.has_sky))) &&
+                         strcmp(s->value[PM_P_GATHER], "none") && pm_lights_count_at_gather(&sc);
     pm_scene_free(&sc);
     /* the stages, as the pass files' driver (pm_render_passes in fixed.c) chooses them */
     p.mode = s->value[PM_P_MODE];

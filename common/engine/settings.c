@@ -178,17 +178,22 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
     /* Secondary direct light: gather mode only (direct-vis queries are the primary hits, which have
      * their light samples already); auto turns it on for a TIME budget of SECONDARY_DIRECT_TIME s or
      * more, where it measured better (docs/accuracy.md: it costs more per pass and wins from the
-     * passes of about 8 to 10 s on; below, the passes it loses cost more than it gains). */
+     * passes of about 8 to 10 s on; below, the passes it loses cost more than it gains), and for any
+     * progressive render of a scene with a sun or a sky (secondary_direct_sky, settled by the
+     * drivers once the scene is read): the sun's light at a gather point is one shadow ray instead
+     * of a density of sparse photons, and the sky-lit atrium measured better at every budget from
+     * 4 s (docs/accuracy.md). */
     const char *sd = s->value[PM_P_SECONDARY_DIRECT];
-    s->secondary_direct = !strcmp(s->value[PM_P_MODE], "gather") &&
-                          (!strcmp(sd, "1") || (!strcmp(sd, "auto") && s->value[PM_P_TIME][0] &&
-                                                strtod(s->value[PM_P_TIME], NULL) >= SECONDARY_DIRECT_TIME));
+    int gather = !strcmp(s->value[PM_P_MODE], "gather"), sd_auto = !strcmp(sd, "auto");
+    s->secondary_direct = gather && (!strcmp(sd, "1") || (sd_auto && s->value[PM_P_TIME][0] &&
+                                                          strtod(s->value[PM_P_TIME], NULL) >= SECONDARY_DIRECT_TIME));
     s->shards = atoi(s->value[PM_P_SHARDS]);
     s->verbose = s->value[PM_P_VERBOSE][0] == '1';
     s->quiet = s->value[PM_P_QUIET][0] == '1';
     s->wait = s->value[PM_P_WAIT][0] == '1';
     s->progressive = s->value[PM_P_TIME][0] || s->value[PM_P_TARGET_ERROR][0] || s->value[PM_P_PASS_RANGE][0] ||
                      (s->value[PM_P_PASSES][0] && strcmp(s->value[PM_P_PASSES], "1") != 0);
+    s->secondary_direct_sky = gather && sd_auto && !s->secondary_direct && s->progressive;
     s->guide = s->value[PM_P_GUIDE][0] == '1';
     if (s->guide && strcmp(s->value[PM_P_MODE], "gather") != 0)
         return pm_error_set(PM_ERR_USAGE, "GUIDE=1 guides the secondary rays of MODE=gather, not MODE=%s",

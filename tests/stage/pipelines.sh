@@ -115,6 +115,17 @@ $R tests/scenes/closed-box/scene.json "$TMP/sd" $SMALL SECONDARY_DIRECT=1 >/dev/
     "$BIN/pm-info" --header "$TMP/sd/direct.pm" | grep -qx 'secondary_direct=1' && [ -s "$TMP/sd/image.exr" ] &&
     pass "SECONDARY_DIRECT=1: --indirect-only photons and map, queries and direct light with secondary_direct=1" ||
     fail "SECONDARY_DIRECT=1" "$(ls "$TMP/sd")"
+# SECONDARY_DIRECT=auto: on for a progressive render of a scene with a sun or a sky, off for its
+# one render and for a progressive render of a scene lit otherwise (below TIME=10)
+$R scenes/atrium/textured.json "$TMP/sda" $SMALL PASSES=2 >/dev/null 2>&1
+$R scenes/atrium/textured.json "$TMP/sdf" $SMALL >/dev/null 2>&1
+$R tests/scenes/closed-box/scene.json "$TMP/sdc" $SMALL PASSES=2 >/dev/null 2>&1
+"$BIN/pm-info" "$TMP/sda/running.pm" | grep -q -- '--indirect-only' &&
+    "$BIN/pm-info" "$TMP/sda/running.pm" | grep -q -- '--secondary-direct' &&
+    [ -s "$TMP/sdf/photons.pm" ] && ! "$BIN/pm-info" --header "$TMP/sdf/photons.pm" | grep -q -- '--indirect-only' &&
+    [ -s "$TMP/sdc/running.pm" ] && ! "$BIN/pm-info" "$TMP/sdc/running.pm" | grep -q -- '--indirect-only' &&
+    pass "SECONDARY_DIRECT=auto: on for passes of a sun- and sky-lit scene, off for its one render and for a closed box's passes" ||
+    fail "SECONDARY_DIRECT=auto" "$(ls "$TMP/sda" "$TMP/sdf" "$TMP/sdc")"
 $R "$SCENE" "$TMP/none" $SMALL GATHER=none >"$TMP/none.out" 2>&1
 expect_ran "GATHER=none runs the eye tracer and composite only" "$TMP/none" "trace-gather-points composite"
 $R tests/scenes/lit-floor/scene.json "$TMP/lf" WIDTH=8 HEIGHT=8 SPP=4 GATHER=none >"$TMP/lf.out" 2>&1

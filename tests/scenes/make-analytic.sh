@@ -140,21 +140,22 @@ obj_area() {
         END { printf "%.17g\n", s }' "$1"
 }
 
-# The checks of the scripts that source this file (analytic.sh, guide.sh):
-# image IMG BUFFER... [composite options]: composite into $TMP/IMG.exr, read back as text into
-# $TMP/IMG.txt.
+# The checks of the scripts that source this file (analytic.sh, guide.sh, specular-pipeline.sh),
+# on files in $AN_DIR (default $TMP):
+# image IMG BUFFER... [composite options]: composite into $AN_DIR/IMG.exr, read back as text into
+# $AN_DIR/IMG.txt.
 image() {
-    local img=$1; shift
-    "$BIN/composite" "$@" -q -o "$TMP/$img.exr" && "$BUILD/tests/pm-exrdump" "$TMP/$img.exr" >"$TMP/$img.txt"
+    local img=$1 d=${AN_DIR:-$TMP}; shift
+    "$BIN/composite" "$@" -q -o "$d/$img.exr" && "$BUILD/tests/pm-exrdump" "$d/$img.exr" >"$d/$img.txt"
 }
 
-# check NAME HITS IMG awk-options...: image $TMP/IMG.txt against the formula at the primary
-# hits of $TMP/HITS.hits.txt.
+# check NAME HITS IMG awk-options...: image $AN_DIR/IMG.txt against tests/scenes/analytic.awk's
+# formula at the primary hits of $AN_DIR/HITS.hits.txt.
 check() {
-    local name=$1 hits=$2 img=$3; shift 3
-    if awk "$@" -f tests/scenes/analytic.awk "$TMP/$hits.hits.txt" "$TMP/$img.txt" >"$TMP/why"; then
-        pass "$name ($(cat "$TMP/why"))"
+    local name=$1 hits=$2 img=$3 d=${AN_DIR:-$TMP}; shift 3
+    if awk "$@" -f tests/scenes/analytic.awk "$d/$hits.hits.txt" "$d/$img.txt" >"$d/why"; then
+        pass "$name ($(cat "$d/why"))"
     else
-        fail "$name" "$(tr '\n' ' ' <"$TMP/why")"
+        fail "$name" "$(tr '\n' ' ' <"$d/why")"
     fi
 }

@@ -13,21 +13,7 @@ PI=3.141592653589793
 D=$TMP/specpipe
 mkdir -p "$D"
 
-# image NAME BUFFER...: composite into $D/NAME.exr and read it back as text ($D/NAME.txt).
-image() {
-    local img=$1; shift
-    "$BIN/composite" "$@" -q -o "$D/$img.exr" && "$BUILD/tests/pm-exrdump" "$D/$img.exr" >"$D/$img.txt"
-}
-# check NAME HITS IMG awk-options...: image $D/IMG.txt against tests/scenes/analytic.awk's
-# formula at the primary hits of $D/HITS.hits.txt.
-check() {
-    local name=$1 hits=$2 img=$3; shift 3
-    if awk "$@" -f tests/scenes/analytic.awk "$D/$hits.hits.txt" "$D/$img.txt" >"$D/why"; then
-        pass "$name ($(cat "$D/why"))"
-    else
-        fail "$name" "$(tr '\n' ' ' <"$D/why")"
-    fi
-}
+AN_DIR=$D # image and check (tests/scenes/make-analytic.sh) work in $D
 # means_agree NAME ERROR-JSON TOL: measure-error's mean_test within TOL (relative) of its
 # mean_reference.
 means_agree() {

@@ -118,7 +118,8 @@ unsigned pm_guide_bin(const float wi[3])
     return (unsigned)(iz * PM_GUIDE_NPHI + ip);
 }
 
-/* Marks each cell used or not (guide.h, PM_GUIDE_GAIN); returns the cells left out. wh holds the
+/* Marks each cell used or not (guide.h, PM_GUIDE_GAIN); returns the cells left out, or
+ * UINT64_MAX when its moments do not fit in memory. wh holds the
  * cells' bin fluxes of the two halves of their photons (even and odd index: PM_GUIDE_BINS each,
  * half 0 then half 1), axis their normals' classes. For the photons i of a cell, each drawn in
  * proportion to f = L cos, the second moment of f / p is proportional to sum_i w_i f(w_i) / p(w_i).
@@ -129,11 +130,13 @@ static uint64_t keep_helpful(pm_guide_t *g, const pm_guide_photons_t *ph, const 
                              uint64_t ncells)
 {
     double *mom = calloc(4 * (ncells ? ncells : 1), sizeof *mom), *tot = mom ? mom + 2 * ncells : NULL;
-    for (uint64_t ci = 0; mom && ci < 2 * ncells; ci++)
+    if (!mom)
+        return UINT64_MAX;
+    for (uint64_t ci = 0; ci < 2 * ncells; ci++)
         for (int k = 0; k < PM_GUIDE_BINS; k++)
             tot[ci] += wh[ci * PM_GUIDE_BINS + k];
     const double omega = 4.0 * PM_PI / PM_GUIDE_BINS, C = PM_GUIDE_COSINE;
-    for (uint64_t i = 0; mom && i < ph->n; i++) {
+    for (uint64_t i = 0; i < ph->n; i++) {
         uint64_t h = photon_entry(g, ph, i);
         if (h == EMPTY)
             continue;
@@ -154,7 +157,7 @@ static uint64_t keep_helpful(pm_guide_t *g, const pm_guide_photons_t *ph, const 
     }
     uint64_t even = 0;
     for (uint64_t ci = 0; ci < ncells; ci++) {
-        g->cells[ci].used = mom && mom[2 * ci + 1] < PM_GUIDE_GAIN * mom[2 * ci];
+        g->cells[ci].used = mom[2 * ci + 1] < PM_GUIDE_GAIN * mom[2 * ci];
         even += !g->cells[ci].used;
     }
     free(mom);
@@ -279,13 +282,21 @@ pm_result_t pm_guide_build(const pm_guide_photons_t *ph, int all, pm_guide_t **o
         }
         c->cdf[PM_GUIDE_BINS - 1] = 1.0f;
     }
-    uint64_t even = keep_helpful(g, ph, wh, axis, ncells);
-    for (uint64_t ci = 0; all && ci < ncells; ci++)
-        g->cells[ci].used = 1;
-    even = all ? 0 : even;
+    /* every cell (all), or the ones that help: the test runs only when its answer is used */
+    uint64_t even = 0;
+    if (all)
+        for (uint64_t ci = 0; ci < ncells; ci++)
+            g->cells[ci].used = 1;
+    else
+        even = keep_helpful(g, ph, wh, axis, ncells);
     free(count);
     free(w);
     free(axis);
+    if (even == UINT64_MAX) {
+        pm_guide_destroy(g);
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for the moments of %llu guide cells",
+                            (unsigned long long)ncells);
+    }
     g->info.cells = ncells - even;
     g->info.cells_even = even;
     g->info.cells_sparse = sparse;

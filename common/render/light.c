@@ -242,6 +242,15 @@ void pm_envmap_pixel(const pm_envmap_t *e, const float w[3], uint32_t *x_out, ui
     map_pixel(e, m, x_out, y_out);
 }
 
+/* The world direction of the map's polar angle th and azimuth ph (radians, y up in the map's
+ * own frame): back to the world by the frame's rows weighted by the map direction. */
+static void map_direction(const pm_envmap_t *e, double th, double ph, double w_out[3])
+{
+    double m[3] = {sin(th) * cos(ph), cos(th), sin(th) * sin(ph)};
+    for (int k = 0; k < 3; k++)
+        w_out[k] = e->framed ? m[0] * e->frame[k] + m[1] * e->frame[3 + k] + m[2] * e->frame[6 + k] : m[k];
+}
+
 void pm_envmap_sample(const pm_envmap_t *e, float u1, float u2, float wi_out[3])
 {
     /* A row, a column in it, and the position within the pixel from what is left of u1, u2. */
@@ -252,10 +261,10 @@ void pm_envmap_sample(const pm_envmap_t *e, float u1, float u2, float wi_out[3])
     double fy = e->row_cdf[y] > r0 ? (u1 - r0) / (e->row_cdf[y] - r0) : 0.5;
     double fx = cc[x] > c0 ? (u2 - c0) / (cc[x] - c0) : 0.5;
     fy = fmin(fmax(fy, 0.0), 1.0), fx = fmin(fmax(fx, 0.0), 1.0);
-    double th = M_PI * (y + fy) / e->h, ph = 2.0 * M_PI * (x + fx) / e->w;
-    double m[3] = {sin(th) * cos(ph), cos(th), sin(th) * sin(ph)};
-    for (int k = 0; k < 3; k++) /* back to the world: the frame's rows weighted by m */
-        wi_out[k] = (float)(e->framed ? m[0] * e->frame[k] + m[1] * e->frame[3 + k] + m[2] * e->frame[6 + k] : m[k]);
+    double w[3];
+    map_direction(e, M_PI * (y + fy) / e->h, 2.0 * M_PI * (x + fx) / e->w, w);
+    for (int k = 0; k < 3; k++)
+        wi_out[k] = (float)w[k];
 }
 
 float pm_envmap_pdf(const pm_envmap_t *e, const float w[3])
@@ -410,11 +419,10 @@ void pm_portals_power(const pm_scene_t *s, double power_out[2][3])
         for (uint32_t py = 0; py < e->h; py++) {
             double th = M_PI * (py + 0.5) / e->h, dw = (2.0 * M_PI / e->w) * (M_PI / e->h) * sin(th);
             for (uint32_t px = 0; px < e->w; px++) {
-                double ph = 2.0 * M_PI * (px + 0.5) / e->w, m[3] = {sin(th) * cos(ph), cos(th), sin(th) * sin(ph)};
-                double c = 0.0;
+                double m[3], c = 0.0;
+                map_direction(e, th, 2.0 * M_PI * (px + 0.5) / e->w, m);
                 for (int k = 0; k < 3; k++)
-                    c -= (e->framed ? m[0] * e->frame[k] + m[1] * e->frame[3 + k] + m[2] * e->frame[6 + k] : m[k]) *
-                         q->inward[k];
+                    c -= m[k] * q->inward[k];
                 if (!(c > 0.0))
                     continue;
                 const float *L = e->rgb + 3 * ((size_t)py * e->w + px);

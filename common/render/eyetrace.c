@@ -106,6 +106,10 @@ struct pm_eye {
     int env_mis;             /* gather mode with a sun or a sky: a Lambertian hit's escaping rays share them */
     int cont;                /* some material continues (continues()): glossy paths are followed */
     int sec_direct;          /* next-event estimation at the gather points too (gather_direct): asked, and lights */
+    /* A direct-only run (direct_only) still follows a secondary ray past its hit (to glossy paths
+     * or to the gather point's light) when past_hit; it casts secondary rays at all when
+     * sec_rays (past_hit, or emitters, a sun or a sky for them to find). Both derived once. */
+    int past_hit, sec_rays;
     uint32_t record_size, off_pos, off_nor, off_w, off_pix, off_mat, off_dir; /* bytes */
     uint64_t seed;
     float eps; /* m, ray-origin offset along the normal */
@@ -515,7 +519,7 @@ static void secondary_directions(const pm_eye_t *c, scratch_t *sc, const float n
  * one component) survive. The weight is f cos / p = kd cos / (pi p) over N with the mixture's pdf p
  * (lambert_pdf: one-sample MIS, balance heuristic), and sec_cos pi p for the emitters the ray may
  * find; a guide direction below the surface carries nothing (its pdf still counted) and is not
- * traced. The escaping rays add nothing, as unguided. */
+ * traced. The escaping rays share the sun and the sky as unguided ones do (env_keep). */
 static void spawn_guided(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, float scale, const float tp[3],
                          pm_rng_t *gather_rng, const pm_guide_cell_t *gc)
 {
@@ -767,7 +771,7 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
         return 1;
     }
 
-    if (c->direct_only && !pm_lights_has_emitters(&c->lights) && !c->cont && !c->env_mis && !c->sec_direct)
+    if (!c->sec_rays)
         return 1; /* no emitter for a secondary ray to find nor glossy path to follow: no secondary rays */
     float scale = inv_p / (float)c->spp;
     if (c->cont && !sec_room(c, sc)) /* glossy chains (shade_diffuse_part) may have taken the row's */
@@ -1379,7 +1383,7 @@ static int secondary_hit(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCo
          * a chain is L S+ D at the primary hit, the caustic queries' (with the caustic map) or
          * lost without them: never counted here, so a direct-only run, which makes no queries,
          * need not follow the chain unless a glossy surface past it may continue. */
-        if (c->direct_only && !c->cont && !c->sec_direct)
+        if (!c->past_hit)
             return 1;
         follow_specular(c, sc, ctx, &rng, -1.0f, &a.tri, a.o, a.d, &a.t, thr);
         if (a.tri == PM_RAY_MISS)
@@ -1395,7 +1399,7 @@ static int secondary_hit(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCo
                                                (float)c->light_samples * pm_lights_pdf_li_hit(&c->lights, a.t, cosy)),
                       direct);
     }
-    if (c->direct_only && !c->cont && !c->sec_direct)
+    if (!c->past_hit)
         return 1; /* the direct buffer alone: the query's normal and fold are not needed */
     for (int k = 0; k < 3; k++)
         a.w[k] = sc->sec_w[3 * j + k] * thr[k];
@@ -1434,8 +1438,7 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
 
     /* The secondary rays' only part in the direct light is the emitters, the sun and the sky
      * they find (and the light of the glossy paths they continue, and of the gather points). */
-    if (c->mode != PM_EYE_GATHER ||
-        (c->direct_only && !pm_lights_has_emitters(&c->lights) && !c->cont && !c->env_mis && !c->sec_direct))
+    if (c->mode != PM_EYE_GATHER || !c->sec_rays)
         return PM_OK;
     /* Secondary rays: consecutive rays share a cell or a pixel, so packets stay coherent. */
     double t0 = pm_time_wall();
@@ -1599,6 +1602,8 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
     c->sec_direct = r == PM_OK && o->secondary_direct && c->lights.ndirect > 0;
     for (size_t l = c->lights.ndelta; r == PM_OK && c->mode == PM_EYE_GATHER && l < c->lights.ndirect; l++)
         c->env_mis |= c->lights.direct[l].infinite;
+    c->past_hit = !c->direct_only || c->cont || c->sec_direct;
+    c->sec_rays = c->past_hit || (r == PM_OK && pm_lights_has_emitters(&c->lights)) || c->env_mis;
     if (r != PM_OK) {
         pm_eye_destroy(c);
         return r;

@@ -5,6 +5,7 @@
  *   queries    trace-gather-points -> hilbert-sort -> simd-gather   one per gather point
  *   radiance   trace-gather-points, simd-gather -> composite        one per pixel
  *   aov        trace-gather-points --aov -> composite --aov-buffer  one per pixel
+ *   density    composite --adaptive-map -> trace-gather-points --adaptive, composite  one per pixel
  *
  * Channel indices below are bit positions in CHANNEL_MASK and indices of pm_table_t.col. */
 #ifndef PM_FORMATS_H
@@ -109,6 +110,14 @@ enum {
     PM_AOV_DEPTH = 2   /* f32, m: distance from the eye */
 };
 extern const pm_schema_t pm_aov_schema;
+
+/* ---- density (per-pixel positive numbers of adaptive passes) ---- */
+enum {
+    PM_DENSITY_VALUE = 0 /* f32, > 0: a sample-count multiplier, or a running image's summed pass weight */
+};
+/* The header key kind's words: "multiplier", "weight", NULL-terminated. */
+extern const char *const pm_density_kind_names[];
+extern const pm_schema_t pm_density_schema;
 
 /* The largest image pmtk makes or reads: at most PM_IMAGE_SIDE_MAX pixels a side and
  * PM_IMAGE_PIXELS_MAX in all (8192 x 8192; its radiance buffer is 1.5 GiB of f64 RGB), so

@@ -4,7 +4,10 @@
  * readers' value checks can catch.
  *
  *   pm-testgen FORMAT N OUT [--all] [--poison nan|inf|negative|tree|pixel|unit]
- *              [--shape equal|line|plane|huge]
+ *              [--shape equal|line|plane|huge] [--size WxH] [--range LO:HI]
+ *
+ * A radiance buffer is 4 x 3 pixels; a density map too, or --size's, its values uniform in
+ * --range (LO = HI: a constant map), kind=multiplier.
  *   pm-testgen reseal IN OUT
  *
  * reseal copies IN to OUT with its last 8 bytes replaced by the XXH3-64 of all before them:
@@ -86,6 +89,9 @@ static void fill_f32(pm_rng_t *r, float *p, uint64_t n, float lo, float hi)
         p[i] = lo + (hi - lo) * pm_rng_float(r);
 }
 
+static unsigned dens_w = 4, dens_h = 3;
+static float dens_lo = 0.25f, dens_hi = 4.0f;
+
 static int make(const char *format, uint64_t n, int all, pm_table_t *t)
 {
     pm_rng_t r;
@@ -96,6 +102,8 @@ static int make(const char *format, uint64_t n, int all, pm_table_t *t)
     uint32_t mask = all ? (1u << s->nchannels) - 1 : pm_schema_required(s);
     if (s == &pm_radiance_schema)
         n = 4 * 3; /* a 4x3 image */
+    if (s == &pm_density_schema)
+        n = (uint64_t)dens_w * dens_h;
     if (pm_table_alloc(t, s, mask, n) != PM_OK)
         return fprintf(stderr, "pm-testgen: %s\n", pm_error_message()), 1;
     float b[6] = {-1, -2, -3, 4, 5, 6};
@@ -141,6 +149,11 @@ static int make(const char *format, uint64_t n, int all, pm_table_t *t)
             if (all)
                 ((uint16_t *)t->col[PM_QUERY_MATERIAL])[i] = (uint16_t)(i % 2);
         }
+    } else if (s == &pm_density_schema) {
+        pm_header_set(&t->hdr, "width", "%u", dens_w);
+        pm_header_set(&t->hdr, "height", "%u", dens_h);
+        pm_header_set(&t->hdr, "kind", "multiplier");
+        fill_f32(&r, t->col[PM_DENSITY_VALUE], n, dens_lo, dens_hi);
     } else if (s == &pm_radiance_schema) {
         pm_header_set(&t->hdr, "width", "4");
         pm_header_set(&t->hdr, "height", "3");
@@ -243,6 +256,10 @@ int main(int argc, char **argv)
             shape = argv[++i];
         else if (!strcmp(argv[i], "--set") && i + 1 < argc && strchr(argv[i + 1], '='))
             set = argv[++i];
+        else if (!strcmp(argv[i], "--size") && i + 1 < argc && sscanf(argv[i + 1], "%ux%u", &dens_w, &dens_h) == 2)
+            i++;
+        else if (!strcmp(argv[i], "--range") && i + 1 < argc && sscanf(argv[i + 1], "%f:%f", &dens_lo, &dens_hi) == 2)
+            i++;
         else
             return fprintf(stderr, "pm-testgen: bad argument '%s'\n", argv[i]), 2;
     }

@@ -15,6 +15,7 @@
 #include "base/memory.h"
 #include "base/version.h"
 #include "formats/formats.h"
+#include "image/adaptive.h"
 
 #define CHUNK_PIXELS 65536 /* records read at a time: 1.5 MB of f64 RGB */
 
@@ -40,7 +41,8 @@ struct pm_composite {
     double *var;                 /* 3 per pixel after pm_composite_accumulate: squared standard error of the mean */
     char alpha[40], radius1[40]; /* the schedule's words, as the gather wrote them ("" when not given) */
     double weight;               /* after pm_composite_accumulate: the passes' weights summed */
-    float *pix;                  /* 3 per pixel, the EXR's values, from pm_composite_finish */
+    double *pws; /* 1 per pixel after an adaptive pass entered the running image: its weights summed, else NULL */
+    float *pix;  /* 3 per pixel, the EXR's values, from pm_composite_finish */
     int half;
     unsigned aov; /* PM_EXR_AOV_* layers the EXR carries beside R G B (pm_composite_set_aov) */
     float *surf;  /* 7 per pixel: albedo, normal, depth from an aov file, when aov asks for them */
@@ -270,6 +272,91 @@ static pm_result_t same_key(const char *state, const pm_header_t *sh, const char
     return PM_OK;
 }
 
+/* The pass's per-pixel weights when it was adaptive: the kept buffers' key adaptive ("MAP
+ * xxh3:HASH", trace-gather-points --adaptive) names the map, which must still hold that content;
+ * pixel p's weight is its primary rays over the pass's (header key primary), the counts
+ * trace-gather-points gave it. *pw_out (malloc'd) stays NULL for a uniform pass. */
+static pm_result_t pass_pixel_weights(const pm_composite_t *c, double **pw_out)
+{
+    *pw_out = NULL;
+    const char *key = NULL, *from = NULL, *prim = NULL;
+    for (int i = 0; i < c->nin; i++) {
+        const pm_header_t *h = pm_reader_header(c->in[i].rd);
+        const char *v = c->in[i].used ? pm_header_get(h, "adaptive") : NULL;
+        if (!v)
+            continue;
+        if (key && strcmp(key, v))
+            return pm_error_set(PM_ERR_INPUT, "buffers of one pass disagree on adaptive: '%s' says %s, '%s' says %s",
+                                from, key, c->in[i].path, v);
+        if (!key)
+            key = v, from = c->in[i].path, prim = pm_header_get(h, "primary");
+    }
+    if (!key)
+        return PM_OK;
+    const char *sp = strrchr(key, ' ');
+    int64_t p = 0;
+    uint64_t want = 0, got = 0;
+    if (!sp || sscanf(sp + 1, "xxh3:%16" SCNx64, &want) != 1 || !prim || pm_parse_i64(prim, &p) != PM_OK || p < 1)
+        return pm_error_set(PM_ERR_INPUT,
+                            "'%s': header key adaptive '%s' (primary '%s') is not 'MAP xxh3:HASH' of a pass "
+                            "of at least 1 primary ray",
+                            from, key, prim ? prim : "(missing)");
+    char *path = strndup(key, (size_t)(sp - key));
+    float *m = NULL;
+    uint64_t n = c->info.pixels;
+    double *pw = NULL;
+    pm_result_t r = path ? pm_adaptive_read(path, PM_DENSITY_MULTIPLIER, c->info.width, c->info.height, &m, &got, NULL)
+                         : pm_error_set(PM_ERR_NOMEM, "out of memory");
+    if (r == PM_OK && got != want)
+        r = pm_error_set(PM_ERR_INPUT,
+                         "density map '%s' is not the one pass '%s' was traced with (xxh3:%016" PRIx64 ", it says %s)",
+                         path, from, got, sp + 1);
+    if (r == PM_OK && !(pw = malloc((n ? n : 1) * sizeof *pw)))
+        r = pm_error_set(PM_ERR_NOMEM, "out of memory for the weights of a %" PRIu32 "x%" PRIu32 " image",
+                         c->info.width, c->info.height);
+    for (uint64_t i = 0; r == PM_OK && i < n; i++) {
+        uint32_t k = pm_adaptive_count(m[i], (uint32_t)p);
+        if (!k)
+            r = pm_error_set(PM_ERR_INPUT, "density map '%s': pixel %" PRIu64 " multiplier %g is above %d rays", path,
+                             i, (double)m[i], PM_ADAPTIVE_RAYS_MAX);
+        pw[i] = (double)k / (double)p;
+    }
+    free(path);
+    free(m);
+    if (r != PM_OK)
+        free(pw);
+    else
+        *pw_out = pw;
+    return r;
+}
+
+/* The running image's per-pixel weights, STATE.weight beside it (its header pixel_weights=1),
+ * of the state's w x h and passes. */
+static pm_result_t state_pixel_weights(const pm_composite_t *c, const char *state, uint64_t passes, double **out)
+{
+    char *path = NULL;
+    float *v = NULL;
+    pm_header_t h;
+    uint64_t n = c->info.pixels, wp = 0;
+    pm_result_t r = pm_adaptive_weight_path(state, &path);
+    if (r == PM_OK &&
+        (r = pm_adaptive_read(path, PM_DENSITY_WEIGHT, c->info.width, c->info.height, &v, NULL, &h)) == PM_OK) {
+        if ((r = pm_header_get_u64(&h, path, "passes", &wp)) == PM_OK && wp != passes)
+            r = pm_error_set(PM_ERR_INPUT,
+                             "the weights '%s' are of %" PRIu64 " passes, the running image '%s' of %" PRIu64, path, wp,
+                             state, passes);
+        pm_header_free(&h);
+    }
+    if (r == PM_OK && !(*out = malloc((n ? n : 1) * sizeof **out)))
+        r = pm_error_set(PM_ERR_NOMEM, "out of memory for the weights of a %" PRIu32 "x%" PRIu32 " image",
+                         c->info.width, c->info.height);
+    for (uint64_t i = 0; r == PM_OK && i < n; i++)
+        (*out)[i] = v[i];
+    free(v);
+    free(path);
+    return r;
+}
+
 pm_result_t pm_composite_accumulate(pm_composite_t *c, const char *state, uint64_t pass, double w)
 {
     uint64_t n = c->info.pixels, n0 = 0;
@@ -285,6 +372,9 @@ pm_result_t pm_composite_accumulate(pm_composite_t *c, const char *state, uint64
                             c->info.width, c->info.height);
     pm_table_t t = {0};
     const double *mean0 = NULL, *var0 = NULL;
+    double *pw = NULL, *sw = NULL; /* the pass's per-pixel weights (over w), the state's summed; NULL: uniform */
+    if ((r = pass_pixel_weights(c, &pw)) != PM_OK)
+        return r;
     if (access(state, F_OK) == 0) {
         const uint32_t need = 1u << PM_RADIANCE_RGB | 1u << PM_RADIANCE_VARIANCE;
         if ((r = pm_table_read(state, &pm_radiance_schema, need, &t)) != PM_OK)
@@ -305,6 +395,8 @@ pm_result_t pm_composite_accumulate(pm_composite_t *c, const char *state, uint64
         }
         mean0 = t.col[PM_RADIANCE_RGB];
         var0 = t.col[PM_RADIANCE_VARIANCE];
+        if (pm_header_get(&t.hdr, "pixel_weights") && (r = state_pixel_weights(c, state, n0, &sw)) != PM_OK)
+            goto done;
         uint64_t p = pass ? pass : n0 + 1;
         if ((r = same_key(state, &t.hdr, "alpha", c->alpha, sizeof c->alpha, p)) != PM_OK ||
             (r = same_key(state, &t.hdr, "radius1", c->radius1, sizeof c->radius1, p)) != PM_OK ||
@@ -322,21 +414,33 @@ pm_result_t pm_composite_accumulate(pm_composite_t *c, const char *state, uint64
     uint64_t k = n0 + 1;
     double *x = c->acc, *v = c->var, sq = 0.0, wk = w0 + w;
     uint64_t counted = 0;
+    if ((pw || sw) && !(c->pws = malloc((n ? n : 1) * sizeof *c->pws))) {
+        r = pm_error_set(PM_ERR_NOMEM, "out of memory for the weights of a %" PRIu32 "x%" PRIu32 " image",
+                         c->info.width, c->info.height);
+        goto done;
+    }
     for (uint64_t i = 0; i < 3 * n; i++) {
+        /* per pixel: the pass's weight times the pixel's share of its rays, and the earlier
+         * passes' summed (the same w and W for every pixel of uniform passes) */
+        double wi = pw ? w * pw[i / 3] : w, w0i = sw ? sw[i / 3] : w0, wki = w0i + wi;
         double m0 = mean0 ? mean0[i] : 0.0;
         /* S of the earlier passes from their stored squared standard error: var = S / (W (n - 1)). */
-        double m2 = n0 >= 2 ? var0[i] * w0 * (double)(n0 - 1) : 0.0;
-        double d = x[i] - m0, m = m0 + d * w / wk;
-        m2 += w * d * (x[i] - m);
+        double m2 = n0 >= 2 ? var0[i] * w0i * (double)(n0 - 1) : 0.0;
+        double d = x[i] - m0, m = m0 + d * wi / wki;
+        m2 += wi * d * (x[i] - m);
         x[i] = m;
-        v[i] = k >= 2 ? m2 / (wk * (double)(k - 1)) : 0.0;
+        v[i] = k >= 2 ? m2 / (wki * (double)(k - 1)) : 0.0;
         if (m > 0.0)
             sq += v[i] / (m * m), counted++;
+        if (c->pws)
+            c->pws[i / 3] = wki;
     }
     c->info.passes = k;
     c->weight = wk;
     c->info.relative_error = k >= 2 && counted ? sqrt(sq / (double)counted) : (k >= 2 ? 0.0 : NAN);
 done:
+    free(pw);
+    free(sw);
     pm_table_free(&t);
     return r;
 }
@@ -518,7 +622,7 @@ pm_result_t pm_composite_write_png(const pm_composite_t *c, const char *path, do
     return pm_tone_write_png(path, c->acc, c->info.width, c->info.height, exposure, tone, clipped_out);
 }
 
-pm_result_t pm_composite_write_radiance(const pm_composite_t *c, const char *path)
+static pm_result_t write_radiance(const pm_composite_t *c, const char *path, int state)
 {
     const pm_header_t *h = &c->hdr, *h0 = pm_reader_header(c->in[c->first].rd);
     uint64_t n = c->info.pixels;
@@ -548,6 +652,8 @@ pm_result_t pm_composite_write_radiance(const pm_composite_t *c, const char *pat
             r = pm_header_set(&t.hdr, "weight", "%.17g", c->weight);
         if (r == PM_OK && isfinite(c->info.relative_error))
             r = pm_header_set(&t.hdr, "relative_error", "%.6g", c->info.relative_error);
+        if (r == PM_OK && state && c->pws) /* STATE.weight beside it holds the per-pixel weights */
+            r = pm_header_set(&t.hdr, "pixel_weights", "1");
         if (r == PM_OK)
             memcpy(t.col[PM_RADIANCE_VARIANCE], c->var, 3 * n * sizeof *c->var);
     }
@@ -556,6 +662,49 @@ pm_result_t pm_composite_write_radiance(const pm_composite_t *c, const char *pat
         r = pm_table_write(&t, path);
     }
     pm_table_free(&t);
+    return r;
+}
+
+pm_result_t pm_composite_write_radiance(const pm_composite_t *c, const char *path)
+{
+    return write_radiance(c, path, 0);
+}
+
+pm_result_t pm_composite_write_state(const pm_composite_t *c, const char *path)
+{
+    pm_result_t r = write_radiance(c, path, 1);
+    if (r != PM_OK || !c->pws)
+        return r;
+    uint64_t n = c->info.pixels;
+    float *v = malloc((n ? n : 1) * sizeof *v);
+    char *wpath = NULL, passes[48], *extra[] = {passes, NULL};
+    if (!v)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for the weights of a %" PRIu32 "x%" PRIu32 " image",
+                            c->info.width, c->info.height);
+    for (uint64_t i = 0; i < n; i++)
+        v[i] = (float)c->pws[i];
+    snprintf(passes, sizeof passes, "passes=%" PRIu64, c->info.passes);
+    if ((r = pm_adaptive_weight_path(path, &wpath)) == PM_OK)
+        r = pm_adaptive_write(wpath, PM_DENSITY_WEIGHT, c->info.width, c->info.height, v, &c->hdr, 0, NULL,
+                              (const char *const *)extra);
+    free(wpath);
+    free(v);
+    return r;
+}
+
+pm_result_t pm_composite_write_adaptive_map(const pm_composite_t *c, const char *path, int argc, char **argv)
+{
+    if (!c->var)
+        return pm_error_set(PM_ERR_USAGE, "--adaptive-map is made from the running image: give --accumulate STATE");
+    uint64_t n = c->info.pixels;
+    float *m = malloc((n ? n : 1) * sizeof *m);
+    if (!m)
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for a %" PRIu32 "x%" PRIu32 " map", c->info.width,
+                            c->info.height);
+    pm_adaptive_make(c->acc, c->var, c->pws, c->weight, c->info.passes, c->info.width, c->info.height, m);
+    pm_result_t r =
+        pm_adaptive_write(path, PM_DENSITY_MULTIPLIER, c->info.width, c->info.height, m, &c->hdr, argc, argv, NULL);
+    free(m);
     return r;
 }
 
@@ -570,6 +719,7 @@ void pm_composite_free(pm_composite_t *c)
     pm_free_aligned(c->varf);
     pm_free_aligned(c->acc);
     pm_free_aligned(c->var);
+    free(c->pws);
     pm_header_free(&c->hdr);
     for (int i = 0; c->in && i < c->nin; i++) {
         pm_reader_close(c->in[i].rd);

@@ -72,7 +72,9 @@ typedef void (*pm_composite_note_fn)(void *ctx, const char *path, const char *sa
 pm_result_t pm_composite_sum(pm_composite_t *c, int argc, char **argv, pm_composite_note_fn note, void *note_ctx);
 
 /* Takes the sum as the image of one progressive pass of weight w (> 0; 1 for passes of one
- * size, else the pass's size: its variance is taken as sigma^2 / w) and averages it into the
+ * size, else the pass's size: its variance is taken as sigma^2 / w; an adaptive pass, whose
+ * buffers' header key adaptive names its density map, weighs pixel p by w times its primary
+ * rays over the pass's, and the state then keeps per-pixel sums, pm_composite_write_state) and averages it into the
  * running image of the earlier passes, held in the radiance buffer `state` (rgb: the weighted
  * mean of the passes, variance: the squared standard error of that mean; header passes=N,
  * alpha, radius1, and weight=W, the sum of the weights, when it is not N). A missing state
@@ -115,6 +117,16 @@ pm_result_t pm_composite_write_png(const pm_composite_t *c, const char *path, do
  * image: the mean, the variance channel and the keys passes, alpha, radius1 and
  * relative_error. */
 pm_result_t pm_composite_write_radiance(const pm_composite_t *c, const char *path);
+
+/* The running image as pm_composite_write_radiance writes it, and, once an adaptive pass is in it,
+ * its per-pixel summed weights as the density file STATE.weight beside it (header key
+ * pixel_weights=1 in the state): the new state of pm_composite_accumulate. */
+pm_result_t pm_composite_write_state(const pm_composite_t *c, const char *path);
+
+/* After pm_composite_accumulate: the sample-count multiplier of the next adaptive passes from
+ * the running image (image/adaptive.h, pm_adaptive_make) as a density file, with this command's
+ * provenance (argc, argv). */
+pm_result_t pm_composite_write_adaptive_map(const pm_composite_t *c, const char *path, int argc, char **argv);
 
 const pm_composite_info_t *pm_composite_info(const pm_composite_t *c);
 

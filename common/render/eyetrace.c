@@ -70,7 +70,8 @@ typedef struct {
     float *gsel;         /* guided hits: per ray 1 when the guide draws it, 0 when cosine */
     float *thr;          /* per primary ray: RGB throughput of its specular chain (1 1 1 without one) */
     float *emw;          /* per primary ray: the weight of the emission its last ray finds (MIS past a glossy bounce) */
-    size_t thr_cap, emw_cap;
+    uint32_t *rx, *rj;   /* per primary ray: its pixel column and its index among the pixel's rays */
+    size_t thr_cap, emw_cap, rx_cap, rj_cap;
     uint64_t n_primary, n_secondary, n_shadow, n_queries, n_caustic, n_specular, n_specular_cut, n_glossy;
     uint64_t n_guided_hits, n_guided_rays;
     uint32_t row;       /* the row being traced */
@@ -96,7 +97,8 @@ struct pm_eye {
     size_t ntable;
     uint32_t w, h;
     unsigned spp, primary, light_samples, nx, ny;
-    int pixel; /* PM_PIXEL_BOX or PM_PIXEL_CENTER */
+    const uint32_t *counts; /* adaptive passes: each pixel's primary rays (pm_eye_options_t pixel_primary), or NULL */
+    int pixel;              /* PM_PIXEL_BOX or PM_PIXEL_CENTER */
     int mode, schedule, width, threads, progress, has_mat, has_dir;
     int specular;            /* the scene has mirrors or glass: eye paths follow them */
     int caustics;            /* also write the caustic queries (the first non-specular hits) */
@@ -115,6 +117,9 @@ struct pm_eye {
     float eps; /* m, ray-origin offset along the normal */
     pm_camera_rays_t cam;
 };
+
+/* Primary rays of pixel p: its own in an adaptive pass, else the context's. */
+static inline unsigned pixel_rays(const pm_eye_t *c, uint64_t p) { return c->counts ? c->counts[p] : c->primary; }
 
 /* ------------------------------------------------------------------ buffers */
 
@@ -144,7 +149,9 @@ static pm_result_t scratch_reserve(scratch_t *sc, uint32_t y, size_t nprim, size
         !grow((void **)&sc->sec_cos, sizeof(float), &sc->sec_cos_cap, nsec) ||
         !grow((void **)&sc->sec_env, 4 * sizeof(float), &sc->sec_env_cap, nsec) ||
         !grow((void **)&sc->thr, 3 * sizeof(float), &sc->thr_cap, nprim) ||
-        !grow((void **)&sc->emw, sizeof(float), &sc->emw_cap, nprim))
+        !grow((void **)&sc->emw, sizeof(float), &sc->emw_cap, nprim) ||
+        !grow((void **)&sc->rx, sizeof(uint32_t), &sc->rx_cap, nprim) ||
+        !grow((void **)&sc->rj, sizeof(uint32_t), &sc->rj_cap, nprim))
         return pm_error_set(PM_ERR_NOMEM,
                             "out of memory for the rays of row %" PRIu32 ": %zu primary, %zu shadow, %zu secondary", y,
                             nprim, nshadow, nsec);
@@ -164,7 +171,7 @@ static void scratch_free(scratch_t *sc)
     free(sc->hit), free(sc->sh_px), free(sc->sh_c), free(sc->sec_px), free(sc->sec_w), free(sc->sec_cos),
         free(sc->sec_env);
     free(sc->u1), free(sc->u2), free(sc->lx), free(sc->ly), free(sc->lz), free(sc->gsel), free(sc->thr);
-    free(sc->emw);
+    free(sc->emw), free(sc->rx), free(sc->rj);
 }
 
 /* Appends one query record in file layout; 0 when out of memory. */
@@ -725,7 +732,7 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
     float emw = c->cont ? sc->emw[i] : 1.0f; /* 1 unless the ray left a glossy bounce (primary_glossy) */
     const pm_scene_t *s = c->s;
     uint32_t tri = sc->prim.prim[i];
-    float inv_p = 1.0f / (float)c->primary;
+    float inv_p = 1.0f / (float)pixel_rays(c, pixel);
     pm_material_t textured; /* the material with its textures at p (render/scene.h) */
     surf_t v;
     primary_surface(c, sc, i, &textured, &v); /* the side is the emitter test's own (pm_lights_le_hit) */
@@ -1103,11 +1110,12 @@ static void cast_primary(const pm_eye_t *c, scratch_t *sc, uint32_t y)
         pm_rng_t jr;
         pm_rng_init(&jr, c->seed, 4 * pixel + STREAM_JITTER);
         uint32_t sx = pm_rng_u32(&jr), sy = pm_rng_u32(&jr); /* the pixel's scramble */
-        for (unsigned j = 0; j < c->primary; j++) {
+        for (unsigned j = 0, nj = pixel_rays(c, pixel); j < nj; j++) {
             float jx = 0.5f, jy = 0.5f, d[3];
             if (c->pixel == PM_PIXEL_BOX)
                 pm_pixel_offset(j, sx, sy, &jx, &jy);
             pm_camera_dir(&c->cam, (float)x + jx, (float)y + jy, d);
+            sc->rx[sc->prim.n] = x, sc->rj[sc->prim.n] = j;
             pm_rays_push(&sc->prim, c->cam.eye, d, 0.0f, INFINITY);
         }
     }
@@ -1135,7 +1143,8 @@ static void primary_chain(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectC
     /* The pixel's primary rays take the first choice between reflection and refraction from a
      * rotated grid, {j / P + xi}, so that P rays split about F P to (1 - F) P rather than at
      * random: the glass seen directly is far less noisy. */
-    float u_first = fmodf((float)(i % c->primary) / (float)c->primary + spec_xi, 1.0f);
+    float u_first =
+        fmodf((float)sc->rj[i] / (float)pixel_rays(c, (uint64_t)sc->row * c->w + sc->rx[i]) + spec_xi, 1.0f);
     if (!(u_first < 1.0f))
         u_first = 0.0f;
     follow_specular(c, sc, ctx, spec_rng, u_first, &tri, o, d, &t, thr);
@@ -1146,10 +1155,7 @@ static void primary_chain(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectC
 }
 
 /* The pixel of primary ray i of the row sc holds. */
-static inline uint32_t y_pixel(const pm_eye_t *c, const scratch_t *sc, size_t i)
-{
-    return sc->row * c->w + (uint32_t)(i / c->primary);
-}
+static inline uint32_t y_pixel(const pm_eye_t *c, const scratch_t *sc, size_t i) { return sc->row * c->w + sc->rx[i]; }
 
 /* The diffuse part of a standard material at a glossy vertex a primary ray passes through
  * (v->m its kd alone), shaded as a Lambertian primary hit with the path's throughput thr: its
@@ -1158,7 +1164,7 @@ static inline uint32_t y_pixel(const pm_eye_t *c, const scratch_t *sc, size_t i)
 static int shade_diffuse_part(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, uint32_t pixel,
                               const float thr[3], pm_rng_t *light_rng, pm_rng_t *gather_rng, bytebuf_t *caus)
 {
-    float inv_p = 1.0f / (float)c->primary;
+    float inv_p = 1.0f / (float)pixel_rays(c, pixel);
     if (c->caustics) {
         float w[3];
         for (int k = 0; k < 3; k++)
@@ -1192,7 +1198,7 @@ static int primary_glossy(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectC
 {
     const pm_scene_t *s = c->s;
     pm_rays_t *pr = &sc->prim;
-    float *thr = sc->thr + 3 * i, inv_p = 1.0f / (float)c->primary;
+    float *thr = sc->thr + 3 * i, inv_p = 1.0f / (float)pixel_rays(c, y_pixel(c, sc, i));
     float o[3] = {pr->ox[i], pr->oy[i], pr->oz[i]}, d[3] = {pr->dx[i], pr->dy[i], pr->dz[i]}, t = pr->tfar[i];
     float l = sqrtf(pm_dot3(d, d));
     for (int k = 0; k < 3; k++)
@@ -1311,9 +1317,9 @@ static int shade_row(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContex
     pm_rng_init(&gather_rng, c->seed, 0);
     pm_rng_init(&spec_rng, c->seed, 0);
     for (size_t i = 0; i < sc->prim.n; i++) {
-        uint32_t x = (uint32_t)(i / c->primary);
+        uint32_t x = sc->rx[i];
         uint32_t pixel = y * c->w + x;
-        if (i % c->primary == 0) {
+        if (sc->rj[i] == 0) {
             pm_rng_init(&light_rng, c->seed, 4 * (uint64_t)pixel + STREAM_LIGHT);
             pm_rng_init(&gather_rng, c->seed, 4 * (uint64_t)pixel + STREAM_GATHER);
             if (c->specular || c->cont)
@@ -1340,7 +1346,7 @@ static int shade_row(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContex
             const float *thr = c->specular || c->cont ? sc->thr + 3 * i : NULL;
             pm_lights_le_escape(&c->lights, d, le);
             for (int k = 0; k < 3; k++)
-                direct[3 * x + k] += (double)(le[k] * (thr ? thr[k] : 1.0f) / (float)c->primary);
+                direct[3 * x + k] += (double)(le[k] * (thr ? thr[k] : 1.0f) / (float)pixel_rays(c, pixel));
             continue;
         }
         if (!shade_primary(c, sc, i, x, pixel, &light_rng, &gather_rng, direct, out, caus))
@@ -1412,6 +1418,11 @@ static pm_result_t trace_row_body(const pm_eye_t *c, scratch_t *sc, uint32_t y, 
                                   bytebuf_t *caus)
 {
     size_t np = (size_t)c->w * c->primary;
+    if (c->counts) {
+        np = 0;
+        for (uint32_t x = 0; x < c->w; x++)
+            np += c->counts[(uint64_t)y * c->w + x];
+    }
     const pm_lights_t *lights = &c->lights;
     size_t nshadow = np * (lights->ndelta + (lights->ndirect - lights->ndelta) * c->light_samples);
     size_t nsec = c->mode == PM_EYE_GATHER ? np * c->spp : 0;
@@ -1525,6 +1536,7 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
     c->mode = o->mode;
     c->schedule = o->schedule;
     c->primary = o->primary ? o->primary : 1;
+    c->counts = o->pixel_primary;
     c->pixel = o->pixel == PM_PIXEL_CENTER ? PM_PIXEL_CENTER : PM_PIXEL_BOX;
     c->light_samples = o->light_samples;
     c->seed = o->seed;

@@ -65,13 +65,16 @@ typedef struct {
     int direct_only; /* the direct radiance alone, no queries: secondary rays are traced only in a scene with
                       * emissive triangles, a sun or a sky, for the light they find there (the same direct buffer,
                       * bit for bit) */
-    unsigned glossy_depth;   /* glossy bounces a secondary path may continue through before it gathers (gather
-                              * mode); 0 gathers on every glossy surface */
-    const pm_guide_t *guide; /* photon guide of the secondary rays at Lambertian hits (render/guide.h), NULL for
-                              * none; read only, must outlive the context */
-    int secondary_direct;    /* gather mode: next-event estimation at every gather point too, into the direct
-                              * buffer, for a map without the first-hit photons it stands for (trace-photons
-                              * --indirect-only; render/light.h, pm_light_at_gather) */
+    unsigned glossy_depth;         /* glossy bounces a secondary path may continue through before it gathers (gather
+                                    * mode); 0 gathers on every glossy surface */
+    const pm_guide_t *guide;       /* photon guide of the secondary rays at Lambertian hits (render/guide.h), NULL for
+                                    * none; read only, must outlive the context */
+    int secondary_direct;          /* gather mode: next-event estimation at every gather point too, into the direct
+                                    * buffer, for a map without the first-hit photons it stands for (trace-photons
+                                    * --indirect-only; render/light.h, pm_light_at_gather) */
+    const uint32_t *pixel_primary; /* adaptive passes: primary rays of each pixel (width x height, each >= 1), each
+                                    * weighted by 1 / its pixel's count, instead of `primary` everywhere; NULL for
+                                    * none. Read only, must outlive the context */
 } pm_eye_options_t;
 
 /* What a context settled on: sizes, the effective spp, the queries' record layout. */

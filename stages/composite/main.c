@@ -60,6 +60,7 @@ typedef struct {
     const char *weights;  /* --weights FILE: a line "PASS WEIGHT" per pass (--stream --accumulate) */
     const char *aov;      /* --aov LIST: denoiser layers beside R G B (albedo,normal,depth,variance), NULL for none */
     const char *aov_file; /* --aov-buffer FILE: the aov file albedo, normal and depth come from */
+    const char *map;      /* --adaptive-map FILE: the next adaptive passes' multiplier, from the running image */
 } composite_options_t;
 
 /* pattern with its one %d (or %0Nd, N < 10) replaced by frame; NULL pattern gives NULL. */
@@ -179,6 +180,8 @@ static pm_result_t run_stream(pm_stage_t *st, const composite_options_t *o)
         return pm_error_set(PM_ERR_USAGE, "no output: give -o FRAME-%%04d.exr, --png or --radiance patterns");
     if (o->pass_log && !o->state)
         return pm_error_set(PM_ERR_USAGE, "--pass-log reports the passes of --accumulate");
+    if (o->map && !o->state)
+        return pm_error_set(PM_ERR_USAGE, "--adaptive-map is made from the running image: it needs --accumulate STATE");
     if (o->weights && !o->state)
         return pm_error_set(PM_ERR_USAGE, "--weights gives the passes of --accumulate their weights");
     FILE *log = NULL, *wf = NULL;
@@ -283,7 +286,9 @@ static pm_result_t run_stream(pm_stage_t *st, const composite_options_t *o)
         if (r == PM_OK && rad_path)
             r = pm_composite_write_radiance(c, rad_path);
         if (r == PM_OK && o->state)
-            r = pm_composite_write_radiance(c, o->state);
+            r = pm_composite_write_state(c, o->state);
+        if (r == PM_OK && o->map)
+            r = pm_composite_write_adaptive_map(c, o->map, st->argc, st->argv);
         r = pm_atomic_set_end(&set, r);
         t_add += t1 - t0;
         t_write += pm_time_wall() - t1;
@@ -360,6 +365,9 @@ static pm_result_t run(pm_stage_t *st, const composite_options_t *o)
                                           "--radiance or --accumulate");
     if (o->pass && !o->state)
         return pm_error_set(PM_ERR_USAGE, "--pass %" PRId64 " needs --accumulate STATE (the running image)", o->pass);
+    if (o->map && !o->state)
+        return pm_error_set(PM_ERR_USAGE,
+                            "--adaptive-map %s is made from the running image: it needs --accumulate STATE", o->map);
     if (pm_args_given(&st->args, "weight") && !o->state)
         return pm_error_set(PM_ERR_USAGE, "--weight %g is a pass's weight: it needs --accumulate STATE", o->weight);
     unsigned aov = 0;
@@ -400,7 +408,9 @@ static pm_result_t run(pm_stage_t *st, const composite_options_t *o)
     if (r == PM_OK && o->radiance)
         r = pm_composite_write_radiance(c, o->radiance);
     if (r == PM_OK && o->state)
-        r = pm_composite_write_radiance(c, o->state);
+        r = pm_composite_write_state(c, o->state);
+    if (r == PM_OK && o->map)
+        r = pm_composite_write_adaptive_map(c, o->map, st->argc, st->argv);
     double t2 = pm_time_wall();
 
     if (r == PM_OK) {
@@ -463,6 +473,10 @@ int main(int argc, char **argv)
         {"weight", 0, PM_OPT_DOUBLE, &o.weight, "W",
          "with --accumulate: the pass's weight, its size against the others' (its variance taken as sigma^2 / W)", 1e-9,
          1e9, NULL},
+        {"adaptive-map", 0, PM_OPT_OUTPUT, &o.map, "FILE",
+         "with --accumulate: write the next adaptive passes' sample-count multiplier (a density map for "
+         "trace-gather-points --adaptive) from the running image: rays where its relative error is",
+         1, 0, NULL},
         {"weights", 0, PM_OPT_STRING, &o.weights, "FILE",
          "with --stream --accumulate: a line 'PASS WEIGHT' per pass, read as each pass arrives (a driver's pipe)", 1, 0,
          NULL},

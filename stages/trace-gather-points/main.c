@@ -24,10 +24,12 @@
  * photons file of the same scene (trace-photons --direction) and draws part of the secondary rays
  * at Lambertian hits from the photons' directions (render/guide.h); every output names that
  * file as an INPUT. */
+#include <errno.h>
 #include <inttypes.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "base/memory.h"
 #include "base/passplan.h"
@@ -35,6 +37,7 @@
 #include "base/stage.h"
 #include "base/timer.h"
 #include "formats/formats.h"
+#include "image/adaptive.h"
 #include "render/aov.h"
 #include "render/eyetrace.h"
 #include "render/photontrace.h"
@@ -69,6 +72,9 @@ typedef struct {
     uint64_t guide_hash;     /* its content hash, once read */
     const pm_guide_t *built; /* with --passes or --plan: the guide built once for every pass */
     int secondary_direct;    /* --secondary-direct: light samples at the gather points too */
+    const char *adaptive;    /* --adaptive MAP: each pixel's primary rays times its multiplier, NULL for none */
+    uint64_t adaptive_hash;  /* the pass's map's content hash; adaptive_used: a map was read for the pass */
+    int adaptive_used;
 } tgp_options_t;
 
 /* Where the eye tracer's results go: the queries into the spool, the direct rows into one
@@ -158,6 +164,51 @@ static pm_result_t write_aov(pm_stage_t *st, const tgp_options_t *o, const pm_ey
     return r;
 }
 
+/* The adaptive pass's map in a header: key adaptive (its path and content hash, which composite
+ * reads to weigh the pixels) and an INPUT line (provenance). */
+static pm_result_t set_adaptive(pm_header_t *h, const tgp_options_t *o)
+{
+    pm_result_t r = pm_header_set(h, "adaptive", "%s xxh3:%016" PRIx64, o->adaptive, o->adaptive_hash);
+    return r == PM_OK ? pm_header_add_input(h, o->adaptive, o->adaptive_hash) : r;
+}
+
+/* --adaptive's map for this pass into *counts_out (malloc'd, w x h primary rays), or NULL when
+ * resident passes find no map yet (the passes before the driver's first: uniform). */
+static pm_result_t load_adaptive(pm_stage_t *st, tgp_options_t *o, uint32_t w, uint32_t h, uint32_t primary,
+                                 uint32_t **counts_out)
+{
+    *counts_out = NULL;
+    o->adaptive_used = 0;
+    if (!o->adaptive)
+        return PM_OK;
+    if ((o->passes || o->plan) && access(o->adaptive, F_OK) != 0 && errno == ENOENT)
+        return PM_OK;
+    float *m = NULL;
+    pm_result_t r = pm_adaptive_read(o->adaptive, PM_DENSITY_MULTIPLIER, w, h, &m, &o->adaptive_hash, NULL);
+    uint64_t n = (uint64_t)w * h, rays = 0;
+    uint32_t *cnt = r == PM_OK ? malloc((n ? n : 1) * sizeof *cnt) : NULL;
+    if (r == PM_OK && !cnt)
+        r = pm_error_set(PM_ERR_NOMEM, "out of memory for the counts of a %" PRIu32 "x%" PRIu32 " map", w, h);
+    for (uint64_t i = 0; r == PM_OK && i < n; i++) {
+        if (!(cnt[i] = pm_adaptive_count(m[i], primary)))
+            r = pm_error_set(PM_ERR_INPUT,
+                             "density map '%s': pixel %" PRIu64 " multiplier %g times %" PRIu32
+                             " primary rays is above %d rays",
+                             o->adaptive, i, (double)m[i], primary, PM_ADAPTIVE_RAYS_MAX);
+        rays += cnt[i];
+    }
+    free(m);
+    if (r != PM_OK) {
+        free(cnt);
+        return r;
+    }
+    o->adaptive_used = 1;
+    pm_stage_stat_int(st, "adaptive", 1);
+    pm_stage_stat_double(st, "adaptive_primary_mean", n ? (double)rays / (double)n : 0.0);
+    *counts_out = cnt;
+    return PM_OK;
+}
+
 static pm_result_t write_outputs(pm_stage_t *st, const tgp_options_t *o, const pm_eye_t *e, tgp_sink_t *k,
                                  const pm_scene_t *s, const pm_rt_t *rt)
 {
@@ -175,6 +226,10 @@ static pm_result_t write_outputs(pm_stage_t *st, const tgp_options_t *o, const p
         r = pm_header_add_input(&qh, o->guide, o->guide_hash);
     if (r == PM_OK && o->guide && o->direct)
         r = pm_header_add_input(&dh, o->guide, o->guide_hash);
+    if (r == PM_OK && o->adaptive_used) /* composite weighs each pixel of the pass by the map's counts */
+        r = set_adaptive(&qh, o);
+    if (r == PM_OK && o->adaptive_used && o->direct)
+        r = set_adaptive(&dh, o);
     if (r == PM_OK && o->pass)
         r = pm_header_set(&qh, "pass", "%" PRId64, o->pass);
     if (r == PM_OK && o->pass && o->direct)
@@ -292,18 +347,27 @@ static pm_result_t run(pm_stage_t *st, tgp_options_t *o, const pm_scene_t *s, co
         return pm_error_set(PM_ERR_USAGE, "--width %" PRId64 " --height %" PRId64 " (0: the camera's): %s", o->width,
                             o->height, why);
     }
+    uint32_t *counts = NULL, iw = o->width ? (uint32_t)o->width : s->camera.width,
+             ih = o->height ? (uint32_t)o->height : s->camera.height;
+    pm_result_t ra = load_adaptive(st, o, iw, ih, eo.primary ? eo.primary : 1, &counts);
+    if (ra != PM_OK)
+        return ra;
+    eo_g.pixel_primary = counts;
     pm_guide_t *guide = NULL;
     eo_g.guide = o->built;
     if (o->guide && !o->built) {
         pm_result_t rg = load_guide(st, o, s, &guide);
-        if (rg != PM_OK)
+        if (rg != PM_OK) {
+            free(counts);
             return rg;
+        }
         eo_g.guide = guide;
     }
     pm_eye_t *e;
     pm_result_t r = pm_eye_create(s, rt, &eo_g, &e);
     if (r != PM_OK) {
         pm_guide_destroy(guide);
+        free(counts);
         return r;
     }
     const pm_eye_info_t *in = pm_eye_info(e);
@@ -328,6 +392,7 @@ static pm_result_t run(pm_stage_t *st, tgp_options_t *o, const pm_scene_t *s, co
     free(k.direct);
     pm_eye_destroy(e);
     pm_guide_destroy(guide);
+    free(counts);
     return r;
 }
 
@@ -468,6 +533,11 @@ int main(int argc, char **argv)
          "glossy bounces (a Phong Ns of 50 or more) a secondary ray continues through before it gathers, the "
          "light found on the way into the direct buffer; 0 gathers on the glossy surface",
          0, 64, NULL},
+        {"adaptive", 0, PM_OPT_STRING, &o.adaptive, "MAP",
+         "adaptive pass: pixel p gets round(m_p x primary) primary rays (at least 1), m_p from this density map "
+         "(kind=multiplier, the image's size; composite --adaptive-map); headers say adaptive=MAP HASH; with "
+         "--passes or --plan it is read before each pass, and a pass that finds no MAP is uniform",
+         1, 0, NULL},
         {"secondary-direct", 0, PM_OPT_FLAG, &o.secondary_direct, NULL,
          "also take a light sample of each light at every gather point into the direct buffer (an area light's "
          "near field stays the map's): gather the queries against a map without the first hits they stand for "

@@ -21,6 +21,7 @@
 #include "base/args.h"
 #include "base/timer.h"
 #include "formats/formats.h"
+#include "image/adaptive.h"
 #include "photonmap/gather_stage.h"
 #include "render/light.h"
 #include "render/scene.h"
@@ -43,6 +44,10 @@ extern char **environ;
  * it, and its cost per unit grows (measured at load 3.8 on the Cornell box at 128 x 128, the
  * stages' start out of pass 1's time: 9 to 11 units after 4 took 1% to 24% more than their
  * bounds, and 2 of 5 TIME=1 renders ended 5% to 7% late) */
+/* ADAPTIVE: the first pass whose rays follow the running image's error (the map is made from
+ * the passes before it) and how often the map is made again, in passes */
+#define ADAPTIVE_FROM_PASS 5
+#define ADAPTIVE_EVERY 1
 #define GROW_MARGIN 0.10
 #define GROW_MARGIN_MAX 1.25
 
@@ -150,6 +155,8 @@ typedef struct {
     int direct;             /* the direct buffer: not with MODE=direct-vis over a global map */
     const char *mode, *map; /* trace-gather-points --mode, build-photonmap --map (MAP=auto resolved) */
     const char *order;      /* hilbert-sort --order (ORDER=auto resolved; hilbert-sort off for none) */
+    int adaptive;           /* ADAPTIVE on, with a direct buffer for composite to weigh the pixels by */
+    double adapt_s;         /* s the driver spent making the adaptive maps */
     double spawn_s;         /* s from the command's start to the stages' start: pm-render's own */
     double ready_s[NSTAGE]; /* s from the command's start to a tracer's --ready line (-1: none) */
 } prog_t;
@@ -457,6 +464,10 @@ static void stage_argv(const prog_t *p, argv_t a[NSTAGE], const int fd[NPIPE][2]
         push(&a[TG], "--guide");
         pushf(&a[TG], "%s/guide-photons.pm", p->out);
     }
+    if (p->adaptive) { /* read before each pass; none yet: a uniform pass (adapt) */
+        push(&a[TG], "--adaptive");
+        pushf(&a[TG], "%s/adaptive.pm", p->out);
+    }
     push(&a[TG], "--plan");
     push(&a[TG], "-");
     push(&a[TG], "--ready");
@@ -573,6 +584,8 @@ static void make_settings(prog_t *p)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " SECONDARY_DIRECT=1");
     if (p->s->guide && at < sizeof p->settings)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " GUIDE=1");
+    if (p->adaptive && at < sizeof p->settings)
+        at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " ADAPTIVE=1");
     snprintf(p->request, sizeof p->request, "PASSES=%s TIME=%s TARGET_ERROR=%s EXPOSURE=%s TONE=%s HALF=%s",
              val(p, PM_P_PASSES), val(p, PM_P_TIME), val(p, PM_P_TARGET_ERROR), val(p, PM_P_EXPOSURE),
              val(p, PM_P_TONE), val(p, PM_P_HALF));
@@ -747,6 +760,9 @@ static void write_stats(prog_t *p, double wall, double first_image, const char *
     json_object_set_new(total, "alpha", json_real(a));
     json_object_set_new(total, "radius1", r1 > 0.0 ? json_real(r1) : json_null());
     json_object_set_new(total, "resident", json_true());
+    json_object_set_new(total, "adaptive", json_boolean(p->adaptive));
+    if (p->adaptive) /* the driver's time making the maps (image/adaptive.h), in the passes' wall times */
+        json_object_set_new(total, "adaptive_s", json_real(p->adapt_s));
     json_object_set_new(root, "total", total);
     char path[4200], tmp[4300];
     snprintf(path, sizeof path, "%s/stats.json", p->out);
@@ -857,6 +873,37 @@ static void wait_ready(prog_t *p, int rfd, double t0)
 /* The passes: the six stages started, a pass at a time, the stages ended. Returns the exit
  * status; *stop_out says what stopped the passes, *first_out when the first image was in
  * place (s from t0; -1 if none). */
+/* ADAPTIVE: OUTDIR/adaptive.pm, the multiplier trace-gather-points reads before each pass, made
+ * from running.pm once it holds `held` passes for the passes from ADAPTIVE_FROM_PASS on, again
+ * every ADAPTIVE_EVERY passes; removed before then, so that the first passes (and a rerun's
+ * before its state is that far) are uniform. 0, or 3 when it cannot be written. */
+static int adapt(prog_t *p, int held)
+{
+    if (!p->adaptive)
+        return 0;
+    char map[4200], state[4200];
+    snprintf(map, sizeof map, "%s/adaptive.pm", p->out);
+    snprintf(state, sizeof state, "%s/running.pm", p->out);
+    if (held < ADAPTIVE_FROM_PASS - 1) {
+        if (unlink(map) != 0 && errno != ENOENT) {
+            say(p, "cannot remove '%s': %s", map, strerror(errno));
+            return 3;
+        }
+        return 0;
+    }
+    if ((held - (ADAPTIVE_FROM_PASS - 1)) % ADAPTIVE_EVERY != 0)
+        return 0;
+    double t = pm_time_wall();
+    char *argv[] = {(char *)p->me, "ADAPTIVE", state};
+    pm_result_t r = pm_adaptive_from_state(state, map, 3, argv, NULL);
+    p->adapt_s += pm_time_wall() - t;
+    if (r != PM_OK) {
+        say(p, "cannot make the adaptive map: %s", pm_error_message());
+        return r == PM_ERR_INPUT ? 1 : 3;
+    }
+    return 0;
+}
+
 static int run_passes(prog_t *p, char **env, double t0, int first, const char **stop_out, double *first_out)
 {
     const pm_settings_t *s = p->s;
@@ -906,8 +953,8 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
             }
     argv_t a[NSTAGE];
     stage_argv(p, a, (const int(*)[2])fd, first);
+    int rc = adapt(p, first - 1);
     pm_proc_t *proc[NSTAGE] = {0};
-    int rc = 0;
     p->spawn_s = pm_time_wall() - t0;
     for (int i = 0; i < NSTAGE && rc == 0; i++) {
         if (!p->on[i])
@@ -1047,6 +1094,8 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         if (nk < 4096)
             k[nk] = units, sec[nk] = te - ts, nk++;
         pass = next;
+        if ((rc = adapt(p, next)) != 0)
+            break;
         run_hook(p, env, next, te - t0);
         double e;
         if (target > 0.0 && pm_parse_double(err, &e) == PM_OK && e <= target) {
@@ -1166,6 +1215,12 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
                                                                                             : DEFAULT_PRIMARY;
     p.spp = s->value[PM_P_SPP][0] ? s->value[PM_P_SPP] : vis ? "" : DEFAULT_SPP;
     p.k = s->value[PM_P_K][0] ? s->value[PM_P_K] : vis ? "" : DEFAULT_K;
+    /* composite weighs an adaptive pass's pixels by the map its direct buffer's header names */
+    p.adaptive = s->adaptive && p.direct;
+    if (s->adaptive && !p.direct && !strcmp(s->value[PM_P_ADAPTIVE], "1")) {
+        say(&p, "ADAPTIVE=1 needs the direct buffer, which MODE=direct-vis over a global map has not");
+        return 2;
+    }
     make_settings(&p);
     int locked = pm_engine_lock(p.me, p.out, p.s->wait, cmdline, &p.lock_fd);
     if (locked != 0)
@@ -1187,6 +1242,8 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
     if (held && maxp && held > maxp && !s->value[PM_P_TIME][0] && !s->value[PM_P_TARGET_ERROR][0]) {
         char path[4200];
         snprintf(path, sizeof path, "%s/running.pm", p.out);
+        unlink(path);
+        snprintf(path, sizeof path, "%s/running.pm.weight", p.out);
         unlink(path);
         p.npasses = held = 0;
         p.radius1[0] = 0;
@@ -1231,6 +1288,8 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
     if (p.npasses) {
         /* synced once here, not after every pass (the stages ran with PMTK_FSYNC=0) */
         sync_file(p.out, "running.pm");
+        if (p.adaptive)
+            sync_file(p.out, "running.pm.weight");
         sync_file(p.out, "passes.txt");
         sync_file(p.out, "image.exr");
         sync_file(p.out, "image.png");
@@ -1253,6 +1312,10 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
         if (s->keep == PM_KEEP_IMAGE) {
             char path[4200];
             snprintf(path, sizeof path, "%s/running.pm", p.out);
+            unlink(path);
+            snprintf(path, sizeof path, "%s/running.pm.weight", p.out);
+            unlink(path);
+            snprintf(path, sizeof path, "%s/adaptive.pm", p.out);
             unlink(path);
             snprintf(path, sizeof path, "%s/passes.txt", p.out);
             unlink(path);

@@ -53,6 +53,7 @@ static const struct {
     [PM_P_WAIT] = {"WAIT", "1"},
     [PM_P_KEEP] = {"KEEP", "all"},
     [PM_P_SECONDARY_DIRECT] = {"SECONDARY_DIRECT", "auto"},
+    [PM_P_ADAPTIVE] = {"ADAPTIVE", "auto"},
 };
 
 const char *pm_param_name(pm_param_t p) { return p < PM_P_COUNT ? params[p].name : ""; }
@@ -142,7 +143,7 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
         (r = choice(s, PM_P_WIDTHS, widths)) || (r = choice(s, PM_P_TONE, tones)) || (r = choice(s, PM_P_HALF, bits)) ||
         (r = choice(s, PM_P_VERBOSE, bits)) || (r = choice(s, PM_P_WAIT, bits)) || (r = choice(s, PM_P_QUIET, bits)) ||
         (r = choice(s, PM_P_GUIDE, bits)) || (r = choice(s, PM_P_KEEP, keeps)) ||
-        (r = choice(s, PM_P_SECONDARY_DIRECT, autobits)))
+        (r = choice(s, PM_P_SECONDARY_DIRECT, autobits)) || (r = choice(s, PM_P_ADAPTIVE, autobits)))
         return r;
     s->keep = strcmp(s->value[PM_P_KEEP], "all") == 0       ? PM_KEEP_ALL
               : strcmp(s->value[PM_P_KEEP], "buffers") == 0 ? PM_KEEP_BUFFERS
@@ -194,6 +195,15 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
     s->progressive = s->value[PM_P_TIME][0] || s->value[PM_P_TARGET_ERROR][0] || s->value[PM_P_PASS_RANGE][0] ||
                      (s->value[PM_P_PASSES][0] && strcmp(s->value[PM_P_PASSES], "1") != 0);
     s->secondary_direct_sky = gather && sd_auto && !s->secondary_direct && s->progressive;
+    /* Adaptive passes: the resident passes only (pm-render refuses ADAPTIVE=1 for the pass files);
+     * auto is on for every progressive render (docs/accuracy.md, "Adaptive sampling"). */
+    s->adaptive = s->progressive && strcmp(s->value[PM_P_ADAPTIVE], "0") != 0;
+    if (!strcmp(s->value[PM_P_ADAPTIVE], "1") && !s->progressive)
+        return pm_error_set(PM_ERR_USAGE, "ADAPTIVE=1 adapts progressive passes: give PASSES (above 1), TIME or "
+                                          "TARGET_ERROR");
+    if (!strcmp(s->value[PM_P_ADAPTIVE], "1") && s->value[PM_P_PASS_RANGE][0])
+        return pm_error_set(PM_ERR_USAGE, "ADAPTIVE=1 with PASS_RANGE: the pass files are not adaptive (the resident "
+                                          "passes are)");
     s->guide = s->value[PM_P_GUIDE][0] == '1';
     if (s->guide && strcmp(s->value[PM_P_MODE], "gather") != 0)
         return pm_error_set(PM_ERR_USAGE, "GUIDE=1 guides the secondary rays of MODE=gather, not MODE=%s",

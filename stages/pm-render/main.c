@@ -205,6 +205,13 @@ int main(int argc, char **argv)
         fprintf(stderr, "%s: %s\n", me, pm_error_message());
         return 2;
     }
+    if (s.progressive && !strcmp(s.value[PM_P_ADAPTIVE], "1")) { /* auto: the pass files are uniform */
+        char why[128];
+        pm_progressive_handles(&s, why, sizeof why);
+        fprintf(stderr, "%s: ADAPTIVE=1 adapts the resident passes, which %s does not allow\n", me,
+                why[0] ? why : "an OUTDIR of pass directories");
+        return 2;
+    }
     if (s.progressive) /* passes as files: common/engine/fixed.c */
         return pm_render_passes(&s, me, bin, cmdline, t0);
     return pm_render_fixed(&s, me, bin, cmdline);

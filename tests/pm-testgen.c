@@ -314,6 +314,8 @@ int main(int argc, char **argv)
                      4); /* record 1 (root's left child, split on y): x beyond the root's plane */
     else if (!strcmp(what, "negative") && s == &pm_photons_schema)
         bad = poison(argv[3], 12, &neg, 4); /* power.r */
+    else if (!strcmp(what, "negative") && s == &pm_density_schema)
+        bad = poison(argv[3], 4, &neg, 4); /* pixel 1 */
     else if (!strcmp(what, "unit") && s == &pm_photons_schema)
         bad = poison(argv[3], 24, &two, 4); /* normal.x */
     else if (!strcmp(what, "tree") && s == &pm_photonmap_schema)

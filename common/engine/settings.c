@@ -196,8 +196,10 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
                      (s->value[PM_P_PASSES][0] && strcmp(s->value[PM_P_PASSES], "1") != 0);
     s->secondary_direct_sky = gather && sd_auto && !s->secondary_direct && s->progressive;
     /* Adaptive passes: the resident passes only (pm-render refuses ADAPTIVE=1 for the pass files);
-     * auto is on for every progressive render (docs/accuracy.md, "Adaptive sampling"). */
-    s->adaptive = s->progressive && strcmp(s->value[PM_P_ADAPTIVE], "0") != 0;
+     * auto is on for a TIME budget (docs/accuracy.md, "Adaptive sampling"), so that PASSES and
+     * TARGET_ERROR renders keep their bytes. */
+    s->adaptive = s->progressive && (!strcmp(s->value[PM_P_ADAPTIVE], "1") ||
+                                     (!strcmp(s->value[PM_P_ADAPTIVE], "auto") && s->value[PM_P_TIME][0]));
     if (!strcmp(s->value[PM_P_ADAPTIVE], "1") && !s->progressive)
         return pm_error_set(PM_ERR_USAGE, "ADAPTIVE=1 adapts progressive passes: give PASSES (above 1), TIME or "
                                           "TARGET_ERROR");

@@ -36,7 +36,7 @@ static void test_engine_settings(void **state)
     pm_settings_init(&s);
     char *unknown[] = {"NOPE=1"};
     assert_int_equal(pm_settings_parse(&s, 1, unknown), PM_ERR_USAGE);
-    assert_non_null(strstr(pm_error_message(), "unknown parameter 'NOPE' (known: ALPHA "));
+    assert_non_null(strstr(pm_error_message(), "unknown parameter 'NOPE' (known: ADAPTIVE ALPHA "));
     pm_settings_init(&s);
     char *choice[] = {"MODE=fast"};
     assert_int_equal(pm_settings_parse(&s, 1, choice), PM_ERR_USAGE);

@@ -52,7 +52,7 @@ static void fill(pm_table_t *t, uint32_t seed)
         free(q);
         free(perm);
     }
-    if (s == &pm_queries_schema || s == &pm_radiance_schema || s == &pm_aov_schema) {
+    if (s == &pm_queries_schema || s == &pm_radiance_schema || s == &pm_aov_schema || s == &pm_density_schema) {
         pm_header_set(&t->hdr, "width", "3");
         pm_header_set(&t->hdr, "height", "2");
     }
@@ -62,6 +62,8 @@ static void fill(pm_table_t *t, uint32_t seed)
     }
     if (s == &pm_radiance_schema)
         pm_header_set(&t->hdr, "component", "direct");
+    if (s == &pm_density_schema)
+        pm_header_set(&t->hdr, "kind", "multiplier");
 }
 
 static void roundtrip(const pm_schema_t *s, uint32_t mask, uint64_t n)
@@ -103,7 +105,9 @@ static void test_pmfile_roundtrip_every_format(void **state)
     for (const pm_schema_t *const *s = pm_schema_all(); *s; s++) {
         uint32_t all = (1u << (*s)->nchannels) - 1, req = pm_schema_required(*s);
         for (size_t i = 0; i < sizeof counts / sizeof counts[0]; i++) {
-            uint64_t n = *s == &pm_radiance_schema || *s == &pm_aov_schema ? 6 : counts[i]; /* width * height */
+            uint64_t n = *s == &pm_radiance_schema || *s == &pm_aov_schema || *s == &pm_density_schema
+                             ? 6
+                             : counts[i]; /* width * height */
             roundtrip(*s, all, n);
             roundtrip(*s, req, n);
         }

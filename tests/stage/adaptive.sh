@@ -7,7 +7,7 @@
 #     map, alone and averaged with a uniform pass, stays within analytic.sh's gather tolerances;
 #   - a bad map (wrong size, NaN, negative, truncated, changed after its pass) is one line and exit 1;
 #   - pm-render ADAPTIVE=1 makes OUTDIR/adaptive.pm, running.pm.weight and the same image for any
-#     THREADS; ADAPTIVE=1 where it cannot run is a usage error (2).
+#     THREADS and when a rerun adds passes; ADAPTIVE=1 where it cannot run is a usage error (2).
 # programs: trace-gather-points composite pm-render simd-gather hilbert-sort trace-photons build-photonmap
 source tests/scenes/make-analytic.sh
 TG=$BUILD/tests/pm-testgen
@@ -131,6 +131,15 @@ if "$R" "$CORNELL" "$TMP/r1" $SMALL PASSES=6 ADAPTIVE=1 THREADS=1 >"$TMP/r1.out"
     fi
 else
     fail "pm-render ADAPTIVE=1" "$(tail -3 "$TMP/r1.out" "$TMP/r2.out")"
+fi
+# a rerun that adds passes 7 and 8 makes its map from the 6 passes held: the bytes of one run of 8
+if "$R" "$CORNELL" "$TMP/r1" $SMALL PASSES=8 ADAPTIVE=1 THREADS=1 >"$TMP/r1b.out" 2>&1 &&
+    "$R" "$CORNELL" "$TMP/r8" $SMALL PASSES=8 ADAPTIVE=1 THREADS=1 >"$TMP/r8.out" 2>&1 &&
+    grep -qE '^ +8 +added' "$TMP/r1b.out" && cmp -s <(records "$TMP/r1/running.pm") <(records "$TMP/r8/running.pm") &&
+    cmp -s <(records "$TMP/r1/running.pm.weight") <(records "$TMP/r8/running.pm.weight"); then
+    pass "pm-render ADAPTIVE=1: 6 passes and a rerun to 8 make the running image of one run of 8"
+else
+    fail "pm-render ADAPTIVE=1 rerun" "$(tail -3 "$TMP/r1b.out")"
 fi
 if "$R" "$CORNELL" "$TMP/r0" $SMALL PASSES=6 >"$TMP/r0.out" 2>&1 && [ ! -e "$TMP/r0/adaptive.pm" ] &&
     [ "$(jq .total.adaptive "$TMP/r0/stats.json")" = false ]; then

@@ -110,6 +110,14 @@ static pm_result_t write_records(void *writer, const void *records, uint64_t cou
 /* A writable output path is checked before minutes of tracing, not after. */
 static pm_result_t check_writable(const char *path) { return path ? pm_atomic_check(path) : PM_OK; }
 
+/* The adaptive pass's map in a header: key adaptive (its path and content hash, which composite
+ * reads to weigh the pixels) and an INPUT line (provenance). */
+static pm_result_t set_adaptive(pm_header_t *h, const tgp_options_t *o)
+{
+    pm_result_t r = pm_header_set(h, "adaptive", "%s xxh3:%016" PRIx64, o->adaptive, o->adaptive_hash);
+    return r == PM_OK ? pm_header_add_input(h, o->adaptive, o->adaptive_hash) : r;
+}
+
 /* The caustic queries: their header (the queries header, kind=caustic) and records. */
 static pm_result_t write_caustic(pm_stage_t *st, const tgp_options_t *o, const pm_eye_t *e, tgp_sink_t *k)
 {
@@ -118,6 +126,8 @@ static pm_result_t write_caustic(pm_stage_t *st, const tgp_options_t *o, const p
     pm_result_t r = pm_eye_queries_header(e, st->argc, st->argv, k->cspool.count, &h);
     if (r == PM_OK)
         r = pm_header_set(&h, "kind", "caustic");
+    if (r == PM_OK && o->adaptive_used)
+        r = set_adaptive(&h, o);
     if (r == PM_OK && o->guide)
         r = pm_header_add_input(&h, o->guide, o->guide_hash);
     if (r == PM_OK && o->pass)
@@ -162,14 +172,6 @@ static pm_result_t write_aov(pm_stage_t *st, const tgp_options_t *o, const pm_ey
     pm_header_free(&h);
     free(v);
     return r;
-}
-
-/* The adaptive pass's map in a header: key adaptive (its path and content hash, which composite
- * reads to weigh the pixels) and an INPUT line (provenance). */
-static pm_result_t set_adaptive(pm_header_t *h, const tgp_options_t *o)
-{
-    pm_result_t r = pm_header_set(h, "adaptive", "%s xxh3:%016" PRIx64, o->adaptive, o->adaptive_hash);
-    return r == PM_OK ? pm_header_add_input(h, o->adaptive, o->adaptive_hash) : r;
 }
 
 /* --adaptive's map for this pass into *counts_out (malloc'd, w x h primary rays), or NULL when

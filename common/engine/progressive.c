@@ -505,6 +505,8 @@ static void stage_argv(const prog_t *p, argv_t a[NSTAGE], const int fd[NPIPE][2]
             opt(&a[i], "--k", p->k);
         opt(&a[i], "--kernel", val(p, PM_P_KERNEL));
         opt(&a[i], "--isa", val(p, PM_P_ISA));
+        if (p->s->coverage)
+            opt(&a[i], "--coverage", p->scene);
         opt(&a[i], "--alpha", val(p, PM_P_ALPHA));
         /* a rerun: where its first pass sits on the schedule, from the photons of the passes
          * the running image holds (the stage counts on from the maps' own photon counts) */

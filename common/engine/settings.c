@@ -53,6 +53,7 @@ static const struct {
     [PM_P_WAIT] = {"WAIT", "1"},
     [PM_P_KEEP] = {"KEEP", "all"},
     [PM_P_SECONDARY_DIRECT] = {"SECONDARY_DIRECT", "auto"},
+    [PM_P_COVERAGE] = {"COVERAGE", "0"},
 };
 
 const char *pm_param_name(pm_param_t p) { return p < PM_P_COUNT ? params[p].name : ""; }
@@ -142,7 +143,7 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
         (r = choice(s, PM_P_WIDTHS, widths)) || (r = choice(s, PM_P_TONE, tones)) || (r = choice(s, PM_P_HALF, bits)) ||
         (r = choice(s, PM_P_VERBOSE, bits)) || (r = choice(s, PM_P_WAIT, bits)) || (r = choice(s, PM_P_QUIET, bits)) ||
         (r = choice(s, PM_P_GUIDE, bits)) || (r = choice(s, PM_P_KEEP, keeps)) ||
-        (r = choice(s, PM_P_SECONDARY_DIRECT, autobits)))
+        (r = choice(s, PM_P_SECONDARY_DIRECT, autobits)) || (r = choice(s, PM_P_COVERAGE, bits)))
         return r;
     s->keep = strcmp(s->value[PM_P_KEEP], "all") == 0       ? PM_KEEP_ALL
               : strcmp(s->value[PM_P_KEEP], "buffers") == 0 ? PM_KEEP_BUFFERS
@@ -195,6 +196,14 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
                      (s->value[PM_P_PASSES][0] && strcmp(s->value[PM_P_PASSES], "1") != 0);
     s->secondary_direct_sky = gather && sd_auto && !s->secondary_direct && s->progressive;
     s->guide = s->value[PM_P_GUIDE][0] == '1';
+    /* The boundary correction divides by the covered part of one kernel width: simd-gather with
+     * fixed widths only (docs/programs/simd-gather.md, "Coverage"). */
+    s->coverage = s->value[PM_P_COVERAGE][0] == '1';
+    if (s->coverage && strcmp(s->value[PM_P_GATHER], "simd-gather") != 0)
+        return pm_error_set(PM_ERR_USAGE, "COVERAGE=1 is simd-gather's boundary correction, not GATHER=%s's",
+                            s->value[PM_P_GATHER]);
+    if (s->coverage && strcmp(s->value[PM_P_WIDTHS], "fixed") != 0)
+        return pm_error_set(PM_ERR_USAGE, "COVERAGE=1 needs WIDTHS=fixed (one kernel width for every query)");
     if (s->guide && strcmp(s->value[PM_P_MODE], "gather") != 0)
         return pm_error_set(PM_ERR_USAGE, "GUIDE=1 guides the secondary rays of MODE=gather, not MODE=%s",
                             s->value[PM_P_MODE]);

@@ -11,7 +11,7 @@
 #include "base/timer.h"
 #include "photonmap/mapbuild.h"
 
-/* Photons per coverage gather: bounds the scratch memory (24 bytes each). */
+/* Points per coverage gather: bounds the scratch memory (24 bytes each). */
 #define COVER_BLOCK 65536u
 
 pm_result_t pm_coverage_level(double h, int *level_out)
@@ -86,35 +86,72 @@ pm_result_t pm_coverage_build(pm_coverage_t *c, const float *pos, const float *n
     return PM_OK;
 }
 
-pm_result_t pm_coverage_apply(pm_coverage_t *c, pm_table_t *map, const pm_gather_map_t *m, const pm_gather_params_t *p)
+/* The covered part of each of points [begin, end) of q (as plain diffuse queries of weight 1) at
+ * params p, a block at a time: f(c, first index, count, user) receives c->scratch's values. */
+typedef void (*covered_fn)(const double *cov, uint64_t first, uint64_t count, void *user);
+static pm_result_t covered(pm_coverage_t *c, const pm_gather_queries_t *pts, uint64_t begin, uint64_t end,
+                           const pm_gather_params_t *p, covered_fn f, void *user)
 {
     if (!(c->spacing > 0.0))
         return pm_error_set(PM_ERR_INTERNAL, "the coverage correction has no area samples");
     if (p->variable || p->per_query)
         return pm_error_set(PM_ERR_USAGE, "the coverage correction needs one fixed kernel width");
     if (!c->scratch && !(c->scratch = malloc(3 * sizeof *c->scratch * COVER_BLOCK)))
-        return pm_error_set(PM_ERR_NOMEM, "out of memory for the coverage of %u photons", COVER_BLOCK);
-    /* The photons as plain diffuse queries of weight 1: the gather of the samples' areas. */
+        return pm_error_set(PM_ERR_NOMEM, "out of memory for the coverage of %u points", COVER_BLOCK);
     pm_material_t plain;
     memset(&plain, 0, sizeof plain);
     plain.kind = PM_MAT_STANDARD;
     snprintf(plain.name, sizeof plain.name, "coverage");
-    pm_gather_queries_t q = {.n = m->n, .pos = m->pos, .normal = m->normal, .materials = &plain, .nmaterials = 1};
-    float *power = map->col[PM_MAP_POWER];
+    pm_gather_queries_t q = {.n = pts->n, .pos = pts->pos, .normal = pts->normal, .materials = &plain, .nmaterials = 1};
     double t0 = pm_time_wall();
-    for (uint64_t b = 0; b < m->n; b += COVER_BLOCK) {
-        uint64_t e = m->n - b > COVER_BLOCK ? b + COVER_BLOCK : m->n;
+    for (uint64_t b = begin; b < end; b += COVER_BLOCK) {
+        uint64_t e = end - b > COVER_BLOCK ? b + COVER_BLOCK : end;
         pm_gather_stats_t gs;
         pm_result_t r = pm_gather_run(&c->map, &q, b, e, p, c->scratch, &gs);
         if (r != PM_OK)
             return r;
-        c->shader_ops += gs.shader_ops, c->cpu_s += gs.cpu_s;
-        for (uint64_t i = b; i < e; i++) {
-            double f = c->scratch[3 * (i - b)], inv = 1.0 / (f > PM_COVERAGE_MIN ? f : PM_COVERAGE_MIN);
-            for (int k = 0; k < 3; k++)
-                power[3 * i + k] = (float)(power[3 * i + k] * inv);
-        }
+        c->shader_ops += gs.shader_ops, c->cpu_s += gs.cpu_s, c->points += e - b;
+        f(c->scratch, b, e - b, user);
     }
     c->wall_s += pm_time_wall() - t0;
     return PM_OK;
+}
+
+static inline double inverse(double f) { return 1.0 / (f > PM_COVERAGE_MIN ? f : PM_COVERAGE_MIN); }
+
+static void scale_powers(const double *cov, uint64_t first, uint64_t count, void *user)
+{
+    float *power = user;
+    for (uint64_t i = 0; i < count; i++) {
+        double inv = inverse(cov[3 * i]);
+        for (int k = 0; k < 3; k++)
+            power[3 * (first + i) + k] = (float)(power[3 * (first + i) + k] * inv);
+    }
+}
+
+pm_result_t pm_coverage_apply(pm_coverage_t *c, pm_table_t *map, const pm_gather_map_t *m, const pm_gather_params_t *p)
+{
+    const pm_gather_queries_t pts = {.n = m->n, .pos = m->pos, .normal = m->normal};
+    return covered(c, &pts, 0, m->n, p, scale_powers, map->col[PM_MAP_POWER]);
+}
+
+typedef struct {
+    double *out;
+    uint64_t begin;
+} scale_out_t;
+
+static void scale_results(const double *cov, uint64_t first, uint64_t count, void *user)
+{
+    scale_out_t *s = user;
+    for (uint64_t i = 0; i < count; i++) {
+        double inv = inverse(cov[3 * i]), *o = &s->out[3 * (first + i - s->begin)];
+        o[0] *= inv, o[1] *= inv, o[2] *= inv;
+    }
+}
+
+pm_result_t pm_coverage_apply_queries(pm_coverage_t *c, const pm_gather_queries_t *q, uint64_t begin, uint64_t end,
+                                      const pm_gather_params_t *p, double *out)
+{
+    scale_out_t s = {out, begin};
+    return covered(c, q, begin, end, p, scale_results, &s);
 }

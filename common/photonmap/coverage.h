@@ -8,17 +8,23 @@
  * has detail finer than the kernel (the sky-lit atrium's indirect light was 3 to 5% dark at 40
  * passes, docs/accuracy.md).
  *
- * The covered part of photon i's disc is the same estimate over area samples (render/
+ * The covered part of a point's disc is the same estimate over area samples (render/
  * areasample.h: points spread evenly over the storing surfaces, each carrying its share of the
- * area as a white power) with the same kernel, width and normal test, at the photon:
- * c_i = sum_j a_j K(|x_i - x_j| / h) / h^2, 1 on an open plane, 1/2 at a straight edge.
- * Dividing each photon's power by max(c_i, PM_COVERAGE_MIN) makes its kernel integrate to its
- * power over the surface it lies on: the estimate conserves the photons' power (the plain
- * one does not), so a final gather, which integrates the estimate over what its rays see, loses
- * nothing at edges. Pointwise, a query at an edge still reads somewhat low and one a kernel in
- * from it somewhat high (the edge's power is spread inward), by less than the plain loss.
- * The cost is one gather of the map's photons against the area samples: photons, not queries,
- * and a final gather has many more queries than photons. */
+ * area as a white power) with the same kernel, width and normal test: c(x) = sum_j a_j
+ * K(|x - x_j| / h) / h^2, 1 on an open plane, 1/2 at a straight edge. It is applied on the
+ * smaller side of a gather, both of which remove the loss:
+ *   - photons (pm_coverage_apply): each photon's power divided by max(c(x_i), PM_COVERAGE_MIN),
+ *     so that its kernel integrates to its power over the surface it lies on: the estimate
+ *     conserves the photons' power, and a final gather, which integrates the estimate over what
+ *     its rays see, loses nothing at edges (pointwise a query at an edge still reads somewhat
+ *     low and one a kernel in from it somewhat high); the side for a final gather's many
+ *     queries against a pass's few photons;
+ *   - queries (pm_coverage_apply_queries): each query's estimate divided by max(c(y),
+ *     PM_COVERAGE_MIN), the ratio estimator, right pointwise for a density that is constant
+ *     over the surface; the side for a dense map seen by fewer queries.
+ * Either costs one gather of that side's points against the area samples. The remainder is of
+ * order h^2 (the density's curvature) plus the area samples' own scatter (a few per cent per
+ * point at PM_COVERAGE_RATIO, averaged out over a pixel's many photons and queries). */
 #ifndef PM_COVERAGE_H
 #define PM_COVERAGE_H
 
@@ -28,9 +34,10 @@
 #include "formats/formats.h"
 #include "photonmap/gather.h"
 
-/* The kernel width over the area samples' spacing: about pi 4^2 = 50 samples in a disc. */
-#define PM_COVERAGE_RATIO 4.0
-/* A photon covered less than this is divided by this: a sliver's photon is not blown up. */
+/* The kernel width over the area samples' spacing, at least: about pi 3^2 = 28 samples in a disc
+ * (up to twice that, as levels are sqrt(2) apart), the scatter of c a few per cent. */
+#define PM_COVERAGE_RATIO 3.0
+/* A point covered less than this is divided by this: a sliver's few photons are not blown up. */
 #define PM_COVERAGE_MIN 0.25
 
 typedef struct {
@@ -40,7 +47,7 @@ typedef struct {
     uint64_t samples;
     double *scratch; /* 3 per photon of a block */
     /* what the corrections cost, summed over every call */
-    uint64_t shader_ops;
+    uint64_t shader_ops, points; /* pairs, and photons or queries corrected */
     double cpu_s, wall_s;
     double build_s; /* s spent building maps (all of them) */
     uint32_t builds;
@@ -65,6 +72,13 @@ pm_result_t pm_coverage_build(pm_coverage_t *c, const float *pos, const float *n
  * place; m is its view) by the covered part of its kernel at the fixed width and the normal test
  * of p. */
 pm_result_t pm_coverage_apply(pm_coverage_t *c, pm_table_t *map, const pm_gather_map_t *m, const pm_gather_params_t *p);
+
+/* The same on the other side: divides out[3 (i - begin) + k], the gather's results for queries
+ * [begin, end) of q at params p, by the covered part of each query's kernel (the ratio
+ * estimator: right pointwise for a density that is constant over the surface, as an integral
+ * too). */
+pm_result_t pm_coverage_apply_queries(pm_coverage_t *c, const pm_gather_queries_t *q, uint64_t begin, uint64_t end,
+                                      const pm_gather_params_t *p, double *out);
 
 void pm_coverage_free(pm_coverage_t *c);
 

@@ -36,6 +36,8 @@ static const char *const param_help =
     "  SECONDARY_DIRECT=auto  1: the gather points sample the lights too (an area light beyond sqrt(A)), and\n"
     "                   the map lacks their first hits (gather mode); auto: 1 for TIME of 10 s or more,\n"
     "                   and for any progressive render of a scene with a sun or a sky\n"
+    "  COVERAGE=0|1     1: simd-gather --coverage SCENE, the density estimate's boundary correction (no\n"
+    "                   darkening where a kernel overhangs an edge or a corner; WIDTHS=fixed)\n"
     "  GUIDE=0|1        1: guide the secondary rays by the photons (trace-photons --direction, then\n"
     "                   trace-gather-points --guide; MODE=gather; one pass or resident passes)\n"
     "  ORDER=auto       hilbert|morton|none query order; auto: hilbert for gather, none for direct-vis\n"

@@ -45,7 +45,7 @@ static const char *const width_names[] = {"fixed", "variable", NULL};
 
 /* The most area samples --coverage makes (about 90 bytes each with their map): a coarser
  * spacing level is taken above it. */
-#define COVER_MAX_SAMPLES (1ull << 24)
+#define COVER_MAX_SAMPLES (1ull << 23)
 
 /* --coverage SCENE: the scene, loaded at the first gather, and the area samples' map for the
  * spacing level of the width in use, made again when a pass's width reaches another level. */
@@ -54,6 +54,7 @@ typedef struct {
     pm_scene_t scene;
     pm_rt_t rt;
     int loaded, traced;
+    int per_query; /* the last map's side: its queries' results divided, not its photons' powers */
     pm_coverage_t cov;
     double load_s;
 } cover_t;
@@ -75,28 +76,42 @@ typedef struct {
     cover_t *cover;                     /* --coverage, or NULL */
 } gather_options_t;
 
+/* --coverage's scene and its rays' structure, once: main loads them before the inputs arrive
+ * (a resident gather's first map comes after the tracers have started). */
+static pm_result_t cover_load(cover_t *c)
+{
+    if (c->loaded)
+        return PM_OK;
+    double t0 = pm_time_wall();
+    pm_result_t r = pm_scene_load(c->path, &c->scene);
+    if (r != PM_OK) {
+        pm_error_prefix("--coverage");
+        return r;
+    }
+    c->loaded = 1;
+    if ((r = pm_rt_create(&c->scene, 0, 0, &c->rt)) != PM_OK)
+        return r;
+    c->traced = 1;
+    c->load_s = pm_time_wall() - t0;
+    return PM_OK;
+}
+
 /* With --coverage, the boundary correction (photonmap/coverage.h) of in's map for the gather
  * of params p, when the map is new to the gather (new_map). The scene must be the queries' own
  * (the geometry part of their SCENE key). */
 static pm_result_t cover_map(pm_stage_t *st, cover_t *c, pm_gather_inputs_t *in, const pm_gather_params_t *p,
                              int new_map)
 {
-    if (!c || !new_map)
+    if (!c)
         return PM_OK;
-    double h = p->radius;
-    pm_result_t r;
-    if (!c->loaded) {
-        double t0 = pm_time_wall();
-        if ((r = pm_scene_load(c->path, &c->scene)) != PM_OK) {
-            pm_error_prefix("--coverage");
-            return r;
-        }
-        c->loaded = 1;
-        if ((r = pm_rt_create(&c->scene, 0, 0, &c->rt)) != PM_OK)
-            return r;
-        c->traced = 1;
-        c->load_s = pm_time_wall() - t0;
+    if (!new_map) {
+        in->cover = c->per_query ? &c->cov : NULL;
+        return PM_OK;
     }
+    double h = p->radius;
+    pm_result_t r = cover_load(c);
+    if (r != PM_OK)
+        return r;
     /* "NAME xxh3:GEOMETRY" begins both keys when the triangles, materials and textures agree */
     char id[300];
     pm_scene_id_part(&c->scene, PM_SCENE_PHOTONS, id, sizeof id);
@@ -131,13 +146,20 @@ static pm_result_t cover_map(pm_stage_t *st, cover_t *c, pm_gather_inputs_t *in,
                       " sides facing the inside of a solid left out)",
                       c->cov.samples, spacing, h, hidden);
     }
-    return pm_coverage_apply(&c->cov, &in->map_table, &in->map, p);
+    /* The smaller side carries the division (photonmap/coverage.h): each photon's power where the
+     * queries outnumber the photons (a final gather), else each query's result. A kept map keeps
+     * the side it was first given. */
+    if (new_map)
+        c->per_query = in->total < (uint64_t)in->map.n;
+    in->cover = c->per_query ? &c->cov : NULL;
+    return new_map && !c->per_query ? pm_coverage_apply(&c->cov, &in->map_table, &in->map, p) : PM_OK;
 }
 
 /* The output's header key coverage: the area samples' spacing, m (none without --coverage). */
 static pm_result_t cover_header(pm_header_t *h, const cover_t *c)
 {
-    return c ? pm_header_set(h, "coverage", "%.9g", c->cov.spacing) : PM_OK;
+    pm_result_t r = c ? pm_header_set(h, "coverage", "%.9g", c->cov.spacing) : PM_OK;
+    return r == PM_OK && c ? pm_header_set(h, "coverage_side", "%s", c->per_query ? "queries" : "photons") : r;
 }
 
 /* The real pass index of o's pass on the schedule (pm_gather_pass_index). */
@@ -189,6 +211,8 @@ static void report(pm_stage_t *st, const gather_options_t *o, const pm_gather_in
         pm_stage_stat_double(st, "coverage_scene_s", o->cover->load_s);
         pm_stage_stat_double(st, "coverage_build_s", c->build_s);
         pm_stage_stat_int(st, "coverage_shader_ops", (int64_t)c->shader_ops);
+        pm_stage_stat_int(st, "coverage_points", (int64_t)c->points);
+        pm_stage_stat_string(st, "coverage_side", o->cover->per_query ? "queries" : "photons");
         pm_stage_stat_double(st, "coverage_s", c->wall_s);
         pm_stage_stat_double(st, "coverage_cpu_s", c->cpu_s);
     }
@@ -278,7 +302,7 @@ static pm_result_t run_stream(pm_stage_t *st, const gather_options_t *opt, pm_is
             r = pm_gather_stream(&in, &p, &gs, &tg);
         } else {
             t0 = pm_time_wall();
-            r = pm_gather_run(&in.map, &in.q, 0, in.q.n, &p, in.per_query, &gs);
+            r = pm_gather_inputs_run(&in, 0, in.q.n, &p, &gs);
             tg = pm_time_wall() - t0;
             if (r == PM_OK)
                 r = pm_gather_check_finite(&in, "the gather");
@@ -466,7 +490,7 @@ static pm_result_t run_pairs(pm_stage_t *st, const gather_options_t *opt, pm_isa
             r = pm_gather_stream(&in, &p, &gs, &tg);
         } else {
             t0 = pm_time_wall();
-            r = pm_gather_run(&in.map, &in.q, 0, in.q.n, &p, in.per_query, &gs);
+            r = pm_gather_inputs_run(&in, 0, in.q.n, &p, &gs);
             tg = pm_time_wall() - t0;
             if (r == PM_OK)
                 r = pm_gather_check_finite(&in, "the gather");
@@ -598,7 +622,7 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *opt, char **argv)
             goto done;
     } else {
         t0 = pm_time_wall();
-        r = pm_gather_run(&in.map, &in.q, 0, in.q.n, &p, in.per_query, &gs);
+        r = pm_gather_inputs_run(&in, 0, in.q.n, &p, &gs);
         t_gather = pm_time_wall() - t0;
         if (r != PM_OK || (r = pm_gather_check_finite(&in, "the gather")) != PM_OK)
             goto done;
@@ -674,9 +698,12 @@ int main(int argc, char **argv)
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;
-    if (cover.path)
+    pm_result_t r = PM_OK;
+    if (cover.path) {
         o.cover = &cover;
-    rc = pm_stage_end(&st, run(&st, &o, argv));
+        r = cover_load(&cover);
+    }
+    rc = pm_stage_end(&st, r != PM_OK ? r : run(&st, &o, argv));
     if (cover.traced)
         pm_rt_destroy(&cover.rt);
     if (cover.loaded)

@@ -190,6 +190,15 @@ static void test_coverage_plane_edge(void **state)
         assert_int_equal(seen, 7);
         pm_coverage_free(&ph);
     }
+    /* the queries' side: each query's result divided by its own disc's covered part */
+    const pm_gather_queries_t q = {.n = 3, .pos = ppos, .normal = pnrm};
+    double out[9] = {1, 1, 1, 1, 1, 1, 1, 1, 1};
+    const pm_gather_params_t pq = {
+        .radius = 0.5, .kernel = PM_KERNEL_EPANECHNIKOV, .normal_cos = 0.5f, .isa = PM_ISA_SCALAR};
+    assert_int_equal(pm_coverage_apply_queries(&cov, &q, 1, 3, &pq, out), PM_OK); /* queries 1 and 2 */
+    assert_float_equal(out[0], 2.0, 0.06);                                        /* the edge */
+    assert_float_equal(out[5], 1.0 / PM_COVERAGE_MIN, 1e-9);                      /* facing down */
+    assert_float_equal(out[6], 1.0, 0.0);                                         /* not in the range */
     /* fixed widths only */
     const pm_gather_params_t pv = {.radius = 0.5, .variable = 1, .isa = PM_ISA_SCALAR};
     pm_coverage_t ph;

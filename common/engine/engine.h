@@ -96,7 +96,8 @@ typedef struct {
                                * hits of the lights they sample (trace-photons --indirect-only) */
     int secondary_direct_sky; /* SECONDARY_DIRECT=auto on a progressive render that it does not turn on by
                                * TIME: on when the scene has a sun or a sky (the drivers decide, with the scene) */
-    int coverage;             /* COVERAGE: simd-gather --coverage SCENE, the density estimate's boundary correction */
+    int coverage;             /* COVERAGE=1, or auto on a progressive render (TIME from 4 s): simd-gather --coverage
+                               * SCENE, the density estimate's boundary correction */
 } pm_settings_t;
 
 enum { PM_KEEP_ALL = 0, PM_KEEP_BUFFERS = 1, PM_KEEP_IMAGE = 2 };

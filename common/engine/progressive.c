@@ -575,6 +575,8 @@ static void make_settings(prog_t *p)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " SECONDARY_DIRECT=1");
     if (p->s->guide && at < sizeof p->settings)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " GUIDE=1");
+    if (p->s->coverage && at < sizeof p->settings)
+        at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " COVERAGE=1");
     snprintf(p->request, sizeof p->request, "PASSES=%s TIME=%s TARGET_ERROR=%s EXPOSURE=%s TONE=%s HALF=%s",
              val(p, PM_P_PASSES), val(p, PM_P_TIME), val(p, PM_P_TARGET_ERROR), val(p, PM_P_EXPOSURE),
              val(p, PM_P_TONE), val(p, PM_P_HALF));

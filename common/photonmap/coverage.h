@@ -34,9 +34,9 @@
 #include "formats/formats.h"
 #include "photonmap/gather.h"
 
-/* The kernel width over the area samples' spacing, at least: about pi 3^2 = 28 samples in a disc
+/* The kernel width over the area samples' spacing, at least: about pi 2^2 = 13 samples in a disc
  * (up to twice that, as levels are sqrt(2) apart), the scatter of c a few per cent. */
-#define PM_COVERAGE_RATIO 3.0
+#define PM_COVERAGE_RATIO 2.0
 /* A point covered less than this is divided by this: a sliver's few photons are not blown up. */
 #define PM_COVERAGE_MIN 0.25
 

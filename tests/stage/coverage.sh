@@ -6,8 +6,9 @@
 # 0.2 m), and the corrected one within 1% (measured 2.002 and 1.998). The gather mode's final
 # gather sees the same loss, less of it. Also: the outputs do not depend on the thread count,
 # the output's header names the spacing, and bad uses (another scene, no scene, variable
-# widths) are a one-line error with the usual exit code. pm-render COVERAGE=1 runs it
-# (passes-resident.sh checks its resident passes against the pass files).
+# widths) are a one-line error with the usual exit code. pm-render COVERAGE=1 runs it, and
+# COVERAGE=auto for progressive renders (passes-resident.sh checks its resident passes against
+# the pass files).
 # programs: trace-photons build-photonmap trace-gather-points hilbert-sort simd-gather composite pm-info pm-render
 D=$TMP/coverage
 mkdir -p "$D"
@@ -80,7 +81,7 @@ if "$BIN/trace-photons" "$S" -q -o - | "$BIN/build-photonmap" - -q -o "$D/map.pm
     else
         fail "box furnace, kernel 0.2 m" "corrected mean $(mean "$D/dv.2.exr" 2>/dev/null) (2 within 1%)"
     fi
-    # Threads change nothing; the header names the spacing (0.4 / 3 = 0.133 m: the level below, 2^-3 = 0.125 m).
+    # Threads change nothing; the header names the spacing (0.4 / 2 = 0.2 m: the level below, 2^-2.5 = 0.177 m).
     if "$BIN/simd-gather" "$D/map.pm" "$D/g.qs.pm" --radius 0.4 --coverage "$S" --threads 1 -q -o "$D/t1.pm" &&
         "$BIN/simd-gather" "$D/map.pm" "$D/g.qs.pm" --radius 0.4 --coverage "$S" --threads 2 -q -o "$D/t2.pm" &&
         "$BIN/pm-compare" "$D/t1.pm" "$D/t2.pm" >/dev/null && "$BIN/pm-compare" "$D/t1.pm" "$D/g.1.pm" >/dev/null; then
@@ -88,7 +89,7 @@ if "$BIN/trace-photons" "$S" -q -o - | "$BIN/build-photonmap" - -q -o "$D/map.pm
     else
         fail "--coverage threads" "outputs differ"
     fi
-    if "$BIN/pm-info" "$D/g.1.pm" | grep -qx 'coverage=0.125' &&
+    if "$BIN/pm-info" "$D/g.1.pm" | grep -qx 'coverage=0.176776695' &&
         ! "$BIN/pm-info" "$D/g.0.pm" | grep -q '^coverage='; then
         pass "--coverage: header key coverage, the area samples' spacing"
     else
@@ -122,14 +123,20 @@ else
     fail "box furnace pipeline" "a stage failed"
 fi
 
-# pm-render COVERAGE=1: the gathers get --coverage SCENE (one pass and resident passes); a bad
-# value and a gather that cannot take it are usage errors.
+# pm-render COVERAGE=1: the gathers get --coverage SCENE; auto (the default) gives it to
+# progressive renders but TIME under 4 s; a bad value and a gather that cannot take it are usage
+# errors.
 R=pipelines/render
 if "$R" "$S" "$D/r1" PHOTONS=20000 WIDTH=16 HEIGHT=16 COVERAGE=1 >"$D/r1.out" 2>&1 &&
     "$BIN/pm-info" "$D/r1/indirect.pm" | grep -q '^COMMAND=simd-gather .*--coverage .*scene.json' &&
-    "$R" "$S" "$D/r2" PHOTONS=20000 WIDTH=16 HEIGHT=16 COVERAGE=1 PASSES=2 >"$D/r2.out" 2>&1 &&
-    "$BIN/pm-info" "$D/r2/running.pm" | grep -q 'simd-gather .*--coverage '; then
-    pass "pm-render COVERAGE=1: simd-gather --coverage in one pass and in resident passes"
+    "$R" "$S" "$D/r2" PHOTONS=20000 WIDTH=16 HEIGHT=16 PASSES=2 >"$D/r2.out" 2>&1 &&
+    "$BIN/pm-info" "$D/r2/running.pm" | grep -q 'simd-gather .*--coverage ' &&
+    grep -q ' COVERAGE=1' "$D/r2/passes.txt" &&
+    "$R" "$S" "$D/r5" PHOTONS=20000 WIDTH=16 HEIGHT=16 >"$D/r5.out" 2>&1 &&
+    ! "$BIN/pm-info" "$D/r5/indirect.pm" | grep -q -- '--coverage' &&
+    "$R" "$S" "$D/r6" PHOTONS=20000 WIDTH=16 HEIGHT=16 TIME=1 >"$D/r6.out" 2>&1 &&
+    ! "$BIN/pm-info" "$D/r6/running.pm" | grep -q -- '--coverage'; then
+    pass "pm-render: COVERAGE=1 in one pass; auto on for resident passes (PASSES=2), off for one render and TIME=1"
 else
     fail "pm-render COVERAGE=1" "$(tail -2 "$D/r1.out" "$D/r2.out")"
 fi

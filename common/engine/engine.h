@@ -61,6 +61,7 @@ typedef enum {
     PM_P_WAIT,
     PM_P_KEEP,
     PM_P_SECONDARY_DIRECT,
+    PM_P_COVERAGE,
     PM_P_ADAPTIVE,
     PM_P_COUNT
 } pm_param_t;
@@ -96,6 +97,8 @@ typedef struct {
                                * hits of the lights they sample (trace-photons --indirect-only) */
     int secondary_direct_sky; /* SECONDARY_DIRECT=auto on a progressive render that it does not turn on by
                                * TIME: on when the scene has a sun or a sky (the drivers decide, with the scene) */
+    int coverage;             /* COVERAGE=1, or auto on a progressive render (TIME from 4 s): simd-gather --coverage
+                               * SCENE, the density estimate's boundary correction */
     int adaptive;             /* ADAPTIVE=1, or auto on a progressive render: the resident passes from
                                * PM_ADAPTIVE_FROM_PASS on give each pixel rays by the running image's error
                                * (common/engine/progressive.c, image/adaptive.h) */

@@ -149,6 +149,8 @@ static void gather_opts(render_t *r, job_t *j, int widths)
     arg_opt(j, "--k", r->s->value[PM_P_K]);
     arg_opt(j, "--kernel", r->s->value[PM_P_KERNEL]);
     arg_opt(j, "--isa", r->s->value[PM_P_ISA]);
+    if (r->s->coverage && !r->knn)
+        arg_opt(j, "--coverage", r->scene);
     if (widths && strcmp(r->s->value[PM_P_WIDTHS], "variable") == 0) {
         arg(j, "--widths");
         arg(j, "variable");
@@ -1559,6 +1561,8 @@ static void pass_gather_opts(passgraph_t *g, pcmd_t *c, int caustic)
     }
     arg_opt(c, "--kernel", s->value[PM_P_KERNEL]);
     arg_opt(c, "--isa", s->value[PM_P_ISA]);
+    if (s->coverage && !r->knn)
+        arg_opt(c, "--coverage", r->scene);
     pc_pass(c, g->pass);
     arg_opt(c, "--alpha", s->value[PM_P_ALPHA]);
     /* the pass's place on the schedule by photons: every pass file has PHOTONS (or the scene's

@@ -516,6 +516,8 @@ static void stage_argv(const prog_t *p, argv_t a[NSTAGE], const int fd[NPIPE][2]
             opt(&a[i], "--k", p->k);
         opt(&a[i], "--kernel", val(p, PM_P_KERNEL));
         opt(&a[i], "--isa", val(p, PM_P_ISA));
+        if (p->s->coverage)
+            opt(&a[i], "--coverage", p->scene);
         opt(&a[i], "--alpha", val(p, PM_P_ALPHA));
         /* a rerun: where its first pass sits on the schedule, from the photons of the passes
          * the running image holds (the stage counts on from the maps' own photon counts) */
@@ -584,6 +586,8 @@ static void make_settings(prog_t *p)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " SECONDARY_DIRECT=1");
     if (p->s->guide && at < sizeof p->settings)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " GUIDE=1");
+    if (p->s->coverage && at < sizeof p->settings)
+        at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " COVERAGE=1");
     if (p->adaptive && at < sizeof p->settings)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " ADAPTIVE=1");
     snprintf(p->request, sizeof p->request, "PASSES=%s TIME=%s TARGET_ERROR=%s EXPOSURE=%s TONE=%s HALF=%s",

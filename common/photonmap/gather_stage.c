@@ -231,6 +231,15 @@ pm_result_t pm_gather_inputs_next_map(pm_gather_inputs_t *in, FILE *f, const cha
     return r == PM_OK ? inputs_setup(in, variable, in->q_table.count, 1) : r;
 }
 
+pm_result_t pm_gather_inputs_run(pm_gather_inputs_t *in, uint64_t begin, uint64_t end, const pm_gather_params_t *p,
+                                 pm_gather_stats_t *stats)
+{
+    pm_result_t r = pm_gather_run(&in->map, &in->q, begin, end, p, in->per_query, stats);
+    if (r == PM_OK && in->cover)
+        r = pm_coverage_apply_queries(in->cover, &in->q, begin, end, p, in->per_query);
+    return r;
+}
+
 pm_result_t pm_gather_stream(pm_gather_inputs_t *in, const pm_gather_params_t *p, pm_gather_stats_t *stats,
                              double *gather_s_out)
 {
@@ -256,7 +265,7 @@ pm_result_t pm_gather_stream(pm_gather_inputs_t *in, const pm_gather_params_t *p
             break;
         in->q.n = m;
         pm_gather_stats_t gs;
-        if ((r = pm_gather_run(&in->map, &in->q, 0, m, p, in->per_query, &gs)) != PM_OK)
+        if ((r = pm_gather_inputs_run(in, 0, m, p, &gs)) != PM_OK)
             return r;
         *gather_s_out += pm_time_wall() - t1;
         stats->shader_ops += gs.shader_ops;

@@ -12,6 +12,7 @@
 #include "base/error.h"
 #include "base/stage.h"
 #include "formats/formats.h"
+#include "photonmap/coverage.h"
 #include "photonmap/gather.h"
 
 /* The kernels' names, in pm_kernel_t order, for --kernel and the `kernel` header key. */
@@ -98,7 +99,13 @@ typedef struct {
     double *pixels;             /* owned, with a stream: RGB sums of the pixels up to the last one a
                                  * query names (pixels_used), filled by pm_gather_stream */
     uint64_t pixels_used;       /* with a stream: the pixels in pixels (grown as the queries name them) */
+    pm_coverage_t *cover;       /* not owned: the boundary correction to apply to each query, or NULL */
 } pm_gather_inputs_t;
+
+/* pm_gather_run over in's map and queries [begin, end) into in->per_query, then with in->cover
+ * each query's result divided by its kernel's covered part (pm_coverage_apply_queries). */
+pm_result_t pm_gather_inputs_run(pm_gather_inputs_t *in, uint64_t begin, uint64_t end, const pm_gather_params_t *p,
+                                 pm_gather_stats_t *stats);
 
 /* Reads MAP and QUERIES (range "B:E" or NULL for all; QUERIES may be "-"), checks the
  * weight contract and that both are of one scene, views them for the gathers (`variable`:

@@ -35,10 +35,29 @@
 #include "base/memory.h"
 #include "base/stage.h"
 #include "formats/formats.h"
+#include "photonmap/coverage.h"
 #include "photonmap/gather.h"
 #include "photonmap/gather_stage.h"
+#include "render/areasample.h"
+#include "render/scene.h"
 
 static const char *const width_names[] = {"fixed", "variable", NULL};
+
+/* The most area samples --coverage makes (about 90 bytes each with their map): a coarser
+ * spacing level is taken above it. */
+#define COVER_MAX_SAMPLES (1ull << 23)
+
+/* --coverage SCENE: the scene, loaded at the first gather, and the area samples' map for the
+ * spacing level of the width in use, made again when a pass's width reaches another level. */
+typedef struct {
+    const char *path;
+    pm_scene_t scene;
+    pm_rt_t rt;
+    int loaded, traced;
+    int per_query; /* the last map's side: its queries' results divided, not its photons' powers */
+    pm_coverage_t cov;
+    double load_s;
+} cover_t;
 static const char *const stream_names[] = {"none", "queries", "map", "pairs", NULL};
 enum { STREAM_NONE = 0, STREAM_QUERIES = 1, STREAM_MAP = 2, STREAM_PAIRS = 3 };
 
@@ -54,7 +73,94 @@ typedef struct {
     int stream;   /* STREAM_*: which input is a stream of documents */
     int k_each;   /* --k-each-pass: --stream pairs measures r_1 by --k on every pass's documents */
     int64_t pass_photons, unit_photons; /* photons before the pass (-1: not given) and pass 1's (0: not given) */
+    cover_t *cover;                     /* --coverage, or NULL */
 } gather_options_t;
+
+/* --coverage's scene and its rays' structure, once: main loads them before the inputs arrive
+ * (a resident gather's first map comes after the tracers have started). */
+static pm_result_t cover_load(cover_t *c)
+{
+    if (c->loaded)
+        return PM_OK;
+    double t0 = pm_time_wall();
+    pm_result_t r = pm_scene_load(c->path, &c->scene);
+    if (r != PM_OK) {
+        pm_error_prefix("--coverage");
+        return r;
+    }
+    c->loaded = 1;
+    if ((r = pm_rt_create(&c->scene, 0, 0, &c->rt)) != PM_OK)
+        return r;
+    c->traced = 1;
+    c->load_s = pm_time_wall() - t0;
+    return PM_OK;
+}
+
+/* With --coverage, the boundary correction (photonmap/coverage.h) of in's map for the gather
+ * of params p, when the map is new to the gather (new_map). The scene must be the queries' own
+ * (the geometry part of their SCENE key). */
+static pm_result_t cover_map(pm_stage_t *st, cover_t *c, pm_gather_inputs_t *in, const pm_gather_params_t *p,
+                             int new_map)
+{
+    if (!c)
+        return PM_OK;
+    if (!new_map) {
+        in->cover = c->per_query ? &c->cov : NULL;
+        return PM_OK;
+    }
+    double h = p->radius;
+    pm_result_t r = cover_load(c);
+    if (r != PM_OK)
+        return r;
+    /* "NAME xxh3:GEOMETRY" begins both keys when the triangles, materials and textures agree */
+    char id[300];
+    pm_scene_id_part(&c->scene, PM_SCENE_PHOTONS, id, sizeof id);
+    char *cut = strstr(id, " photons:");
+    if (cut)
+        *cut = '\0';
+    const char *key = pm_header_get(&in->q_table.hdr, "SCENE");
+    size_t n = strlen(id);
+    if (!key || strncmp(key, id, n) != 0 || (key[n] != '\0' && key[n] != ' '))
+        return pm_error_set(PM_ERR_INPUT, "--coverage '%s' is scene '%s', but the queries '%s' are of '%s'", c->path,
+                            id, in->q_path ? in->q_path : "stdin", key ? key : "(no SCENE key)");
+    int level;
+    if ((r = pm_coverage_level(h, &level)) != PM_OK)
+        return r;
+    while (pm_area_samples_count(&c->scene, pm_coverage_level_spacing(level)) > COVER_MAX_SAMPLES)
+        level++;
+    double spacing = pm_coverage_level_spacing(level);
+    if (c->cov.spacing != spacing) {
+        pm_area_samples_t a;
+        /* A side within two kernel widths of a solid's far face is what a kernel would count: the
+         * widest kernel of the level, so that the samples depend on the level alone. */
+        double reach = 2.0 * PM_COVERAGE_RATIO * 1.4142135623730951 * spacing;
+        r = pm_area_samples_make(&c->scene, &c->rt, spacing, reach, pm_coverage_seed(spacing), COVER_MAX_SAMPLES, &a);
+        if (r == PM_OK)
+            r = pm_coverage_build(&c->cov, a.pos, a.normal, a.area, a.n, spacing);
+        uint64_t hidden = a.hidden;
+        pm_area_samples_free(&a);
+        if (r != PM_OK)
+            return r;
+        pm_stage_note(st,
+                      "coverage: %" PRIu64 " area samples %.3g m apart for a kernel %.3g m wide (%" PRIu64
+                      " sides facing the inside of a solid left out)",
+                      c->cov.samples, spacing, h, hidden);
+    }
+    /* The smaller side carries the division (photonmap/coverage.h): each photon's power where the
+     * queries outnumber the photons (a final gather), else each query's result. A kept map keeps
+     * the side it was first given. */
+    if (new_map)
+        c->per_query = in->total < (uint64_t)in->map.n;
+    in->cover = c->per_query ? &c->cov : NULL;
+    return new_map && !c->per_query ? pm_coverage_apply(&c->cov, &in->map_table, &in->map, p) : PM_OK;
+}
+
+/* The output's header key coverage: the area samples' spacing, m (none without --coverage). */
+static pm_result_t cover_header(pm_header_t *h, const cover_t *c)
+{
+    pm_result_t r = c ? pm_header_set(h, "coverage", "%.9g", c->cov.spacing) : PM_OK;
+    return r == PM_OK && c ? pm_header_set(h, "coverage_side", "%s", c->per_query ? "queries" : "photons") : r;
+}
 
 /* The real pass index of o's pass on the schedule (pm_gather_pass_index). */
 static double pass_index(const gather_options_t *o)
@@ -97,6 +203,19 @@ static void report(pm_stage_t *st, const gather_options_t *o, const pm_gather_in
         pm_stage_stat_double(st, "pass_index", pass_index(o));
     }
     pm_stage_stat_double(st, "gather_cpu_s", gs->cpu_s);
+    if (o->cover && o->cover->loaded) {
+        const pm_coverage_t *c = &o->cover->cov;
+        pm_stage_stat_double(st, "coverage_spacing_m", c->spacing);
+        pm_stage_stat_int(st, "coverage_samples", (int64_t)c->samples);
+        pm_stage_stat_int(st, "coverage_builds", (int64_t)c->builds);
+        pm_stage_stat_double(st, "coverage_scene_s", o->cover->load_s);
+        pm_stage_stat_double(st, "coverage_build_s", c->build_s);
+        pm_stage_stat_int(st, "coverage_shader_ops", (int64_t)c->shader_ops);
+        pm_stage_stat_int(st, "coverage_points", (int64_t)c->points);
+        pm_stage_stat_string(st, "coverage_side", o->cover->per_query ? "queries" : "photons");
+        pm_stage_stat_double(st, "coverage_s", c->wall_s);
+        pm_stage_stat_double(st, "coverage_cpu_s", c->cpu_s);
+    }
     pm_stage_note(st,
                   "%" PRIu64 " queries, %" PRIu32
                   " photons, %s, %.3g shader ops/query, %.1f M shader ops/s, %.2f of %d lanes",
@@ -177,11 +296,13 @@ static pm_result_t run_stream(pm_stage_t *st, const gather_options_t *opt, pm_is
                                 .isa = isa};
         pm_gather_stats_t gs;
         double tg = 0.0;
+        if ((r = cover_map(st, o->cover, &in, &p, frames == 0 || !by_queries)) != PM_OK)
+            break;
         if (in.stream) {
             r = pm_gather_stream(&in, &p, &gs, &tg);
         } else {
             t0 = pm_time_wall();
-            r = pm_gather_run(&in.map, &in.q, 0, in.q.n, &p, in.per_query, &gs);
+            r = pm_gather_inputs_run(&in, 0, in.q.n, &p, &gs);
             tg = pm_time_wall() - t0;
             if (r == PM_OK)
                 r = pm_gather_check_finite(&in, "the gather");
@@ -200,7 +321,7 @@ static pm_result_t run_stream(pm_stage_t *st, const gather_options_t *opt, pm_is
             (r = pm_gather_pass_header(&out.hdr, (uint64_t)o->pass, o->alpha, radius1,
                                        o->pass_photons > 0 ? (uint64_t)o->pass_photons : 0,
                                        (uint64_t)o->unit_photons)) != PM_OK ||
-            (r = pm_gather_table_write(&out, st->output)) != PM_OK)
+            (r = cover_header(&out.hdr, o->cover)) != PM_OK || (r = pm_gather_table_write(&out, st->output)) != PM_OK)
             break;
         t_write += pm_time_wall() - t0;
         frames++;
@@ -363,11 +484,13 @@ static pm_result_t run_pairs(pm_stage_t *st, const gather_options_t *opt, pm_isa
                                 .isa = isa};
         pm_gather_stats_t gs;
         double tg = 0.0;
+        if ((r = cover_map(st, o->cover, &in, &p, 1)) != PM_OK)
+            break;
         if (in.stream) {
             r = pm_gather_stream(&in, &p, &gs, &tg);
         } else {
             t0 = pm_time_wall();
-            r = pm_gather_run(&in.map, &in.q, 0, in.q.n, &p, in.per_query, &gs);
+            r = pm_gather_inputs_run(&in, 0, in.q.n, &p, &gs);
             tg = pm_time_wall() - t0;
             if (r == PM_OK)
                 r = pm_gather_check_finite(&in, "the gather");
@@ -397,7 +520,8 @@ static pm_result_t run_pairs(pm_stage_t *st, const gather_options_t *opt, pm_isa
         t0 = pm_time_wall();
         if ((r = pm_gather_output_init(&out, &in, argc1, argv1, o->kernel, width_names[0])) == PM_OK &&
             (r = pm_header_set(&out.hdr, "radius", "%.9g", radius)) == PM_OK &&
-            (r = pm_gather_pass_header(&out.hdr, pass, o->alpha, radius1, before, unit)) == PM_OK)
+            (r = pm_gather_pass_header(&out.hdr, pass, o->alpha, radius1, before, unit)) == PM_OK &&
+            (r = cover_header(&out.hdr, o->cover)) == PM_OK)
             r = pm_gather_table_write(&out, st->output);
         free(argv1);
         if (r != PM_OK)
@@ -487,12 +611,18 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *opt, char **argv)
                             .isa = isa};
     pm_gather_stats_t gs;
     double t_gather;
+    if (o->cover && o->widths) {
+        r = pm_error_set(PM_ERR_USAGE, "--coverage needs fixed widths (one kernel width for every query)");
+        goto done;
+    }
+    if ((r = cover_map(st, o->cover, &in, &p, 1)) != PM_OK)
+        goto done;
     if (in.stream) {
         if ((r = pm_gather_stream(&in, &p, &gs, &t_gather)) != PM_OK)
             goto done;
     } else {
         t0 = pm_time_wall();
-        r = pm_gather_run(&in.map, &in.q, 0, in.q.n, &p, in.per_query, &gs);
+        r = pm_gather_inputs_run(&in, 0, in.q.n, &p, &gs);
         t_gather = pm_time_wall() - t0;
         if (r != PM_OK || (r = pm_gather_check_finite(&in, "the gather")) != PM_OK)
             goto done;
@@ -505,6 +635,8 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *opt, char **argv)
     if ((r = pm_gather_pass_header(h, (uint64_t)o->pass, o->alpha, radius1,
                                    o->pass_photons > 0 ? (uint64_t)o->pass_photons : 0, (uint64_t)o->unit_photons)) !=
         PM_OK)
+        goto done;
+    if ((r = cover_header(h, o->cover)) != PM_OK)
         goto done;
     t0 = pm_time_wall();
     if ((r = pm_gather_output_write(&out, &in, st->output)) != PM_OK)
@@ -522,6 +654,8 @@ int main(int argc, char **argv)
 {
     pm_stage_t st;
     pm_stage_defaults(&st);
+    cover_t cover;
+    memset(&cover, 0, sizeof cover);
     gather_options_t o = {.radius = 0.0,
                           .k = 50.0,
                           .kernel = 1,
@@ -541,6 +675,11 @@ int main(int argc, char **argv)
         {"isa", 0, PM_OPT_STRING, &o.isa, "ISA", "auto, scalar, sse4 (4 lanes), avx2 (8) or avx512 (16)", 1, 0, NULL},
         PM_GATHER_COMMON_OPTIONS(o.normal_cos, o.range),
         PM_GATHER_PASS_OPTIONS(o.pass, o.alpha, o.pass_photons, o.unit_photons),
+        {"coverage", 0, PM_OPT_STRING, &cover.path, "SCENE",
+         "divide each query's estimate by the part of its kernel that is surface, measured on area samples of SCENE "
+         "(the queries' own scene): no darkening where the kernel overhangs an edge or reaches past a corner "
+         "(docs/programs/simd-gather.md, \"Coverage\")",
+         1, 0, NULL},
         {"stream", 0, PM_OPT_CHOICE, &o.stream, "WHICH",
          "none; queries: keep MAP, gather each queries document of the stream QUERIES (a frame each); map: keep "
          "QUERIES, gather them against each map document of the stream MAP; pairs: MAP and QUERIES both streams, a "
@@ -559,5 +698,16 @@ int main(int argc, char **argv)
     int rc = pm_stage_begin(&st, &cli, argc, argv);
     if (rc >= 0)
         return rc;
-    return pm_stage_end(&st, run(&st, &o, argv));
+    pm_result_t r = PM_OK;
+    if (cover.path) {
+        o.cover = &cover;
+        r = cover_load(&cover);
+    }
+    rc = pm_stage_end(&st, r != PM_OK ? r : run(&st, &o, argv));
+    if (cover.traced)
+        pm_rt_destroy(&cover.rt);
+    if (cover.loaded)
+        pm_scene_free(&cover.scene);
+    pm_coverage_free(&cover.cov);
+    return rc;
 }

@@ -1,6 +1,6 @@
 # passes-resident.sh: the settings pm-render's resident progressive passes run beside the
 # default (issue 26, item 2): the caustic branch of a scene with mirrors or glass, MODE=direct-vis
-# (over a global and an indirect map), ORDER=none, GATHER=none and SECONDARY_DIRECT=1. Each runs resident (no pass
+# (over a global and an indirect map), ORDER=none, GATHER=none, SECONDARY_DIRECT=1 and COVERAGE=1. Each runs resident (no pass
 # directory) and makes the running image and the image the pass files make (KEEP=all,
 # pm_render_passes), record for record and pixel for pixel; the caustic branch also
 # when a rerun adds a pass, and for any THREADS.
@@ -37,6 +37,8 @@ same() {
 same caustic "$CAUSTIC"
 same caustic-radius "$CAUSTIC" RADIUS=0.05
 same direct-vis "$CORNELL" MODE=direct-vis
+same coverage "$CORNELL" COVERAGE=1
+same caustic-coverage "$CAUSTIC" COVERAGE=1
 same direct-vis-indirect "$CORNELL" MODE=direct-vis MAP=indirect
 same order-none "$CORNELL" ORDER=none
 same gather-none "$CORNELL" GATHER=none

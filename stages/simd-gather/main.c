@@ -45,7 +45,7 @@ static const char *const width_names[] = {"fixed", "variable", NULL};
 
 /* The most area samples --coverage makes (about 90 bytes each with their map): a coarser
  * spacing level is taken above it. */
-#define COVER_MAX_SAMPLES (1ull << 23)
+#define COVER_MAX_SAMPLES (1ull << 22)
 
 /* --coverage SCENE: the scene, loaded at the first gather it corrects, and the area samples' map
  * for the spacing level of the width in use, made again when a pass's width reaches another
@@ -61,6 +61,7 @@ typedef struct {
     int loaded, traced;
     int per_query; /* the last map's side: its queries' results divided, not its photons' powers */
     int applied;   /* the last gather was corrected (not progressive pass 1) */
+    int off;       /* the scene has too many triangles to sample within COVER_MAX_SAMPLES */
     pm_coverage_t cov;
     double load_s;
 } cover_t;
@@ -112,8 +113,10 @@ static pm_result_t cover_map(pm_stage_t *st, cover_t *c, pm_gather_inputs_t *in,
         c->applied = 0;
     if (!c || pass == 1) /* progressive pass 1 goes uncorrected (cover_t) */
         return PM_OK;
-    c->applied = 1;
+    if (c->off)
+        return PM_OK;
     if (!new_map) {
+        c->applied = 1;
         in->cover = c->per_query ? &c->cov : NULL;
         return PM_OK;
     }
@@ -135,6 +138,16 @@ static pm_result_t cover_map(pm_stage_t *st, cover_t *c, pm_gather_inputs_t *in,
     int level;
     if ((r = pm_coverage_level(h, &level)) != PM_OK)
         return r;
+    /* Every storing triangle has a sample a side at least: a scene of more than COVER_MAX_SAMPLES / 2
+     * of them cannot be sampled within the bound at any spacing, and goes uncorrected, with a word. */
+    if (pm_area_samples_count(&c->scene, INFINITY) > COVER_MAX_SAMPLES) {
+        c->off = 1;
+        pm_stage_note(st,
+                      "warning: --coverage: scene '%s' has too many triangles for %llu area samples (one a side "
+                      "each at least): its boundary correction is off",
+                      c->path, (unsigned long long)COVER_MAX_SAMPLES);
+        return PM_OK;
+    }
     while (pm_area_samples_count(&c->scene, pm_coverage_level_spacing(level)) > COVER_MAX_SAMPLES)
         level++;
     double spacing = pm_coverage_level_spacing(level);
@@ -158,6 +171,7 @@ static pm_result_t cover_map(pm_stage_t *st, cover_t *c, pm_gather_inputs_t *in,
     /* The smaller side carries the division (photonmap/coverage.h): each photon's power where the
      * queries outnumber the photons (a final gather), else each query's result. A kept map keeps
      * the side it was first given. */
+    c->applied = 1;
     if (new_map)
         c->per_query = in->total < (uint64_t)in->map.n;
     in->cover = c->per_query ? &c->cov : NULL;

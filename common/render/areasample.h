@@ -44,7 +44,8 @@ typedef struct {
 pm_result_t pm_area_samples_make(const pm_scene_t *s, const pm_rt_t *rt, double spacing, double reach, uint64_t seed,
                                  uint64_t max_samples, pm_area_samples_t *out);
 
-/* The number pm_area_samples_make would make at `spacing` (both sides counted), without making them. */
+/* The number pm_area_samples_make would make at `spacing` (both sides counted, none left out),
+ * without making them; at an infinite spacing, the least at any: two a storing triangle. */
 uint64_t pm_area_samples_count(const pm_scene_t *s, double spacing);
 
 void pm_area_samples_free(pm_area_samples_t *a);

@@ -45,16 +45,23 @@ static const char *const width_names[] = {"fixed", "variable", NULL};
 
 /* The most area samples --coverage makes (about 90 bytes each with their map): a coarser
  * spacing level is taken above it. */
-#define COVER_MAX_SAMPLES (1ull << 23)
+#define COVER_MAX_SAMPLES (1ull << 22)
 
-/* --coverage SCENE: the scene, loaded at the first gather, and the area samples' map for the
- * spacing level of the width in use, made again when a pass's width reaches another level. */
+/* --coverage SCENE: the scene, loaded at the first gather it corrects, and the area samples' map
+ * for the spacing level of the width in use, made again when a pass's width reaches another
+ * level. The first pass of a progressive render is not corrected: it is the pass the first image
+ * waits for, and the scene's load and the first level's samples would delay it (by 0.3 s on the
+ * sky-lit atrium, where the tracers load the same scene on the same cores), while its weight in
+ * the running mean is its share of the photons, 1/16 of a full pass at TIME's first size. A
+ * resident gather loads the scene once pass 1 is written, while pass 2 is traced. */
 typedef struct {
     const char *path;
     pm_scene_t scene;
     pm_rt_t rt;
     int loaded, traced;
     int per_query; /* the last map's side: its queries' results divided, not its photons' powers */
+    int applied;   /* the last gather was corrected (not progressive pass 1) */
+    int off;       /* the scene has too many triangles to sample within COVER_MAX_SAMPLES */
     pm_coverage_t cov;
     double load_s;
 } cover_t;
@@ -76,8 +83,7 @@ typedef struct {
     cover_t *cover;                     /* --coverage, or NULL */
 } gather_options_t;
 
-/* --coverage's scene and its rays' structure, once: main loads them before the inputs arrive
- * (a resident gather's first map comes after the tracers have started). */
+/* --coverage's scene and its rays' structure, once. */
 static pm_result_t cover_load(cover_t *c)
 {
     if (c->loaded)
@@ -100,11 +106,17 @@ static pm_result_t cover_load(cover_t *c)
  * of params p, when the map is new to the gather (new_map). The scene must be the queries' own
  * (the geometry part of their SCENE key). */
 static pm_result_t cover_map(pm_stage_t *st, cover_t *c, pm_gather_inputs_t *in, const pm_gather_params_t *p,
-                             int new_map)
+                             int new_map, uint64_t pass)
 {
-    if (!c)
+    in->cover = NULL;
+    if (c)
+        c->applied = 0;
+    if (!c || pass == 1) /* progressive pass 1 goes uncorrected (cover_t) */
+        return PM_OK;
+    if (c->off)
         return PM_OK;
     if (!new_map) {
+        c->applied = 1;
         in->cover = c->per_query ? &c->cov : NULL;
         return PM_OK;
     }
@@ -126,6 +138,16 @@ static pm_result_t cover_map(pm_stage_t *st, cover_t *c, pm_gather_inputs_t *in,
     int level;
     if ((r = pm_coverage_level(h, &level)) != PM_OK)
         return r;
+    /* Every storing triangle has a sample a side at least: a scene of more than COVER_MAX_SAMPLES / 2
+     * of them cannot be sampled within the bound at any spacing, and goes uncorrected, with a word. */
+    if (pm_area_samples_count(&c->scene, INFINITY) > COVER_MAX_SAMPLES) {
+        c->off = 1;
+        pm_stage_note(st,
+                      "warning: --coverage: scene '%s' has too many triangles for %llu area samples (one a side "
+                      "each at least): its boundary correction is off",
+                      c->path, (unsigned long long)COVER_MAX_SAMPLES);
+        return PM_OK;
+    }
     while (pm_area_samples_count(&c->scene, pm_coverage_level_spacing(level)) > COVER_MAX_SAMPLES)
         level++;
     double spacing = pm_coverage_level_spacing(level);
@@ -149,17 +171,21 @@ static pm_result_t cover_map(pm_stage_t *st, cover_t *c, pm_gather_inputs_t *in,
     /* The smaller side carries the division (photonmap/coverage.h): each photon's power where the
      * queries outnumber the photons (a final gather), else each query's result. A kept map keeps
      * the side it was first given. */
+    c->applied = 1;
     if (new_map)
         c->per_query = in->total < (uint64_t)in->map.n;
     in->cover = c->per_query ? &c->cov : NULL;
     return new_map && !c->per_query ? pm_coverage_apply(&c->cov, &in->map_table, &in->map, p) : PM_OK;
 }
 
-/* The output's header key coverage: the area samples' spacing, m (none without --coverage). */
+/* The output's header keys coverage (the area samples' spacing, m) and coverage_side, when its
+ * gather was corrected. */
 static pm_result_t cover_header(pm_header_t *h, const cover_t *c)
 {
-    pm_result_t r = c ? pm_header_set(h, "coverage", "%.9g", c->cov.spacing) : PM_OK;
-    return r == PM_OK && c ? pm_header_set(h, "coverage_side", "%s", c->per_query ? "queries" : "photons") : r;
+    if (!c || !c->applied)
+        return PM_OK;
+    pm_result_t r = pm_header_set(h, "coverage", "%.9g", c->cov.spacing);
+    return r == PM_OK ? pm_header_set(h, "coverage_side", "%s", c->per_query ? "queries" : "photons") : r;
 }
 
 /* The real pass index of o's pass on the schedule (pm_gather_pass_index). */
@@ -296,7 +322,7 @@ static pm_result_t run_stream(pm_stage_t *st, const gather_options_t *opt, pm_is
                                 .isa = isa};
         pm_gather_stats_t gs;
         double tg = 0.0;
-        if ((r = cover_map(st, o->cover, &in, &p, frames == 0 || !by_queries)) != PM_OK)
+        if ((r = cover_map(st, o->cover, &in, &p, frames == 0 || !by_queries, (uint64_t)o->pass)) != PM_OK)
             break;
         if (in.stream) {
             r = pm_gather_stream(&in, &p, &gs, &tg);
@@ -484,7 +510,7 @@ static pm_result_t run_pairs(pm_stage_t *st, const gather_options_t *opt, pm_isa
                                 .isa = isa};
         pm_gather_stats_t gs;
         double tg = 0.0;
-        if ((r = cover_map(st, o->cover, &in, &p, 1)) != PM_OK)
+        if ((r = cover_map(st, o->cover, &in, &p, 1, pass)) != PM_OK)
             break;
         if (in.stream) {
             r = pm_gather_stream(&in, &p, &gs, &tg);
@@ -531,6 +557,9 @@ static pm_result_t run_pairs(pm_stage_t *st, const gather_options_t *opt, pm_isa
         o->unit_photons = (int64_t)unit;
         before += (uint64_t)emitted;
         passes++;
+        /* pass 1 is out: load --coverage's scene while pass 2 is traced (cover_t) */
+        if (o->cover && pass == 1 && (r = cover_load(o->cover)) != PM_OK)
+            break;
     }
     if (r == PM_OK && passes == 0)
         r = pm_error_set(PM_ERR_INPUT, "empty streams '%s' and '%s': no pass", mpath, qpath);
@@ -615,7 +644,7 @@ static pm_result_t run(pm_stage_t *st, const gather_options_t *opt, char **argv)
         r = pm_error_set(PM_ERR_USAGE, "--coverage needs fixed widths (one kernel width for every query)");
         goto done;
     }
-    if ((r = cover_map(st, o->cover, &in, &p, 1)) != PM_OK)
+    if ((r = cover_map(st, o->cover, &in, &p, 1, (uint64_t)o->pass)) != PM_OK)
         goto done;
     if (in.stream) {
         if ((r = pm_gather_stream(&in, &p, &gs, &t_gather)) != PM_OK)
@@ -699,9 +728,14 @@ int main(int argc, char **argv)
     if (rc >= 0)
         return rc;
     pm_result_t r = PM_OK;
-    if (cover.path) {
+    if (cover.path) { /* loaded when first used; a file that cannot be read is refused now */
         o.cover = &cover;
-        r = cover_load(&cover);
+        FILE *f = fopen(cover.path, "rb");
+        if (!f)
+            r = pm_error_set(pm_result_of_errno(errno), "--coverage: cannot open '%s': %s", cover.path,
+                             strerror(errno));
+        else
+            fclose(f);
     }
     rc = pm_stage_end(&st, r != PM_OK ? r : run(&st, &o, argv));
     if (cover.traced)

@@ -185,8 +185,9 @@ if [ $status = 0 ] && [ "$(grep -c '^cornell-box,\|^skylight,' "$out/ratios.csv"
     [ "$row30" = "$last_prog $best_pt" ] &&
     ! awk -F, '$1 == "simd-gather"' "$out"/*/results.csv | grep -q . &&
     grep -q '^| budget | cornell-box | skylight |$' "$out/summary.md" && grep -q '^| 30 s | [0-9.e-]* (' "$out/summary.md" &&
-    awk -F, '$1 == "cornell-box" && $2 == "progressive" { exit !($3 < 0 && $4 >= 2) }' "$out/slopes.csv"; then
-    pass "error-vs-time-all: two scenes, ratios.csv (progressive / path tracer per budget), slopes.csv, summary.md"
+    awk -F, '$1 == "cornell-box" && $2 == "progressive" { exit !($3 < 0 && $4 >= 2) }' "$out/slopes.csv" &&
+    awk -F, '$1 == "cornell-box" && $2 == "progressive" { exit !(NF == 9 && $9 > 0 && $7 != "" && $7 <= $3) }' "$out/slopes.csv"; then
+    pass "error-vs-time-all: two scenes, ratios.csv (progressive / path tracer per budget), slopes.csv (also above the reference's floor), summary.md"
 else
     fail "error-vs-time-all" "exit $status, 30 s row '$row30' (want '$last_prog $best_pt'): $(tail -3 "$TMP/all.log")"
 fi

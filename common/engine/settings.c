@@ -103,7 +103,7 @@ static int matches(const char *re, const char *s)
 
 #define COUNT_RE "^[1-9][0-9]*$"
 #define SECONDARY_DIRECT_TIME 10.0 /* s: SECONDARY_DIRECT=auto's TIME from which it is on */
-#define COVERAGE_TIME 4.0          /* s: COVERAGE=auto's TIME from which it is on */
+#define COVERAGE_TIME 6.0          /* s: COVERAGE=auto's TIME from which it is on */
 /* A number of at least 0 as pipelines/render's isnum took it (no sign, no hex, no inf). */
 #define NUM_RE "^([0-9]+([.][0-9]*)?|[.][0-9]+)([eE][-+]?[0-9]+)?$"
 
@@ -216,7 +216,9 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
      * and its area samples at each spacing level, and pays where the bias it removes outweighs
      * the passes it costs (docs/accuracy.md, "The boundary correction": the atria's relMSE 2.5 to
      * 3.7 times lower from 8 s on, the Cornell box, caustic and skylight scenes within 0.8 to 1.2
-     * times from 4 s on, and one render or 1 to 2 s lose more to the start-up than they gain). */
+     * times from 4 s on, and one render or 1 to 2 s lose more to the start-up than they gain;
+     * below 6 s the samples it builds when the kernel reaches a new spacing level, a share of a
+     * pass the TIME planner does not foresee, made the Cornell box's TIME=4 end at 4.3 s). */
     const char *cv = s->value[PM_P_COVERAGE];
     int cv_fit = !strcmp(s->value[PM_P_GATHER], "simd-gather") && !strcmp(s->value[PM_P_WIDTHS], "fixed");
     s->coverage = !strcmp(cv, "1") || (!strcmp(cv, "auto") && cv_fit && s->progressive &&

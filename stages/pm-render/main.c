@@ -38,7 +38,7 @@ static const char *const param_help =
     "                   and for any progressive render of a scene with a sun or a sky\n"
     "  COVERAGE=auto    1: simd-gather --coverage SCENE, the density estimate's boundary correction (no\n"
     "                   darkening where a kernel overhangs an edge or a corner; WIDTHS=fixed); auto: 1\n"
-    "                   for progressive renders but a TIME below 4 s\n"
+    "                   for progressive renders but a TIME below 6 s\n"
     "  GUIDE=0|1        1: guide the secondary rays by the photons (trace-photons --direction, then\n"
     "                   trace-gather-points --guide; MODE=gather; one pass or resident passes)\n"
     "  ADAPTIVE=auto    1: resident passes from the 5th on give each pixel primary rays by the running\n"

@@ -139,7 +139,7 @@ else
 fi
 
 # pm-render COVERAGE=1: the gathers get --coverage SCENE; auto (the default) gives it to
-# progressive renders but TIME under 4 s; a bad value and a gather that cannot take it are usage
+# progressive renders but TIME under 6 s; a bad value and a gather that cannot take it are usage
 # errors.
 R=pipelines/render
 if "$R" "$S" "$D/r1" PHOTONS=20000 WIDTH=16 HEIGHT=16 COVERAGE=1 >"$D/r1.out" 2>&1 &&

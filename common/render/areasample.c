@@ -10,19 +10,6 @@
 #include "math/vec.h"
 #include "render/transport.h"
 
-/* Whether a surface of material m keeps photons: photontrace.c's test at a hit (no delta BSDF,
- * no transmission; a standard material with some kd or ks). */
-static int stores(const pm_material_t *m)
-{
-    if (pm_material_is_specular(m))
-        return 0;
-    if (m->kind != PM_MAT_STANDARD)
-        return pm_bsdf_stores_photons(m);
-    float pd, ps;
-    pm_bsdf_albedo(m, &pd, &ps);
-    return pd + ps > 0.0f;
-}
-
 /* Samples on triangle t at spacing s (at least one: a triangle smaller than s^2 keeps its own
  * area as one sample, so that fine meshes are not thinned into noise). */
 static uint64_t tri_count(double area, double s)
@@ -37,7 +24,7 @@ uint64_t pm_area_samples_count(const pm_scene_t *s, double spacing)
 {
     uint64_t n = 0;
     for (size_t t = 0; t < s->ntris; t++)
-        if (stores(&s->materials[s->tri_material[t]]))
+        if (pm_material_keeps_photons(&s->materials[s->tri_material[t]]))
             n += 2 * tri_count(pm_scene_triangle_area(s, t), spacing);
     return n;
 }
@@ -131,7 +118,7 @@ pm_result_t pm_area_samples_make(const pm_scene_t *s, const pm_rt_t *rt, double 
     uint64_t k = 0;
     for (size_t t = 0; t < s->ntris; t++) {
         const pm_material_t *mt = &s->materials[s->tri_material[t]];
-        if (!stores(mt))
+        if (!pm_material_keeps_photons(mt))
             continue;
         double a = pm_scene_triangle_area(s, t);
         uint64_t n = tri_count(a, spacing);
@@ -156,7 +143,7 @@ pm_result_t pm_area_samples_make(const pm_scene_t *s, const pm_rt_t *rt, double 
             if (s->any_alpha && pm_scene_cut_out(s, (uint32_t)t, b1, b2))
                 continue;
             pm_material_t scratch;
-            if (!stores(pm_scene_material_at(s, (uint32_t)t, p, &scratch)))
+            if (!pm_material_keeps_photons(pm_scene_material_at(s, (uint32_t)t, p, &scratch)))
                 continue; /* a texel that keeps no photon */
             for (int side = 0; side < 2; side++) {
                 float n_side[3] = {side ? -ng[0] : ng[0], side ? -ng[1] : ng[1], side ? -ng[2] : ng[2]}, ns[3];

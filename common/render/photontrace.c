@@ -311,7 +311,7 @@ static void trace_one(const tracer_t *t, chunk_t *c, uint64_t index, struct RTCI
         }
         float pd, ps;
         pm_bsdf_albedo(m, &pd, &ps);
-        if (m->kind == PM_MAT_STANDARD ? pd + ps > 0.0f : pm_bsdf_stores_photons(m)) {
+        if (pm_material_keeps_photons(m)) {
             /* indirect_only: a first hit whose light the gather points' light samples bring */
             int drop = depth == 0 && t->o->indirect_only &&
                        pm_light_at_gather(&t->lights, l,

@@ -74,6 +74,20 @@ static inline void pm_bsdf_albedo(const pm_material_t *m, float *pd_out, float *
     *ps_out = fmaxf(m->ks[0], fmaxf(m->ks[1], m->ks[2]));
 }
 
+/* Whether a surface of material m (its textured values at a point) keeps photons, the photon
+ * tracer's test at a hit and the area samples' (render/areasample.c): no delta BSDF, no
+ * transmission (pm_bsdf_stores_photons), and for the standard kind some kd or ks. */
+static inline int pm_material_keeps_photons(const pm_material_t *m)
+{
+    if (pm_material_is_specular(m))
+        return 0;
+    if (m->kind != PM_MAT_STANDARD)
+        return pm_bsdf_stores_photons(m);
+    float pd, ps;
+    pm_bsdf_albedo(m, &pd, &ps);
+    return pd + ps > 0.0f;
+}
+
 /* Probability that the standard kind's mixture sampler picks the diffuse lobe. */
 static inline float pm_bsdf_diffuse_share(const pm_material_t *m) { return pm_bsdf_standard_diffuse_share(m); }
 

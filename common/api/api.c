@@ -193,40 +193,16 @@ PMTK_API pmtk_result_t pmtk_photonmap_build(pmtk_context_t *ctx, const pmtk_phot
     if (r != PM_OK)
         return report(ctx, r);
 
-    uint32_t ch = pm_schema_required(&pm_photons_schema) | (ph->direction ? 1u << PM_PHOTON_DIRECTION : 0);
-    pm_table_t in = {0};
     pmtk_photonmap_t *m = calloc(1, sizeof *m);
     if (!m)
         return report(ctx, pm_error_set(PM_ERR_NOMEM, "out of memory for a photon map"));
     int before = threads_enter(ctx);
-    r = pm_table_alloc(&in, &pm_photons_schema, ch, ph->count);
-    if (r == PM_OK) {
-        size_t bytes = 3 * sizeof(float) * ph->count;
-        if (bytes) { /* an empty map's arrays may be NULL */
-            memcpy(in.col[PM_PHOTON_POSITION], ph->position, bytes);
-            memcpy(in.col[PM_PHOTON_POWER], ph->power, bytes);
-            memcpy(in.col[PM_PHOTON_NORMAL], ph->normal, bytes);
-        }
-        if (bytes && ph->direction)
-            memcpy(in.col[PM_PHOTON_DIRECTION], ph->direction, bytes);
-        /* the scene bounds: the photons' own */
-        float *b = in.hdr.bounds;
-        for (int k = 0; k < 3; k++)
-            b[k] = ph->count ? INFINITY : 0.0f, b[3 + k] = ph->count ? -INFINITY : 0.0f;
-        for (uint64_t i = 0; i < ph->count; i++)
-            for (int k = 0; k < 3; k++)
-                b[k] = fminf(b[k], ph->position[3 * i + k]), b[3 + k] = fmaxf(b[3 + k], ph->position[3 * i + k]);
-        pm_map_build_params_t p = {.map = PM_MAP_GLOBAL, .split = PM_SPLIT_MEDIAN};
-        pm_map_build_stats_t st;
-        char *argv[] = {"pmtk_photonmap_build", NULL};
-        r = pm_map_build(&in, "photon arrays", &p, &m->table, &st);
-        if (r == PM_OK)
-            r = pm_map_build_header(&m->table, &in, "photon arrays", 1, argv, &p, &st);
-    }
+    char *argv[] = {"pmtk_photonmap_build", NULL};
+    r = pm_map_build_arrays(ph->position, ph->power, ph->normal, ph->direction, ph->count, "photon arrays", 1, argv,
+                            &m->table);
     if (r == PM_OK)
         r = map_view(m);
     threads_leave(before);
-    pm_table_free(&in);
     if (r != PM_OK) {
         pmtk_photonmap_destroy(m);
         return report(ctx, r);

@@ -54,25 +54,7 @@ pm_result_t pm_coverage_build(pm_coverage_t *c, const float *pos, const float *n
     c->spacing = 0.0, c->samples = 0;
     if (n > PM_GATHER_MAX_PHOTONS)
         return pm_error_set(PM_ERR_USAGE, "%" PRIu64 " area samples: a map holds at most %u", n, PM_GATHER_MAX_PHOTONS);
-    pm_table_t in = {0};
-    pm_result_t r = pm_table_alloc(&in, &pm_photons_schema, pm_schema_required(&pm_photons_schema), n);
-    if (r != PM_OK)
-        return r;
-    if (n) {
-        memcpy(in.col[PM_PHOTON_POSITION], pos, 3 * sizeof(float) * n);
-        memcpy(in.col[PM_PHOTON_POWER], area, 3 * sizeof(float) * n);
-        memcpy(in.col[PM_PHOTON_NORMAL], normal, 3 * sizeof(float) * n);
-    }
-    float *b = in.hdr.bounds;
-    for (int k = 0; k < 3; k++)
-        b[k] = n ? INFINITY : 0.0f, b[3 + k] = n ? -INFINITY : 0.0f;
-    for (uint64_t i = 0; i < n; i++)
-        for (int k = 0; k < 3; k++)
-            b[k] = fminf(b[k], pos[3 * i + k]), b[3 + k] = fmaxf(b[3 + k], pos[3 * i + k]);
-    pm_map_build_params_t p = {.map = PM_MAP_GLOBAL, .split = PM_SPLIT_MEDIAN};
-    pm_map_build_stats_t st;
-    r = pm_map_build(&in, "area samples", &p, &c->table, &st);
-    pm_table_free(&in);
+    pm_result_t r = pm_map_build_arrays(pos, area, normal, NULL, n, "area samples", 0, NULL, &c->table);
     if (r == PM_OK)
         r = pm_gather_map_init(&c->map, &c->table, 0);
     if (r != PM_OK) {

@@ -256,3 +256,37 @@ pm_result_t pm_map_build_header(pm_table_t *map, const pm_table_t *ph, const cha
         return r;
     return PM_OK;
 }
+
+pm_result_t pm_map_build_arrays(const float *pos, const float *power, const float *normal, const float *dir, uint64_t n,
+                                const char *name, int argc, char **argv, pm_table_t *map_out)
+{
+    memset(map_out, 0, sizeof *map_out);
+    uint32_t ch = pm_schema_required(&pm_photons_schema) | (dir ? 1u << PM_PHOTON_DIRECTION : 0);
+    pm_table_t in = {0};
+    pm_result_t r = pm_table_alloc(&in, &pm_photons_schema, ch, n);
+    if (r != PM_OK)
+        return r;
+    size_t bytes = 3 * sizeof(float) * n;
+    if (bytes) { /* an empty map's arrays may be NULL */
+        memcpy(in.col[PM_PHOTON_POSITION], pos, bytes);
+        memcpy(in.col[PM_PHOTON_POWER], power, bytes);
+        memcpy(in.col[PM_PHOTON_NORMAL], normal, bytes);
+        if (dir)
+            memcpy(in.col[PM_PHOTON_DIRECTION], dir, bytes);
+    }
+    float *b = in.hdr.bounds; /* the scene bounds: the photons' own */
+    for (int k = 0; k < 3; k++)
+        b[k] = n ? INFINITY : 0.0f, b[3 + k] = n ? -INFINITY : 0.0f;
+    for (uint64_t i = 0; i < n; i++)
+        for (int k = 0; k < 3; k++)
+            b[k] = fminf(b[k], pos[3 * i + k]), b[3 + k] = fmaxf(b[3 + k], pos[3 * i + k]);
+    pm_map_build_params_t p = {.map = PM_MAP_GLOBAL, .split = PM_SPLIT_MEDIAN};
+    pm_map_build_stats_t st;
+    r = pm_map_build(&in, name, &p, map_out, &st);
+    if (r == PM_OK && argv && (r = pm_map_build_header(map_out, &in, name, argc, argv, &p, &st)) != PM_OK) {
+        pm_table_free(map_out);
+        memset(map_out, 0, sizeof *map_out);
+    }
+    pm_table_free(&in);
+    return r;
+}

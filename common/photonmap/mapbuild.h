@@ -59,4 +59,12 @@ pm_result_t pm_map_build(const pm_table_t *photons, const char *path, const pm_m
 pm_result_t pm_map_build_header(pm_table_t *map, const pm_table_t *photons, const char *path, int argc, char **argv,
                                 const pm_map_build_params_t *p, const pm_map_build_stats_t *stats);
 
+/* A global map of median splits (no widths) from n photons given as arrays (position, power and
+ * normal, 3 floats each; direction likewise, or NULL), their bounds the table's, into *map_out;
+ * with argv, also pm_map_build_header's keys (name standing for the photons file). For callers
+ * that hold photons in memory: the library's pmtk_photonmap_build, the area samples of
+ * photonmap/coverage.c. On failure *map_out holds nothing to free. */
+pm_result_t pm_map_build_arrays(const float *pos, const float *power, const float *normal, const float *dir, uint64_t n,
+                                const char *name, int argc, char **argv, pm_table_t *map_out);
+
 #endif

@@ -27,6 +27,7 @@
  * names. */
 #include <errno.h>
 #include <inttypes.h>
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -62,6 +63,8 @@ typedef struct {
     int per_query; /* the last map's side: its queries' results divided, not its photons' powers */
     int applied;   /* the last gather was corrected (not progressive pass 1) */
     int off;       /* the scene has too many triangles to sample within COVER_MAX_SAMPLES */
+    int level_h;   /* the spacing level of the last width, and the level used for it (coarser */
+    int level;     /* when the bound needs it): INT_MIN before the first */
     pm_coverage_t cov;
     double load_s;
 } cover_t;
@@ -83,8 +86,10 @@ typedef struct {
     cover_t *cover;                     /* --coverage, or NULL */
 } gather_options_t;
 
-/* --coverage's scene and its rays' structure, once. */
-static pm_result_t cover_load(cover_t *c)
+/* --coverage's scene and its rays' structure, once. Every storing triangle has a sample a side at
+ * least: a scene of more than COVER_MAX_SAMPLES / 2 of them cannot be sampled within the bound at
+ * any spacing, and goes uncorrected (off), with a word. */
+static pm_result_t cover_load(pm_stage_t *st, cover_t *c)
 {
     if (c->loaded)
         return PM_OK;
@@ -99,6 +104,13 @@ static pm_result_t cover_load(cover_t *c)
         return r;
     c->traced = 1;
     c->load_s = pm_time_wall() - t0;
+    if (pm_area_samples_count(&c->scene, INFINITY) > COVER_MAX_SAMPLES) {
+        c->off = 1;
+        pm_stage_note(st,
+                      "warning: --coverage: scene '%s' has too many triangles for %llu area samples (one a side "
+                      "each at least): its boundary correction is off",
+                      c->path, (unsigned long long)COVER_MAX_SAMPLES);
+    }
     return PM_OK;
 }
 
@@ -113,44 +125,32 @@ static pm_result_t cover_map(pm_stage_t *st, cover_t *c, pm_gather_inputs_t *in,
         c->applied = 0;
     if (!c || pass == 1) /* progressive pass 1 goes uncorrected (cover_t) */
         return PM_OK;
-    if (c->off)
-        return PM_OK;
-    if (!new_map) {
-        c->applied = 1;
-        in->cover = c->per_query ? &c->cov : NULL;
+    if (!new_map) { /* a kept map: corrected already, or its queries are */
+        c->applied = !c->off;
+        in->cover = c->applied && c->per_query ? &c->cov : NULL;
         return PM_OK;
     }
     double h = p->radius;
-    pm_result_t r = cover_load(c);
-    if (r != PM_OK)
+    pm_result_t r = cover_load(st, c);
+    if (r != PM_OK || c->off)
         return r;
     /* "NAME xxh3:GEOMETRY" begins both keys when the triangles, materials and textures agree */
     char id[300];
-    pm_scene_id_part(&c->scene, PM_SCENE_PHOTONS, id, sizeof id);
-    char *cut = strstr(id, " photons:");
-    if (cut)
-        *cut = '\0';
+    pm_scene_id(&c->scene, id, sizeof id);
     const char *key = pm_header_get(&in->q_table.hdr, "SCENE");
-    size_t n = strlen(id);
-    if (!key || strncmp(key, id, n) != 0 || (key[n] != '\0' && key[n] != ' '))
+    if (!key || !pm_scene_key_same_scene(id, key))
         return pm_error_set(PM_ERR_INPUT, "--coverage '%s' is scene '%s', but the queries '%s' are of '%s'", c->path,
                             id, in->q_path ? in->q_path : "stdin", key ? key : "(no SCENE key)");
     int level;
     if ((r = pm_coverage_level(h, &level)) != PM_OK)
         return r;
-    /* Every storing triangle has a sample a side at least: a scene of more than COVER_MAX_SAMPLES / 2
-     * of them cannot be sampled within the bound at any spacing, and goes uncorrected, with a word. */
-    if (pm_area_samples_count(&c->scene, INFINITY) > COVER_MAX_SAMPLES) {
-        c->off = 1;
-        pm_stage_note(st,
-                      "warning: --coverage: scene '%s' has too many triangles for %llu area samples (one a side "
-                      "each at least): its boundary correction is off",
-                      c->path, (unsigned long long)COVER_MAX_SAMPLES);
-        return PM_OK;
+    if (level != c->level_h) { /* the spacing for this width's level, within the bound: counted once a level */
+        c->level_h = level;
+        while (pm_area_samples_count(&c->scene, pm_coverage_level_spacing(level)) > COVER_MAX_SAMPLES)
+            level++;
+        c->level = level;
     }
-    while (pm_area_samples_count(&c->scene, pm_coverage_level_spacing(level)) > COVER_MAX_SAMPLES)
-        level++;
-    double spacing = pm_coverage_level_spacing(level);
+    double spacing = pm_coverage_level_spacing(c->level);
     if (c->cov.spacing != spacing) {
         pm_area_samples_t a;
         /* A side within two kernel widths of a solid's far face is what a kernel would count: the
@@ -172,10 +172,9 @@ static pm_result_t cover_map(pm_stage_t *st, cover_t *c, pm_gather_inputs_t *in,
      * queries outnumber the photons (a final gather), else each query's result. A kept map keeps
      * the side it was first given. */
     c->applied = 1;
-    if (new_map)
-        c->per_query = in->total < (uint64_t)in->map.n;
+    c->per_query = in->total < (uint64_t)in->map.n;
     in->cover = c->per_query ? &c->cov : NULL;
-    return new_map && !c->per_query ? pm_coverage_apply(&c->cov, &in->map_table, &in->map, p) : PM_OK;
+    return c->per_query ? PM_OK : pm_coverage_apply(&c->cov, &in->map_table, &in->map, p);
 }
 
 /* The output's header keys coverage (the area samples' spacing, m) and coverage_side, when its
@@ -558,7 +557,7 @@ static pm_result_t run_pairs(pm_stage_t *st, const gather_options_t *opt, pm_isa
         before += (uint64_t)emitted;
         passes++;
         /* pass 1 is out: load --coverage's scene while pass 2 is traced (cover_t) */
-        if (o->cover && pass == 1 && (r = cover_load(o->cover)) != PM_OK)
+        if (o->cover && pass == 1 && (r = cover_load(st, o->cover)) != PM_OK)
             break;
     }
     if (r == PM_OK && passes == 0)
@@ -685,6 +684,7 @@ int main(int argc, char **argv)
     pm_stage_defaults(&st);
     cover_t cover;
     memset(&cover, 0, sizeof cover);
+    cover.level_h = INT_MIN;
     gather_options_t o = {.radius = 0.0,
                           .k = 50.0,
                           .kernel = 1,

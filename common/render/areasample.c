@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "math/rng.h"
+#include "math/sampling.h"
 #include "math/vec.h"
 #include "render/transport.h"
 
@@ -136,8 +137,9 @@ pm_result_t pm_area_samples_make(const pm_scene_t *s, const pm_rt_t *rt, double 
         for (uint64_t i = 0; i < n; i++) {
             double u = ((double)i + 0.5) / (double)n + du, v = radical2(i) + dv;
             u -= floor(u), v -= floor(v);
-            double su = sqrt(u);
-            float b1 = (float)(su * (1.0 - v)), b2 = (float)(su * v), p[3];
+            float b0, b1, b2, p[3]; /* (b1, b2): the weights of v1 and v2, Embree's (u, v) */
+            pm_sample_triangle((float)u, (float)v, &b0, &b2);
+            b1 = 1.0f - b0 - b2;
             for (int c = 0; c < 3; c++)
                 p[c] = v0[c] + b1 * (v1[c] - v0[c]) + b2 * (v2[c] - v0[c]);
             if (s->any_alpha && pm_scene_cut_out(s, (uint32_t)t, b1, b2))

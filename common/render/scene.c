@@ -409,6 +409,9 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
     ctx_t c = {.file = path, .s = s, .camera_mesh = -1};
     snprintf(s->path, sizeof s->path, "%s", path);
     json_error_t je;
+    pm_result_t r0 = pm_scene_check_regular(path, "scene"); /* a FIFO would block every stage */
+    if (r0 != PM_OK)
+        return r0;
     FILE *f = fopen(path, "rb");
     if (!f)
         return pm_error_set(pm_result_of_errno(errno), "cannot open scene '%s': %s", path, strerror(errno));

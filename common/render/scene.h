@@ -248,6 +248,10 @@ static inline int pm_scene_emits_both(const pm_scene_t *s, uint32_t tri)
     return s->two_sided_lights || s->materials[s->tri_material[tri]].two_sided;
 }
 
+/* Refuses a file to read that is not a regular file (a FIFO would block the load; opened without
+ * blocking to find out); what names it in the message ("mesh", "scene"). render/mesh.c. */
+pm_result_t pm_scene_check_regular(const char *path, const char *what);
+
 /* Loads and checks a scene file. Errors name the file and the line (JSON syntax) or the
  * key path ("camera.fov_y") and the offending value. */
 pm_result_t pm_scene_load(const char *path, pm_scene_t *out);

@@ -123,10 +123,6 @@ int pm_scene_pbr_inputs(int is_obj, const struct aiMaterial *am, float *metallic
 /* A material name as pmtk keeps it: spaces and control characters become '_'. */
 void pm_scene_material_word(char *name);
 
-/* Refuses a file to read that is not a regular file (a FIFO would block the load; opened without
- * blocking to find out); what names it in the message ("mesh"). mesh.c. */
-pm_result_t pm_scene_check_regular(const char *path, const char *what);
-
 /* ---- mesh_guard.c: between an untrusted mesh file and assimp. */
 /* The header of a PLY (by content or name), OFF or STL file checked against its size, before assimp
  * reads it (its readers crash, loop or over-allocate on damaged headers). */

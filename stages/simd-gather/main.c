@@ -730,12 +730,8 @@ int main(int argc, char **argv)
     pm_result_t r = PM_OK;
     if (cover.path) { /* loaded when first used; a file that cannot be read is refused now */
         o.cover = &cover;
-        FILE *f = fopen(cover.path, "rb");
-        if (!f)
-            r = pm_error_set(pm_result_of_errno(errno), "--coverage: cannot open '%s': %s", cover.path,
-                             strerror(errno));
-        else
-            fclose(f);
+        if ((r = pm_scene_check_regular(cover.path, "scene")) != PM_OK)
+            pm_error_prefix("--coverage");
     }
     rc = pm_stage_end(&st, r != PM_OK ? r : run(&st, &o, argv));
     if (cover.traced)

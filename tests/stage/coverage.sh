@@ -126,6 +126,10 @@ if "$BIN/trace-photons" "$S" -q -o - | "$BIN/build-photonmap" - -q -o "$D/map.pm
     else
         fail "--coverage of a missing scene" "exit $rc: $(cat "$D/err")"
     fi
+    mkfifo "$D/fifo.json"
+    expect_error "--coverage of a FIFO: refused at once, not waited on" "coverage: scene '.*fifo.json' is not a regular file \\(a FIFO\\)" \
+        timeout 10 "$BIN/simd-gather" "$D/map.pm" "$D/dv.q.pm" --radius 0.4 --coverage "$D/fifo.json" -q -o "$D/bad.pm"
+    [ ! -e "$D/bad.pm" ] || fail "--coverage of a FIFO" "an output was left"
     "$BIN/trace-photons" "$S" --photons 20000 -q -o - | "$BIN/build-photonmap" - --width-k 20 -q -o "$D/wmap.pm"
     "$BIN/simd-gather" "$D/wmap.pm" "$D/dv.q.pm" --widths variable --coverage "$S" -q -o "$D/bad.pm" 2>"$D/err"
     rc=$?

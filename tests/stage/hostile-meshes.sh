@@ -83,6 +83,9 @@ expect_error "a FIFO named as a mesh is refused without blocking" "mesh '.*fifo/
 rm "$H/fifo/m.obj" && mv "$H/fifo/real.obj" "$H/fifo/m.obj" && mv "$H/fifo/m.mtl" "$H/fifo/real.mtl" && mkfifo "$H/fifo/m.mtl"
 expect_error "a FIFO named as an OBJ's mtllib is refused without blocking" \
     "material library '.*fifo/m.mtl' is not a regular file \\(a FIFO\\)" timeout 10 "$BIN/scene-info" "$H/fifo/scene.json"
+mkfifo "$H/fifo/fifo.json"
+expect_error "a FIFO named as the scene file is refused without blocking" \
+    "scene '.*fifo/fifo.json' is not a regular file \\(a FIFO\\)" timeout 10 "$BIN/trace-photons" "$H/fifo/fifo.json" -o "$H/fifo/ph.pm"
 
 # -o - and a name of stdout for another output are one output (they interleaved): usage, exit 2
 TGP=("$BIN/trace-gather-points" -q "$H/kd1/scene.json" --spp 4 --width 8 --height 8)

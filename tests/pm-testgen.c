@@ -241,12 +241,13 @@ int main(int argc, char **argv)
     if (argc == 4 && !strcmp(argv[1], "reseal"))
         return reseal(argv[2], argv[3]);
     if (argc < 4) {
-        fprintf(stderr, "usage: pm-testgen FORMAT N OUT [--all] [--set KEY=VALUE] [--shape equal|line|plane|huge] "
+        fprintf(stderr, "usage: pm-testgen FORMAT N OUT [--all] [--set KEY=VALUE]... [--shape equal|line|plane|huge] "
                         "[--poison nan|inf|negative|unit|tree|order|pixel|nudge]\n");
         return 2;
     }
     int all = 0;
-    const char *what = NULL, *set = NULL, *shape = NULL;
+    const char *what = NULL, *sets[8], *shape = NULL;
+    int nset = 0;
     for (int i = 4; i < argc; i++) {
         if (!strcmp(argv[i], "--all"))
             all = 1;
@@ -254,8 +255,8 @@ int main(int argc, char **argv)
             what = argv[++i];
         else if (!strcmp(argv[i], "--shape") && i + 1 < argc)
             shape = argv[++i];
-        else if (!strcmp(argv[i], "--set") && i + 1 < argc && strchr(argv[i + 1], '='))
-            set = argv[++i];
+        else if (!strcmp(argv[i], "--set") && i + 1 < argc && strchr(argv[i + 1], '=') && nset < 8)
+            sets[nset++] = argv[++i];
         else if (!strcmp(argv[i], "--size") && i + 1 < argc && sscanf(argv[i + 1], "%ux%u", &dens_w, &dens_h) == 2)
             i++;
         else if (!strcmp(argv[i], "--range") && i + 1 < argc && sscanf(argv[i + 1], "%f:%f", &dens_lo, &dens_hi) == 2)
@@ -271,7 +272,8 @@ int main(int argc, char **argv)
         pm_table_free(&t);
         return 2;
     }
-    if (set) { /* --set KEY=VALUE: a header key, for tests of header comparisons */
+    for (int k = 0; k < nset; k++) { /* --set KEY=VALUE: header keys, for tests of header comparisons */
+        const char *set = sets[k];
         char key[64];
         snprintf(key, sizeof key, "%.*s", (int)(strchr(set, '=') - set), set);
         pm_header_set(&t.hdr, key, "%s", strchr(set, '=') + 1);

@@ -94,6 +94,36 @@ void pm_strata_fill(pm_rng_t *rng, unsigned nx, unsigned ny, unsigned per_cell, 
     }
 }
 
+void pm_strata_pixel(pm_rng_t *rng, unsigned blocks, unsigned block_cells, unsigned sub, float *u1, float *u2,
+                     uint32_t *perm)
+{
+    unsigned nx, ny, per = sub * sub;
+    pm_strata_grid(blocks * block_cells, &nx, &ny);
+    /* the uniform numbers first, whole Philox blocks at a time (pm_strata_fill's SIMD path, one
+     * cell of them all), then the order, then each point into its sub-cell */
+    size_t n = (size_t)blocks * block_cells * per;
+    pm_strata_fill(rng, 1, 1, (unsigned)n, u1, u2);
+    for (unsigned b = 0; b < blocks; b++)
+        perm[b] = b;
+    for (unsigned b = blocks; b > 1; b--) { /* Fisher-Yates: a uniform order of the blocks */
+        unsigned k = (unsigned)(((uint64_t)pm_rng_u32(rng) * b) >> 32);
+        uint32_t t = perm[b - 1];
+        perm[b - 1] = perm[k], perm[k] = t;
+    }
+    /* the fine grid: nx * sub columns, ny * sub rows */
+    float fnx = (float)(nx * sub), fny = (float)(ny * sub), inx = 1.0f / fnx, iny = 1.0f / fny;
+    size_t i = 0;
+    for (unsigned b = 0; b < blocks; b++)
+        for (unsigned k = 0; k < block_cells; k++) {
+            unsigned cell = perm[b] * block_cells + k, cx = cell % nx, cy = cell / nx;
+            for (unsigned sy = 0; sy < sub; sy++)
+                for (unsigned sx = 0; sx < sub; sx++, i++) {
+                    u1[i] = in_cell(cx * sub + sx, fnx, inx, u1[i]);
+                    u2[i] = in_cell(cy * sub + sy, fny, iny, u2[i]);
+                }
+        }
+}
+
 /* sin and cos on [-pi/4, pi/4]: Taylor polynomials to degree 9 and 10, whose truncation
  * error there is below 4e-9 and 3e-10, under float rounding. */
 static inline float sin_quarter(float a)

@@ -48,10 +48,19 @@ static pm_result_t inputs_setup(pm_gather_inputs_t *in, int variable, uint64_t r
      * none (docs/accuracy.md). */
     const char *qd = pm_header_get(qh, "secondary_direct"), *qm = pm_header_get(qh, "mode"),
                *mi = pm_header_get(mh, "indirect_only");
-    int sd = qd && !strcmp(qd, "1"), imap = mk && !strcmp(mk, "indirect"), io = mi && !strcmp(mi, "1");
+    /* 1 or 2: the rule of which light the gather points sample (pm_light_gather_rule) */
+    int sd = qd && (!strcmp(qd, "1") || !strcmp(qd, "2")) ? qd[0] - '0' : 0,
+        io = mi && (!strcmp(mi, "1") || !strcmp(mi, "2")) ? mi[0] - '0' : 0;
+    int imap = mk && !strcmp(mk, "indirect");
     const char *map = NULL, *queries = NULL; /* what each holds, when they disagree */
     if (cq || cmap)
         map = NULL;
+    else if (sd && io && sd != io)
+        return pm_error_set(PM_ERR_INPUT,
+                            "photon map '%s' says indirect_only=%d but queries '%s' say secondary_direct=%d: made "
+                            "under different rules of which light the gather points sample (pmtk versions: rule 2 "
+                            "leaves a constant sky to the map); make both again with this pmtk",
+                            in->map_path, io, in->q_path, sd);
     else if (sd && !io && !imap)
         map = "holds the first-hit photons of every light",
         queries = "have secondary direct light: the direct light at the gather points would count twice "

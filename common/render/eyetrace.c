@@ -72,6 +72,19 @@ typedef struct {
     float *emw;          /* per primary ray: the weight of the emission its last ray finds (MIS past a glossy bounce) */
     uint32_t *rx, *rj;   /* per primary ray: its pixel column and its index among the pixel's rays */
     size_t thr_cap, emw_cap, rx_cap, rj_cap;
+    /* The pixel's secondary points, stratified over all its primary rays at once (pm_strata_pixel):
+     * primary ray j's spp points start at j * spp; blk is the ray being shaded's start, taken by
+     * its first secondary directions (a second set at the same ray, past a glossy bounce, draws
+     * its own strata), SIZE_MAX when none waits. */
+    float *pix_u; /* u1 of the pixel's points, then their u2 from pix_n on */
+    uint32_t *pix_perm;
+    size_t pix_n, pix_cap, pix_perm_cap, blk;
+    /* The same for the light samples of the primary hits: per light that is not a delta, the
+     * pixel's rays * light_samples points stratified together (u1 then u2, pix_ln each), dealt
+     * to its rays in a random order; lblk is the shaded ray's start in them, taken by its first
+     * direct_lights, SIZE_MAX when none waits. */
+    float *pix_l;
+    size_t pix_ln, pix_l_cap, lblk;
     uint64_t n_primary, n_secondary, n_shadow, n_queries, n_caustic, n_specular, n_specular_cut, n_glossy;
     uint64_t n_guided_hits, n_guided_rays;
     uint32_t row;       /* the row being traced */
@@ -112,6 +125,9 @@ struct pm_eye {
      * or to the gather point's light) when past_hit; it casts secondary rays at all when
      * sec_rays (past_hit, or emitters, a sun or a sky for them to find). Both derived once. */
     int past_hit, sec_rays;
+    /* pm_eye_options_t strata_hit 0: the secondary points (gather mode, sec_rays) and the light
+     * samples (a light that is not a delta) stratified over each pixel's primary rays */
+    int sec_strata, light_strata;
     uint32_t record_size, off_pos, off_nor, off_w, off_pix, off_mat, off_dir; /* bytes */
     uint64_t seed;
     float eps; /* m, ray-origin offset along the normal */
@@ -171,7 +187,7 @@ static void scratch_free(scratch_t *sc)
     free(sc->hit), free(sc->sh_px), free(sc->sh_c), free(sc->sec_px), free(sc->sec_w), free(sc->sec_cos),
         free(sc->sec_env);
     free(sc->u1), free(sc->u2), free(sc->lx), free(sc->ly), free(sc->lz), free(sc->gsel), free(sc->thr);
-    free(sc->emw), free(sc->rx), free(sc->rj);
+    free(sc->emw), free(sc->rx), free(sc->rj), free(sc->pix_u), free(sc->pix_perm), free(sc->pix_l);
 }
 
 /* Appends one query record in file layout; 0 when out of memory. */
@@ -392,7 +408,7 @@ static inline const pm_guide_cell_t *guide_cell(const pm_eye_t *c, const surf_t 
  * keeps only the samples pm_light_at_gather gives the gather point (gather_direct). */
 static void direct_lights_n(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, float inv_p,
                             const float tp[3], float nb, int mis, pm_rng_t *light_rng, const pm_guide_cell_t *gc,
-                            unsigned ls, int area)
+                            unsigned ls, int area, size_t lblk)
 {
     const pm_lights_t *lights = &c->lights;
     const pm_material_t *m = v->m;
@@ -402,9 +418,16 @@ static void direct_lights_n(const pm_eye_t *c, scratch_t *sc, const surf_t *v, u
      * samples (render/light.h). */
     for (size_t l = 0; l < lights->ndirect; l++) {
         unsigned nsamples = l < lights->ndelta ? 1 : ls;
+        /* the pixel's stratified points of this light (pixel_strata), when the ray has them */
+        const float *lu =
+            lblk != SIZE_MAX && l >= lights->ndelta ? sc->pix_l + 2 * (l - lights->ndelta) * sc->pix_ln + lblk : NULL;
         for (unsigned q = 0; q < nsamples; q++) {
             pm_light_li_t li;
-            if (!pm_lights_sample_li(lights, l, light_rng, p, n, &li) || (shaded && !(pm_dot3(gn, li.wi) > 0.0f)))
+            float u[2];
+            if (lu)
+                u[0] = lu[q], u[1] = lu[sc->pix_ln + q];
+            if (!pm_lights_sample_li_u(lights, l, light_rng, lu ? u : NULL, p, n, &li) ||
+                (shaded && !(pm_dot3(gn, li.wi) > 0.0f)))
                 continue; /* behind the shading or the geometric surface */
             if (!area && !pm_light_at_gather(lights, &lights->direct[l], li.r2))
                 continue; /* near an area light: the map's */
@@ -443,7 +466,9 @@ static void direct_lights_n(const pm_eye_t *c, scratch_t *sc, const surf_t *v, u
 static void direct_lights(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, float inv_p, const float tp[3],
                           float nb, int mis, pm_rng_t *light_rng, const pm_guide_cell_t *gc)
 {
-    direct_lights_n(c, sc, v, x, inv_p, tp, nb, mis, light_rng, gc, c->light_samples, 1);
+    size_t lblk = sc->lblk; /* the ray's first light samples take its block of the pixel's */
+    sc->lblk = SIZE_MAX;
+    direct_lights_n(c, sc, v, x, inv_p, tp, nb, mis, light_rng, gc, c->light_samples, 1, lblk);
 }
 
 /* Traces the shadow rays gathered in sc->shadow; each unblocked one adds its radiance to
@@ -509,6 +534,18 @@ static int sec_room(const pm_eye_t *c, scratch_t *sc)
 
 /* ------------------------------------------------------------------ secondary rays */
 
+/* The spp stratified points of a hit's secondary rays into sc->u1, u2: the primary ray's block of
+ * its pixel's points when it has not used it yet, else strata of the hit's own. */
+static void secondary_points(const pm_eye_t *c, scratch_t *sc, pm_rng_t *gather_rng)
+{
+    if (sc->blk != SIZE_MAX) {
+        memcpy(sc->u1, sc->pix_u + sc->blk, c->spp * sizeof(float));
+        memcpy(sc->u2, sc->pix_u + sc->pix_n + sc->blk, c->spp * sizeof(float));
+        sc->blk = SIZE_MAX;
+    } else
+        pm_strata_fill(gather_rng, c->nx, c->ny, PER_CELL, sc->u1, sc->u2);
+}
+
 /* The local frame about n and the spp stratified cosine-weighted directions in it, into sc. */
 static void secondary_directions(const pm_eye_t *c, scratch_t *sc, const float n[3], pm_rng_t *gather_rng, float tb[3],
                                  float bb[3])
@@ -516,7 +553,7 @@ static void secondary_directions(const pm_eye_t *c, scratch_t *sc, const float n
     pm_vec3_t tv, bv;
     pm_onb(pm_v3_load(n), &tv, &bv);
     pm_v3_store(tb, tv), pm_v3_store(bb, bv);
-    pm_strata_fill(gather_rng, c->nx, c->ny, PER_CELL, sc->u1, sc->u2);
+    secondary_points(c, sc, gather_rng);
     pm_strata_cosine(sc->u1, sc->u2, c->spp, sc->lx, sc->ly, sc->lz);
 }
 
@@ -536,7 +573,7 @@ static void spawn_guided(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint
     pm_onb(pm_v3_load(n), &tv, &bv);
     float tb[3], bb[3];
     pm_v3_store(tb, tv), pm_v3_store(bb, bv);
-    pm_strata_fill(gather_rng, c->nx, c->ny, PER_CELL, sc->u1, sc->u2);
+    secondary_points(c, sc, gather_rng);
     pm_rays_t *sr = &sc->sec;
     size_t j0 = sr->n;
     unsigned nq = c->spp;
@@ -903,7 +940,7 @@ static int gather_direct(const pm_eye_t *c, scratch_t *sc, const path_t *a)
     surf_normals(c->s, a->tri, side, &v);
     if (!shadow_room(c, sc))
         return 0;
-    direct_lights_n(c, sc, &v, a->x, 1.0f, a->w, 0.0f, 0, a->rng, NULL, 1, 0);
+    direct_lights_n(c, sc, &v, a->x, 1.0f, a->w, 0.0f, 0, a->rng, NULL, 1, 0, SIZE_MAX);
     return 1;
 }
 
@@ -1013,7 +1050,7 @@ static int glossy_bounce(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCo
             vd.m = &diffuse;
             if (!shadow_room(c, sc))
                 return -1;
-            direct_lights_n(c, sc, &vd, a->x, 1.0f, a->w, 0.0f, 0, a->rng, NULL, 1, 0);
+            direct_lights_n(c, sc, &vd, a->x, 1.0f, a->w, 0.0f, 0, a->rng, NULL, 1, 0, SIZE_MAX);
         }
         /* The lobe alone: the material without its diffuse part. */
         lobe = *m;
@@ -1306,6 +1343,36 @@ static int primary_glossy(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectC
     return 1;
 }
 
+/* The secondary points of every primary ray of pixel `pixel`, stratified together
+ * (pm_strata_pixel), into sc->pix_u. 0 when out of memory. */
+static int pixel_strata(const pm_eye_t *c, scratch_t *sc, pm_rng_t *gather_rng, uint64_t pixel)
+{
+    unsigned rays = pixel_rays(c, pixel);
+    size_t n = (size_t)rays * c->spp;
+    if (!grow((void **)&sc->pix_u, 2 * sizeof(float), &sc->pix_cap, n) ||
+        !grow((void **)&sc->pix_perm, sizeof(uint32_t), &sc->pix_perm_cap, rays))
+        return 0;
+    sc->pix_n = n;
+    _Static_assert(PER_CELL == 4, "a cell's points are its 2 x 2 sub-cells");
+    pm_strata_pixel(gather_rng, rays, c->spp / PER_CELL, 2, sc->pix_u, sc->pix_u + n, sc->pix_perm);
+    return 1;
+}
+
+/* The light samples' points of every primary ray of pixel `pixel` (sc->pix_l), from light_rng:
+ * per light that is not a delta, its rays * light_samples points as one stratified set
+ * (pm_strata_pixel, cells of one point dealt in a random order). 0 when out of memory. */
+static int pixel_light_strata(const pm_eye_t *c, scratch_t *sc, pm_rng_t *light_rng, uint64_t pixel)
+{
+    size_t nl = c->lights.ndirect - c->lights.ndelta, n = (size_t)pixel_rays(c, pixel) * c->light_samples;
+    if (!grow((void **)&sc->pix_l, 2 * sizeof(float), &sc->pix_l_cap, nl * n) ||
+        !grow((void **)&sc->pix_perm, sizeof(uint32_t), &sc->pix_perm_cap, n))
+        return 0;
+    sc->pix_ln = n;
+    for (size_t l = 0; l < nl; l++)
+        pm_strata_pixel(light_rng, (unsigned)n, 1, 1, sc->pix_l + 2 * l * n, sc->pix_l + (2 * l + 1) * n, sc->pix_perm);
+    return 1;
+}
+
 /* Every primary ray of row y: chains through mirrors and glass, the sky seen, and the hits'
  * shading (shade_primary). 0 when out of memory. */
 static int shade_row(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContext *ctx, uint32_t y, double *direct,
@@ -1322,11 +1389,16 @@ static int shade_row(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContex
         if (sc->rj[i] == 0) {
             pm_rng_init(&light_rng, c->seed, 4 * (uint64_t)pixel + STREAM_LIGHT);
             pm_rng_init(&gather_rng, c->seed, 4 * (uint64_t)pixel + STREAM_GATHER);
+            if ((c->sec_strata && !pixel_strata(c, sc, &gather_rng, pixel)) ||
+                (c->light_strata && !pixel_light_strata(c, sc, &light_rng, pixel)))
+                return 0;
             if (c->specular || c->cont)
                 specular_rng(&spec_rng, c->seed, pixel, 0);
             if (c->specular)
                 spec_xi = pm_rng_float(&spec_rng);
         }
+        sc->blk = c->sec_strata ? (size_t)sc->rj[i] * c->spp : SIZE_MAX;
+        sc->lblk = c->light_strata ? (size_t)sc->rj[i] * c->light_samples : SIZE_MAX;
         if (c->specular || c->cont) {
             float *t0 = sc->thr + 3 * i;
             t0[0] = t0[1] = t0[2] = 1.0f; /* the chain's throughput: none yet */
@@ -1352,6 +1424,7 @@ static int shade_row(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContex
         if (!shade_primary(c, sc, i, x, pixel, &light_rng, &gather_rng, direct, out, caus))
             return 0;
     }
+    sc->blk = sc->lblk = SIZE_MAX; /* the secondary hits draw their own */
     return 1;
 }
 
@@ -1616,6 +1689,8 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
         c->env_mis |= c->lights.direct[l].infinite;
     c->past_hit = !c->direct_only || c->cont || c->sec_direct;
     c->sec_rays = c->past_hit || (r == PM_OK && pm_lights_has_emitters(&c->lights)) || c->env_mis;
+    c->sec_strata = !o->strata_hit && c->mode == PM_EYE_GATHER && c->sec_rays;
+    c->light_strata = r == PM_OK && !o->strata_hit && c->light_samples && c->lights.ndirect > c->lights.ndelta;
     if (r != PM_OK) {
         pm_eye_destroy(c);
         return r;
@@ -1634,6 +1709,7 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
                               .caustics = c->caustics,
                               .glossy_depth = c->cont ? c->glossy_depth : 0,
                               .secondary_direct = o->secondary_direct,
+                              .strata_pixel = c->sec_strata || c->light_strata,
                               .guided = c->guide != NULL,
                               .record_size = c->record_size};
     *out = c;
@@ -1769,7 +1845,9 @@ static pm_result_t header_common(const pm_eye_t *c, int argc, char **argv, pm_he
     if (r == PM_OK)
         r = pm_header_set(h, "seed", "%" PRIu64, c->seed);
     if (r == PM_OK && c->info.secondary_direct) /* absent otherwise: files as they were before */
-        r = pm_header_set(h, "secondary_direct", "1");
+        r = pm_header_set(h, "secondary_direct", "%d", pm_light_gather_rule(c->s));
+    if (r == PM_OK && c->info.strata_pixel) /* absent otherwise: files as they were before */
+        r = pm_header_set(h, "strata", "pixel");
     if (r == PM_OK && c->guide) /* which photons: the stage's INPUT line */
         r = pm_header_set(h, "guide", "photons");
     return r;

@@ -72,6 +72,9 @@ typedef struct {
     int secondary_direct;          /* gather mode: next-event estimation at every gather point too, into the direct
                                     * buffer, for a map without the first-hit photons it stands for (trace-photons
                                     * --indirect-only; render/light.h, pm_light_at_gather) */
+    int strata_hit;                /* 1: every hit's secondary rays and light samples stratified alone (the paper's
+                                    * section 6.1, files as before); 0: a pixel's primary rays' stratified together
+                                    * (math/strata.h, pm_strata_pixel; header strata=pixel) */
     const uint32_t *pixel_primary; /* adaptive passes: primary rays of each pixel (width x height, each >= 1), each
                                     * weighted by 1 / its pixel's count, instead of `primary` everywhere; NULL for
                                     * none. Read only, must outlive the context */
@@ -93,6 +96,7 @@ typedef struct {
     unsigned glossy_depth; /* glossy paths are followed up to this many bounces (0: the scene has none, or off) */
     int guided;            /* secondary rays are guided by photons (pm_eye_options_t guide) */
     int secondary_direct;  /* the gather points' direct light is in the direct buffer (header secondary_direct=1) */
+    int strata_pixel;      /* secondary rays and light samples stratified over each pixel (header strata=pixel) */
 } pm_eye_info_t;
 
 /* Counters of one pm_eye_trace. */

@@ -156,8 +156,12 @@ int pm_lights_has_emitters(const pm_lights_t *L) { return L->s->nemissive > 0; }
 
 int pm_light_at_gather(const pm_lights_t *L, const pm_light_t *l, float r2)
 {
+    if (l->kind == PM_LIGHT_SKY)
+        return L->s->envmap != NULL; /* a constant sky: the map's */
     return l->kind != PM_LIGHT_AREA || r2 >= (float)L->area;
 }
+
+int pm_light_gather_rule(const pm_scene_t *s) { return s->has_sky && !s->envmap ? 2 : 1; }
 
 size_t pm_lights_count_at_gather(const pm_scene_t *s)
 {
@@ -492,6 +496,12 @@ static int toward(const float p[3], const float n[3], const float y[3], pm_light
 int pm_lights_sample_li(const pm_lights_t *L, size_t i, pm_rng_t *rng, const float p[3], const float n[3],
                         pm_light_li_t *o)
 {
+    return pm_lights_sample_li_u(L, i, rng, NULL, p, n, o);
+}
+
+int pm_lights_sample_li_u(const pm_lights_t *L, size_t i, pm_rng_t *rng, const float *u, const float p[3],
+                          const float n[3], pm_light_li_t *o)
+{
     const pm_scene_t *s = L->s;
     const pm_light_t *l = &L->direct[i];
     o->delta = l->delta, o->infinite = l->infinite, o->cosy = 1.0f, o->pdf = 1.0f;
@@ -513,7 +523,7 @@ int pm_lights_sample_li(const pm_lights_t *L, size_t i, pm_rng_t *rng, const flo
          * before u1 (the order trace-gather-points has always drawn them in). */
         size_t e = pm_cdf_pick(L->area_cdf, s->nemissive, pm_rng_double(rng));
         uint32_t tri = s->emissive[e];
-        float u2 = pm_rng_float(rng), u1 = pm_rng_float(rng), b0, b1, y[3];
+        float u2 = u ? u[1] : pm_rng_float(rng), u1 = u ? u[0] : pm_rng_float(rng), b0, b1, y[3];
         pm_sample_triangle(u1, u2, &b0, &b1);
         triangle_point(s, tri, b0, b1, y);
         if (!toward(p, n, y, o))
@@ -529,7 +539,7 @@ int pm_lights_sample_li(const pm_lights_t *L, size_t i, pm_rng_t *rng, const flo
     }
     case PM_LIGHT_SUN:
     case PM_LIGHT_SKY: {
-        float u1 = pm_rng_float(rng), u2 = pm_rng_float(rng);
+        float u1 = u ? u[0] : pm_rng_float(rng), u2 = u ? u[1] : pm_rng_float(rng);
         if (l->kind == PM_LIGHT_SUN)
             pm_sun_sample(&s->sun, u1, u2, o->wi);
         else

@@ -46,6 +46,7 @@
 #include "render/shade.h"
 
 static const char *const guide_cells_names[] = {"helpful", "all", NULL};
+static const char *const strata_names[] = {"pixel", "hit", NULL};
 
 typedef struct {
     const char *direct;    /* --direct FILE, NULL for none */
@@ -72,6 +73,7 @@ typedef struct {
     uint64_t guide_hash;     /* its content hash, once read */
     const pm_guide_t *built; /* with --passes or --plan: the guide built once for every pass */
     int secondary_direct;    /* --secondary-direct: light samples at the gather points too */
+    int strata;              /* --strata: 0 pixel, 1 hit */
     const char *adaptive;    /* --adaptive MAP: each pixel's primary rays times its multiplier, NULL for none */
     uint64_t adaptive_hash;  /* the pass's map's content hash; adaptive_used: a map was read for the pass */
     int adaptive_used;
@@ -338,7 +340,8 @@ static pm_result_t run(pm_stage_t *st, tgp_options_t *o, const pm_scene_t *s, co
         .caustics = o->caustic != NULL,
         .direct_only = o->no_queries,
         .glossy_depth = (unsigned)o->glossy_depth,
-        .secondary_direct = o->secondary_direct};
+        .secondary_direct = o->secondary_direct,
+        .strata_hit = o->strata == 1};
     pm_eye_options_t eo_g = eo;
     /* The scene's own camera is within the image limits (scene.c): only --width or --height
      * can take it beyond them, a usage error. */
@@ -545,6 +548,10 @@ int main(int argc, char **argv)
          "near field stays the map's): gather the queries against a map without the first hits they stand for "
          "(trace-photons --indirect-only); headers say secondary_direct=1",
          1, 0, NULL},
+        {"strata", 0, PM_OPT_CHOICE, &o.strata, "HOW",
+         "pixel: the secondary rays and the light samples of all a pixel's primary rays stratified as one set "
+         "(headers say strata=pixel); hit: each hit's alone (the files of before)",
+         1, 0, strata_names},
         {0},
     };
     static const char about[] =

@@ -26,6 +26,7 @@
 #include "base/passplan.h"
 #include "base/stage.h"
 #include "formats/formats.h"
+#include "render/light.h"
 #include "render/photontrace.h"
 #include "render/rt.h"
 
@@ -63,7 +64,8 @@ static pm_result_t write_photons(pm_stage_t *st, const trace_options_t *o, const
         (r = pm_header_set(&h, "emitted", "%" PRIu64, tr->emitted)) == PM_OK &&
         (!o->pass || (r = pm_header_set(&h, "pass", "%" PRId64, o->pass)) == PM_OK) &&
         (!caustic || (r = pm_header_set(&h, "kind", "caustic")) == PM_OK) &&
-        (caustic || !o->indirect_only || (r = pm_header_set(&h, "indirect_only", "1")) == PM_OK) &&
+        (caustic || !o->indirect_only ||
+         (r = pm_header_set(&h, "indirect_only", "%d", pm_light_gather_rule(s))) == PM_OK) &&
         (r = pm_writer_open(caustic ? o->caustic : st->output, &h, &w)) == PM_OK) {
         const unsigned char **data = caustic ? tr->caustic_data : tr->chunk_data;
         const uint64_t *count = caustic ? tr->caustic_count : tr->chunk_count;

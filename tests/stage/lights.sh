@@ -178,6 +178,42 @@ lit_plane "$TMP/sky" 0.5 '"sky": { "radiance": [1, 1, 1] }' 3
 three_ways "constant sky of L 1 over a plane of albedo 0.5, L_out = rho L" "$TMP/sky/scene.json" \
     -v kd=0.5 -v kind=const -v Ec=$PI
 
+# ---- which first hits the gather points' light samples stand for (render/light.h,
+# pm_light_at_gather): the sun's are theirs, a constant sky's stay in the map (rule 2), and a
+# gather takes a map and queries of one rule only. Photon records end with their depth.
+first_hits() { "$BIN/pm-info" -r "$1" | awk '$1 ~ /^[0-9]+$/ && $NF == 0' | wc -l; }
+if "$BIN/trace-photons" "$TMP/sky/scene.json" --photons 20000 -q -o "$TMP/sky.all.pm" &&
+    "$BIN/trace-photons" "$TMP/sky/scene.json" --photons 20000 --indirect-only -q -o "$TMP/sky.io.pm" &&
+    "$BIN/trace-photons" "$TMP/sun/scene.json" --photons 20000 --indirect-only -q -o "$TMP/sun.io.pm"; then
+    ka=$(first_hits "$TMP/sky.all.pm") ki=$(first_hits "$TMP/sky.io.pm") ks=$(first_hits "$TMP/sun.io.pm")
+    ri=$("$BIN/pm-info" "$TMP/sky.io.pm" | sed -n 's/^indirect_only=//p')
+    rs=$("$BIN/pm-info" "$TMP/sun.io.pm" | sed -n 's/^indirect_only=//p')
+    if [ "$ka" -gt 1000 ] && [ "$ki" = "$ka" ] && [ "$ks" = 0 ] && [ "$ri" = 2 ] && [ "$rs" = 1 ]; then
+        pass "--indirect-only keeps a constant sky's $ki first hits (indirect_only=2) and drops the sun's (indirect_only=1)"
+    else
+        fail "--indirect-only by light" "sky first hits $ki of $ka (indirect_only=$ri), sun's $ks (indirect_only=$rs)"
+    fi
+else
+    fail "--indirect-only by light" "trace-photons failed"
+fi
+"$BIN/trace-gather-points" "$TMP/sky/scene.json" --width 8 --height 8 --spp 4 --secondary-direct -q \
+    -o "$TMP/skyq.pm" --direct "$TMP/skyd.pm"
+"$BIN/trace-gather-points" "$TMP/sun/scene.json" --width 8 --height 8 --spp 4 --secondary-direct -q \
+    -o "$TMP/sunq.pm" --direct "$TMP/sund.pm"
+if "$BIN/pm-info" "$TMP/skyq.pm" | grep -qx 'secondary_direct=2' && "$BIN/pm-info" "$TMP/skyd.pm" | grep -qx 'secondary_direct=2' &&
+    "$BIN/pm-info" "$TMP/sunq.pm" | grep -qx 'secondary_direct=1'; then
+    pass "queries with secondary direct light name the rule: 2 under a constant sky, 1 under a sun alone"
+else
+    fail "secondary_direct rule" "$("$BIN/pm-info" "$TMP/skyq.pm" "$TMP/sunq.pm" | grep secondary_direct | tr '\n' ' ')"
+fi
+"$BIN/build-photonmap" "$TMP/sun.io.pm" -q -o "$TMP/sun.map.pm"
+"$BIN/build-photonmap" "$TMP/sky.io.pm" -q -o "$TMP/sky.map.pm"
+expect_error "a map of rule 1 with queries of rule 2 is refused, naming both" \
+    "photon map '.*sun.map.pm' says indirect_only=1 but queries '.*skyq.pm' say secondary_direct=2: made under different rules" \
+    "$BIN/simd-gather" "$TMP/sun.map.pm" "$TMP/skyq.pm" --radius 0.1 -o "$TMP/mix.pm"
+[ -e "$TMP/mix.pm" ] && fail "a refused gather wrote its output" "$TMP/mix.pm exists"
+expect_exit "a map and queries of rule 2 gather" 0 "$BIN/simd-gather" "$TMP/sky.map.pm" "$TMP/skyq.pm" --radius 0.1 -q -o "$TMP/sky.g.pm"
+
 # ---- bad lights: one line naming the light, the key and the value, exit 1, nothing written
 # bad_light NAME PATTERN LIGHTS-JSON: trace-photons and trace-reference both refuse the scene.
 bad_light() {

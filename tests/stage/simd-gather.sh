@@ -72,7 +72,7 @@ expect_exit "--widths variable on a map with widths" 0 "$BIN/pm-info" "$TMP/v.pm
 expect_error "--widths variable needs the width channel" "width channel" "$SG" "$MAP" "$Q" --widths variable -o "$TMP/x.pm"
 
 # through pipes: trace-gather-points | hilbert-sort | simd-gather
-"$BIN/trace-gather-points" scenes/cornell-box/scene.json --width 16 --height 16 --spp 8 --seed 1 -q -o - \
+"$BIN/trace-gather-points" scenes/cornell-box/scene.json --width 16 --height 16 --spp 8 --seed 1 --strata hit -q -o - \
     --direct "$TMP/d.pm" | "$BIN/hilbert-sort" - -q -o - | "$SG" "$MAP" - --radius 0.05 -q -o "$TMP/piped.pm"
 expect_exit "trace-gather-points | hilbert-sort | simd-gather gives the same image" 0 \
     "$BIN/pm-compare" --max-rel 1e-5 --max-abs 1e-12 "$TMP/ind.pm" "$TMP/piped.pm"

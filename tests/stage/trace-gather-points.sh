@@ -17,8 +17,22 @@ payload() {
 same_payload() { cmp -s <(payload "$1") <(payload "$2") && "$BIN/pm-compare" "$1" "$2" >/dev/null 2>&1; }
 
 # ---- golden files: the Cornell box at 16x16, spp 8, seed 1 ----
-"$T" -q "$CORNELL" --width 16 --height 16 --spp 8 --seed 1 -o "$TMP/q.pm" --direct "$TMP/d.pm" 2>"$TMP/err"
+# --strata hit: each hit's rays stratified alone, the files of before pixel strata (the golden
+# files the other stages' tests read); the default, pixel strata, has golden files of its own.
+"$T" -q "$CORNELL" --width 16 --height 16 --spp 8 --seed 1 --strata hit -o "$TMP/q.pm" --direct "$TMP/d.pm" 2>"$TMP/err"
 if [ $? = 0 ]; then pass "cornell 16x16 spp 8 runs"; else fail "cornell 16x16 spp 8 runs" "$(cat "$TMP/err")"; fi
+"$T" -q "$CORNELL" --width 16 --height 16 --spp 8 --seed 1 -o "$TMP/qp.pm" --direct "$TMP/dp.pm" 2>"$TMP/err"
+if [ $? = 0 ]; then pass "cornell 16x16 spp 8 pixel strata runs"; else fail "cornell 16x16 spp 8 pixel strata runs" "$(cat "$TMP/err")"; fi
+expect_exit "cornell queries with pixel strata match their golden file" 0 \
+    "$BIN/pm-compare" --max-rel 1e-5 --max-abs 1e-6 "$G/gather-cornell-16x16-spp8-pixel.pm" "$TMP/qp.pm"
+expect_exit "cornell direct radiance with pixel strata matches its golden file" 0 \
+    "$BIN/pm-compare" --max-rel 1e-5 --max-abs 1e-7 "$G/direct-cornell-16x16-pixel.pm" "$TMP/dp.pm"
+if "$BIN/pm-info" "$TMP/qp.pm" | grep -qx 'strata=pixel' && "$BIN/pm-info" "$TMP/dp.pm" | grep -qx 'strata=pixel' &&
+    ! "$BIN/pm-info" "$TMP/q.pm" | grep -q '^strata='; then
+    pass "pixel strata are named in the headers (strata=pixel), --strata hit's files are as before"
+else
+    fail "strata header" "$("$BIN/pm-info" "$TMP/qp.pm" | grep strata)"
+fi
 # Float channels within 1e-5 relative: Embree may round a hit distance differently on another CPU
 # (its AVX2 and AVX-512 kernels). A position's rounding scales with the distance travelled, not
 # with the coordinate, so a coordinate near 0 gets an absolute bound: 1e-6 m, a few ulps of the
@@ -65,7 +79,7 @@ SKY=scenes/atrium/textured.json
 "$T" -q "$SKY" --width 40 --height 24 --spp 8 --threads 2 -o "$TMP/s4.pm" --direct "$TMP/s4d.pm"
 if same_payload "$TMP/s1.pm" "$TMP/s2.pm" && same_payload "$TMP/s1d.pm" "$TMP/s2d.pm" &&
     same_payload "$TMP/s1d.pm" "$TMP/s3d.pm" && cmp -s <(payload "$TMP/s1.pm") <(payload "$TMP/s4.pm") &&
-    ! cmp -s <(payload "$TMP/s1d.pm") <(payload "$TMP/s4d.pm") && "$BIN/pm-info" "$TMP/s1d.pm" | grep -qx 'secondary_direct=1'; then
+    ! cmp -s <(payload "$TMP/s1d.pm") <(payload "$TMP/s4d.pm") && "$BIN/pm-info" "$TMP/s1d.pm" | grep -qx 'secondary_direct=2'; then
     pass "--secondary-direct: threads and schedules identical, --no-queries the same buffer, the queries unchanged"
 else
     fail "--secondary-direct determinism" "outputs differ (or the direct buffer did not change)"

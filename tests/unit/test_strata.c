@@ -107,11 +107,62 @@ static void test_strata_cosine_matches_concentric(void **state)
     }
 }
 
+/* A pixel's points (pm_strata_pixel): for every shape (blocks x block_cells cells of sub x sub),
+ * each sub-cell of the pixel's fine grid holds exactly one point; a block's cells are
+ * consecutive in row-major order and each cell's points are its sub-cells in row-major order;
+ * the blocks are dealt in an order that depends on the stream (every block is first for some
+ * seed), and the same stream gives the same points. */
+static void test_strata_pixel_cover(void **state)
+{
+    static const unsigned shapes[][3] = {{16, 1, 2}, {1, 1, 2},  {3, 1, 2},  {8, 2, 2},
+                                         {5, 4, 2},  {64, 1, 1}, {12, 1, 1}, {7, 3, 1}};
+    enum { MAXN = 256 };
+    float u1[MAXN], u2[MAXN], v1[MAXN], v2[MAXN];
+    uint32_t perm[MAXN];
+    unsigned count[MAXN];
+    for (size_t s = 0; s < sizeof shapes / sizeof shapes[0]; s++) {
+        unsigned blocks = shapes[s][0], bc = shapes[s][1], sub = shapes[s][2], nx, ny;
+        unsigned n = blocks * bc * sub * sub, first_seen = 0;
+        pm_strata_grid(blocks * bc, &nx, &ny);
+        unsigned fx = nx * sub, fy = ny * sub;
+        assert_true(n <= MAXN && fx * fy == n);
+        for (uint64_t seed = 1; seed <= 64; seed++) {
+            pm_rng_t r, r2;
+            pm_rng_init(&r, seed, 3), pm_rng_init(&r2, seed, 3);
+            pm_strata_pixel(&r, blocks, bc, sub, u1, u2, perm);
+            pm_strata_pixel(&r2, blocks, bc, sub, v1, v2, perm);
+            assert_memory_equal(u1, v1, n * sizeof(float));
+            assert_memory_equal(u2, v2, n * sizeof(float));
+            for (unsigned i = 0; i < n; i++)
+                count[i] = 0;
+            for (unsigned i = 0; i < n; i++) {
+                assert_true(u1[i] >= 0.0f && u1[i] < 1.0f && u2[i] >= 0.0f && u2[i] < 1.0f);
+                unsigned cx = (unsigned)(u1[i] * (float)fx), cy = (unsigned)(u2[i] * (float)fy);
+                count[cy * fx + cx]++;
+                /* the cell and sub-cell point i is dealt: block i / (bc sub^2), its cells in order */
+                unsigned k = i % (bc * sub * sub), cell_k = k / (sub * sub), in = k % (sub * sub);
+                unsigned cell = (cy / sub) * nx + cx / sub;
+                if (k == 0 && cell == 0)
+                    first_seen |= 1u << ((i / (bc * sub * sub)) % 32);
+                assert_int_equal(cx % sub + sub * (cy % sub), in);
+                if (cell_k > 0) { /* the block's previous cell is this one's row-major predecessor */
+                    unsigned j = i - sub * sub;
+                    unsigned pcell = (unsigned)(u2[j] * (float)fy) / sub * nx + (unsigned)(u1[j] * (float)fx) / sub;
+                    assert_int_equal(pcell + 1, cell);
+                }
+            }
+            for (unsigned c = 0; c < n; c++)
+                assert_int_equal(count[c], 1);
+        }
+        /* which ray gets the first block changes with the stream */
+        if (blocks > 1 && blocks <= 32)
+            assert_int_equal(first_seen, blocks == 32 ? 0xffffffffu : (1u << blocks) - 1u);
+    }
+}
+
 static const struct CMUnitTest tests[] = {
-    cmocka_unit_test(test_strata_cosine_matches_concentric),
-    cmocka_unit_test(test_strata_grid_shapes),
-    cmocka_unit_test(test_strata_four_per_cell),
-    cmocka_unit_test(test_strata_cell_edges),
-    cmocka_unit_test(test_strata_same_draws),
+    cmocka_unit_test(test_strata_pixel_cover), cmocka_unit_test(test_strata_cosine_matches_concentric),
+    cmocka_unit_test(test_strata_grid_shapes), cmocka_unit_test(test_strata_four_per_cell),
+    cmocka_unit_test(test_strata_cell_edges),  cmocka_unit_test(test_strata_same_draws),
 };
 UNIT_GROUP(unit_strata, "strata", tests);

@@ -63,6 +63,7 @@ typedef enum {
     PM_P_SECONDARY_DIRECT,
     PM_P_COVERAGE,
     PM_P_ADAPTIVE,
+    PM_P_DIFFUSE_DEPTH,
     PM_P_COUNT
 } pm_param_t;
 
@@ -97,6 +98,7 @@ typedef struct {
                                * hits of the lights they sample (trace-photons --indirect-only) */
     int secondary_direct_sky; /* SECONDARY_DIRECT=auto on a progressive render that it does not turn on by
                                * TIME: on when the scene has a sun or a sky (the drivers decide, with the scene) */
+    int diffuse_depth;        /* DIFFUSE_DEPTH (0, 1 or 2; MODE=gather): trace-gather-points --diffuse-depth */
     int coverage;             /* COVERAGE=1, or auto on a progressive render (TIME from 4 s): simd-gather --coverage
                                * SCENE, the density estimate's boundary correction */
     int adaptive;             /* ADAPTIVE=1, or auto on a progressive render: the resident passes from

@@ -238,6 +238,10 @@ static void build_graph(render_t *r)
     arg_opt(j, "--seed", s->value[PM_P_SEED]);
     if (r->secondary_direct)
         arg(j, "--secondary-direct");
+    if (s->diffuse_depth) {
+        arg(j, "--diffuse-depth");
+        arg(j, s->diffuse_depth == 1 ? "1" : "2");
+    }
     if (s->guide && r->need_gather) { /* GUIDE=1: after trace-photons, from its photons */
         arg(j, "--guide");
         arg(j, "photons.pm");
@@ -1526,6 +1530,10 @@ static void pass_queries(passgraph_t *g, unit_t *u)
     arg_opt(c, "--seed", s->value[PM_P_SEED]);
     if (r->secondary_direct)
         arg(c, "--secondary-direct");
+    if (s->diffuse_depth) {
+        arg(c, "--diffuse-depth");
+        arg(c, s->diffuse_depth == 1 ? "1" : "2");
+    }
     pc_pass(c, g->pass);
     arg_common(r, c);
     if (!sorted)

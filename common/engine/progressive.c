@@ -460,6 +460,10 @@ static void stage_argv(const prog_t *p, argv_t a[NSTAGE], const int fd[NPIPE][2]
     opt(&a[TG], "--seed", val(p, PM_P_SEED));
     if (p->secondary_direct)
         push(&a[TG], "--secondary-direct");
+    if (p->s->diffuse_depth) {
+        push(&a[TG], "--diffuse-depth");
+        pushf(&a[TG], "%d", p->s->diffuse_depth);
+    }
     if (p->s->guide) { /* GUIDE=1: every pass guided by the guide's photons (make_guide) */
         push(&a[TG], "--guide");
         pushf(&a[TG], "%s/guide-photons.pm", p->out);
@@ -586,6 +590,8 @@ static void make_settings(prog_t *p)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " SECONDARY_DIRECT=1");
     if (p->s->guide && at < sizeof p->settings)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " GUIDE=1");
+    if (p->s->diffuse_depth && at < sizeof p->settings)
+        at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " DIFFUSE_DEPTH=%d", p->s->diffuse_depth);
     if (p->s->coverage && at < sizeof p->settings)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " COVERAGE=1");
     if (p->adaptive && at < sizeof p->settings)

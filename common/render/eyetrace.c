@@ -117,6 +117,7 @@ struct pm_eye {
     int caustics;            /* also write the caustic queries (the first non-specular hits) */
     int direct_only;         /* pm_eye_options_t's: no queries, secondary rays only for emitters they find */
     unsigned glossy_depth;   /* glossy bounces a secondary path continues through before it gathers */
+    unsigned diffuse_depth;  /* Lambertian bounces a secondary path takes before it gathers (0: none) */
     const pm_guide_t *guide; /* photon guide of the Lambertian hits' secondary rays, NULL for none */
     int env_mis;             /* gather mode with a sun or a sky: a Lambertian hit's escaping rays share them */
     int cont;                /* some material continues (continues()): glossy paths are followed */
@@ -490,10 +491,10 @@ static void shadow_rays(const pm_eye_t *c, scratch_t *sc, double *direct)
  * those samples, times scale, into direct[3 x ..]. nbpdf is nb pdf; 0 adds nothing (the rays of
  * a Lambertian surface, whose light samples keep weight 1). */
 static void env_add(const pm_eye_t *c, const float n[3], const float d[3], float nbpdf, const float scale[3],
-                    uint32_t x, double *direct)
+                    uint32_t x, double *direct, float ls)
 {
     const pm_lights_t *lights = &c->lights;
-    float ls = (float)c->light_samples, sum[3] = {0.0f, 0.0f, 0.0f};
+    float sum[3] = {0.0f, 0.0f, 0.0f};
     int any = 0;
     if (!(nbpdf > 0.0f))
         return;
@@ -967,12 +968,12 @@ static void path_sky(const pm_eye_t *c, const path_t *a, double *direct)
 
 /* The next ray of path a, leaving v along wi with the bounce's f cos / pdf in fc (Russian
  * roulette from PM_EYE_GLOSSY_RR bounces on, u its number), traced to its next hit, whose
- * emission is counted: against the light samples of v by MIS with the BSDF's pdf, or whole when
- * pdf < 0 (a delta lobe or a transmission, which no light sample of v reaches; such a ray that
- * escapes brings the sky back too). Returns 1 when the path goes on, 0 when it ended. */
+ * emission is counted: against v's ls light samples of each light by MIS with the BSDF's pdf, or
+ * whole when pdf < 0 (a delta lobe or a transmission, which no light sample of v reaches; such a
+ * ray that escapes brings the sky back too). Returns 1 when the path goes on, 0 when it ended. */
 static int path_next(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContext *ctx, path_t *a, unsigned depth,
                      const float o[3], const float wi[3], float fc[3], float pdf, const float n[3], float u,
-                     double *direct)
+                     double *direct, float ls)
 {
     const pm_scene_t *s = c->s;
     if (depth + 1 >= PM_EYE_GLOSSY_RR) {
@@ -996,16 +997,14 @@ static int path_next(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContex
         if (pdf < 0.0f)
             path_sky(c, a, direct);
         else
-            env_add(c, n, a->d, pdf, a->w, a->x, direct);
+            env_add(c, n, a->d, pdf, a->w, a->x, direct, ls);
         return 0;
     }
     if (!pm_material_is_specular(&s->materials[s->tri_material[a->tri]]) && pm_lights_has_emitters(&c->lights)) {
         const float *lg = c->geom.tri_n + 3 * (size_t)a->tri;
         float cosy = fabsf(pm_dot3(lg, a->d));
         path_emission(c, a,
-                      pdf < 0.0f ? 1.0f
-                                 : pm_power_heuristic(pdf, (float)c->light_samples *
-                                                               pm_lights_pdf_li_hit(&c->lights, a->t, cosy)),
+                      pdf < 0.0f ? 1.0f : pm_power_heuristic(pdf, ls * pm_lights_pdf_li_hit(&c->lights, a->t, cosy)),
                       direct);
     }
     return 1;
@@ -1089,7 +1088,57 @@ static int glossy_bounce(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCo
             for (int k = 0; k < 3; k++)
                 o[k] = v.p[k] - c->eps * v.gn[k];
     }
-    return path_next(c, sc, ctx, a, depth, o, wi, fc, pdf, v.n, u3, direct);
+    return path_next(c, sc, ctx, a, depth, o, wi, fc, pdf, v.n, u3, direct, (float)c->light_samples);
+}
+
+/* One diffuse bounce of path a at its hit on a Lambertian surface, before it gathers
+ * (pm_eye_options_t diffuse_depth): there all the light of every light comes from one light
+ * sample each (an area light's at any distance, the sky whatever the gather rule: this is no
+ * gather point), weighed by MIS against the one cosine-weighted ray that goes on (f cos / pdf =
+ * kd) to the next hit, where the path gathers or bounces again (path_next, its emitters and the
+ * sky it escapes to shared with these samples). Returns 1 when the path goes on, 0 when it
+ * ended, -1 when out of memory. */
+static int diffuse_bounce(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContext *ctx, path_t *a, unsigned depth,
+                          const pm_material_t *m, double *direct)
+{
+    const float *ng = c->geom.tri_n + 3 * (size_t)a->tri;
+    surf_t v;
+    for (int k = 0; k < 3; k++)
+        v.p[k] = a->o[k] + a->t * a->d[k], v.wo[k] = -a->d[k];
+    float side = pm_dot3(ng, v.wo) >= 0.0f ? 1.0f : -1.0f;
+    for (int k = 0; k < 3; k++)
+        v.gn[k] = side * ng[k], v.o[k] = v.p[k] + c->eps * v.gn[k];
+    v.m = m;
+    surf_normals(c->s, a->tri, side, &v);
+    if (!shadow_room(c, sc))
+        return -1;
+    direct_lights_n(c, sc, &v, a->x, 1.0f, a->w, 1.0f, 1, a->rng, NULL, 1, 1, SIZE_MAX);
+    float u1 = pm_rng_float(a->rng), u2 = pm_rng_float(a->rng), u3 = pm_rng_float(a->rng), wi[3];
+    pm_vec3_t tv, bv, nv = pm_v3_load(v.n);
+    pm_onb(nv, &tv, &bv);
+    pm_v3_store(wi, pm_onb_to_world(pm_sample_cosine_hemisphere(u1, u2), tv, bv, nv));
+    float cosi = pm_dot3(v.n, wi);
+    if (!(cosi > 0.0f) || (v.shaded && !(pm_dot3(v.gn, wi) > 0.0f)))
+        return 0;
+    float fc[3] = {m->kd[0], m->kd[1], m->kd[2]};
+    return path_next(c, sc, ctx, a, depth, v.o, wi, fc, cosi * (1.0f / PM_PI), v.n, u3, direct, 1.0f);
+}
+
+/* Mirrors and glass past a glossy or diffuse bounce of path a: the light at the chain's end is
+ * this path's alone (no light sample reaches through them), weight 1; the sky seen escapes too.
+ * Returns 1 when the path goes on from the chain's end, 0 when it escaped. */
+static int past_specular(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContext *ctx, path_t *a, double *direct)
+{
+    float thr[3] = {1.0f, 1.0f, 1.0f};
+    follow_specular(c, sc, ctx, a->rng, -1.0f, &a->tri, a->o, a->d, &a->t, thr);
+    for (int k = 0; k < 3; k++)
+        a->w[k] *= thr[k];
+    if (a->tri == PM_RAY_MISS) {
+        path_sky(c, a, direct);
+        return 0;
+    }
+    path_emission(c, a, 1.0f, direct);
+    return 1;
 }
 
 /* Follows secondary path a from its hit, a non-specular surface: through every glossy surface
@@ -1101,13 +1150,24 @@ static int follow_path(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCont
                        bytebuf_t *out)
 {
     const pm_scene_t *s = c->s;
-    for (unsigned depth = 0;; depth++) {
+    for (unsigned depth = 0, diffuse = 0;; depth++) {
         pm_material_t textured;
         float q[3];
         for (int k = 0; k < 3; k++)
             q[k] = a->o[k] + a->t * a->d[k];
-        const pm_material_t *m = c->cont ? pm_scene_material_at(s, a->tri, q, &textured) : NULL;
+        const pm_material_t *m = c->cont || c->diffuse_depth ? pm_scene_material_at(s, a->tri, q, &textured) : NULL;
         uint32_t mi = s->tri_material[a->tri];
+        if (m && diffuse < c->diffuse_depth && m->kind == PM_MAT_STANDARD && !pm_material_is_glossy(m) &&
+            (m->kd[0] > 0.0f || m->kd[1] > 0.0f || m->kd[2] > 0.0f)) {
+            int on = diffuse_bounce(c, sc, ctx, a, depth, m, direct);
+            if (on <= 0)
+                return on == 0;
+            diffuse++;
+            if (pm_material_is_specular(&s->materials[s->tri_material[a->tri]]) &&
+                !past_specular(c, sc, ctx, a, direct))
+                return 1;
+            continue;
+        }
         /* past glossy_depth bounces the path gathers where it is; through rough glass, which
          * holds no photons, it goes on (to PM_EYE_MAX_SPECULAR bounces, then its light is lost) */
         if (!m || !continues(c, m, mi) || depth >= depth_limit(c, m, mi)) {
@@ -1120,19 +1180,8 @@ static int follow_path(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCont
         int on = glossy_bounce(c, sc, ctx, a, depth, direct, out);
         if (on <= 0)
             return on == 0;
-        if (pm_material_is_specular(&s->materials[s->tri_material[a->tri]])) {
-            /* Mirrors and glass past a glossy bounce: the light at the chain's end is this path's
-             * alone (no light sample reaches through them), weight 1; the sky seen escapes too. */
-            float thr[3] = {1.0f, 1.0f, 1.0f};
-            follow_specular(c, sc, ctx, a->rng, -1.0f, &a->tri, a->o, a->d, &a->t, thr);
-            for (int k = 0; k < 3; k++)
-                a->w[k] *= thr[k];
-            if (a->tri == PM_RAY_MISS) {
-                path_sky(c, a, direct);
-                return 1;
-            }
-            path_emission(c, a, 1.0f, direct);
-        }
+        if (pm_material_is_specular(&s->materials[s->tri_material[a->tri]]) && !past_specular(c, sc, ctx, a, direct))
+            return 1;
     }
 }
 
@@ -1317,7 +1366,7 @@ static int primary_glossy(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectC
         if (tri == PM_RAY_MISS && pdf >= 0.0f && isfinite(thr[0] + thr[1] + thr[2])) {
             /* the sky past the lobe: shared with its light samples (env_add) */
             float sc3[3] = {thr[0] * inv_p, thr[1] * inv_p, thr[2] * inv_p};
-            env_add(c, v.n, d, pdf, sc3, x, direct);
+            env_add(c, v.n, d, pdf, sc3, x, direct, (float)c->light_samples);
         }
         if (!(thr[0] > 0.0f || thr[1] > 0.0f || thr[2] > 0.0f) || !isfinite(thr[0] + thr[1] + thr[2]) ||
             (tri == PM_RAY_MISS && pdf >= 0.0f)) {
@@ -1452,10 +1501,11 @@ static int secondary_hit(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCo
         if (own)
             path_sky(c, &a, direct);
         else
-            env_add(c, sc->sec_env + 4 * j + 1, a.d, sc->sec_env[4 * j], a.w, a.x, direct);
+            env_add(c, sc->sec_env + 4 * j + 1, a.d, sc->sec_env[4 * j], a.w, a.x, direct, (float)c->light_samples);
         return 1; /* escaped: no query */
     }
-    if (c->specular || c->cont || c->sec_direct) /* each secondary ray's chain draws from a sub-stream of its own */
+    if (c->specular || c->cont || c->sec_direct ||
+        c->diffuse_depth) /* a sub-stream of its own for each secondary ray's chain */
         specular_rng(&rng, c->seed, a.pixel, 1 + in_px);
     if (c->specular && pm_material_is_specular(&s->materials[s->tri_material[a.tri]])) {
         /* Through mirrors and glass to the first other surface. Light found at the end of such
@@ -1621,6 +1671,7 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
     c->caustics = o->caustics;
     c->direct_only = o->direct_only;
     c->glossy_depth = o->glossy_depth;
+    c->diffuse_depth = o->mode == PM_EYE_GATHER ? o->diffuse_depth : 0;
     c->guide = o->mode == PM_EYE_GATHER ? o->guide : NULL;
     for (size_t m = 0; c->mode == PM_EYE_GATHER && m < s->nmaterials; m++)
         c->cont |= material_continues(&s->materials[m], c->glossy_depth) || varies(s, (uint32_t)m);
@@ -1634,6 +1685,13 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
         return pm_error_set(PM_ERR_USAGE,
                             "secondary direct light is the gather points' (--mode gather): in %s mode "
                             "the primary hits have their direct light already",
+                            pm_eye_mode_names[o->mode]);
+    }
+    if (o->diffuse_depth && o->mode != PM_EYE_GATHER) {
+        pm_eye_destroy(c);
+        return pm_error_set(PM_ERR_USAGE,
+                            "diffuse bounces come before a gather point (--mode gather): in %s mode the "
+                            "primary hits are the queries",
                             pm_eye_mode_names[o->mode]);
     }
     if (o->caustics && !s->any_specular)
@@ -1687,7 +1745,7 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
     c->sec_direct = r == PM_OK && o->secondary_direct && c->lights.ndirect > 0;
     for (size_t l = c->lights.ndelta; r == PM_OK && c->mode == PM_EYE_GATHER && l < c->lights.ndirect; l++)
         c->env_mis |= c->lights.direct[l].infinite;
-    c->past_hit = !c->direct_only || c->cont || c->sec_direct;
+    c->past_hit = !c->direct_only || c->cont || c->sec_direct || c->diffuse_depth;
     c->sec_rays = c->past_hit || (r == PM_OK && pm_lights_has_emitters(&c->lights)) || c->env_mis;
     c->sec_strata = !o->strata_hit && c->mode == PM_EYE_GATHER && c->sec_rays;
     c->light_strata = r == PM_OK && !o->strata_hit && c->light_samples && c->lights.ndirect > c->lights.ndelta;
@@ -1710,6 +1768,7 @@ pm_result_t pm_eye_create(const pm_scene_t *s, const pm_rt_t *rt, const pm_eye_o
                               .glossy_depth = c->cont ? c->glossy_depth : 0,
                               .secondary_direct = o->secondary_direct,
                               .strata_pixel = c->sec_strata || c->light_strata,
+                              .diffuse_depth = c->diffuse_depth,
                               .guided = c->guide != NULL,
                               .record_size = c->record_size};
     *out = c;
@@ -1846,6 +1905,8 @@ static pm_result_t header_common(const pm_eye_t *c, int argc, char **argv, pm_he
         r = pm_header_set(h, "seed", "%" PRIu64, c->seed);
     if (r == PM_OK && c->info.secondary_direct) /* absent otherwise: files as they were before */
         r = pm_header_set(h, "secondary_direct", "%d", pm_light_gather_rule(c->s));
+    if (r == PM_OK && c->diffuse_depth) /* absent otherwise: files as they were before */
+        r = pm_header_set(h, "diffuse_depth", "%u", c->diffuse_depth);
     if (r == PM_OK && c->info.strata_pixel) /* absent otherwise: files as they were before */
         r = pm_header_set(h, "strata", "pixel");
     if (r == PM_OK && c->guide) /* which photons: the stage's INPUT line */

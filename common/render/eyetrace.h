@@ -72,6 +72,9 @@ typedef struct {
     int secondary_direct;          /* gather mode: next-event estimation at every gather point too, into the direct
                                     * buffer, for a map without the first-hit photons it stands for (trace-photons
                                     * --indirect-only; render/light.h, pm_light_at_gather) */
+    unsigned diffuse_depth;        /* gather mode: Lambertian bounces a secondary path takes before it gathers, each
+                                    * with a light sample of every light and one cosine-weighted ray on (0: it gathers
+                                    * at its first hit, the paper's final gather; header diffuse_depth=N) */
     int strata_hit;                /* 1: every hit's secondary rays and light samples stratified alone (the paper's
                                     * section 6.1, files as before); 0: a pixel's primary rays' stratified together
                                     * (math/strata.h, pm_strata_pixel; header strata=pixel) */
@@ -88,15 +91,16 @@ typedef struct {
     uint32_t primary, light_samples;
     int pixel; /* PM_PIXEL_BOX or PM_PIXEL_CENTER */
     uint64_t seed;
-    int packet_width;      /* lanes: 1, 4, 8 or 16 */
-    uint32_t channels;     /* mask of the queries channels written (direction, material only when needed) */
-    uint32_t record_size;  /* bytes per query record */
-    int specular;          /* the scene has mirrors or glass: eye paths pass through them */
-    int caustics;          /* caustic queries are delivered */
-    unsigned glossy_depth; /* glossy paths are followed up to this many bounces (0: the scene has none, or off) */
-    int guided;            /* secondary rays are guided by photons (pm_eye_options_t guide) */
-    int secondary_direct;  /* the gather points' direct light is in the direct buffer (header secondary_direct=1) */
-    int strata_pixel;      /* secondary rays and light samples stratified over each pixel (header strata=pixel) */
+    int packet_width;       /* lanes: 1, 4, 8 or 16 */
+    uint32_t channels;      /* mask of the queries channels written (direction, material only when needed) */
+    uint32_t record_size;   /* bytes per query record */
+    int specular;           /* the scene has mirrors or glass: eye paths pass through them */
+    int caustics;           /* caustic queries are delivered */
+    unsigned glossy_depth;  /* glossy paths are followed up to this many bounces (0: the scene has none, or off) */
+    int guided;             /* secondary rays are guided by photons (pm_eye_options_t guide) */
+    int secondary_direct;   /* the gather points' direct light is in the direct buffer (header secondary_direct=1) */
+    int strata_pixel;       /* secondary rays and light samples stratified over each pixel (header strata=pixel) */
+    unsigned diffuse_depth; /* Lambertian bounces before the gather (header diffuse_depth=N when > 0) */
 } pm_eye_info_t;
 
 /* Counters of one pm_eye_trace. */

@@ -74,6 +74,7 @@ typedef struct {
     const pm_guide_t *built; /* with --passes or --plan: the guide built once for every pass */
     int secondary_direct;    /* --secondary-direct: light samples at the gather points too */
     int strata;              /* --strata: 0 pixel, 1 hit */
+    int64_t diffuse_depth;   /* --diffuse-depth: Lambertian bounces before the gather */
     const char *adaptive;    /* --adaptive MAP: each pixel's primary rays times its multiplier, NULL for none */
     uint64_t adaptive_hash;  /* the pass's map's content hash; adaptive_used: a map was read for the pass */
     int adaptive_used;
@@ -341,7 +342,8 @@ static pm_result_t run(pm_stage_t *st, tgp_options_t *o, const pm_scene_t *s, co
         .direct_only = o->no_queries,
         .glossy_depth = (unsigned)o->glossy_depth,
         .secondary_direct = o->secondary_direct,
-        .strata_hit = o->strata == 1};
+        .strata_hit = o->strata == 1,
+        .diffuse_depth = (unsigned)o->diffuse_depth};
     pm_eye_options_t eo_g = eo;
     /* The scene's own camera is within the image limits (scene.c): only --width or --height
      * can take it beyond them, a usage error. */
@@ -548,6 +550,11 @@ int main(int argc, char **argv)
          "near field stays the map's): gather the queries against a map without the first hits they stand for "
          "(trace-photons --indirect-only); headers say secondary_direct=1",
          1, 0, NULL},
+        {"diffuse-depth", 0, PM_OPT_INT, &o.diffuse_depth, "N",
+         "Lambertian bounces a secondary path takes before it gathers (--mode gather): at each, a light sample of "
+         "every light (the sky's too) and one cosine-weighted ray on, so the photon map is read one bounce later; 0 "
+         "gathers at the secondary hits (the paper's final gather); headers say diffuse_depth=N",
+         0, 8, NULL},
         {"strata", 0, PM_OPT_CHOICE, &o.strata, "HOW",
          "pixel: the secondary rays and the light samples of all a pixel's primary rays stratified as one set "
          "(headers say strata=pixel); hit: each hit's alone (the files of before)",

@@ -285,6 +285,37 @@ if [ -f "$TMP/sdi.map.pm" ] && gather "$TMP/sphere/scene.json" sdg sdi --seconda
 else
     fail "sphere secondary-direct pipeline" "a stage failed"
 fi
+# ---- a diffuse bounce before the gather (trace-gather-points --diffuse-depth 1): each
+# secondary path samples every light at its first hit (MIS against the one cosine ray it goes
+# on with) and gathers at its second; the closed forms hold unchanged. The furnace (global
+# map), the sphere lit by a point light (global map), and the sphere with secondary direct
+# light over the map without first hits.
+if [ -f "$TMP/f5.map.pm" ] && gather "$TMP/furnace5/scene.json" f5dd f5 --light-samples 16 --diffuse-depth 1 &&
+    image f5dd "$TMP/f5dd.d.pm" "$TMP/f5dd.i.pm"; then
+    check "furnace rho 0.5, gather after a diffuse bounce, full image: L = Le / (1 - rho) = 2" f5dd f5dd $TOL_G \
+        -v kind=const -v le=1 -v kd=0.5 -v e=$(awk -v p=$PI 'BEGIN { print p * 2 }')
+else
+    fail "furnace diffuse-depth pipeline" "a stage failed"
+fi
+for c in "st stdd" "sdi sddd --secondary-direct"; do
+    set -- $c
+    map=$1 name=$2
+    shift 2
+    if [ -f "$TMP/$map.map.pm" ] && gather "$TMP/sphere/scene.json" $name $map --diffuse-depth 1 "$@" &&
+        image $name "$TMP/$name.d.pm" "$TMP/$name.i.pm"; then
+        check "sphere kd 0.5, gather after a diffuse bounce${1:+ with secondary direct light}, full image: L = kd/pi * I / R^2 / (1 - kd)" \
+            $name $name $TOL_G -v kind=point -v kd=0.5 -v I=$PI -v lx=0 -v ly=0 -v lz=0 -v e=$ei
+    else
+        fail "sphere diffuse-depth pipeline ($name)" "a stage failed"
+    fi
+done
+if "$BIN/pm-info" "$TMP/f5dd.q.pm" | grep -qx 'diffuse_depth=1' && "$BIN/pm-info" "$TMP/f5dd.d.pm" | grep -qx 'diffuse_depth=1'; then
+    pass "--diffuse-depth 1: the queries and the direct buffer say diffuse_depth=1"
+else
+    fail "diffuse_depth header" "$("$BIN/pm-info" "$TMP/f5dd.q.pm" | grep depth)"
+fi
+expect_exit "--diffuse-depth in direct-vis mode is a usage error" 2 \
+    "$BIN/trace-gather-points" "$TMP/sphere/scene.json" --mode direct-vis --diffuse-depth 1 -q -o "$TMP/dvdd.pm"
 # A map and queries that disagree: one error naming both files, exit 1, no output.
 for c in "st sdg twice" "sdi stg lost" "si sdg lost"; do
     set -- $c

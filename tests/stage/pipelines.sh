@@ -130,6 +130,20 @@ if awk -v m="$m" 'BEGIN { split(m, a, " "); exit !(a[2] > 0 && a[1] / a[2] > 0.9
 else
     fail "SECONDARY_DIRECT=1 under a sun and a sky" "means $m"
 fi
+# DIFFUSE_DEPTH=1: the same render with one diffuse bounce before the gather (the sun and the
+# sky sampled at the bounce, shared by MIS with the ray that goes on and may escape to them):
+# the mean is still trace-reference's, and the stage's command and header carry the depth.
+$R scenes/atrium/textured.json "$TMP/sdd" WIDTH=48 HEIGHT=48 PHOTONS=200000 PRIMARY=4 SPP=4 K=10 \
+    SECONDARY_DIRECT=1 COVERAGE=1 DIFFUSE_DEPTH=1 >/dev/null 2>&1
+m=$("$BIN/measure-error" "$TMP/sdd/image.exr" "$TMP/sdm.ref.exr" -q 2>/dev/null | jq -r '"\(.mean_test) \(.mean_reference)"')
+if awk -v m="$m" 'BEGIN { split(m, a, " "); exit !(a[2] > 0 && a[1] / a[2] > 0.985 && a[1] / a[2] < 1.015) }' &&
+    "$BIN/pm-info" --header "$TMP/sdd/queries.pm" | grep -qx 'diffuse_depth=1'; then
+    pass "DIFFUSE_DEPTH=1 under a sun and a sky: the image's mean is trace-reference's (means $m)"
+else
+    fail "DIFFUSE_DEPTH=1 under a sun and a sky" "means $m"
+fi
+expect_exit "DIFFUSE_DEPTH=1 with MODE=direct-vis is refused" 2 $R "$SCENE" "$TMP/ddv" MODE=direct-vis DIFFUSE_DEPTH=1
+expect_exit "a DIFFUSE_DEPTH other than 0, 1 or 2 is refused" 2 $R "$SCENE" "$TMP/ddv" DIFFUSE_DEPTH=3
 # SECONDARY_DIRECT=auto: on for a progressive render of a scene with a sun or a sky, off for its
 # one render and for a progressive render of a scene lit otherwise (below TIME=10)
 $R scenes/atrium/textured.json "$TMP/sda" $SMALL PASSES=2 >/dev/null 2>&1

@@ -119,29 +119,28 @@ $R tests/scenes/closed-box/scene.json "$TMP/sd" $SMALL SECONDARY_DIRECT=1 >/dev/
 # leaves the sky's first hits to the map (render/light.h, pm_light_at_gather): each path once,
 # so the image's mean is trace-reference's (the sky-lit atrium, 48 x 48; the sky's light after
 # one bounce is 3.7% of it, which a path counted by neither side would take out; the render's
-# mean is within 0.5% of the reference's, measured, and this asks 1.5%).
-$R scenes/atrium/textured.json "$TMP/sdm" WIDTH=48 HEIGHT=48 PHOTONS=200000 PRIMARY=4 SPP=4 K=10 \
-    SECONDARY_DIRECT=1 COVERAGE=1 >/dev/null 2>&1
-"$BIN/trace-reference" scenes/atrium/textured.json --width 48 --height 48 --spp 256 -q -o "$TMP/sdm.ref.exr"
-m=$("$BIN/measure-error" "$TMP/sdm/image.exr" "$TMP/sdm.ref.exr" -q 2>/dev/null | jq -r '"\(.mean_test) \(.mean_reference)"')
-if awk -v m="$m" 'BEGIN { split(m, a, " "); exit !(a[2] > 0 && a[1] / a[2] > 0.985 && a[1] / a[2] < 1.015) }' &&
-    "$BIN/pm-info" --header "$TMP/sdm/photonmap.pm" | grep -qx 'indirect_only=2'; then
-    pass "SECONDARY_DIRECT=1 under a sun and a sky: the image's mean is trace-reference's (means $m)"
-else
-    fail "SECONDARY_DIRECT=1 under a sun and a sky" "means $m"
-fi
-# DIFFUSE_DEPTH=1: the same render with one diffuse bounce before the gather (the sun and the
-# sky sampled at the bounce, shared by MIS with the ray that goes on and may escape to them):
-# the mean is still trace-reference's, and the stage's command and header carry the depth.
-$R scenes/atrium/textured.json "$TMP/sdd" WIDTH=48 HEIGHT=48 PHOTONS=200000 PRIMARY=4 SPP=4 K=10 \
-    SECONDARY_DIRECT=1 COVERAGE=1 DIFFUSE_DEPTH=1 >/dev/null 2>&1
-m=$("$BIN/measure-error" "$TMP/sdd/image.exr" "$TMP/sdm.ref.exr" -q 2>/dev/null | jq -r '"\(.mean_test) \(.mean_reference)"')
-if awk -v m="$m" 'BEGIN { split(m, a, " "); exit !(a[2] > 0 && a[1] / a[2] > 0.985 && a[1] / a[2] < 1.015) }' &&
-    "$BIN/pm-info" --header "$TMP/sdd/queries.pm" | grep -qx 'diffuse_depth=1'; then
-    pass "DIFFUSE_DEPTH=1 under a sun and a sky: the image's mean is trace-reference's (means $m)"
-else
-    fail "DIFFUSE_DEPTH=1 under a sun and a sky" "means $m"
-fi
+# mean is within 0.5% of the reference's, measured, and this asks 1.5%). DIFFUSE_DEPTH=1: the
+# same with one diffuse bounce before the gather (the sun and the sky sampled at the bounce,
+# shared by MIS with the ray that goes on and may escape to them).
+"$BIN/trace-reference" scenes/atrium/textured.json --width 48 --height 48 --spp 256 -q -o "$TMP/sky.ref.exr"
+# sky_mean NAME FILE LINE [SETTINGS...]: the render's mean within 1.5% of the reference's, and
+# the header FILE (photonmap.pm, queries.pm) holds LINE
+sky_mean() {
+    local name=$1 file=$2 line=$3 m
+    shift 3
+    $R scenes/atrium/textured.json "$TMP/$name" WIDTH=48 HEIGHT=48 PHOTONS=200000 PRIMARY=4 SPP=4 K=10 \
+        SECONDARY_DIRECT=1 COVERAGE=1 "$@" >/dev/null 2>&1
+    m=$("$BIN/measure-error" "$TMP/$name/image.exr" "$TMP/sky.ref.exr" -q 2>/dev/null |
+        jq -r '"\(.mean_test) \(.mean_reference)"')
+    if awk -v m="$m" 'BEGIN { split(m, a, " "); exit !(a[2] > 0 && a[1] / a[2] > 0.985 && a[1] / a[2] < 1.015) }' &&
+        "$BIN/pm-info" --header "$TMP/$name/$file" | grep -qx "$line"; then
+        pass "SECONDARY_DIRECT=1${*:+ $*} under a sun and a sky: the image's mean is trace-reference's (means $m)"
+    else
+        fail "SECONDARY_DIRECT=1${*:+ $*} under a sun and a sky" "means $m"
+    fi
+}
+sky_mean sdm photonmap.pm indirect_only=2
+sky_mean sdd queries.pm diffuse_depth=1 DIFFUSE_DEPTH=1
 expect_exit "DIFFUSE_DEPTH=1 with MODE=direct-vis is refused" 2 $R "$SCENE" "$TMP/ddv" MODE=direct-vis DIFFUSE_DEPTH=1
 expect_exit "a DIFFUSE_DEPTH other than 0, 1 or 2 is refused" 2 $R "$SCENE" "$TMP/ddv" DIFFUSE_DEPTH=3
 # SECONDARY_DIRECT=auto: on for a progressive render of a scene with a sun or a sky, off for its

@@ -244,6 +244,11 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
     if (s->guide && strcmp(s->value[PM_P_GATHER], "none") == 0)
         return pm_error_set(PM_ERR_USAGE,
                             "GUIDE=1 guides by the pass's photons: not with GATHER=none, which traces none");
+    if (s->diffuse_depth && strcmp(s->value[PM_P_GATHER], "none") == 0)
+        return pm_error_set(PM_ERR_USAGE,
+                            "DIFFUSE_DEPTH=%d bounces before a gather: not with GATHER=none, whose "
+                            "image is the direct light alone",
+                            s->diffuse_depth);
     /* The pass files (PASS_RANGE, KEEP=all given, ...) have no guide: resident passes only. */
     if (s->guide && s->value[PM_P_PASS_RANGE][0])
         return pm_error_set(PM_ERR_USAGE, "GUIDE=1 with PASS_RANGE: the pass files have no guide (the resident "

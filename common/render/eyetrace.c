@@ -381,7 +381,10 @@ static void surf_normals(const pm_scene_t *s, uint32_t tri, float side, surf_t *
 static int shadow_room(const pm_eye_t *c, scratch_t *sc)
 {
     const pm_lights_t *lights = &c->lights;
-    size_t want = sc->shadow.n + lights->ndelta + (lights->ndirect - lights->ndelta) * c->light_samples;
+    /* one sample of each light at least: the gather points (gather_direct) and the diffuse
+     * bounces take one whatever light_samples is, 0 included */
+    size_t ls = c->light_samples > 1 ? c->light_samples : 1;
+    size_t want = sc->shadow.n + lights->ndelta + (lights->ndirect - lights->ndelta) * ls;
     return pm_rays_reserve(&sc->shadow, want) == PM_OK &&
            grow((void **)&sc->sh_px, sizeof(uint32_t), &sc->sh_px_cap, want) &&
            grow((void **)&sc->sh_c, 3 * sizeof(float), &sc->sh_c_cap, want);
@@ -419,6 +422,8 @@ static void direct_lights_n(const pm_eye_t *c, scratch_t *sc, const surf_t *v, u
      * samples (render/light.h). */
     for (size_t l = 0; l < lights->ndirect; l++) {
         unsigned nsamples = l < lights->ndelta ? 1 : ls;
+        if (!area && lights->direct[l].infinite && !pm_light_at_gather(lights, &lights->direct[l], INFINITY))
+            continue; /* a constant sky at a gather point: the map's (rule 2), not even drawn */
         /* the pixel's stratified points of this light (pixel_strata), when the ray has them */
         const float *lu =
             lblk != SIZE_MAX && l >= lights->ndelta ? sc->pix_l + 2 * (l - lights->ndelta) * sc->pix_ln + lblk : NULL;

@@ -91,15 +91,15 @@ typedef struct {
     uint32_t primary, light_samples;
     int pixel; /* PM_PIXEL_BOX or PM_PIXEL_CENTER */
     uint64_t seed;
-    int packet_width;       /* lanes: 1, 4, 8 or 16 */
-    uint32_t channels;      /* mask of the queries channels written (direction, material only when needed) */
-    uint32_t record_size;   /* bytes per query record */
-    int specular;           /* the scene has mirrors or glass: eye paths pass through them */
-    int caustics;           /* caustic queries are delivered */
-    unsigned glossy_depth;  /* glossy paths are followed up to this many bounces (0: the scene has none, or off) */
-    int guided;             /* secondary rays are guided by photons (pm_eye_options_t guide) */
-    int secondary_direct;   /* the gather points' direct light is in the direct buffer (header secondary_direct=1) */
-    int strata_pixel;       /* secondary rays and light samples stratified over each pixel (header strata=pixel) */
+    int packet_width;      /* lanes: 1, 4, 8 or 16 */
+    uint32_t channels;     /* mask of the queries channels written (direction, material only when needed) */
+    uint32_t record_size;  /* bytes per query record */
+    int specular;          /* the scene has mirrors or glass: eye paths pass through them */
+    int caustics;          /* caustic queries are delivered */
+    unsigned glossy_depth; /* glossy paths are followed up to this many bounces (0: the scene has none, or off) */
+    int guided;            /* secondary rays are guided by photons (pm_eye_options_t guide) */
+    int secondary_direct; /* the gather points' direct light is in the direct buffer (header secondary_direct=1 or 2) */
+    int strata_pixel;     /* secondary rays and light samples stratified over each pixel (header strata=pixel) */
     unsigned diffuse_depth; /* Lambertian bounces before the gather (header diffuse_depth=N when > 0) */
 } pm_eye_info_t;
 

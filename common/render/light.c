@@ -168,7 +168,7 @@ size_t pm_lights_count_at_gather(const pm_scene_t *s)
     size_t total, sampled;
     pm_lights_count(s, &total, &sampled);
     (void)sampled;
-    return total;
+    return total - (size_t)(pm_light_gather_rule(s) == 2); /* a constant sky is the map's (rule 2) */
 }
 
 /* ------------------------------------------------------------------ per kind */

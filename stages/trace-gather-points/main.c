@@ -547,8 +547,8 @@ int main(int argc, char **argv)
          1, 0, NULL},
         {"secondary-direct", 0, PM_OPT_FLAG, &o.secondary_direct, NULL,
          "also take a light sample of each light at every gather point into the direct buffer (an area light's "
-         "near field stays the map's): gather the queries against a map without the first hits they stand for "
-         "(trace-photons --indirect-only); headers say secondary_direct=1",
+         "near field and a constant sky stay the map's): gather the queries against a map without the first hits "
+         "they stand for (trace-photons --indirect-only); headers say secondary_direct=1, or 2 under a constant sky",
          1, 0, NULL},
         {"diffuse-depth", 0, PM_OPT_INT, &o.diffuse_depth, "N",
          "Lambertian bounces a secondary path takes before it gathers (--mode gather): at each, a light sample of "
@@ -557,7 +557,8 @@ int main(int argc, char **argv)
          0, 8, NULL},
         {"strata", 0, PM_OPT_CHOICE, &o.strata, "HOW",
          "pixel: the secondary rays and the light samples of all a pixel's primary rays stratified as one set "
-         "(headers say strata=pixel); hit: each hit's alone (the files of before)",
+         "(headers say strata=pixel); hit: each hit's alone (the files of before, but for the constant sky's rule "
+         "under --secondary-direct)",
          1, 0, strata_names},
         {0},
     };

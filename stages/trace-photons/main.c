@@ -263,7 +263,8 @@ int main(int argc, char **argv)
          1, 0, NULL},
         {"indirect-only", 0, PM_OPT_FLAG, &o.indirect_only, NULL,
          "store in -o no first hit (depth 0) whose light the gather points sample with shadow rays (all but an "
-         "area light's near field; trace-gather-points --secondary-direct); the header says indirect_only=1",
+         "area light's near field and a constant sky; trace-gather-points --secondary-direct); the header says "
+         "indirect_only=1, or 2 under a constant sky",
          1, 0, NULL},
         {"direction", 0, PM_OPT_FLAG, &o.direction, NULL,
          "write the direction channel (where each photon came from) in any scene, not only a glossy one: for "

@@ -314,6 +314,11 @@ if "$BIN/pm-info" "$TMP/f5dd.q.pm" | grep -qx 'diffuse_depth=1' && "$BIN/pm-info
 else
     fail "diffuse_depth header" "$("$BIN/pm-info" "$TMP/f5dd.q.pm" | grep depth)"
 fi
+# no light samples at the primary hits: the gather points' and the bounces' own one sample of
+# each light still has room (a shadow-ray reservation by light_samples alone overran it)
+expect_exit "--diffuse-depth 1 --secondary-direct with --light-samples 0 runs" 0 \
+    "$BIN/trace-gather-points" scenes/cornell-box/scene.json --width 16 --height 16 --spp 4 --light-samples 0 \
+    --diffuse-depth 1 --secondary-direct -q -o "$TMP/ls0.q.pm" --direct "$TMP/ls0.d.pm"
 expect_exit "--diffuse-depth in direct-vis mode is a usage error" 2 \
     "$BIN/trace-gather-points" "$TMP/sphere/scene.json" --mode direct-vis --diffuse-depth 1 -q -o "$TMP/dvdd.pm"
 # A map and queries that disagree: one error naming both files, exit 1, no output.

@@ -143,6 +143,8 @@ sky_mean sdm photonmap.pm indirect_only=2
 sky_mean sdd queries.pm diffuse_depth=1 DIFFUSE_DEPTH=1
 expect_exit "DIFFUSE_DEPTH=1 with MODE=direct-vis is refused" 2 $R "$SCENE" "$TMP/ddv" MODE=direct-vis DIFFUSE_DEPTH=1
 expect_exit "a DIFFUSE_DEPTH other than 0, 1 or 2 is refused" 2 $R "$SCENE" "$TMP/ddv" DIFFUSE_DEPTH=3
+expect_exit "DIFFUSE_DEPTH=1 with GATHER=none is refused (its image is the direct light alone)" 2 \
+    $R "$SCENE" "$TMP/ddv" GATHER=none DIFFUSE_DEPTH=1
 # SECONDARY_DIRECT=auto: on for a progressive render of a scene with a sun or a sky, off for its
 # one render and for a progressive render of a scene lit otherwise (below TIME=10)
 $R scenes/atrium/textured.json "$TMP/sda" $SMALL PASSES=2 >/dev/null 2>&1

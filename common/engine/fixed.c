@@ -240,7 +240,7 @@ static void build_graph(render_t *r)
         arg(j, "--secondary-direct");
     if (s->diffuse_depth) {
         arg(j, "--diffuse-depth");
-        arg(j, s->diffuse_depth == 1 ? "1" : "2");
+        arg(j, s->value[PM_P_DIFFUSE_DEPTH]); /* "1" or "2": pm_settings_parse checked it */
     }
     if (s->guide && r->need_gather) { /* GUIDE=1: after trace-photons, from its photons */
         arg(j, "--guide");
@@ -1532,7 +1532,7 @@ static void pass_queries(passgraph_t *g, unit_t *u)
         arg(c, "--secondary-direct");
     if (s->diffuse_depth) {
         arg(c, "--diffuse-depth");
-        arg(c, s->diffuse_depth == 1 ? "1" : "2");
+        arg(c, s->value[PM_P_DIFFUSE_DEPTH]); /* "1" or "2": pm_settings_parse checked it */
     }
     pc_pass(c, g->pass);
     arg_common(r, c);

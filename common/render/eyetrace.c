@@ -917,6 +917,20 @@ static int path_query(const pm_eye_t *c, scratch_t *sc, const path_t *a, bytebuf
     return 1;
 }
 
+/* The geometry of path a's hit into v: the point, the direction back along the ray, the
+ * geometric normal turned toward it and the lifted ray origin; returns the side (+1 the front,
+ * -1 the back) for surf_normals, once the caller has set v->m. */
+static float path_hit_surface(const pm_eye_t *c, const path_t *a, surf_t *v)
+{
+    const float *ng = c->geom.tri_n + 3 * (size_t)a->tri;
+    for (int k = 0; k < 3; k++)
+        v->p[k] = a->o[k] + a->t * a->d[k], v->wo[k] = -a->d[k];
+    float side = pm_dot3(ng, v->wo) >= 0.0f ? 1.0f : -1.0f;
+    for (int k = 0; k < 3; k++)
+        v->gn[k] = side * ng[k], v->o[k] = v->p[k] + c->eps * v->gn[k];
+    return side;
+}
+
 /* Secondary direct light (pm_eye_options_t's secondary_direct): next-event estimation at path
  * a's gather point, as at a primary hit (direct_lights, the whole BSDF there), one sample of
  * each light (the pixel's spp gather points are its samples; a point light or spot exactly),
@@ -930,16 +944,11 @@ static int path_query(const pm_eye_t *c, scratch_t *sc, const path_t *a, bytebuf
  * shadow rays into sc->shadow. 0 when out of memory. */
 static int gather_direct(const pm_eye_t *c, scratch_t *sc, const path_t *a)
 {
-    const float *ng = c->geom.tri_n + 3 * (size_t)a->tri;
     pm_material_t textured;
     surf_t v;
     if (!isfinite(a->w[0] + a->w[1] + a->w[2]))
         return 1;
-    for (int k = 0; k < 3; k++)
-        v.p[k] = a->o[k] + a->t * a->d[k], v.wo[k] = -a->d[k];
-    float side = pm_dot3(ng, v.wo) >= 0.0f ? 1.0f : -1.0f;
-    for (int k = 0; k < 3; k++)
-        v.gn[k] = side * ng[k], v.o[k] = v.p[k] + c->eps * v.gn[k];
+    float side = path_hit_surface(c, a, &v);
     v.m = pm_scene_material_at(c->s, a->tri, v.p, &textured);
     if (!(v.m->kd[0] > 0.0f || v.m->kd[1] > 0.0f || v.m->kd[2] > 0.0f || pm_material_is_glossy(v.m)))
         return 1; /* black */
@@ -1025,14 +1034,9 @@ static int glossy_bounce(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCo
                          double *direct, bytebuf_t *out)
 {
     const pm_scene_t *s = c->s;
-    const float *ng = c->geom.tri_n + 3 * (size_t)a->tri;
     surf_t v;
     pm_material_t textured, lobe;
-    for (int k = 0; k < 3; k++)
-        v.p[k] = a->o[k] + a->t * a->d[k], v.wo[k] = -a->d[k];
-    float side = pm_dot3(ng, v.wo) >= 0.0f ? 1.0f : -1.0f;
-    for (int k = 0; k < 3; k++)
-        v.gn[k] = side * ng[k], v.o[k] = v.p[k] + c->eps * v.gn[k];
+    float side = path_hit_surface(c, a, &v);
     const pm_material_t *m = pm_scene_material_at(s, a->tri, v.p, &textured);
     v.m = m;
     surf_normals(s, a->tri, side, &v);
@@ -1106,25 +1110,17 @@ static int glossy_bounce(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCo
 static int diffuse_bounce(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectContext *ctx, path_t *a, unsigned depth,
                           const pm_material_t *m, double *direct)
 {
-    const float *ng = c->geom.tri_n + 3 * (size_t)a->tri;
     surf_t v;
-    for (int k = 0; k < 3; k++)
-        v.p[k] = a->o[k] + a->t * a->d[k], v.wo[k] = -a->d[k];
-    float side = pm_dot3(ng, v.wo) >= 0.0f ? 1.0f : -1.0f;
-    for (int k = 0; k < 3; k++)
-        v.gn[k] = side * ng[k], v.o[k] = v.p[k] + c->eps * v.gn[k];
+    float side = path_hit_surface(c, a, &v);
     v.m = m;
     surf_normals(c->s, a->tri, side, &v);
     if (!shadow_room(c, sc))
         return -1;
     direct_lights_n(c, sc, &v, a->x, 1.0f, a->w, 1.0f, 1, a->rng, NULL, 1, 1, SIZE_MAX);
     float u1 = pm_rng_float(a->rng), u2 = pm_rng_float(a->rng), u3 = pm_rng_float(a->rng), wi[3];
-    pm_vec3_t tv, bv, nv = pm_v3_load(v.n);
-    pm_onb(nv, &tv, &bv);
-    pm_v3_store(wi, pm_onb_to_world(pm_sample_cosine_hemisphere(u1, u2), tv, bv, nv));
-    float cosi = pm_dot3(v.n, wi);
-    if (!(cosi > 0.0f) || (v.shaded && !(pm_dot3(v.gn, wi) > 0.0f)))
+    if (!pm_bsdf_sample_lobe(m, PM_LOBE_DIFFUSE, v.n, v.wo, u1, u2, wi) || (v.shaded && !(pm_dot3(v.gn, wi) > 0.0f)))
         return 0;
+    float cosi = pm_dot3(v.n, wi);
     float fc[3] = {m->kd[0], m->kd[1], m->kd[2]};
     return path_next(c, sc, ctx, a, depth, v.o, wi, fc, cosi * (1.0f / PM_PI), v.n, u3, direct, 1.0f);
 }

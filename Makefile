@@ -128,6 +128,17 @@ $(BUILD)/%.o: %.c $(FLAGS_FILE)
 	@$(if $(Q),echo "  CC      $<",true)
 	$(Q)$(CC) $(ALL_CFLAGS) -MMD -MP -c $< -o $@
 
+# The scene cache holds this build's structs (common/render/scene_cache.c): its BUILD key is a
+# hash of the library's sources and the flags, kept in a stamp rewritten only when it changes,
+# and compiled into scene_cache.o alone.
+SCENE_CACHE_BUILD := $(BUILD)/.scene-cache-build
+$(SCENE_CACHE_BUILD): $(LIB_SRC) $(foreach d,$(LAYERS),$(wildcard $(d)/*.h)) $(FLAGS_FILE)
+	@mkdir -p $(@D)
+	@h=$$(cat $^ | sha256sum | cut -c1-16); echo "$$h" | cmp -s - $@ || echo "$$h" > $@
+$(BUILD)/common/render/scene_cache.o: common/render/scene_cache.c $(FLAGS_FILE) $(SCENE_CACHE_BUILD)
+	@mkdir -p $(@D)
+	@$(if $(Q),echo "  CC      $<",true)
+	$(Q)$(CC) $(ALL_CFLAGS) -DPM_SCENE_CACHE_BUILD="\"$$(cat $(SCENE_CACHE_BUILD))\"" -MMD -MP -c $< -o $@
 $(LIB): $(LIB_OBJ)
 	@$(if $(Q),echo "  AR      $@",true)
 	$(Q)rm -f $@ && ar rcs $@ $^

@@ -302,7 +302,7 @@ static int want_sync(void)
 static pm_result_t prepare(pm_atomic_t *a)
 {
     int e = 0;
-    const int do_sync = want_sync();
+    const int do_sync = want_sync() && !a->no_sync;
     if (a->f) {
         errno = 0;
         if (fflush(a->f) != 0 || ferror(a->f))

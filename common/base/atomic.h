@@ -40,6 +40,8 @@ typedef struct {
     int slot;       /* index in the cleanup registry, -1 when none */
     int special;    /* 1: a FIFO or device, 2: a regular file behind /dev/fd/N; written through (a
                      * reserved name is copied to it) */
+    int no_sync;    /* 1 (set by the caller after open): no fsync for this output, as PMTK_FSYNC=0 for
+                     * it alone, when every reader checks its checksum (a cache) */
 } pm_atomic_t;
 
 /* Outputs prepared while the set is open, renamed into place together. */

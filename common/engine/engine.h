@@ -163,6 +163,8 @@ pm_result_t pm_proc_wait_any(pm_proc_t *const *procs, int n, int *which_out, pm_
  * resident stage's use between two readings is its compute in that span: one blocked on a pipe
  * uses none. */
 double pm_proc_cpu_s(const pm_proc_t *p);
+/* Sends signal sig to the running program (not yet waited for). */
+void pm_proc_signal(const pm_proc_t *p, int sig);
 /* The program directory the drivers start the stages from: BIN in the environment when set
  * (absolute; PM_ERR_USAGE "no program directory 'X'" when it is none), else the directory of
  * the running program. */
@@ -244,6 +246,16 @@ typedef struct {
 const pm_stage_info_t *pm_stage_table(size_t *n_out);
 
 /* ---- one render ---- */
+
+/* The scene cache of a render in outdir (render/scene_cache.h), the driver's and its stages':
+ * the environment's PMTK_SCENE_CACHE when it is set (empty: none), else OUTDIR/scene.cache.
+ * Written into out (cap bytes); returns out. spawn.c. */
+const char *pm_engine_scene_cache(const char *outdir, char *out, size_t cap);
+/* VERBOSE's line on stderr of what the driver's load did with the cache: "me: scene cache PATH:
+ * read", "written (it was absent)", "not written (why)", "not used (...)". */
+struct pm_scene_cache_status;
+void pm_engine_say_scene_cache(const char *me, const char *cache, const struct pm_scene_cache_status *st,
+                               int uncacheable);
 
 /* One render at a time in OUTDIR: takes an exclusive flock on OUTDIR/.lock (kept in *fd_out and
  * inherited by the stages) and writes "pid N: cmdline" into it, so that a second render names the holder.

@@ -36,6 +36,7 @@
 #include "formats/pmfile.h"
 #include "render/light.h"
 #include "render/scene.h"
+#include "render/scene_cache.h"
 #include "render/summary.h"
 
 #define MAX_JOBS 80
@@ -882,7 +883,7 @@ static void keep_only(render_t *r)
         return;
     static const char *const made[] = {"photons.pm", "photonmap.pm", "caustic-photons.pm", "caustic-map.pm",
                                        "queries.pm", "sorted.pm", "caustic-queries.pm", "direct.pm", "indirect.pm",
-                                       "caustic.pm", "ran.txt", "failed.txt",
+                                       "caustic.pm", "ran.txt", "failed.txt", "scene.cache",
                                        /* what the make graph that pipelines/render was left here */
                                        "Makefile", "scene-info.json", "scene-info.err", NULL};
     char p[PATH_MAX + 64];
@@ -1120,7 +1121,16 @@ static int render_begin(render_t *r, const pm_settings_t *s, const char *me, con
     }
     /* The scene through the library (scene-info's engine): what it holds and needs, its
      * content hash in parts, its warnings once per render. */
-    if ((res = pm_scene_load(r->scene, &r->sc)) != PM_OK) {
+    /* through the scene cache (render/scene_cache.h) when OUTDIR is there already: a rerun
+     * reads it in milliseconds; a new OUTDIR gets it once it is made, below */
+    char cache[PATH_MAX + 64] = "";
+    pm_scene_cache_status_t cst;
+    {
+        struct stat sb;
+        if (getenv("PMTK_SCENE_CACHE") || (stat(s->outdir, &sb) == 0 && S_ISDIR(sb.st_mode)))
+            pm_engine_scene_cache(s->outdir, cache, sizeof cache);
+    }
+    if ((res = pm_scene_load_cached(r->scene, cache, &r->sc, &cst)) != PM_OK) {
         say(r, "cannot load scene '%s': %s", s->scene, pm_error_message());
         return res == PM_ERR_INPUT || res == PM_ERR_USAGE ? 1 : 3;
     }
@@ -1146,6 +1156,15 @@ static int render_begin(render_t *r, const pm_settings_t *s, const char *me, con
     }
     if ((status = pm_engine_lock(r->me, r->out, r->s->wait, cmdline, &r->lock_fd)) != 0)
         goto done;
+    /* the stages, run in OUTDIR, read the scene from the cache the driver's load left */
+    if (!getenv("PMTK_SCENE_CACHE")) {
+        pm_engine_scene_cache(r->out, cache, sizeof cache);
+        setenv("PMTK_SCENE_CACHE", cache, 1);
+        if (!cst.hit && !cst.written && !r->sc.uncacheable && pm_scene_cache_write(&r->sc, cache) == PM_OK)
+            cst.written = 1;
+    }
+    if (r->s->verbose)
+        pm_engine_say_scene_cache(r->me, cache, &cst, r->sc.uncacheable);
     {
         char p[PATH_MAX + 64];
         snprintf(p, sizeof p, "%s/stats", r->out);
@@ -2277,6 +2296,7 @@ static void keep_passes(passes_t *P)
                                        "Makefile",
                                        "ran.txt",
                                        "failed.txt",
+                                       "scene.cache",
                                        "scene-info.json",
                                        "scene-info.err",
                                        ".state.err",

@@ -23,6 +23,7 @@
 #include <limits.h>
 #include <math.h>
 #include <pthread.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -204,6 +205,13 @@ typedef struct {
     int n;
     int fifo_rd; /* the driver's read end of direct.fifo, closed once composite ends */
     int composite;
+    /* The driver's write end of direct.fifo, kept until the stage that writes it (writer) ends:
+     * composite opens the FIFO by name, and an open for reading waits for a writer, forever
+     * when the writer died before composite got there (a stage downstream of it failing at
+     * once: trace-gather-points, its queries' reader gone, ended in milliseconds). */
+    int fifo_wr;
+    int writer;
+    int failed; /* a stage has failed: the others were sent SIGTERM */
 } run_t;
 
 static int start(const frames_t *F, run_t *R, cmd_t *c, int in, int out, int fd3)
@@ -238,9 +246,23 @@ static int wait_range(const frames_t *F, run_t *R, int a, int b)
         R->p[which] = NULL;
         R->code[which] = st.exit_code;
         pm_proc_status_free(&st);
+        /* One stage failed: the run has failed, and the others are ended rather than waited for
+         * (one may never end: composite waits in its open of direct.fifo, by name, for a writer
+         * that died before it got there). Their statuses (a signal) never outrank the failure's
+         * class (worst). */
+        if (st.exit_code != 0 && !R->failed) {
+            R->failed = 1;
+            for (int i = 0; i < R->n; i++)
+                if (R->p[i] && i != which)
+                    pm_proc_signal(R->p[i], SIGTERM);
+        }
         if (which == R->composite && R->fifo_rd >= 0) {
             close(R->fifo_rd);
             R->fifo_rd = -1;
+        }
+        if (which == R->writer && R->fifo_wr >= 0) {
+            close(R->fifo_wr);
+            R->fifo_wr = -1;
         }
     }
     return worst(R->code + a, b - a);
@@ -390,11 +412,11 @@ static int run_stream(frames_t *F)
     snprintf(fifo, sizeof fifo, "%s/direct.fifo", F->out);
     scene_path(F, 0, s0, sizeof s0);
     int sort = strcmp(F->v[F_ORDER], "none") != 0, status = 0;
-    run_t R = {.fifo_rd = -1, .composite = -1};
+    run_t R = {.fifo_rd = -1, .composite = -1, .fifo_wr = -1, .writer = -1};
     cmd_t c[6] = {0};
     /* the part that does not change: the map (camera) or the sorted queries (light), once */
     {
-        run_t R0 = {.fifo_rd = -1, .composite = -1};
+        run_t R0 = {.fifo_rd = -1, .composite = -1, .fifo_wr = -1, .writer = -1};
         int fds[2];
         if ((status = pipe_or_say(F, fds)) != 0)
             return status;
@@ -521,7 +543,7 @@ static int run_stream(frames_t *F)
         add(&side, "--direct");
         add(&side, "/dev/fd/3");
         stats(F, &side, "trace-gather-points");
-        start(F, &R, &side, -1, -1, wr);
+        R.writer = start(F, &R, &side, -1, -1, wr);
     }
     int in = -1;
     for (int i = 0; i < nc && status == 0; i++) {
@@ -529,6 +551,8 @@ static int run_stream(frames_t *F)
         if (i + 1 < nc && (status = pipe_or_say(F, fds)) != 0)
             break;
         int k = start(F, &R, &c[i], in, fds[1], &c[i] == tg ? wr : -1);
+        if (&c[i] == tg)
+            R.writer = k;
         if (i + 1 == nc)
             R.composite = k;
         if (in >= 0)
@@ -539,7 +563,9 @@ static int run_stream(frames_t *F)
     }
     if (in >= 0)
         close(in);
-    if (wr >= 0)
+    if (wr >= 0 && R.writer >= 0 && R.p[R.writer])
+        R.fifo_wr = wr; /* closed when the writer ends (wait_range) */
+    else if (wr >= 0)
         close(wr);
     pthread_t th;
     int have_thread = 0;
@@ -555,6 +581,8 @@ static int run_stream(frames_t *F)
     }
     if (R.fifo_rd >= 0)
         close(R.fifo_rd);
+    if (R.fifo_wr >= 0)
+        close(R.fifo_wr);
     for (int i = 0; i < nc; i++)
         cmd_free(&c[i]);
     cmd_free(&side);
@@ -592,7 +620,8 @@ static int run_per_frame(frames_t *F, json_t *per)
             progress_line(F, f, epoch_now(), frame0);
         double t0 = epoch_now(), t1, t2, t3, t4;
         int reused = f > 0 && F->camera && reuse;
-        run_t PH = {.fifo_rd = -1, .composite = -1}; /* the photon side, then the eye side */
+        run_t PH = {
+            .fifo_rd = -1, .composite = -1, .fifo_wr = -1, .writer = -1}; /* the photon side, then the eye side */
         if (!reused) {
             int fds[2];
             if (pipe_or_say(F, fds)) {

@@ -8,6 +8,7 @@
 #include <fcntl.h>
 #include <inttypes.h>
 #include <jansson.h>
+#include <limits.h>
 #include <math.h>
 #include <signal.h>
 #include <stdarg.h>
@@ -25,6 +26,7 @@
 #include "photonmap/gather_stage.h"
 #include "render/light.h"
 #include "render/scene.h"
+#include "render/scene_cache.h"
 
 extern char **environ;
 
@@ -365,7 +367,7 @@ static int read_state(prog_t *p)
  * a running.pm whose checksum the next run checks) and OMP_WAIT_POLICY=passive unless set
  * (six programs share the cores, and a thread spinning for work takes one from a stage that
  * has work). envp is malloc'd. */
-static char **stage_env(void)
+static char **stage_env(const char *out_dir)
 {
     size_t n = 0;
     while (environ[n])
@@ -375,19 +377,21 @@ static char **stage_env(void)
         return NULL;
     size_t k = 0;
     int omp = 0;
-    /* the meshes the driver's own load tried in a child (render/mesh_guard.c): the tracers load
-     * the same bytes and skip the trial, which doubled their start (docs/scene-format.md) */
-    static char tried[4096] = "PMTK_IMPORT_TRIED=";
-    int have_tried = pm_scene_tried_imports(tried + 18, sizeof tried - 18);
+    /* the scene from the cache the driver's load left (render/scene_cache.h), unless the
+     * environment names one (or none) */
+    static char cache[PATH_MAX + 64] = "PMTK_SCENE_CACHE=";
+    int own_cache = !getenv("PMTK_SCENE_CACHE");
+    if (own_cache)
+        pm_engine_scene_cache(out_dir, cache + 17, sizeof cache - 17);
     for (size_t i = 0; i < n; i++) {
-        if (!strncmp(environ[i], "PMTK_FSYNC=", 11) || (have_tried && !strncmp(environ[i], "PMTK_IMPORT_TRIED=", 18)))
+        if (!strncmp(environ[i], "PMTK_FSYNC=", 11))
             continue;
         omp |= !strncmp(environ[i], "OMP_WAIT_POLICY=", 16);
         e[k++] = environ[i];
     }
     e[k++] = "PMTK_FSYNC=0";
-    if (have_tried)
-        e[k++] = tried;
+    if (own_cache)
+        e[k++] = cache;
     if (!omp)
         e[k++] = "OMP_WAIT_POLICY=passive";
     e[k] = NULL;
@@ -1192,10 +1196,15 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
     free(out), free(scene);
     /* the scene once: its content hash (the running image's identity) and what it holds */
     pm_scene_t sc;
-    if (pm_scene_load(p.scene, &sc) != PM_OK) {
+    char cache[PATH_MAX + 64];
+    pm_scene_cache_status_t cst;
+    pm_engine_scene_cache(p.out, cache, sizeof cache);
+    if (pm_scene_load_cached(p.scene, cache, &sc, &cst) != PM_OK) {
         say(&p, "cannot load the scene '%s': %s", s->scene, pm_error_message());
         return 1;
     }
+    if (s->verbose)
+        pm_engine_say_scene_cache(me, cache, &cst, sc.uncacheable);
     pm_scene_id(&sc, p.scene_id, sizeof p.scene_id);
     int specular = sc.any_specular, scene_primary = (int)sc.defaults.primary;
     p.light_samples_zero = sc.nemissive == 0 && !sc.has_sun && !sc.has_sky;
@@ -1235,7 +1244,7 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
     int locked = pm_engine_lock(p.me, p.out, p.s->wait, cmdline, &p.lock_fd);
     if (locked != 0)
         return locked;
-    char **env = stage_env();
+    char **env = stage_env(p.out);
     if (!env) {
         say(&p, "out of memory");
         close(p.lock_fd);
@@ -1319,6 +1328,11 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
         }
         printf("  %-34s %9.3f   (%d passes, stopped by %s)\n", "total", wall, p.npasses, stop);
         write_stats(&p, wall, first_image, stop);
+        if (s->keep != PM_KEEP_ALL && !getenv("PMTK_SCENE_CACHE")) {
+            char path[4200]; /* the scene cache is OUTDIR's only under KEEP=all */
+            snprintf(path, sizeof path, "%s/scene.cache", p.out);
+            unlink(path);
+        }
         if (s->keep == PM_KEEP_IMAGE) {
             char path[4200];
             snprintf(path, sizeof path, "%s/running.pm", p.out);

@@ -15,6 +15,7 @@
 
 #include "base/timer.h"
 #include "engine/engine.h"
+#include "render/scene_cache.h"
 
 extern char **environ;
 
@@ -24,6 +25,12 @@ struct pm_proc {
     double t0;  /* s, pm_time_wall at spawn */
     char name[256];
 };
+
+void pm_proc_signal(const pm_proc_t *p, int sig)
+{
+    if (p && p->pid > 0)
+        kill(p->pid, sig);
+}
 
 double pm_proc_cpu_s(const pm_proc_t *p)
 {
@@ -252,4 +259,29 @@ void pm_engine_say(const char *me, const char *fmt, ...)
     vfprintf(stderr, fmt, ap);
     fputc('\n', stderr);
     va_end(ap);
+}
+
+const char *pm_engine_scene_cache(const char *outdir, char *out, size_t cap)
+{
+    const char *env = getenv("PMTK_SCENE_CACHE");
+    if (env)
+        snprintf(out, cap, "%s", env);
+    else
+        snprintf(out, cap, "%s/scene.cache", outdir);
+    return out;
+}
+
+void pm_engine_say_scene_cache(const char *me, const char *cache, const pm_scene_cache_status_t *st, int uncacheable)
+{
+    if (!cache[0])
+        fprintf(stderr, "%s: scene cache: none (PMTK_SCENE_CACHE is empty)\n", me);
+    else if (st->hit)
+        fprintf(stderr, "%s: scene cache %s: read\n", me, cache);
+    else if (uncacheable)
+        fprintf(stderr, "%s: scene cache %s: not used (the meshes' import reads files pmtk cannot name)\n", me, cache);
+    else if (st->written)
+        fprintf(stderr, "%s: scene cache %s: written%s%s%s\n", me, cache, st->why[0] ? " (" : "", st->why,
+                st->why[0] ? ")" : "");
+    else
+        fprintf(stderr, "%s: scene cache %s: not written (%s)\n", me, cache, st->why);
 }

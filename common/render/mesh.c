@@ -189,8 +189,14 @@ static pm_result_t import_file(ctx_t *c, const char *path, int is_obj, import_t 
             *im_out = &c->imports[i];
             return PM_OK;
         }
-    if ((r = pm_scene_check_regular(path, "mesh")) != PM_OK)
+    if ((r = pm_scene_check_regular(path, "mesh")) != PM_OK || (r = pm_scene_add_source(c->s, path)) != PM_OK)
         return r;
+    /* assimp reads an OBJ's .mtl files (noted below) and nothing else of these formats; others
+     * open what they refer to themselves, which the scene cache cannot name */
+    const char *dot = strrchr(path, '.');
+    if (!dot ||
+        (strcasecmp(dot, ".obj") && strcasecmp(dot, ".ply") && strcasecmp(dot, ".off") && strcasecmp(dot, ".stl")))
+        c->s->uncacheable = 1;
     /* assimp opens an OBJ's .mtl files itself: each must be a regular file too (a missing one
      * is assimp's to report) */
     char libs_read[4096] = "";
@@ -203,6 +209,8 @@ static pm_result_t import_file(ctx_t *c, const char *path, int is_obj, import_t 
             pm_scene_resolve(path, name, lpath, sizeof lpath);
             if (access(lpath, F_OK) == 0 && (r = pm_scene_check_regular(lpath, "material library")) != PM_OK)
                 return r;
+            if ((r = pm_scene_add_source(c->s, lpath)) != PM_OK)
+                return r;
         }
     if ((r = pm_scene_grow((void **)&c->imports, c->nimports + 1, sizeof *c->imports)) != PM_OK)
         return r;
@@ -210,9 +218,9 @@ static pm_result_t import_file(ctx_t *c, const char *path, int is_obj, import_t 
      * and lines; vertex normals come as the file has them (none are made up). */
     const unsigned flags = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_PreTransformVertices |
                            aiProcess_SortByPType | aiProcess_ValidateDataStructure;
-    if ((r = pm_scene_mesh_precheck(path)) != PM_OK ||
-        (r = pm_scene_mesh_trial(path, flags, is_obj ? libs_read : NULL)) != PM_OK)
+    if ((r = pm_scene_mesh_precheck(path)) != PM_OK)
         return r;
+    pm_scene_guard_importing(path);
     struct aiLogStream log = {on_assimp_log, NULL};
     ai_first_error[0] = '\0';
     ai_dropped_faces = 0;
@@ -220,6 +228,13 @@ static pm_result_t import_file(ctx_t *c, const char *path, int is_obj, import_t 
     aiAttachLogStream(&log);
     const struct aiScene *imported = aiImportFile(path, flags);
     aiDetachAllLogStreams();
+    pm_scene_guard_imported();
+    /* in a guarded load's child, assimp's own std::bad_alloc is the memory limit (as the trial's
+     * exit 11) */
+    if (!imported && pm_scene_guarded_child() && strstr(aiGetErrorString(), "alloc"))
+        return pm_error_set(PM_ERR_INPUT,
+                            "mesh '%s': assimp's import took more than %s MiB (PMTK_IMPORT_MB) and was stopped", path,
+                            getenv("PMTK_IMPORT_MB") && *getenv("PMTK_IMPORT_MB") ? getenv("PMTK_IMPORT_MB") : "4096");
     if (!imported)
         return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, aiGetErrorString());
     if (ai_dropped_faces) {

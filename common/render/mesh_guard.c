@@ -1,8 +1,10 @@
 /* mesh_guard.c: what stands between an untrusted mesh file and libassimp (docs/scene-format.md,
  * "Untrusted meshes"). The headers of PLY, OFF and STL files, whose readers assimp 5.2 lets
  * crash, loop or allocate without bound on a damaged header, are checked here first against
- * the file's size; then the import is tried in a forked child with a time and a memory limit,
- * so that a crash, a hang or a memory blow-up inside assimp ends in one line naming the file. */
+ * the file's size; then the whole scene's load, assimp's imports with it, runs in a forked
+ * child with a time and a memory limit (pm_scene_load_guarded), so that a crash, a hang or a
+ * memory blow-up inside assimp ends in one line naming the file, and the child hands the
+ * loaded scene back through a pipe. */
 #include "render/scene.h"
 
 #include <assimp/cimport.h>
@@ -12,6 +14,7 @@
 #include <fcntl.h>
 #include <inttypes.h>
 #include <jansson.h>
+#include <poll.h>
 #include <pthread.h>
 #include <signal.h>
 #include <stdio.h>
@@ -256,105 +259,127 @@ static void statm_mib(pid_t pid, long *rss_out, long *data_out)
     *data_out = ok ? (long)((double)v[5] * page) : 0;
 }
 
-/* The keys of the imports this process tried and found clean (pm_scene_tried_imports): the
- * programs a driver starts import the same bytes again, and need not try them again. */
-enum { TRIED_MAX = 64 };
-static uint64_t tried[TRIED_MAX];
-static int ntried;
-static pthread_mutex_t tried_lock = PTHREAD_MUTEX_INITIALIZER; /* scenes loaded on several threads */
-
-/* The trial's key for path (libs: an OBJ's material libraries, a name a line; NULL for none),
- * or 0 when its import may read files the key does not cover (any format but OBJ, PLY, OFF
- * and STL) or a file cannot be read. */
-static uint64_t trial_key(const char *path, const char *libs, unsigned flags, long secs, long mib)
+/* The limits (seconds, MiB; 0 off), or a usage error for a value that is not a whole number. */
+static pm_result_t import_limits(long *secs, long *mib)
 {
-    const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
-    if (!dot || (slash && dot < slash) ||
-        (strcasecmp(dot, ".obj") && strcasecmp(dot, ".ply") && strcasecmp(dot, ".off") && strcasecmp(dot, ".stl")) ||
-        (libs && strcasecmp(dot, ".obj")))
-        return 0;
-    uint64_t h[4 + 32] = {(uint64_t)flags, (uint64_t)secs, (uint64_t)mib, 0};
-    size_t n = 4;
-    if (pm_hash_file(path, &h[3]) != PM_OK)
-        return 0;
-    for (const char *lib = libs ? libs : "", *eol; (eol = strchr(lib, '\n')); lib = eol + 1) {
-        char name[1024], lpath[1200];
-        snprintf(name, sizeof name, "%.*s", (int)(eol - lib), lib);
-        pm_scene_resolve(path, name, lpath, sizeof lpath);
-        if (n == sizeof h / sizeof *h)
-            return 0;
-        if (pm_hash_file(lpath, &h[n]) != PM_OK)
-            h[n] = 1; /* a library that is not there (assimp reports it; the import is what it is) */
-        n++;
-    }
-    uint64_t k = pm_hash_bytes(h, n * sizeof *h);
-    return k ? k : 1;
-}
-
-/* 1 when key is noted in PMTK_IMPORT_TRIED or by this process */
-static int tried_before(uint64_t key)
-{
-    int found = 0;
-    pthread_mutex_lock(&tried_lock);
-    for (int i = 0; i < ntried; i++)
-        found |= tried[i] == key;
-    pthread_mutex_unlock(&tried_lock);
-    if (found)
-        return 1;
-    const char *env = getenv("PMTK_IMPORT_TRIED");
-    char want[17];
-    snprintf(want, sizeof want, "%016" PRIx64, key);
-    for (const char *p = env ? env : ""; *p;) {
-        size_t len = strcspn(p, " ");
-        if (len == 16 && !strncmp(p, want, 16))
-            return 1;
-        p += len;
-        p += strspn(p, " ");
-    }
-    return 0;
-}
-
-int pm_scene_tried_imports(char *out, size_t cap)
-{
-    const char *env = getenv("PMTK_IMPORT_TRIED");
-    int n = snprintf(out, cap, "%s", env ? env : "");
-    pthread_mutex_lock(&tried_lock);
-    for (int i = 0; i < ntried && n >= 0 && (size_t)n < cap; i++)
-        n += snprintf(out + n, cap - (size_t)n, "%s%016" PRIx64, n ? " " : "", tried[i]);
-    pthread_mutex_unlock(&tried_lock);
-    if (n <= 0 || (size_t)n >= cap) {
-        if (cap)
-            out[0] = '\0';
-        return 0;
-    }
-    return 1;
-}
-
-pm_result_t pm_scene_mesh_trial(const char *path, unsigned flags, const char *libs)
-{
-    long secs = env_limit("PMTK_IMPORT_SECONDS", 60), mib = env_limit("PMTK_IMPORT_MB", 4096);
-    if (secs < 0 || mib < 0)
+    *secs = env_limit("PMTK_IMPORT_SECONDS", 60), *mib = env_limit("PMTK_IMPORT_MB", 4096);
+    if (*secs < 0 || *mib < 0)
         return pm_error_set(PM_ERR_USAGE,
                             "PMTK_IMPORT_SECONDS '%s' and PMTK_IMPORT_MB '%s' must be whole numbers "
                             "(0: no limit)",
                             getenv("PMTK_IMPORT_SECONDS") ? getenv("PMTK_IMPORT_SECONDS") : "",
                             getenv("PMTK_IMPORT_MB") ? getenv("PMTK_IMPORT_MB") : "");
-    if (secs == 0 && mib == 0)
-        return PM_OK; /* both off: no trial */
-    uint64_t key = trial_key(path, libs, flags, secs, mib);
-    if (key && tried_before(key))
-        return PM_OK; /* these bytes imported cleanly in a trial under these limits */
-    /* the limit is on what the import adds: the child starts with this process's memory */
+    return PM_OK;
+}
+
+/* In the child of a guarded load (pm_scene_load_guarded): where it says what it is importing;
+ * -1 elsewhere. */
+static int guard_fd = -1;
+
+/* A frame to the guarded load's parent: kind, the u64 length, the bytes. */
+static void guard_put(char kind, const void *data, uint64_t n)
+{
+    if (guard_fd < 0)
+        return;
+    unsigned char head[9];
+    head[0] = (unsigned char)kind;
+    memcpy(head + 1, &n, sizeof n);
+    const unsigned char *parts[2] = {head, data};
+    size_t lens[2] = {sizeof head, (size_t)n};
+    for (int k = 0; k < 2; k++)
+        for (size_t at = 0; at < lens[k];) {
+            ssize_t w = write(guard_fd, parts[k] + at, lens[k] - at);
+            if (w < 0 && errno == EINTR)
+                continue;
+            if (w <= 0)
+                _exit(12); /* the parent is gone or the pipe broken: nothing to report to */
+            at += (size_t)w;
+        }
+}
+
+void pm_scene_guard_entry(const char *scene, size_t index)
+{
+    char text[1400];
+    int n = snprintf(text, sizeof text, "scene '%s': meshes[%zu]", scene, index);
+    guard_put('M', text, n < 0 ? 0 : (uint64_t)strlen(text));
+}
+
+void pm_scene_guard_imported(void) { guard_put('D', "", 0); }
+
+int pm_scene_guarded_child(void) { return guard_fd >= 0; }
+
+void pm_scene_guard_importing(const char *path) { guard_put('P', path, strlen(path)); }
+
+/* ---- the guarded load: the whole load in one child (render/scene_cache.c) ---- */
+
+/* The frames a guarded child wrote, as the parent reads them after it ended. */
+typedef struct {
+    char entry[1400]; /* the last 'M': "scene 'S': meshes[I]" */
+    char mesh[1200];  /* the last 'P': the file assimp was given */
+    int in_import;    /* a 'P' with no 'D' after it: the child was inside assimp */
+    int err_code;     /* an 'E': the load's failure */
+    char err[PM_ERROR_MAX];
+    const unsigned char *scene; /* an 'S': the scene's bytes */
+    uint64_t nscene;
+} frames_t;
+
+static void read_frames(const unsigned char *d, size_t n, frames_t *f)
+{
+    memset(f, 0, sizeof *f);
+    for (size_t at = 0; n - at >= 9;) {
+        char kind = (char)d[at];
+        uint64_t len;
+        memcpy(&len, d + at + 1, sizeof len);
+        at += 9;
+        if (len > n - at)
+            break; /* cut off by the child's death */
+        const unsigned char *b = d + at;
+        at += (size_t)len;
+        if (kind == 'M')
+            snprintf(f->entry, sizeof f->entry, "%.*s", (int)len, (const char *)b);
+        else if (kind == 'P')
+            snprintf(f->mesh, sizeof f->mesh, "%.*s", (int)len, (const char *)b), f->in_import = 1;
+        else if (kind == 'D')
+            f->in_import = 0;
+        else if (kind == 'E' && len >= sizeof(int32_t)) {
+            int32_t c;
+            memcpy(&c, b, sizeof c);
+            f->err_code = c ? c : PM_ERR_INTERNAL;
+            snprintf(f->err, sizeof f->err, "%.*s", (int)(len - sizeof c), (const char *)b + sizeof c);
+        } else if (kind == 'S')
+            f->scene = b, f->nscene = len;
+    }
+}
+
+pm_result_t pm_scene_load_guarded(const char *path, unsigned char **bytes_out, size_t *n_out, int *unguarded_out)
+{
+    *bytes_out = NULL, *n_out = 0, *unguarded_out = 0;
+    long secs, mib;
+    pm_result_t r = import_limits(&secs, &mib);
+    if (r != PM_OK)
+        return r;
+    if (secs == 0 && mib == 0) {
+        *unguarded_out = 1; /* both off: the caller loads in its own process */
+        return PM_OK;
+    }
     long rss0, data0, rss;
     statm_mib(0, &rss0, &data0);
+    int fds[2];
+    if (pipe2(fds, O_CLOEXEC) != 0) /* no other program started meanwhile holds the write end */
+        return pm_error_set(pm_result_of_errno(errno), "scene '%s': cannot make a pipe for the guarded load: %s", path,
+                            strerror(errno));
     fflush(NULL);
     pid_t pid = fork();
-    if (pid < 0)
-        return pm_error_set(pm_result_of_errno(errno), "mesh '%s': cannot fork the trial import: %s", path,
-                            strerror(errno));
+    if (pid < 0) {
+        int e = errno;
+        close(fds[0]), close(fds[1]);
+        return pm_error_set(pm_result_of_errno(e), "scene '%s': cannot fork the guarded load: %s", path, strerror(e));
+    }
     if (pid == 0) {
-        /* The child: quiet (stdout is data; a crash report is the parent's to give), its
-         * signals the default (the parent's cleanup of temporary files is not its own). */
+        /* The child: the load, its warnings kept in the scene (the parent says them); stdout and
+         * stderr to /dev/null, signals the default, the data segment capped as the trial's. */
+        close(fds[0]);
+        guard_fd = fds[1];
         int null = open("/dev/null", O_RDWR);
         if (null >= 0) {
             dup2(null, STDOUT_FILENO);
@@ -364,27 +389,61 @@ pm_result_t pm_scene_mesh_trial(const char *path, unsigned flags, const char *li
         for (size_t i = 0; i < sizeof sigs / sizeof *sigs; i++)
             signal(sigs[i], SIG_DFL);
 #ifndef GUARD_ASAN
-        if (mib > 0) { /* a backstop under the parent's watch: allocations fail beyond it */
+        if (mib > 0) {
             struct rlimit rl = {(rlim_t)(data0 + mib + 256) << 20, (rlim_t)(data0 + mib + 256) << 20};
             setrlimit(RLIMIT_DATA, &rl);
         }
 #endif
-        const struct aiScene *as = aiImportFile(path, flags);
-        /* 11: assimp caught its own std::bad_alloc (the limit above) and gave up */
-        _exit(as ? 0 : strstr(aiGetErrorString(), "alloc") ? 11 : 10);
+        pm_scene_t s;
+        unsigned char *bytes = NULL;
+        size_t n = 0;
+        pm_result_t cr = pm_scene_load_files(path, &s);
+        if (cr == PM_OK) {
+            cr = pm_scene_cache_encode(&s, &bytes, &n);
+            pm_scene_free(&s);
+        }
+        if (cr != PM_OK) {
+            const char *msg = pm_error_message();
+            size_t ml = strlen(msg);
+            unsigned char *e = malloc(sizeof(int32_t) + ml);
+            if (!e)
+                _exit(13);
+            int32_t c = cr;
+            memcpy(e, &c, sizeof c);
+            memcpy(e + sizeof c, msg, ml);
+            guard_put('E', e, sizeof c + ml);
+            _exit(0);
+        }
+        guard_put('S', bytes, n);
+        _exit(0);
     }
-    struct timespec t0, now, nap = {0, 2000000};
+    close(fds[1]);
+    /* The parent: reads what the child says while it watches its time and its memory. */
+    unsigned char *acc = NULL;
+    size_t n = 0, cap = 0;
+    struct timespec t0, now;
     clock_gettime(CLOCK_MONOTONIC, &t0);
-    int status = 0;
     const char *why = NULL;
-    for (;;) {
-        pid_t w = waitpid(pid, &status, WNOHANG);
-        if (w == pid)
-            break;
-        if (w < 0 && errno != EINTR) {
-            int e = errno;
-            kill(pid, SIGKILL);
-            return pm_error_set(PM_ERR_INTERNAL, "mesh '%s': lost the trial import: %s", path, strerror(e));
+    int status = 0, nomem = 0;
+    for (int open_ = 1; open_;) {
+        struct pollfd pf = {fds[0], POLLIN, 0};
+        int pr = poll(&pf, 1, 2);
+        if (pr > 0) {
+            if (cap - n < 1 << 16) {
+                size_t nc = cap ? 2 * cap : 1 << 20;
+                unsigned char *q = realloc(acc, nc);
+                if (!q) {
+                    nomem = 1;
+                    why = "parent";
+                    break;
+                }
+                acc = q, cap = nc;
+            }
+            ssize_t got = read(fds[0], acc + n, cap - n);
+            if (got > 0)
+                n += (size_t)got;
+            else if (got == 0 || errno != EINTR)
+                open_ = 0; /* the child has ended (or closed its end) */
         }
         long data;
         statm_mib(pid, &rss, &data);
@@ -394,39 +453,60 @@ pm_result_t pm_scene_mesh_trial(const char *path, unsigned flags, const char *li
             why = "memory";
         else if (secs > 0 && dt > (double)secs)
             why = "time";
-        if (why) {
-            kill(pid, SIGKILL);
-            while (waitpid(pid, &status, 0) < 0 && errno == EINTR)
-                ;
+        if (why)
             break;
-        }
-        nanosleep(&nap, NULL);
     }
-    if (WIFEXITED(status) && WEXITSTATUS(status) == 11)
-        why = "memory";
-    if (why && !strcmp(why, "memory"))
-        return pm_error_set(PM_ERR_INPUT,
-                            "mesh '%s': assimp's import took more than %ld MiB (PMTK_IMPORT_MB) and "
-                            "was stopped",
-                            path, mib);
+    close(fds[0]);
     if (why)
-        return pm_error_set(PM_ERR_INPUT,
-                            "mesh '%s': assimp's import took more than %ld s (PMTK_IMPORT_SECONDS) and "
-                            "was stopped",
-                            path, secs);
-    if (WIFEXITED(status) && WEXITSTATUS(status) == 0 && key) {
-        pthread_mutex_lock(&tried_lock);
-        if (ntried < TRIED_MAX)
-            tried[ntried++] = key;
-        pthread_mutex_unlock(&tried_lock);
+        kill(pid, SIGKILL);
+    while (waitpid(pid, &status, 0) < 0 && errno == EINTR)
+        ;
+    if (nomem) {
+        free(acc);
+        return pm_error_set(PM_ERR_NOMEM, "scene '%s': out of memory reading the guarded load", path);
     }
-    if (WIFEXITED(status) && (WEXITSTATUS(status) == 0 || WEXITSTATUS(status) == 10))
-        return PM_OK; /* it imports, or assimp says why not: the import in this process says it again */
-    if (WIFSIGNALED(status))
-        return pm_error_set(PM_ERR_INPUT, "mesh '%s': assimp's import crashed (signal %d, %s)", path, WTERMSIG(status),
-                            strsignal(WTERMSIG(status)));
-    return pm_error_set(PM_ERR_INPUT, "mesh '%s': assimp's import failed (exit %d: a crash or out of memory%s)", path,
-                        WEXITSTATUS(status), mib > 0 ? ", PMTK_IMPORT_MB" : "");
+    frames_t f;
+    read_frames(acc, n, &f);
+    pm_result_t out = PM_OK;
+    if (!why && WIFEXITED(status) && WEXITSTATUS(status) == 0 && f.err_code) {
+        out = pm_error_set(f.err_code, "%s", f.err);
+    } else if (!why && WIFEXITED(status) && WEXITSTATUS(status) == 0 && f.scene) {
+        *bytes_out = malloc(f.nscene ? (size_t)f.nscene : 1);
+        if (!*bytes_out) {
+            out = pm_error_set(PM_ERR_NOMEM, "scene '%s': out of memory for the loaded scene", path);
+        } else {
+            memcpy(*bytes_out, f.scene, (size_t)f.nscene);
+            *n_out = (size_t)f.nscene;
+        }
+    } else if (f.in_import) {
+        /* inside assimp: the trial's own words, with the entry as the in-process load says it */
+        if (why && !strcmp(why, "memory"))
+            pm_error_set(PM_ERR_INPUT,
+                         "mesh '%s': assimp's import took more than %ld MiB (PMTK_IMPORT_MB) and was stopped", f.mesh,
+                         mib);
+        else if (why)
+            pm_error_set(PM_ERR_INPUT,
+                         "mesh '%s': assimp's import took more than %ld s (PMTK_IMPORT_SECONDS) and was stopped",
+                         f.mesh, secs);
+        else if (WIFSIGNALED(status))
+            pm_error_set(PM_ERR_INPUT, "mesh '%s': assimp's import crashed (signal %d, %s)", f.mesh, WTERMSIG(status),
+                         strsignal(WTERMSIG(status)));
+        else
+            pm_error_set(PM_ERR_INPUT, "mesh '%s': assimp's import failed (exit %d: a crash or out of memory%s)",
+                         f.mesh, WEXITSTATUS(status), mib > 0 ? ", PMTK_IMPORT_MB" : "");
+        if (f.entry[0])
+            pm_error_prefix("%s", f.entry);
+        out = PM_ERR_INPUT;
+    } else if (why) {
+        out = pm_error_set(PM_ERR_INPUT, "scene '%s': its load took more than %s and was stopped", path,
+                           !strcmp(why, "memory") ? "PMTK_IMPORT_MB of memory" : "PMTK_IMPORT_SECONDS");
+    } else {
+        out = pm_error_set(PM_ERR_INTERNAL, "scene '%s': the guarded load ended without a scene (%s %d)", path,
+                           WIFSIGNALED(status) ? "signal" : "exit",
+                           WIFSIGNALED(status) ? WTERMSIG(status) : WEXITSTATUS(status));
+    }
+    free(acc);
+    return out;
 }
 
 /* The bytes [off, off + len) of glTF buffer b (bufs: the file's "buffers"; bin: a .glb's BIN

@@ -13,6 +13,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "base/hash.h"
 #include "math/vec.h"
@@ -26,6 +27,32 @@ void pm_scene_resolve(const char *scene_path, const char *file, char *out, size_
         snprintf(out, cap, "%s", file);
     else
         snprintf(out, cap, "%.*s/%s", (int)(slash - scene_path), scene_path, file);
+}
+
+pm_result_t pm_scene_add_source(pm_scene_t *s, const char *path)
+{
+    for (size_t i = 0; i < s->nsources; i++)
+        if (strcmp(s->sources[i].path, path) == 0)
+            return PM_OK;
+    if (strlen(path) >= sizeof s->sources->path) {
+        s->uncacheable = 1; /* a path the cache cannot name */
+        return PM_OK;
+    }
+    pm_result_t r = pm_scene_grow((void **)&s->sources, s->nsources + 1, sizeof *s->sources);
+    if (r != PM_OK)
+        return r;
+    pm_scene_source_t *src = &s->sources[s->nsources];
+    memset(src, 0, sizeof *src);
+    snprintf(src->path, sizeof src->path, "%s", path);
+    struct stat st;
+    if (stat(path, &st) != 0 && errno == ENOENT)
+        src->absent = 1;
+    else if (!S_ISREG(st.st_mode) || pm_hash_file(path, &src->hash) != PM_OK) {
+        s->uncacheable = 1; /* the load refuses it or reads it its own way */
+        return PM_OK;
+    }
+    s->nsources++;
+    return PM_OK;
 }
 
 pm_result_t pm_scene_grow(void **p, size_t n, size_t size)
@@ -403,15 +430,19 @@ static pm_result_t check_size(const ctx_t *c)
     return PM_OK;
 }
 
-pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
+pm_result_t pm_scene_load_files(const char *path, pm_scene_t *s)
 {
     memset(s, 0, sizeof *s);
     ctx_t c = {.file = path, .s = s, .camera_mesh = -1};
     snprintf(s->path, sizeof s->path, "%s", path);
     json_error_t je;
     pm_result_t r0 = pm_scene_check_regular(path, "scene"); /* a FIFO would block every stage */
-    if (r0 != PM_OK)
+    if (r0 == PM_OK)
+        r0 = pm_scene_add_source(s, path);
+    if (r0 != PM_OK) {
+        pm_scene_free(s);
         return r0;
+    }
     FILE *f = fopen(path, "rb");
     if (!f)
         return pm_error_set(pm_result_of_errno(errno), "cannot open scene '%s': %s", path, strerror(errno));
@@ -460,6 +491,7 @@ pm_result_t pm_scene_load(const char *path, pm_scene_t *s)
         r = nmeshes ? pm_scene_get_int(&c, cam, "mesh", "camera.mesh", 1, 0, (int64_t)nmeshes - 1, &c.camera_mesh)
                     : pm_scene_bad(&c, "camera.mesh", "names a mesh entry, and the scene has none");
     for (size_t i = 0; r == PM_OK && meshes && i < json_array_size(meshes); i++) {
+        pm_scene_guard_entry(path, i);
         r = pm_scene_load_mesh(&c, json_array_get(meshes, i), i);
         pm_scene_release_import(&c, meshes, i);
         /* Mesh and material faults name the mesh; say which scene entry brought it in. */
@@ -562,6 +594,7 @@ void pm_scene_free(pm_scene_t *s)
     free(s->placements);
     free(s->local_verts);
     free(s->notes);
+    free(s->sources);
     for (size_t i = 0; i < s->ntextures; i++)
         pm_texture_free(&s->textures[i]);
     free(s->textures);

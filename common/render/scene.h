@@ -179,6 +179,15 @@ typedef struct {
     char text[320]; /* "meshes[0] 'box.obj': material 'red' replaced by scene material 'glass'" */
 } pm_scene_note_t;
 
+/* A file the load read (render/scene_cache.h): its path as the loader opened it and the XXH3-64
+ * of its bytes then; absent 1 for a file it looked for and did not find (a missing .mtl or
+ * texture), whose appearing changes the scene. */
+typedef struct {
+    char path[1200];
+    uint64_t hash;
+    int absent;
+} pm_scene_source_t;
+
 typedef struct {
     char name[128];  /* "cornell-box" */
     char path[1024]; /* the scene file */
@@ -239,6 +248,12 @@ typedef struct {
     float *local_verts;     /* prototypes' vertices in mesh units; NULL when no mesh is instanced */
     pm_scene_note_t *notes; /* what the loader changed or filled in, in load order */
     size_t nnotes;
+    /* Every file the load read, in the order it read them, for the scene cache; uncacheable 1
+     * when it read files it cannot name (assimp's import of a format other than OBJ, PLY, OFF
+     * and STL opens what the file refers to itself: glTF buffers, Collada images). */
+    pm_scene_source_t *sources;
+    size_t nsources;
+    int uncacheable;
 } pm_scene_t;
 
 /* 1 when emissive triangle tri lights from both faces: the scene key two_sided_lights, or its
@@ -255,15 +270,6 @@ pm_result_t pm_scene_check_regular(const char *path, const char *what);
 /* Loads and checks a scene file. Errors name the file and the line (JSON syntax) or the
  * key path ("camera.fov_y") and the offending value. */
 pm_result_t pm_scene_load(const char *path, pm_scene_t *out);
-/* A mesh's trial import (docs/scene-format.md, "Untrusted meshes") is skipped for bytes already
- * tried: a trial that imported cleanly notes a key of the file's bytes (an OBJ's with its
- * material libraries; PLY, OFF and STL alone; other formats, which read more files, are never
- * noted), the flags and the limits; a process whose environment holds that key in
- * PMTK_IMPORT_TRIED (keys of 16 hex digits, spaces between) imports without the trial. This
- * writes this process's keys (the environment's and its own) as that variable's value into
- * out, for the programs a driver starts with the same limits; 0 when there are none or they
- * do not fit. */
-int pm_scene_tried_imports(char *out, size_t cap);
 void pm_scene_free(pm_scene_t *s);
 
 /* Prints each of s->unsupported as a warning on stderr through pm_stage_note (nothing under

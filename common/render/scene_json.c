@@ -240,6 +240,9 @@ static pm_result_t load_envmap(const ctx_t *c, const char *file)
 {
     char path[2048];
     pm_scene_resolve(c->file, file, path, sizeof path);
+    pm_result_t r0 = pm_scene_add_source(c->s, path);
+    if (r0 != PM_OK)
+        return r0;
     c->s->envmap = calloc(1, sizeof *c->s->envmap);
     if (!c->s->envmap)
         return pm_error_set(PM_ERR_NOMEM, "out of memory for the sky's map");

@@ -103,8 +103,15 @@ pm_result_t pm_scene_load_transform(const ctx_t *c, json_t *mj, const char *wher
 double pm_scene_det3(const double m[3][4]);
 
 /* ---- scene.c: helpers every part uses. */
+/* The scene loaded from its files, past any cache (pm_scene_load goes through the cache,
+ * render/scene_cache.c). */
+pm_result_t pm_scene_load_files(const char *path, pm_scene_t *s);
 /* file resolved against the folder of scene_path (a file name, not a folder). */
 void pm_scene_resolve(const char *scene_path, const char *file, char *out, size_t cap);
+/* path noted among s->sources (once): its bytes hashed now, or absent when it does not exist;
+ * any other failure to read it makes the scene uncacheable (its load fails on it or reads
+ * it otherwise). */
+pm_result_t pm_scene_add_source(pm_scene_t *s, const char *path);
 /* *p reallocated to n (at least 1) elements of size; an out-of-memory error otherwise. */
 pm_result_t pm_scene_grow(void **p, size_t n, size_t size);
 
@@ -127,12 +134,23 @@ void pm_scene_material_word(char *name);
 /* The header of a PLY (by content or name), OFF or STL file checked against its size, before assimp
  * reads it (its readers crash, loop or over-allocate on damaged headers). */
 pm_result_t pm_scene_mesh_precheck(const char *path);
-/* assimp's import of path with flags tried in a forked child within PMTK_IMPORT_SECONDS (default 60)
- * and PMTK_IMPORT_MB (resident MiB it adds, default 4096; 0 turns a limit off): a crash, a hang or a memory
- * blow-up is an input error naming the file; PM_OK when the import may run in this process. libs:
- * an OBJ's material libraries, a name a line (NULL for none), part of the key by which bytes
- * already tried skip the trial (render/scene.h, pm_scene_tried_imports). */
-pm_result_t pm_scene_mesh_trial(const char *path, unsigned flags, const char *libs);
+/* The whole load of scene path (pm_scene_load_files) in a forked child under the same limits,
+ * instead of a trial per mesh and the import again: the child sends the scene as the scene
+ * cache's bytes (pm_scene_cache_encode) into *bytes_out (malloc'd, *n_out bytes), or its error,
+ * which becomes this process's. A crash, a hang or a blow-up inside assimp is the trial's error
+ * naming the mesh and the entry; elsewhere in the load, an error naming the scene. With both
+ * limits 0: *unguarded_out 1 and nothing done. */
+pm_result_t pm_scene_load_guarded(const char *path, unsigned char **bytes_out, size_t *n_out, int *unguarded_out);
+/* In a guarded load's child: the entry about to load (scene.c), the mesh file assimp is about
+ * to import and the import that came back (mesh.c), and whether this process is such a child.
+ * No-ops elsewhere. */
+void pm_scene_guard_entry(const char *scene, size_t index);
+void pm_scene_guard_importing(const char *path);
+void pm_scene_guard_imported(void);
+int pm_scene_guarded_child(void);
+/* The scene as the scene cache's bytes (render/scene_cache.c): header, payload, checksum. */
+pm_result_t pm_scene_cache_encode(const pm_scene_t *s, unsigned char **out, size_t *n_out);
+
 /* The error for a file whose faces assimp dropped as naming vertices out of range: for glTF, the
  * first such face (mesh, primitive, face, vertex) read from the file itself. */
 pm_result_t pm_scene_gltf_bad_face(const char *path);

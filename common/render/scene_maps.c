@@ -140,6 +140,20 @@ pm_result_t pm_scene_texture(const ctx_t *c, const char *base, const char *name,
             snprintf(path, sizeof path, "%s", altpath);
     }
     int missing = !found && errno == ENOENT;
+    /* both names when the second was tried: the first's appearing would change the scene */
+    char first[1200], alt[1024], second[1200];
+    pm_scene_resolve(base, name, first, sizeof first);
+    pm_result_t r0 = pm_scene_add_source(s, first);
+    if (r0 == PM_OK && strchr(name, '\\')) {
+        snprintf(alt, sizeof alt, "%s", name);
+        for (char *q = alt; *q; q++)
+            if (*q == '\\')
+                *q = '/';
+        pm_scene_resolve(base, alt, second, sizeof second);
+        r0 = pm_scene_add_source(s, second);
+    }
+    if (r0 != PM_OK)
+        return r0;
     int loaded = 0;
     pm_result_t r = find_or_grow(s, path, index_out, &loaded);
     if (r != PM_OK || loaded)

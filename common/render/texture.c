@@ -15,7 +15,8 @@
 static float srgb_table[256];
 static int srgb_ready;
 
-/* Fills the table once; called by the loader before any thread looks a texel up. */
+/* Fills the table once; called by the loader (and the scene cache's reader, through
+ * pm_texture_prepare) before any thread looks a texel up. */
 static void srgb_init(void)
 {
     if (srgb_ready)
@@ -26,6 +27,8 @@ static void srgb_init(void)
     }
     srgb_ready = 1;
 }
+
+void pm_texture_prepare(void) { srgb_init(); }
 
 float pm_srgb_to_linear(uint8_t c)
 {

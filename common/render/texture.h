@@ -38,6 +38,10 @@ typedef struct {
 pm_result_t pm_texture_load_budget(const char *path, uint64_t max_bytes, const char *budget, pm_texture_t *out);
 /* pm_texture_load_budget with PM_TEXTURE_BUDGET_DEFAULT. */
 pm_result_t pm_texture_load(const char *path, pm_texture_t *out);
+/* Makes ready what lookups read besides the texels (the sRGB table); the loaders call it, and
+ * so must any code that makes textures without them (render/scene_cache.c), before threads
+ * look texels up. */
+void pm_texture_prepare(void);
 /* The same for size bytes in memory (a texture embedded in a glTF): name for messages, hint a
  * format name standing in for its extension ("png", "jpg") or NULL. */
 pm_result_t pm_texture_decode(const char *name, const char *hint, const void *data, size_t size, uint64_t max_bytes,

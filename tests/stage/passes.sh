@@ -439,8 +439,8 @@ if jq -e '.total as $t | ($t.start_s > 0) and ($t.ready_s >= $t.start_s) and
 else
     fail "TIME=1: the start-up in stats.json" "$(jq -c '.total' "$T/stats.json")"
 fi
-# the mesh's trial import (a forked child, docs/scene-format.md) runs once, in pm-render's own
-# load: the tracers load the same bytes with its key in PMTK_IMPORT_TRIED and fork no trial
+# the scene is imported once, in pm-render's own load (a forked child, docs/scene-format.md,
+# "Untrusted meshes"): the tracers read it from OUTDIR/scene.cache and fork nothing
 # (counted by strace: a fork is a clone without CLONE_VM; posix_spawn and threads share memory;
 # LeakSanitizer cannot run under ptrace)
 if command -v strace >/dev/null; then
@@ -448,10 +448,10 @@ if command -v strace >/dev/null; then
         >"$TMP/trial.out" 2>&1
     forks=$(grep -E 'clone\(' "$TMP/trial.strace" | grep -vc 'CLONE_VM')
     [ "$forks" = 1 ] && [ "$(jq .total.passes "$TMP/trial/stats.json")" = 1 ] &&
-        pass "the mesh's trial import: once in a resident render (pm-render's), not again in the tracers" ||
-        fail "one trial import" "$forks forks: $(grep -E 'clone\(' "$TMP/trial.strace" | grep -v CLONE_VM | head -3; tail -2 "$TMP/trial.out")"
+        pass "the scene's guarded import: once in a resident render (pm-render's), not again in the tracers" ||
+        fail "one guarded import" "$forks forks: $(grep -E 'clone\(' "$TMP/trial.strace" | grep -v CLONE_VM | head -3; tail -2 "$TMP/trial.out")"
 else
-    skip "one trial import" "no strace"
+    skip "one guarded import" "no strace"
 fi
 "$R" "$CORNELL" "$T" $SMALL PASSES=$((n + 1)) >"$TMP/ti2.out" 2>&1
 got=$(jq '.stages."simd-gather".pass_index' "$T/stats.json")

@@ -85,10 +85,9 @@ static void expect_scene_error(const char *json, const char *needle)
 
 #define CAM "\"camera\": {\"eye\": [0,0,-1], \"look_at\": [0,0,0], \"fov_y\": 40, \"width\": 4, \"height\": 4}"
 
-/* The trial import (render/mesh_guard.c) runs once per mesh's bytes: a second load of the same
- * bytes, or a program given PMTK_IMPORT_TRIED with their key, imports without the forked
- * child; bytes changed in the mesh or in its material library are tried again. The children
- * are counted by SIGCHLD. */
+/* A load imports each mesh once, in one forked child for the whole load (render/mesh_guard.c,
+ * pm_scene_load_guarded): one child per load, none with the import limits off or from the scene
+ * cache. The children are counted by SIGCHLD. */
 static volatile sig_atomic_t children;
 static void count_child(int sig)
 {
@@ -106,44 +105,35 @@ static int load_children(const char *path)
     pm_scene_t s;
     pm_result_t r = pm_scene_load(path, &s);
     sigaction(SIGCHLD, &old, NULL);
-    assert_int_equal(r, PM_OK);
+    if (r != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_string_equal(s.name, "x");
+    assert_int_equal(s.ntris, 1);
     pm_scene_free(&s);
     return (int)children;
 }
 
-static void test_scene_trial_once(void **state)
+static void test_scene_guarded_once(void **state)
 {
     (void)state;
-    char mesh[256], mtl[256], path[256], keys[4096], before[4096];
-    write_file("tried.mtl", "newmtl a\nKd 0.5 0.5 0.5\n", mtl, sizeof mtl);
-    write_file("tried.obj", "mtllib tried.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n# trial 1\n", mesh,
-               sizeof mesh);
-    write_file("tried.json", "{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"tried.obj\"}], " CAM "}",
+    char mesh[256], mtl[256], path[256], cache[600];
+    write_file("once.mtl", "newmtl a\nKd 0.5 0.5 0.5\n", mtl, sizeof mtl);
+    write_file("once.obj", "mtllib once.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n", mesh, sizeof mesh);
+    write_file("once.json", "{\"pmtk_scene\": 1, \"name\": \"x\", \"meshes\": [{\"file\": \"once.obj\"}], " CAM "}",
                path, sizeof path);
-    unsetenv("PMTK_IMPORT_TRIED");
-    if (!pm_scene_tried_imports(before, sizeof before))
-        before[0] = 0;
-    assert_int_equal(load_children(path), 1); /* tried */
-    assert_int_equal(pm_scene_tried_imports(keys, sizeof keys), 1);
-    assert_true(strlen(keys) == strlen(before) + (before[0] ? 17 : 16)); /* one key more */
-    assert_int_equal(load_children(path), 0);                            /* the same bytes: no trial */
-    /* the material library changed: tried again */
-    write_file("tried.mtl", "newmtl a\nKd 0.4 0.5 0.5\n", mtl, sizeof mtl);
-    assert_int_equal(load_children(path), 1);
-    /* the mesh changed: tried again (tests/stage/passes.sh: the tracers given the driver's keys
-     * in PMTK_IMPORT_TRIED try nothing) */
-    write_file("tried.obj", "mtllib tried.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n# trial 2\n", mesh,
-               sizeof mesh);
-    assert_int_equal(load_children(path), 1);
-    write_file("tried.obj", "mtllib tried.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n# trial 3\n", mesh,
-               sizeof mesh);
-    setenv("PMTK_IMPORT_TRIED", "0123456789abcdef", 1);
-    assert_int_equal(load_children(path), 1); /* a key of other bytes */
-    unsetenv("PMTK_IMPORT_TRIED");
-    /* the limits are part of the key: other limits, another trial */
-    setenv("PMTK_IMPORT_SECONDS", "59", 1);
-    assert_int_equal(load_children(path), 1);
+    unsetenv("PMTK_SCENE_CACHE");
+    assert_int_equal(load_children(path), 1); /* the guarded load */
+    assert_int_equal(load_children(path), 1); /* each load: no bytes are taken on trust */
+    setenv("PMTK_IMPORT_SECONDS", "0", 1);
+    setenv("PMTK_IMPORT_MB", "0", 1);
+    assert_int_equal(load_children(path), 0); /* limits off: in this process */
     unsetenv("PMTK_IMPORT_SECONDS");
+    unsetenv("PMTK_IMPORT_MB");
+    snprintf(cache, sizeof cache, "%s/once.cache", unit_tmpdir());
+    setenv("PMTK_SCENE_CACHE", cache, 1);
+    assert_int_equal(load_children(path), 1); /* a miss: the guarded load, then the cache written */
+    assert_int_equal(load_children(path), 0); /* a hit */
+    unsetenv("PMTK_SCENE_CACHE");
 }
 
 static void test_scene_bad_input(void **state)
@@ -840,6 +830,6 @@ static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_scene_pbr_texture),
     cmocka_unit_test(test_scene_identity_fields),
     cmocka_unit_test(test_scene_identity_parts),
-    cmocka_unit_test(test_scene_trial_once),
+    cmocka_unit_test(test_scene_guarded_once),
 };
 UNIT_GROUP(unit_scene, "scene", tests);

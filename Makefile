@@ -320,6 +320,7 @@ fuzz:
 	    seeds=build/fuzz/seeds-$$t; rm -rf $$seeds; mkdir -p $$seeds build/fuzz/corpus-$$t; \
 	    case $$t in \
 	    fuzz_scene) cp scenes/cornell-box/scene.json $$seeds/ ;; \
+	    fuzz_scene_cache) ;; \
 	    fuzz_img_*) bash tests/fuzz/image-seeds.sh $${t#fuzz_img_} $$seeds ;; \
 	    fuzz_mesh_header) cp /usr/share/assimp/models/PLY/*.ply /usr/share/assimp/models/OFF/*.off \
 	        /usr/share/assimp/models/STL/*.stl /usr/share/assimp/models/invalid/OutOfMemory.off tests/fuzz/meshes/* $$seeds/ ;; \

@@ -264,7 +264,12 @@ void pm_engine_say(const char *me, const char *fmt, ...)
 const char *pm_engine_scene_cache(const char *outdir, char *out, size_t cap)
 {
     const char *env = getenv("PMTK_SCENE_CACHE");
-    if (env)
+    char cwd[4096];
+    if (env && env[0] && env[0] != '/' && getcwd(cwd, sizeof cwd)) {
+        /* the stages run in OUTDIR: a relative name made absolute for them and for this process */
+        snprintf(out, cap, "%s/%s", cwd, env);
+        setenv("PMTK_SCENE_CACHE", out, 1);
+    } else if (env)
         snprintf(out, cap, "%s", env);
     else
         snprintf(out, cap, "%s/scene.cache", outdir);

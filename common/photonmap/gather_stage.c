@@ -48,9 +48,19 @@ static pm_result_t inputs_setup(pm_gather_inputs_t *in, int variable, uint64_t r
      * none (docs/accuracy.md). */
     const char *qd = pm_header_get(qh, "secondary_direct"), *qm = pm_header_get(qh, "mode"),
                *mi = pm_header_get(mh, "indirect_only");
-    /* 1 or 2: the rule of which light the gather points sample (pm_light_gather_rule) */
-    int sd = qd && (!strcmp(qd, "1") || !strcmp(qd, "2")) ? qd[0] - '0' : 0,
-        io = mi && (!strcmp(mi, "1") || !strcmp(mi, "2")) ? mi[0] - '0' : 0;
+    /* 1 or 2: the rule of which light the gather points sample (pm_light_gather_rule); any other
+     * value is a rule this pmtk does not know, refused rather than read as none */
+    if (qd && strcmp(qd, "1") && strcmp(qd, "2"))
+        return pm_error_set(PM_ERR_INPUT,
+                            "queries '%s' say secondary_direct='%s': not a rule of this pmtk (1 or 2: which light "
+                            "the gather points sample)",
+                            in->q_path, qd);
+    if (mi && strcmp(mi, "1") && strcmp(mi, "2"))
+        return pm_error_set(PM_ERR_INPUT,
+                            "photon map '%s' says indirect_only='%s': not a rule of this pmtk (1 or 2: which first "
+                            "hits it leaves to the gather points' light samples)",
+                            in->map_path, mi);
+    int sd = qd ? qd[0] - '0' : 0, io = mi ? mi[0] - '0' : 0;
     int imap = mk && !strcmp(mk, "indirect");
     const char *map = NULL, *queries = NULL; /* what each holds, when they disagree */
     if (cq || cmap)

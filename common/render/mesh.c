@@ -211,7 +211,16 @@ static pm_result_t import_file(ctx_t *c, const char *path, int is_obj, import_t 
                 return r;
             if ((r = pm_scene_add_source(c->s, lpath)) != PM_OK)
                 return r;
+            /* a library that is not there: assimp reads the OBJ's own name with .mtl instead */
+            size_t pl = strlen(path);
+            if (access(lpath, F_OK) != 0 && pl > 4 && pl < sizeof lpath) {
+                snprintf(lpath, sizeof lpath, "%.*s.mtl", (int)(pl - 4), path);
+                if ((r = pm_scene_add_source(c->s, lpath)) != PM_OK)
+                    return r;
+            }
         }
+    if (strlen(libs_read) + 1200 > sizeof libs_read)
+        c->s->uncacheable = 1; /* near the list's end: a library may have been left off it */
     if ((r = pm_scene_grow((void **)&c->imports, c->nimports + 1, sizeof *c->imports)) != PM_OK)
         return r;
     /* Triangulate polygons, merge shared vertices, flatten node transforms, drop points
@@ -233,8 +242,8 @@ static pm_result_t import_file(ctx_t *c, const char *path, int is_obj, import_t 
      * exit 11) */
     if (!imported && pm_scene_guarded_child() && strstr(aiGetErrorString(), "alloc"))
         return pm_error_set(PM_ERR_INPUT,
-                            "mesh '%s': assimp's import took more than %s MiB (PMTK_IMPORT_MB) and was stopped", path,
-                            getenv("PMTK_IMPORT_MB") && *getenv("PMTK_IMPORT_MB") ? getenv("PMTK_IMPORT_MB") : "4096");
+                            "mesh '%s': assimp's import took more than %ld MiB (PMTK_IMPORT_MB) and was stopped", path,
+                            pm_scene_import_mib());
     if (!imported)
         return pm_error_set(PM_ERR_INPUT, "mesh '%s': %s", path, aiGetErrorString());
     if (ai_dropped_faces) {

@@ -21,6 +21,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/prctl.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -272,6 +273,12 @@ static pm_result_t import_limits(long *secs, long *mib)
     return PM_OK;
 }
 
+long pm_scene_import_mib(void)
+{
+    long secs, mib;
+    return import_limits(&secs, &mib) == PM_OK ? mib : 0;
+}
+
 /* In the child of a guarded load (pm_scene_load_guarded): where it says what it is importing;
  * -1 elsewhere. */
 static int guard_fd = -1;
@@ -336,16 +343,21 @@ static void read_frames(const unsigned char *d, size_t n, frames_t *f)
         const unsigned char *b = d + at;
         at += (size_t)len;
         if (kind == 'M')
-            snprintf(f->entry, sizeof f->entry, "%.*s", (int)len, (const char *)b);
+            snprintf(f->entry, sizeof f->entry, "%.*s", (int)(len < sizeof f->entry ? len : sizeof f->entry - 1),
+                     (const char *)b);
         else if (kind == 'P')
-            snprintf(f->mesh, sizeof f->mesh, "%.*s", (int)len, (const char *)b), f->in_import = 1;
+            snprintf(f->mesh, sizeof f->mesh, "%.*s", (int)(len < sizeof f->mesh ? len : sizeof f->mesh - 1),
+                     (const char *)b),
+                f->in_import = 1;
         else if (kind == 'D')
             f->in_import = 0;
         else if (kind == 'E' && len >= sizeof(int32_t)) {
             int32_t c;
             memcpy(&c, b, sizeof c);
             f->err_code = c ? c : PM_ERR_INTERNAL;
-            snprintf(f->err, sizeof f->err, "%.*s", (int)(len - sizeof c), (const char *)b + sizeof c);
+            snprintf(f->err, sizeof f->err, "%.*s",
+                     (int)(len - sizeof c < sizeof f->err ? len - sizeof c : sizeof f->err - 1),
+                     (const char *)b + sizeof c);
         } else if (kind == 'S')
             f->scene = b, f->nscene = len;
     }
@@ -369,6 +381,7 @@ pm_result_t pm_scene_load_guarded(const char *path, unsigned char **bytes_out, s
         return pm_error_set(pm_result_of_errno(errno), "scene '%s': cannot make a pipe for the guarded load: %s", path,
                             strerror(errno));
     fflush(NULL);
+    pid_t parent = getpid();
     pid_t pid = fork();
     if (pid < 0) {
         int e = errno;
@@ -380,6 +393,11 @@ pm_result_t pm_scene_load_guarded(const char *path, unsigned char **bytes_out, s
          * stderr to /dev/null, signals the default, the data segment capped as the trial's. */
         close(fds[0]);
         guard_fd = fds[1];
+        /* it ends with its parent (a stage killed while it loads): it must not outlive it holding
+         * what it inherited, the OUTDIR lock among them */
+        prctl(PR_SET_PDEATHSIG, SIGKILL);
+        if (getppid() != parent)
+            _exit(14);
         int null = open("/dev/null", O_RDWR);
         if (null >= 0) {
             dup2(null, STDOUT_FILENO);
@@ -455,6 +473,24 @@ pm_result_t pm_scene_load_guarded(const char *path, unsigned char **bytes_out, s
             why = "time";
         if (why)
             break;
+    }
+    if (why && !nomem) {
+        /* what it said before it was stopped is read to the end (which file assimp had): the
+         * write end closes with it */
+        kill(pid, SIGKILL);
+        for (;;) {
+            if (cap - n < 1 << 16) {
+                unsigned char *q = realloc(acc, cap ? 2 * cap : 1 << 20);
+                if (!q)
+                    break;
+                acc = q, cap = cap ? 2 * cap : 1 << 20;
+            }
+            ssize_t got = read(fds[0], acc + n, cap - n);
+            if (got > 0)
+                n += (size_t)got;
+            else if (got == 0 || errno != EINTR)
+                break;
+        }
     }
     close(fds[0]);
     if (why)

@@ -45,9 +45,10 @@ pm_result_t pm_scene_add_source(pm_scene_t *s, const char *path)
     memset(src, 0, sizeof *src);
     snprintf(src->path, sizeof src->path, "%s", path);
     struct stat st;
-    if (stat(path, &st) != 0 && errno == ENOENT)
+    int found = stat(path, &st) == 0;
+    if (!found && errno == ENOENT)
         src->absent = 1;
-    else if (!S_ISREG(st.st_mode) || pm_hash_file(path, &src->hash) != PM_OK) {
+    else if (!found || !S_ISREG(st.st_mode) || pm_hash_file(path, &src->hash) != PM_OK) {
         s->uncacheable = 1; /* the load refuses it or reads it its own way */
         return PM_OK;
     }
@@ -444,12 +445,17 @@ pm_result_t pm_scene_load_files(const char *path, pm_scene_t *s)
         return r0;
     }
     FILE *f = fopen(path, "rb");
-    if (!f)
-        return pm_error_set(pm_result_of_errno(errno), "cannot open scene '%s': %s", path, strerror(errno));
+    if (!f) {
+        int e = errno;
+        pm_scene_free(s);
+        return pm_error_set(pm_result_of_errno(e), "cannot open scene '%s': %s", path, strerror(e));
+    }
     json_t *root = json_loadf(f, JSON_REJECT_DUPLICATES, &je);
     fclose(f);
-    if (!root)
+    if (!root) {
+        pm_scene_free(s);
         return pm_error_set(PM_ERR_INPUT, "scene '%s' line %d column %d: %s", path, je.line, je.column, je.text);
+    }
     /* clang-format off */
     static const char *const keys[] = {
         "pmtk_scene", "name",   "meshes",           "camera",     "point_lights",     "sun",

@@ -12,14 +12,23 @@
 #include "render/scene_cache.h"
 
 #include <errno.h>
+#include <fcntl.h>
 #include <inttypes.h>
 #include <limits.h>
+#include <math.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
+
+#include <assimp/version.h>
+#include <jansson.h>
+#include <jpeglib.h>
+#include <openexr.h>
+#include <png.h>
+#include <stdio.h>
 
 #include "base/atomic.h"
 #include "base/hash.h"
@@ -41,6 +50,18 @@ static void limits_text(char *out, size_t cap)
 {
     const char *s = getenv("PMTK_IMPORT_SECONDS"), *m = getenv("PMTK_IMPORT_MB");
     snprintf(out, cap, "%s %s", s ? s : "-", m ? m : "-");
+}
+
+/* The libraries a load runs through, by their versions at run time: another libassimp, libpng,
+ * libjpeg, OpenEXR or jansson may load the same files into another scene. */
+static void libs_text(char *out, size_t cap)
+{
+    int em = 0, en = 0, ep = 0;
+    const char *extra = NULL;
+    exr_get_library_version(&em, &en, &ep, &extra);
+    snprintf(out, cap, "assimp %u.%u.%u.%u libpng %s libjpeg %d OpenEXR %d.%d.%d jansson %s", aiGetVersionMajor(),
+             aiGetVersionMinor(), aiGetVersionPatch(), aiGetVersionRevision(), png_get_libpng_ver(NULL),
+             JPEG_LIB_VERSION, em, en, ep, jansson_version_str());
 }
 
 /* The working directory, which a relative scene path and everything under it depend on; "" for
@@ -97,14 +118,27 @@ static void put_array(buf_t *b, const void *data, size_t n)
     put(b, data, (size_t)len);
 }
 
+/* A field added to these structs may be a pointer, which the cache must write as an array and
+ * clear (below): their sizes here make the compiler stop whoever adds one until they have looked
+ * (x86-64, the only ABI pmtk builds for). */
+_Static_assert(sizeof(pm_scene_t) == 1824, "pm_scene_t changed: serialise its new fields in scene_cache.c");
+_Static_assert(sizeof(pm_texture_t) == 1064, "pm_texture_t changed: see put_scene and get_scene");
+_Static_assert(sizeof(pm_envmap_t) == 152, "pm_envmap_t changed: see put_scene and get_scene");
+
+/* Every pointer of s set to NULL: a written scene's are this process's (the bytes then depend on
+ * the scene alone), and a read one's are whatever the file says until each array is read. */
+static void clear_pointers(pm_scene_t *s)
+{
+    s->verts = NULL, s->tris = NULL, s->tri_material = NULL, s->materials = NULL, s->lights = NULL;
+    s->envmap = NULL, s->portals = NULL, s->emissive = NULL, s->unsupported = NULL, s->maps = NULL;
+    s->uvs = NULL, s->normals = NULL, s->textures = NULL, s->placements = NULL, s->local_verts = NULL;
+    s->notes = NULL, s->sources = NULL;
+}
+
 static void put_scene(buf_t *b, const pm_scene_t *s)
 {
     pm_scene_t flat = *s;
-    /* the pointers are this process's: cleared, so that the bytes depend on the scene alone */
-    flat.verts = NULL, flat.tris = NULL, flat.tri_material = NULL, flat.materials = NULL, flat.lights = NULL;
-    flat.envmap = NULL, flat.portals = NULL, flat.emissive = NULL, flat.unsupported = NULL, flat.maps = NULL;
-    flat.uvs = NULL, flat.normals = NULL, flat.textures = NULL, flat.placements = NULL, flat.local_verts = NULL;
-    flat.notes = NULL, flat.sources = NULL;
+    clear_pointers(&flat);
     put(b, &flat, sizeof flat);
     put_array(b, s->verts, 3 * s->nverts * sizeof(float));
     put_array(b, s->tris, 3 * s->ntris * sizeof(uint32_t));
@@ -178,6 +212,8 @@ pm_result_t pm_scene_cache_encode(const pm_scene_t *s, unsigned char **out, size
     put_line(&b, "VERSION", FORMAT_VERSION);
     put_line(&b, "SOFTWARE", "pmtk " PM_VERSION_STRING);
     put_line(&b, "BUILD", PM_SCENE_CACHE_BUILD);
+    libs_text(text, sizeof text);
+    put_line_safe(&b, "LIBS", text, &altered);
     put_line_safe(&b, "PATH", s->path, &altered);
     cwd_for(s->path, text, sizeof text);
     if (text[0])
@@ -308,6 +344,24 @@ static void *get_exact(rd_t *r, size_t want, int may_be_null)
 
 static int terminated(const char *s, size_t cap) { return memchr(s, '\0', cap) != NULL; }
 
+/* 1 when every value of m is in the range material.h gives it (what the loader made holds; a
+ * damaged file's may not, and the tracers take them as given) */
+static int material_sane(const pm_material_t *m)
+{
+    const float *unit[] = {m->kd, m->ks, m->kr, m->tf, m->f0};
+    for (size_t i = 0; i < sizeof unit / sizeof *unit; i++)
+        for (int k = 0; k < 3; k++)
+            if (!(unit[i][k] >= 0.0f && unit[i][k] <= 1.0f))
+                return 0;
+    for (int k = 0; k < 3; k++)
+        if (!(m->ke[k] >= 0.0f && isfinite(m->ke[k])) || !(m->eta[k] >= 0.0f && isfinite(m->eta[k])) ||
+            !(m->k[k] >= 0.0f && isfinite(m->k[k])))
+            return 0;
+    return m->kind >= PM_MAT_STANDARD && m->kind <= PM_MAT_PLASTIC && m->ns >= 0.0f && isfinite(m->ns) &&
+           m->ior >= 0.0f && isfinite(m->ior) /* 0: a kind that has none (the default grey) */ && m->alpha >= 0.0f &&
+           m->alpha <= 1.0f && terminated(m->name, sizeof m->name);
+}
+
 /* The payload's indices within what they index, names ended: 1 when the scene is whole. */
 static int scene_consistent(const pm_scene_t *s)
 {
@@ -323,7 +377,10 @@ static int scene_consistent(const pm_scene_t *s)
         if (s->emissive[i] >= s->ntris)
             return 0;
     for (size_t i = 0; i < s->nmaterials; i++)
-        if (!terminated(s->materials[i].name, sizeof s->materials[i].name))
+        if (!material_sane(&s->materials[i]))
+            return 0;
+    for (size_t i = 0; i < 3 * s->nverts; i++)
+        if (!isfinite(s->verts[i]))
             return 0;
     for (size_t i = 0; s->maps && i < s->nmaterials; i++) {
         int32_t *slot[PM_MAP_SLOTS];
@@ -352,6 +409,13 @@ static int scene_consistent(const pm_scene_t *s)
         if ((uint64_t)p->tri0 + p->ntris > s->ntris || (uint64_t)p->vert0 + p->nverts > s->nverts || p->proto < -1 ||
             p->proto >= (int64_t)s->nplacements)
             return 0;
+        /* an instance's prototype is its own, of the same size (render/rt.c builds it once) */
+        const pm_placement_t *q = p->proto >= 0 ? &s->placements[p->proto] : NULL;
+        if (q && (q->proto != p->proto || q->ntris != p->ntris || q->nverts != p->nverts))
+            return 0;
+        for (size_t t = 3 * (size_t)p->tri0; t < 3 * ((size_t)p->tri0 + p->ntris); t++)
+            if (s->tris[t] < p->vert0 || s->tris[t] - p->vert0 >= p->nverts)
+                return 0; /* a placement's triangles name its own vertices */
     }
     return 1;
 }
@@ -363,9 +427,10 @@ static int get_scene(rd_t *r, pm_scene_t *s)
         return 0;
     memcpy(s, r->p + r->at, sizeof *s);
     r->at += sizeof *s;
+    clear_pointers(s); /* before anything can fail: pm_scene_free frees only what was read */
     size_t ntextures = s->ntextures;
     /* counts bounded before they are multiplied: each array's bytes are checked against them */
-    const size_t lim = (size_t)1 << 40;
+    const size_t lim = PM_SCENE_MAX_TRIS; /* 32-bit indices and Embree's primitive IDs */
     if (s->nverts > lim || s->ntris > lim || s->nmaterials > lim || s->nlights > lim || s->nportals > lim ||
         s->nemissive > lim || s->nunsupported > lim || s->nplacements > lim || s->nnotes > lim || s->nsources > lim ||
         ntextures > lim) {
@@ -389,6 +454,8 @@ static int get_scene(rd_t *r, pm_scene_t *s)
     s->local_verts = get_array(r, &nlocal_bytes);
     s->notes = get_exact(r, s->nnotes * sizeof *s->notes, 0);
     s->sources = get_exact(r, s->nsources * sizeof *s->sources, 0);
+    if (!r->bad && ntextures > (r->n - r->at) / sizeof *s->textures)
+        r->bad = 1; /* more textures than bytes left for their structs: no allocation on its word */
     if (!r->bad && ntextures && !(s->textures = calloc(ntextures, sizeof *s->textures)))
         r->bad = 2;
     for (size_t i = 0; !r->bad && i < ntextures; i++) {
@@ -401,7 +468,7 @@ static int get_scene(rd_t *r, pm_scene_t *s)
         r->at += sizeof *t;
         t->u8 = NULL, t->f32 = NULL;
         s->ntextures++;
-        if (t->w > PM_TEXTURE_MAX_SIDE || t->h > PM_TEXTURE_MAX_SIDE) {
+        if (t->w < 1 || t->h < 1 || t->w > PM_TEXTURE_MAX_SIDE || t->h > PM_TEXTURE_MAX_SIDE) {
             r->bad = 1;
             break;
         }
@@ -413,11 +480,16 @@ static int get_scene(rd_t *r, pm_scene_t *s)
     }
     size_t ne;
     pm_envmap_t *e = r->bad ? NULL : get_array(r, &ne);
+    if (e && ne != sizeof *e) { /* not a map's struct: nothing of it is read */
+        free(e);
+        e = NULL;
+        r->bad = 1;
+    }
     if (e) {
         s->envmap = e;
         e->rgb = NULL, e->row_cdf = NULL, e->col_cdf = NULL, e->pix_p = NULL;
         size_t n = (size_t)e->w * e->h;
-        if (ne != sizeof *e || e->w > (1u << 20) || e->h > (1u << 20)) {
+        if (e->w < 1 || e->h < 1 || e->w > (1u << 20) || e->h > (1u << 20)) {
             r->bad = 1;
         } else {
             e->rgb = get_exact(r, 3 * n * sizeof(float), 0);
@@ -540,6 +612,8 @@ static pm_result_t decode(unsigned char *data, size_t n, const char *scene_path,
         miss = "of another format version";
     else if (!header_value(head, "BUILD", v, sizeof v) || strcmp(v, PM_SCENE_CACHE_BUILD))
         miss = "made by another build of pmtk";
+    else if (libs_text(want, sizeof want), !header_value(head, "LIBS", v, sizeof v) || strcmp(v, want))
+        miss = "made with other versions of the libraries that load scenes";
     else if (check_key && (!header_value(head, "PATH", v, sizeof v) || strcmp(v, scene_path)))
         miss = "of another scene path";
     if (!miss && check_key) {
@@ -573,13 +647,24 @@ static pm_result_t decode(unsigned char *data, size_t n, const char *scene_path,
     return PM_OK;
 }
 
+pm_result_t pm_scene_cache_decode(unsigned char *bytes, size_t n, pm_scene_t *out, pm_scene_cache_status_t *st)
+{
+    memset(out, 0, sizeof *out);
+    memset(st, 0, sizeof *st);
+    return decode(bytes, n, "", 0, out, st);
+}
+
 pm_result_t pm_scene_cache_read(const char *path, const char *scene_path, pm_scene_t *out, pm_scene_cache_status_t *st)
 {
     memset(out, 0, sizeof *out);
     memset(st, 0, sizeof *st);
-    FILE *f = fopen(path, "rb");
+    /* O_NONBLOCK: a FIFO named as the cache opens at once (and is then no regular file) */
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    FILE *f = fd >= 0 ? fdopen(fd, "rb") : NULL;
     if (!f) {
         snprintf(st->why, sizeof st->why, "%s", errno == ENOENT ? "absent" : strerror(errno));
+        if (fd >= 0)
+            close(fd);
         return PM_OK;
     }
     struct stat sb;
@@ -614,8 +699,7 @@ static pm_result_t load_once(const char *scene_path, pm_scene_t *out, unsigned c
     if (unguarded)
         return pm_scene_load_files(scene_path, out);
     pm_scene_cache_status_t fresh;
-    memset(&fresh, 0, sizeof fresh);
-    if ((r = decode(*bytes_out, *n_out, scene_path, 0, out, &fresh)) == PM_OK && !fresh.hit)
+    if ((r = pm_scene_cache_decode(*bytes_out, *n_out, out, &fresh)) == PM_OK && !fresh.hit)
         r = pm_error_set(PM_ERR_INTERNAL, "scene '%s': the guarded load's scene is %s", scene_path, fresh.why);
     if (r != PM_OK) {
         free(*bytes_out);

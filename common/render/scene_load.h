@@ -148,8 +148,15 @@ void pm_scene_guard_entry(const char *scene, size_t index);
 void pm_scene_guard_importing(const char *path);
 void pm_scene_guard_imported(void);
 int pm_scene_guarded_child(void);
+/* PMTK_IMPORT_MB as the guard reads it (MiB; 0 off). */
+long pm_scene_import_mib(void);
 /* The scene as the scene cache's bytes (render/scene_cache.c): header, payload, checksum. */
 pm_result_t pm_scene_cache_encode(const pm_scene_t *s, unsigned char **out, size_t *n_out);
+struct pm_scene_cache_status;
+/* Those bytes (n, the trailer included) back into *out, whatever scene and files they name (a
+ * guarded load's own, or a fuzzer's): the checksum, the format, the build and the payload's
+ * coherence checked, st->hit 1 when they hold. The bytes are written into and put back. */
+pm_result_t pm_scene_cache_decode(unsigned char *bytes, size_t n, pm_scene_t *out, struct pm_scene_cache_status *st);
 
 /* The error for a file whose faces assimp dropped as naming vertices out of range: for glTF, the
  * first such face (mesh, primitive, face, vertex) read from the file itself. */

@@ -150,7 +150,7 @@ for m in ply-header-24-bytes ply-header-31-bytes ply-end-header-in-line; do
         "mesh '.*$m.ply': PLY header has no end_header line" timeout 20 "$BIN/scene-info" "$H/$m.json"
 done
 mesh_scene "$H/assert.json" "$PWD/tests/fuzz/meshes/ply-assert-triangulate.ply"
-expect_error "PLY whose import aborts inside assimp: one line from the trial import" \
+expect_error "PLY whose import aborts inside assimp: one line from the guarded load" \
     "mesh '.*ply-assert-triangulate.ply': assimp's import crashed \\(signal 6" timeout 20 "$BIN/scene-info" "$H/assert.json"
 M=/usr/share/assimp/models
 if [ -d "$M" ]; then

@@ -213,6 +213,25 @@ expect_error "a map of rule 1 with queries of rule 2 is refused, naming both" \
     "$BIN/simd-gather" "$TMP/sun.map.pm" "$TMP/skyq.pm" --radius 0.1 -o "$TMP/mix.pm"
 [ -e "$TMP/mix.pm" ] && fail "a refused gather wrote its output" "$TMP/mix.pm exists"
 expect_exit "a map and queries of rule 2 gather" 0 "$BIN/simd-gather" "$TMP/sky.map.pm" "$TMP/skyq.pm" --radius 0.1 -q -o "$TMP/sky.g.pm"
+# a rule this pmtk does not know (a header value other than 1 or 2, its checksum remade) is
+# refused in one line, not read as none
+if /usr/bin/python3 -c 'import xxhash' 2>/dev/null; then
+    for f in skyq:secondary_direct sky.map:indirect_only; do
+        /usr/bin/python3 - "$TMP/${f%%:*}.pm" "$TMP/${f%%:*}.7.pm" "${f#*:}" <<'PY'
+import struct, sys, xxhash
+d = open(sys.argv[1], 'rb').read()[:-8].replace(('\n%s=2\n' % sys.argv[3]).encode(), ('\n%s=7\n' % sys.argv[3]).encode())
+open(sys.argv[2], 'wb').write(d + struct.pack('<Q', xxhash.xxh3_64_intdigest(d)))
+PY
+    done
+    expect_error "queries of an unknown rule (secondary_direct=7) are refused" \
+        "queries '.*skyq.7.pm' say secondary_direct='7': not a rule of this pmtk" \
+        "$BIN/simd-gather" "$TMP/sky.map.pm" "$TMP/skyq.7.pm" --radius 0.1 -o "$TMP/mix7.pm"
+    expect_error "a map of an unknown rule (indirect_only=7) is refused" \
+        "photon map '.*sky.map.7.pm' says indirect_only='7': not a rule of this pmtk" \
+        "$BIN/simd-gather" "$TMP/sky.map.7.pm" "$TMP/skyq.pm" --radius 0.1 -o "$TMP/mix7.pm"
+else
+    skip "headers of an unknown rule are refused" "python3-xxhash is not installed"
+fi
 
 # ---- bad lights: one line naming the light, the key and the value, exit 1, nothing written
 # bad_light NAME PATTERN LIGHTS-JSON: trace-photons and trace-reference both refuse the scene.

@@ -143,8 +143,36 @@ static void test_scene_cache_damaged(void **state)
     pm_scene_free(&a);
 }
 
+/* A scene with textures (whose struct in the file holds the writer's pointers), damaged before
+ * its textures are read: the read frees only what it read (the fuzz target's first find). */
+static void test_scene_cache_damaged_textured(void **state)
+{
+    pm_scene_t a;
+    char path[600];
+    cache_path(path, sizeof path, "tex.cache");
+    if (pm_scene_load_cached("scenes/atrium/textured.json", NULL, &a, NULL) != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_true(a.ntextures > 0);
+    assert_int_equal(pm_scene_cache_write(&a, path), PM_OK);
+    size_t n;
+    unsigned char *d = slurp(path, &n);
+    n -= 8;
+    length_huge(d, &n, payload_at(d, n), a.nverts);
+    char bad[600];
+    cache_path(bad, sizeof bad, "tex-bad.cache");
+    spit_rehashed(bad, d, n);
+    free(d);
+    pm_scene_t s;
+    pm_scene_cache_status_t st;
+    assert_int_equal(pm_scene_cache_read(bad, "scenes/atrium/textured.json", &s, &st), PM_OK);
+    assert_int_equal(st.hit, 0);
+    assert_non_null(strstr(st.why, "damaged"));
+    pm_scene_free(&a);
+}
+
 static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_scene_cache_roundtrip),
     cmocka_unit_test(test_scene_cache_damaged),
+    cmocka_unit_test(test_scene_cache_damaged_textured),
 };
 UNIT_GROUP(unit_scene_cache, "scene_cache", tests);

@@ -507,13 +507,11 @@ pm_result_t pm_scene_load_guarded(const char *path, unsigned char **bytes_out, s
     if (!why && WIFEXITED(status) && WEXITSTATUS(status) == 0 && f.err_code) {
         out = pm_error_set(f.err_code, "%s", f.err);
     } else if (!why && WIFEXITED(status) && WEXITSTATUS(status) == 0 && f.scene) {
-        *bytes_out = malloc(f.nscene ? (size_t)f.nscene : 1);
-        if (!*bytes_out) {
-            out = pm_error_set(PM_ERR_NOMEM, "scene '%s': out of memory for the loaded scene", path);
-        } else {
-            memcpy(*bytes_out, f.scene, (size_t)f.nscene);
-            *n_out = (size_t)f.nscene;
-        }
+        /* the scene's bytes moved to the front of what was read, not copied: a large scene is
+         * held twice at most (these bytes and the scene decoded from them) */
+        memmove(acc, f.scene, (size_t)f.nscene);
+        *bytes_out = acc, *n_out = (size_t)f.nscene;
+        acc = NULL;
     } else if (f.in_import) {
         /* inside assimp: the trial's own words, with the entry as the in-process load says it */
         if (why && !strcmp(why, "memory"))

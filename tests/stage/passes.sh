@@ -444,7 +444,7 @@ fi
 # (counted by strace: a fork is a clone without CLONE_VM; posix_spawn and threads share memory;
 # LeakSanitizer cannot run under ptrace)
 if command -v strace >/dev/null; then
-    ASAN_OPTIONS="${ASAN_OPTIONS:+$ASAN_OPTIONS:}detect_leaks=0" strace -f -e trace=clone,clone3,fork,vfork -o "$TMP/trial.strace" "$BIN/pm-render" "$CORNELL" "$TMP/trial" $SMALL PASSES=1 TIME=0 \
+    ASAN_OPTIONS="${ASAN_OPTIONS:+$ASAN_OPTIONS:}detect_leaks=0" env -u PMTK_SCENE_CACHE strace -f -e trace=clone,clone3,fork,vfork -o "$TMP/trial.strace" "$BIN/pm-render" "$CORNELL" "$TMP/trial" $SMALL PASSES=1 TIME=0 \
         >"$TMP/trial.out" 2>&1
     forks=$(grep -E 'clone\(' "$TMP/trial.strace" | grep -vc 'CLONE_VM')
     [ "$forks" = 1 ] && [ "$(jq .total.passes "$TMP/trial/stats.json")" = 1 ] &&

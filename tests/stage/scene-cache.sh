@@ -194,10 +194,10 @@ PMTK_SCENE_CACHE= "$BIN/pm-render" -q scenes/cornell-box/scene.json "$S/o-off" G
 for mode in "" "PASSES=3"; do
     O=$S/o-render${mode:+-p}
     rm -rf "$O" "$O-off"
-    first=$(pipelines/render scenes/cornell-box/scene.json "$O" PHOTONS=2000 WIDTH=16 HEIGHT=12 SPP=4 $mode VERBOSE=1 2>&1 |
+    first=$(env -u PMTK_SCENE_CACHE pipelines/render scenes/cornell-box/scene.json "$O" PHOTONS=2000 WIDTH=16 HEIGHT=12 SPP=4 $mode VERBOSE=1 2>&1 |
         grep 'scene cache')
     rm -f "$O/image.exr" "$O/image.png" "$O/running.pm" "$O/passes.txt"
-    second=$(pipelines/render scenes/cornell-box/scene.json "$O" PHOTONS=2000 WIDTH=16 HEIGHT=12 SPP=4 $mode VERBOSE=1 2>&1 |
+    second=$(env -u PMTK_SCENE_CACHE pipelines/render scenes/cornell-box/scene.json "$O" PHOTONS=2000 WIDTH=16 HEIGHT=12 SPP=4 $mode VERBOSE=1 2>&1 |
         grep 'scene cache')
     PMTK_SCENE_CACHE= pipelines/render -q scenes/cornell-box/scene.json "$O-off" PHOTONS=2000 WIDTH=16 HEIGHT=12 SPP=4 \
         $mode >/dev/null 2>&1

@@ -1195,22 +1195,25 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
     snprintf(p.scene, sizeof p.scene, "%s", scene);
     free(out), free(scene);
     /* the scene once: its content hash (the running image's identity) and what it holds */
+    /* through the cache, read now and written only once OUTDIR is this render's (the lock, below):
+     * a render the lock refuses leaves it as it was */
     pm_scene_t sc;
     char cache[PATH_MAX + 64];
     pm_scene_cache_status_t cst;
+    memset(&cst, 0, sizeof cst);
     pm_engine_scene_cache(p.out, cache, sizeof cache);
-    if (pm_scene_load_cached(p.scene, cache, &sc, &cst) != PM_OK) {
+    pm_result_t lr = cache[0] ? pm_scene_cache_read(cache, p.scene, &sc, &cst) : PM_OK;
+    if (lr == PM_OK && !cst.hit)
+        lr = pm_scene_load_cached(p.scene, NULL, &sc, NULL);
+    if (lr != PM_OK) {
         say(&p, "cannot load the scene '%s': %s", s->scene, pm_error_message());
         return 1;
     }
-    if (s->verbose)
-        pm_engine_say_scene_cache(me, cache, &cst, sc.uncacheable);
     pm_scene_id(&sc, p.scene_id, sizeof p.scene_id);
     int specular = sc.any_specular, scene_primary = (int)sc.defaults.primary;
     p.light_samples_zero = sc.nemissive == 0 && !sc.has_sun && !sc.has_sky;
     p.secondary_direct = (s->secondary_direct || (s->secondary_direct_sky && (sc.has_sun || sc.has_sky))) &&
                          strcmp(s->value[PM_P_GATHER], "none") && pm_lights_count_at_gather(&sc);
-    pm_scene_free(&sc);
     /* the stages, as the pass files' driver (pm_render_passes in fixed.c) chooses them */
     p.mode = s->value[PM_P_MODE];
     int vis = !strcmp(p.mode, "direct-vis"), gather = strcmp(s->value[PM_P_GATHER], "none") != 0;
@@ -1238,12 +1241,25 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
     p.adaptive = s->adaptive && p.direct;
     if (s->adaptive && !p.direct && !strcmp(s->value[PM_P_ADAPTIVE], "1")) {
         say(&p, "ADAPTIVE=1 needs the direct buffer, which MODE=direct-vis over a global map has not");
+        pm_scene_free(&sc);
         return 2;
     }
     make_settings(&p);
     int locked = pm_engine_lock(p.me, p.out, p.s->wait, cmdline, &p.lock_fd);
-    if (locked != 0)
+    if (locked != 0) {
+        pm_scene_free(&sc);
         return locked;
+    }
+    if (cache[0] && !cst.hit && !sc.uncacheable) {
+        if (pm_scene_cache_write(&sc, cache) == PM_OK)
+            cst.written = 1;
+        else
+            snprintf(cst.why + strlen(cst.why), sizeof cst.why - strlen(cst.why), "; not written: %s",
+                     pm_error_message());
+    }
+    if (s->verbose)
+        pm_engine_say_scene_cache(me, cache, &cst, sc.uncacheable);
+    pm_scene_free(&sc);
     char **env = stage_env(p.out);
     if (!env) {
         say(&p, "out of memory");

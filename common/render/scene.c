@@ -576,6 +576,17 @@ pm_result_t pm_scene_load_files(const char *path, pm_scene_t *s)
         r = pm_scene_identify(s);
     if (r == PM_OK)
         finish(s);
+    /* a file edited while the scene loaded: what was read may be neither its old nor its new
+     * bytes, and no cache may say it is either */
+    for (size_t i = 0; r == PM_OK && !s->uncacheable && i < s->nsources; i++) {
+        uint64_t h = 0;
+        struct stat st;
+        int now_absent = stat(s->sources[i].path, &st) != 0 && errno == ENOENT;
+        if (s->sources[i].absent
+                ? !now_absent
+                : now_absent || pm_hash_file(s->sources[i].path, &h) != PM_OK || h != s->sources[i].hash)
+            s->uncacheable = 1;
+    }
     if (r != PM_OK)
         pm_scene_free(s);
     return r;

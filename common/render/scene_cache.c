@@ -88,12 +88,17 @@ typedef struct {
     unsigned char *p;
     size_t n, cap;
     int failed;
+    int counting; /* 1: only n counts the bytes (the first of encode's two passes) */
 } buf_t;
 
 static void put(buf_t *b, const void *data, size_t n)
 {
     if (b->failed)
         return;
+    if (b->counting) {
+        b->n += n;
+        return;
+    }
     if (b->n + n > b->cap) {
         size_t cap = b->cap ? b->cap : 1 << 16;
         while (cap < b->n + n)
@@ -202,41 +207,53 @@ static void put_line_safe(buf_t *b, const char *key, const char *value, int *alt
     put(b, "\n", 1);
 }
 
-pm_result_t pm_scene_cache_encode(const pm_scene_t *s, unsigned char **out, size_t *n_out)
+/* The header and the payload of s into b. */
+static void put_all(buf_t *b, const pm_scene_t *s)
 {
-    buf_t b = {0};
     char text[PATH_MAX + 64], id[400];
     int altered = 0;
-    put(&b, MAGIC, strlen(MAGIC));
-    put_line(&b, "FORMAT", "scene-cache");
-    put_line(&b, "VERSION", FORMAT_VERSION);
-    put_line(&b, "SOFTWARE", "pmtk " PM_VERSION_STRING);
-    put_line(&b, "BUILD", PM_SCENE_CACHE_BUILD);
+    put(b, MAGIC, strlen(MAGIC));
+    put_line(b, "FORMAT", "scene-cache");
+    put_line(b, "VERSION", FORMAT_VERSION);
+    put_line(b, "SOFTWARE", "pmtk " PM_VERSION_STRING);
+    put_line(b, "BUILD", PM_SCENE_CACHE_BUILD);
     libs_text(text, sizeof text);
-    put_line_safe(&b, "LIBS", text, &altered);
-    put_line_safe(&b, "PATH", s->path, &altered);
+    put_line_safe(b, "LIBS", text, &altered);
+    put_line_safe(b, "PATH", s->path, &altered);
     cwd_for(s->path, text, sizeof text);
     if (text[0])
-        put_line_safe(&b, "CWD", text, &altered);
+        put_line_safe(b, "CWD", text, &altered);
     limits_text(text, sizeof text);
-    put_line_safe(&b, "LIMITS", text, &altered);
+    put_line_safe(b, "LIMITS", text, &altered);
     pm_scene_id(s, id, sizeof id);
-    put_line_safe(&b, "SCENE", id, &altered);
+    put_line_safe(b, "SCENE", id, &altered);
     for (size_t i = 0; i < s->nsources; i++) {
         if (s->sources[i].absent)
             snprintf(text, sizeof text, "absent %s", s->sources[i].path);
         else
             snprintf(text, sizeof text, "xxh3:%016" PRIx64 " %s", s->sources[i].hash, s->sources[i].path);
-        put_line_safe(&b, "SOURCE", text, &altered);
+        put_line_safe(b, "SOURCE", text, &altered);
     }
-    put(&b, "\n", 1);
+    put(b, "\n", 1);
     if (altered) { /* the bytes carry the scene (a guarded load), but no file may: its key is not whole */
         pm_scene_t copy = *s;
         copy.uncacheable = 1;
-        put_scene(&b, &copy);
+        put_scene(b, &copy);
     } else {
-        put_scene(&b, s);
+        put_scene(b, s);
     }
+}
+
+pm_result_t pm_scene_cache_encode(const pm_scene_t *s, unsigned char **out, size_t *n_out)
+{
+    /* two passes, the first counting: the buffer is the file's size, not up to twice it (the
+     * guarded child holds the scene and these bytes under PMTK_IMPORT_MB) */
+    buf_t b = {.counting = 1};
+    put_all(&b, s);
+    size_t total = b.n + sizeof(uint64_t);
+    b = (buf_t){.p = malloc(total), .cap = total};
+    b.failed = !b.p;
+    put_all(&b, s);
     if (!b.failed) {
         uint64_t h = pm_hash_bytes(b.p, b.n);
         put(&b, &h, sizeof h);

@@ -73,6 +73,26 @@ static void cwd_for(const char *scene_path, char *out, size_t cap)
         snprintf(out, cap, "?");
 }
 
+/* The file a cache name stands for: the name itself, or, for a directory (one that exists, or
+ * a name ending in '/', made here), a file in it named by the hash of the scene's path (absolute:
+ * with the working directory for a relative one), so that one directory serves every scene. */
+static const char *cache_file(const char *cache, const char *scene_path, char *out, size_t cap)
+{
+    struct stat sb;
+    size_t len = strlen(cache);
+    int dir = (len && cache[len - 1] == '/') || (stat(cache, &sb) == 0 && S_ISDIR(sb.st_mode));
+    if (!dir)
+        return cache;
+    if (len && cache[len - 1] == '/')
+        mkdir(cache, 0777); /* one level; a failure shows in the read or the write */
+    char cwd[PATH_MAX], key[PATH_MAX * 2 + 2];
+    cwd_for(scene_path, cwd, sizeof cwd);
+    snprintf(key, sizeof key, "%s%s%s", cwd, cwd[0] ? "/" : "", scene_path);
+    snprintf(out, cap, "%s%sscene-%016" PRIx64 ".cache", cache, cache[len - 1] == '/' ? "" : "/",
+             pm_hash_bytes(key, strlen(key)));
+    return out;
+}
+
 /* 1 when text has no byte a header value may not hold (a path with a newline is not cached) */
 static int header_safe(const char *text)
 {
@@ -296,8 +316,10 @@ static const char *not_cacheable(const pm_scene_t *s)
     return NULL;
 }
 
-pm_result_t pm_scene_cache_write(const pm_scene_t *s, const char *path)
+pm_result_t pm_scene_cache_write(const pm_scene_t *s, const char *cache)
 {
+    char file[PATH_MAX + 64];
+    const char *path = cache_file(cache, s->path, file, sizeof file);
     const char *no = not_cacheable(s);
     if (no)
         return pm_error_set(PM_ERR_USAGE, "scene '%s' is not cached: %s", s->path, no);
@@ -671,8 +693,10 @@ pm_result_t pm_scene_cache_decode(unsigned char *bytes, size_t n, pm_scene_t *ou
     return decode(bytes, n, "", 0, out, st);
 }
 
-pm_result_t pm_scene_cache_read(const char *path, const char *scene_path, pm_scene_t *out, pm_scene_cache_status_t *st)
+pm_result_t pm_scene_cache_read(const char *cache, const char *scene_path, pm_scene_t *out, pm_scene_cache_status_t *st)
 {
+    char file[PATH_MAX + 64];
+    const char *path = cache_file(cache, scene_path, file, sizeof file);
     memset(out, 0, sizeof *out);
     memset(st, 0, sizeof *st);
     /* O_NONBLOCK: a FIFO named as the cache opens at once (and is then no regular file) */
@@ -750,7 +774,10 @@ pm_result_t pm_scene_load_cached(const char *scene_path, const char *cache, pm_s
         return r;
     /* the bytes the child made are the file (decode changed none of them) */
     const char *no = not_cacheable(out);
-    r = no ? PM_ERR_USAGE : bytes ? write_bytes(cache, bytes, n) : pm_scene_cache_write(out, cache);
+    char file[PATH_MAX + 64];
+    r = no      ? PM_ERR_USAGE
+        : bytes ? write_bytes(cache_file(cache, scene_path, file, sizeof file), bytes, n)
+                : pm_scene_cache_write(out, cache);
     free(bytes);
     snprintf(st->why, sizeof st->why, "%s", why);
     if (r == PM_OK)

@@ -27,16 +27,21 @@ typedef struct pm_scene_cache_status {
                      * and when the write failed, why that failed */
 } pm_scene_cache_status_t;
 
-/* Writes s (loaded by pm_scene_load) to path, atomically and without fsync (a reader checks
- * its checksum first). PM_ERR_USAGE when s is uncacheable (its message says why); I/O errors
- * name the path. */
-pm_result_t pm_scene_cache_write(const pm_scene_t *s, const char *path);
+/* A cache is named by a file, or by a directory (one that exists, or a name ending in '/',
+ * made when needed) holding a file per scene, scene-HASH.cache, HASH the XXH3-64 of the scene's
+ * absolute path: PMTK_SCENE_CACHE=~/.cache/pmtk/ serves every scene a user renders. */
 
-/* The scene scene_path (named as pm_scene_load is given it) from the cache at path into *out,
+/* Writes s (loaded by pm_scene_load) to the cache, atomically and without fsync (a reader
+ * checks its checksum first). PM_ERR_USAGE when s is uncacheable (its message says why); I/O
+ * errors name the path. */
+pm_result_t pm_scene_cache_write(const pm_scene_t *s, const char *cache);
+
+/* The scene scene_path (named as pm_scene_load is given it) from the cache into *out,
  * when the cache holds it as above: PM_OK with st->hit 1. Otherwise PM_OK with st->hit 0, *out
  * zeroed and st->why saying why: a cache that is absent, damaged or another scene's is a miss,
  * never an error. Errors: out of memory. */
-pm_result_t pm_scene_cache_read(const char *path, const char *scene_path, pm_scene_t *out, pm_scene_cache_status_t *st);
+pm_result_t pm_scene_cache_read(const char *cache, const char *scene_path, pm_scene_t *out,
+                                pm_scene_cache_status_t *st);
 
 /* pm_scene_load through the cache at cache (NULL or "": none): a hit, or the scene loaded from
  * its files and, when it is cacheable, written to cache (a failed write is no error: st says

@@ -230,3 +230,21 @@ if [ $st = 1 ] && [ -n "$before" ] && [ "$(inode "$O/scene.cache")" = "$before" 
 else
     fail "a refused render and the cache" "exit $st, inode '$before' -> '$(inode "$O/scene.cache")': $(head -c 200 "$S/held.out")"
 fi
+
+# a directory as the cache: a file per scene in it, named by the hash of the scene's path
+D=$S/cdir/
+rm -rf "$D"
+for sc in scenes/cornell-box/scene.json scenes/caustic/scene.json; do
+    PMTK_SCENE_CACHE=$D "$BIN/scene-info" "$PWD/$sc" >/dev/null 2>&1
+done
+files=$(ls "$D" 2>/dev/null | grep -c '^scene-[0-9a-f]\{16\}\.cache$')
+before=$(stat -c '%i' "$D"/scene-*.cache 2>/dev/null | sort | tr '\n' ' ')
+for sc in scenes/cornell-box/scene.json scenes/caustic/scene.json; do
+    PMTK_SCENE_CACHE=$D "$BIN/scene-info" "$PWD/$sc" >/dev/null 2>&1
+done
+after=$(stat -c '%i' "$D"/scene-*.cache 2>/dev/null | sort | tr '\n' ' ')
+if [ "$files" = 2 ] && [ "$before" = "$after" ]; then
+    pass "PMTK_SCENE_CACHE=DIR/: a cache file per scene, each read on the next load"
+else
+    fail "a cache directory" "$files files, inodes '$before' then '$after'"
+fi

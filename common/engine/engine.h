@@ -20,6 +20,7 @@
 #include <sys/types.h>
 
 #include "base/error.h"
+#include "render/scene_cache.h"
 
 /* ---- settings: pipelines/render's NAME=VALUE parameters ---- */
 
@@ -251,11 +252,18 @@ const pm_stage_info_t *pm_stage_table(size_t *n_out);
  * the environment's PMTK_SCENE_CACHE when it is set (empty: none), else OUTDIR/scene.cache.
  * Written into out (cap bytes); returns out. spawn.c. */
 const char *pm_engine_scene_cache(const char *outdir, char *out, size_t cap);
+/* A driver's scene, before OUTDIR's lock: from the cache (pm_engine_scene_cache of outdir, into
+ * cache) when it holds it, else loaded from its files and written by pm_engine_scene_keep once the
+ * lock is the driver's, so that a render the lock refuses leaves the cache as it was. */
+pm_result_t pm_engine_scene_load(const char *outdir, const char *scene, char *cache, size_t cap, pm_scene_t *sc,
+                                 pm_scene_cache_status_t *st);
+/* After the lock: a miss written to cache (the scene's file when it names a directory), and
+ * VERBOSE's line. */
+void pm_engine_scene_keep(const char *me, int verbose, const char *cache, const pm_scene_t *sc,
+                          pm_scene_cache_status_t *st);
 /* VERBOSE's line on stderr of what the driver's load did with the cache: "me: scene cache PATH:
  * read", "written (it was absent)", "not written (why)", "not used (...)". */
-struct pm_scene_cache_status;
-void pm_engine_say_scene_cache(const char *me, const char *cache, const struct pm_scene_cache_status *st,
-                               int uncacheable);
+void pm_engine_say_scene_cache(const char *me, const char *cache, const pm_scene_cache_status_t *st, int uncacheable);
 
 /* One render at a time in OUTDIR: takes an exclusive flock on OUTDIR/.lock (kept in *fd_out and
  * inherited by the stages) and writes "pid N: cmdline" into it, so that a second render names the holder.

@@ -1121,16 +1121,11 @@ static int render_begin(render_t *r, const pm_settings_t *s, const char *me, con
     }
     /* The scene through the library (scene-info's engine): what it holds and needs, its
      * content hash in parts, its warnings once per render. */
-    /* through the scene cache (render/scene_cache.h) when OUTDIR is there already: a rerun
-     * reads it in milliseconds; a new OUTDIR gets it once it is made, below */
+    /* through the scene cache (render/scene_cache.h): a rerun reads it in milliseconds; a miss
+     * is written once the lock below is this render's */
     char cache[PATH_MAX + 64] = "";
     pm_scene_cache_status_t cst;
-    {
-        struct stat sb;
-        if (getenv("PMTK_SCENE_CACHE") || (stat(s->outdir, &sb) == 0 && S_ISDIR(sb.st_mode)))
-            pm_engine_scene_cache(s->outdir, cache, sizeof cache);
-    }
-    if ((res = pm_scene_load_cached(r->scene, cache, &r->sc, &cst)) != PM_OK) {
+    if ((res = pm_engine_scene_load(s->outdir, r->scene, cache, sizeof cache, &r->sc, &cst)) != PM_OK) {
         say(r, "cannot load scene '%s': %s", s->scene, pm_error_message());
         return res == PM_ERR_INPUT || res == PM_ERR_USAGE ? 1 : 3;
     }
@@ -1160,11 +1155,8 @@ static int render_begin(render_t *r, const pm_settings_t *s, const char *me, con
     if (!getenv("PMTK_SCENE_CACHE")) {
         pm_engine_scene_cache(r->out, cache, sizeof cache);
         setenv("PMTK_SCENE_CACHE", cache, 1);
-        if (!cst.hit && !cst.written && !r->sc.uncacheable && pm_scene_cache_write(&r->sc, cache) == PM_OK)
-            cst.written = 1;
     }
-    if (r->s->verbose)
-        pm_engine_say_scene_cache(r->me, cache, &cst, r->sc.uncacheable);
+    pm_engine_scene_keep(r->me, r->s->verbose, cache, &r->sc, &cst);
     {
         char p[PATH_MAX + 64];
         snprintf(p, sizeof p, "%s/stats", r->out);

@@ -205,12 +205,6 @@ typedef struct {
     int n;
     int fifo_rd; /* the driver's read end of direct.fifo, closed once composite ends */
     int composite;
-    /* The driver's write end of direct.fifo, kept until the stage that writes it (writer) ends:
-     * composite opens the FIFO by name, and an open for reading waits for a writer, forever
-     * when the writer died before composite got there (a stage downstream of it failing at
-     * once: trace-gather-points, its queries' reader gone, ended in milliseconds). */
-    int fifo_wr;
-    int writer;
     int failed; /* a stage has failed: the others were sent SIGTERM */
 } run_t;
 
@@ -250,7 +244,7 @@ static int wait_range(const frames_t *F, run_t *R, int a, int b)
          * (one may never end: composite waits in its open of direct.fifo, by name, for a writer
          * that died before it got there). Their statuses (a signal) never outrank the failure's
          * class (worst). */
-        if (st.exit_code != 0 && !R->failed) {
+        if (R->code[which] != 0 && !R->failed) {
             R->failed = 1;
             for (int i = 0; i < R->n; i++)
                 if (R->p[i] && i != which)
@@ -259,10 +253,6 @@ static int wait_range(const frames_t *F, run_t *R, int a, int b)
         if (which == R->composite && R->fifo_rd >= 0) {
             close(R->fifo_rd);
             R->fifo_rd = -1;
-        }
-        if (which == R->writer && R->fifo_wr >= 0) {
-            close(R->fifo_wr);
-            R->fifo_wr = -1;
         }
     }
     return worst(R->code + a, b - a);
@@ -412,11 +402,11 @@ static int run_stream(frames_t *F)
     snprintf(fifo, sizeof fifo, "%s/direct.fifo", F->out);
     scene_path(F, 0, s0, sizeof s0);
     int sort = strcmp(F->v[F_ORDER], "none") != 0, status = 0;
-    run_t R = {.fifo_rd = -1, .composite = -1, .fifo_wr = -1, .writer = -1};
+    run_t R = {.fifo_rd = -1, .composite = -1};
     cmd_t c[6] = {0};
     /* the part that does not change: the map (camera) or the sorted queries (light), once */
     {
-        run_t R0 = {.fifo_rd = -1, .composite = -1, .fifo_wr = -1, .writer = -1};
+        run_t R0 = {.fifo_rd = -1, .composite = -1};
         int fds[2];
         if ((status = pipe_or_say(F, fds)) != 0)
             return status;
@@ -543,7 +533,7 @@ static int run_stream(frames_t *F)
         add(&side, "--direct");
         add(&side, "/dev/fd/3");
         stats(F, &side, "trace-gather-points");
-        R.writer = start(F, &R, &side, -1, -1, wr);
+        start(F, &R, &side, -1, -1, wr);
     }
     int in = -1;
     for (int i = 0; i < nc && status == 0; i++) {
@@ -551,8 +541,6 @@ static int run_stream(frames_t *F)
         if (i + 1 < nc && (status = pipe_or_say(F, fds)) != 0)
             break;
         int k = start(F, &R, &c[i], in, fds[1], &c[i] == tg ? wr : -1);
-        if (&c[i] == tg)
-            R.writer = k;
         if (i + 1 == nc)
             R.composite = k;
         if (in >= 0)
@@ -563,9 +551,7 @@ static int run_stream(frames_t *F)
     }
     if (in >= 0)
         close(in);
-    if (wr >= 0 && R.writer >= 0 && R.p[R.writer])
-        R.fifo_wr = wr; /* closed when the writer ends (wait_range) */
-    else if (wr >= 0)
+    if (wr >= 0)
         close(wr);
     pthread_t th;
     int have_thread = 0;
@@ -581,8 +567,6 @@ static int run_stream(frames_t *F)
     }
     if (R.fifo_rd >= 0)
         close(R.fifo_rd);
-    if (R.fifo_wr >= 0)
-        close(R.fifo_wr);
     for (int i = 0; i < nc; i++)
         cmd_free(&c[i]);
     cmd_free(&side);
@@ -620,8 +604,7 @@ static int run_per_frame(frames_t *F, json_t *per)
             progress_line(F, f, epoch_now(), frame0);
         double t0 = epoch_now(), t1, t2, t3, t4;
         int reused = f > 0 && F->camera && reuse;
-        run_t PH = {
-            .fifo_rd = -1, .composite = -1, .fifo_wr = -1, .writer = -1}; /* the photon side, then the eye side */
+        run_t PH = {.fifo_rd = -1, .composite = -1}; /* the photon side, then the eye side */
         if (!reused) {
             int fds[2];
             if (pipe_or_say(F, fds)) {

@@ -1195,17 +1195,12 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
     snprintf(p.scene, sizeof p.scene, "%s", scene);
     free(out), free(scene);
     /* the scene once: its content hash (the running image's identity) and what it holds */
-    /* through the cache, read now and written only once OUTDIR is this render's (the lock, below):
+    /* through the cache, written on a miss only once OUTDIR is this render's (the lock, below):
      * a render the lock refuses leaves it as it was */
     pm_scene_t sc;
     char cache[PATH_MAX + 64];
     pm_scene_cache_status_t cst;
-    memset(&cst, 0, sizeof cst);
-    pm_engine_scene_cache(p.out, cache, sizeof cache);
-    pm_result_t lr = cache[0] ? pm_scene_cache_read(cache, p.scene, &sc, &cst) : PM_OK;
-    if (lr == PM_OK && !cst.hit)
-        lr = pm_scene_load_cached(p.scene, NULL, &sc, NULL);
-    if (lr != PM_OK) {
+    if (pm_engine_scene_load(p.out, p.scene, cache, sizeof cache, &sc, &cst) != PM_OK) {
         say(&p, "cannot load the scene '%s': %s", s->scene, pm_error_message());
         return 1;
     }
@@ -1250,15 +1245,7 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
         pm_scene_free(&sc);
         return locked;
     }
-    if (cache[0] && !cst.hit && !sc.uncacheable) {
-        if (pm_scene_cache_write(&sc, cache) == PM_OK)
-            cst.written = 1;
-        else
-            snprintf(cst.why + strlen(cst.why), sizeof cst.why - strlen(cst.why), "; not written: %s",
-                     pm_error_message());
-    }
-    if (s->verbose)
-        pm_engine_say_scene_cache(me, cache, &cst, sc.uncacheable);
+    pm_engine_scene_keep(me, s->verbose, cache, &sc, &cst);
     pm_scene_free(&sc);
     char **env = stage_env(p.out);
     if (!env) {

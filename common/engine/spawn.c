@@ -290,3 +290,24 @@ void pm_engine_say_scene_cache(const char *me, const char *cache, const pm_scene
     else
         fprintf(stderr, "%s: scene cache %s: not written (%s)\n", me, cache, st->why);
 }
+
+pm_result_t pm_engine_scene_load(const char *outdir, const char *scene, char *cache, size_t cap, pm_scene_t *sc,
+                                 pm_scene_cache_status_t *st)
+{
+    pm_engine_scene_cache(outdir, cache, cap);
+    return pm_scene_load_cached(scene, cache, 0, sc, st);
+}
+
+void pm_engine_scene_keep(const char *me, int verbose, const char *cache, const pm_scene_t *sc,
+                          pm_scene_cache_status_t *st)
+{
+    if (cache[0] && !st->hit && !sc->uncacheable) {
+        size_t len = strlen(st->why);
+        if (pm_scene_cache_write(sc, cache) == PM_OK)
+            st->written = 1;
+        else
+            snprintf(st->why + len, sizeof st->why - len, "; not written: %s", pm_error_message());
+    }
+    if (verbose)
+        pm_engine_say_scene_cache(me, cache, st, sc->uncacheable);
+}

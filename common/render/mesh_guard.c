@@ -363,7 +363,32 @@ static void read_frames(const unsigned char *d, size_t n, frames_t *f)
     }
 }
 
-pm_result_t pm_scene_load_guarded(const char *path, unsigned char **bytes_out, size_t *n_out, int *unguarded_out)
+/* What the parent has read of the child's pipe. */
+typedef struct {
+    int fd;
+    unsigned char *p;
+    size_t n, cap;
+} pipe_buf_t;
+
+/* One read of b's pipe onto its end (grown as needed): 1 bytes came, 0 the pipe is at its end (or
+ * failed), -1 out of memory. */
+static int read_some(pipe_buf_t *b)
+{
+    if (b->cap - b->n < 1 << 16) {
+        size_t cap = b->cap ? 2 * b->cap : 1 << 20;
+        unsigned char *q = realloc(b->p, cap);
+        if (!q)
+            return -1;
+        b->p = q, b->cap = cap;
+    }
+    ssize_t got = read(b->fd, b->p + b->n, b->cap - b->n);
+    if (got > 0)
+        b->n += (size_t)got;
+    return got > 0 || (got < 0 && errno == EINTR) ? 1 : 0;
+}
+
+pm_result_t pm_scene_load_guarded(const char *path, int keyed, unsigned char **bytes_out, size_t *n_out,
+                                  int *unguarded_out)
 {
     *bytes_out = NULL, *n_out = 0, *unguarded_out = 0;
     long secs, mib;
@@ -415,7 +440,7 @@ pm_result_t pm_scene_load_guarded(const char *path, unsigned char **bytes_out, s
         pm_scene_t s;
         unsigned char *bytes = NULL;
         size_t n = 0;
-        pm_result_t cr = pm_scene_load_files(path, &s);
+        pm_result_t cr = pm_scene_load_files(path, keyed, &s);
         if (cr == PM_OK) {
             cr = pm_scene_cache_encode(&s, &bytes, &n);
             pm_scene_free(&s);
@@ -437,31 +462,17 @@ pm_result_t pm_scene_load_guarded(const char *path, unsigned char **bytes_out, s
     }
     close(fds[1]);
     /* The parent: reads what the child says while it watches its time and its memory. */
-    unsigned char *acc = NULL;
-    size_t n = 0, cap = 0;
+    pipe_buf_t in = {fds[0], NULL, 0, 0};
     struct timespec t0, now;
     clock_gettime(CLOCK_MONOTONIC, &t0);
     const char *why = NULL;
     int status = 0, nomem = 0;
-    for (int open_ = 1; open_;) {
+    for (int got = 1; got > 0;) {
         struct pollfd pf = {fds[0], POLLIN, 0};
-        int pr = poll(&pf, 1, 2);
-        if (pr > 0) {
-            if (cap - n < 1 << 16) {
-                size_t nc = cap ? 2 * cap : 1 << 20;
-                unsigned char *q = realloc(acc, nc);
-                if (!q) {
-                    nomem = 1;
-                    why = "parent";
-                    break;
-                }
-                acc = q, cap = nc;
-            }
-            ssize_t got = read(fds[0], acc + n, cap - n);
-            if (got > 0)
-                n += (size_t)got;
-            else if (got == 0 || errno != EINTR)
-                open_ = 0; /* the child has ended (or closed its end) */
+        if (poll(&pf, 1, 2) > 0 && (got = read_some(&in)) < 0) {
+            nomem = 1;
+            why = "parent";
+            break;
         }
         long data;
         statm_mib(pid, &rss, &data);
@@ -478,20 +489,11 @@ pm_result_t pm_scene_load_guarded(const char *path, unsigned char **bytes_out, s
         /* what it said before it was stopped is read to the end (which file assimp had): the
          * write end closes with it */
         kill(pid, SIGKILL);
-        for (;;) {
-            if (cap - n < 1 << 16) {
-                unsigned char *q = realloc(acc, cap ? 2 * cap : 1 << 20);
-                if (!q)
-                    break;
-                acc = q, cap = cap ? 2 * cap : 1 << 20;
-            }
-            ssize_t got = read(fds[0], acc + n, cap - n);
-            if (got > 0)
-                n += (size_t)got;
-            else if (got == 0 || errno != EINTR)
-                break;
-        }
+        while (read_some(&in) > 0)
+            ;
     }
+    unsigned char *acc = in.p;
+    size_t n = in.n;
     close(fds[0]);
     if (why)
         kill(pid, SIGKILL);

@@ -29,8 +29,19 @@ void pm_scene_resolve(const char *scene_path, const char *file, char *out, size_
         snprintf(out, cap, "%.*s/%s", (int)(slash - scene_path), scene_path, file);
 }
 
+int pm_scene_source_now(const char *path, uint64_t *hash_out)
+{
+    struct stat st;
+    *hash_out = 0;
+    if (stat(path, &st) != 0)
+        return errno == ENOENT ? 0 : -1;
+    return S_ISREG(st.st_mode) && pm_hash_file(path, hash_out) == PM_OK ? 1 : -1;
+}
+
 pm_result_t pm_scene_add_source(pm_scene_t *s, const char *path)
 {
+    if (s->uncacheable)
+        return PM_OK; /* no cache will be written: nothing to hash */
     for (size_t i = 0; i < s->nsources; i++)
         if (strcmp(s->sources[i].path, path) == 0)
             return PM_OK;
@@ -44,14 +55,12 @@ pm_result_t pm_scene_add_source(pm_scene_t *s, const char *path)
     pm_scene_source_t *src = &s->sources[s->nsources];
     memset(src, 0, sizeof *src);
     snprintf(src->path, sizeof src->path, "%s", path);
-    struct stat st;
-    int found = stat(path, &st) == 0;
-    if (!found && errno == ENOENT)
-        src->absent = 1;
-    else if (!found || !S_ISREG(st.st_mode) || pm_hash_file(path, &src->hash) != PM_OK) {
+    int now = pm_scene_source_now(path, &src->hash);
+    if (now < 0) {
         s->uncacheable = 1; /* the load refuses it or reads it its own way */
         return PM_OK;
     }
+    src->absent = now == 0;
     s->nsources++;
     return PM_OK;
 }
@@ -431,9 +440,10 @@ static pm_result_t check_size(const ctx_t *c)
     return PM_OK;
 }
 
-pm_result_t pm_scene_load_files(const char *path, pm_scene_t *s)
+pm_result_t pm_scene_load_files(const char *path, int keyed, pm_scene_t *s)
 {
     memset(s, 0, sizeof *s);
+    s->uncacheable = !keyed; /* a load no cache will hold hashes none of its files */
     ctx_t c = {.file = path, .s = s, .camera_mesh = -1};
     snprintf(s->path, sizeof s->path, "%s", path);
     json_error_t je;
@@ -579,12 +589,9 @@ pm_result_t pm_scene_load_files(const char *path, pm_scene_t *s)
     /* a file edited while the scene loaded: what was read may be neither its old nor its new
      * bytes, and no cache may say it is either */
     for (size_t i = 0; r == PM_OK && !s->uncacheable && i < s->nsources; i++) {
-        uint64_t h = 0;
-        struct stat st;
-        int now_absent = stat(s->sources[i].path, &st) != 0 && errno == ENOENT;
-        if (s->sources[i].absent
-                ? !now_absent
-                : now_absent || pm_hash_file(s->sources[i].path, &h) != PM_OK || h != s->sources[i].hash)
+        uint64_t h;
+        int now = pm_scene_source_now(s->sources[i].path, &h);
+        if (now != !s->sources[i].absent || h != s->sources[i].hash)
             s->uncacheable = 1;
     }
     if (r != PM_OK)

@@ -250,7 +250,8 @@ typedef struct {
     size_t nnotes;
     /* Every file the load read, in the order it read them, for the scene cache; uncacheable 1
      * when it read files it cannot name (assimp's import of a format other than OBJ, PLY, OFF
-     * and STL opens what the file refers to itself: glTF buffers, Collada images). */
+     * and STL opens what the file refers to itself: glTF buffers, Collada images), when one
+     * changed while it loaded, or when no cache was to be written (then none is noted). */
     pm_scene_source_t *sources;
     size_t nsources;
     int uncacheable;

@@ -28,7 +28,6 @@
 #include <jpeglib.h>
 #include <openexr.h>
 #include <png.h>
-#include <stdio.h>
 
 #include "base/atomic.h"
 #include "base/hash.h"
@@ -93,11 +92,14 @@ static const char *cache_file(const char *cache, const char *scene_path, char *o
     return out;
 }
 
-/* 1 when text has no byte a header value may not hold (a path with a newline is not cached) */
+/* 1 for a byte a header value may not hold */
+static int control_byte(char c) { return (unsigned char)c < 0x20 || c == 0x7f; }
+
+/* 1 when text has no such byte (a path with a newline is not cached) */
 static int header_safe(const char *text)
 {
-    for (const unsigned char *p = (const unsigned char *)text; *p; p++)
-        if (*p < 0x20 || *p == 0x7f)
+    for (; *text; text++)
+        if (control_byte(*text))
             return 0;
     return 1;
 }
@@ -206,21 +208,13 @@ static void put_scene(buf_t *b, const pm_scene_t *s)
     }
 }
 
-static void put_line(buf_t *b, const char *key, const char *value)
-{
-    put(b, key, strlen(key));
-    put(b, "=", 1);
-    put(b, value, strlen(value));
-    put(b, "\n", 1);
-}
-
 /* A header line whose value has no control byte: each one a '?' (and *altered set). */
-static void put_line_safe(buf_t *b, const char *key, const char *value, int *altered)
+static void put_line(buf_t *b, const char *key, const char *value, int *altered)
 {
     put(b, key, strlen(key));
     put(b, "=", 1);
     for (const char *p = value; *p; p++) {
-        int bad = (unsigned char)*p < 0x20 || *p == 0x7f;
+        int bad = control_byte(*p);
         *altered |= bad;
         put(b, bad ? "?" : p, 1);
     }
@@ -233,26 +227,26 @@ static void put_all(buf_t *b, const pm_scene_t *s)
     char text[PATH_MAX + 64], id[400];
     int altered = 0;
     put(b, MAGIC, strlen(MAGIC));
-    put_line(b, "FORMAT", "scene-cache");
-    put_line(b, "VERSION", FORMAT_VERSION);
-    put_line(b, "SOFTWARE", "pmtk " PM_VERSION_STRING);
-    put_line(b, "BUILD", PM_SCENE_CACHE_BUILD);
+    put_line(b, "FORMAT", "scene-cache", &altered);
+    put_line(b, "VERSION", FORMAT_VERSION, &altered);
+    put_line(b, "SOFTWARE", "pmtk " PM_VERSION_STRING, &altered);
+    put_line(b, "BUILD", PM_SCENE_CACHE_BUILD, &altered);
     libs_text(text, sizeof text);
-    put_line_safe(b, "LIBS", text, &altered);
-    put_line_safe(b, "PATH", s->path, &altered);
+    put_line(b, "LIBS", text, &altered);
+    put_line(b, "PATH", s->path, &altered);
     cwd_for(s->path, text, sizeof text);
     if (text[0])
-        put_line_safe(b, "CWD", text, &altered);
+        put_line(b, "CWD", text, &altered);
     limits_text(text, sizeof text);
-    put_line_safe(b, "LIMITS", text, &altered);
+    put_line(b, "LIMITS", text, &altered);
     pm_scene_id(s, id, sizeof id);
-    put_line_safe(b, "SCENE", id, &altered);
+    put_line(b, "SCENE", id, &altered);
     for (size_t i = 0; i < s->nsources; i++) {
         if (s->sources[i].absent)
             snprintf(text, sizeof text, "absent %s", s->sources[i].path);
         else
             snprintf(text, sizeof text, "xxh3:%016" PRIx64 " %s", s->sources[i].hash, s->sources[i].path);
-        put_line_safe(b, "SOURCE", text, &altered);
+        put_line(b, "SOURCE", text, &altered);
     }
     put(b, "\n", 1);
     if (altered) { /* the bytes carry the scene (a guarded load), but no file may: its key is not whole */
@@ -590,25 +584,17 @@ static int sources_unchanged(const char *head, char *why, size_t cap)
             }
             *sp = '\0';
             const char *path = sp + 1;
-            struct stat st;
-            int absent = stat(path, &st) != 0 && errno == ENOENT;
-            if (!strcmp(v, "absent")) {
-                if (!absent) {
-                    snprintf(why, cap, "'%s' has appeared since", path);
-                    return 0;
-                }
-            } else {
-                uint64_t h = 0;
-                char now[40];
-                if (absent || !S_ISREG(st.st_mode) || pm_hash_file(path, &h) != PM_OK) {
-                    snprintf(why, cap, "'%s' is gone or unreadable", path);
-                    return 0;
-                }
-                snprintf(now, sizeof now, "xxh3:%016" PRIx64, h);
-                if (strcmp(now, v)) {
-                    snprintf(why, cap, "'%s' has changed", path);
-                    return 0;
-                }
+            uint64_t h;
+            int now = pm_scene_source_now(path, &h);
+            char was[40];
+            snprintf(was, sizeof was, "xxh3:%016" PRIx64, h);
+            if (!strcmp(v, "absent") ? now != 0 : now != 1 || strcmp(was, v)) {
+                snprintf(why, cap,
+                         now == 1 && strcmp(v, "absent") ? "'%s' has changed"
+                         : now == 1                      ? "'%s' has appeared since"
+                                                         : "'%s' is gone or unreadable",
+                         path);
+                return 0;
             }
         }
         line = eol + 1;
@@ -730,15 +716,16 @@ pm_result_t pm_scene_cache_read(const char *cache, const char *scene_path, pm_sc
 
 /* The scene from its files, once: in a guarded child (render/mesh_guard.c) whose bytes are
  * decoded here and kept in *bytes_out (NULL when the import limits are off and it was loaded
- * in this process). */
-static pm_result_t load_once(const char *scene_path, pm_scene_t *out, unsigned char **bytes_out, size_t *n_out)
+ * in this process); keyed as pm_scene_load_files. */
+static pm_result_t load_once(const char *scene_path, int keyed, pm_scene_t *out, unsigned char **bytes_out,
+                             size_t *n_out)
 {
     int unguarded = 0;
-    pm_result_t r = pm_scene_load_guarded(scene_path, bytes_out, n_out, &unguarded);
+    pm_result_t r = pm_scene_load_guarded(scene_path, keyed, bytes_out, n_out, &unguarded);
     if (r != PM_OK)
         return r;
     if (unguarded)
-        return pm_scene_load_files(scene_path, out);
+        return pm_scene_load_files(scene_path, keyed, out);
     pm_scene_cache_status_t fresh;
     if ((r = pm_scene_cache_decode(*bytes_out, *n_out, out, &fresh)) == PM_OK && !fresh.hit)
         r = pm_error_set(PM_ERR_INTERNAL, "scene '%s': the guarded load's scene is %s", scene_path, fresh.why);
@@ -751,7 +738,7 @@ static pm_result_t load_once(const char *scene_path, pm_scene_t *out, unsigned c
     return PM_OK;
 }
 
-pm_result_t pm_scene_load_cached(const char *scene_path, const char *cache, pm_scene_t *out,
+pm_result_t pm_scene_load_cached(const char *scene_path, const char *cache, int write_now, pm_scene_t *out,
                                  pm_scene_cache_status_t *st)
 {
     pm_scene_cache_status_t own;
@@ -761,17 +748,15 @@ pm_result_t pm_scene_load_cached(const char *scene_path, const char *cache, pm_s
     unsigned char *bytes = NULL;
     size_t n = 0;
     pm_result_t r;
-    if (!cache || !cache[0]) {
-        r = load_once(scene_path, out, &bytes, &n);
-        free(bytes);
-        return r;
-    }
-    if ((r = pm_scene_cache_read(cache, scene_path, out, st)) != PM_OK || st->hit)
+    int keyed = cache && cache[0];
+    if (keyed && ((r = pm_scene_cache_read(cache, scene_path, out, st)) != PM_OK || st->hit))
         return r;
     char why[sizeof st->why];
     snprintf(why, sizeof why, "%s", st->why);
-    if ((r = load_once(scene_path, out, &bytes, &n)) != PM_OK)
+    if ((r = load_once(scene_path, keyed, out, &bytes, &n)) != PM_OK || !keyed || !write_now) {
+        free(bytes);
         return r;
+    }
     /* the bytes the child made are the file (decode changed none of them) */
     const char *no = not_cacheable(out);
     char file[PATH_MAX + 64];
@@ -779,7 +764,6 @@ pm_result_t pm_scene_load_cached(const char *scene_path, const char *cache, pm_s
         : bytes ? write_bytes(cache_file(cache, scene_path, file, sizeof file), bytes, n)
                 : pm_scene_cache_write(out, cache);
     free(bytes);
-    snprintf(st->why, sizeof st->why, "%s", why);
     if (r == PM_OK)
         st->written = 1;
     else if (!no)
@@ -789,5 +773,5 @@ pm_result_t pm_scene_load_cached(const char *scene_path, const char *cache, pm_s
 
 pm_result_t pm_scene_load(const char *path, pm_scene_t *out)
 {
-    return pm_scene_load_cached(path, getenv("PMTK_SCENE_CACHE"), out, NULL);
+    return pm_scene_load_cached(path, getenv("PMTK_SCENE_CACHE"), 1, out, NULL);
 }

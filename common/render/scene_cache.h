@@ -20,7 +20,7 @@
 #include "render/scene.h"
 
 /* What a load through a cache did. */
-typedef struct pm_scene_cache_status {
+typedef struct {
     int hit;        /* 1: the scene came from the cache */
     int written;    /* 1: the load was a miss and wrote the cache */
     char why[1400]; /* on a miss, why ("absent", "made from another build", "'x.obj' changed", ...);
@@ -43,11 +43,13 @@ pm_result_t pm_scene_cache_write(const pm_scene_t *s, const char *cache);
 pm_result_t pm_scene_cache_read(const char *cache, const char *scene_path, pm_scene_t *out,
                                 pm_scene_cache_status_t *st);
 
-/* pm_scene_load through the cache at cache (NULL or "": none): a hit, or the scene loaded from
- * its files and, when it is cacheable, written to cache (a failed write is no error: st says
- * it). st may be NULL. pm_scene_load itself goes through the cache named by the environment's
+/* pm_scene_load through the cache at cache (NULL or "": none, and no file hashed): a hit, or
+ * the scene loaded from its files and, with write_now and when it is cacheable, written to
+ * cache (a failed write is no error: st says it). Without write_now a miss writes nothing: a
+ * driver writes the scene it loaded (pm_scene_cache_write) once OUTDIR's lock is its own. st may
+ * be NULL. pm_scene_load itself goes through the cache named by the environment's
  * PMTK_SCENE_CACHE, which pm-render sets to OUTDIR/scene.cache for its stages. */
-pm_result_t pm_scene_load_cached(const char *scene_path, const char *cache, pm_scene_t *out,
+pm_result_t pm_scene_load_cached(const char *scene_path, const char *cache, int write_now, pm_scene_t *out,
                                  pm_scene_cache_status_t *st);
 
 #endif

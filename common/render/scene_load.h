@@ -10,6 +10,7 @@
 #include <sys/types.h>
 
 #include "render/scene.h"
+#include "render/scene_cache.h"
 
 struct aiMaterial;
 struct aiScene;
@@ -104,8 +105,12 @@ double pm_scene_det3(const double m[3][4]);
 
 /* ---- scene.c: helpers every part uses. */
 /* The scene loaded from its files, past any cache (pm_scene_load goes through the cache,
- * render/scene_cache.c). */
-pm_result_t pm_scene_load_files(const char *path, pm_scene_t *s);
+ * render/scene_cache.c). keyed: note every file read with its hash (s->sources), for a cache
+ * to be written; 0: none (s->uncacheable). */
+pm_result_t pm_scene_load_files(const char *path, int keyed, pm_scene_t *s);
+/* path's state now, for a cache's key: 1 a regular file (its XXH3-64 in *hash_out), 0 absent,
+ * -1 anything else (unreadable, not a regular file); *hash_out 0 unless 1. */
+int pm_scene_source_now(const char *path, uint64_t *hash_out);
 /* file resolved against the folder of scene_path (a file name, not a folder). */
 void pm_scene_resolve(const char *scene_path, const char *file, char *out, size_t cap);
 /* path noted among s->sources (once): its bytes hashed now, or absent when it does not exist;
@@ -140,7 +145,8 @@ pm_result_t pm_scene_mesh_precheck(const char *path);
  * which becomes this process's. A crash, a hang or a blow-up inside assimp is the trial's error
  * naming the mesh and the entry; elsewhere in the load, an error naming the scene. With both
  * limits 0: *unguarded_out 1 and nothing done. */
-pm_result_t pm_scene_load_guarded(const char *path, unsigned char **bytes_out, size_t *n_out, int *unguarded_out);
+pm_result_t pm_scene_load_guarded(const char *path, int keyed, unsigned char **bytes_out, size_t *n_out,
+                                  int *unguarded_out);
 /* In a guarded load's child: the entry about to load (scene.c), the mesh file assimp is about
  * to import and the import that came back (mesh.c), and whether this process is such a child.
  * No-ops elsewhere. */
@@ -152,11 +158,10 @@ int pm_scene_guarded_child(void);
 long pm_scene_import_mib(void);
 /* The scene as the scene cache's bytes (render/scene_cache.c): header, payload, checksum. */
 pm_result_t pm_scene_cache_encode(const pm_scene_t *s, unsigned char **out, size_t *n_out);
-struct pm_scene_cache_status;
 /* Those bytes (n, the trailer included) back into *out, whatever scene and files they name (a
  * guarded load's own, or a fuzzer's): the checksum, the format, the build and the payload's
  * coherence checked, st->hit 1 when they hold. The bytes are written into and put back. */
-pm_result_t pm_scene_cache_decode(unsigned char *bytes, size_t n, pm_scene_t *out, struct pm_scene_cache_status *st);
+pm_result_t pm_scene_cache_decode(unsigned char *bytes, size_t n, pm_scene_t *out, pm_scene_cache_status_t *st);
 
 /* The error for a file whose faces assimp dropped as naming vertices out of range: for glTF, the
  * first such face (mesh, primitive, face, vertex) read from the file itself. */

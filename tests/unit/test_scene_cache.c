@@ -54,15 +54,30 @@ static size_t payload_at(const unsigned char *d, size_t n)
 
 static void cache_path(char *out, size_t cap, const char *name) { snprintf(out, cap, "%s/%s", unit_tmpdir(), name); }
 
+/* scene loaded (its files noted for a cache: the cache named, not yet there) into *s and written
+ * to the unit directory's NAME, whose path goes into path */
+static void load_and_write(const char *scene, const char *name, pm_scene_t *s, char *path, size_t cap)
+{
+    cache_path(path, cap, name);
+    if (pm_scene_load_cached(scene, path, 0, s, NULL) != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_int_equal(s->uncacheable, 0);
+    assert_int_equal(pm_scene_cache_write(s, path), PM_OK);
+}
+
 static void test_scene_cache_roundtrip(void **state)
 {
     pm_scene_t a, b;
     pm_scene_cache_status_t st;
     char path[600];
-    cache_path(path, sizeof path, "cb.cache");
-    if (pm_scene_load_cached(CORNELL, NULL, &a, NULL) != PM_OK)
+    load_and_write(CORNELL, "cb.cache", &a, path, sizeof path);
+    /* with no cache named, no file is hashed (nothing would keep the hashes) */
+    pm_scene_t plain;
+    if (pm_scene_load_cached(CORNELL, NULL, 1, &plain, NULL) != PM_OK)
         fail_msg("%s", pm_error_message());
-    assert_int_equal(pm_scene_cache_write(&a, path), PM_OK);
+    assert_int_equal(plain.nsources, 0);
+    assert_int_equal(plain.uncacheable, 1);
+    pm_scene_free(&plain);
     assert_int_equal(pm_scene_cache_read(path, CORNELL, &b, &st), PM_OK);
     assert_int_equal(st.hit, 1);
     assert_string_equal(a.name, b.name);
@@ -132,10 +147,7 @@ static void test_scene_cache_damaged(void **state)
 {
     pm_scene_t a;
     char path[600];
-    cache_path(path, sizeof path, "cb2.cache");
-    if (pm_scene_load_cached(CORNELL, NULL, &a, NULL) != PM_OK)
-        fail_msg("%s", pm_error_message());
-    assert_int_equal(pm_scene_cache_write(&a, path), PM_OK);
+    load_and_write(CORNELL, "cb2.cache", &a, path, sizeof path);
     expect_damaged(path, CORNELL, index_past, a.nverts);
     expect_damaged(path, CORNELL, count_huge, a.nverts);
     expect_damaged(path, CORNELL, cut_short, a.nverts);
@@ -149,11 +161,8 @@ static void test_scene_cache_damaged_textured(void **state)
 {
     pm_scene_t a;
     char path[600];
-    cache_path(path, sizeof path, "tex.cache");
-    if (pm_scene_load_cached("scenes/atrium/textured.json", NULL, &a, NULL) != PM_OK)
-        fail_msg("%s", pm_error_message());
+    load_and_write("scenes/atrium/textured.json", "tex.cache", &a, path, sizeof path);
     assert_true(a.ntextures > 0);
-    assert_int_equal(pm_scene_cache_write(&a, path), PM_OK);
     expect_damaged(path, "scenes/atrium/textured.json", length_huge, a.nverts);
     pm_scene_free(&a);
 }

@@ -211,25 +211,28 @@ for mode in "" "PASSES=3"; do
     expect_same "pm-render ${mode:-one render}: the image is the same with the cache as without" "$S/a.txt" "$S/b.txt"
 done
 
-# a progressive render that OUTDIR's lock refuses leaves OUTDIR's cache as it was (it reads the
-# cache before the lock and writes it only after)
-O=$S/o-held
-rm -rf "$O"
-env -u PMTK_SCENE_CACHE pipelines/render -q scenes/cornell-box/scene.json "$O" PHOTONS=2000 WIDTH=16 HEIGHT=12 SPP=4 \
-    PASSES=2 >/dev/null 2>&1
-before=$(inode "$O/scene.cache")
-flock "$O/.lock" sleep 3 &
-holder=$!
-sleep 0.3
-env -u PMTK_SCENE_CACHE pipelines/render -q scenes/skylight/scene.json "$O" PHOTONS=2000 WIDTH=16 HEIGHT=12 SPP=4 \
-    PASSES=2 WAIT=0 >"$S/held.out" 2>&1
-st=$?
-wait $holder
-if [ $st = 1 ] && [ -n "$before" ] && [ "$(inode "$O/scene.cache")" = "$before" ]; then
-    pass "a progressive render refused by OUTDIR's lock leaves its scene cache as it was"
-else
-    fail "a refused render and the cache" "exit $st, inode '$before' -> '$(inode "$O/scene.cache")': $(head -c 200 "$S/held.out")"
-fi
+# a render that OUTDIR's lock refuses leaves OUTDIR's cache as it was (the drivers read the cache
+# before the lock and write it only after), one render and resident passes alike
+for mode in "" PASSES=2; do
+    O=$S/o-held${mode:+-p}
+    rm -rf "$O"
+    env -u PMTK_SCENE_CACHE pipelines/render -q scenes/cornell-box/scene.json "$O" PHOTONS=2000 WIDTH=16 HEIGHT=12 SPP=4 \
+        $mode >/dev/null 2>&1
+    before=$(inode "$O/scene.cache")
+    flock "$O/.lock" sleep 3 &
+    holder=$!
+    sleep 0.3
+    env -u PMTK_SCENE_CACHE pipelines/render -q scenes/skylight/scene.json "$O" PHOTONS=2000 WIDTH=16 HEIGHT=12 SPP=4 \
+        $mode WAIT=0 >"$S/held.out" 2>&1
+    st=$?
+    wait $holder
+    if [ $st = 1 ] && [ -n "$before" ] && [ "$(inode "$O/scene.cache")" = "$before" ]; then
+        pass "${mode:-one render}: a render refused by OUTDIR's lock leaves its scene cache as it was"
+    else
+        fail "${mode:-one render}: a refused render and the cache" \
+            "exit $st, inode '$before' -> '$(inode "$O/scene.cache")': $(head -c 200 "$S/held.out")"
+    fi
+done
 
 # a directory as the cache: a file per scene in it, named by the hash of the scene's path
 D=$S/cdir/

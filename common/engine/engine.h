@@ -65,6 +65,7 @@ typedef enum {
     PM_P_COVERAGE,
     PM_P_ADAPTIVE,
     PM_P_DIFFUSE_DEPTH,
+    PM_P_DIFFUSE_FROM,
     PM_P_COUNT
 } pm_param_t;
 
@@ -99,7 +100,13 @@ typedef struct {
                                * hits of the lights they sample (trace-photons --indirect-only) */
     int secondary_direct_sky; /* SECONDARY_DIRECT=auto on a progressive render that it does not turn on by
                                * TIME: on when the scene has a sun or a sky (the drivers decide, with the scene) */
-    int diffuse_depth;        /* DIFFUSE_DEPTH (0, 1 or 2; MODE=gather): trace-gather-points --diffuse-depth */
+    int diffuse_depth;        /* DIFFUSE_DEPTH (0, 1 or 2; MODE=gather), auto's resolved: trace-gather-points
+                               * --diffuse-depth; 0 none */
+    int diffuse_from;         /* the first pass that takes them (DIFFUSE_FROM; auto: PM_DIFFUSE_AUTO_FROM):
+                               * trace-gather-points --diffuse-from when above 1 */
+    char diffuse_text[2][24]; /* the two as the stages' arguments ("1", "32") */
+    int diffuse_auto;         /* DIFFUSE_DEPTH=auto: the drivers turn it off for a scene with mirrors or
+                               * glass, or with portals (pm_diffuse_depth_for) */
     int coverage;             /* COVERAGE=1, or auto on a progressive render (TIME from 4 s): simd-gather --coverage
                                * SCENE, the density estimate's boundary correction */
     int adaptive;             /* ADAPTIVE=1, or auto on a progressive render: the resident passes from
@@ -108,6 +115,19 @@ typedef struct {
 } pm_settings_t;
 
 enum { PM_KEEP_ALL = 0, PM_KEEP_BUFFERS = 1, PM_KEEP_IMAGE = 2 };
+
+/* DIFFUSE_DEPTH=auto: the pass from which a progressive render's secondary paths bounce once
+ * before they gather (docs/accuracy.md, "A diffuse bounce from a later pass on"). A pass
+ * number, not a time: the map's radius and each pixel's samples after n passes do not depend
+ * on the image's size or the machine, so neither does where the bounce starts to pay. */
+#define PM_DIFFUSE_AUTO_FROM 32
+
+/* The Lambertian bounces before the gather a render of a scene with these takes: s->diffuse_depth,
+ * but 0 under DIFFUSE_DEPTH=auto for a scene with mirrors or glass (specular: a bounce's path on
+ * through them to a light is a caustic path traced from the eye, the noise the caustic map is
+ * there to avoid) or with portals (the light comes in through small openings, which a light
+ * sample at the bounce rarely finds); both measured worse with the bounce (docs/accuracy.md). */
+int pm_diffuse_depth_for(const pm_settings_t *s, int specular, int portals);
 
 /* Fills s with the defaults. */
 void pm_settings_init(pm_settings_t *s);

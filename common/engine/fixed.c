@@ -73,6 +73,7 @@ typedef struct {
     char scene_all[256], scene_photons[256], scene_view[256];
     char mode[16], map[16], order[16], light_samples[32], width_k[32];
     int secondary_direct; /* SECONDARY_DIRECT on, and the scene has a light the gather points sample */
+    int diffuse_depth;    /* trace-gather-points --diffuse-depth, 0 none (pm_diffuse_depth_for) */
     int need_direct, need_gather, need_caustic;
     const char *queries; /* queries.pm or sorted.pm: what the gather reads */
     const char *buffers[72];
@@ -239,9 +240,13 @@ static void build_graph(render_t *r)
     arg_opt(j, "--seed", s->value[PM_P_SEED]);
     if (r->secondary_direct)
         arg(j, "--secondary-direct");
-    if (s->diffuse_depth) {
+    if (r->diffuse_depth) {
         arg(j, "--diffuse-depth");
-        arg(j, s->value[PM_P_DIFFUSE_DEPTH]); /* "1" or "2": pm_settings_parse checked it */
+        arg(j, s->diffuse_text[0]);
+        if (s->diffuse_from > 1) {
+            arg(j, "--diffuse-from");
+            arg(j, s->diffuse_text[1]);
+        }
     }
     if (s->guide && r->need_gather) { /* GUIDE=1: after trace-photons, from its photons */
         arg(j, "--guide");
@@ -1004,6 +1009,7 @@ static void decide_scene(render_t *r)
     }
     r->secondary_direct = (r->s->secondary_direct || (r->s->secondary_direct_sky && (sc->has_sun || sc->has_sky))) &&
                           r->need_gather && pm_lights_count_at_gather(sc) > 0;
+    r->diffuse_depth = pm_diffuse_depth_for(r->s, sc->any_specular, sc->nportals > 0);
     if (r->s->secondary_direct && r->need_gather && !r->secondary_direct)
         note(r, "skipped secondary direct light: the scene has no lights");
     r->width_k[0] = '\0';
@@ -1541,9 +1547,13 @@ static void pass_queries(passgraph_t *g, unit_t *u)
     arg_opt(c, "--seed", s->value[PM_P_SEED]);
     if (r->secondary_direct)
         arg(c, "--secondary-direct");
-    if (s->diffuse_depth) {
+    if (r->diffuse_depth) {
         arg(c, "--diffuse-depth");
-        arg(c, s->value[PM_P_DIFFUSE_DEPTH]); /* "1" or "2": pm_settings_parse checked it */
+        arg(c, s->diffuse_text[0]);
+        if (s->diffuse_from > 1) {
+            arg(c, "--diffuse-from");
+            arg(c, s->diffuse_text[1]);
+        }
     }
     pc_pass(c, g->pass);
     arg_common(r, c);

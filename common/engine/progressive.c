@@ -146,6 +146,7 @@ typedef struct {
     const char *spp, *k;
     int light_samples_zero; /* no emissive triangle, sun or sky: LIGHT_SAMPLES=0 */
     int secondary_direct;   /* SECONDARY_DIRECT on, and the scene has a light the gather points sample */
+    int diffuse_depth;      /* trace-gather-points --diffuse-depth, 0 none (pm_diffuse_depth_for) */
     char settings[8192];    /* what the running image depends on, one line */
     char request[512];      /* PASSES, TIME, TARGET_ERROR, EXPOSURE, TONE, HALF of this run */
     char old_request[512];  /* passes.txt's, when the state is kept */
@@ -464,9 +465,11 @@ static void stage_argv(const prog_t *p, argv_t a[NSTAGE], const int fd[NPIPE][2]
     opt(&a[TG], "--seed", val(p, PM_P_SEED));
     if (p->secondary_direct)
         push(&a[TG], "--secondary-direct");
-    if (p->s->diffuse_depth) {
+    if (p->diffuse_depth) {
         push(&a[TG], "--diffuse-depth");
-        pushf(&a[TG], "%d", p->s->diffuse_depth);
+        pushf(&a[TG], "%d", p->diffuse_depth);
+        if (p->s->diffuse_from > 1)
+            opt(&a[TG], "--diffuse-from", p->s->diffuse_text[1]);
     }
     if (p->s->guide) { /* GUIDE=1: every pass guided by the guide's photons (make_guide) */
         push(&a[TG], "--guide");
@@ -594,8 +597,10 @@ static void make_settings(prog_t *p)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " SECONDARY_DIRECT=1");
     if (p->s->guide && at < sizeof p->settings)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " GUIDE=1");
-    if (p->s->diffuse_depth && at < sizeof p->settings)
-        at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " DIFFUSE_DEPTH=%d", p->s->diffuse_depth);
+    if (p->diffuse_depth && at < sizeof p->settings)
+        at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " DIFFUSE_DEPTH=%d", p->diffuse_depth);
+    if (p->diffuse_depth && p->s->diffuse_from > 1 && at < sizeof p->settings)
+        at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " DIFFUSE_FROM=%d", p->s->diffuse_from);
     if (p->s->coverage && at < sizeof p->settings)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " COVERAGE=1");
     if (p->adaptive && at < sizeof p->settings)
@@ -1034,6 +1039,11 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         }
         if (budget >= 0.0) {
             double left = budget - (pm_time_wall() - t0) - TAIL_S;
+            /* the first pass that bounces (DIFFUSE_FROM) costs more per unit than the passes
+             * before it (1.4 to 1.5 times, docs/accuracy.md): they no longer bound it, so it is
+             * timed small, as a first pass is */
+            if (p->diffuse_depth && s->diffuse_from > 1 && next == s->diffuse_from)
+                nk = 0;
             units = nk == 0 && next == first ? 1 : pm_progressive_next_size(k, sec, nk, p->kmax, left);
             if (nk == 0 && next == first && next > 1) /* a rerun: time a small pass first, as a first run does */
                 units = 1;
@@ -1209,6 +1219,7 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
     p.light_samples_zero = sc.nemissive == 0 && !sc.has_sun && !sc.has_sky;
     p.secondary_direct = (s->secondary_direct || (s->secondary_direct_sky && (sc.has_sun || sc.has_sky))) &&
                          strcmp(s->value[PM_P_GATHER], "none") && pm_lights_count_at_gather(&sc);
+    p.diffuse_depth = pm_diffuse_depth_for(s, specular, sc.nportals > 0);
     /* the stages, as the pass files' driver (pm_render_passes in fixed.c) chooses them */
     p.mode = s->value[PM_P_MODE];
     int vis = !strcmp(p.mode, "direct-vis"), gather = strcmp(s->value[PM_P_GATHER], "none") != 0;

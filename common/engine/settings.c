@@ -55,7 +55,8 @@ static const struct {
     [PM_P_SECONDARY_DIRECT] = {"SECONDARY_DIRECT", "auto"},
     [PM_P_COVERAGE] = {"COVERAGE", "auto"},
     [PM_P_ADAPTIVE] = {"ADAPTIVE", "auto"},
-    [PM_P_DIFFUSE_DEPTH] = {"DIFFUSE_DEPTH", "0"},
+    [PM_P_DIFFUSE_DEPTH] = {"DIFFUSE_DEPTH", "auto"},
+    [PM_P_DIFFUSE_FROM] = {"DIFFUSE_FROM", ""},
 };
 
 const char *pm_param_name(pm_param_t p) { return p < PM_P_COUNT ? params[p].name : ""; }
@@ -140,7 +141,8 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
                              *const orders[] = {"auto", "hilbert", "morton", "none", NULL},
                              *const widths[] = {"fixed", "variable", NULL}, *const tones[] = {"srgb", "filmic", NULL},
                              *const bits[] = {"0", "1", NULL}, *const keeps[] = {"all", "buffers", "image", NULL},
-                             *const autobits[] = {"auto", "0", "1", NULL}, *const depths[] = {"0", "1", "2", NULL};
+                             *const autobits[] = {"auto", "0", "1", NULL},
+                             *const depths[] = {"auto", "0", "1", "2", NULL};
     pm_result_t r;
     if ((r = choice(s, PM_P_MODE, modes)) || (r = choice(s, PM_P_MAP, maps)) || (r = choice(s, PM_P_ORDER, orders)) ||
         (r = choice(s, PM_P_WIDTHS, widths)) || (r = choice(s, PM_P_TONE, tones)) || (r = choice(s, PM_P_HALF, bits)) ||
@@ -149,7 +151,9 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
         (r = choice(s, PM_P_SECONDARY_DIRECT, autobits)) || (r = choice(s, PM_P_COVERAGE, autobits)) ||
         (r = choice(s, PM_P_ADAPTIVE, autobits)) || (r = choice(s, PM_P_DIFFUSE_DEPTH, depths)))
         return r;
-    if (strcmp(s->value[PM_P_DIFFUSE_DEPTH], "0") && !strcmp(s->value[PM_P_MODE], "direct-vis"))
+    const char *dd = s->value[PM_P_DIFFUSE_DEPTH];
+    int dd_auto = !strcmp(dd, "auto");
+    if (strcmp(dd, "0") && !dd_auto && !strcmp(s->value[PM_P_MODE], "direct-vis"))
         return pm_error_set(PM_ERR_USAGE,
                             "DIFFUSE_DEPTH=%s with MODE=direct-vis: diffuse bounces come before a gather point, and "
                             "direct-vis has none",
@@ -204,10 +208,33 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
     s->progressive = s->value[PM_P_TIME][0] || s->value[PM_P_TARGET_ERROR][0] || s->value[PM_P_PASS_RANGE][0] ||
                      (s->value[PM_P_PASSES][0] && strcmp(s->value[PM_P_PASSES], "1") != 0);
     s->secondary_direct_sky = gather && sd_auto && !s->secondary_direct && s->progressive;
-    /* A diffuse bounce before the gather: given, never chosen. It wins the atria's long budgets and
+    /* A diffuse bounce before the gather. From the first pass it wins the atria's long budgets and
      * loses the Cornell box's and the skylight room's at every budget measured (docs/accuracy.md,
-     * "A diffuse bounce before the gather"), and no rule that tells them apart was found. */
-    s->diffuse_depth = atoi(s->value[PM_P_DIFFUSE_DEPTH]);
+     * "A diffuse bounce before the gather"). auto takes it in a progressive render's passes from
+     * PM_DIFFUSE_AUTO_FROM on: the first passes keep the map's low noise, which is what short
+     * budgets need, and the later ones the bounce's lower bias, which is what is left of the error
+     * at long ones ("A diffuse bounce from a later pass on"); a render of fewer passes is the same
+     * as with 0. */
+    const char *df = s->value[PM_P_DIFFUSE_FROM];
+    if (df[0] && (!matches(COUNT_RE, df) || strlen(df) > 9))
+        return pm_error_set(PM_ERR_USAGE, "bad value for DIFFUSE_FROM '%s': expected a pass number of at least 1", df);
+    if (df[0] && !strcmp(dd, "0"))
+        return pm_error_set(PM_ERR_USAGE,
+                            "DIFFUSE_FROM=%s says from which pass DIFFUSE_DEPTH's bounces are taken: "
+                            "give DIFFUSE_DEPTH=1, 2 or auto",
+                            df);
+    if (dd_auto)
+        s->diffuse_depth = gather && s->progressive && strcmp(s->value[PM_P_GATHER], "none") != 0 ? 1 : 0;
+    else
+        s->diffuse_depth = atoi(dd);
+    s->diffuse_from = df[0] ? atoi(df) : dd_auto ? PM_DIFFUSE_AUTO_FROM : 1;
+    if (s->diffuse_from > 1 && !s->progressive) /* a one-pass render is pass 1 */
+        s->diffuse_depth = 0;
+    if (!s->diffuse_depth)
+        s->diffuse_from = 1;
+    s->diffuse_auto = dd_auto;
+    snprintf(s->diffuse_text[0], sizeof s->diffuse_text[0], "%d", s->diffuse_depth);
+    snprintf(s->diffuse_text[1], sizeof s->diffuse_text[1], "%d", s->diffuse_from);
     /* Adaptive passes: the resident passes only (pm-render refuses ADAPTIVE=1 for the pass files);
      * auto is on for a TIME budget (docs/accuracy.md, "Adaptive sampling"), so that PASSES and
      * TARGET_ERROR renders keep their bytes. */
@@ -244,7 +271,7 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
     if (s->guide && strcmp(s->value[PM_P_GATHER], "none") == 0)
         return pm_error_set(PM_ERR_USAGE,
                             "GUIDE=1 guides by the pass's photons: not with GATHER=none, which traces none");
-    if (s->diffuse_depth && strcmp(s->value[PM_P_GATHER], "none") == 0)
+    if (s->diffuse_depth && !dd_auto && strcmp(s->value[PM_P_GATHER], "none") == 0)
         return pm_error_set(PM_ERR_USAGE,
                             "DIFFUSE_DEPTH=%d bounces before a gather: not with GATHER=none, whose "
                             "image is the direct light alone",
@@ -481,4 +508,9 @@ const pm_stage_info_t *pm_stage_table(size_t *n_out)
 {
     *n_out = sizeof stage_table / sizeof stage_table[0];
     return stage_table;
+}
+
+int pm_diffuse_depth_for(const pm_settings_t *s, int specular, int portals)
+{
+    return s->diffuse_auto && (specular || portals) ? 0 : s->diffuse_depth;
 }

@@ -75,6 +75,7 @@ typedef struct {
     int secondary_direct;    /* --secondary-direct: light samples at the gather points too */
     int strata;              /* --strata: 0 pixel, 1 hit */
     int64_t diffuse_depth;   /* --diffuse-depth: Lambertian bounces before the gather */
+    int64_t diffuse_from;    /* --diffuse-from: the first pass that takes them (1: every pass) */
     const char *adaptive;    /* --adaptive MAP: each pixel's primary rays times its multiplier, NULL for none */
     uint64_t adaptive_hash;  /* the pass's map's content hash; adaptive_used: a map was read for the pass */
     int adaptive_used;
@@ -343,7 +344,8 @@ static pm_result_t run(pm_stage_t *st, tgp_options_t *o, const pm_scene_t *s, co
         .glossy_depth = (unsigned)o->glossy_depth,
         .secondary_direct = o->secondary_direct,
         .strata_hit = o->strata == 1,
-        .diffuse_depth = (unsigned)o->diffuse_depth};
+        /* a one-pass render (no --pass) is pass 1 */
+        .diffuse_depth = (o->pass ? o->pass : 1) >= o->diffuse_from ? (unsigned)o->diffuse_depth : 0};
     pm_eye_options_t eo_g = eo;
     /* The scene's own camera is within the image limits (scene.c): only --width or --height
      * can take it beyond them, a usage error. */
@@ -471,7 +473,8 @@ int main(int argc, char **argv)
                        .light_samples = 4,
                        .isa = "auto",
                        .spool_mb = 256,
-                       .glossy_depth = PM_EYE_GLOSSY_DEPTH};
+                       .glossy_depth = PM_EYE_GLOSSY_DEPTH,
+                       .diffuse_from = 1};
     char **argv0 = argv;
     const pm_option_t options[] = {
         PM_STAGE_COMMON_OPTIONS(st),
@@ -555,6 +558,11 @@ int main(int argc, char **argv)
          "every light (the sky's too) and one cosine-weighted ray on, so the photon map is read one bounce later; 0 "
          "gathers at the secondary hits (the paper's final gather); headers say diffuse_depth=N",
          0, 8, NULL},
+        {"diffuse-from", 0, PM_OPT_INT, &o.diffuse_from, "P",
+         "--diffuse-depth's bounces from pass P on (--pass, --passes or --plan; a render without is pass 1): the "
+         "earlier passes gather at the secondary hits, so that a long progressive render spends its first passes on "
+         "the map's low noise and its later ones on a lower bias (pm-render DIFFUSE_DEPTH=auto)",
+         1, INT32_MAX, NULL},
         {"strata", 0, PM_OPT_CHOICE, &o.strata, "HOW",
          "pixel: the secondary rays and the light samples of all a pixel's primary rays stratified as one set "
          "(headers say strata=pixel); hit: each hit's alone (the files of before, but for the constant sky's rule "
@@ -590,6 +598,12 @@ int main(int argc, char **argv)
     if (o.aov && (st.args.nargs != 1 || o.passes || o.plan || !strcmp(o.aov, "-")))
         return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE, "--aov writes one file for one scene: not with several "
                                                             "scenes, --passes, --plan or stdout"));
+    if (pm_args_given(&st.args, "diffuse-from") && !o.diffuse_depth)
+        return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE,
+                                              "--diffuse-from %" PRId64
+                                              " says from which pass --diffuse-depth's bounces are "
+                                              "taken: give --diffuse-depth N (1 or more)",
+                                              o.diffuse_from));
     if (o.guide && o.mode != PM_EYE_GATHER)
         return pm_stage_end(&st, pm_error_set(PM_ERR_USAGE,
                                               "--guide guides the secondary rays of --mode gather, "

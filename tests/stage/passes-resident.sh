@@ -1,6 +1,7 @@
 # passes-resident.sh: the settings pm-render's resident progressive passes run beside the
 # default (issue 26, item 2): the caustic branch of a scene with mirrors or glass, MODE=direct-vis
-# (over a global and an indirect map), ORDER=none, GATHER=none, SECONDARY_DIRECT=1 and COVERAGE=1. Each runs resident (no pass
+# (over a global and an indirect map), ORDER=none, GATHER=none, SECONDARY_DIRECT=1, COVERAGE=1 and
+# a diffuse bounce from pass 3 (DIFFUSE_FROM=3). Each runs resident (no pass
 # directory) and makes the running image and the image the pass files make (KEEP=all,
 # pm_render_passes), record for record and pixel for pixel; the caustic branch also
 # when a rerun adds a pass, and for any THREADS.
@@ -45,6 +46,7 @@ same gather-none "$CORNELL" GATHER=none
 same secondary-direct tests/scenes/closed-box/scene.json SECONDARY_DIRECT=1
 same secondary-direct-sky scenes/atrium/textured.json SECONDARY_DIRECT=1
 same caustic-gather-none "$CAUSTIC" GATHER=none
+same diffuse-from "$CORNELL" DIFFUSE_DEPTH=1 DIFFUSE_FROM=3
 
 # the caustic branch's stages, each named in stats.json; GATHER=none warns of the missing caustics
 jq -e '.stages | has("build-photonmap.caustic") and has("simd-gather.caustic")' "$TMP/caustic/res/stats.json" >/dev/null &&

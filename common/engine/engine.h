@@ -129,6 +129,13 @@ enum { PM_KEEP_ALL = 0, PM_KEEP_BUFFERS = 1, PM_KEEP_IMAGE = 2 };
  * sample at the bounce rarely finds); both measured worse with the bounce (docs/accuracy.md). */
 int pm_diffuse_depth_for(const pm_settings_t *s, int specular, int portals);
 
+/* K, the photons r_1 is measured to hold on pass 1's queries, when not given, for progressive
+ * passes: "2" for a TIME budget too short for the boundary correction (COVERAGE=auto off below
+ * 2 s), whose kernel then darkens every edge it overhangs and is better small (the atria's
+ * TIME=1 relMSE 10 to 14% lower, the Cornell box's the same); "5" otherwise (docs/accuracy.md,
+ * "Progressive defaults" and "The boundary correction from 2 s"). */
+const char *pm_progressive_default_k(const pm_settings_t *s);
+
 /* Fills s with the defaults. */
 void pm_settings_init(pm_settings_t *s);
 /* Parses pm-render's arguments after SCENE and OUTDIR: NAME=VALUE words and TARGET words

@@ -23,7 +23,9 @@
 #include "base/timer.h"
 #include "formats/formats.h"
 #include "image/adaptive.h"
+#include "photonmap/coverage.h"
 #include "photonmap/gather_stage.h"
+#include "render/areasample.h"
 #include "render/light.h"
 #include "render/scene.h"
 #include "render/scene_cache.h"
@@ -35,7 +37,7 @@ extern char **environ;
 #define DEFAULT_PHOTONS 300000
 #define DEFAULT_PRIMARY 16
 #define DEFAULT_SPP "4"
-#define DEFAULT_K "5"
+/* K: pm_progressive_default_k */
 /* s the driver keeps for what follows the last pass (the stages' exit, the sync, stats.json),
  * measured by tests/bench/92-passes.sh */
 #define TAIL_S 0.04
@@ -52,6 +54,11 @@ extern char **environ;
 #define ADAPTIVE_EVERY 1
 #define GROW_MARGIN 0.10
 #define GROW_MARGIN_MAX 1.25
+/* A new coverage level's sampling set aside: the last level's cost times this for each level
+ * finer (cover_level). Twice the samples a level, but measured 2.2 to 3.5 times the gather's CPU
+ * (the atrium's 0.3, 0.6 and 1.2 million samples about 0.2, 0.4 and 0.7 s, the Cornell box's 0.5
+ * and 1.0 million 0.15 and 0.53 s), and a new level near the end is what overruns a budget. */
+#define COVER_GROWTH 2.5
 
 /* The stages: the caustic map (CB) and the caustic gather (CG) run for a scene with mirrors or
  * glass in gather mode; the photon stages and the gathers not with GATHER=none; hilbert-sort
@@ -162,6 +169,9 @@ typedef struct {
     double adapt_s;         /* s the driver spent making the adaptive maps */
     double spawn_s;         /* s from the command's start to the stages' start: pm-render's own */
     double ready_s[NSTAGE]; /* s from the command's start to a tracer's --ready line (-1: none) */
+    int cover_plan;         /* the global gather has --coverage: a TIME render's planner foresees the
+                             * passes at which it samples the scene at a new level (cover_level) */
+    int cover_finest;       /* the finest level it samples at (PM_COVERAGE_MAX_SAMPLES); INT_MAX: none */
 } prog_t;
 
 /* the driver's lines on stderr, "ME: ..." (pm_engine_say) */
@@ -246,6 +256,54 @@ int pm_progressive_next_size(const int *k, const double *sec, int n, int kmax, d
             return u;
     }
     return 1;
+}
+
+/* ---- the coverage levels of the passes (TIME) ---- */
+
+/* simd-gather --coverage samples the scene's surfaces again each time a pass's kernel reaches a
+ * finer spacing level, twice the samples a level: on the atrium 0.3, 0.6 and 1.2 million area
+ * samples at passes 2, 4 and 9 of a TIME=4 render, the last 0.7 s of gather in a pass of 1 unit
+ * that took 0.08 s without, which ended the render 15% late. The levels are known ahead: a
+ * pass's kernel width follows from r_1 and the photons before it (the schedule), so the planner
+ * sets the next new level's sampling aside (run_passes, COVER_GROWTH). */
+
+/* The finest level simd-gather samples sc at within PM_COVERAGE_MAX_SAMPLES (its count falls as
+ * the spacing grows), INT_MAX when a scene of too many triangles is not sampled at any. */
+static int cover_finest_level(const pm_scene_t *sc)
+{
+    if (pm_area_samples_count(sc, INFINITY) > PM_COVERAGE_MAX_SAMPLES)
+        return INT_MAX;
+    int lo = -400, hi = 400; /* spacings of 2^-200 m, over the bound, and 2^200 m, within it */
+    while (hi - lo > 1) {
+        int mid = lo + (hi - lo) / 2;
+        if (pm_area_samples_count(sc, pm_coverage_level_spacing(mid)) > PM_COVERAGE_MAX_SAMPLES)
+            lo = mid;
+        else
+            hi = mid;
+    }
+    return hi;
+}
+
+/* The level simd-gather samples at for pass `next` (the schedule's width from the running
+ * image's radius1 and the photons before it, as the stage computes it), INT_MIN when there is
+ * none yet (pass 1 goes uncorrected; r_1 is known after it). */
+static int cover_level(const prog_t *p, int next)
+{
+    double r1 = 0.0, alpha = PM_PASS_ALPHA_DEFAULT;
+    if (next < 2 || p->npasses < 1 || !p->radius1[0] || pm_parse_double(p->radius1, &r1) != PM_OK || !(r1 > 0.0))
+        return INT_MIN;
+    if (val(p, PM_P_ALPHA)[0] && pm_parse_double(val(p, PM_P_ALPHA), &alpha) != PM_OK)
+        return INT_MIN;
+    uint64_t before = 0;
+    for (int j = 0; j < p->npasses; j++)
+        if (p->passes[j].pass < next)
+            before += (uint64_t)p->passes[j].photons;
+    double h = pm_gather_schedule_radius(
+        r1, pm_gather_pass_index((uint64_t)next, before, (uint64_t)p->passes[0].photons), alpha);
+    int level;
+    if (pm_coverage_level(h, &level) != PM_OK)
+        return INT_MIN;
+    return level > p->cover_finest ? level : p->cover_finest;
 }
 
 /* ---- the state: running.pm and passes.txt ---- */
@@ -1030,8 +1088,13 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
     int nk = 0;
     const char *stop = "";
     int pass = first - 1, failed = 0;
+    /* the coverage level of the last pass, and what sampling the scene at a new level last cost
+     * beyond the pass's bound, at which level (-1: not yet measured) */
+    int cov_level = INT_MIN, cov_cost_level = 0, cov_units = 0;
+    double cov_sg = -1.0, sg_rate = INFINITY; /* the gather's CPU in that pass; its cheapest CPU s a unit */
     while (rc == 0 && logf) {
-        int next = pass + 1, units = p->kmax;
+        int next = pass + 1, units = p->kmax, cov_next = INT_MIN;
+        double cov_extra = 0.0;
         if (maxp && next > maxp) {
             snprintf(stopbuf, sizeof stopbuf, "PASSES=%" PRId64, maxp);
             stop = stopbuf;
@@ -1044,6 +1107,14 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
              * timed small, as a first pass is */
             if (p->diffuse_depth && s->diffuse_from > 1 && next == s->diffuse_from)
                 nk = 0;
+            /* a pass at a new coverage level: its sampling, the last one's cost (measured with the
+             * gather's cheapest rate so far) times COVER_GROWTH a level finer */
+            if (p->cover_plan && (cov_next = cover_level(p, next)) != INT_MIN && cov_next != INT_MAX &&
+                cov_next != cov_level && cov_sg >= 0.0 && isfinite(sg_rate)) {
+                double cost = cov_sg - sg_rate * cov_units;
+                cov_extra = (cost > 0.0 ? cost : 0.0) * pow(COVER_GROWTH, (double)(cov_cost_level - cov_next));
+            }
+            left -= cov_extra;
             units = nk == 0 && next == first ? 1 : pm_progressive_next_size(k, sec, nk, p->kmax, left);
             if (nk == 0 && next == first && next > 1) /* a rerun: time a small pass first, as a first run does */
                 units = 1;
@@ -1114,6 +1185,23 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
             say(p, "cannot write '%s/passes.txt': %s", p->out, strerror(errno));
             rc = 3;
             break;
+        }
+        /* a pass that sampled the scene at a new coverage level: the gather's CPU in it beyond
+         * its cheapest rate in the passes that did not is that sampling's cost (its own thread:
+         * the pass waits for it when the pass is small), for the next level's. Not the pass's
+         * wall time beyond its bound: in a large pass the tracers hide most of it. */
+        if (p->cover_plan && cov_next == INT_MIN)
+            cov_next = cover_level(p, next);
+        double sg = pp->cpu_s[SG];
+        if (p->cover_plan && cov_next != INT_MIN && cov_next != INT_MAX && cov_next != cov_level) {
+            if (sg >= 0.0)
+                cov_sg = sg, cov_units = units, cov_cost_level = cov_next;
+            cov_level = cov_next;
+            if (s->verbose)
+                say(p, "pass %d: the gather samples the scene at a new coverage level, %.3g m apart%s", next,
+                    pm_coverage_level_spacing(cov_next), cov_extra > 0.0 ? " (its cost foreseen)" : "");
+        } else if (sg >= 0.0 && sg / units < sg_rate) {
+            sg_rate = sg / units;
         }
         if (nk < 4096)
             k[nk] = units, sec[nk] = te - ts, nk++;
@@ -1242,7 +1330,7 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
              : vis                                                                          ? scene_primary
                                                                                             : DEFAULT_PRIMARY;
     p.spp = s->value[PM_P_SPP][0] ? s->value[PM_P_SPP] : vis ? "" : DEFAULT_SPP;
-    p.k = s->value[PM_P_K][0] ? s->value[PM_P_K] : vis ? "" : DEFAULT_K;
+    p.k = s->value[PM_P_K][0] ? s->value[PM_P_K] : vis ? "" : pm_progressive_default_k(s);
     /* composite weighs an adaptive pass's pixels by the map its direct buffer's header names */
     p.adaptive = s->adaptive && p.direct;
     if (s->adaptive && !p.direct && !strcmp(s->value[PM_P_ADAPTIVE], "1")) {
@@ -1251,6 +1339,9 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
         return 2;
     }
     make_settings(&p);
+    p.cover_plan = s->coverage && p.on[SG];
+    if (p.cover_plan)
+        p.cover_finest = cover_finest_level(&sc);
     int locked = pm_engine_lock(p.me, p.out, p.s->wait, cmdline, &p.lock_fd);
     if (locked != 0) {
         pm_scene_free(&sc);

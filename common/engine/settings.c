@@ -105,7 +105,7 @@ static int matches(const char *re, const char *s)
 
 #define COUNT_RE "^[1-9][0-9]*$"
 #define SECONDARY_DIRECT_TIME 10.0 /* s: SECONDARY_DIRECT=auto's TIME from which it is on */
-#define COVERAGE_TIME 6.0          /* s: COVERAGE=auto's TIME from which it is on */
+#define COVERAGE_TIME 2.0          /* s: COVERAGE=auto's TIME from which it is on */
 /* A number of at least 0 as pipelines/render's isnum took it (no sign, no hex, no inf). */
 #define NUM_RE "^([0-9]+([.][0-9]*)?|[.][0-9]+)([eE][-+]?[0-9]+)?$"
 
@@ -253,9 +253,12 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
      * and its area samples at each spacing level, and pays where the bias it removes outweighs
      * the passes it costs (docs/accuracy.md, "The boundary correction": the atria's relMSE 2.5 to
      * 3.7 times lower from 8 s on, the Cornell box, caustic and skylight scenes within 0.8 to 1.2
-     * times from 4 s on, and one render or 1 to 2 s lose more to the start-up than they gain;
-     * below 6 s the samples it builds when the kernel reaches a new spacing level, a share of a
-     * pass the TIME planner does not foresee, made the Cornell box's TIME=4 end at 4.3 s). */
+     * times from 4 s on, and one render loses more to the start-up than it gains). From 2 s since
+     * the scene cache (the gather's load 6 ms) and the TIME planner's foreseeing the passes at
+     * which the gather samples a new spacing level (progressive.c, cover_level): the atria's
+     * TIME=2 and TIME=4 relMSE 1.3 to 3 times lower, the Cornell box's 1.2 to 2 times higher,
+     * all of them below the path tracer's ("The boundary correction from 2 s"); TIME=1 lost on
+     * the atrium and the Cornell box. */
     const char *cv = s->value[PM_P_COVERAGE];
     int cv_fit = !strcmp(s->value[PM_P_GATHER], "simd-gather") && !strcmp(s->value[PM_P_WIDTHS], "fixed");
     s->coverage = !strcmp(cv, "1") || (!strcmp(cv, "auto") && cv_fit && s->progressive &&
@@ -513,4 +516,9 @@ const pm_stage_info_t *pm_stage_table(size_t *n_out)
 int pm_diffuse_depth_for(const pm_settings_t *s, int specular, int portals)
 {
     return s->diffuse_auto && (specular || portals) ? 0 : s->diffuse_depth;
+}
+
+const char *pm_progressive_default_k(const pm_settings_t *s)
+{
+    return !s->coverage && s->value[PM_P_TIME][0] && strtod(s->value[PM_P_TIME], NULL) < COVERAGE_TIME ? "2" : "5";
 }

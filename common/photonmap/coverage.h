@@ -39,6 +39,10 @@
 #define PM_COVERAGE_RATIO 2.0
 /* A point covered less than this is divided by this: a sliver's few photons are not blown up. */
 #define PM_COVERAGE_MIN 0.25
+/* The most area samples simd-gather --coverage makes (about 90 bytes each with their map): a
+ * coarser spacing level is taken above it (and the TIME planner, common/engine/progressive.c,
+ * foresees the same levels). */
+#define PM_COVERAGE_MAX_SAMPLES (1ull << 22)
 
 typedef struct {
     pm_table_t table; /* the area samples' map (map format, built by mapbuild.c) */

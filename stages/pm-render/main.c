@@ -38,7 +38,7 @@ static const char *const param_help =
     "                   and for any progressive render of a scene with a sun or a sky\n"
     "  COVERAGE=auto    1: simd-gather --coverage SCENE, the density estimate's boundary correction (no\n"
     "                   darkening where a kernel overhangs an edge or a corner; WIDTHS=fixed); auto: 1\n"
-    "                   for progressive renders but a TIME below 6 s\n"
+    "                   for progressive renders but a TIME below 2 s\n"
     "  DIFFUSE_DEPTH=auto  0, 1 or 2: secondary paths bounce off that many Lambertian surfaces (a light\n"
     "                   sample of every light and one ray on at each) before they gather (trace-gather-\n"
     "                   points --diffuse-depth; MODE=gather); auto: 1 from progressive pass 32 on, 0 else\n"

@@ -44,10 +44,6 @@
 
 static const char *const width_names[] = {"fixed", "variable", NULL};
 
-/* The most area samples --coverage makes (about 90 bytes each with their map): a coarser
- * spacing level is taken above it. */
-#define COVER_MAX_SAMPLES (1ull << 22)
-
 /* --coverage SCENE: the scene, loaded at the first gather it corrects, and the area samples' map
  * for the spacing level of the width in use, made again when a pass's width reaches another
  * level. The first pass of a progressive render is not corrected: it is the pass the first image
@@ -62,7 +58,7 @@ typedef struct {
     int loaded, traced;
     int per_query; /* the last map's side: its queries' results divided, not its photons' powers */
     int applied;   /* the last gather was corrected (not progressive pass 1) */
-    int off;       /* the scene has too many triangles to sample within COVER_MAX_SAMPLES */
+    int off;       /* the scene has too many triangles to sample within PM_COVERAGE_MAX_SAMPLES */
     int level_h;   /* the spacing level of the last width, and the level used for it (coarser */
     int level;     /* when the bound needs it): INT_MIN before the first */
     pm_coverage_t cov;
@@ -87,7 +83,7 @@ typedef struct {
 } gather_options_t;
 
 /* --coverage's scene and its rays' structure, once. Every storing triangle has a sample a side at
- * least: a scene of more than COVER_MAX_SAMPLES / 2 of them cannot be sampled within the bound at
+ * least: a scene of more than PM_COVERAGE_MAX_SAMPLES / 2 of them cannot be sampled within the bound at
  * any spacing, and goes uncorrected (off), with a word. */
 static pm_result_t cover_load(pm_stage_t *st, cover_t *c)
 {
@@ -104,12 +100,12 @@ static pm_result_t cover_load(pm_stage_t *st, cover_t *c)
         return r;
     c->traced = 1;
     c->load_s = pm_time_wall() - t0;
-    if (pm_area_samples_count(&c->scene, INFINITY) > COVER_MAX_SAMPLES) {
+    if (pm_area_samples_count(&c->scene, INFINITY) > PM_COVERAGE_MAX_SAMPLES) {
         c->off = 1;
         pm_stage_note(st,
                       "warning: --coverage: scene '%s' has too many triangles for %llu area samples (one a side "
                       "each at least): its boundary correction is off",
-                      c->path, (unsigned long long)COVER_MAX_SAMPLES);
+                      c->path, (unsigned long long)PM_COVERAGE_MAX_SAMPLES);
     }
     return PM_OK;
 }
@@ -146,7 +142,7 @@ static pm_result_t cover_map(pm_stage_t *st, cover_t *c, pm_gather_inputs_t *in,
         return r;
     if (level != c->level_h) { /* the spacing for this width's level, within the bound: counted once a level */
         c->level_h = level;
-        while (pm_area_samples_count(&c->scene, pm_coverage_level_spacing(level)) > COVER_MAX_SAMPLES)
+        while (pm_area_samples_count(&c->scene, pm_coverage_level_spacing(level)) > PM_COVERAGE_MAX_SAMPLES)
             level++;
         c->level = level;
     }
@@ -156,7 +152,8 @@ static pm_result_t cover_map(pm_stage_t *st, cover_t *c, pm_gather_inputs_t *in,
         /* A side within two kernel widths of a solid's far face is what a kernel would count: the
          * widest kernel of the level, so that the samples depend on the level alone. */
         double reach = 2.0 * PM_COVERAGE_RATIO * 1.4142135623730951 * spacing;
-        r = pm_area_samples_make(&c->scene, &c->rt, spacing, reach, pm_coverage_seed(spacing), COVER_MAX_SAMPLES, &a);
+        r = pm_area_samples_make(&c->scene, &c->rt, spacing, reach, pm_coverage_seed(spacing), PM_COVERAGE_MAX_SAMPLES,
+                                 &a);
         if (r == PM_OK)
             r = pm_coverage_build(&c->cov, a.pos, a.normal, a.area, a.n, spacing);
         uint64_t hidden = a.hidden;

@@ -7,8 +7,8 @@
 # gather sees the same loss, less of it. Also: the outputs do not depend on the thread count,
 # the output's header names the spacing, and bad uses (another scene, no scene, variable
 # widths) are a one-line error with the usual exit code. pm-render COVERAGE=1 runs it, and
-# COVERAGE=auto for progressive renders (passes-resident.sh checks its resident passes against
-# the pass files).
+# COVERAGE=auto for progressive renders but TIME=1 (passes-resident.sh checks its resident passes
+# against the pass files); the TIME planner knows at which passes the gather samples anew.
 # programs: trace-photons build-photonmap trace-gather-points hilbert-sort simd-gather composite pm-info pm-render
 D=$TMP/coverage
 mkdir -p "$D"
@@ -158,6 +158,25 @@ if "$R" "$S" "$D/r1" PHOTONS=20000 WIDTH=16 HEIGHT=16 COVERAGE=1 >"$D/r1.out" 2>
     pass "pm-render: COVERAGE=1 in one pass; auto on for resident passes (PASSES=2), off for one render and TIME=1"
 else
     fail "pm-render COVERAGE=1" "$(tail -2 "$D/r1.out" "$D/r2.out")"
+fi
+# COVERAGE=auto from TIME=2; the TIME planner's foresight: the passes at which the driver says
+# the gather samples a new spacing level, and their spacings, are the gather's own (a PASSES
+# render: the same prediction, said under VERBOSE)
+"$R" "$S" "$D/r8" PHOTONS=20000 WIDTH=16 HEIGHT=16 TIME=2 >"$D/r8.out" 2>&1 &&
+    "$BIN/pm-info" "$D/r8/running.pm" | grep -q 'simd-gather .*--coverage ' &&
+    pass "pm-render: COVERAGE=auto on for TIME=2" || fail "COVERAGE=auto TIME=2" "$(tail -2 "$D/r8.out")"
+# K, when not given: 2 below TIME=2 (no boundary correction: a smaller kernel darkens less), 5 from it
+[ "$(jq '.passes[0].stages["simd-gather"].k' "$D/r6/stats.json")" = 2 ] &&
+    [ "$(jq '.passes[0].stages["simd-gather"].k' "$D/r8/stats.json")" = 5 ] &&
+    pass "pm-render's default K: 2 for TIME=1 (no correction), 5 for TIME=2" ||
+    fail "default K by TIME" "$(jq -c '.passes[0].stages["simd-gather"]' "$D/r6/stats.json" "$D/r8/stats.json")"
+"$R" "$S" "$D/r7" PHOTONS=20000 WIDTH=16 HEIGHT=16 PASSES=12 VERBOSE=1 >"$D/r7.out" 2>&1
+said=$(grep -o 'new coverage level, [^ ]* m apart' "$D/r7.out" | awk '{print $4}' | tr '\n' ' ')
+built=$(grep -o 'area samples [^ ]* m apart' "$D/r7.out" | awk '{print $3}' | tr '\n' ' ')
+if [ "$(echo $said | wc -w)" -ge 2 ] && [ "$said" = "$built" ]; then
+    pass "pm-render foresees the gather's coverage levels: spacings $said"
+else
+    fail "coverage levels foreseen" "driver '$said', gather '$built'"
 fi
 "$R" "$S" "$D/r3" COVERAGE=2 >"$D/r3.out" 2>&1
 rc=$?

@@ -107,7 +107,7 @@ typedef struct {
     char diffuse_text[2][24]; /* the two as the stages' arguments ("1", "32") */
     int diffuse_auto;         /* DIFFUSE_DEPTH=auto: the drivers turn it off for a scene with mirrors or
                                * glass, or with portals (pm_diffuse_depth_for) */
-    int coverage;             /* COVERAGE=1, or auto on a progressive render (TIME from 4 s): simd-gather --coverage
+    int coverage;             /* COVERAGE=1, or auto on a progressive render (TIME from 2 s): simd-gather --coverage
                                * SCENE, the density estimate's boundary correction */
     int adaptive;             /* ADAPTIVE=1, or auto on a progressive render: the resident passes from
                                * PM_ADAPTIVE_FROM_PASS on give each pixel rays by the running image's error

@@ -59,6 +59,9 @@ extern char **environ;
  * (the atrium's 0.3, 0.6 and 1.2 million samples about 0.2, 0.4 and 0.7 s, the Cornell box's 0.5
  * and 1.0 million 0.15 and 0.53 s), and a new level near the end is what overruns a budget. */
 #define COVER_GROWTH 2.5
+/* A bouncing pass's time over a pass's of the same size without the bounce, at most (measured
+ * 1.40 and 1.53 on the atria, docs/accuracy.md, "A diffuse bounce before the gather") */
+#define DIFFUSE_COST 1.6
 
 /* The stages: the caustic map (CB) and the caustic gather (CG) run for a scene with mirrors or
  * glass in gather mode; the photon stages and the gathers not with GATHER=none; hilbert-sort
@@ -290,7 +293,8 @@ static int cover_finest_level(const pm_scene_t *sc)
 static int cover_level(const prog_t *p, int next)
 {
     double r1 = 0.0, alpha = PM_PASS_ALPHA_DEFAULT;
-    if (next < 2 || p->npasses < 1 || !p->radius1[0] || pm_parse_double(p->radius1, &r1) != PM_OK || !(r1 > 0.0))
+    const char *r1s = val(p, PM_P_RADIUS)[0] ? val(p, PM_P_RADIUS) : p->radius1; /* RADIUS: the gather's own text */
+    if (next < 2 || p->npasses < 1 || !r1s[0] || pm_parse_double(r1s, &r1) != PM_OK || !(r1 > 0.0))
         return INT_MIN;
     if (val(p, PM_P_ALPHA)[0] && pm_parse_double(val(p, PM_P_ALPHA), &alpha) != PM_OK)
         return INT_MIN;
@@ -644,7 +648,10 @@ static void make_settings(prog_t *p)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " %s=%s", pm_param_name(keys[i]),
                                val(p, keys[i]));
     /* what else a pass's bytes follow, named only when not the default (the line of a running
-     * image made before these ran resident stays the same) */
+     * image made before these ran resident stays the same): K's default when it is not 5 (a TIME
+     * below 2 s, pm_progressive_default_k; the caustic gather measures r_1 by it on every pass) */
+    if (!val(p, PM_P_K)[0] && p->k[0] && strcmp(p->k, "5") && at < sizeof p->settings)
+        at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " K_DEFAULT=%s", p->k);
     if (strcmp(p->mode, "gather") && at < sizeof p->settings)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " MODE=%s", p->mode);
     if (strcmp(p->map, "global") && at < sizeof p->settings)
@@ -1102,11 +1109,13 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         }
         if (budget >= 0.0) {
             double left = budget - (pm_time_wall() - t0) - TAIL_S;
-            /* the first pass that bounces (DIFFUSE_FROM) costs more per unit than the passes
-             * before it (1.4 to 1.5 times, docs/accuracy.md): they no longer bound it, so it is
-             * timed small, as a first pass is */
-            if (p->diffuse_depth && s->diffuse_from > 1 && next == s->diffuse_from)
-                nk = 0;
+            /* the passes from DIFFUSE_FROM on cost more per unit than those before it (1.4 to 1.5
+             * times, docs/accuracy.md): the earlier passes bound them at DIFFUSE_COST times their
+             * time, so that the first bouncing pass is sized (or the render ended) by the budget
+             * as any other, and the bouncing passes' own times bound the rest */
+            if (p->diffuse_depth && s->diffuse_from > 1 && next == s->diffuse_from && next > first)
+                for (int j = 0; j < nk; j++)
+                    sec[j] *= DIFFUSE_COST;
             /* a pass at a new coverage level: its sampling, the last one's cost (measured with the
              * gather's cheapest rate so far) times COVER_GROWTH a level finer */
             if (p->cover_plan && (cov_next = cover_level(p, next)) != INT_MIN && cov_next != INT_MAX &&

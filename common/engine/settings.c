@@ -256,9 +256,10 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
      * times from 4 s on, and one render loses more to the start-up than it gains). From 2 s since
      * the scene cache (the gather's load 6 ms) and the TIME planner's foreseeing the passes at
      * which the gather samples a new spacing level (progressive.c, cover_level): the atria's
-     * TIME=2 and TIME=4 relMSE 1.3 to 3 times lower, the Cornell box's 1.2 to 2 times higher,
-     * all of them below the path tracer's ("The boundary correction from 2 s"); TIME=1 lost on
-     * the atrium and the Cornell box. */
+     * TIME=2 and TIME=4 relMSE 1.2 to 2.9 times lower (the sky-lit atrium's TIME=4 had been even
+     * with the path tracer), the Cornell box's, the caustic scene's and the skylight room's 1.1
+     * to 2 times higher, all of them below the path tracer's ("The boundary correction from
+     * 2 s"); TIME=1 lost on the atrium and the Cornell box. */
     const char *cv = s->value[PM_P_COVERAGE];
     int cv_fit = !strcmp(s->value[PM_P_GATHER], "simd-gather") && !strcmp(s->value[PM_P_WIDTHS], "fixed");
     s->coverage = !strcmp(cv, "1") || (!strcmp(cv, "auto") && cv_fit && s->progressive &&
@@ -274,11 +275,11 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
     if (s->guide && strcmp(s->value[PM_P_GATHER], "none") == 0)
         return pm_error_set(PM_ERR_USAGE,
                             "GUIDE=1 guides by the pass's photons: not with GATHER=none, which traces none");
-    if (s->diffuse_depth && !dd_auto && strcmp(s->value[PM_P_GATHER], "none") == 0)
+    if (!dd_auto && atoi(dd) && strcmp(s->value[PM_P_GATHER], "none") == 0)
         return pm_error_set(PM_ERR_USAGE,
-                            "DIFFUSE_DEPTH=%d bounces before a gather: not with GATHER=none, whose "
+                            "DIFFUSE_DEPTH=%s bounces before a gather: not with GATHER=none, whose "
                             "image is the direct light alone",
-                            s->diffuse_depth);
+                            dd);
     /* The pass files (PASS_RANGE, KEEP=all given, ...) have no guide: resident passes only. */
     if (s->guide && s->value[PM_P_PASS_RANGE][0])
         return pm_error_set(PM_ERR_USAGE, "GUIDE=1 with PASS_RANGE: the pass files have no guide (the resident "

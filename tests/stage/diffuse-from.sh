@@ -102,6 +102,8 @@ expect_exit "DIFFUSE_DEPTH=auto with MODE=direct-vis runs (no bounce: no seconda
 for v in DIFFUSE_FROM=0 DIFFUSE_FROM=x DIFFUSE_FROM=-1 DIFFUSE_FROM=1e3; do
     expect_exit "pm-render $v with DIFFUSE_DEPTH=1 is refused" 2 $R "$CORNELL" "$TMP/bad" $SMALL PASSES=2 DIFFUSE_DEPTH=1 $v
 done
+expect_exit "pm-render DIFFUSE_DEPTH=1 with GATHER=none is refused, one render with DIFFUSE_FROM=2 too" 2 \
+    $R "$CORNELL" "$TMP/bad" $SMALL GATHER=none DIFFUSE_DEPTH=1 DIFFUSE_FROM=2
 expect_exit "pm-render DIFFUSE_FROM=3 with DIFFUSE_DEPTH=0 is refused (nothing to start)" 2 \
     $R "$CORNELL" "$TMP/bad" $SMALL PASSES=2 DIFFUSE_DEPTH=0 DIFFUSE_FROM=3
 [ ! -e "$TMP/bad" ] && pass "a refused DIFFUSE_FROM makes no OUTDIR" || fail "refused DIFFUSE_FROM" "$(ls "$TMP/bad")"

@@ -104,7 +104,6 @@ typedef struct {
                                * --diffuse-depth; 0 none */
     int diffuse_from;         /* the first pass that takes them (DIFFUSE_FROM; auto: PM_DIFFUSE_AUTO_FROM):
                                * trace-gather-points --diffuse-from when above 1 */
-    char diffuse_text[2][24]; /* the two as the stages' arguments ("1", "32") */
     int diffuse_auto;         /* DIFFUSE_DEPTH=auto: the drivers turn it off for a scene with mirrors or
                                * glass, or with portals (pm_diffuse_depth_for) */
     int coverage;             /* COVERAGE=1, or auto on a progressive render (TIME from 2 s): simd-gather --coverage

@@ -126,6 +126,23 @@ static void arg_opt(job_t *j, const char *flag, const char *v)
     }
 }
 
+/* trace-gather-points' diffuse bounces, one render's and a pass's: --diffuse-depth N, and
+ * --diffuse-from P from a later pass on */
+static void arg_diffuse(const render_t *r, job_t *j)
+{
+    char v[24];
+    if (!r->diffuse_depth)
+        return;
+    snprintf(v, sizeof v, "%d", r->diffuse_depth);
+    arg(j, "--diffuse-depth");
+    arg(j, v);
+    if (r->s->diffuse_from > 1) {
+        snprintf(v, sizeof v, "%d", r->s->diffuse_from);
+        arg(j, "--diffuse-from");
+        arg(j, v);
+    }
+}
+
 static void arg_prog(render_t *r, job_t *j, const char *program)
 {
     char p[PATH_MAX + 64];
@@ -240,14 +257,7 @@ static void build_graph(render_t *r)
     arg_opt(j, "--seed", s->value[PM_P_SEED]);
     if (r->secondary_direct)
         arg(j, "--secondary-direct");
-    if (r->diffuse_depth) {
-        arg(j, "--diffuse-depth");
-        arg(j, s->diffuse_text[0]);
-        if (s->diffuse_from > 1) {
-            arg(j, "--diffuse-from");
-            arg(j, s->diffuse_text[1]);
-        }
-    }
+    arg_diffuse(r, j);
     if (s->guide && r->need_gather) { /* GUIDE=1: after trace-photons, from its photons */
         arg(j, "--guide");
         arg(j, "photons.pm");
@@ -1547,14 +1557,7 @@ static void pass_queries(passgraph_t *g, unit_t *u)
     arg_opt(c, "--seed", s->value[PM_P_SEED]);
     if (r->secondary_direct)
         arg(c, "--secondary-direct");
-    if (r->diffuse_depth) {
-        arg(c, "--diffuse-depth");
-        arg(c, s->diffuse_text[0]);
-        if (s->diffuse_from > 1) {
-            arg(c, "--diffuse-from");
-            arg(c, s->diffuse_text[1]);
-        }
-    }
+    arg_diffuse(r, c);
     pc_pass(c, g->pass);
     arg_common(r, c);
     if (!sorted)

@@ -270,22 +270,7 @@ int pm_progressive_next_size(const int *k, const double *sec, int n, int kmax, d
  * pass's kernel width follows from r_1 and the photons before it (the schedule), so the planner
  * sets the next new level's sampling aside (run_passes, COVER_GROWTH). */
 
-/* The finest level simd-gather samples sc at within PM_COVERAGE_MAX_SAMPLES (its count falls as
- * the spacing grows), INT_MAX when a scene of too many triangles is not sampled at any. */
-static int cover_finest_level(const pm_scene_t *sc)
-{
-    if (pm_area_samples_count(sc, INFINITY) > PM_COVERAGE_MAX_SAMPLES)
-        return INT_MAX;
-    int lo = -400, hi = 400; /* spacings of 2^-200 m, over the bound, and 2^200 m, within it */
-    while (hi - lo > 1) {
-        int mid = lo + (hi - lo) / 2;
-        if (pm_area_samples_count(sc, pm_coverage_level_spacing(mid)) > PM_COVERAGE_MAX_SAMPLES)
-            lo = mid;
-        else
-            hi = mid;
-    }
-    return hi;
-}
+static uint64_t count_samples(const void *scene, double spacing) { return pm_area_samples_count(scene, spacing); }
 
 /* The level simd-gather samples at for pass `next` (the schedule's width from the running
  * image's radius1 and the photons before it, as the stage computes it), INT_MIN when there is
@@ -530,8 +515,10 @@ static void stage_argv(const prog_t *p, argv_t a[NSTAGE], const int fd[NPIPE][2]
     if (p->diffuse_depth) {
         push(&a[TG], "--diffuse-depth");
         pushf(&a[TG], "%d", p->diffuse_depth);
-        if (p->s->diffuse_from > 1)
-            opt(&a[TG], "--diffuse-from", p->s->diffuse_text[1]);
+        if (p->s->diffuse_from > 1) {
+            push(&a[TG], "--diffuse-from");
+            pushf(&a[TG], "%d", p->s->diffuse_from);
+        }
     }
     if (p->s->guide) { /* GUIDE=1: every pass guided by the guide's photons (make_guide) */
         push(&a[TG], "--guide");
@@ -1350,7 +1337,7 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
     make_settings(&p);
     p.cover_plan = s->coverage && p.on[SG];
     if (p.cover_plan)
-        p.cover_finest = cover_finest_level(&sc);
+        p.cover_finest = pm_coverage_finest_level(count_samples, &sc, PM_COVERAGE_MAX_SAMPLES);
     int locked = pm_engine_lock(p.me, p.out, p.s->wait, cmdline, &p.lock_fd);
     if (locked != 0) {
         pm_scene_free(&sc);

@@ -233,8 +233,6 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
     if (!s->diffuse_depth)
         s->diffuse_from = 1;
     s->diffuse_auto = dd_auto;
-    snprintf(s->diffuse_text[0], sizeof s->diffuse_text[0], "%d", s->diffuse_depth);
-    snprintf(s->diffuse_text[1], sizeof s->diffuse_text[1], "%d", s->diffuse_from);
     /* Adaptive passes: the resident passes only (pm-render refuses ADAPTIVE=1 for the pass files);
      * auto is on for a TIME budget (docs/accuracy.md, "Adaptive sampling"), so that PASSES and
      * TARGET_ERROR renders keep their bytes. */

@@ -2,6 +2,7 @@
 #include "photonmap/coverage.h"
 
 #include <inttypes.h>
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -29,6 +30,23 @@ pm_result_t pm_coverage_level(double h, int *level_out)
 }
 
 double pm_coverage_level_spacing(int level) { return exp2(level / 2.0); }
+
+int pm_coverage_finest_level(uint64_t (*count)(const void *user, double spacing), const void *user,
+                             uint64_t max_samples)
+{
+    if (count(user, INFINITY) > max_samples)
+        return INT_MAX;
+    /* below pm_coverage_level's lowest level (-2200), and a spacing that overflows to infinity */
+    int lo = -2400, hi = 2400;
+    while (hi - lo > 1) {
+        int mid = lo + (hi - lo) / 2;
+        if (count(user, pm_coverage_level_spacing(mid)) > max_samples)
+            lo = mid;
+        else
+            hi = mid;
+    }
+    return hi;
+}
 
 uint64_t pm_coverage_seed(double spacing)
 {

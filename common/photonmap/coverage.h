@@ -64,6 +64,14 @@ typedef struct {
 pm_result_t pm_coverage_level(double h, int *level_out);
 double pm_coverage_level_spacing(int level);
 
+/* The finest level whose area samples number at most max_samples: the smallest k with
+ * count(user, pm_coverage_level_spacing(k)) <= max_samples, count never rising as the spacing
+ * grows (pm_area_samples_count); INT_MAX when not even count(user, INFINITY) is. A width's level
+ * within the bound is the larger of its own (pm_coverage_level) and this one: simd-gather's
+ * --coverage and pm-render's TIME planner, which foresees it, take it so. */
+int pm_coverage_finest_level(uint64_t (*count)(const void *user, double spacing), const void *user,
+                             uint64_t max_samples);
+
 /* A seed for the samples at `spacing`, the same in every process. */
 uint64_t pm_coverage_seed(double spacing);
 

@@ -59,8 +59,7 @@ typedef struct {
     int per_query; /* the last map's side: its queries' results divided, not its photons' powers */
     int applied;   /* the last gather was corrected (not progressive pass 1) */
     int off;       /* the scene has too many triangles to sample within PM_COVERAGE_MAX_SAMPLES */
-    int level_h;   /* the spacing level of the last width, and the level used for it (coarser */
-    int level;     /* when the bound needs it): INT_MIN before the first */
+    int finest;    /* the finest spacing level within that bound (pm_coverage_finest_level) */
     pm_coverage_t cov;
     double load_s;
 } cover_t;
@@ -82,6 +81,8 @@ typedef struct {
     cover_t *cover;                     /* --coverage, or NULL */
 } gather_options_t;
 
+static uint64_t count_samples(const void *scene, double spacing) { return pm_area_samples_count(scene, spacing); }
+
 /* --coverage's scene and its rays' structure, once. Every storing triangle has a sample a side at
  * least: a scene of more than PM_COVERAGE_MAX_SAMPLES / 2 of them cannot be sampled within the bound at
  * any spacing, and goes uncorrected (off), with a word. */
@@ -100,7 +101,7 @@ static pm_result_t cover_load(pm_stage_t *st, cover_t *c)
         return r;
     c->traced = 1;
     c->load_s = pm_time_wall() - t0;
-    if (pm_area_samples_count(&c->scene, INFINITY) > PM_COVERAGE_MAX_SAMPLES) {
+    if ((c->finest = pm_coverage_finest_level(count_samples, &c->scene, PM_COVERAGE_MAX_SAMPLES)) == INT_MAX) {
         c->off = 1;
         pm_stage_note(st,
                       "warning: --coverage: scene '%s' has too many triangles for %llu area samples (one a side "
@@ -140,13 +141,7 @@ static pm_result_t cover_map(pm_stage_t *st, cover_t *c, pm_gather_inputs_t *in,
     int level;
     if ((r = pm_coverage_level(h, &level)) != PM_OK)
         return r;
-    if (level != c->level_h) { /* the spacing for this width's level, within the bound: counted once a level */
-        c->level_h = level;
-        while (pm_area_samples_count(&c->scene, pm_coverage_level_spacing(level)) > PM_COVERAGE_MAX_SAMPLES)
-            level++;
-        c->level = level;
-    }
-    double spacing = pm_coverage_level_spacing(c->level);
+    double spacing = pm_coverage_level_spacing(level > c->finest ? level : c->finest); /* within the bound */
     if (c->cov.spacing != spacing) {
         pm_area_samples_t a;
         /* A side within two kernel widths of a solid's far face is what a kernel would count: the
@@ -681,7 +676,6 @@ int main(int argc, char **argv)
     pm_stage_defaults(&st);
     cover_t cover;
     memset(&cover, 0, sizeof cover);
-    cover.level_h = INT_MIN;
     gather_options_t o = {.radius = 0.0,
                           .k = 50.0,
                           .kernel = 1,

@@ -73,12 +73,14 @@ static const char *const stage_names[NSTAGE] = {"trace-photons",       "build-ph
 static const char *const stage_progs[NSTAGE] = {"trace-photons",       "build-photonmap", "build-photonmap",
                                                 "trace-gather-points", "hilbert-sort",    "simd-gather",
                                                 "simd-gather",         "composite"};
-/* The pipes: the two plans, the photons (global, caustic), the maps (global, caustic), the
- * queries (as traced, sorted, caustic), the buffers (direct, indirect, caustic), the pass log,
- * the passes' weights, the tracers' word that they are ready for pass 1 (--ready). */
+/* The pipes: the plans (the tracers', and the gather's coverage plan), the photons (global,
+ * caustic), the maps (global, caustic), the queries (as traced, sorted, caustic), the buffers
+ * (direct, indirect, caustic), the pass log, the passes' weights, the tracers' word that they
+ * are ready for pass 1 (--ready). */
 enum {
     P_PLAN_TP,
     P_PLAN_TG,
+    P_PLAN_SG,
     P_PH,
     P_CPH,
     P_MAP,
@@ -259,6 +261,19 @@ int pm_progressive_next_size(const int *k, const double *sec, int n, int kmax, d
             return u;
     }
     return 1;
+}
+
+int pm_progressive_cover_size(const int *k, const double *sec, int n, int kmax, double remaining, double extra,
+                              int holdable, int *hold_out)
+{
+    int units = pm_progressive_next_size(k, sec, n, kmax, remaining - extra);
+    *hold_out = 0;
+    if (extra > 0.0 && holdable && n > 0) {
+        int keep = pm_progressive_next_size(k, sec, n, kmax, remaining);
+        if (keep > 0 && 2 * units <= keep)
+            units = keep, *hold_out = 1;
+    }
+    return units;
 }
 
 /* ---- the coverage levels of the passes (TIME) ---- */
@@ -578,6 +593,10 @@ static void stage_argv(const prog_t *p, argv_t a[NSTAGE], const int fd[NPIPE][2]
         opt(&a[i], "--isa", val(p, PM_P_ISA));
         if (p->s->coverage)
             opt(&a[i], "--coverage", p->scene);
+        if (i == SG && p->cover_plan) { /* a line a pass: whether it keeps the samples it has */
+            push(&a[i], "--coverage-plan");
+            pushf(&a[i], "/dev/fd/%d", fd[P_PLAN_SG][0]);
+        }
         opt(&a[i], "--alpha", val(p, PM_P_ALPHA));
         /* a rerun: where its first pass sits on the schedule, from the photons of the passes
          * the running image holds (the stage counts on from the maps' own photon counts) */
@@ -1012,7 +1031,7 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
                            {-1, -1, -1, -1},
                            {p->direct ? fd[P_DIR][1] : -1, p->on[CG] ? fd[P_CQ][1] : -1, fd[P_RDY][1], -1},
                            {-1, -1, -1, -1},
-                           {fd[P_MAP][0], -1, -1, -1},
+                           {fd[P_MAP][0], p->cover_plan ? fd[P_PLAN_SG][0] : -1, -1, -1},
                            {fd[P_CMAP][0], -1, -1, -1},
                            {p->direct ? fd[P_DIR][0] : -1, p->on[CG] ? fd[P_CAU][0] : -1, fd[P_LOG][1], fd[P_WTS][0]}};
     int inherit[NSTAGE * 4], ninherit = 0;
@@ -1063,8 +1082,9 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
     /* the driver keeps the plans' write ends (of the tracers it runs), the weights' write end
      * and the log's read end */
     int plan_tp = p->on[TP] ? fd[P_PLAN_TP][1] : -1, plan_tg = fd[P_PLAN_TG][1], wts = fd[P_WTS][1];
+    int plan_sg = p->cover_plan ? fd[P_PLAN_SG][1] : -1;
     for (int i = 0; i < NPIPE; i++) {
-        if (fd[i][1] != plan_tp && fd[i][1] != plan_tg && fd[i][1] != wts)
+        if (fd[i][1] != plan_tp && fd[i][1] != plan_tg && fd[i][1] != wts && fd[i][1] != plan_sg)
             close(fd[i][1]);
         if (i != P_LOG && i != P_RDY)
             close(fd[i][0]);
@@ -1087,7 +1107,7 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
     int cov_level = INT_MIN, cov_cost_level = 0, cov_units = 0;
     double cov_sg = -1.0, sg_rate = INFINITY; /* the gather's CPU in that pass; its cheapest CPU s a unit */
     while (rc == 0 && logf) {
-        int next = pass + 1, units = p->kmax, cov_next = INT_MIN;
+        int next = pass + 1, units = p->kmax, cov_next = INT_MIN, hold = 0;
         double cov_extra = 0.0;
         if (maxp && next > maxp) {
             snprintf(stopbuf, sizeof stopbuf, "PASSES=%" PRId64, maxp);
@@ -1110,8 +1130,15 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
                 double cost = cov_sg - sg_rate * cov_units;
                 cov_extra = (cost > 0.0 ? cost : 0.0) * pow(COVER_GROWTH, (double)(cov_cost_level - cov_next));
             }
-            left -= cov_extra;
-            units = nk == 0 && next == first ? 1 : pm_progressive_next_size(k, sec, nk, p->kmax, left);
+            /* A new level one finer than the last pass's that does not fit, or would take half
+             * or more of the pass it comes with: the pass keeps the samples it has (a kernel 1.4
+             * to 2 spacings wide instead of 2 to 2.8), and the budget goes to rays and photons.
+             * Measured: the skylight room's TIME=4 ended at 2.8 to 3.0 s when a 3.2-million-
+             * sample level, foreseen at 1.1 to 2.2 s, did not fit; with the hold, at 3.9 s. */
+            units = nk == 0 && next == first
+                        ? 1
+                        : pm_progressive_cover_size(k, sec, nk, p->kmax, left, cov_extra,
+                                                    cov_level != INT_MIN && cov_next == cov_level - 1, &hold);
             if (nk == 0 && next == first && next > 1) /* a rerun: time a small pass first, as a first run does */
                 units = 1;
             if (units <= 0) {
@@ -1124,7 +1151,7 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         int64_t photons = units == p->kmax ? p->photons : (p->photons * units + p->kmax / 2) / p->kmax;
         if (photons < 1)
             photons = 1;
-        char l1[64], l2[64], l3[64];
+        char l1[64], l2[64], l3[64], l4[64];
         /* the pass's weight in the running image: its size against a full pass's (exactly 1
          * for a full pass, so that passes of one size average as they always did) */
         snprintf(l3, sizeof l3, "%d %.17g\n", next, (double)units / p->kmax);
@@ -1149,7 +1176,9 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         double ts = pm_time_wall(), c0[NSTAGE];
         for (int i = 0; i < NSTAGE; i++)
             c0[i] = proc[i] ? pm_proc_cpu_s(proc[i]) : -1.0;
-        if (write(wts, l3, strlen(l3)) != (ssize_t)strlen(l3) ||
+        snprintf(l4, sizeof l4, hold ? "%d 1\n" : "%d\n", next);
+        if ((plan_sg >= 0 && write(plan_sg, l4, strlen(l4)) != (ssize_t)strlen(l4)) ||
+            write(wts, l3, strlen(l3)) != (ssize_t)strlen(l3) ||
             (plan_tp >= 0 && write(plan_tp, l1, strlen(l1)) != (ssize_t)strlen(l1)) ||
             write(plan_tg, l2, strlen(l2)) != (ssize_t)strlen(l2)) {
             failed = next;
@@ -1189,7 +1218,12 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         if (p->cover_plan && cov_next == INT_MIN)
             cov_next = cover_level(p, next);
         double sg = pp->cpu_s[SG];
-        if (p->cover_plan && cov_next != INT_MIN && cov_next != INT_MAX && cov_next != cov_level) {
+        if (hold && s->verbose)
+            say(p,
+                "pass %d: the gather keeps its coverage samples, %.3g m apart (a new level's, about %.2g s, does not "
+                "fit the budget or would take half the pass)",
+                next, pm_coverage_level_spacing(cov_level), cov_extra);
+        if (!hold && p->cover_plan && cov_next != INT_MIN && cov_next != INT_MAX && cov_next != cov_level) {
             if (sg >= 0.0)
                 cov_sg = sg, cov_units = units, cov_cost_level = cov_next;
             cov_level = cov_next;
@@ -1221,6 +1255,8 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
     if (plan_tp >= 0)
         close(plan_tp);
     close(plan_tg);
+    if (plan_sg >= 0)
+        close(plan_sg);
     close(wts);
     if (logf) {
         char rest[256];

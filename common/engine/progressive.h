@@ -66,4 +66,13 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
  * unit tests. */
 int pm_progressive_next_size(const int *k, const double *sec, int n, int kmax, double remaining);
 
+/* The same for a pass at which simd-gather --coverage would sample the scene at a new spacing
+ * level, whose sampling is foreseen to take `extra` s: the size with that time set aside; or,
+ * when the new level is one finer than the last pass's (holdable) and the sampling does not fit
+ * or would take half or more of what the pass could do without it, the size without it, and
+ * *hold_out 1: the pass keeps the samples it has (simd-gather --coverage-plan). Exposed for the
+ * unit tests. */
+int pm_progressive_cover_size(const int *k, const double *sec, int n, int kmax, double remaining, double extra,
+                              int holdable, int *hold_out);
+
 #endif

@@ -34,6 +34,7 @@
 #include <string.h>
 
 #include "base/memory.h"
+#include "base/passplan.h"
 #include "base/stage.h"
 #include "formats/formats.h"
 #include "photonmap/coverage.h"
@@ -61,7 +62,16 @@ typedef struct {
     int off;       /* the scene has too many triangles to sample within PM_COVERAGE_MAX_SAMPLES */
     int finest;    /* the finest spacing level within that bound (pm_coverage_finest_level) */
     pm_coverage_t cov;
+    int level; /* the level of cov's samples (when cov.spacing > 0) */
     double load_s;
+    /* --coverage-level L (INT64_MAX: not given): the samples of level L, the kernel's own or one
+     * coarser; --coverage-plan FILE: a line per pass of a stream, "PASS 1" to keep the samples
+     * the pass before had when the kernel's own level is one finer (hold). held: the last
+     * gather's samples are coarser than its kernel's own level. */
+    int64_t level_opt;
+    const char *level_text, *plan_path;
+    pm_passplan_t plan;
+    int hold, held;
 } cover_t;
 static const char *const stream_names[] = {"none", "queries", "map", "pairs", NULL};
 enum { STREAM_NONE = 0, STREAM_QUERIES = 1, STREAM_MAP = 2, STREAM_PAIRS = 3 };
@@ -119,7 +129,7 @@ static pm_result_t cover_map(pm_stage_t *st, cover_t *c, pm_gather_inputs_t *in,
 {
     in->cover = NULL;
     if (c)
-        c->applied = 0;
+        c->applied = 0, c->held = 0;
     if (!c || pass == 1) /* progressive pass 1 goes uncorrected (cover_t) */
         return PM_OK;
     if (!new_map) { /* a kept map: corrected already, or its queries are */
@@ -141,7 +151,24 @@ static pm_result_t cover_map(pm_stage_t *st, cover_t *c, pm_gather_inputs_t *in,
     int level;
     if ((r = pm_coverage_level(h, &level)) != PM_OK)
         return r;
-    double spacing = pm_coverage_level_spacing(level > c->finest ? level : c->finest); /* within the bound */
+    int own = level > c->finest ? level : c->finest, use = own; /* within the bound */
+    if (c->level_opt != INT64_MAX) {
+        if (c->level_opt < own || c->level_opt > (int64_t)own + 1)
+            return pm_error_set(PM_ERR_USAGE,
+                                "--coverage-level %" PRId64 ": the kernel %.9g m wide samples at level %d; give %d or "
+                                "%d (one level coarser)",
+                                c->level_opt, h, own, own, own + 1);
+        use = (int)c->level_opt;
+    } else if (c->hold && c->cov.spacing > 0.0 && c->level == own + 1) {
+        use = c->level; /* the plan's hold: the last pass's samples, one level coarser */
+    } else if (c->hold && !(c->cov.spacing > 0.0 && c->level == own)) {
+        pm_stage_note(st,
+                      "coverage: the plan keeps the samples of the pass before, but %s; the kernel's own level %d "
+                      "is sampled",
+                      c->cov.spacing > 0.0 ? "they are not one level coarser" : "there are none", own);
+    }
+    c->held = use != own;
+    double spacing = pm_coverage_level_spacing(use);
     if (c->cov.spacing != spacing) {
         pm_area_samples_t a;
         /* A side within two kernel widths of a solid's far face is what a kernel would count: the
@@ -155,6 +182,7 @@ static pm_result_t cover_map(pm_stage_t *st, cover_t *c, pm_gather_inputs_t *in,
         pm_area_samples_free(&a);
         if (r != PM_OK)
             return r;
+        c->level = use;
         pm_stage_note(st,
                       "coverage: %" PRIu64 " area samples %.3g m apart for a kernel %.3g m wide (%" PRIu64
                       " sides facing the inside of a solid left out)",
@@ -501,6 +529,32 @@ static pm_result_t run_pairs(pm_stage_t *st, const gather_options_t *opt, pm_isa
                                 .isa = isa};
         pm_gather_stats_t gs;
         double tg = 0.0;
+        if (o->cover && o->cover->plan_path) { /* this pass's line of --coverage-plan */
+            int64_t ppass = 0, hold = 0;
+            int pend = 0;
+            if ((r = pm_passplan_next(&o->cover->plan, &ppass, &hold, &pend)) != PM_OK)
+                break;
+            if (pend) {
+                r = pm_error_set(PM_ERR_INPUT, "--coverage-plan '%s' has ended before pass %" PRIu64,
+                                 o->cover->plan_path, pass);
+                break;
+            }
+            if (ppass != (int64_t)pass) {
+                r = pm_error_set(PM_ERR_INPUT,
+                                 "--coverage-plan '%s' line %" PRId64 " is pass %" PRId64
+                                 ", but the documents are pass %" PRIu64,
+                                 o->cover->plan_path, o->cover->plan.line, ppass, pass);
+                break;
+            }
+            if (hold > 1) {
+                r = pm_error_set(PM_ERR_INPUT,
+                                 "--coverage-plan '%s' line %" PRId64 ": pass %" PRId64 " %" PRId64
+                                 ": expected 'PASS' or 'PASS 1' (1: keep the samples)",
+                                 o->cover->plan_path, o->cover->plan.line, ppass, hold);
+                break;
+            }
+            o->cover->hold = hold == 1;
+        }
         if ((r = cover_map(st, o->cover, &in, &p, 1, pass)) != PM_OK)
             break;
         if (in.stream) {
@@ -518,19 +572,31 @@ static pm_result_t run_pairs(pm_stage_t *st, const gather_options_t *opt, pm_isa
         stats_add(&sum, &gs);
         queries += in.q.n;
         /* The command of this pass alone: --pass P for --stream pairs, and after pass 1 (or
-         * with r_1 given) --radius r_1 for --radius and --k. */
-        char pw[32], rw[40], bw[32], uw[32];
+         * with r_1 given) --radius r_1 for --radius and --k; --coverage-level L for a pass the
+         * plan held at the samples of the pass before. */
+        char pw[32], rw[40], bw[32], uw[32], lw[32];
         snprintf(pw, sizeof pw, "%" PRIu64, pass);
         snprintf(rw, sizeof rw, "%.9g", radius1);
         snprintf(bw, sizeof bw, "%" PRIu64, before);
         snprintf(uw, sizeof uw, "%" PRIu64, unit);
-        int keep_k = (pass == 1 || opt->k_each) && opt->radius == 0.0;
-        char *add[] = {"--pass", pw, "--pass-photons", bw, "--unit-photons", uw, "--radius", rw};
-        const void *drop[] = {&opt->stream,       &opt->k_each, &opt->pass_photons,
-                              &opt->unit_photons, &opt->radius, &opt->k};
+        int keep_k = (pass == 1 || opt->k_each) && opt->radius == 0.0, held = o->cover && o->cover->held;
+        if (held)
+            snprintf(lw, sizeof lw, "%d", o->cover->level);
+        char *add[] = {"--pass", pw, "--pass-photons", bw, "--unit-photons", uw, "--radius", rw, NULL, NULL};
+        int nadd = keep_k ? 6 : 8;
+        if (held) {
+            add[nadd] = "--coverage-level";
+            add[nadd + 1] = lw;
+            nadd += 2;
+        }
+        const void *drop[] = {&opt->stream, &opt->k_each, &opt->pass_photons, &opt->unit_photons, &opt->radius,
+                              &opt->k,      NULL};
+        size_t ndrop = keep_k ? 4 : 6;
+        if (o->cover && o->cover->plan_path) /* the plan's path is the stream's alone */
+            drop[ndrop++] = &o->cover->plan_path;
         int argc1;
         char **argv1 = NULL;
-        if ((r = pm_stage_pass_command(st, argv, drop, keep_k ? 4 : 6, add, keep_k ? 6 : 8, &argc1, &argv1)) != PM_OK)
+        if ((r = pm_stage_pass_command(st, argv, drop, ndrop, add, nadd, &argc1, &argv1)) != PM_OK)
             break;
         pm_table_free(&out);
         memset(&out, 0, sizeof out);
@@ -676,6 +742,7 @@ int main(int argc, char **argv)
     pm_stage_defaults(&st);
     cover_t cover;
     memset(&cover, 0, sizeof cover);
+    cover.level_opt = INT64_MAX; /* from level_text */
     gather_options_t o = {.radius = 0.0,
                           .k = 50.0,
                           .kernel = 1,
@@ -706,6 +773,15 @@ int main(int argc, char **argv)
          "document of each per progressive pass, gathered with that pass's width of the schedule; one radiance "
          "document per frame or pass to stdout",
          1, 0, stream_names},
+        {"coverage-level", 0, PM_OPT_STRING, &cover.level_text, "L",
+         "with --coverage: the area samples of spacing level L (2^(L/2) m apart), the kernel's own level or one "
+         "coarser (a pass pm-render held at the samples it had; its command records it); not with --stream pairs",
+         1, 0, NULL},
+        {"coverage-plan", 0, PM_OPT_STRING, &cover.plan_path, "FILE",
+         "with --stream pairs and --coverage: a line 'PASS [1]' per pass, read before the pass is gathered; 1 keeps "
+         "the area samples of the pass before when they are one level coarser than the kernel's own (pm-render's TIME "
+         "planner, when a new level's sampling does not fit the budget)",
+         1, 0, NULL},
         {"k-each-pass", 0, PM_OPT_FLAG, &o.k_each, NULL,
          "with --stream pairs: measure r_1 by --k on every pass's documents, not on pass 1 alone (each pass then is "
          "the bytes of its own --k K --pass P; the caustic gather of progressive passes)",
@@ -724,11 +800,26 @@ int main(int argc, char **argv)
         if ((r = pm_scene_check_regular(cover.path, "scene")) != PM_OK)
             pm_error_prefix("--coverage");
     }
+    if (r == PM_OK && cover.level_text &&
+        (pm_parse_i64(cover.level_text, &cover.level_opt) != PM_OK || cover.level_opt < -4000 ||
+         cover.level_opt > 4000))
+        r = pm_error_set(PM_ERR_USAGE, "--coverage-level '%s': expected a whole number from -4000 to 4000 (a level)",
+                         cover.level_text);
+    else if (r == PM_OK && (cover.level_text || cover.plan_path) && !cover.path)
+        r = pm_error_set(PM_ERR_USAGE, "--coverage-level and --coverage-plan need --coverage");
+    else if (r == PM_OK && cover.level_text && o.stream == STREAM_PAIRS)
+        r = pm_error_set(PM_ERR_USAGE,
+                         "--coverage-level is one pass's level: a stream of passes takes --coverage-plan");
+    else if (r == PM_OK && cover.plan_path && o.stream != STREAM_PAIRS)
+        r = pm_error_set(PM_ERR_USAGE, "--coverage-plan needs --stream pairs (a line per pass)");
+    else if (r == PM_OK && cover.plan_path)
+        r = pm_passplan_open(&cover.plan, NULL, cover.plan_path);
     rc = pm_stage_end(&st, r != PM_OK ? r : run(&st, &o, argv));
     if (cover.traced)
         pm_rt_destroy(&cover.rt);
     if (cover.loaded)
         pm_scene_free(&cover.scene);
     pm_coverage_free(&cover.cov);
+    pm_passplan_close(&cover.plan);
     return rc;
 }

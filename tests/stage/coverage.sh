@@ -52,6 +52,15 @@ mean() { "$BUILD/tests/pm-exrdump" "$1" | awk 'NR > 1 { s += $3 + $4 + $5; n += 
 # within A B TOL: |A / B - 1| < TOL
 within() { awk -v a="$1" -v b="$2" -v t="$3" 'BEGIN { d = a / b - 1; exit !(d < t && -d < t) }'; }
 below() { awk -v a="$1" -v b="$2" 'BEGIN { exit !(a < b) }'; }
+# usage_error NAME PATTERN CMD...: exit 2 and one line on stderr matching PATTERN.
+usage_error() {
+    local name=$1 pattern=$2
+    shift 2
+    "$@" >/dev/null 2>"$D/uerr"
+    local got=$?
+    [ $got = 2 ] && [ "$(wc -l <"$D/uerr")" = 1 ] && grep -qE -- "$pattern" "$D/uerr" && pass "$name" ||
+        fail "$name" "exit $got: $(head -c 300 "$D/uerr")"
+}
 
 S=$D/scene.json
 if "$BIN/trace-photons" "$S" -q -o - | "$BIN/build-photonmap" - -q -o "$D/map.pm" &&
@@ -138,6 +147,71 @@ if "$BIN/trace-photons" "$S" -q -o - | "$BIN/build-photonmap" - -q -o "$D/map.pm
     else
         fail "--coverage with variable widths" "exit $rc: $(cat "$D/err")"
     fi
+    # --coverage-plan: a pass held at the samples of the pass before (pm-render's TIME planner,
+    # when a new level's sampling does not fit the budget). r_1 0.29 m puts pass 2's kernel at
+    # the 0.125-m level and pass 3's one finer (0.0884 m): the plan line "3 1" keeps 0.125 m, and
+    # pass 3's recorded command says --coverage-level -6, whose records that command has alone.
+    for p in 1 2 3; do
+        "$BIN/trace-photons" "$S" --photons 20000 -q --pass $p -o - | "$BIN/build-photonmap" -q - -o "$D/sm$p.pm"
+        "$BIN/trace-gather-points" "$S" --width 16 --height 16 --spp 4 -q --pass $p -o "$D/sq$p.pm"
+    done
+    cat "$D"/sm[123].pm >"$D/smaps.pm"
+    cat "$D"/sq[123].pm >"$D/squeries.pm"
+    printf '1\n2\n3 1\n' >"$D/hold.txt"
+    printf '1\n2\n3\n' >"$D/nohold.txt"
+    SG=("$BIN/simd-gather" --stream pairs "$D/smaps.pm" "$D/squeries.pm" --radius 0.29 --coverage "$S")
+    if "${SG[@]}" --coverage-plan "$D/hold.txt" -o - >"$D/hold.pm" 2>"$D/hold.err" &&
+        "${SG[@]}" --coverage-plan "$D/nohold.txt" -o - >"$D/nohold.pm" 2>"$D/nohold.err" &&
+        "$BIN/composite" -q --stream "$D/hold.pm" --radiance "$D/hold-%d.pm" &&
+        "$BIN/composite" -q --stream "$D/nohold.pm" --radiance "$D/nohold-%d.pm" &&
+        "$BIN/simd-gather" "$D/sm3.pm" "$D/sq3.pm" --pass 3 --pass-photons 40000 --unit-photons 20000 --radius 0.29 \
+            --coverage "$S" --coverage-level -6 -q -o "$D/held3.pm"; then
+        kept=$(grep -o 'area samples [^ ]* m apart' "$D/hold.err" | awk '{print $3}' | tr '\n' ' ')
+        made=$(grep -o 'area samples [^ ]* m apart' "$D/nohold.err" | awk '{print $3}' | tr '\n' ' ')
+        if [ "$kept" = "0.125 " ] && [ "$made" = "0.125 0.0884 " ] &&
+            "$BIN/pm-info" "$D/hold-2.pm" | grep -q '^COMMAND=simd-gather --pass 3 .*--coverage-level -6 ' &&
+            ! "$BIN/pm-info" "$D/hold-2.pm" | grep -q 'coverage-plan' &&
+            ! "$BIN/pm-info" "$D/nohold-2.pm" | grep -q 'coverage-level' &&
+            cmp -s <(records "$D/hold-1.pm") <(records "$D/nohold-1.pm") &&
+            cmp -s <(records "$D/hold-2.pm") <(records "$D/held3.pm") &&
+            ! cmp -s <(records "$D/hold-2.pm") <(records "$D/nohold-2.pm"); then
+            pass "--coverage-plan '3 1': pass 3 keeps the 0.125-m samples (without it: $made), the records of its command --coverage-level -6 alone"
+        else
+            fail "--coverage-plan hold" "samples kept '$kept', made '$made'"
+        fi
+    else
+        fail "--coverage-plan" "a run failed: $(cat "$D/hold.err" "$D/nohold.err" | tail -2)"
+    fi
+    usage_error "--coverage-level two levels coarser than the kernel's: usage error" \
+        "coverage-level -5: the kernel .* samples at level -7; give -7 or -6" \
+        "$BIN/simd-gather" "$D/sm3.pm" "$D/sq3.pm" --pass 3 --pass-photons 40000 --unit-photons 20000 --radius 0.29 \
+        --coverage "$S" --coverage-level -5 -q -o "$D/bad.pm"
+    usage_error "--coverage-level without --coverage: usage error" "need --coverage" \
+        "$BIN/simd-gather" "$D/sm3.pm" "$D/sq3.pm" --radius 0.29 --coverage-level -6 -q -o "$D/bad.pm"
+    usage_error "--coverage-plan without --stream pairs: usage error" "coverage-plan needs --stream pairs" \
+        "$BIN/simd-gather" "$D/sm3.pm" "$D/sq3.pm" --radius 0.29 --coverage "$S" --coverage-plan "$D/hold.txt" -q \
+        -o "$D/bad.pm"
+    usage_error "--coverage-level finer than the kernel's own: usage error" \
+        "coverage-level -8: the kernel .* samples at level -7; give -7 or -6" \
+        "$BIN/simd-gather" "$D/sm3.pm" "$D/sq3.pm" --pass 3 --pass-photons 40000 --unit-photons 20000 --radius 0.29 \
+        --coverage "$S" --coverage-level -8 -q -o "$D/bad.pm"
+    usage_error "--coverage-level x: usage error" "coverage-level 'x': expected a whole number" \
+        "$BIN/simd-gather" "$D/sm3.pm" "$D/sq3.pm" --radius 0.29 --coverage "$S" --coverage-level x -q -o "$D/bad.pm"
+    usage_error "--coverage-level with --stream pairs: usage error (the plan is the stream's)" \
+        "coverage-level is one pass's level: a stream of passes takes --coverage-plan" \
+        "${SG[@]}" --coverage-level -6 -q -o -
+    printf '1\n3\n' >"$D/badplan.txt"
+    expect_error "--coverage-plan naming another pass: the line is named" \
+        "coverage-plan '.*badplan.txt' line 2 is pass 3, but the documents are pass 2" \
+        "${SG[@]}" --coverage-plan "$D/badplan.txt" -q -o -
+    printf '1\n2 2\n' >"$D/twoplan.txt"
+    expect_error "--coverage-plan 'PASS 2': input error" "coverage-plan '.*twoplan.txt' line 2: pass 2 2: expected 'PASS' or 'PASS 1'" \
+        "${SG[@]}" --coverage-plan "$D/twoplan.txt" -q -o -
+    printf '1\n2\n' >"$D/shortplan.txt"
+    expect_error "--coverage-plan that ends before the streams: input error" \
+        "coverage-plan '.*shortplan.txt' has ended before pass 3" \
+        "${SG[@]}" --coverage-plan "$D/shortplan.txt" -q -o -
+    rm -f "$D/bad.pm"
 else
     fail "box furnace pipeline" "a stage failed"
 fi
@@ -174,8 +248,10 @@ fi
 "$R" "$S" "$D/r7" PHOTONS=20000 WIDTH=16 HEIGHT=16 PASSES=12 VERBOSE=1 >"$D/r7.out" 2>&1
 said=$(grep -o 'new coverage level, [^ ]* m apart' "$D/r7.out" | awk '{print $4}' | tr '\n' ' ')
 built=$(grep -o 'area samples [^ ]* m apart' "$D/r7.out" | awk '{print $3}' | tr '\n' ' ')
-if [ "$(echo $said | wc -w)" -ge 2 ] && [ "$said" = "$built" ]; then
-    pass "pm-render foresees the gather's coverage levels: spacings $said"
+if [ "$(echo $said | wc -w)" -ge 2 ] && [ "$said" = "$built" ] &&
+    grep -q '^render: .*simd-gather .*--coverage-plan /dev/fd/[0-9]' "$D/r7.out" &&
+    ! "$BIN/pm-info" "$D/r7/running.pm" | grep -q 'coverage-plan'; then
+    pass "pm-render foresees the gather's coverage levels: spacings $said (its coverage plan a pipe, not in the passes' commands)"
 else
     fail "coverage levels foreseen" "driver '$said', gather '$built'"
 fi

@@ -41,6 +41,37 @@ static void test_sizes_grow_then_fill(void **state)
     assert_int_equal(pm_progressive_next_size(k, sec, 5, 16, 0.25), 0);
 }
 
+/* A pass that comes with a new coverage level's sampling: that time set aside, or the samples
+ * kept (hold) when it does not fit or would take half the pass. */
+static void test_sizes_cover_hold(void **state)
+{
+    (void)state;
+    int k[8] = {1, 2, 4, 8, 16}, hold = -1;
+    double sec[8] = {0.1, 0.2, 0.4, 0.8, 1.6};
+    /* plenty left: the level is paid, the pass grows as ever */
+    assert_int_equal(pm_progressive_cover_size(k, sec, 5, 16, 100.0, 1.0, 1, &hold), 16);
+    assert_int_equal(hold, 0);
+    /* 1.2 s left, the level foreseen at 1.3 s: it does not fit; kept, the pass takes 1.2 s
+     * (11 units: 1.1 s x 1.05 = 1.155 s) */
+    assert_int_equal(pm_progressive_cover_size(k, sec, 5, 16, 1.2, 1.3, 1, &hold), 11);
+    assert_int_equal(hold, 1);
+    /* the same level two finer (not holdable): the render ends */
+    assert_int_equal(pm_progressive_cover_size(k, sec, 5, 16, 1.2, 1.3, 0, &hold), 0);
+    assert_int_equal(hold, 0);
+    /* 1.2 s left, the level at 0.8 s: 3 units with it (0.4 s) against 11 without: kept */
+    assert_int_equal(pm_progressive_cover_size(k, sec, 5, 16, 1.2, 0.8, 1, &hold), 11);
+    assert_int_equal(hold, 1);
+    /* the level at 0.3 s: 8 units with it (0.84 s) against 11: paid */
+    assert_int_equal(pm_progressive_cover_size(k, sec, 5, 16, 1.2, 0.3, 1, &hold), 8);
+    assert_int_equal(hold, 0);
+    /* no sampling foreseen: the plain size */
+    assert_int_equal(pm_progressive_cover_size(k, sec, 5, 16, 1.2, 0.0, 1, &hold), 11);
+    assert_int_equal(hold, 0);
+    /* not even a unit left: nothing to keep either */
+    assert_int_equal(pm_progressive_cover_size(k, sec, 5, 16, 0.05, 1.0, 1, &hold), 0);
+    assert_int_equal(hold, 0);
+}
+
 static void test_sizes_first_pass(void **state)
 {
     (void)state;
@@ -333,9 +364,14 @@ static void test_schedule_by_photons(void **state)
 }
 
 static const struct CMUnitTest tests[] = {
-    cmocka_unit_test(test_sizes_grow_then_fill), cmocka_unit_test(test_sizes_first_pass),
-    cmocka_unit_test(test_sizes_noisy),          cmocka_unit_test(test_plan_range),
-    cmocka_unit_test(test_plan_lines),           cmocka_unit_test(test_plan_run),
-    cmocka_unit_test(test_plan_ready),           cmocka_unit_test(test_schedule_by_photons),
+    cmocka_unit_test(test_sizes_grow_then_fill),
+    cmocka_unit_test(test_sizes_first_pass),
+    cmocka_unit_test(test_sizes_cover_hold),
+    cmocka_unit_test(test_sizes_noisy),
+    cmocka_unit_test(test_plan_range),
+    cmocka_unit_test(test_plan_lines),
+    cmocka_unit_test(test_plan_run),
+    cmocka_unit_test(test_plan_ready),
+    cmocka_unit_test(test_schedule_by_photons),
 };
 UNIT_GROUP(progressive_group, "progressive", tests)

@@ -92,7 +92,7 @@ cat >>"$MD" <<MD
 ## Progressive passes: the overhead of a pass
 
 \`pipelines/render PASSES=$((RUNS + 1)) KEEP=all\` (the pass files) on the Cornell box, ${size}x${size} pixels, $P photons per pass,
-render's per-pass defaults for the rest (16 primary rays and 4 secondary per pixel, K 5, the boundary correction: `COVERAGE=auto`, whose simd-gather samples the scene's surfaces anew in every pass file, about 2 s of the "untimed work" here at the Cornell box's 2-mm kernel; the resident passes sample once a spacing level); the first pass is left out. A pass's wall time is everything render does for
+render's per-pass defaults for the rest (16 primary rays and 4 secondary per pixel, K 5, the boundary correction: \`COVERAGE=auto\`, whose simd-gather samples the scene's surfaces anew in every pass file, about 2 s of the "untimed work" here at the Cornell box's 2-mm kernel; the resident passes sample once a spacing level); the first pass is left out. A pass's wall time is everything render does for
 it (the graph, make, every stage, \`composite --accumulate\`, its bookkeeping); the compute is
 the sum of the stages' compute timers (tests/bench/92-passes.sh names them). The
 overhead is the rest, as a fraction of the pass (median over $RUNS passes, min to max in

@@ -57,8 +57,11 @@ extern char **environ;
 /* A new coverage level's sampling set aside: the last level's cost times this for each level
  * finer (cover_level). Twice the samples a level, but measured 2.2 to 3.5 times the gather's CPU
  * (the atrium's 0.3, 0.6 and 1.2 million samples about 0.2, 0.4 and 0.7 s, the Cornell box's 0.5
- * and 1.0 million 0.15 and 0.53 s), and a new level near the end is what overruns a budget. */
-#define COVER_GROWTH 2.5
+ * and 1.0 million 0.15 and 0.53 s; the skylight room's 0.8 and 1.6 million 0.24 to 0.27 and 0.54
+ * to 1.0 s), and a new level near the end is what overruns a budget. Erring high costs little
+ * since a level that does not fit is held (pm_progressive_cover_size): at 2.5 the skylight
+ * room's TIME=2 ended at 2.02 to 2.22 s in 3 runs of 9, at 3.5 within 2.01 s in 9 runs. */
+#define COVER_GROWTH 3.5
 /* A bouncing pass's time over a pass's of the same size without the bounce, at most (measured
  * 1.40 and 1.53 on the atria, docs/accuracy.md, "A diffuse bounce before the gather") */
 #define DIFFUSE_COST 1.6
@@ -1227,9 +1230,16 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
             if (sg >= 0.0)
                 cov_sg = sg, cov_units = units, cov_cost_level = cov_next;
             cov_level = cov_next;
-            if (s->verbose)
-                say(p, "pass %d: the gather samples the scene at a new coverage level, %.3g m apart%s", next,
-                    pm_coverage_level_spacing(cov_next), cov_extra > 0.0 ? " (its cost foreseen)" : "");
+            if (s->verbose) { /* what was set aside against what it took (the next level's foresight) */
+                char fore[96] = "", took[96] = "";
+                if (cov_extra > 0.0)
+                    snprintf(fore, sizeof fore, " (foreseen at %.2g s)", cov_extra);
+                if (sg >= 0.0 && isfinite(sg_rate))
+                    snprintf(took, sizeof took, "; it took %.2g s of the gather's CPU beyond its rate",
+                             sg - sg_rate * units);
+                say(p, "pass %d: the gather samples the scene at a new coverage level, %.3g m apart%s%s", next,
+                    pm_coverage_level_spacing(cov_next), fore, took);
+            }
         } else if (sg >= 0.0 && sg / units < sg_rate) {
             sg_rate = sg / units;
         }

@@ -46,30 +46,29 @@ static void test_sizes_grow_then_fill(void **state)
 static void test_sizes_cover_hold(void **state)
 {
     (void)state;
-    int k[8] = {1, 2, 4, 8, 16}, hold = -1;
+    int k[8] = {1, 2, 4, 8, 16};
     double sec[8] = {0.1, 0.2, 0.4, 0.8, 1.6};
-    /* plenty left: the level is paid, the pass grows as ever */
-    assert_int_equal(pm_progressive_cover_size(k, sec, 5, 16, 100.0, 1.0, 1, &hold), 16);
-    assert_int_equal(hold, 0);
-    /* 1.2 s left, the level foreseen at 1.3 s: it does not fit; kept, the pass takes 1.2 s
-     * (11 units: 1.1 s x 1.05 = 1.155 s) */
-    assert_int_equal(pm_progressive_cover_size(k, sec, 5, 16, 1.2, 1.3, 1, &hold), 11);
-    assert_int_equal(hold, 1);
-    /* the same level two finer (not holdable): the render ends */
-    assert_int_equal(pm_progressive_cover_size(k, sec, 5, 16, 1.2, 1.3, 0, &hold), 0);
-    assert_int_equal(hold, 0);
-    /* 1.2 s left, the level at 0.8 s: 3 units with it (0.4 s) against 11 without: kept */
-    assert_int_equal(pm_progressive_cover_size(k, sec, 5, 16, 1.2, 0.8, 1, &hold), 11);
-    assert_int_equal(hold, 1);
-    /* the level at 0.3 s: 8 units with it (0.84 s) against 11: paid */
-    assert_int_equal(pm_progressive_cover_size(k, sec, 5, 16, 1.2, 0.3, 1, &hold), 8);
-    assert_int_equal(hold, 0);
-    /* no sampling foreseen: the plain size */
-    assert_int_equal(pm_progressive_cover_size(k, sec, 5, 16, 1.2, 0.0, 1, &hold), 11);
-    assert_int_equal(hold, 0);
-    /* not even a unit left: nothing to keep either */
-    assert_int_equal(pm_progressive_cover_size(k, sec, 5, 16, 0.05, 1.0, 1, &hold), 0);
-    assert_int_equal(hold, 0);
+    static const struct {
+        double remaining, extra;
+        int holdable, units, hold;
+    } cases[] = {
+        {100.0, 1.0, 1, 16, 0}, /* plenty left: the level is paid, the pass grows as ever */
+        /* 1.2 s left, the level foreseen at 1.3 s: it does not fit; kept, the pass takes 1.2 s
+         * (11 units: 1.1 s x 1.05 = 1.155 s) */
+        {1.2, 1.3, 1, 11, 1},
+        {1.2, 1.3, 0, 0, 0},  /* the same level two finer (not holdable): the render ends */
+        {1.2, 0.8, 1, 11, 1}, /* the level at 0.8 s: 3 units with it (0.4 s) against 11 without: kept */
+        {1.2, 0.3, 1, 8, 0},  /* the level at 0.3 s: 8 units with it (0.84 s) against 11: paid */
+        {1.2, 0.0, 1, 11, 0}, /* no sampling foreseen: the plain size */
+        {0.05, 1.0, 1, 0, 0}, /* not even a unit left: nothing to keep either */
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
+        int hold = -1;
+        assert_int_equal(
+            pm_progressive_cover_size(k, sec, 5, 16, cases[i].remaining, cases[i].extra, cases[i].holdable, &hold),
+            cases[i].units);
+        assert_int_equal(hold, cases[i].hold);
+    }
 }
 
 static void test_sizes_first_pass(void **state)

@@ -318,16 +318,18 @@ static inline int put_hit(const pm_eye_t *c, bytebuf_t *out, const float p[3], c
 }
 
 /* The fold (query_weight of a unit path weight) of material mi at q on triangle tri, and in *mt
- * the material as the records see it: in a textured scene both come from its textures at q,
- * into the caller's textured and fold_tex; otherwise the untextured ones of c->fold. */
+ * the material as the records see it: in a textured scene both come from its textures at q (m,
+ * when the caller has looked them up already, else into the caller's textured) and fold_tex;
+ * otherwise the untextured ones of c->fold. */
 static inline const float *hit_fold(const pm_eye_t *c, uint32_t tri, uint32_t mi, const float q[3],
-                                    pm_material_t *textured, float fold_tex[3], const pm_material_t **mt)
+                                    const pm_material_t *m, pm_material_t *textured, float fold_tex[3],
+                                    const pm_material_t **mt)
 {
     *mt = &c->s->materials[mi];
     if (!c->s->maps)
         return c->fold + 3 * (size_t)mi;
     static const float one[3] = {1.0f, 1.0f, 1.0f};
-    *mt = pm_scene_material_at(c->s, tri, q, textured);
+    *mt = m ? m : pm_scene_material_at(c->s, tri, q, textured);
     query_weight(*mt, one, fold_tex);
     return fold_tex;
 }
@@ -885,8 +887,11 @@ typedef struct {
 } path_t;
 
 /* The records of path a's hit, a non-specular surface: one query (two for a glossy textured
- * material, put_hit), weighted by the path weight and the fold. 0 when out of memory. */
-static int path_query(const pm_eye_t *c, scratch_t *sc, const path_t *a, bytebuf_t *out)
+ * material, put_hit), weighted by the path weight and the fold. m and n, when not NULL, are the
+ * material at the hit (pm_scene_material_at) and the query's normal there (query_normal) that the
+ * caller has already (gather_direct's): each texture is read once a hit. 0 when out of memory. */
+static int path_query(const pm_eye_t *c, scratch_t *sc, const path_t *a, const pm_material_t *m, const float *qn,
+                      bytebuf_t *out)
 {
     const pm_scene_t *s = c->s;
     uint32_t mi = s->tri_material[a->tri];
@@ -897,8 +902,11 @@ static int path_query(const pm_eye_t *c, scratch_t *sc, const path_t *a, bytebuf
     float side = pm_dot3(ng, wo) >= 0.0f ? 1.0f : -1.0f; /* the side the query sees */
     pm_material_t textured;
     const pm_material_t *mt;
-    const float *fold = hit_fold(c, a->tri, mi, q, &textured, fold_tex, &mt);
-    query_normal(s, a->tri, q, ng, side, n);
+    const float *fold = hit_fold(c, a->tri, mi, q, m, &textured, fold_tex, &mt);
+    if (qn)
+        memcpy(n, qn, sizeof n);
+    else
+        query_normal(s, a->tri, q, ng, side, n);
     if (!isfinite(a->w[0] + a->w[1] + a->w[2]))
         return 1;
     if (c->lobe && c->lobe[mi]) { /* glossy and textured: two records (put_hit) */
@@ -941,18 +949,25 @@ static float path_hit_surface(const pm_eye_t *c, const path_t *a, surf_t *v)
  * sample carries 1/r^2 and, with no BSDF sample to share it by MIS (as the primary hits'
  * secondary rays do), makes fireflies no pass averages out (measured: the atrium's sky panel
  * sampled at every distance, relative MSE 1.05 after three passes). Times the path weight,
- * shadow rays into sc->shadow. 0 when out of memory. */
-static int gather_direct(const pm_eye_t *c, scratch_t *sc, const path_t *a)
+ * shadow rays into sc->shadow. m, when not NULL, is the material at the hit (the caller's); the
+ * query's normal there goes to qn_out (*has_qn 1) when this computes it. 0 when out of memory. */
+static int gather_direct(const pm_eye_t *c, scratch_t *sc, const path_t *a, const pm_material_t *m, float qn_out[3],
+                         int *has_qn)
 {
     pm_material_t textured;
     surf_t v;
     if (!isfinite(a->w[0] + a->w[1] + a->w[2]))
         return 1;
     float side = path_hit_surface(c, a, &v);
-    v.m = pm_scene_material_at(c->s, a->tri, v.p, &textured);
+    v.m = m ? m : pm_scene_material_at(c->s, a->tri, v.p, &textured);
     if (!(v.m->kd[0] > 0.0f || v.m->kd[1] > 0.0f || v.m->kd[2] > 0.0f || pm_material_is_glossy(v.m)))
         return 1; /* black */
     surf_normals(c->s, a->tri, side, &v);
+    /* with vertex normals, the query's normal is this shading normal (query_normal) */
+    if (c->s->normals && !rough_transmits(v.m)) {
+        memcpy(qn_out, v.n, sizeof v.n);
+        *has_qn = 1;
+    }
     if (!shadow_room(c, sc))
         return 0;
     direct_lights_n(c, sc, &v, a->x, 1.0f, a->w, 0.0f, 0, a->rng, NULL, 1, 0, SIZE_MAX);
@@ -1174,9 +1189,14 @@ static int follow_path(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCont
         if (!m || !continues(c, m, mi) || depth >= depth_limit(c, m, mi)) {
             if (m && (rough_transmits(m) || varies(s, mi)))
                 return 1; /* no query, so no light of its own either */
-            if (c->sec_direct && !gather_direct(c, sc, a))
+            /* the material and the normal at the hit, looked up once for both */
+            float qn[3];
+            int has_qn = 0;
+            if (!m && c->sec_direct && s->maps)
+                m = pm_scene_material_at(s, a->tri, q, &textured);
+            if (c->sec_direct && !gather_direct(c, sc, a, m, qn, &has_qn))
                 return 0;
-            return c->direct_only || path_query(c, sc, a, out);
+            return c->direct_only || path_query(c, sc, a, m, has_qn ? qn : NULL, out);
         }
         int on = glossy_bounce(c, sc, ctx, a, depth, direct, out);
         if (on <= 0)

@@ -5,7 +5,7 @@
  * that takes a stream of documents turns on a cache of freed mappings (pm_memory_reuse), which
  * hands them out again to a later request they fit: such a stage allocates the same arrays for
  * every document, and a fresh mapping costs a page fault and a page clearing per page, a
- * reused one nothing. */
+ * reused one nothing; a request larger than any it keeps grows the largest (grow_huge). */
 #include "base/memory.h"
 
 #include <errno.h>
@@ -66,14 +66,19 @@ void pm_memory_reuse(size_t max_bytes)
     pthread_mutex_unlock(&cache.lock);
 }
 
-/* The smallest cached mapping of at least len bytes, taken out of the cache; NULL if none. */
-static unsigned char *cache_take(size_t len, size_t *len_out)
+/* A cached mapping taken out of the cache, its length in *len_out; NULL if none. below 0: the
+ * smallest of at least len bytes. below 1: the largest shorter than len that is made of whole
+ * 2 MiB pages on a 2 MiB boundary (map_huge's), for grow_huge. */
+static unsigned char *cache_take(size_t len, int below, size_t *len_out)
 {
     pthread_mutex_lock(&cache.lock);
     size_t best = cache.n;
-    for (size_t i = 0; i < cache.n; i++)
-        if (cache.length[i] >= len && (best == cache.n || cache.length[i] < cache.length[best]))
+    for (size_t i = 0; i < cache.n; i++) {
+        size_t l = cache.length[i];
+        int fits = below ? l < len && l % PM_HUGE == 0 && (uintptr_t)cache.base[i] % PM_HUGE == 0 : l >= len;
+        if (fits && (best == cache.n || (below ? l > cache.length[best] : l < cache.length[best])))
             best = i;
+    }
     unsigned char *b = NULL;
     if (best < cache.n) {
         b = cache.base[best];
@@ -120,47 +125,85 @@ static unsigned char *map_huge(size_t len)
     return a;
 }
 
+/* Populates bytes [from, len) of the huge mapping at base (from and len multiples of 2 MiB):
+ * 0, or -1 when out of memory (nothing then unmapped). */
+static int populate_huge(unsigned char *base, size_t from, size_t len)
+{
+    /* Populated on every thread: pages the hypervisor has taken back (free page
+     * reporting) cost it a fault each, about 1.2 s per GB on one thread, 0.8 on two. */
+    size_t pieces = (len - from) / PM_HUGE;
+    int nt = len - from >= PM_PAR_MIN ? omp_get_max_threads() : 1, err = 0;
+#pragma omp parallel for num_threads(nt) schedule(static) reduction(| : err)
+    for (int t = 0; t < nt; t++) {
+        size_t p0 = pieces * (size_t)t / (size_t)nt, p1 = pieces * (size_t)(t + 1) / (size_t)nt;
+        if (p1 > p0 && madvise(base + from + p0 * PM_HUGE, (p1 - p0) * PM_HUGE, MADV_POPULATE_WRITE) != 0)
+            err |= errno == EINVAL ? 1 : 2;
+    }
+    if (err & 2)
+        return -1; /* out of memory now, rather than a fault later */
+    /* A kernel older than 5.14: touch a byte of every page, in order. */
+    if (err)
+        for (size_t o = from; o < len; o += PM_PAGE)
+            ((volatile unsigned char *)base)[o] = 0;
+    return 0;
+}
+
+/* A huge mapping of len bytes made from the cached one at old (old_len, shorter): a fresh
+ * aligned range is mapped, old's pages are moved to its start (mremap: the page tables move,
+ * the pages are neither copied nor cleared again), and only the rest is populated. A stream
+ * whose documents grow (a TIME budget's passes: 1, 4, then 8 units) then pays the first touch
+ * of its largest arrays once, not of every size on the way. NULL (old unmapped) when out of
+ * memory. */
+static unsigned char *grow_huge(unsigned char *old, size_t old_len, size_t len)
+{
+    unsigned char *base = map_huge(len);
+    if (!base) {
+        munmap(old, old_len);
+        return NULL;
+    }
+    size_t kept = old_len;
+    if (mremap(old, old_len, old_len, MREMAP_MAYMOVE | MREMAP_FIXED, base) == MAP_FAILED) {
+        munmap(old, old_len); /* not moved: all of the new range is fresh */
+        kept = 0;
+    }
+    madvise(base, len, MADV_HUGEPAGE);
+    if (populate_huge(base, kept, len) != 0) {
+        munmap(base, len);
+        return NULL;
+    }
+    return base;
+}
+
 void *pm_alloc_aligned(size_t bytes)
 {
     if (bytes > SIZE_MAX - PM_HEADER - PM_HUGE - PM_PAGE)
         return NULL;
     size_t total = bytes + PM_HEADER;
+    size_t huge_len = (total + PM_HUGE - 1) & ~(PM_HUGE - 1);
     unsigned char *base;
     block_header_t h;
     size_t reused_len;
-    if (total >= PM_MAP_MIN && (base = cache_take(total >= PM_HUGE_MIN ? (total + PM_HUGE - 1) & ~(PM_HUGE - 1)
-                                                                       : (total + PM_PAGE - 1) & ~(PM_PAGE - 1),
-                                                  &reused_len)) != NULL) {
+    if (total >= PM_MAP_MIN &&
+        (base = cache_take(total >= PM_HUGE_MIN ? huge_len : (total + PM_PAGE - 1) & ~(PM_PAGE - 1), 0, &reused_len)) !=
+            NULL) {
         h = (block_header_t){PM_MAGIC_MAP, reused_len};
+    } else if (total >= PM_HUGE_MIN && (base = cache_take(huge_len, 1, &reused_len)) != NULL) {
+        if (!(base = grow_huge(base, reused_len, huge_len)))
+            return NULL;
+        h = (block_header_t){PM_MAGIC_MAP, huge_len};
     } else if (total >= PM_HUGE_MIN) {
         /* 2 MiB pages: the page tables (and, on the virtual machines this runs on, the
          * hypervisor's shadow of them) get 512 times fewer entries to fill. Populated here,
          * in one call, rather than one fault per page at first touch. */
-        size_t len = (total + PM_HUGE - 1) & ~(PM_HUGE - 1);
-        base = map_huge(len);
+        base = map_huge(huge_len);
         if (!base)
             return NULL;
-        madvise(base, len, MADV_HUGEPAGE); /* advice: where THP is off this is 4 KiB pages */
-        /* Populated on every thread: pages the hypervisor has taken back (free page
-         * reporting) cost it a fault each, about 1.2 s per GB on one thread, 0.8 on two. */
-        size_t pieces = len / PM_HUGE;
-        int nt = len >= PM_PAR_MIN ? omp_get_max_threads() : 1, err = 0;
-#pragma omp parallel for num_threads(nt) schedule(static) reduction(| : err)
-        for (int t = 0; t < nt; t++) {
-            size_t p0 = pieces * (size_t)t / (size_t)nt, p1 = pieces * (size_t)(t + 1) / (size_t)nt;
-            if (p1 > p0 && madvise(base + p0 * PM_HUGE, (p1 - p0) * PM_HUGE, MADV_POPULATE_WRITE) != 0)
-                err |= errno == EINVAL ? 1 : 2;
+        madvise(base, huge_len, MADV_HUGEPAGE); /* advice: where THP is off this is 4 KiB pages */
+        if (populate_huge(base, 0, huge_len) != 0) {
+            munmap(base, huge_len);
+            return NULL;
         }
-        if (err) {
-            if (err & 2) { /* out of memory now, rather than a fault later */
-                munmap(base, len);
-                return NULL;
-            }
-            /* A kernel older than 5.14: touch a byte of every page, in order. */
-            for (size_t o = 0; o < len; o += PM_PAGE)
-                ((volatile unsigned char *)base)[o] = 0;
-        }
-        h = (block_header_t){PM_MAGIC_MAP, len};
+        h = (block_header_t){PM_MAGIC_MAP, huge_len};
     } else if (total >= PM_MAP_MIN) {
         size_t len = (total + PM_PAGE - 1) & ~(PM_PAGE - 1);
         void *m = mmap(NULL, len, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS | MAP_POPULATE, -1, 0);

@@ -26,7 +26,10 @@ void *pm_alloc_aligned(size_t bytes);
 void pm_free_aligned(void *p);
 /* Keeps up to max_bytes of freed mappings (1 MiB and larger) for later requests, for a stage
  * that takes a stream of documents and allocates the same arrays for each (0, the default:
- * every freed mapping is unmapped at once, and no process holds more than it uses). */
+ * every freed mapping is unmapped at once, and no process holds more than it uses). A request
+ * larger than every kept mapping grows the largest kept one of 2 MiB pages: its pages move to
+ * the new mapping, and only the rest is fresh, so that documents that grow (a TIME budget's
+ * passes) fault in their largest arrays once. */
 void pm_memory_reuse(size_t max_bytes);
 /* What a stage taking a stream keeps: more than the arrays of one frame of the interactive
  * session (docs/pipelines.md, pipelines/frames), bytes. */

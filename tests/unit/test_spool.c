@@ -146,7 +146,8 @@ static void test_spool_dir(void **state)
 }
 
 /* With reuse on, a freed mapping serves the next request it fits (the same address, its
- * contents kept) and not one larger; off, nothing is kept; a block past the room is unmapped. */
+ * contents kept); a larger request grows it (its contents kept); off, nothing is kept; a block
+ * past the room is unmapped. */
 static void test_memory_reuse(void **state)
 {
     (void)state;
@@ -162,14 +163,25 @@ static void test_memory_reuse(void **state)
     assert_int_equal(b[5 * mib], 0xab);
     b[0] = 1;
     pm_free_aligned(b);
-    unsigned char *c = pm_alloc_aligned(7 * mib); /* larger than any kept: a new mapping */
+    /* larger than any kept: the kept 6 MiB grows into an 8 MiB mapping, its pages moved (what
+     * they held is there still), the rest fresh */
+    unsigned char *c = pm_alloc_aligned(7 * mib);
     assert_non_null(c);
-    assert_true(c != a);
+    assert_int_equal(c[5 * mib], 0xab);
     c[7 * mib - 1] = 2;
-    unsigned char *d = pm_alloc_aligned(6 * mib - 64); /* the kept one, while c is held */
-    assert_ptr_equal(d, a);
+    unsigned char *d = pm_alloc_aligned(6 * mib - 64); /* nothing kept now: a mapping of its own */
+    assert_non_null(d);
+    assert_true(d != c);
+    d[6 * mib - 65] = 4;
+    assert_int_equal(c[7 * mib - 1], 2);
     pm_free_aligned(c);
     pm_free_aligned(d);
+    /* both kept: a request of 7 MiB takes the 8 MiB one, one of 5 MiB the 6 MiB one */
+    unsigned char *e8 = pm_alloc_aligned(7 * mib), *e6 = pm_alloc_aligned(5 * mib);
+    assert_ptr_equal(e8, c);
+    assert_ptr_equal(e6, d);
+    pm_free_aligned(e8);
+    pm_free_aligned(e6);
     unsigned char *big = pm_alloc_aligned(40 * mib); /* freed past the room: unmapped, not kept */
     assert_non_null(big);
     pm_free_aligned(big);

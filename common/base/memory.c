@@ -9,6 +9,7 @@
 #include "base/memory.h"
 
 #include <errno.h>
+#include <gnu/libc-version.h>
 #include <omp.h>
 #include <pthread.h>
 #include <stdint.h>
@@ -16,6 +17,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
+#include <unistd.h>
 
 #ifndef MADV_POPULATE_WRITE
 #define MADV_POPULATE_WRITE 23 /* Linux 5.14; older kernels refuse it and the pages are touched instead */
@@ -236,4 +238,50 @@ void pm_free_aligned(void *p)
         fprintf(stderr, "pmtk: internal error: pm_free_aligned(%p) of a block it did not allocate\n", p);
         abort();
     }
+}
+
+/* 1 when transparent huge pages are on for madvised memory (not "[never]"). */
+static int thp_available(void)
+{
+    FILE *f = fopen("/sys/kernel/mm/transparent_hugepage/enabled", "r");
+    if (!f)
+        return 0;
+    char line[128] = "";
+    int ok = fgets(line, sizeof line, f) != NULL && strstr(line, "[never]") == NULL;
+    fclose(f);
+    return ok;
+}
+
+void pm_memory_huge_malloc(char **argv, double t0)
+{
+    const char *tun = getenv("GLIBC_TUNABLES"), *off = getenv("PMTK_HUGE_MALLOC");
+    if ((tun && strstr(tun, "glibc.malloc.hugetlb")) || (off && !strcmp(off, "0")) || !argv || !argv[0])
+        return;
+    int major = 0, minor = 0;
+    if (sscanf(gnu_get_libc_version(), "%d.%d", &major, &minor) != 2 || major * 1000 + minor < 2035 || !thp_available())
+        return;
+    char value[4096], start[64];
+    int n = snprintf(value, sizeof value, "%s%sglibc.malloc.hugetlb=1", tun ? tun : "", tun && tun[0] ? ":" : "");
+    if (n < 0 || (size_t)n >= sizeof value)
+        return;
+    snprintf(start, sizeof start, "%.9f", t0);
+    if (setenv("GLIBC_TUNABLES", value, 1) != 0 || setenv("PMTK_START_S", start, 1) != 0)
+        return;
+    execv("/proc/self/exe", argv);
+    /* not re-executed (no /proc): go on as this image, and leave the environment as it was */
+    if (tun)
+        setenv("GLIBC_TUNABLES", tun, 1);
+    else
+        unsetenv("GLIBC_TUNABLES");
+    unsetenv("PMTK_START_S");
+}
+
+double pm_memory_started(double now)
+{
+    const char *v = getenv("PMTK_START_S");
+    char *end = NULL;
+    double t = v ? strtod(v, &end) : 0.0;
+    unsetenv("PMTK_START_S");
+    /* a start in the future, or one more than a minute back, is not this program's */
+    return v && end != v && *end == '\0' && t <= now && now - t < 60.0 ? t : now;
 }

@@ -35,4 +35,20 @@ void pm_memory_reuse(size_t max_bytes);
  * session (docs/pipelines.md, pipelines/frames), bytes. */
 #define PM_MEMORY_STREAM_REUSE ((size_t)1 << 30)
 
+/* Once per program, at the top of main: re-executes it (/proc/self/exe, the same arguments)
+ * with glibc's malloc asked to back its heap and its mappings with transparent huge pages
+ * (GLIBC_TUNABLES glibc.malloc.hugetlb=1, glibc 2.35 and later), which every program it starts
+ * then inherits. On the virtual machines this runs on each fresh 4 KiB page costs a fault the
+ * hypervisor serves slowly (first touch at 0.4 GB/s): loading a 6.8 MB OBJ through assimp took
+ * 0.42 to 0.65 s, with huge pages 0.15 to 0.27 s, and a render's stages fault in less as they
+ * grow (docs/accuracy.md). Returns, without re-executing, when GLIBC_TUNABLES already names
+ * glibc.malloc.hugetlb (a user's choice, or this program's first run), when PMTK_HUGE_MALLOC is
+ * 0, when the kernel has transparent huge pages off or glibc is older, or when the exec fails.
+ * t0, the program's start (pm_time_wall), goes to the new image in PMTK_START_S. */
+void pm_memory_huge_malloc(char **argv, double t0);
+/* The program's start for a budget that counts from it: PMTK_START_S, which
+ * pm_memory_huge_malloc set before it re-executed (and which is taken out of the environment
+ * here, so that the programs this one starts do not read it), else now. */
+double pm_memory_started(double now);
+
 #endif

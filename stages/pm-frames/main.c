@@ -12,7 +12,9 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "base/memory.h"
 #include "base/stage.h"
+#include "base/timer.h"
 #include "engine/engine.h"
 
 static const char *const param_help =
@@ -39,6 +41,9 @@ static void free_stage_args(void) { pm_args_free(&stage_at_exit.args); }
 
 int main(int argc, char **argv)
 {
+    /* malloc on huge pages, for this driver and every stage it starts */
+    pm_memory_huge_malloc(argv, pm_time_wall());
+    (void)pm_memory_started(pm_time_wall()); /* takes PMTK_START_S out of the environment */
     const char *base = strrchr(argv[0], '/');
     base = base ? base + 1 : argv[0];
     /* as pipelines/frames (exec -a), messages start "frames:" as that driver's always did */

@@ -13,7 +13,9 @@
 #include <string.h>
 
 #include "base/exr.h"
+#include "base/memory.h"
 #include "base/stage.h"
+#include "base/timer.h"
 #include "formats/formats.h"
 #include "render/aov.h"
 #include "render/light.h"
@@ -137,6 +139,9 @@ static pm_result_t run(pm_stage_t *st, const ref_options_t *o, const pm_scene_t 
 
 int main(int argc, char **argv)
 {
+    /* malloc on huge pages (the scene's load), as pm-render's stages have them */
+    pm_memory_huge_malloc(argv, pm_time_wall());
+    (void)pm_memory_started(pm_time_wall()); /* takes PMTK_START_S out of the environment */
     pm_stage_t st;
     pm_stage_defaults(&st);
     ref_options_t o = {.pixel = PM_PIXEL_BOX, .spp = 64, .pass = 16, .max_bounces = 1 << 20, .rr_start = 3};

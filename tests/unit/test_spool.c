@@ -194,8 +194,34 @@ static void test_memory_reuse(void **state)
     pm_free_aligned(e);
 }
 
+/* The start a re-executed program counts its budget from: PMTK_START_S when it is a time
+ * before now and within a minute of it, else now; taken out of the environment either way. */
+static void test_memory_started(void **state)
+{
+    (void)state;
+    const struct {
+        const char *value; /* PMTK_START_S, or NULL: unset */
+        double want;       /* against now = 100 */
+    } cases[] = {
+        {"99.25", 99.25}, /* the first start, 0.75 s before */
+        {NULL, 100.0},    /* not re-executed */
+        {"100.5", 100.0}, /* later than now: not this program's */
+        {"30", 100.0},    /* more than a minute back */
+        {"99.5x", 100.0}, /* not a number */
+        {"", 100.0},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        if (cases[i].value)
+            setenv("PMTK_START_S", cases[i].value, 1);
+        else
+            unsetenv("PMTK_START_S");
+        assert_true(pm_memory_started(100.0) == cases[i].want);
+        assert_null(getenv("PMTK_START_S"));
+    }
+}
+
 static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_spool_memory), cmocka_unit_test(test_spool_spill),  cmocka_unit_test(test_spool_failures),
-    cmocka_unit_test(test_spool_dir),    cmocka_unit_test(test_memory_reuse),
+    cmocka_unit_test(test_spool_dir),    cmocka_unit_test(test_memory_reuse), cmocka_unit_test(test_memory_started),
 };
 UNIT_GROUP(unit_spool, "spool", tests);

@@ -16,6 +16,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/auxv.h>
 #include <sys/mman.h>
 #include <unistd.h>
 
@@ -31,6 +32,7 @@
 #define PM_HEADER 64u
 #define PM_MAGIC_HEAP 0x70bd6d656d686561ull /* "pmtk heap" in spirit */
 #define PM_MAGIC_MAP 0x70bd6d656d6d6170ull
+#define PM_MAGIC_HUGE 0x70bd6d656d687567ull /* a mapping of whole 2 MiB pages on a 2 MiB boundary */
 
 typedef struct {
     uint64_t magic;
@@ -45,6 +47,7 @@ static struct {
     pthread_mutex_t lock;
     unsigned char *base[PM_CACHE_SLOTS];
     size_t length[PM_CACHE_SLOTS];
+    unsigned char huge[PM_CACHE_SLOTS]; /* PM_MAGIC_HUGE's: whole 2 MiB pages on a 2 MiB boundary */
     size_t n, bytes, max;
 } cache = {.lock = PTHREAD_MUTEX_INITIALIZER};
 
@@ -55,6 +58,7 @@ static void cache_remove(size_t i)
     cache.n--;
     memmove(&cache.base[i], &cache.base[i + 1], (cache.n - i) * sizeof cache.base[0]);
     memmove(&cache.length[i], &cache.length[i + 1], (cache.n - i) * sizeof cache.length[0]);
+    memmove(&cache.huge[i], &cache.huge[i + 1], (cache.n - i) * sizeof cache.huge[0]);
 }
 
 void pm_memory_reuse(size_t max_bytes)
@@ -68,16 +72,16 @@ void pm_memory_reuse(size_t max_bytes)
     pthread_mutex_unlock(&cache.lock);
 }
 
-/* A cached mapping taken out of the cache, its length in *len_out; NULL if none. below 0: the
- * smallest of at least len bytes. below 1: the largest shorter than len that is made of whole
- * 2 MiB pages on a 2 MiB boundary (map_huge's), for grow_huge. */
-static unsigned char *cache_take(size_t len, int below, size_t *len_out)
+/* A cached mapping taken out of the cache, its length in *len_out and whether it is a huge one
+ * in *huge_out; NULL if none. below 0: the smallest of at least len bytes. below 1: the largest
+ * huge one shorter than len, for grow_huge. */
+static unsigned char *cache_take(size_t len, int below, size_t *len_out, int *huge_out)
 {
     pthread_mutex_lock(&cache.lock);
     size_t best = cache.n;
     for (size_t i = 0; i < cache.n; i++) {
         size_t l = cache.length[i];
-        int fits = below ? l < len && l % PM_HUGE == 0 && (uintptr_t)cache.base[i] % PM_HUGE == 0 : l >= len;
+        int fits = below ? l < len && cache.huge[i] : l >= len;
         if (fits && (best == cache.n || (below ? l > cache.length[best] : l < cache.length[best])))
             best = i;
     }
@@ -85,6 +89,7 @@ static unsigned char *cache_take(size_t len, int below, size_t *len_out)
     if (best < cache.n) {
         b = cache.base[best];
         *len_out = cache.length[best];
+        *huge_out = cache.huge[best];
         cache_remove(best);
     }
     pthread_mutex_unlock(&cache.lock);
@@ -93,7 +98,7 @@ static unsigned char *cache_take(size_t len, int below, size_t *len_out)
 
 /* Keeps a freed mapping for a later request, pushing out the oldest to make room; 0 when it
  * does not go in (the cache off, or the mapping larger than all of it): the caller unmaps it. */
-static int cache_put(unsigned char *base, size_t len)
+static int cache_put(unsigned char *base, size_t len, int huge)
 {
     int kept = 0;
     pthread_mutex_lock(&cache.lock);
@@ -104,6 +109,7 @@ static int cache_put(unsigned char *base, size_t len)
         }
         cache.base[cache.n] = base;
         cache.length[cache.n] = len;
+        cache.huge[cache.n] = (unsigned char)huge;
         cache.n++;
         cache.bytes += len;
         kept = 1;
@@ -150,30 +156,26 @@ static int populate_huge(unsigned char *base, size_t from, size_t len)
     return 0;
 }
 
-/* A huge mapping of len bytes made from the cached one at old (old_len, shorter): a fresh
- * aligned range is mapped, old's pages are moved to its start (mremap: the page tables move,
- * the pages are neither copied nor cleared again), and only the rest is populated. A stream
- * whose documents grow (a TIME budget's passes: 1, 4, then 8 units) then pays the first touch
- * of its largest arrays once, not of every size on the way. NULL (old unmapped) when out of
- * memory. */
+/* A mapping of len bytes made from the cached huge one at old (old_len, shorter): mremap
+ * grows it, in place when the addresses after it are free, else moving it (its page tables
+ * move; the pages are neither copied nor cleared again), and only the rest is populated. A
+ * stream whose documents grow (a TIME budget's passes: 1, 4, then 8 units) then pays the first
+ * touch of its largest arrays once, not of every size on the way. One call, so that the
+ * mapping stays one area however often it grows (older kernels do not move a range that spans
+ * two). NULL when it could not (old unmapped): the caller maps afresh. */
 static unsigned char *grow_huge(unsigned char *old, size_t old_len, size_t len)
 {
-    unsigned char *base = map_huge(len);
-    if (!base) {
-        munmap(old, old_len);
+    unsigned char *m = mremap(old, old_len, len, MREMAP_MAYMOVE);
+    if (m == MAP_FAILED) {
+        munmap(old, old_len); /* unchanged by a failed mremap */
         return NULL;
     }
-    size_t kept = old_len;
-    if (mremap(old, old_len, old_len, MREMAP_MAYMOVE | MREMAP_FIXED, base) == MAP_FAILED) {
-        munmap(old, old_len); /* not moved: all of the new range is fresh */
-        kept = 0;
-    }
-    madvise(base, len, MADV_HUGEPAGE);
-    if (populate_huge(base, kept, len) != 0) {
-        munmap(base, len);
+    madvise(m, len, MADV_HUGEPAGE);
+    if (populate_huge(m, old_len, len) != 0) {
+        munmap(m, len);
         return NULL;
     }
-    return base;
+    return m;
 }
 
 void *pm_alloc_aligned(size_t bytes)
@@ -185,14 +187,15 @@ void *pm_alloc_aligned(size_t bytes)
     unsigned char *base;
     block_header_t h;
     size_t reused_len;
+    int huge;
     if (total >= PM_MAP_MIN &&
-        (base = cache_take(total >= PM_HUGE_MIN ? huge_len : (total + PM_PAGE - 1) & ~(PM_PAGE - 1), 0, &reused_len)) !=
-            NULL) {
-        h = (block_header_t){PM_MAGIC_MAP, reused_len};
-    } else if (total >= PM_HUGE_MIN && (base = cache_take(huge_len, 1, &reused_len)) != NULL) {
-        if (!(base = grow_huge(base, reused_len, huge_len)))
-            return NULL;
-        h = (block_header_t){PM_MAGIC_MAP, huge_len};
+        (base = cache_take(total >= PM_HUGE_MIN ? huge_len : (total + PM_PAGE - 1) & ~(PM_PAGE - 1), 0, &reused_len,
+                           &huge)) != NULL) {
+        h = (block_header_t){huge ? PM_MAGIC_HUGE : PM_MAGIC_MAP, reused_len};
+    } else if (total >= PM_HUGE_MIN && (base = cache_take(huge_len, 1, &reused_len, &huge)) != NULL &&
+               (base = grow_huge(base, reused_len, huge_len)) != NULL) {
+        /* moved to where 2 MiB pages may not line up: kept and reused, not grown again */
+        h = (block_header_t){(uintptr_t)base % PM_HUGE == 0 ? PM_MAGIC_HUGE : PM_MAGIC_MAP, huge_len};
     } else if (total >= PM_HUGE_MIN) {
         /* 2 MiB pages: the page tables (and, on the virtual machines this runs on, the
          * hypervisor's shadow of them) get 512 times fewer entries to fill. Populated here,
@@ -205,7 +208,7 @@ void *pm_alloc_aligned(size_t bytes)
             munmap(base, huge_len);
             return NULL;
         }
-        h = (block_header_t){PM_MAGIC_MAP, huge_len};
+        h = (block_header_t){PM_MAGIC_HUGE, huge_len};
     } else if (total >= PM_MAP_MIN) {
         size_t len = (total + PM_PAGE - 1) & ~(PM_PAGE - 1);
         void *m = mmap(NULL, len, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS | MAP_POPULATE, -1, 0);
@@ -229,8 +232,8 @@ void pm_free_aligned(void *p)
         return;
     unsigned char *base = (unsigned char *)p - PM_HEADER;
     block_header_t h = *(block_header_t *)base;
-    if (h.magic == PM_MAGIC_MAP) {
-        if (!cache_put(base, h.length))
+    if (h.magic == PM_MAGIC_MAP || h.magic == PM_MAGIC_HUGE) {
+        if (!cache_put(base, h.length, h.magic == PM_MAGIC_HUGE))
             munmap(base, h.length);
     } else if (h.magic == PM_MAGIC_HEAP) {
         free(base);
@@ -255,7 +258,10 @@ static int thp_available(void)
 void pm_memory_huge_malloc(char **argv, double t0)
 {
     const char *tun = getenv("GLIBC_TUNABLES"), *off = getenv("PMTK_HUGE_MALLOC");
-    if ((tun && strstr(tun, "glibc.malloc.hugetlb")) || (off && !strcmp(off, "0")) || !argv || !argv[0])
+    /* PMTK_START_S set: this image is the re-executed one (glibc drops GLIBC_TUNABLES for a
+     * set-user-ID program, AT_SECURE, which would otherwise re-execute for ever) */
+    if ((tun && strstr(tun, "glibc.malloc.hugetlb")) || (off && !strcmp(off, "0")) || getenv("PMTK_START_S") ||
+        getauxval(AT_SECURE) || !argv || !argv[0])
         return;
     int major = 0, minor = 0;
     if (sscanf(gnu_get_libc_version(), "%d.%d", &major, &minor) != 2 || major * 1000 + minor < 2035 || !thp_available())
@@ -265,10 +271,10 @@ void pm_memory_huge_malloc(char **argv, double t0)
     if (n < 0 || (size_t)n >= sizeof value)
         return;
     snprintf(start, sizeof start, "%.9f", t0);
-    if (setenv("GLIBC_TUNABLES", value, 1) != 0 || setenv("PMTK_START_S", start, 1) != 0)
-        return;
-    execv("/proc/self/exe", argv);
-    /* not re-executed (no /proc): go on as this image, and leave the environment as it was */
+    if (setenv("GLIBC_TUNABLES", value, 1) == 0 && setenv("PMTK_START_S", start, 1) == 0)
+        execv("/proc/self/exe", argv);
+    /* not re-executed (no /proc, no room for the variables): go on as this image, and leave
+     * the environment as it was */
     if (tun)
         setenv("GLIBC_TUNABLES", tun, 1);
     else

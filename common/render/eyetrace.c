@@ -887,7 +887,7 @@ typedef struct {
 } path_t;
 
 /* The records of path a's hit, a non-specular surface: one query (two for a glossy textured
- * material, put_hit), weighted by the path weight and the fold. m and n, when not NULL, are the
+ * material, put_hit), weighted by the path weight and the fold. m and qn, when not NULL, are the
  * material at the hit (pm_scene_material_at) and the query's normal there (query_normal) that the
  * caller has already (gather_direct's): each texture is read once a hit. 0 when out of memory. */
 static int path_query(const pm_eye_t *c, scratch_t *sc, const path_t *a, const pm_material_t *m, const float *qn,

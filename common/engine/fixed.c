@@ -2421,8 +2421,10 @@ int pm_render_passes(const pm_settings_t *s_in, const char *me, const char *bin,
     }
     /* Per-pass defaults for the parameters not given (the scene's render block sizes one render,
      * not a pass): docs/accuracy.md, "Progressive defaults". */
-    const char *const defaults[][2] = {
-        {"PHOTONS", "300000"}, {"PRIMARY", "16"}, {"SPP", "4"}, {"K", pm_progressive_default_k(&ps)}};
+    const char *const defaults[][2] = {{"PHOTONS", pm_progressive_default_photons(&ps)},
+                                       {"PRIMARY", "16"},
+                                       {"SPP", "4"},
+                                       {"K", pm_progressive_default_k(&ps)}};
     char defaulted[160] = "";
     for (size_t i = 0; i < sizeof defaults / sizeof defaults[0]; i++) {
         pm_param_t k = pm_param_find(defaults[i][0]);

@@ -661,6 +661,9 @@ static void make_settings(prog_t *p)
      * below 2 s, pm_progressive_default_k; the caustic gather measures r_1 by it on every pass) */
     if (!val(p, PM_P_K)[0] && p->k[0] && strcmp(p->k, "5") && at < sizeof p->settings)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " K_DEFAULT=%s", p->k);
+    /* and PHOTONS's when it is not 300000 (the same short budgets) */
+    if (!val(p, PM_P_PHOTONS)[0] && p->photons != DEFAULT_PHOTONS && at < sizeof p->settings)
+        at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " PHOTONS_DEFAULT=%" PRId64, p->photons);
     if (strcmp(p->mode, "gather") && at < sizeof p->settings)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " MODE=%s", p->mode);
     if (strcmp(p->map, "global") && at < sizeof p->settings)
@@ -1367,7 +1370,10 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
     /* Per-pass defaults (docs/accuracy.md): direct-vis has one query per primary hit, so no
      * SPP, and it takes PRIMARY and K from the scene as the pass files do. */
     int64_t v = 0;
-    p.photons = s->value[PM_P_PHOTONS][0] && pm_parse_i64(s->value[PM_P_PHOTONS], &v) == PM_OK ? v : DEFAULT_PHOTONS;
+    p.photons = pm_parse_i64(s->value[PM_P_PHOTONS][0] ? s->value[PM_P_PHOTONS] : pm_progressive_default_photons(s),
+                             &v) == PM_OK
+                    ? v
+                    : DEFAULT_PHOTONS;
     p.kmax = s->value[PM_P_PRIMARY][0] && pm_parse_i64(s->value[PM_P_PRIMARY], &v) == PM_OK ? (int)v
              : vis                                                                          ? scene_primary
                                                                                             : DEFAULT_PRIMARY;

@@ -517,7 +517,13 @@ int pm_diffuse_depth_for(const pm_settings_t *s, int specular, int portals)
     return s->diffuse_auto && (specular || portals) ? 0 : s->diffuse_depth;
 }
 
-const char *pm_progressive_default_k(const pm_settings_t *s)
+/* A TIME budget below COVERAGE_TIME (and no boundary correction): the short budgets whose
+ * per-pass defaults differ (pm_progressive_default_k, pm_progressive_default_photons). */
+static int short_budget(const pm_settings_t *s)
 {
-    return !s->coverage && s->value[PM_P_TIME][0] && strtod(s->value[PM_P_TIME], NULL) < COVERAGE_TIME ? "2" : "5";
+    return !s->coverage && s->value[PM_P_TIME][0] && strtod(s->value[PM_P_TIME], NULL) < COVERAGE_TIME;
 }
+
+const char *pm_progressive_default_k(const pm_settings_t *s) { return short_budget(s) ? "2" : "5"; }
+
+const char *pm_progressive_default_photons(const pm_settings_t *s) { return short_budget(s) ? "75000" : "300000"; }

@@ -26,8 +26,8 @@
 static const char *const param_help =
     "Parameters (NAME=VALUE; empty means the stage's default, which is the scene's render block;\n"
     "with progressive passes (PASSES other than 1, TIME or TARGET_ERROR) PHOTONS, PRIMARY, SPP and K\n"
-    "not given take per-pass defaults measured in docs/accuracy.md: 300000, 16, 4 and 5; K 2 for a\n"
-    "TIME below 2 s, which has no boundary correction):\n"
+    "not given take per-pass defaults measured in docs/accuracy.md: 300000, 16, 4 and 5; PHOTONS\n"
+    "75000 and K 2 for a TIME below 2 s, which has no boundary correction):\n"
     "  PHOTONS=N        photon paths (trace-photons --photons)\n"
     "  MAP=auto         global|indirect photon map; auto: global (gather mode needs first-hit photons)\n"
     "  MODE=gather      gather (final gather at secondary hits) | direct-vis (the map seen directly)\n"

@@ -245,6 +245,16 @@ fi
     grep -q ' K_DEFAULT=2' "$D/r6/passes.txt" && ! grep -q 'K_DEFAULT' "$D/r8/passes.txt" &&
     pass "pm-render's default K: 2 for TIME=1 (no correction; passes.txt's settings say K_DEFAULT=2), 5 for TIME=2" ||
     fail "default K by TIME" "$(jq -c '.passes[0].stages["simd-gather"]' "$D/r6/stats.json" "$D/r8/stats.json")"
+# PHOTONS, when not given: 75000 a full pass below TIME=2 (pass 1, one unit of 16, 4688), 300000
+# from it (18750); a given PHOTONS is what it says, with no word in the settings
+"$R" "$S" "$D/p1" WIDTH=16 HEIGHT=16 TIME=1 >"$D/p1.out" 2>&1 &&
+    "$R" "$S" "$D/p2" WIDTH=16 HEIGHT=16 TIME=2 >"$D/p2.out" 2>&1 &&
+    [ "$(awk '$1 == 1 { print $2 }' "$D/p1/passes.txt")" = 4688 ] &&
+    [ "$(awk '$1 == 1 { print $2 }' "$D/p2/passes.txt")" = 18750 ] &&
+    grep -q ' PHOTONS_DEFAULT=75000' "$D/p1/passes.txt" && ! grep -q 'PHOTONS_DEFAULT' "$D/p2/passes.txt" &&
+    ! grep -q 'PHOTONS_DEFAULT' "$D/r6/passes.txt" &&
+    pass "pm-render's default PHOTONS: 75000 a full pass for TIME=1 (passes.txt's settings say PHOTONS_DEFAULT=75000), 300000 for TIME=2" ||
+    fail "default PHOTONS by TIME" "$(grep -h '^[0-9s]' "$D/p1/passes.txt" "$D/p2/passes.txt" | head -c 600)"
 "$R" "$S" "$D/r7" PHOTONS=20000 WIDTH=16 HEIGHT=16 PASSES=12 VERBOSE=1 >"$D/r7.out" 2>&1
 said=$(grep -o 'new coverage level, [^ ]* m apart' "$D/r7.out" | awk '{print $4}' | tr '\n' ' ')
 built=$(grep -o 'area samples [^ ]* m apart' "$D/r7.out" | awk '{print $3}' | tr '\n' ' ')

@@ -205,7 +205,9 @@ if timeout 120 "$BIN/trace-photons" "$C/scene.json" -q -o "$D/ch.ph.pm" --causti
     --stats "$D/ch.tp.json" &&
     timeout 120 "$BIN/trace-gather-points" "$C/scene.json" -q -o "$D/ch.q.pm" --direct "$D/ch.d.pm" \
         --caustic-queries "$D/ch.cq.pm" --stats "$D/ch.tgp.json"; then
-    bad=$(for f in ph cph q d cq; do "$BIN/pm-info" -r "$D/ch.$f.pm"; done | grep -ci 'nan\|inf' || true)
+    # the records' lines alone: the headers' COMMAND lines hold $TMP, whose random name may spell
+    # "nan" or "inf" (a fresh-clone run failed so, 5 matches for 5 files, all values finite)
+    bad=$(for f in ph cph q d cq; do "$BIN/pm-info" -r "$D/ch.$f.pm"; done | grep -E '^[0-9]' | grep -ci 'nan\|inf' || true)
     longest=$(jq .longest_path "$D/ch.tp.json")
     per_ray=$(jq '.specular_rays / .primary_rays' "$D/ch.tgp.json")
     if [ "$bad" = 0 ] && [ "$longest" -ge 100 ] && awk -v r="$per_ray" 'BEGIN { exit !(r >= 90) }'; then

@@ -22,6 +22,8 @@ void pm_strata_grid(unsigned cells, unsigned *nx_out, unsigned *ny_out)
 static inline float in_cell(unsigned c, float fn, float inv_n, float u)
 {
     float s = ((float)c + u) * inv_n;
+    if ((unsigned)(s * fn) == c)
+        return s; /* the common case: neither step below would move it */
     for (int step = 0; step < 2; step++) {
         unsigned cell = (unsigned)(s * fn);
         uint32_t bits;
@@ -85,13 +87,16 @@ void pm_strata_fill(pm_rng_t *rng, unsigned nx, unsigned ny, unsigned per_cell, 
      * across the cell's upper edge for u close to 1 (to 1.0 itself in the last cell) or, with
      * the reciprocal, down across the lower one; a step of one ulp puts it back, checked by
      * the same float arithmetic a reader of the cell uses. */
+    if (nx == 1 && ny == 1)
+        return; /* one cell: (0 + u) * 1 is u, below 1, already in it */
     float fnx = (float)nx, fny = (float)ny, inx = 1.0f / fnx, iny = 1.0f / fny;
-    unsigned cells_per_row = nx * per_cell;
-    for (size_t i = 0; i < n; i++) {
-        unsigned cell = (unsigned)(i / per_cell), cx = cell % nx, cy = (unsigned)(i / cells_per_row);
-        u1[i] = in_cell(cx, fnx, inx, u1[i]);
-        u2[i] = in_cell(cy, fny, iny, u2[i]);
-    }
+    size_t i = 0;
+    for (unsigned cy = 0; cy < ny; cy++)
+        for (unsigned cx = 0; cx < nx; cx++)
+            for (unsigned k = 0; k < per_cell; k++, i++) {
+                u1[i] = in_cell(cx, fnx, inx, u1[i]);
+                u2[i] = in_cell(cy, fny, iny, u2[i]);
+            }
 }
 
 void pm_strata_pixel(pm_rng_t *rng, unsigned blocks, unsigned block_cells, unsigned sub, float *u1, float *u2,

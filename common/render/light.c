@@ -92,6 +92,9 @@ pm_result_t pm_lights_init(const pm_scene_t *s, pm_lights_t *L)
         L->n += L->light[L->n].weight > 0.0;
     }
     L->ndirect = nd;
+    pm_vec3_t st, sb;
+    pm_onb(pm_v3_load(s->sun.direction), &st, &sb);
+    pm_v3_store(L->sun_t, st), pm_v3_store(L->sun_b, sb);
     size_t sampled;
     pm_lights_count(s, &L->nlights, &sampled);
     L->total = 0.0;
@@ -206,12 +209,19 @@ float pm_point_light_emit_pdf(const pm_point_light_t *l, const float w[3])
     return pm_spot_factor(l, w) * (l->falloff + 1.0f) / (2.0f * PM_PI * (1.0f - l->cos_cone));
 }
 
-void pm_sun_sample(const pm_sun_t *sun, float u1, float u2, float wi_out[3])
+/* pm_sun_sample in the cone's frame t, b (pm_onb of the direction), which the caller keeps. */
+static void sun_sample_in(const pm_sun_t *sun, pm_vec3_t t, pm_vec3_t b, float u1, float u2, float wi_out[3])
 {
     float c = 1.0f - u1 * (1.0f - sun->cos_max), sn = sqrtf(fmaxf(0.0f, 1.0f - c * c)), phi = 2.0f * PM_PI * u2;
-    pm_vec3_t a = pm_v3_load(sun->direction), t, b;
-    pm_onb(a, &t, &b);
-    pm_v3_store(wi_out, pm_v3_normalize(pm_onb_to_world(pm_v3(sn * cosf(phi), sn * sinf(phi), c), t, b, a)));
+    pm_v3_store(wi_out, pm_v3_normalize(pm_onb_to_world(pm_v3(sn * cosf(phi), sn * sinf(phi), c), t, b,
+                                                        pm_v3_load(sun->direction))));
+}
+
+void pm_sun_sample(const pm_sun_t *sun, float u1, float u2, float wi_out[3])
+{
+    pm_vec3_t t, b;
+    pm_onb(pm_v3_load(sun->direction), &t, &b);
+    sun_sample_in(sun, t, b, u1, u2, wi_out);
 }
 
 float pm_sun_pdf(const pm_sun_t *sun, const float w[3])
@@ -541,7 +551,7 @@ int pm_lights_sample_li_u(const pm_lights_t *L, size_t i, pm_rng_t *rng, const f
     case PM_LIGHT_SKY: {
         float u1 = u ? u[0] : pm_rng_float(rng), u2 = u ? u[1] : pm_rng_float(rng);
         if (l->kind == PM_LIGHT_SUN)
-            pm_sun_sample(&s->sun, u1, u2, o->wi);
+            sun_sample_in(&s->sun, pm_v3_load(L->sun_t), pm_v3_load(L->sun_b), u1, u2, o->wi);
         else
             pm_sky_sample(s, n, u1, u2, o->wi);
         o->r = o->r2 = INFINITY;

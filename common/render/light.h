@@ -64,6 +64,8 @@ typedef struct {
     double *area_cdf;
     double area;
     float *front;
+    /* The sun's cone frame (pm_onb of its direction): built once, not per sample. */
+    float sun_t[3], sun_b[3];
 } pm_lights_t;
 
 /* Builds the set of scene s (which must outlive it); an error on running out of memory. */

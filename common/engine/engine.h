@@ -141,6 +141,12 @@ const char *pm_progressive_default_k(const pm_settings_t *s);
  * room 0.82 times, the atrium 1.04 and the caustic scene 1.08 times, three runs each); "300000"
  * otherwise (docs/accuracy.md, "Fewer photons at 1 s"). */
 const char *pm_progressive_default_photons(const pm_settings_t *s);
+/* The long budgets' PHOTONS of pm_progressive_default_photons, as a number and as its text: the
+ * driver's fallback and its test of whether the short budgets' default applied. */
+#define PM_PROGRESSIVE_PHOTONS 300000
+#define PM_PROGRESSIVE_TEXT_(x) #x
+#define PM_PROGRESSIVE_TEXT(x) PM_PROGRESSIVE_TEXT_(x)
+#define PM_PROGRESSIVE_PHOTONS_TEXT PM_PROGRESSIVE_TEXT(PM_PROGRESSIVE_PHOTONS)
 
 /* Fills s with the defaults. */
 void pm_settings_init(pm_settings_t *s);

@@ -34,7 +34,6 @@ extern char **environ;
 
 /* Per-pass defaults for the parameters not given (the scene's render block sizes one render,
  * not a pass), measured on both shipped scenes: docs/accuracy.md, "Progressive defaults". */
-#define DEFAULT_PHOTONS 300000
 #define DEFAULT_PRIMARY 16
 #define DEFAULT_SPP "4"
 /* K: pm_progressive_default_k */
@@ -662,7 +661,7 @@ static void make_settings(prog_t *p)
     if (!val(p, PM_P_K)[0] && p->k[0] && strcmp(p->k, "5") && at < sizeof p->settings)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " K_DEFAULT=%s", p->k);
     /* and PHOTONS's when it is not 300000 (the same short budgets) */
-    if (!val(p, PM_P_PHOTONS)[0] && p->photons != DEFAULT_PHOTONS && at < sizeof p->settings)
+    if (!val(p, PM_P_PHOTONS)[0] && p->photons != PM_PROGRESSIVE_PHOTONS && at < sizeof p->settings)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " PHOTONS_DEFAULT=%" PRId64, p->photons);
     if (strcmp(p->mode, "gather") && at < sizeof p->settings)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " MODE=%s", p->mode);
@@ -1373,7 +1372,7 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
     p.photons = pm_parse_i64(s->value[PM_P_PHOTONS][0] ? s->value[PM_P_PHOTONS] : pm_progressive_default_photons(s),
                              &v) == PM_OK
                     ? v
-                    : DEFAULT_PHOTONS;
+                    : PM_PROGRESSIVE_PHOTONS;
     p.kmax = s->value[PM_P_PRIMARY][0] && pm_parse_i64(s->value[PM_P_PRIMARY], &v) == PM_OK ? (int)v
              : vis                                                                          ? scene_primary
                                                                                             : DEFAULT_PRIMARY;

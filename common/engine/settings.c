@@ -526,4 +526,7 @@ static int short_budget(const pm_settings_t *s)
 
 const char *pm_progressive_default_k(const pm_settings_t *s) { return short_budget(s) ? "2" : "5"; }
 
-const char *pm_progressive_default_photons(const pm_settings_t *s) { return short_budget(s) ? "75000" : "300000"; }
+const char *pm_progressive_default_photons(const pm_settings_t *s)
+{
+    return short_budget(s) ? "75000" : PM_PROGRESSIVE_PHOTONS_TEXT;
+}

@@ -27,6 +27,10 @@
 
 #define BAND_ROWS 32 /* rows traced in parallel before their records go to the sink */
 #define PER_CELL PM_EYE_PER_CELL
+/* What a Lambertian hit's escaping secondary rays count as in the MIS weights of the sun and the
+ * sky they share with its light samples: every ray, spp. (Against emitters they count as their
+ * spp / PER_CELL stratum cells; see direct_lights_n.) */
+#define ENV_COUNT(c) ((float)(c)->spp)
 
 /* RNG streams: pixel p draws from stream 4p + purpose, so each phase of a pixel is
  * reproducible on its own and no two pixels or phases share numbers. */
@@ -409,12 +413,12 @@ static inline const pm_guide_cell_t *guide_cell(const pm_eye_t *c, const surf_t 
 /* Next-event estimation at surface v for pixel column x: a shadow ray per light sample into
  * sc->shadow, with the radiance it adds when unblocked times inv_p and the path weight tp.
  * nb is the number of BSDF samples that can also find an area light from v (the MIS weight's
- * count); mis 0 gives the light samples weight 1 (no ray leaves v to find a light). ls is the
- * samples per light that is not a delta (direct_lights: the options' light_samples); area 0
- * keeps only the samples pm_light_at_gather gives the gather point (gather_direct). */
+ * count), nb_inf what they count as against a light at infinity at a Lambertian v; mis 0 gives the light samples weight
+ * 1 (no ray leaves v to find a light). ls is the samples per light that is not a delta (direct_lights: the options'
+ * light_samples); area 0 keeps only the samples pm_light_at_gather gives the gather point (gather_direct). */
 static void direct_lights_n(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, float inv_p,
-                            const float tp[3], float nb, int mis, pm_rng_t *light_rng, const pm_guide_cell_t *gc,
-                            unsigned ls, int area, size_t lblk)
+                            const float tp[3], float nb, float nb_inf, int mis, pm_rng_t *light_rng,
+                            const pm_guide_cell_t *gc, unsigned ls, int area, size_t lblk)
 {
     const pm_lights_t *lights = &c->lights;
     const pm_material_t *m = v->m;
@@ -456,11 +460,15 @@ static void direct_lights_n(const pm_eye_t *c, scratch_t *sc, const surf_t *v, u
              * together), not as spp: counting every ray hands the weight to the rays where a
              * small light is far more often found by the light samples, and counting none leaves
              * a large emitter to light samples alone, whose variance is unbounded next to it (the
-             * 1/r^2 of a sample landing beside the receiver). The measurements behind this
-             * choice are in docs/programs/trace-gather-points.md. */
+             * 1/r^2 of a sample landing beside the receiver). Against the sun and the sky at a
+             * Lambertian hit they count as every ray (nb_inf, ENV_COUNT): both sides draw the sky
+             * by cos / pi over the pixel's strata, so every sample is worth as much (the sky-lit
+             * atrium's direct buffer: relMSE 0.137 by cells, 0.110 by rays). The measurements
+             * behind these choices are in docs/programs/trace-gather-points.md. */
             if (mis && !li.delta && (!li.infinite || glossy || (c->env_mis && m->kind == PM_MAT_STANDARD)))
-                g *= pm_power_heuristic((float)nsamples * li.pdf, glossy ? nb * pm_bsdf_pdf(m, bn, li.wi, wo)
-                                                                         : nb * lambert_pdf(gc, li.cosx, li.wi));
+                g *= pm_power_heuristic((float)nsamples * li.pdf,
+                                        glossy ? nb * pm_bsdf_pdf(m, bn, li.wi, wo)
+                                               : (li.infinite ? nb_inf : nb) * lambert_pdf(gc, li.cosx, li.wi));
             pm_brdf(m, bn, li.wi, wo, f);
             size_t j = sc->shadow.n;
             for (int k = 0; k < 3; k++)
@@ -472,11 +480,11 @@ static void direct_lights_n(const pm_eye_t *c, scratch_t *sc, const surf_t *v, u
 }
 
 static void direct_lights(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint32_t x, float inv_p, const float tp[3],
-                          float nb, int mis, pm_rng_t *light_rng, const pm_guide_cell_t *gc)
+                          float nb, float nb_inf, int mis, pm_rng_t *light_rng, const pm_guide_cell_t *gc)
 {
     size_t lblk = sc->lblk; /* the ray's first light samples take its block of the pixel's */
     sc->lblk = SIZE_MAX;
-    direct_lights_n(c, sc, v, x, inv_p, tp, nb, mis, light_rng, gc, c->light_samples, 1, lblk);
+    direct_lights_n(c, sc, v, x, inv_p, tp, nb, nb_inf, mis, light_rng, gc, c->light_samples, 1, lblk);
 }
 
 /* Traces the shadow rays gathered in sc->shadow; each unblocked one adds its radiance to
@@ -612,7 +620,7 @@ static void spawn_guided(const pm_eye_t *c, scratch_t *sc, const surf_t *v, uint
             w[k] = m->kd[k] * f * scale * tp[k];
         sc->sec_px[j] = x;
         sc->sec_cos[j] = PM_PI * p;
-        env_keep(sc, j, n, c->env_mis ? p : 0.0f, (float)(c->spp / PER_CELL)); /* as unguided */
+        env_keep(sc, j, n, c->env_mis ? p : 0.0f, ENV_COUNT(c)); /* as unguided */
     }
     sc->n_guided_hits++;
 }
@@ -655,7 +663,7 @@ static void spawn_lambertian(const pm_eye_t *c, scratch_t *sc, const surf_t *v, 
     }
     /* escaping, they find the sun and the sky the light samples drew too (env_add, c->env_mis) */
     for (unsigned q = 0; q < nq; q++)
-        env_keep(sc, j0 + q, n, c->env_mis ? lz[q] * (1.0f / PM_PI) : 0.0f, (float)(c->spp / PER_CELL));
+        env_keep(sc, j0 + q, n, c->env_mis ? lz[q] * (1.0f / PM_PI) : 0.0f, ENV_COUNT(c));
     if (v->shaded) /* drawn about the shading normal: one below the geometric surface is not taken */
         for (unsigned q = 0; q < nq; q++)
             if (!(dx[q] * gn[0] + dy[q] * gn[1] + dz[q] * gn[2] > 0.0f))
@@ -809,7 +817,8 @@ static int shade_primary(const pm_eye_t *c, scratch_t *sc, size_t i, uint32_t x,
         return 0;
     /* a Lambertian hit's secondary rays may be guided: its light samples weigh against their pdf */
     const pm_guide_cell_t *gc = m->kind == PM_MAT_STANDARD && !glossy ? guide_cell(c, &v) : NULL;
-    direct_lights(c, sc, &v, x, inv_p, tp, (float)(c->spp / PER_CELL), c->mode == PM_EYE_GATHER, light_rng, gc);
+    direct_lights(c, sc, &v, x, inv_p, tp, (float)(c->spp / PER_CELL), ENV_COUNT(c), c->mode == PM_EYE_GATHER,
+                  light_rng, gc);
 
     if (c->mode == PM_EYE_DIRECT_VIS) {
         /* The primary hit is the query: path weight 1 (over the primary rays of the pixel). */
@@ -970,7 +979,7 @@ static int gather_direct(const pm_eye_t *c, scratch_t *sc, const path_t *a, cons
     }
     if (!shadow_room(c, sc))
         return 0;
-    direct_lights_n(c, sc, &v, a->x, 1.0f, a->w, 0.0f, 0, a->rng, NULL, 1, 0, SIZE_MAX);
+    direct_lights_n(c, sc, &v, a->x, 1.0f, a->w, 0.0f, 0.0f, 0, a->rng, NULL, 1, 0, SIZE_MAX);
     return 1;
 }
 
@@ -1073,7 +1082,7 @@ static int glossy_bounce(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCo
             vd.m = &diffuse;
             if (!shadow_room(c, sc))
                 return -1;
-            direct_lights_n(c, sc, &vd, a->x, 1.0f, a->w, 0.0f, 0, a->rng, NULL, 1, 0, SIZE_MAX);
+            direct_lights_n(c, sc, &vd, a->x, 1.0f, a->w, 0.0f, 0.0f, 0, a->rng, NULL, 1, 0, SIZE_MAX);
         }
         /* The lobe alone: the material without its diffuse part. */
         lobe = *m;
@@ -1082,7 +1091,7 @@ static int glossy_bounce(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectCo
     }
     if (!shadow_room(c, sc))
         return -1;
-    direct_lights(c, sc, &v, a->x, 1.0f, a->w, 1.0f, 1, a->rng, NULL);
+    direct_lights(c, sc, &v, a->x, 1.0f, a->w, 1.0f, 1.0f, 1, a->rng, NULL);
     float wi[3], fc[3], o[3], pdf, u = pm_rng_float(a->rng), u1 = pm_rng_float(a->rng), u2 = pm_rng_float(a->rng),
                                    u3 = pm_rng_float(a->rng);
     memcpy(o, v.o, sizeof o);
@@ -1131,7 +1140,7 @@ static int diffuse_bounce(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectC
     surf_normals(c->s, a->tri, side, &v);
     if (!shadow_room(c, sc))
         return -1;
-    direct_lights_n(c, sc, &v, a->x, 1.0f, a->w, 1.0f, 1, a->rng, NULL, 1, 1, SIZE_MAX);
+    direct_lights_n(c, sc, &v, a->x, 1.0f, a->w, 1.0f, 1.0f, 1, a->rng, NULL, 1, 1, SIZE_MAX);
     float u1 = pm_rng_float(a->rng), u2 = pm_rng_float(a->rng), u3 = pm_rng_float(a->rng), wi[3];
     if (!pm_bsdf_sample_lobe(m, PM_LOBE_DIFFUSE, v.n, v.wo, u1, u2, wi) || (v.shaded && !(pm_dot3(v.gn, wi) > 0.0f)))
         return 0;
@@ -1283,7 +1292,7 @@ static int shade_diffuse_part(const pm_eye_t *c, scratch_t *sc, const surf_t *v,
     if (!shadow_room(c, sc) || !sec_room(c, sc))
         return 0;
     const pm_guide_cell_t *gc = guide_cell(c, v);
-    direct_lights(c, sc, v, x, inv_p, thr, (float)(c->spp / PER_CELL), 1, light_rng, gc);
+    direct_lights(c, sc, v, x, inv_p, thr, (float)(c->spp / PER_CELL), ENV_COUNT(c), 1, light_rng, gc);
     spawn_lambertian(c, sc, v, x, inv_p / (float)c->spp, thr, gather_rng, gc);
     return 1;
 }
@@ -1353,7 +1362,7 @@ static int primary_glossy(const pm_eye_t *c, scratch_t *sc, struct RTCIntersectC
         v.m = standard ? &lobe : m;
         if (!shadow_room(c, sc))
             return 0;
-        direct_lights(c, sc, &v, x, inv_p, thr, 1.0f, 1, rng, NULL);
+        direct_lights(c, sc, &v, x, inv_p, thr, 1.0f, 1.0f, 1, rng, NULL);
         float wi[3], fc[3], pdf;
         int tr = 0;
         if (standard) {

@@ -242,8 +242,10 @@ done
 if [ $ok = 1 ] && "$BIN/measure-error" "$TMP/roof.gather.1.exr" "$TMP/roof.direct-vis.1.exr" >"$TMP/roof.means.json"; then
     a=$(jq -r .rmse "$TMP/roof.direct-vis.json") b=$(jq -r .rmse "$TMP/roof.gather.json")
     mt=$(jq -r .mean_test "$TMP/roof.means.json") mr=$(jq -r .mean_reference "$TMP/roof.means.json")
-    if awk -v a="$a" -v b="$b" 'BEGIN { exit !(b < 0.9 * a) }'; then
-        pass "under a roof: the gather-mode direct buffer's seed-to-seed RMS $b below 0.9 x the light samples' alone $a"
+    # 0.77 with the escaping rays counted as all spp of them against the sky (eyetrace.c,
+    # ENV_COUNT), 0.82 when they counted as their spp / 4 stratum cells, as against emitters
+    if awk -v a="$a" -v b="$b" 'BEGIN { exit !(b < 0.79 * a) }'; then
+        pass "under a roof: the gather-mode direct buffer's seed-to-seed RMS $b below 0.79 x the light samples' alone $a"
     else
         fail "under a roof: escaping rays lower the sky's noise" "gather $b, direct-vis $a"
     fi

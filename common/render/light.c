@@ -209,7 +209,8 @@ float pm_point_light_emit_pdf(const pm_point_light_t *l, const float w[3])
     return pm_spot_factor(l, w) * (l->falloff + 1.0f) / (2.0f * PM_PI * (1.0f - l->cos_cone));
 }
 
-/* pm_sun_sample in the cone's frame t, b (pm_onb of the direction), which the caller keeps. */
+/* pm_sun_sample in the cone's frame t, b (pm_onb of the direction), which the caller keeps: the
+ * light set's (pm_lights_t sun_t, sun_b), for its light samples and its sun's photons alike. */
 static void sun_sample_in(const pm_sun_t *sun, pm_vec3_t t, pm_vec3_t b, float u1, float u2, float wi_out[3])
 {
     float c = 1.0f - u1 * (1.0f - sun->cos_max), sn = sqrtf(fmaxf(0.0f, 1.0f - c * c)), phi = 2.0f * PM_PI * u2;
@@ -363,9 +364,10 @@ static void portal_point(const pm_scene_t *s, float u, float v, float p_out[3], 
  * max(0, cos) / pdf(w), cos between -w and the portal's inward normal: the irradiance of every
  * point the portals let light reach is the same in expectation; a constant sky's directions are
  * then cosine-distributed about the inward normal (flux L pi A, none wasted leaving outward). */
-static void env_emit(const pm_scene_t *s, int sun, float u1, float u2, float u3, float u4, float org_out[3],
+static void env_emit(const pm_lights_t *L, int sun, float u1, float u2, float u3, float u4, float org_out[3],
                      float dir_out[3], double flux_out[3])
 {
+    const pm_scene_t *s = L->s;
     float w[3], x, y;
     double c[3], r;
     pm_scene_sphere(s, c, &r);
@@ -376,15 +378,15 @@ static void env_emit(const pm_scene_t *s, int sun, float u1, float u2, float u3,
         disc = s->portal_area;
     }
     if (sun) {
-        pm_sun_sample(&s->sun, u1, u2, w);
+        sun_sample_in(&s->sun, pm_v3_load(L->sun_t), pm_v3_load(L->sun_b), u1, u2, w);
         for (int k = 0; k < 3; k++)
             flux_out[k] = s->sun.radiance[k] * (double)s->sun.solid_angle * disc;
     } else if (s->envmap) {
         pm_envmap_sample(s->envmap, u1, u2, w);
-        float L[3], p = pm_envmap_pdf(s->envmap, w);
-        pm_sky_radiance(s, w, L);
+        float le[3], p = pm_envmap_pdf(s->envmap, w);
+        pm_sky_radiance(s, w, le);
         for (int k = 0; k < 3; k++)
-            flux_out[k] = p > 0.0f ? L[k] / (double)p * disc : 0.0;
+            flux_out[k] = p > 0.0f ? le[k] / (double)p * disc : 0.0;
     } else if (s->nportals) {
         float d[3];
         pm_sky_sample(s, s->portals[pi].inward, u1, u2, d); /* cosine about the inward normal */
@@ -480,7 +482,7 @@ void pm_light_sample_le(const pm_lights_t *L, const pm_light_t *l, float u1, flo
         return;
     }
     case PM_LIGHT_SUN:
-    case PM_LIGHT_SKY: env_emit(s, l->kind == PM_LIGHT_SUN, u1, u2, u3, u4, org_out, dir_out, flux_out); return;
+    case PM_LIGHT_SKY: env_emit(L, l->kind == PM_LIGHT_SUN, u1, u2, u3, u4, org_out, dir_out, flux_out); return;
     default:
         for (int k = 0; k < 3; k++)
             org_out[k] = dir_out[k] = 0.0f, flux_out[k] = 0.0;

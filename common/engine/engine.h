@@ -141,12 +141,20 @@ const char *pm_progressive_default_k(const pm_settings_t *s);
  * room 0.82 times, the atrium 1.04 and the caustic scene 1.08 times, three runs each); "300000"
  * otherwise (docs/accuracy.md, "Fewer photons at 1 s"). */
 const char *pm_progressive_default_photons(const pm_settings_t *s);
-/* The long budgets' PHOTONS of pm_progressive_default_photons, as a number and as its text: the
- * driver's fallback and its test of whether the short budgets' default applied. */
+/* The per-pass defaults of progressive passes from 2 s on (docs/accuracy.md, "Progressive
+ * defaults"), as numbers and as their texts, for both drivers (progressive.c, fixed.c), the
+ * settings' defaults above and pm-render's help: PHOTONS a full pass (pm_progressive_default_photons
+ * from 2 s), PRIMARY and SPP, K (pm_progressive_default_k from 2 s). */
 #define PM_PROGRESSIVE_PHOTONS 300000
+#define PM_PROGRESSIVE_PRIMARY 16
+#define PM_PROGRESSIVE_SPP 4
+#define PM_PROGRESSIVE_K 5
 #define PM_PROGRESSIVE_TEXT_(x) #x
 #define PM_PROGRESSIVE_TEXT(x) PM_PROGRESSIVE_TEXT_(x)
 #define PM_PROGRESSIVE_PHOTONS_TEXT PM_PROGRESSIVE_TEXT(PM_PROGRESSIVE_PHOTONS)
+#define PM_PROGRESSIVE_PRIMARY_TEXT PM_PROGRESSIVE_TEXT(PM_PROGRESSIVE_PRIMARY)
+#define PM_PROGRESSIVE_SPP_TEXT PM_PROGRESSIVE_TEXT(PM_PROGRESSIVE_SPP)
+#define PM_PROGRESSIVE_K_TEXT PM_PROGRESSIVE_TEXT(PM_PROGRESSIVE_K)
 
 /* Fills s with the defaults. */
 void pm_settings_init(pm_settings_t *s);

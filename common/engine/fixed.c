@@ -2422,8 +2422,8 @@ int pm_render_passes(const pm_settings_t *s_in, const char *me, const char *bin,
     /* Per-pass defaults for the parameters not given (the scene's render block sizes one render,
      * not a pass): docs/accuracy.md, "Progressive defaults". */
     const char *const defaults[][2] = {{"PHOTONS", pm_progressive_default_photons(&ps)},
-                                       {"PRIMARY", "16"},
-                                       {"SPP", "4"},
+                                       {"PRIMARY", PM_PROGRESSIVE_PRIMARY_TEXT},
+                                       {"SPP", PM_PROGRESSIVE_SPP_TEXT},
                                        {"K", pm_progressive_default_k(&ps)}};
     char defaulted[160] = "";
     for (size_t i = 0; i < sizeof defaults / sizeof defaults[0]; i++) {

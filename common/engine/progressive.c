@@ -33,10 +33,7 @@
 extern char **environ;
 
 /* Per-pass defaults for the parameters not given (the scene's render block sizes one render,
- * not a pass), measured on both shipped scenes: docs/accuracy.md, "Progressive defaults". */
-#define DEFAULT_PRIMARY 16
-#define DEFAULT_SPP "4"
-/* K: pm_progressive_default_k */
+ * not a pass): PM_PROGRESSIVE_* in engine.h, pm_progressive_default_k and _photons. */
 /* s the driver keeps for what follows the last pass (the stages' exit, the sync, stats.json),
  * measured by tests/bench/92-passes.sh */
 #define TAIL_S 0.04
@@ -656,11 +653,12 @@ static void make_settings(prog_t *p)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " %s=%s", pm_param_name(keys[i]),
                                val(p, keys[i]));
     /* what else a pass's bytes follow, named only when not the default (the line of a running
-     * image made before these ran resident stays the same): K's default when it is not 5 (a TIME
-     * below 2 s, pm_progressive_default_k; the caustic gather measures r_1 by it on every pass) */
-    if (!val(p, PM_P_K)[0] && p->k[0] && strcmp(p->k, "5") && at < sizeof p->settings)
+     * image made before these ran resident stays the same): K's default when it is not
+     * PM_PROGRESSIVE_K (a TIME below 2 s, pm_progressive_default_k; the caustic gather measures
+     * r_1 by it on every pass) */
+    if (!val(p, PM_P_K)[0] && p->k[0] && strcmp(p->k, PM_PROGRESSIVE_K_TEXT) && at < sizeof p->settings)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " K_DEFAULT=%s", p->k);
-    /* and PHOTONS's when it is not 300000 (the same short budgets) */
+    /* and PHOTONS's when it is not PM_PROGRESSIVE_PHOTONS (the same short budgets) */
     if (!val(p, PM_P_PHOTONS)[0] && p->photons != PM_PROGRESSIVE_PHOTONS && at < sizeof p->settings)
         at += (size_t)snprintf(p->settings + at, sizeof p->settings - at, " PHOTONS_DEFAULT=%" PRId64, p->photons);
     if (strcmp(p->mode, "gather") && at < sizeof p->settings)
@@ -1375,8 +1373,8 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
                     : PM_PROGRESSIVE_PHOTONS;
     p.kmax = s->value[PM_P_PRIMARY][0] && pm_parse_i64(s->value[PM_P_PRIMARY], &v) == PM_OK ? (int)v
              : vis                                                                          ? scene_primary
-                                                                                            : DEFAULT_PRIMARY;
-    p.spp = s->value[PM_P_SPP][0] ? s->value[PM_P_SPP] : vis ? "" : DEFAULT_SPP;
+                                                                                            : PM_PROGRESSIVE_PRIMARY;
+    p.spp = s->value[PM_P_SPP][0] ? s->value[PM_P_SPP] : vis ? "" : PM_PROGRESSIVE_SPP_TEXT;
     p.k = s->value[PM_P_K][0] ? s->value[PM_P_K] : vis ? "" : pm_progressive_default_k(s);
     /* composite weighs an adaptive pass's pixels by the map its direct buffer's header names */
     p.adaptive = s->adaptive && p.direct;

@@ -524,7 +524,7 @@ static int short_budget(const pm_settings_t *s)
     return !s->coverage && s->value[PM_P_TIME][0] && strtod(s->value[PM_P_TIME], NULL) < COVERAGE_TIME;
 }
 
-const char *pm_progressive_default_k(const pm_settings_t *s) { return short_budget(s) ? "2" : "5"; }
+const char *pm_progressive_default_k(const pm_settings_t *s) { return short_budget(s) ? "2" : PM_PROGRESSIVE_K_TEXT; }
 
 const char *pm_progressive_default_photons(const pm_settings_t *s)
 {

@@ -26,7 +26,8 @@
 static const char *const param_help =
     "Parameters (NAME=VALUE; empty means the stage's default, which is the scene's render block;\n"
     "with progressive passes (PASSES other than 1, TIME or TARGET_ERROR) PHOTONS, PRIMARY, SPP and K\n"
-    "not given take per-pass defaults measured in docs/accuracy.md: 300000, 16, 4 and 5; PHOTONS\n"
+    "not given take per-pass defaults measured in docs/accuracy.md: " PM_PROGRESSIVE_PHOTONS_TEXT
+    ", " PM_PROGRESSIVE_PRIMARY_TEXT ", " PM_PROGRESSIVE_SPP_TEXT " and " PM_PROGRESSIVE_K_TEXT "; PHOTONS\n"
     "75000 and K 2 for a TIME below 2 s, which has no boundary correction):\n"
     "  PHOTONS=N        photon paths (trace-photons --photons)\n"
     "  MAP=auto         global|indirect photon map; auto: global (gather mode needs first-hit photons)\n"

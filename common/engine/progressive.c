@@ -72,7 +72,7 @@ static const char *const stage_names[NSTAGE] = {"trace-photons",       "build-ph
 static const char *const stage_progs[NSTAGE] = {"trace-photons",       "build-photonmap", "build-photonmap",
                                                 "trace-gather-points", "hilbert-sort",    "simd-gather",
                                                 "simd-gather",         "composite"};
-/* The pipes: the plans (the tracers', and the gather's coverage plan), the photons (global,
+/* The pipes: the plans (the tracers', and the gathers' coverage plans), the photons (global,
  * caustic), the maps (global, caustic), the queries (as traced, sorted, caustic), the buffers
  * (direct, indirect, caustic), the pass log, the passes' weights, the tracers' word that they
  * are ready for pass 1 (--ready). */
@@ -80,6 +80,7 @@ enum {
     P_PLAN_TP,
     P_PLAN_TG,
     P_PLAN_SG,
+    P_PLAN_CG,
     P_PH,
     P_CPH,
     P_MAP,
@@ -176,6 +177,8 @@ typedef struct {
     int cover_plan;         /* the global gather has --coverage: a TIME render's planner foresees the
                              * passes at which it samples the scene at a new level (cover_level) */
     int cover_finest;       /* the finest level it samples at (PM_COVERAGE_MAX_SAMPLES); INT_MAX: none */
+    int cover_plan_cg;      /* the caustic gather has --coverage: a TIME render's last passes keep its
+                             * samples (pm_progressive_hold_caustic) */
 } prog_t;
 
 /* the driver's lines on stderr, "ME: ..." (pm_engine_say) */
@@ -273,6 +276,14 @@ int pm_progressive_cover_size(const int *k, const double *sec, int n, int kmax, 
             units = keep, *hold_out = 1;
     }
     return units;
+}
+
+int pm_progressive_hold_caustic(const int *k, int n, int kmax, int units)
+{
+    int largest = 0;
+    for (int j = 0; j < n; j++)
+        largest = k[j] > largest ? k[j] : largest;
+    return units > 0 && units < kmax && n > 0 && units <= largest;
 }
 
 /* ---- the coverage levels of the passes (TIME) ---- */
@@ -592,9 +603,10 @@ static void stage_argv(const prog_t *p, argv_t a[NSTAGE], const int fd[NPIPE][2]
         opt(&a[i], "--isa", val(p, PM_P_ISA));
         if (p->s->coverage)
             opt(&a[i], "--coverage", p->scene);
-        if (i == SG && p->cover_plan) { /* a line a pass: whether it keeps the samples it has */
+        if ((i == SG && p->cover_plan) || (i == CG && p->cover_plan_cg)) { /* a line a pass: whether it
+                                                                            * keeps the samples it has */
             push(&a[i], "--coverage-plan");
-            pushf(&a[i], "/dev/fd/%d", fd[P_PLAN_SG][0]);
+            pushf(&a[i], "/dev/fd/%d", fd[i == CG ? P_PLAN_CG : P_PLAN_SG][0]);
         }
         opt(&a[i], "--alpha", val(p, PM_P_ALPHA));
         /* a rerun: where its first pass sits on the schedule, from the photons of the passes
@@ -1035,7 +1047,7 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
                            {p->direct ? fd[P_DIR][1] : -1, p->on[CG] ? fd[P_CQ][1] : -1, fd[P_RDY][1], -1},
                            {-1, -1, -1, -1},
                            {fd[P_MAP][0], p->cover_plan ? fd[P_PLAN_SG][0] : -1, -1, -1},
-                           {fd[P_CMAP][0], -1, -1, -1},
+                           {fd[P_CMAP][0], p->cover_plan_cg ? fd[P_PLAN_CG][0] : -1, -1, -1},
                            {p->direct ? fd[P_DIR][0] : -1, p->on[CG] ? fd[P_CAU][0] : -1, fd[P_LOG][1], fd[P_WTS][0]}};
     int inherit[NSTAGE * 4], ninherit = 0;
     for (int i = 0; i < NSTAGE; i++)
@@ -1085,9 +1097,9 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
     /* the driver keeps the plans' write ends (of the tracers it runs), the weights' write end
      * and the log's read end */
     int plan_tp = p->on[TP] ? fd[P_PLAN_TP][1] : -1, plan_tg = fd[P_PLAN_TG][1], wts = fd[P_WTS][1];
-    int plan_sg = p->cover_plan ? fd[P_PLAN_SG][1] : -1;
+    int plan_sg = p->cover_plan ? fd[P_PLAN_SG][1] : -1, plan_cg = p->cover_plan_cg ? fd[P_PLAN_CG][1] : -1;
     for (int i = 0; i < NPIPE; i++) {
-        if (fd[i][1] != plan_tp && fd[i][1] != plan_tg && fd[i][1] != wts && fd[i][1] != plan_sg)
+        if (fd[i][1] != plan_tp && fd[i][1] != plan_tg && fd[i][1] != wts && fd[i][1] != plan_sg && fd[i][1] != plan_cg)
             close(fd[i][1]);
         if (i != P_LOG && i != P_RDY)
             close(fd[i][0]);
@@ -1154,7 +1166,7 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         int64_t photons = units == p->kmax ? p->photons : (p->photons * units + p->kmax / 2) / p->kmax;
         if (photons < 1)
             photons = 1;
-        char l1[64], l2[64], l3[64], l4[64];
+        char l1[64], l2[64], l3[64], l4[64], l5[64];
         /* the pass's weight in the running image: its size against a full pass's (exactly 1
          * for a full pass, so that passes of one size average as they always did) */
         snprintf(l3, sizeof l3, "%d %.17g\n", next, (double)units / p->kmax);
@@ -1180,7 +1192,16 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         for (int i = 0; i < NSTAGE; i++)
             c0[i] = proc[i] ? pm_proc_cpu_s(proc[i]) : -1.0;
         snprintf(l4, sizeof l4, hold ? "%d 1\n" : "%d\n", next);
+        /* the caustic gather's levels are not foreseen: the budget's last passes keep its samples */
+        int hold_cg = budget >= 0.0 && pm_progressive_hold_caustic(k, nk, p->kmax, units);
+        snprintf(l5, sizeof l5, hold_cg ? "%d 1\n" : "%d\n", next);
+        if (hold_cg && s->verbose)
+            say(p,
+                "pass %d: the caustic gather keeps its coverage samples if they are one level coarser (the pass is "
+                "cut short by the budget: %d of %d units)",
+                next, units, p->kmax);
         if ((plan_sg >= 0 && write(plan_sg, l4, strlen(l4)) != (ssize_t)strlen(l4)) ||
+            (plan_cg >= 0 && write(plan_cg, l5, strlen(l5)) != (ssize_t)strlen(l5)) ||
             write(wts, l3, strlen(l3)) != (ssize_t)strlen(l3) ||
             (plan_tp >= 0 && write(plan_tp, l1, strlen(l1)) != (ssize_t)strlen(l1)) ||
             write(plan_tg, l2, strlen(l2)) != (ssize_t)strlen(l2)) {
@@ -1267,6 +1288,8 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
     close(plan_tg);
     if (plan_sg >= 0)
         close(plan_sg);
+    if (plan_cg >= 0)
+        close(plan_cg);
     close(wts);
     if (logf) {
         char rest[256];
@@ -1385,6 +1408,7 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
     }
     make_settings(&p);
     p.cover_plan = s->coverage && p.on[SG];
+    p.cover_plan_cg = s->coverage && p.on[CG];
     if (p.cover_plan)
         p.cover_finest = pm_coverage_finest_level(count_samples, &sc, PM_COVERAGE_MAX_SAMPLES);
     int locked = pm_engine_lock(p.me, p.out, p.s->wait, cmdline, &p.lock_fd);

@@ -75,4 +75,12 @@ int pm_progressive_next_size(const int *k, const double *sec, int n, int kmax, d
 int pm_progressive_cover_size(const int *k, const double *sec, int n, int kmax, double remaining, double extra,
                               int holdable, int *hold_out);
 
+/* Whether a pass of `units` keeps the caustic gather's coverage samples (its --coverage-plan
+ * line "PASS 1"): a pass the budget has cut short, fewer units than a full pass (kmax) and no
+ * more than the largest pass so far (k[0..n-1]), is the budget's end. The caustic gather
+ * measures its kernel on each pass's own caustic photons, so the driver cannot foresee its next
+ * level as it does the global gather's (pm_progressive_cover_size); a new level's sampling in
+ * such a pass would run the render past its budget. Exposed for the unit tests. */
+int pm_progressive_hold_caustic(const int *k, int n, int kmax, int units);
+
 #endif

@@ -46,6 +46,18 @@ same gather-none "$CORNELL" GATHER=none
 same secondary-direct tests/scenes/closed-box/scene.json SECONDARY_DIRECT=1
 same secondary-direct-sky scenes/atrium/textured.json SECONDARY_DIRECT=1
 same caustic-gather-none "$CAUSTIC" GATHER=none
+# the caustic gather's coverage plan: with the boundary correction (COVERAGE=auto from TIME=2),
+# both gathers read a line a pass from the driver. Which passes keep the caustic gather's
+# samples (the budget's last, cut short) is the machine's timing, so the rule itself is a unit
+# test (pm_progressive_hold_caustic).
+if "$R" "$CAUSTIC" "$TMP/ccp" $SMALL TIME=2 VERBOSE=1 >"$TMP/ccp.out" 2>&1 &&
+    grep -q 'simd-gather .*--k-each-pass .*--coverage-plan /dev/fd/' "$TMP/ccp.out" &&
+    [ "$(grep -c 'simd-gather .*--coverage-plan /dev/fd/' "$TMP/ccp.out")" = 2 ] &&
+    [ "$(jq .total.passes "$TMP/ccp/stats.json")" -ge 1 ]; then
+    pass "resident caustic branch, TIME=2: the global and the caustic gather both take the driver's --coverage-plan"
+else
+    fail "caustic gather's coverage plan" "$(grep -- '--coverage' "$TMP/ccp.out" | head -2; tail -2 "$TMP/ccp.out")"
+fi
 same diffuse-from "$CORNELL" DIFFUSE_DEPTH=1 DIFFUSE_FROM=3
 
 # the caustic branch's stages, each named in stats.json; GATHER=none warns of the missing caustics

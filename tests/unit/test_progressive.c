@@ -71,6 +71,22 @@ static void test_sizes_cover_hold(void **state)
     }
 }
 
+/* The caustic gather's levels are not foreseen: the passes the budget cuts short keep its
+ * samples; the growing passes and the full ones do not. */
+static void test_sizes_hold_caustic(void **state)
+{
+    (void)state;
+    int k[8] = {1, 2, 4, 8, 16, 16};
+    assert_int_equal(pm_progressive_hold_caustic(k, 0, 16, 1), 0);  /* pass 1: nothing to keep */
+    assert_int_equal(pm_progressive_hold_caustic(k, 1, 16, 2), 0);  /* growing */
+    assert_int_equal(pm_progressive_hold_caustic(k, 4, 16, 16), 0); /* growing to a full pass */
+    assert_int_equal(pm_progressive_hold_caustic(k, 5, 16, 16), 0); /* full */
+    assert_int_equal(pm_progressive_hold_caustic(k, 6, 16, 14), 1); /* cut short */
+    assert_int_equal(pm_progressive_hold_caustic(k, 6, 16, 1), 1);
+    assert_int_equal(pm_progressive_hold_caustic(k, 3, 16, 3), 1); /* a 1-s budget's last: 1, 2, 4, then 3 */
+    assert_int_equal(pm_progressive_hold_caustic(k, 3, 16, 0), 0); /* no pass */
+}
+
 static void test_sizes_first_pass(void **state)
 {
     (void)state;
@@ -363,14 +379,10 @@ static void test_schedule_by_photons(void **state)
 }
 
 static const struct CMUnitTest tests[] = {
-    cmocka_unit_test(test_sizes_grow_then_fill),
-    cmocka_unit_test(test_sizes_first_pass),
-    cmocka_unit_test(test_sizes_cover_hold),
-    cmocka_unit_test(test_sizes_noisy),
-    cmocka_unit_test(test_plan_range),
-    cmocka_unit_test(test_plan_lines),
-    cmocka_unit_test(test_plan_run),
-    cmocka_unit_test(test_plan_ready),
-    cmocka_unit_test(test_schedule_by_photons),
+    cmocka_unit_test(test_sizes_grow_then_fill), cmocka_unit_test(test_sizes_first_pass),
+    cmocka_unit_test(test_sizes_cover_hold),     cmocka_unit_test(test_sizes_hold_caustic),
+    cmocka_unit_test(test_sizes_noisy),          cmocka_unit_test(test_plan_range),
+    cmocka_unit_test(test_plan_lines),           cmocka_unit_test(test_plan_run),
+    cmocka_unit_test(test_plan_ready),           cmocka_unit_test(test_schedule_by_photons),
 };
 UNIT_GROUP(progressive_group, "progressive", tests)

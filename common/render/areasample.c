@@ -35,7 +35,6 @@ void pm_area_samples_free(pm_area_samples_t *a)
     free(a->pos);
     free(a->normal);
     free(a->area);
-    free(a->gn);
     memset(a, 0, sizeof *a);
 }
 
@@ -62,38 +61,9 @@ static int faces_inside(const pm_rt_t *rt, struct RTCIntersectContext *ctx, cons
     return hit != PM_RAY_MISS && n[0] * ng[0] + n[1] * ng[1] + n[2] * ng[2] > 0.0f;
 }
 
-/* Leaves out of a (its first n samples) those whose side faces the inside of a solid; a thread
- * tests a block of samples, and the survivors keep their order. */
-static pm_result_t drop_inside(const pm_rt_t *rt, float reach, pm_area_samples_t *a)
-{
-    unsigned char *in = calloc(a->n ? a->n : 1, 1);
-    if (!in)
-        return pm_error_set(PM_ERR_NOMEM, "out of memory for %" PRIu64 " area samples", a->n);
-#pragma omp parallel
-    {
-        struct RTCIntersectContext ctx;
-        rtcInitIntersectContext(&ctx);
-#pragma omp for schedule(dynamic, 4096)
-        for (uint64_t i = 0; i < a->n; i++) {
-            /* the geometric side normal, not the shading one: the ray leaves the triangle */
-            in[i] = (unsigned char)faces_inside(rt, &ctx, &a->pos[3 * i], &a->gn[3 * i], reach);
-        }
-    }
-    uint64_t k = 0;
-    for (uint64_t i = 0; i < a->n; i++) {
-        if (in[i]) {
-            a->hidden++;
-            continue;
-        }
-        memmove(&a->pos[3 * k], &a->pos[3 * i], 3 * sizeof(float));
-        memmove(&a->normal[3 * k], &a->normal[3 * i], 3 * sizeof(float));
-        memmove(&a->area[3 * k], &a->area[3 * i], 3 * sizeof(float));
-        k++;
-    }
-    a->n = k;
-    free(in);
-    return PM_OK;
-}
+/* A sample slot's fate (pm_area_samples_make): kept, its side facing the inside of a solid, or
+ * no sample (a cut-out, or a texel that keeps no photon). */
+enum { SLOT_KEPT, SLOT_INSIDE, SLOT_NONE };
 
 pm_result_t pm_area_samples_make(const pm_scene_t *s, const pm_rt_t *rt, double spacing, double reach, uint64_t seed,
                                  uint64_t max_samples, pm_area_samples_t *out)
@@ -107,61 +77,96 @@ pm_result_t pm_area_samples_make(const pm_scene_t *s, const pm_rt_t *rt, double 
                             "%" PRIu64 " area samples at a spacing of %g m over scene '%s' is more than %" PRIu64, cap,
                             spacing, s->name, max_samples);
     out->spacing = spacing;
+    /* Each triangle's slots (two sides a sample) from a prefix sum, so that threads fill them in
+     * any order and the kept samples come out in triangle order whatever the thread count; the
+     * inside test runs where the sample is made (no geometric normals kept for a second pass:
+     * 12 bytes a slot of fresh pages, which the kernel zeroes). */
     size_t alloc = cap ? (size_t)cap : 1;
+    uint64_t *first = malloc((s->ntris + 1) * sizeof *first);
+    unsigned char *slot = malloc(alloc);
     out->pos = malloc(alloc * 3 * sizeof *out->pos);
     out->normal = malloc(alloc * 3 * sizeof *out->normal);
     out->area = malloc(alloc * 3 * sizeof *out->area);
-    out->gn = rt && reach > 0.0 ? malloc(alloc * 3 * sizeof *out->gn) : NULL;
-    if (!out->pos || !out->normal || !out->area || (rt && reach > 0.0 && !out->gn)) {
+    if (!first || !slot || !out->pos || !out->normal || !out->area) {
+        free(first);
+        free(slot);
         pm_area_samples_free(out);
         return pm_error_set(PM_ERR_NOMEM, "out of memory for %" PRIu64 " area samples", cap);
     }
-    uint64_t k = 0;
+    first[0] = 0;
     for (size_t t = 0; t < s->ntris; t++) {
-        const pm_material_t *mt = &s->materials[s->tri_material[t]];
-        if (!pm_material_keeps_photons(mt))
-            continue;
-        double a = pm_scene_triangle_area(s, t);
-        uint64_t n = tri_count(a, spacing);
-        out->total_area += a;
-        const float *v0 = &s->verts[3 * (size_t)s->tris[3 * t]], *v1 = &s->verts[3 * (size_t)s->tris[3 * t + 1]],
-                    *v2 = &s->verts[3 * (size_t)s->tris[3 * t + 2]];
-        pm_vec3_t e1 = pm_v3_sub(pm_v3_load(v1), pm_v3_load(v0)), e2 = pm_v3_sub(pm_v3_load(v2), pm_v3_load(v0));
-        float ng[3];
-        pm_v3_store(ng, pm_v3_normalize(pm_v3_cross(e1, e2)));
-        /* one shift per triangle: the triangles' patterns are independent of each other */
-        pm_rng_t rng;
-        pm_rng_init(&rng, seed, t);
-        double du = pm_rng_double(&rng), dv = pm_rng_double(&rng);
-        float w = (float)(a / (double)n);
-        for (uint64_t i = 0; i < n; i++) {
-            double u = ((double)i + 0.5) / (double)n + du, v = radical2(i) + dv;
-            u -= floor(u), v -= floor(v);
-            float b0, b1, b2, p[3]; /* (b1, b2): the weights of v1 and v2, Embree's (u, v) */
-            pm_sample_triangle((float)u, (float)v, &b0, &b2);
-            b1 = 1.0f - b0 - b2;
-            for (int c = 0; c < 3; c++)
-                p[c] = v0[c] + b1 * (v1[c] - v0[c]) + b2 * (v2[c] - v0[c]);
-            if (s->any_alpha && pm_scene_cut_out(s, (uint32_t)t, b1, b2))
+        uint64_t n = 0;
+        if (pm_material_keeps_photons(&s->materials[s->tri_material[t]])) {
+            double a = pm_scene_triangle_area(s, t);
+            out->total_area += a;
+            n = tri_count(a, spacing);
+        }
+        first[t + 1] = first[t] + 2 * n;
+    }
+    int inside_test = rt && reach > 0.0;
+#pragma omp parallel
+    {
+        struct RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+#pragma omp for schedule(dynamic, 64)
+        for (size_t t = 0; t < s->ntris; t++) {
+            uint64_t n = (first[t + 1] - first[t]) / 2, j = first[t];
+            if (n == 0)
                 continue;
-            pm_material_t scratch;
-            if (!pm_material_keeps_photons(pm_scene_material_at(s, (uint32_t)t, p, &scratch)))
-                continue; /* a texel that keeps no photon */
-            for (int side = 0; side < 2; side++) {
-                float n_side[3] = {side ? -ng[0] : ng[0], side ? -ng[1] : ng[1], side ? -ng[2] : ng[2]}, ns[3];
-                pm_scene_shading_normal(s, (uint32_t)t, p, n_side, ns);
-                memcpy(&out->pos[3 * k], p, sizeof p);
-                memcpy(&out->normal[3 * k], ns, sizeof ns);
-                if (out->gn)
-                    memcpy(&out->gn[3 * k], n_side, sizeof n_side);
-                out->area[3 * k] = out->area[3 * k + 1] = out->area[3 * k + 2] = w;
-                k++;
+            double a = pm_scene_triangle_area(s, t);
+            const float *v0 = &s->verts[3 * (size_t)s->tris[3 * t]], *v1 = &s->verts[3 * (size_t)s->tris[3 * t + 1]],
+                        *v2 = &s->verts[3 * (size_t)s->tris[3 * t + 2]];
+            pm_vec3_t e1 = pm_v3_sub(pm_v3_load(v1), pm_v3_load(v0)), e2 = pm_v3_sub(pm_v3_load(v2), pm_v3_load(v0));
+            float ng[3];
+            pm_v3_store(ng, pm_v3_normalize(pm_v3_cross(e1, e2)));
+            /* one shift per triangle: the triangles' patterns are independent of each other */
+            pm_rng_t rng;
+            pm_rng_init(&rng, seed, t);
+            double du = pm_rng_double(&rng), dv = pm_rng_double(&rng);
+            float w = (float)(a / (double)n);
+            for (uint64_t i = 0; i < n; i++, j += 2) {
+                double u = ((double)i + 0.5) / (double)n + du, v = radical2(i) + dv;
+                u -= floor(u), v -= floor(v);
+                float b0, b1, b2, p[3]; /* (b1, b2): the weights of v1 and v2, Embree's (u, v) */
+                pm_sample_triangle((float)u, (float)v, &b0, &b2);
+                b1 = 1.0f - b0 - b2;
+                for (int c = 0; c < 3; c++)
+                    p[c] = v0[c] + b1 * (v1[c] - v0[c]) + b2 * (v2[c] - v0[c]);
+                pm_material_t scratch;
+                if ((s->any_alpha && pm_scene_cut_out(s, (uint32_t)t, b1, b2)) ||
+                    !pm_material_keeps_photons(pm_scene_material_at(s, (uint32_t)t, p, &scratch))) {
+                    slot[j] = slot[j + 1] = SLOT_NONE; /* a cut-out, or a texel that keeps no photon */
+                    continue;
+                }
+                for (int side = 0; side < 2; side++) {
+                    float n_side[3] = {side ? -ng[0] : ng[0], side ? -ng[1] : ng[1], side ? -ng[2] : ng[2]}, ns[3];
+                    uint64_t q = j + (uint64_t)side;
+                    pm_scene_shading_normal(s, (uint32_t)t, p, n_side, ns);
+                    memcpy(&out->pos[3 * q], p, sizeof p);
+                    memcpy(&out->normal[3 * q], ns, sizeof ns);
+                    out->area[3 * q] = out->area[3 * q + 1] = out->area[3 * q + 2] = w;
+                    /* the geometric side normal, not the shading one: the ray leaves the triangle */
+                    slot[q] = inside_test && faces_inside(rt, &ctx, p, n_side, (float)reach) ? SLOT_INSIDE : SLOT_KEPT;
+                }
             }
         }
     }
+    /* the kept slots moved down, in order */
+    uint64_t k = 0;
+    for (uint64_t i = 0; i < cap; i++) {
+        if (slot[i] != SLOT_KEPT) {
+            out->hidden += slot[i] == SLOT_INSIDE;
+            continue;
+        }
+        if (k != i) {
+            memcpy(&out->pos[3 * k], &out->pos[3 * i], 3 * sizeof(float));
+            memcpy(&out->normal[3 * k], &out->normal[3 * i], 3 * sizeof(float));
+            memcpy(&out->area[3 * k], &out->area[3 * i], 3 * sizeof(float));
+        }
+        k++;
+    }
     out->n = k;
-    pm_result_t r = out->gn ? drop_inside(rt, (float)reach, out) : PM_OK;
-    free(out->gn);
-    out->gn = NULL;
-    return r;
+    free(first);
+    free(slot);
+    return PM_OK;
 }

@@ -29,7 +29,6 @@ typedef struct {
     float *pos;    /* n * 3, m */
     float *normal; /* n * 3, unit */
     float *area;   /* n * 3, m^2, the sample's share (the same in the three channels: a white "power") */
-    float *gn;     /* while made: n * 3, the unit geometric normal of the sample's side */
     double spacing;
     double total_area; /* m^2, one side of every storing triangle */
     uint64_t hidden;   /* sides left out as facing the inside of a solid */

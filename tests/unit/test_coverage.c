@@ -4,6 +4,7 @@
  * power divided by the part of its kernel that lies on its surface (1 on an open plane, 1/2 at a
  * straight edge, nothing for a side with no surface). */
 #include <math.h>
+#include <omp.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -128,6 +129,22 @@ static void test_area_samples_solid(void **state)
     assert_int_equal(a.hidden, 0);
     assert_true(fabs(area_sum(&a) - 48.0) < 48.0 * 1e-5);
     pm_area_samples_free(&a);
+    /* the same samples, in the same order, on one thread as on several (the inner sides left out
+     * between kept ones: the compaction's order is tested too) */
+    pm_area_samples_t one, many;
+    int threads = omp_get_max_threads();
+    omp_set_num_threads(1);
+    assert_int_equal(pm_area_samples_make(&s, &rt, 0.1, 4.0, 3, 1u << 20, &one), PM_OK);
+    omp_set_num_threads(threads > 1 ? threads : 2);
+    assert_int_equal(pm_area_samples_make(&s, &rt, 0.1, 4.0, 3, 1u << 20, &many), PM_OK);
+    omp_set_num_threads(threads);
+    assert_int_equal(one.n, many.n);
+    assert_int_equal(one.hidden, many.hidden);
+    assert_memory_equal(one.pos, many.pos, 3 * sizeof(float) * one.n);
+    assert_memory_equal(one.normal, many.normal, 3 * sizeof(float) * one.n);
+    assert_memory_equal(one.area, many.area, 3 * sizeof(float) * one.n);
+    pm_area_samples_free(&one);
+    pm_area_samples_free(&many);
     pm_rt_destroy(&rt);
     pm_scene_free(&s);
 }

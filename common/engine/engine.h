@@ -66,6 +66,7 @@ typedef enum {
     PM_P_ADAPTIVE,
     PM_P_DIFFUSE_DEPTH,
     PM_P_DIFFUSE_FROM,
+    PM_P_OVERLAP,
     PM_P_COUNT
 } pm_param_t;
 
@@ -111,6 +112,8 @@ typedef struct {
     int adaptive;             /* ADAPTIVE=1, or auto on a progressive render: the resident passes from
                                * PM_ADAPTIVE_FROM_PASS on give each pixel rays by the running image's error
                                * (common/engine/progressive.c, image/adaptive.h) */
+    int overlap;              /* OVERLAP=1, or auto on a TIME budget: the resident driver plans and traces a
+                               * pass while the one before it is still sorted and gathered */
 } pm_settings_t;
 
 enum { PM_KEEP_ALL = 0, PM_KEEP_BUFFERS = 1, PM_KEEP_IMAGE = 2 };

@@ -320,6 +320,15 @@ static int cover_level(const prog_t *p, int next)
     return level > p->cover_finest ? level : p->cover_finest;
 }
 
+/* The passes at the end of p->passes[0..n-1] still "pending" (planned, not logged). */
+static int trailing_pending(const prog_t *p, int n)
+{
+    int m = 0;
+    while (m < n && !strcmp(p->passes[n - 1 - m].err, "pending"))
+        m++;
+    return m;
+}
+
 /* ---- the state: running.pm and passes.txt ---- */
 
 static int add_pass(prog_t *p, const pass_t *ps)
@@ -397,23 +406,26 @@ static int read_state(prog_t *p)
     snprintf(state, sizeof state, "%s/running.pm", p->out);
     if (ok && n > 0) {
         uint64_t held = 0;
+        int pending = 0;
         const uint32_t need = 1u << PM_RADIANCE_RGB | 1u << PM_RADIANCE_VARIANCE;
         if (pm_table_read(state, &pm_radiance_schema, need, &t) != PM_OK) {
             ok = 0, why = "a damaged running.pm";
             say(p, "the running image is damaged (%s): the passes start again", pm_error_message());
             why = NULL;
-        } else if (pm_header_get_u64(&t.hdr, state, "passes", &held) != PM_OK ||
-                   (held != (uint64_t)n && !(held + 1 == (uint64_t)n && !strcmp(p->passes[n - 1].err, "pending")))) {
+        } else if ((pending = trailing_pending(p, n)), pm_header_get_u64(&t.hdr, state, "passes", &held) != PM_OK ||
+                                                           held > (uint64_t)n ||
+                                                           held + (uint64_t)pending < (uint64_t)n) {
             ok = 0, why = "running.pm and passes.txt disagree";
         } else {
-            /* a pass under way when the last run stopped: in the running image or not */
-            if (!strcmp(p->passes[n - 1].err, "pending")) {
-                if (held + 1 == (uint64_t)n) {
-                    p->npasses = --n;
-                } else {
-                    const char *e = pm_header_get(&t.hdr, "relative_error");
-                    snprintf(p->passes[n - 1].err, sizeof p->passes[n - 1].err, "%s", e ? e : "-");
-                }
+            /* passes under way when the last run stopped (two with OVERLAP): in the running image
+             * or not; the last one in it has the image's error, one before it none on record */
+            if (pending) {
+                p->npasses = n = (int)held;
+                for (int j = n - pending > 0 ? n - pending : 0; j < n; j++)
+                    if (!strcmp(p->passes[j].err, "pending")) {
+                        const char *e = j == n - 1 ? pm_header_get(&t.hdr, "relative_error") : NULL;
+                        snprintf(p->passes[j].err, sizeof p->passes[j].err, "%s", e ? e : "-");
+                    }
             }
             const char *r1 = pm_header_get(&t.hdr, "radius1");
             snprintf(p->radius1, sizeof p->radius1, "%s", r1 ? r1 : "");
@@ -551,7 +563,7 @@ static void stage_argv(const prog_t *p, argv_t a[NSTAGE], const int fd[NPIPE][2]
     }
     if (p->adaptive) { /* read before each pass; none yet: a uniform pass (adapt) */
         push(&a[TG], "--adaptive");
-        pushf(&a[TG], "%s/adaptive.pm", p->out);
+        pushf(&a[TG], p->s->overlap ? "%s/adaptive-%%d.pm" : "%s/adaptive.pm", p->out);
     }
     push(&a[TG], "--plan");
     push(&a[TG], "-");
@@ -978,16 +990,28 @@ static void wait_ready(prog_t *p, int rfd, double t0)
 /* The passes: the six stages started, a pass at a time, the stages ended. Returns the exit
  * status; *stop_out says what stopped the passes, *first_out when the first image was in
  * place (s from t0; -1 if none). */
-/* ADAPTIVE: OUTDIR/adaptive.pm, the multiplier trace-gather-points reads before each pass, made
- * from running.pm once it holds `held` passes for the passes from ADAPTIVE_FROM_PASS on, again
- * every ADAPTIVE_EVERY passes; removed before then, so that the first passes (and a rerun's
- * before its state is that far) are uniform. 0, or 3 when it cannot be written. */
-static int adapt(prog_t *p, int held)
+/* ADAPTIVE: the multiplier trace-gather-points reads before pass `for_pass`, made from
+ * running.pm once it holds `held` passes for the passes from ADAPTIVE_FROM_PASS on, again every
+ * ADAPTIVE_EVERY passes; removed before then, so that the first passes (and a rerun's before its
+ * state is that far) are uniform. One pass at a time it is OUTDIR/adaptive.pm; with OVERLAP,
+ * OUTDIR/adaptive-P.pm for pass P (trace-gather-points --adaptive OUTDIR/adaptive-%d.pm), since a
+ * pass is traced while the one before it is still being composited against its own map.
+ * for_pass 0: OUTDIR/adaptive.pm, the map the next pass would take (left at the end of a run). 0,
+ * or 3 when it cannot be written. */
+static void adapt_path(const prog_t *p, int for_pass, char *out, size_t size)
+{
+    if (p->s->overlap && for_pass > 0)
+        snprintf(out, size, "%s/adaptive-%d.pm", p->out, for_pass);
+    else
+        snprintf(out, size, "%s/adaptive.pm", p->out);
+}
+
+static int adapt(prog_t *p, int held, int for_pass)
 {
     if (!p->adaptive)
         return 0;
     char map[4200], state[4200];
-    snprintf(map, sizeof map, "%s/adaptive.pm", p->out);
+    adapt_path(p, for_pass, map, sizeof map);
     snprintf(state, sizeof state, "%s/running.pm", p->out);
     if (held < ADAPTIVE_FROM_PASS - 1) {
         if (unlink(map) != 0 && errno != ENOENT) {
@@ -1007,6 +1031,15 @@ static int adapt(prog_t *p, int held)
         return r == PM_ERR_INPUT ? 1 : 3;
     }
     return 0;
+}
+
+/* With OVERLAP: pass P's map, once composite has weighed the pass by it. */
+static void unadapt(const prog_t *p, int pass)
+{
+    char map[4200];
+    adapt_path(p, pass, map, sizeof map);
+    if (p->adaptive && p->s->overlap)
+        unlink(map);
 }
 
 static int run_passes(prog_t *p, char **env, double t0, int first, const char **stop_out, double *first_out)
@@ -1058,7 +1091,7 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
             }
     argv_t a[NSTAGE];
     stage_argv(p, a, (const int(*)[2])fd, first);
-    int rc = adapt(p, first - 1);
+    int rc = 0;
     pm_proc_t *proc[NSTAGE] = {0};
     p->spawn_s = pm_time_wall() - t0;
     for (int i = 0; i < NSTAGE && rc == 0; i++) {
@@ -1112,102 +1145,157 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
     else
         close(fd[P_RDY][0]);
     void (*old_pipe)(int) = signal(SIGPIPE, SIG_IGN); /* a plan whose tracer failed: EPIPE, not death */
-    int k[4096];
-    double sec[4096];
+    int k[4096 + 1];
+    double sec[4096 + 1];
     int nk = 0;
     const char *stop = "";
     int pass = first - 1, failed = 0;
-    /* the coverage level of the last pass, and what sampling the scene at a new level last cost
-     * beyond the pass's bound, at which level (-1: not yet measured) */
-    int cov_level = INT_MIN, cov_cost_level = 0, cov_units = 0;
+    /* the coverage level of the last pass logged, and what sampling the scene at a new level last
+     * cost beyond the pass's bound, at which level (-1: not yet measured); the level of the last
+     * pass planned (the one before the next, with a pass in flight) */
+    int cov_level = INT_MIN, cov_cost_level = 0, cov_units = 0, cov_plan_level = INT_MIN;
     double cov_sg = -1.0, sg_rate = INFINITY; /* the gather's CPU in that pass; its cheapest CPU s a unit */
+    /* OVERLAP: the next pass is planned as soon as the last one's log line is read, while the one
+     * between them is still in the stages, so that the tracers trace it while the gathers finish
+     * the one before (a pass's tail: the sort waits for every query, the gather for every sorted
+     * one). At most `depth` passes are in flight; the planner counts the one in flight at its
+     * bound. Each pass's wall time is then from the log line before it to its own, and its CPU the
+     * stages' in that span. */
+    int depth = p->s->overlap ? 2 : 1, planned = first - 1, inflight = 0, stopping = 0, diffuse_scaled = 0;
+    struct {
+        int pass, units, hold, cov_next, shared; /* shared: in flight beside another pass */
+        double cov_extra, ts;
+    } fl[2];
+    double t_log = -1.0, c_log[NSTAGE];
+    for (int i = 0; i < NSTAGE; i++)
+        c_log[i] = proc[i] ? pm_proc_cpu_s(proc[i]) : -1.0;
     while (rc == 0 && logf) {
-        int next = pass + 1, units = p->kmax, cov_next = INT_MIN, hold = 0;
-        double cov_extra = 0.0;
-        if (maxp && next > maxp) {
-            snprintf(stopbuf, sizeof stopbuf, "PASSES=%" PRId64, maxp);
-            stop = stopbuf;
-            break;
-        }
-        if (budget >= 0.0) {
-            double left = budget - (pm_time_wall() - t0) - TAIL_S;
-            /* the passes from DIFFUSE_FROM on cost more per unit than those before it (1.4 to 1.5
-             * times, docs/accuracy.md): the earlier passes bound them at DIFFUSE_COST times their
-             * time, so that the first bouncing pass is sized (or the render ended) by the budget
-             * as any other, and the bouncing passes' own times bound the rest */
-            if (p->diffuse_depth && s->diffuse_from > 1 && next == s->diffuse_from && next > first)
-                for (int j = 0; j < nk; j++)
-                    sec[j] *= DIFFUSE_COST;
-            /* a pass at a new coverage level: its sampling, the last one's cost (measured with the
-             * gather's cheapest rate so far) times COVER_GROWTH a level finer */
-            if (p->cover_plan && (cov_next = cover_level(p, next)) != INT_MIN && cov_next != INT_MAX &&
-                cov_next != cov_level && cov_sg >= 0.0 && isfinite(sg_rate)) {
-                double cost = cov_sg - sg_rate * cov_units;
-                cov_extra = (cost > 0.0 ? cost : 0.0) * pow(COVER_GROWTH, (double)(cov_cost_level - cov_next));
-            }
-            /* A new level one finer than the last pass's that does not fit, or would take half
-             * or more of the pass it comes with: the pass keeps the samples it has (a kernel 1.4
-             * to 2 spacings wide instead of 2 to 2.8), and the budget goes to rays and photons.
-             * Measured: the skylight room's TIME=4 ended at 2.8 to 3.0 s when a 3.2-million-
-             * sample level, foreseen at 1.1 to 2.2 s, did not fit; with the hold, at 3.9 s. */
-            units = nk == 0 && next == first
-                        ? 1
-                        : pm_progressive_cover_size(k, sec, nk, p->kmax, left, cov_extra,
-                                                    cov_level != INT_MIN && cov_next == cov_level - 1, &hold);
-            if (nk == 0 && next == first && next > 1) /* a rerun: time a small pass first, as a first run does */
-                units = 1;
-            if (units <= 0) {
-                snprintf(stopbuf, sizeof stopbuf, "TIME=%s", val(p, PM_P_TIME));
+        while (!stopping && inflight < depth) {
+            int next = planned + 1, units = p->kmax, cov_next = INT_MIN, hold = 0;
+            double cov_extra = 0.0;
+            if (maxp && next > maxp) {
+                snprintf(stopbuf, sizeof stopbuf, "PASSES=%" PRId64, maxp);
                 stop = stopbuf;
+                stopping = 1;
                 break;
             }
+            if (budget >= 0.0) {
+                double left = budget - (pm_time_wall() - t0) - TAIL_S;
+                /* the passes from DIFFUSE_FROM on cost more per unit than those before it (1.4 to
+                 * 1.5 times, docs/accuracy.md): the earlier passes bound them at DIFFUSE_COST
+                 * times their time, so that the first bouncing pass is sized (or the render
+                 * ended) by the budget as any other, and the bouncing passes' own times bound
+                 * the rest */
+                if (p->diffuse_depth && s->diffuse_from > 1 && next == s->diffuse_from && next > first &&
+                    !diffuse_scaled)
+                    for (int j = 0; j < nk; j++)
+                        sec[j] *= DIFFUSE_COST;
+                diffuse_scaled |= next == s->diffuse_from; /* once, though the pass may wait to be planned */
+                /* Ahead of a pass in flight, only a full pass after a full pass (the passes'
+                 * steady state): its bound comes off what is left. The growing passes and the
+                 * budget's last ones wait for the log line before them, as they always did, so
+                 * that the bounds the planner sizes them by are measured one pass at a time
+                 * (overlapped passes do not enter k and sec: the span from one log line to the
+                 * next was as short as 0.03 s for a pass traced during the tail before it). */
+                if (inflight && (nk == 0 || fl[planned % 2].units != p->kmax))
+                    break;
+                int n = nk;
+                if (inflight) {
+                    double t = time_bound(k, sec, nk, p->kmax);
+                    left -= t;
+                    k[n] = p->kmax, sec[n] = t, n++;
+                }
+                /* a pass at a new coverage level: its sampling, the last one's cost (measured with
+                 * the gather's cheapest rate so far) times COVER_GROWTH a level finer */
+                if (p->cover_plan && (cov_next = cover_level(p, next)) != INT_MIN && cov_next != INT_MAX &&
+                    cov_next != cov_plan_level && cov_sg >= 0.0 && isfinite(sg_rate)) {
+                    double cost = cov_sg - sg_rate * cov_units;
+                    cov_extra = (cost > 0.0 ? cost : 0.0) * pow(COVER_GROWTH, (double)(cov_cost_level - cov_next));
+                }
+                /* A new level one finer than the last pass's that does not fit, or would take half
+                 * or more of the pass it comes with: the pass keeps the samples it has (a kernel
+                 * 1.4 to 2 spacings wide instead of 2 to 2.8), and the budget goes to rays and
+                 * photons. Measured: the skylight room's TIME=4 ended at 2.8 to 3.0 s when a
+                 * 3.2-million-sample level, foreseen at 1.1 to 2.2 s, did not fit; with the hold,
+                 * at 3.9 s. */
+                units = nk == 0 ? 1
+                                : pm_progressive_cover_size(k, sec, n, p->kmax, left, cov_extra,
+                                                            cov_plan_level != INT_MIN && cov_next == cov_plan_level - 1,
+                                                            &hold);
+                if (inflight && units != p->kmax) /* not room for a full pass after the one in flight */
+                    break;
+                if (units <= 0) {
+                    if (inflight) /* the pass in flight may leave room for one more: wait for it */
+                        break;
+                    snprintf(stopbuf, sizeof stopbuf, "TIME=%s", val(p, PM_P_TIME));
+                    stop = stopbuf;
+                    stopping = 1;
+                    break;
+                }
+            }
+            if (p->cover_plan && cov_next != INT_MIN && cov_next != INT_MAX && !hold)
+                cov_plan_level = cov_next;
+            /* the plan lines: the full pass's size needs no word (the options say it) */
+            int64_t photons = units == p->kmax ? p->photons : (p->photons * units + p->kmax / 2) / p->kmax;
+            if (photons < 1)
+                photons = 1;
+            char l1[64], l2[64], l3[64], l4[64], l5[64];
+            /* the pass's weight in the running image: its size against a full pass's (exactly 1
+             * for a full pass, so that passes of one size average as they always did) */
+            snprintf(l3, sizeof l3, "%d %.17g\n", next, (double)units / p->kmax);
+            if (units == p->kmax) {
+                snprintf(l1, sizeof l1, "%d\n", next);
+                snprintf(l2, sizeof l2, "%d\n", next);
+            } else {
+                snprintf(l1, sizeof l1, "%d %" PRId64 "\n", next, photons);
+                snprintf(l2, sizeof l2, "%d %d\n", next, units);
+            }
+            /* passes.txt names the pass before it is asked for: a run stopped while it is under
+             * way leaves "pending", which the next run settles by running.pm's count */
+            pass_t ps = {.pass = next, .photons = photons, .primary = units, .added = 1};
+            for (int i = 0; i < NSTAGE; i++)
+                ps.cpu_s[i] = -1.0;
+            snprintf(ps.err, sizeof ps.err, "pending");
+            if (add_pass(p, &ps) != 0 || write_list(p) != 0) {
+                say(p, "cannot write '%s/passes.txt': %s", p->out, strerror(errno));
+                rc = 3;
+                break;
+            }
+            /* its adaptive map, from the running image as it is now (the passes logged) */
+            if ((rc = adapt(p, pass, next)) != 0)
+                break;
+            snprintf(l4, sizeof l4, hold ? "%d 1\n" : "%d\n", next);
+            /* the caustic gather's levels are not foreseen: the budget's last passes keep its
+             * samples */
+            int hold_cg = budget >= 0.0 && pm_progressive_hold_caustic(k, nk, p->kmax, units);
+            snprintf(l5, sizeof l5, hold_cg ? "%d 1\n" : "%d\n", next);
+            if (hold_cg && s->verbose)
+                say(p,
+                    "pass %d: the caustic gather keeps its coverage samples if they are one level coarser (the pass "
+                    "is cut short by the budget: %d of %d units)",
+                    next, units, p->kmax);
+            double ts = pm_time_wall();
+            if ((plan_sg >= 0 && write(plan_sg, l4, strlen(l4)) != (ssize_t)strlen(l4)) ||
+                (plan_cg >= 0 && write(plan_cg, l5, strlen(l5)) != (ssize_t)strlen(l5)) ||
+                write(wts, l3, strlen(l3)) != (ssize_t)strlen(l3) ||
+                (plan_tp >= 0 && write(plan_tp, l1, strlen(l1)) != (ssize_t)strlen(l1)) ||
+                write(plan_tg, l2, strlen(l2)) != (ssize_t)strlen(l2)) {
+                failed = next;
+                break;
+            }
+            fl[next % 2].shared = inflight > 0; /* planned ahead of another pass */
+            if (inflight)
+                fl[planned % 2].shared = 1;
+            fl[next % 2].pass = next, fl[next % 2].units = units, fl[next % 2].hold = hold;
+            fl[next % 2].cov_next = cov_next, fl[next % 2].cov_extra = cov_extra, fl[next % 2].ts = ts;
+            planned = next;
+            inflight++;
         }
-        /* the plan lines: the full pass's size needs no word (the options say it) */
-        int64_t photons = units == p->kmax ? p->photons : (p->photons * units + p->kmax / 2) / p->kmax;
-        if (photons < 1)
-            photons = 1;
-        char l1[64], l2[64], l3[64], l4[64], l5[64];
-        /* the pass's weight in the running image: its size against a full pass's (exactly 1
-         * for a full pass, so that passes of one size average as they always did) */
-        snprintf(l3, sizeof l3, "%d %.17g\n", next, (double)units / p->kmax);
-        if (units == p->kmax) {
-            snprintf(l1, sizeof l1, "%d\n", next);
-            snprintf(l2, sizeof l2, "%d\n", next);
-        } else {
-            snprintf(l1, sizeof l1, "%d %" PRId64 "\n", next, photons);
-            snprintf(l2, sizeof l2, "%d %d\n", next, units);
-        }
-        /* passes.txt names the pass before it is asked for: a run stopped while it is under way
-         * leaves "pending", which the next run settles by running.pm's count */
-        pass_t ps = {.pass = next, .photons = photons, .primary = units, .added = 1};
-        for (int i = 0; i < NSTAGE; i++)
-            ps.cpu_s[i] = -1.0;
-        snprintf(ps.err, sizeof ps.err, "pending");
-        if (add_pass(p, &ps) != 0 || write_list(p) != 0) {
-            say(p, "cannot write '%s/passes.txt': %s", p->out, strerror(errno));
-            rc = 3;
+        if (rc != 0 || failed || inflight == 0)
             break;
-        }
-        double ts = pm_time_wall(), c0[NSTAGE];
-        for (int i = 0; i < NSTAGE; i++)
-            c0[i] = proc[i] ? pm_proc_cpu_s(proc[i]) : -1.0;
-        snprintf(l4, sizeof l4, hold ? "%d 1\n" : "%d\n", next);
-        /* the caustic gather's levels are not foreseen: the budget's last passes keep its samples */
-        int hold_cg = budget >= 0.0 && pm_progressive_hold_caustic(k, nk, p->kmax, units);
-        snprintf(l5, sizeof l5, hold_cg ? "%d 1\n" : "%d\n", next);
-        if (hold_cg && s->verbose)
-            say(p,
-                "pass %d: the caustic gather keeps its coverage samples if they are one level coarser (the pass is "
-                "cut short by the budget: %d of %d units)",
-                next, units, p->kmax);
-        if ((plan_sg >= 0 && write(plan_sg, l4, strlen(l4)) != (ssize_t)strlen(l4)) ||
-            (plan_cg >= 0 && write(plan_cg, l5, strlen(l5)) != (ssize_t)strlen(l5)) ||
-            write(wts, l3, strlen(l3)) != (ssize_t)strlen(l3) ||
-            (plan_tp >= 0 && write(plan_tp, l1, strlen(l1)) != (ssize_t)strlen(l1)) ||
-            write(plan_tg, l2, strlen(l2)) != (ssize_t)strlen(l2)) {
-            failed = next;
-            break;
-        }
+        /* the oldest pass in flight: its log line */
+        int next = pass + 1, units = fl[next % 2].units, hold = fl[next % 2].hold, cov_next = fl[next % 2].cov_next;
+        double cov_extra = fl[next % 2].cov_extra, ts = fl[next % 2].ts;
         char line[256];
         uint64_t lp = 0, ln = 0;
         char err[32] = "";
@@ -1219,15 +1307,19 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         double te = pm_time_wall();
         if (*first_out < 0)
             *first_out = te - t0;
-        pass_t *pp = &p->passes[p->npasses - 1];
-        pp->wall_s = te - ts;
-        /* each stage's CPU in the pass: all of it lies between the plan lines and the log line,
-         * since the next pass is asked for only now */
+        pass_t *pp = &p->passes[p->npasses - (planned - next) - 1];
+        pp->wall_s = te - (t_log > ts ? t_log : ts);
+        t_log = te;
+        /* each stage's CPU in the pass: since the log line before it (one pass at a time: all of
+         * it lies between the plan lines and the log line, since the next pass is asked for
+         * only now) */
         for (int i = 0; i < NSTAGE; i++) {
             double c1 = proc[i] ? pm_proc_cpu_s(proc[i]) : -1.0;
-            pp->cpu_s[i] = c0[i] >= 0.0 && c1 >= c0[i] ? c1 - c0[i] : -1.0;
+            pp->cpu_s[i] = c_log[i] >= 0.0 && c1 >= c_log[i] ? c1 - c_log[i] : -1.0;
+            c_log[i] = c1;
         }
         snprintf(pp->err, sizeof pp->err, "%s", err);
+        inflight--;
         if (next == 1 || !p->radius1[0])
             read_radius1(p);
         if (write_list(p) != 0) {
@@ -1251,6 +1343,8 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
             if (sg >= 0.0)
                 cov_sg = sg, cov_units = units, cov_cost_level = cov_next;
             cov_level = cov_next;
+            if (cov_plan_level == INT_MIN)
+                cov_plan_level = cov_next;
             if (s->verbose) { /* what was set aside against what it took (the next level's foresight) */
                 char fore[96] = "", took[96] = "";
                 if (cov_extra > 0.0)
@@ -1264,21 +1358,25 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         } else if (sg >= 0.0 && sg / units < sg_rate) {
             sg_rate = sg / units;
         }
-        if (nk < 4096)
-            k[nk] = units, sec[nk] = te - ts, nk++;
+        if (nk < 4096 && !fl[next % 2].shared)
+            k[nk] = units, sec[nk] = pp->wall_s, nk++;
         pass = next;
-        if ((rc = adapt(p, next)) != 0)
-            break;
+        if (depth > 1)
+            unadapt(p, next); /* composite has weighed the pass by its map */
         run_hook(p, env, next, te - t0);
         double e;
-        if (target > 0.0 && pm_parse_double(err, &e) == PM_OK && e <= target) {
+        if (target > 0.0 && pm_parse_double(err, &e) == PM_OK && e <= target && !stopping) {
             snprintf(stopbuf, sizeof stopbuf, "TARGET_ERROR=%s", val(p, PM_P_TARGET_ERROR));
             stop = stopbuf;
-            break;
+            stopping = 1;
         }
     }
-    if (p->npasses && !strcmp(p->passes[p->npasses - 1].err, "pending")) { /* a pass that did not land */
-        p->npasses--;
+    /* the map the next pass would take, as OUTDIR/adaptive.pm */
+    if (rc == 0 && !failed && p->adaptive)
+        rc = adapt(p, pass, 0);
+    if (p->npasses && !strcmp(p->passes[p->npasses - 1].err, "pending")) { /* passes that did not land */
+        while (p->npasses && !strcmp(p->passes[p->npasses - 1].err, "pending"))
+            p->npasses--;
         if (write_list(p) != 0 && rc == 0)
             say(p, "cannot write '%s/passes.txt': %s", p->out, strerror(errno)), rc = 3;
     }

@@ -57,6 +57,7 @@ static const struct {
     [PM_P_ADAPTIVE] = {"ADAPTIVE", "auto"},
     [PM_P_DIFFUSE_DEPTH] = {"DIFFUSE_DEPTH", "auto"},
     [PM_P_DIFFUSE_FROM] = {"DIFFUSE_FROM", ""},
+    [PM_P_OVERLAP] = {"OVERLAP", "auto"},
 };
 
 const char *pm_param_name(pm_param_t p) { return p < PM_P_COUNT ? params[p].name : ""; }
@@ -149,7 +150,8 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
         (r = choice(s, PM_P_VERBOSE, bits)) || (r = choice(s, PM_P_WAIT, bits)) || (r = choice(s, PM_P_QUIET, bits)) ||
         (r = choice(s, PM_P_GUIDE, bits)) || (r = choice(s, PM_P_KEEP, keeps)) ||
         (r = choice(s, PM_P_SECONDARY_DIRECT, autobits)) || (r = choice(s, PM_P_COVERAGE, autobits)) ||
-        (r = choice(s, PM_P_ADAPTIVE, autobits)) || (r = choice(s, PM_P_DIFFUSE_DEPTH, depths)))
+        (r = choice(s, PM_P_ADAPTIVE, autobits)) || (r = choice(s, PM_P_OVERLAP, autobits)) ||
+        (r = choice(s, PM_P_DIFFUSE_DEPTH, depths)))
         return r;
     const char *dd = s->value[PM_P_DIFFUSE_DEPTH];
     int dd_auto = !strcmp(dd, "auto");
@@ -244,6 +246,11 @@ pm_result_t pm_settings_parse(pm_settings_t *s, int argc, char **argv)
     if (!strcmp(s->value[PM_P_ADAPTIVE], "1") && s->value[PM_P_PASS_RANGE][0])
         return pm_error_set(PM_ERR_USAGE, "ADAPTIVE=1 with PASS_RANGE: the pass files are not adaptive (the resident "
                                           "passes are)");
+    /* Overlapped passes: the resident passes only; auto for a TIME budget, whose passes' sizes
+     * depend on the machine anyway, so that PASSES and TARGET_ERROR renders keep their bytes (an
+     * overlapped adaptive pass takes the map of the image one pass older). */
+    s->overlap = s->progressive && (!strcmp(s->value[PM_P_OVERLAP], "1") ||
+                                    (!strcmp(s->value[PM_P_OVERLAP], "auto") && s->value[PM_P_TIME][0]));
     s->guide = s->value[PM_P_GUIDE][0] == '1';
     /* The boundary correction divides by the covered part of one kernel width: simd-gather with
      * fixed widths only (docs/programs/simd-gather.md, "Coverage"). auto turns it on for

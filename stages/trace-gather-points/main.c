@@ -79,6 +79,7 @@ typedef struct {
     const char *adaptive;    /* --adaptive MAP: each pixel's primary rays times its multiplier, NULL for none */
     uint64_t adaptive_hash;  /* the pass's map's content hash; adaptive_used: a map was read for the pass */
     int adaptive_used;
+    char adaptive_path[4200]; /* the pass's map: --adaptive with its "%d" (if any) the pass number */
 } tgp_options_t;
 
 /* Where the eye tracer's results go: the queries into the spool, the direct rows into one
@@ -118,8 +119,8 @@ static pm_result_t check_writable(const char *path) { return path ? pm_atomic_ch
  * reads to weigh the pixels) and an INPUT line (provenance). */
 static pm_result_t set_adaptive(pm_header_t *h, const tgp_options_t *o)
 {
-    pm_result_t r = pm_header_set(h, "adaptive", "%s xxh3:%016" PRIx64, o->adaptive, o->adaptive_hash);
-    return r == PM_OK ? pm_header_add_input(h, o->adaptive, o->adaptive_hash) : r;
+    pm_result_t r = pm_header_set(h, "adaptive", "%s xxh3:%016" PRIx64, o->adaptive_path, o->adaptive_hash);
+    return r == PM_OK ? pm_header_add_input(h, o->adaptive_path, o->adaptive_hash) : r;
 }
 
 /* The caustic queries: their header (the queries header, kind=caustic) and records. */
@@ -187,10 +188,18 @@ static pm_result_t load_adaptive(pm_stage_t *st, tgp_options_t *o, uint32_t w, u
     o->adaptive_used = 0;
     if (!o->adaptive)
         return PM_OK;
-    if ((o->passes || o->plan) && access(o->adaptive, F_OK) != 0 && errno == ENOENT)
+    /* "%d" in MAP: the pass's own map (pm-render's overlapped passes, each traced before the image
+     * its map would be made from is done: a map per pass, written before its plan line) */
+    const char *d = strstr(o->adaptive, "%d");
+    if (d)
+        snprintf(o->adaptive_path, sizeof o->adaptive_path, "%.*s%" PRId64 "%s", (int)(d - o->adaptive), o->adaptive,
+                 o->pass, d + 2);
+    else
+        snprintf(o->adaptive_path, sizeof o->adaptive_path, "%s", o->adaptive);
+    if ((o->passes || o->plan) && access(o->adaptive_path, F_OK) != 0 && errno == ENOENT)
         return PM_OK;
     float *m = NULL;
-    pm_result_t r = pm_adaptive_read(o->adaptive, PM_DENSITY_MULTIPLIER, w, h, &m, &o->adaptive_hash, NULL);
+    pm_result_t r = pm_adaptive_read(o->adaptive_path, PM_DENSITY_MULTIPLIER, w, h, &m, &o->adaptive_hash, NULL);
     uint64_t n = (uint64_t)w * h, rays = 0;
     uint32_t *cnt = r == PM_OK ? malloc((n ? n : 1) * sizeof *cnt) : NULL;
     if (r == PM_OK && !cnt)
@@ -200,7 +209,7 @@ static pm_result_t load_adaptive(pm_stage_t *st, tgp_options_t *o, uint32_t w, u
             r = pm_error_set(PM_ERR_INPUT,
                              "density map '%s': pixel %" PRIu64 " multiplier %g times %" PRIu32
                              " primary rays is above %d rays",
-                             o->adaptive, i, (double)m[i], primary, PM_ADAPTIVE_RAYS_MAX);
+                             o->adaptive_path, i, (double)m[i], primary, PM_ADAPTIVE_RAYS_MAX);
         rays += cnt[i];
     }
     free(m);
@@ -546,7 +555,8 @@ int main(int argc, char **argv)
         {"adaptive", 0, PM_OPT_STRING, &o.adaptive, "MAP",
          "adaptive pass: pixel p gets round(m_p x primary) primary rays (at least 1), m_p from this density map "
          "(kind=multiplier, the image's size; composite --adaptive-map); headers say adaptive=MAP HASH; with "
-         "--passes or --plan it is read before each pass, and a pass that finds no MAP is uniform",
+         "--passes or --plan it is read before each pass, a %d in MAP standing for the pass's number, and a pass "
+         "that finds no MAP is uniform",
          1, 0, NULL},
         {"secondary-direct", 0, PM_OPT_FLAG, &o.secondary_direct, NULL,
          "also take a light sample of each light at every gather point into the direct buffer (an area light's "

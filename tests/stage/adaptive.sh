@@ -151,3 +151,30 @@ expect_exit "ADAPTIVE=1 for one pass is a usage error" 2 "$R" "$CORNELL" "$TMP/u
 expect_exit "ADAPTIVE=1 with KEEP=all (the pass files) is a usage error" 2 \
     "$R" "$CORNELL" "$TMP/u2" $SMALL PASSES=2 KEEP=all ADAPTIVE=1
 expect_exit "ADAPTIVE=maybe is a usage error" 2 "$R" "$CORNELL" "$TMP/u3" $SMALL PASSES=2 ADAPTIVE=maybe
+
+# ---- pm-render OVERLAP: the next pass planned and traced while the one before is sorted and
+# gathered (auto: a TIME budget's, whose sizes are the machine's; forced here on PASSES renders,
+# which plan every pass ahead). The passes before the first adaptive one (the 5th) are the same
+# bytes either way. An overlapped adaptive pass takes the map of the image one pass older, read
+# from a map of its own (adaptive-P.pm, gone once its pass is in the running image), so the
+# running image is the same for any THREADS and differs from one pass at a time.
+if "$R" "$CORNELL" "$TMP/o4" $SMALL PASSES=4 OVERLAP=1 >"$TMP/o4.out" 2>&1 &&
+    "$R" "$CORNELL" "$TMP/s4" $SMALL PASSES=4 OVERLAP=0 >"$TMP/s4.out" 2>&1 &&
+    cmp -s <(records "$TMP/o4/running.pm") <(records "$TMP/s4/running.pm"); then
+    pass "pm-render OVERLAP=1, 4 uniform passes: the running image of one pass at a time"
+else
+    fail "pm-render OVERLAP=1 uniform passes" "$(tail -2 "$TMP/o4.out" "$TMP/s4.out")"
+fi
+if "$R" "$CORNELL" "$TMP/o1" $SMALL PASSES=7 ADAPTIVE=1 OVERLAP=1 THREADS=1 >"$TMP/o1.out" 2>&1 &&
+    "$R" "$CORNELL" "$TMP/o2" $SMALL PASSES=7 ADAPTIVE=1 OVERLAP=1 THREADS=2 >"$TMP/o2.out" 2>&1 &&
+    "$R" "$CORNELL" "$TMP/s7" $SMALL PASSES=7 ADAPTIVE=1 OVERLAP=0 >"$TMP/s7.out" 2>&1 &&
+    [ "$(jq .total.passes "$TMP/o1/stats.json")" = 7 ] && [ -f "$TMP/o1/adaptive.pm" ] &&
+    ! ls "$TMP"/o1/adaptive-*.pm >/dev/null 2>&1 &&
+    cmp -s <(records "$TMP/o1/running.pm") <(records "$TMP/o2/running.pm") &&
+    cmp -s <(records "$TMP/o1/running.pm.weight") <(records "$TMP/o2/running.pm.weight") &&
+    ! cmp -s <(records "$TMP/o1/running.pm") <(records "$TMP/s7/running.pm"); then
+    pass "pm-render OVERLAP=1 ADAPTIVE=1, 7 passes: the same running image for THREADS=1 and 2, no per-pass map left, adaptive.pm kept"
+else
+    fail "pm-render OVERLAP=1 ADAPTIVE=1" "$(ls "$TMP/o1"; tail -2 "$TMP/o1.out")"
+fi
+expect_exit "OVERLAP=maybe is a usage error" 2 "$R" "$CORNELL" "$TMP/u4" $SMALL PASSES=2 OVERLAP=maybe

@@ -1164,7 +1164,9 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
     int depth = p->s->overlap ? 2 : 1, planned = first - 1, inflight = 0, stopping = 0, diffuse_scaled = 0;
     struct {
         int pass, units, hold, cov_next, shared; /* shared: in flight beside another pass */
+        int held_weight;                         /* its weight line not yet written (below) */
         double cov_extra, ts;
+        char weight[64];
     } fl[2];
     double t_log = -1.0, c_log[NSTAGE];
     for (int i = 0; i < NSTAGE; i++)
@@ -1202,7 +1204,7 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
                 int n = nk;
                 if (inflight) {
                     double t = time_bound(k, sec, nk, p->kmax);
-                    left -= t;
+                    left -= t + (fl[planned % 2].hold ? 0.0 : fl[planned % 2].cov_extra);
                     k[n] = p->kmax, sec[n] = t, n++;
                 }
                 /* a pass at a new coverage level: its sampling, the last one's cost (measured with
@@ -1277,12 +1279,19 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
             double ts = pm_time_wall();
             if ((plan_sg >= 0 && write(plan_sg, l4, strlen(l4)) != (ssize_t)strlen(l4)) ||
                 (plan_cg >= 0 && write(plan_cg, l5, strlen(l5)) != (ssize_t)strlen(l5)) ||
-                write(wts, l3, strlen(l3)) != (ssize_t)strlen(l3) ||
+                (!inflight && write(wts, l3, strlen(l3)) != (ssize_t)strlen(l3)) ||
                 (plan_tp >= 0 && write(plan_tp, l1, strlen(l1)) != (ssize_t)strlen(l1)) ||
                 write(plan_tg, l2, strlen(l2)) != (ssize_t)strlen(l2)) {
                 failed = next;
                 break;
             }
+            /* A pass planned ahead of another has its weight line held back until the log line
+             * of the pass before the one in flight has been read and the maps made from the
+             * image after it: composite waits for a pass's weight before it adds the pass, so
+             * running.pm cannot move on under the driver's map (the map of a pass planned ahead
+             * is the image's after the pass before the one in flight, exactly). */
+            fl[next % 2].held_weight = inflight > 0;
+            snprintf(fl[next % 2].weight, sizeof fl[next % 2].weight, "%s", l3);
             fl[next % 2].shared = inflight > 0; /* planned ahead of another pass */
             if (inflight)
                 fl[planned % 2].shared = 1;
@@ -1293,6 +1302,16 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         }
         if (rc != 0 || failed || inflight == 0)
             break;
+        /* the oldest pass in flight: its weight line, if held back (the maps from the image
+         * before it are made) */
+        if (fl[(pass + 1) % 2].held_weight) {
+            const char *w = fl[(pass + 1) % 2].weight;
+            if (write(wts, w, strlen(w)) != (ssize_t)strlen(w)) {
+                failed = pass + 1;
+                break;
+            }
+            fl[(pass + 1) % 2].held_weight = 0;
+        }
         /* the oldest pass in flight: its log line */
         int next = pass + 1, units = fl[next % 2].units, hold = fl[next % 2].hold, cov_next = fl[next % 2].cov_next;
         double cov_extra = fl[next % 2].cov_extra, ts = fl[next % 2].ts;
@@ -1339,8 +1358,9 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
                 "pass %d: the gather keeps its coverage samples, %.3g m apart (a new level's, about %.2g s, does not "
                 "fit the budget or would take half the pass)",
                 next, pm_coverage_level_spacing(cov_level), cov_extra);
+        int alone = !fl[next % 2].shared; /* a shared pass's CPU span holds parts of its neighbours */
         if (!hold && p->cover_plan && cov_next != INT_MIN && cov_next != INT_MAX && cov_next != cov_level) {
-            if (sg >= 0.0)
+            if (sg >= 0.0 && alone)
                 cov_sg = sg, cov_units = units, cov_cost_level = cov_next;
             cov_level = cov_next;
             if (cov_plan_level == INT_MIN)
@@ -1355,11 +1375,20 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
                 say(p, "pass %d: the gather samples the scene at a new coverage level, %.3g m apart%s%s", next,
                     pm_coverage_level_spacing(cov_next), fore, took);
             }
-        } else if (sg >= 0.0 && sg / units < sg_rate) {
+        } else if (sg >= 0.0 && alone && sg / units < sg_rate) {
             sg_rate = sg / units;
         }
-        if (nk < 4096 && !fl[next % 2].shared)
-            k[nk] = units, sec[nk] = pp->wall_s, nk++;
+        /* A pass that ran alone enters the bounds with its wall time. One in flight beside
+         * another enters at the bound the others give it, which tightens no bound but keeps its
+         * size (the largest pass so far, the caustic gather's holds); its span from one log line
+         * to the next bounds nothing (a pass traced during the tail before it logged 0.03 s). A
+         * pass before DIFFUSE_FROM logged after the bouncing passes' scaling is scaled too. */
+        if (nk < 4096) {
+            double t = fl[next % 2].shared && nk > 0 ? time_bound(k, sec, nk, units) : pp->wall_s;
+            if (diffuse_scaled && next < s->diffuse_from && !(fl[next % 2].shared && nk > 0))
+                t *= DIFFUSE_COST;
+            k[nk] = units, sec[nk] = t, nk++;
+        }
         pass = next;
         if (depth > 1)
             unadapt(p, next); /* composite has weighed the pass by its map */
@@ -1375,8 +1404,14 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
     if (rc == 0 && !failed && p->adaptive)
         rc = adapt(p, pass, 0);
     if (p->npasses && !strcmp(p->passes[p->npasses - 1].err, "pending")) { /* passes that did not land */
-        while (p->npasses && !strcmp(p->passes[p->npasses - 1].err, "pending"))
+        /* Those never asked for go; those in flight when a failure ended the loop stay
+         * "pending" (composite may still add them), for the next run to settle by running.pm's
+         * count, as it settles a stopped run's. */
+        while (p->npasses && !strcmp(p->passes[p->npasses - 1].err, "pending") &&
+               p->passes[p->npasses - 1].pass > planned)
             p->npasses--;
+        for (int j = pass + 1; j <= planned; j++)
+            unadapt(p, j);
         if (write_list(p) != 0 && rc == 0)
             say(p, "cannot write '%s/passes.txt': %s", p->out, strerror(errno)), rc = 3;
     }

@@ -190,7 +190,7 @@ static pm_result_t load_adaptive(pm_stage_t *st, tgp_options_t *o, uint32_t w, u
         return PM_OK;
     /* "%d" in MAP: the pass's own map (pm-render's overlapped passes, each traced before the image
      * its map would be made from is done: a map per pass, written before its plan line) */
-    const char *d = strstr(o->adaptive, "%d");
+    const char *base = strrchr(o->adaptive, '/'), *d = strstr(base ? base + 1 : o->adaptive, "%d"); /* the name's */
     if (d)
         snprintf(o->adaptive_path, sizeof o->adaptive_path, "%.*s%" PRId64 "%s", (int)(d - o->adaptive), o->adaptive,
                  o->pass, d + 2);
@@ -555,8 +555,8 @@ int main(int argc, char **argv)
         {"adaptive", 0, PM_OPT_STRING, &o.adaptive, "MAP",
          "adaptive pass: pixel p gets round(m_p x primary) primary rays (at least 1), m_p from this density map "
          "(kind=multiplier, the image's size; composite --adaptive-map); headers say adaptive=MAP HASH; with "
-         "--passes or --plan it is read before each pass, a %d in MAP standing for the pass's number, and a pass "
-         "that finds no MAP is uniform",
+         "--passes or --plan it is read before each pass, a %d in MAP's file name standing for the pass's number, "
+         "and a pass that finds no MAP is uniform",
          1, 0, NULL},
         {"secondary-direct", 0, PM_OPT_FLAG, &o.secondary_direct, NULL,
          "also take a light sample of each light at every gather point into the direct buffer (an area light's "

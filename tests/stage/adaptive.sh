@@ -177,4 +177,11 @@ if "$R" "$CORNELL" "$TMP/o1" $SMALL PASSES=7 ADAPTIVE=1 OVERLAP=1 THREADS=1 >"$T
 else
     fail "pm-render OVERLAP=1 ADAPTIVE=1" "$(ls "$TMP/o1"; tail -2 "$TMP/o1.out")"
 fi
+# an OUTDIR whose name holds "%d": the pass number goes into the map's file name only
+if "$R" "$CORNELL" "$TMP/o%d" $SMALL PASSES=7 ADAPTIVE=1 OVERLAP=1 THREADS=1 >"$TMP/od.out" 2>&1 &&
+    cmp -s <(records "$TMP/o1/running.pm") <(records "$TMP/o%d/running.pm"); then
+    pass "pm-render OVERLAP=1 ADAPTIVE=1 in an OUTDIR named o%d: the running image of any other OUTDIR"
+else
+    fail "pm-render OVERLAP=1 in an OUTDIR with %d" "$(tail -2 "$TMP/od.out")"
+fi
 expect_exit "OVERLAP=maybe is a usage error" 2 "$R" "$CORNELL" "$TMP/u4" $SMALL PASSES=2 OVERLAP=maybe

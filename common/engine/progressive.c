@@ -1163,8 +1163,8 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
      * stages' in that span. */
     int depth = p->s->overlap ? 2 : 1, planned = first - 1, inflight = 0, stopping = 0, diffuse_scaled = 0;
     struct {
-        int pass, units, hold, cov_next, shared; /* shared: in flight beside another pass */
-        int held_weight;                         /* its weight line not yet written (below) */
+        int units, hold, cov_next, shared; /* shared: in flight beside another pass */
+        int held_weight;                   /* its weight line not yet written (below) */
         double cov_extra, ts;
         char weight[64];
     } fl[2];
@@ -1295,7 +1295,7 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
             fl[next % 2].shared = inflight > 0; /* planned ahead of another pass */
             if (inflight)
                 fl[planned % 2].shared = 1;
-            fl[next % 2].pass = next, fl[next % 2].units = units, fl[next % 2].hold = hold;
+            fl[next % 2].units = units, fl[next % 2].hold = hold;
             fl[next % 2].cov_next = cov_next, fl[next % 2].cov_extra = cov_extra, fl[next % 2].ts = ts;
             planned = next;
             inflight++;

@@ -42,7 +42,10 @@ struct pm_trace_arena {
     size_t used, cap; /* bytes of the current block */
 };
 
-enum { ARENA_BLOCK = 16 << 20 };
+/* bytes: an arena's first block at most, and at least (a small pass's first block is sized to
+ * its photons: a TIME budget's first pass of 4,688 photons stored 190 KB and populated two
+ * 16-MiB blocks, a third of trace-photons' CPU in that pass) */
+enum { ARENA_BLOCK = 16 << 20, ARENA_BLOCK_MIN = 64 << 10 };
 
 /* One output of a chunk: its records, contiguous inside its arena's current block. */
 typedef struct {
@@ -75,6 +78,9 @@ typedef struct {
  * so that a photon count too large for the machine ends in an out-of-memory error (exit 3)
  * instead of the OOM killer. One trace runs at a time in a process. */
 static size_t arena_bytes, arena_budget;
+/* The running trace's first block: room for twice the records its photons would store on
+ * one thread at one record a path, ARENA_BLOCK_MIN to ARENA_BLOCK. */
+static size_t arena_first = ARENA_BLOCK;
 
 /* This machine's physical memory, bytes (SIZE_MAX when unknown). */
 static size_t physical_memory(void)
@@ -91,7 +97,7 @@ static int run_reserve(run_t *c, size_t rs)
     pm_trace_arena_t *a = c->arena;
     if (a->used + rs <= a->cap)
         return 0;
-    size_t have = c->n * rs, cap = ARENA_BLOCK;
+    size_t have = c->n * rs, cap = arena_first;
     while (cap < 2 * (have + rs))
         cap *= 2;
     if (__atomic_add_fetch(&arena_bytes, cap, __ATOMIC_RELAXED) > arena_budget)
@@ -442,6 +448,9 @@ pm_result_t pm_trace_photons(const pm_scene_t *s, const pm_rt_t *rt, const pm_tr
     pm_error_slot_t err;
     pm_error_slot_init(&err);
     int nthreads = omp_get_max_threads();
+    double per_thread = 2.0 * (double)o->photons * t.rs / (nthreads > 0 ? nthreads : 1);
+    for (arena_first = ARENA_BLOCK_MIN; arena_first < ARENA_BLOCK && (double)arena_first < per_thread;)
+        arena_first *= 2;
     /* Two arenas a thread: each output's runs stay contiguous in their own. */
     pm_trace_arena_t *arenas = aligned_alloc(64, (size_t)nthreads * NOUT * sizeof *arenas);
     if (arenas)

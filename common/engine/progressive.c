@@ -162,6 +162,7 @@ typedef struct {
     char settings[8192];    /* what the running image depends on, one line */
     char request[512];      /* PASSES, TIME, TARGET_ERROR, EXPOSURE, TONE, HALF of this run */
     char old_request[512];  /* passes.txt's, when the state is kept */
+    int finished;           /* the request is met: passes.txt names it (else its request is empty) */
     pass_t *passes;         /* passes.txt's and this run's */
     int npasses, cap;
     char radius1[64];
@@ -172,6 +173,7 @@ typedef struct {
     const char *order;      /* hilbert-sort --order (ORDER=auto resolved; hilbert-sort off for none) */
     int adaptive;           /* ADAPTIVE on, with a direct buffer for composite to weigh the pixels by */
     double adapt_s;         /* s the driver spent making the adaptive maps */
+    double adapt_last;      /* s the last map took: the next one's time, which a TIME budget sets aside */
     double spawn_s;         /* s from the command's start to the stages' start: pm-render's own */
     double ready_s[NSTAGE]; /* s from the command's start to a tracer's --ready line (-1: none) */
     int cover_plan;         /* the global gather has --coverage: a TIME render's planner foresees the
@@ -356,7 +358,7 @@ static int write_list(prog_t *p)
     fprintf(f,
             "# pm-render's resident passes: what running.pm holds (docs/pipelines.md, \"Progressive passes\")\n"
             "settings %s\nrequest %s\n# pass photons primary relative_error\n",
-            p->settings, p->request);
+            p->settings, p->finished ? p->request : "");
     for (int i = 0; i < p->npasses; i++)
         fprintf(f, "%d %" PRId64 " %d %s\n", p->passes[i].pass, p->passes[i].photons, p->passes[i].primary,
                 p->passes[i].err);
@@ -1025,7 +1027,8 @@ static int adapt(prog_t *p, int held, int for_pass)
     double t = pm_time_wall();
     char *argv[] = {(char *)p->me, "ADAPTIVE", state};
     pm_result_t r = pm_adaptive_from_state(state, map, 3, argv, NULL);
-    p->adapt_s += pm_time_wall() - t;
+    p->adapt_last = pm_time_wall() - t;
+    p->adapt_s += p->adapt_last;
     if (r != PM_OK) {
         say(p, "cannot make the adaptive map: %s", pm_error_message());
         return r == PM_ERR_INPUT ? 1 : 3;
@@ -1182,7 +1185,8 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
                 break;
             }
             if (budget >= 0.0) {
-                double left = budget - (pm_time_wall() - t0) - TAIL_S;
+                /* the next pass's adaptive map is made once it is sized: as long as the last */
+                double left = budget - (pm_time_wall() - t0) - TAIL_S - p->adapt_last;
                 /* the passes from DIFFUSE_FROM on cost more per unit than those before it (1.4 to
                  * 1.5 times, docs/accuracy.md): the earlier passes bound them at DIFFUSE_COST
                  * times their time, so that the first bouncing pass is sized (or the render
@@ -1433,7 +1437,7 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
     signal(SIGPIPE, old_pipe);
     int first_bad = -1;
     char *errs[NSTAGE] = {0};
-    int codes[NSTAGE] = {0};
+    int codes[NSTAGE] = {0}, sigs[NSTAGE] = {0};
     for (int i = 0; i < NSTAGE; i++) {
         if (!proc[i])
             continue;
@@ -1441,13 +1445,23 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         if (pm_proc_wait(proc[i], &st) != PM_OK)
             st.exit_code = 4;
         codes[i] = st.exit_code;
+        sigs[i] = st.signal;
         errs[i] = st.err;
         if (st.exit_code && first_bad < 0)
             first_bad = i;
     }
     if (rc == 0 && (failed || first_bad >= 0)) {
-        /* the stage that failed first names the cause; the others then fail on its pipes */
+        /* the stage that failed first names the cause; the others then fail on its pipes. A
+         * stage a signal other than SIGPIPE ended (killed, or crashed) is it: its neighbours
+         * then fail writing to it or reading from it, some with messages of their own. Else the
+         * stage that says why. */
+        int named = 0;
         for (int i = 0; i < NSTAGE; i++)
+            if (sigs[i] && sigs[i] != SIGPIPE) {
+                first_bad = i, named = 1;
+                break;
+            }
+        for (int i = 0; i < NSTAGE && !named; i++)
             if (codes[i] && errs[i] && errs[i][0] && !strstr(errs[i], "Broken pipe") && !strstr(errs[i], "truncated") &&
                 !strstr(errs[i], "has ended")) {
                 first_bad = i;
@@ -1455,9 +1469,20 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
             }
         if (first_bad >= 0 && errs[first_bad] && errs[first_bad][0])
             fputs(errs[first_bad], stderr);
-        say(p, "pass %d failed%s%s; %s/image.exr and running.pm hold the %d finished passes",
-            failed ? failed : pass + 1, first_bad >= 0 ? " in " : "", first_bad >= 0 ? stage_names[first_bad] : "",
-            p->out, p->npasses);
+        char how[64] = "";
+        if (first_bad >= 0 && sigs[first_bad] && sigs[first_bad] != SIGPIPE)
+            snprintf(how, sizeof how, " (ended by signal %d, %s)", sigs[first_bad], strsignal(sigs[first_bad]));
+        /* passes in flight when it failed stay pending (composite may have added them): the
+         * next run settles them by running.pm's count */
+        int pending = 0;
+        for (int j = 0; j < p->npasses; j++)
+            pending += !strcmp(p->passes[j].err, "pending");
+        char more[96] = "";
+        if (pending)
+            snprintf(more, sizeof more, " (and %d pending, which the next run settles)", pending);
+        say(p, "pass %d failed%s%s%s; %s/image.exr and running.pm hold the %d finished passes%s", pass + 1,
+            first_bad >= 0 ? " in " : "", first_bad >= 0 ? stage_names[first_bad] : "", how, p->out,
+            p->npasses - pending, more);
         rc = first_bad >= 0 && codes[first_bad] == 3 ? 3 : 1;
     }
     for (int i = 0; i < NSTAGE; i++)
@@ -1600,10 +1625,16 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
         /* the images as they are when the request is the same, EXPOSURE, TONE and HALF too */
         if (strcmp(p.request, p.old_request) || access(exr, F_OK) || access(png, F_OK))
             rc = retone(&p, env);
+        p.finished = 1;
         if (rc == 0 && write_list(&p) != 0)
             say(&p, "cannot write '%s/passes.txt'", p.out), rc = 3;
     } else if (!s->guide || (rc = make_guide(&p, env)) == 0) {
         rc = run_passes(&p, env, t0, held + 1, &stop, &first_image);
+        /* only now does passes.txt name the request: a run that failed or was stopped left it
+         * empty, so that the same request again goes on instead of finding nothing to add */
+        p.finished = rc == 0;
+        if (rc == 0 && write_list(&p) != 0)
+            say(&p, "cannot write '%s/passes.txt'", p.out), rc = 3;
     }
     if (s->guide) {
         char path[4200];

@@ -97,3 +97,41 @@ jq -e '[.passes[] | (.cpu_s | type == "number" and . >= 0) and (.stages_cpu_s | 
     "$TMP/caustic/res/stats.json" >/dev/null &&
     pass "resident stats.json: every pass's cpu_s and its stages' stages_cpu_s" ||
     fail "resident per-pass cpu_s" "$(jq -c '.passes[0]' "$TMP/caustic/res/stats.json")"
+
+# A stage that dies during a render (the gather killed from RENDER_PASS_HOOK after pass 2, with
+# pass 3 in flight): the message names that stage and the signal, counts as finished only the
+# passes running.pm holds (the one in flight pending), and the same request again goes on to
+# PASSES=6 (it had found "nothing to add") with the bytes of a render that never failed.
+cat >"$TMP/kill-hook" <<'EOF2'
+#!/bin/sh
+[ "$1" = 2 ] || exit 0
+for c in /proc/[0-9]*/cmdline; do
+    if tr '\0' ' ' <"$c" 2>/dev/null | grep -q "simd-gather .*$KILL_OUT/.stats-simd-gather"; then
+        p=${c#/proc/}
+        p=${p%/cmdline}
+        kill -KILL "$p" 2>/dev/null
+        # gone (or a zombie, its pipes closed) before the driver plans the next pass
+        i=0
+        while [ $i -lt 500 ] && [ -e "/proc/$p" ] && ! grep -q '^State:.*Z' "/proc/$p/status" 2>/dev/null; do
+            sleep 0.01
+            i=$((i + 1))
+        done
+    fi
+done
+exit 0
+EOF2
+chmod +x "$TMP/kill-hook"
+K="$TMP/killed"
+KILL_OUT="$K" RENDER_PASS_HOOK="$TMP/kill-hook" "$R" "$CORNELL" "$K" $SMALL PASSES=6 OVERLAP=1 >"$TMP/killed.out" 2>&1
+krc=$?
+"$R" "$CORNELL" "$K" $SMALL PASSES=6 OVERLAP=1 >"$TMP/killed2.out" 2>&1
+k2=$?
+"$R" "$CORNELL" "$TMP/unkilled" $SMALL PASSES=6 OVERLAP=1 >/dev/null 2>&1
+if [ $krc = 1 ] && grep -q 'pass 3 failed in simd-gather (ended by signal 9' "$TMP/killed.out" &&
+    grep -q 'running.pm hold the 2 finished passes (and 1 pending, which the next run settles)' "$TMP/killed.out" &&
+    [ $k2 = 0 ] && grep -q 'stopped by PASSES=6' "$TMP/killed2.out" &&
+    cmp -s <(records "$K/running.pm") <(records "$TMP/unkilled/running.pm"); then
+    pass "a gather killed after pass 2: named with its signal, 2 passes finished and 1 pending; the same request then ends at pass 6, the bytes of a render never stopped"
+else
+    fail "a stage killed during a resident render" "$(tail -1 "$TMP/killed.out"; tail -1 "$TMP/killed2.out")"
+fi

@@ -46,6 +46,9 @@ void pm_memory_reuse(size_t max_bytes);
  * 0, when the kernel has transparent huge pages off or glibc is older, or when the exec fails.
  * t0, the program's start (pm_time_wall), goes to the new image in PMTK_START_S. */
 void pm_memory_huge_malloc(char **argv, double t0);
+/* Bytes the re-executed program's heap grows by at a time (GLIBC_TUNABLES glibc.malloc.top_pad,
+ * added beside glibc.malloc.hugetlb unless GLIBC_TUNABLES names it): 64 MiB. */
+#define PM_MEMORY_TOP_PAD "67108864"
 /* The program's start for a budget that counts from it: PMTK_START_S, which
  * pm_memory_huge_malloc set before it re-executed (and which is taken out of the environment
  * here, so that the programs this one starts do not read it), else now. */

@@ -1,9 +1,10 @@
 # huge-malloc.sh: pm-render re-executes itself with glibc's malloc on huge pages
 # (GLIBC_TUNABLES glibc.malloc.hugetlb=1; docs/cli.md, "Huge pages for malloc"), and every
 # program it starts inherits it:
-#   1. a pass hook, started with the stages' environment, sees glibc.malloc.hugetlb=1 added to
-#      GLIBC_TUNABLES after the tunables it had, and not PMTK_START_S (the first start's time,
-#      which only the re-executed driver reads);
+#   1. a pass hook, started with the stages' environment, sees glibc.malloc.hugetlb=1 and
+#      glibc.malloc.top_pad=67108864 (the heap grown 64 MiB at a time) added to GLIBC_TUNABLES
+#      after the tunables it had, the top_pad only when those do not name one, and not
+#      PMTK_START_S (the first start's time, which only the re-executed driver reads);
 #   2. a GLIBC_TUNABLES that names glibc.malloc.hugetlb is left as it is, and PMTK_HUGE_MALLOC=0
 #      re-executes nothing;
 #   3. the image is the same bytes either way, and trace-reference's the same pixels.
@@ -48,15 +49,21 @@ expect_hook() {
 
 hook_env plain
 if [ $huge = 1 ]; then
-    expect_hook plain "tunables=glibc.malloc.hugetlb=1 start=unset"
+    expect_hook plain "tunables=glibc.malloc.hugetlb=1:glibc.malloc.top_pad=67108864 start=unset"
 else
     expect_hook plain "tunables=unset start=unset"
 fi
 hook_env other GLIBC_TUNABLES=glibc.malloc.arena_max=2
 if [ $huge = 1 ]; then
-    expect_hook other "tunables=glibc.malloc.arena_max=2:glibc.malloc.hugetlb=1 start=unset"
+    expect_hook other "tunables=glibc.malloc.arena_max=2:glibc.malloc.hugetlb=1:glibc.malloc.top_pad=67108864 start=unset"
 else
     expect_hook other "tunables=glibc.malloc.arena_max=2 start=unset"
+fi
+hook_env pad GLIBC_TUNABLES=glibc.malloc.top_pad=1048576
+if [ $huge = 1 ]; then
+    expect_hook pad "tunables=glibc.malloc.top_pad=1048576:glibc.malloc.hugetlb=1 start=unset"
+else
+    expect_hook pad "tunables=glibc.malloc.top_pad=1048576 start=unset"
 fi
 hook_env user GLIBC_TUNABLES=glibc.malloc.hugetlb=0
 expect_hook user "tunables=glibc.malloc.hugetlb=0 start=unset"

@@ -44,7 +44,7 @@ struct pm_trace_arena {
 
 /* bytes: an arena's first block at most, and at least (a small pass's first block is sized to
  * its photons: a TIME budget's first pass of 4,688 photons stored 190 KB and populated two
- * 16-MiB blocks, a third of trace-photons' CPU in that pass) */
+ * 16-MiB blocks, which took its trace from 0.002 s to 0.035 s) */
 enum { ARENA_BLOCK = 16 << 20, ARENA_BLOCK_MIN = 64 << 10 };
 
 /* One output of a chunk: its records, contiguous inside its arena's current block. */

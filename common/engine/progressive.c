@@ -1455,13 +1455,13 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
          * stage a signal other than SIGPIPE ended (killed, or crashed) is it: its neighbours
          * then fail writing to it or reading from it, some with messages of their own. Else the
          * stage that says why. */
-        int named = 0;
+        int killed = 0;
         for (int i = 0; i < NSTAGE; i++)
             if (sigs[i] && sigs[i] != SIGPIPE) {
-                first_bad = i, named = 1;
+                first_bad = i, killed = 1;
                 break;
             }
-        for (int i = 0; i < NSTAGE && !named; i++)
+        for (int i = 0; i < NSTAGE && !killed; i++)
             if (codes[i] && errs[i] && errs[i][0] && !strstr(errs[i], "Broken pipe") && !strstr(errs[i], "truncated") &&
                 !strstr(errs[i], "has ended")) {
                 first_bad = i;
@@ -1470,13 +1470,11 @@ static int run_passes(prog_t *p, char **env, double t0, int first, const char **
         if (first_bad >= 0 && errs[first_bad] && errs[first_bad][0])
             fputs(errs[first_bad], stderr);
         char how[64] = "";
-        if (first_bad >= 0 && sigs[first_bad] && sigs[first_bad] != SIGPIPE)
+        if (killed)
             snprintf(how, sizeof how, " (ended by signal %d, %s)", sigs[first_bad], strsignal(sigs[first_bad]));
         /* passes in flight when it failed stay pending (composite may have added them): the
          * next run settles them by running.pm's count */
-        int pending = 0;
-        for (int j = 0; j < p->npasses; j++)
-            pending += !strcmp(p->passes[j].err, "pending");
+        int pending = trailing_pending(p, p->npasses);
         char more[96] = "";
         if (pending)
             snprintf(more, sizeof more, " (and %d pending, which the next run settles)", pending);
@@ -1625,17 +1623,14 @@ int pm_render_progressive(const pm_settings_t *s, const char *me, const char *bi
         /* the images as they are when the request is the same, EXPOSURE, TONE and HALF too */
         if (strcmp(p.request, p.old_request) || access(exr, F_OK) || access(png, F_OK))
             rc = retone(&p, env);
-        p.finished = 1;
-        if (rc == 0 && write_list(&p) != 0)
-            say(&p, "cannot write '%s/passes.txt'", p.out), rc = 3;
     } else if (!s->guide || (rc = make_guide(&p, env)) == 0) {
         rc = run_passes(&p, env, t0, held + 1, &stop, &first_image);
-        /* only now does passes.txt name the request: a run that failed or was stopped left it
-         * empty, so that the same request again goes on instead of finding nothing to add */
-        p.finished = rc == 0;
-        if (rc == 0 && write_list(&p) != 0)
-            say(&p, "cannot write '%s/passes.txt'", p.out), rc = 3;
     }
+    /* only now does passes.txt name the request: a run that failed or was stopped left it
+     * empty, so that the same request again goes on instead of finding nothing to add */
+    p.finished = rc == 0;
+    if (rc == 0 && write_list(&p) != 0)
+        say(&p, "cannot write '%s/passes.txt'", p.out), rc = 3;
     if (s->guide) {
         char path[4200];
         snprintf(path, sizeof path, "%s/guide-photons.pm", p.out);

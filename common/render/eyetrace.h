@@ -112,14 +112,18 @@ typedef struct {
     uint64_t glossy_rays;      /* single rays of the glossy paths */
     uint64_t guided_hits;      /* primary hits whose secondary rays a guide cell shaped */
     uint64_t guided_rays;      /* secondary rays drawn from a guide cell (the rest: cosine) */
-    double trace_s;            /* wall s of the row loop, without the time spent in the sink */
-    double sink_s;             /* wall s spent in the sink (the caller's output cost) */
+    double trace_s;            /* wall s of the row loop, without the last band's sink calls (the
+                                * others ran beside the next band's rows) */
+    double sink_s;             /* wall s spent in the sink, every band's (the caller's output cost) */
     double trace_cpu_s;        /* CPU s the threads spent tracing rows: immune to other processes' load */
     double secondary_embree_s; /* s inside Embree for secondary rays, summed over threads */
 } pm_eye_stats_t;
 
-/* Where the results go. Both calls are made on the thread that called pm_eye_trace, never
- * concurrently, and a failure they return stops the trace and is returned as it is. */
+/* Where the results go. The calls are made one at a time, never concurrently, in pixel order,
+ * but not always on the thread that called pm_eye_trace: a band's records go out on one of the
+ * tracing threads while the others trace the next band. A failure they return (with its
+ * message, pm_error_set on that thread) stops the trace and is returned as it is, once the band
+ * traced beside it has ended. */
 typedef struct {
     /* count query records (pm_eye_info_t's record_size bytes each), in pixel order; the
      * queries of a pixel are contiguous and pixels come in row-major order. */

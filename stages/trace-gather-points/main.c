@@ -482,6 +482,7 @@ int main(int argc, char **argv)
                        .light_samples = 4,
                        .isa = "auto",
                        .spool_mb = 256,
+                       .schedule = PM_EYE_DYNAMIC,
                        .glossy_depth = PM_EYE_GLOSSY_DEPTH,
                        .diffuse_from = 1};
     char **argv0 = argv;
@@ -515,8 +516,9 @@ int main(int argc, char **argv)
          "packet width: auto (widest this cpu and embree run), scalar (single rays), sse4 (4), avx2 (8), avx512 (16)",
          1, 0, NULL},
         {"schedule", 0, PM_OPT_CHOICE, &o.schedule, "HOW",
-         "rows to threads: interleave (row i to thread i mod T), tiles (contiguous blocks), dynamic", 1, 0,
-         pm_eye_schedule_names},
+         "rows to threads: interleave (row i to thread i mod T), tiles (contiguous blocks), dynamic (as threads "
+         "free up, so that they take the rows of the one spooling a band)",
+         1, 0, pm_eye_schedule_names},
         {"spool-mem", 0, PM_OPT_INT, &o.spool_mb, "MIB",
          "MiB of query records held in memory; past that they go to a temporary file beside the output", 0, 1 << 20,
          NULL},

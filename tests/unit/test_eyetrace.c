@@ -1,7 +1,9 @@
 /* test_eyetrace.c: the eye tracer of common/render/eyetrace.h through its API, on the closed
  * box of tests/scenes (8 x 8 pixels, no ray escapes): the sink gets every query in pixel
  * order and every row of direct light once, the same bytes for any thread count and
- * schedule; a sink's failure stops the trace with its message; a bad spp is refused. */
+ * schedule; a sink's failure stops the trace with its message; a bad spp is refused. An image
+ * of 80 rows (three bands of up to 32: one band's records go to the sink while the next is
+ * traced) checks the same across bands, and a failure in the second band's records. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -14,21 +16,24 @@
 #include "unit.h"
 
 #define CLOSED_BOX "tests/scenes/closed-box/scene.json"
+#define MAX_ROWS 80 /* the tallest image traced here: three bands */
 
 typedef struct {
     unsigned char *q; /* every query record received */
     size_t qn, qcap;
-    double direct[8 * 8 * 3];
-    int rows_seen[8];
+    double direct[8 * MAX_ROWS * 3];
+    int rows_seen[MAX_ROWS];
     uint32_t record_size, off_pixel, last_pixel;
-    int out_of_order, fail_after; /* fail_after: records after which the queries sink fails, 0 for never */
+    int out_of_order, fail_after; /* fail_after: records after which the queries sink fails once, 0 for never */
 } sink_t;
 
 static pm_result_t got_queries(void *user, const void *records, uint64_t count)
 {
     sink_t *k = user;
-    if (k->fail_after && k->qn / k->record_size + count > (size_t)k->fail_after)
+    if (k->fail_after && k->qn / k->record_size + count > (size_t)k->fail_after) {
+        k->fail_after = 0; /* once: a call after it would succeed, so a failure the trace lost shows */
         return pm_error_set(PM_ERR_IO, "cannot write 'test sink': %zu records in", k->qn / k->record_size);
+    }
     size_t bytes = (size_t)count * k->record_size;
     if (k->qn + bytes > k->qcap) {
         k->qcap = 2 * (k->qn + bytes);
@@ -56,9 +61,13 @@ static pm_result_t got_direct(void *user, uint32_t y0, uint32_t rows, const doub
     return PM_OK;
 }
 
-static void trace(const pm_scene_t *s, const pm_rt_t *rt, int threads, int schedule, sink_t *k, pm_eye_stats_t *x)
+/* Traces the closed box at 8 x height (0: the scene's 8) into k; fail_after as in sink_t.
+ * Returns pm_eye_trace's result. */
+static pm_result_t trace_h(const pm_scene_t *s, const pm_rt_t *rt, int threads, int schedule, uint32_t height,
+                           int fail_after, sink_t *k, pm_eye_stats_t *x)
 {
     pm_eye_options_t o = {.mode = PM_EYE_GATHER,
+                          .height = height,
                           .schedule = schedule,
                           .primary = 1,
                           .light_samples = 4,
@@ -76,10 +85,17 @@ static void trace(const pm_scene_t *s, const pm_rt_t *rt, int threads, int sched
     memset(k, 0, sizeof *k);
     k->record_size = in->record_size;
     k->off_pixel = pm_schema_offset(&pm_queries_schema, in->channels, PM_QUERY_PIXEL);
+    k->fail_after = fail_after;
     const pm_eye_sink_t sink = {got_queries, got_direct, NULL, k};
-    if (pm_eye_trace(e, &sink, x) != PM_OK)
-        fail_msg("%s", pm_error_message());
+    pm_result_t r = pm_eye_trace(e, &sink, x);
     pm_eye_destroy(e);
+    return r;
+}
+
+static void trace(const pm_scene_t *s, const pm_rt_t *rt, int threads, int schedule, sink_t *k, pm_eye_stats_t *x)
+{
+    if (trace_h(s, rt, threads, schedule, 0, 0, k, x) != PM_OK)
+        fail_msg("%s", pm_error_message());
 }
 
 static void test_eyetrace_closed_box(void **state)
@@ -144,8 +160,53 @@ static void test_eyetrace_failures(void **state)
     pm_scene_free(&s);
 }
 
+static void test_eyetrace_bands(void **state)
+{
+    pm_scene_t s;
+    pm_rt_t rt;
+    if (pm_scene_load(CLOSED_BOX, &s) != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_int_equal(pm_rt_create(&s, 0, 2, &rt), PM_OK);
+    sink_t *a = calloc(1, sizeof *a), *b = calloc(1, sizeof *b);
+    assert_non_null(a);
+    assert_non_null(b);
+    pm_eye_stats_t xa, xb;
+    assert_int_equal(trace_h(&s, &rt, 1, PM_EYE_INTERLEAVE, MAX_ROWS, 0, a, &xa), PM_OK);
+    assert_int_equal(xa.queries, 8 * MAX_ROWS * 16);
+    assert_int_equal(a->qn, (size_t)8 * MAX_ROWS * 16 * 40);
+    assert_false(a->out_of_order);
+    for (int y = 0; y < MAX_ROWS; y++)
+        assert_int_equal(a->rows_seen[y], 1);
+    for (int threads = 2; threads <= 3; threads++)
+        for (int sched = PM_EYE_INTERLEAVE; sched <= PM_EYE_DYNAMIC; sched++) {
+            assert_int_equal(trace_h(&s, &rt, threads, sched, MAX_ROWS, 0, b, &xb), PM_OK);
+            assert_int_equal(b->qn, a->qn);
+            assert_memory_equal(b->q, a->q, a->qn);
+            assert_memory_equal(b->direct, a->direct, sizeof a->direct);
+            for (int y = 0; y < MAX_ROWS; y++)
+                assert_int_equal(b->rows_seen[y], 1);
+            free(b->q);
+        }
+    /* The sink fails in the second band's records (row 37 of 32 to 63), delivered while the third
+     * band is traced: the trace returns the sink's failure, the first band's direct rows went out
+     * and no later ones. */
+    for (int sched = PM_EYE_INTERLEAVE; sched <= PM_EYE_DYNAMIC; sched++) {
+        assert_int_equal(trace_h(&s, &rt, 2, sched, MAX_ROWS, 37 * 8 * 16, b, &xb), PM_ERR_IO);
+        assert_string_equal(pm_error_message(), "cannot write 'test sink': 4736 records in");
+        for (int y = 0; y < MAX_ROWS; y++)
+            assert_int_equal(b->rows_seen[y], y < 32);
+        free(b->q);
+    }
+    free(a->q);
+    free(a);
+    free(b);
+    pm_rt_destroy(&rt);
+    pm_scene_free(&s);
+}
+
 static const struct CMUnitTest tests[] = {
     cmocka_unit_test(test_eyetrace_closed_box),
     cmocka_unit_test(test_eyetrace_failures),
+    cmocka_unit_test(test_eyetrace_bands),
 };
 UNIT_GROUP(unit_eyetrace, "eyetrace", tests);

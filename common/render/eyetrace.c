@@ -1930,9 +1930,9 @@ pm_result_t pm_eye_trace(pm_eye_t *c, const pm_eye_sink_t *sink, pm_eye_stats_t 
         t_last = pm_time_wall() - t1;
         t_sink += t_last;
     }
-    /* Ray throughput is measured without the last band's delivery, which no tracing hides
-     * (the others' ran beside the rows and are in trace_s). */
-    stats_out->trace_s = pm_time_wall() - t0 - t_last;
+    /* Ray throughput is measured without the deliveries no tracing hid: the last band's, and on
+     * one thread every band's (on more, the others traced beside them, which is in trace_s). */
+    stats_out->trace_s = pm_time_wall() - t0 - (nthreads > 1 ? t_last : t_sink);
     stats_out->sink_s = t_sink;
     pm_progress_end(&prog);
 

@@ -112,8 +112,8 @@ typedef struct {
     uint64_t glossy_rays;      /* single rays of the glossy paths */
     uint64_t guided_hits;      /* primary hits whose secondary rays a guide cell shaped */
     uint64_t guided_rays;      /* secondary rays drawn from a guide cell (the rest: cosine) */
-    double trace_s;            /* wall s of the row loop, without the last band's sink calls (the
-                                * others ran beside the next band's rows) */
+    double trace_s;            /* wall s of the row loop, without the sink calls no tracing hid: the
+                                * last band's, and on one thread every band's */
     double sink_s;             /* wall s spent in the sink, every band's (the caller's output cost) */
     double trace_cpu_s;        /* CPU s the threads spent tracing rows: immune to other processes' load */
     double secondary_embree_s; /* s inside Embree for secondary rays, summed over threads */

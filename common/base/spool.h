@@ -6,7 +6,9 @@
  * past it everything held and everything after goes to an unlinked temporary file in a
  * directory the caller names. The spool knows nothing of what the records mean.
  *
- * Not thread-safe: one thread adds and replays. */
+ * Not thread-safe: one thread at a time adds and replays, the calls ordered by the caller (in
+ * trace-gather-points, bands go in from whichever thread delivers them, one band after another,
+ * ordered by OpenMP's barriers). */
 #ifndef PM_SPOOL_H
 #define PM_SPOOL_H
 

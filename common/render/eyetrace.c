@@ -1892,6 +1892,7 @@ pm_result_t pm_eye_trace(pm_eye_t *c, const pm_eye_sink_t *sink, pm_eye_stats_t 
     double t0 = pm_time_wall(), t_sink = 0.0, t_last = 0.0;
     uint64_t delivered = 0;
     int cur = 0, prev_nb = 0; /* the band being traced, the one before it (0: none left to deliver) */
+    int team = 1;             /* threads OpenMP gave a region that delivered (it may give fewer than asked) */
     uint32_t prev_y0 = 0;
     for (uint32_t y0 = 0; y0 < c->h && r == PM_OK; y0 += BAND_ROWS) {
         int nb = (int)(c->h - y0 < BAND_ROWS ? c->h - y0 : BAND_ROWS);
@@ -1905,16 +1906,16 @@ pm_result_t pm_eye_trace(pm_eye_t *c, const pm_eye_sink_t *sink, pm_eye_stats_t 
         {
             pm_cpu_set_ftz_daz(); /* per thread: MXCSR is not inherited by OpenMP workers */
             scratch_t *sc = &scr[omp_get_thread_num()];
-            if (prev_nb) {
-#pragma omp single nowait
-                {
-                    double t1 = pm_time_wall();
-                    pm_result_t rs = deliver_band(c, sink, rows[cur ^ 1], crows[cur ^ 1], direct[cur ^ 1], prev_y0,
-                                                  prev_nb, &delivered);
-                    if (rs != PM_OK)
-                        pm_error_slot_record(&sink_err, 0, rs);
-                    t_sink += pm_time_wall() - t1;
-                }
+            /* The team's last thread delivers (a worker whenever there are two or more), then
+             * takes what rows are left; no barrier between, so the others trace meanwhile. */
+            if (prev_nb && omp_get_thread_num() == omp_get_num_threads() - 1) {
+                double t1 = pm_time_wall();
+                pm_result_t rs =
+                    deliver_band(c, sink, rows[cur ^ 1], crows[cur ^ 1], direct[cur ^ 1], prev_y0, prev_nb, &delivered);
+                if (rs != PM_OK)
+                    pm_error_slot_record(&sink_err, 0, rs);
+                t_sink += pm_time_wall() - t1;
+                team = omp_get_num_threads();
             }
             trace_band(c, sc, y0, nb, direct[cur], rows[cur], crows[cur], &prog, &err);
         }
@@ -1932,7 +1933,8 @@ pm_result_t pm_eye_trace(pm_eye_t *c, const pm_eye_sink_t *sink, pm_eye_stats_t 
     }
     /* Ray throughput is measured without the deliveries no tracing hid: the last band's, and on
      * one thread every band's (on more, the others traced beside them, which is in trace_s). */
-    stats_out->trace_s = pm_time_wall() - t0 - (nthreads > 1 ? t_last : t_sink);
+    stats_out->sink_alone_s = team > 1 ? t_last : t_sink;
+    stats_out->trace_s = pm_time_wall() - t0 - stats_out->sink_alone_s;
     stats_out->sink_s = t_sink;
     pm_progress_end(&prog);
 
@@ -2074,6 +2076,7 @@ void pm_eye_report(pm_stage_t *st, const pm_eye_info_t *in, const pm_eye_stats_t
     }
     pm_stage_stat_double(st, "trace_s", tt);
     pm_stage_stat_double(st, "spool_s", x->sink_s);
+    pm_stage_stat_double(st, "spool_alone_s", x->sink_alone_s);
     pm_stage_stat_double(st, "rays_per_s", tt > 0 ? (double)rays / tt : 0.0);
     pm_stage_stat_double(st, "secondary_rays_per_s", tt > 0 ? (double)x->secondary_rays / tt : 0.0);
     pm_stage_stat_double(st, "trace_cpu_s", tc);

@@ -13,8 +13,9 @@
  * docs/formats.md. PM_EYE_DIRECT_VIS makes the primary hits themselves the queries (the paper's Figure 4, left).
  *
  * Rows are the unit of work: rows of a band run in parallel, and the caller's sink receives their
- * records and direct radiance on the calling thread in pixel order, so what it receives is the
- * same bytes for any thread count and schedule. Pixel p draws from the Philox streams
+ * records and direct radiance in pixel order, one call at a time, on one of the threads while the
+ * others trace the next band, so what it receives is the same bytes for any thread count and
+ * schedule. Pixel p draws from the Philox streams
  * (seed, 4p + purpose): jitter, light samples, secondary rays. */
 #ifndef PM_EYETRACE_H
 #define PM_EYETRACE_H
@@ -115,6 +116,7 @@ typedef struct {
     double trace_s;            /* wall s of the row loop, without the sink calls no tracing hid: the
                                 * last band's, and on one thread every band's */
     double sink_s;             /* wall s spent in the sink, every band's (the caller's output cost) */
+    double sink_alone_s;       /* of it, the wall s no tracing hid: trace_s + sink_alone_s is the loop's */
     double trace_cpu_s;        /* CPU s the threads spent tracing rows: immune to other processes' load */
     double secondary_embree_s; /* s inside Embree for secondary rays, summed over threads */
 } pm_eye_stats_t;

@@ -14,7 +14,7 @@
 # trace-photons trace_s, build-photonmap build_s + gather_s + width_s, trace-gather-points
 # trace_s, hilbert-sort keys_s + sort_s, the gather radius_s + gather_s (composite's work is
 # reading and writing). The rest is the overhead, split into the stages' reading and writing
-# (read_s + write_s + spool_s: checksums included), what else the stages spend unseen by their
+# (read_s + write_s + the spooling no tracing hid, spool_alone_s: checksums included), what else the stages spend unseen by their
 # timers (scene loading, Embree's BVH build, allocation: wall_s less compute and I/O), and what
 # is outside the stages' own wall_s: process start and exit, render's own work (stamps, make,
 # hashing the buffers, pm-info on the running image), less the overlap of the stages that
@@ -64,7 +64,7 @@ BIN=$BIN pipelines/render $S "$TMP/passes" PASSES=$((RUNS + 1)) PHOTONS=$P WIDTH
 # photon pipe's compute
 for ((p = 2; p <= RUNS + 1; p++)); do
     D=$(printf '%s/passes/pass-%04d' "$TMP" $p)
-    jq -s -r '[.[] | {w: .wall_s, io: ((.read_s // 0) + (.write_s // 0) + (.spool_s // 0)),
+    jq -s -r '[.[] | {w: .wall_s, io: ((.read_s // 0) + (.write_s // 0) + (.spool_alone_s // .spool_s // 0)),
         c: (if .stage == "trace-photons" or .stage == "trace-gather-points" then .trace_s
             elif .stage == "build-photonmap" then .build_s + (.gather_s // 0) + (.width_s // 0)
             elif .stage == "hilbert-sort" then .keys_s + .sort_s

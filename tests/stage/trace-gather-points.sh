@@ -231,7 +231,7 @@ fi
 # a spill file that cannot grow (here a file-size limit, as on a full disk) in the first band's,
 # on a worker, stops the stage with the file's folder and the reason.
 mkdir -p "$TMP/spill"
-(trap '' XFSZ && ulimit -f 64 && exec "$T" -q "$CORNELL" --width 40 --height 80 --spp 16 --spool-mem 0 \
+(trap '' XFSZ && ulimit -f 64 && exec "$T" -q "$CORNELL" --width 40 --height 80 --spp 16 --spool-mem 0 --threads 2 \
     -o "$TMP/spill/q.pm") >/dev/null 2>"$TMP/spill.err"
 st=$?
 if [ "$st" = 3 ] && [ "$(cat "$TMP/spill.err")" = "trace-gather-points: cannot write the spool file in '$TMP/spill': File too large (io error)" ] &&

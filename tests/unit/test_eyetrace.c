@@ -4,6 +4,7 @@
  * schedule; a sink's failure stops the trace with its message; a bad spp is refused. An image
  * of 80 rows (three bands of up to 32: one band's records go to the sink while the next is
  * traced) checks the same across bands, and a failure in the second band's records. */
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -25,20 +26,26 @@ typedef struct {
     int rows_seen[MAX_ROWS];
     uint32_t record_size, off_pixel, last_pixel;
     int out_of_order, fail_after; /* fail_after: records after which the queries sink fails once, 0 for never */
+    pthread_t caller;             /* the thread that called pm_eye_trace */
+    int off_caller, failed_off;   /* sink calls made on another thread; 1 when the failure was one */
 } sink_t;
 
 static pm_result_t got_queries(void *user, const void *records, uint64_t count)
 {
     sink_t *k = user;
+    int off = !pthread_equal(pthread_self(), k->caller);
+    k->off_caller += off;
     if (k->fail_after && k->qn / k->record_size + count > (size_t)k->fail_after) {
         k->fail_after = 0; /* once: a call after it would succeed, so a failure the trace lost shows */
+        k->failed_off = off;
         return pm_error_set(PM_ERR_IO, "cannot write 'test sink': %zu records in", k->qn / k->record_size);
     }
     size_t bytes = (size_t)count * k->record_size;
     if (k->qn + bytes > k->qcap) {
         k->qcap = 2 * (k->qn + bytes);
         k->q = realloc(k->q, k->qcap);
-        assert_non_null(k->q);
+        if (!k->q) /* not cmocka's assert: this may run on a worker thread, where its longjmp may not */
+            abort();
     }
     memcpy(k->q + k->qn, records, bytes);
     for (uint64_t i = 0; i < count; i++) {
@@ -86,6 +93,7 @@ static pm_result_t trace_h(const pm_scene_t *s, const pm_rt_t *rt, int threads, 
     k->record_size = in->record_size;
     k->off_pixel = pm_schema_offset(&pm_queries_schema, in->channels, PM_QUERY_PIXEL);
     k->fail_after = fail_after;
+    k->caller = pthread_self();
     const pm_eye_sink_t sink = {got_queries, got_direct, NULL, k};
     pm_result_t r = pm_eye_trace(e, &sink, x);
     pm_eye_destroy(e);
@@ -171,33 +179,51 @@ static void test_eyetrace_bands(void **state)
     assert_non_null(a);
     assert_non_null(b);
     pm_eye_stats_t xa, xb;
-    assert_int_equal(trace_h(&s, &rt, 1, PM_EYE_INTERLEAVE, MAX_ROWS, 0, a, &xa), PM_OK);
-    assert_int_equal(xa.queries, 8 * MAX_ROWS * 16);
-    assert_int_equal(a->qn, (size_t)8 * MAX_ROWS * 16 * 40);
-    assert_false(a->out_of_order);
-    for (int y = 0; y < MAX_ROWS; y++)
-        assert_int_equal(a->rows_seen[y], 1);
-    for (int threads = 2; threads <= 3; threads++)
+    /* 80 rows: bands of 32, 32 and 16; 65: the last band one row, fewer than the threads */
+    static const uint32_t heights[] = {MAX_ROWS, 65};
+    for (size_t hi = 0; hi < sizeof heights / sizeof heights[0]; hi++) {
+        uint32_t h = heights[hi];
+        assert_int_equal(trace_h(&s, &rt, 1, PM_EYE_INTERLEAVE, h, 0, a, &xa), PM_OK);
+        assert_int_equal(xa.queries, 8 * h * 16);
+        assert_int_equal(a->qn, (size_t)8 * h * 16 * 40);
+        assert_false(a->out_of_order);
+        assert_int_equal(a->off_caller, 0); /* one thread: the caller's */
+        for (uint32_t y = 0; y < MAX_ROWS; y++)
+            assert_int_equal(a->rows_seen[y], y < h);
+        for (int threads = 2; threads <= 3; threads++)
+            for (int sched = PM_EYE_INTERLEAVE; sched <= PM_EYE_DYNAMIC; sched++) {
+                assert_int_equal(trace_h(&s, &rt, threads, sched, h, 0, b, &xb), PM_OK);
+                assert_int_equal(b->qn, a->qn);
+                assert_memory_equal(b->q, a->q, a->qn);
+                assert_memory_equal(b->direct, a->direct, sizeof a->direct);
+                for (uint32_t y = 0; y < MAX_ROWS; y++)
+                    assert_int_equal(b->rows_seen[y], y < h);
+                /* the first two bands went out on a worker while the next was traced, the last on
+                 * the caller after it */
+                assert_int_equal(b->off_caller, 64);
+                free(b->q);
+            }
+        free(a->q);
+    }
+    /* The sink fails once, in the first band's records (row 5) or the second's (row 37 of 32 to
+     * 63), delivered on a worker while the next band is traced: the trace returns that failure
+     * with its message, and nothing after it goes out (the band's own direct rows included). */
+    static const struct {
+        int row, direct_rows;
+    } fails[] = {{5, 0}, {37, 32}};
+    for (size_t f = 0; f < sizeof fails / sizeof fails[0]; f++)
         for (int sched = PM_EYE_INTERLEAVE; sched <= PM_EYE_DYNAMIC; sched++) {
-            assert_int_equal(trace_h(&s, &rt, threads, sched, MAX_ROWS, 0, b, &xb), PM_OK);
-            assert_int_equal(b->qn, a->qn);
-            assert_memory_equal(b->q, a->q, a->qn);
-            assert_memory_equal(b->direct, a->direct, sizeof a->direct);
+            int row = fails[f].row;
+            assert_int_equal(trace_h(&s, &rt, 2, sched, MAX_ROWS, row * 8 * 16, b, &xb), PM_ERR_IO);
+            char want[64];
+            snprintf(want, sizeof want, "cannot write 'test sink': %d records in", row * 8 * 16);
+            assert_string_equal(pm_error_message(), want);
+            assert_int_equal(b->failed_off, 1);
+            assert_int_equal(b->qn, (size_t)row * 8 * 16 * 40);
             for (int y = 0; y < MAX_ROWS; y++)
-                assert_int_equal(b->rows_seen[y], 1);
+                assert_int_equal(b->rows_seen[y], y < fails[f].direct_rows);
             free(b->q);
         }
-    /* The sink fails in the second band's records (row 37 of 32 to 63), delivered while the third
-     * band is traced: the trace returns the sink's failure, the first band's direct rows went out
-     * and no later ones. */
-    for (int sched = PM_EYE_INTERLEAVE; sched <= PM_EYE_DYNAMIC; sched++) {
-        assert_int_equal(trace_h(&s, &rt, 2, sched, MAX_ROWS, 37 * 8 * 16, b, &xb), PM_ERR_IO);
-        assert_string_equal(pm_error_message(), "cannot write 'test sink': 4736 records in");
-        for (int y = 0; y < MAX_ROWS; y++)
-            assert_int_equal(b->rows_seen[y], y < 32);
-        free(b->q);
-    }
-    free(a->q);
     free(a);
     free(b);
     pm_rt_destroy(&rt);

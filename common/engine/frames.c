@@ -35,6 +35,7 @@
 #include "base/args.h"
 #include "base/timer.h"
 #include "engine/engine.h"
+#include "render/light.h"
 #include "render/scene.h"
 
 typedef enum {
@@ -58,14 +59,16 @@ typedef enum {
     F_REUSE,
     F_QUIET,
     F_STREAM,
+    F_SECONDARY_DIRECT,
     F_COUNT
 } fparam_t;
 
-static const char *const fnames[F_COUNT] = {"FRAMES", "MOVE",    "DEGREES", "SHIFT",   "PHOTONS", "SPP",   "WIDTH",
-                                            "HEIGHT", "RADIUS",  "K",       "PRIMARY", "PIXEL",   "ORDER", "THREADS",
-                                            "PNG",    "OVERLAP", "MODE",    "REUSE",   "QUIET",   "STREAM"};
-static const char *const fdefaults[F_COUNT] = {"8", "camera", "30",      "0.1", "",  "",  "",       "",  "",  "",
-                                               "",  "",       "hilbert", "",    "1", "1", "gather", "1", "0", "1"};
+static const char *const fnames[F_COUNT] = {
+    "FRAMES", "MOVE",    "DEGREES", "SHIFT",   "PHOTONS", "SPP",    "WIDTH",
+    "HEIGHT", "RADIUS",  "K",       "PRIMARY", "PIXEL",   "ORDER",  "THREADS",
+    "PNG",    "OVERLAP", "MODE",    "REUSE",   "QUIET",   "STREAM", "SECONDARY_DIRECT"};
+static const char *const fdefaults[F_COUNT] = {"8", "camera",  "30", "0.1", "",  "",       "",  "",  "",  "", "",
+                                               "",  "hilbert", "",   "1",   "1", "gather", "1", "0", "1", "0"};
 
 #define MAXF 100000
 #define MAXA 48
@@ -75,6 +78,7 @@ typedef struct {
     char out[PATH_MAX], scene_dir[PATH_MAX];
     const char *v[F_COUNT];
     int n, camera, direct, png, stream, progress;
+    int sec_direct; /* SECONDARY_DIRECT=1 on a scene with lights the gather points sample */
     double t0, t_map;
     char radius[64]; /* STREAM=0: frame 0's kernel width, for the later frames */
 } frames_t;
@@ -134,6 +138,16 @@ static void eye_opts(const frames_t *F, cmd_t *c)
         add(c, "--mode");
         add(c, "direct-vis");
     }
+    if (F->sec_direct) /* every eye stage's: the queries' header must say it to the gather too */
+        add(c, "--secondary-direct");
+}
+/* trace-photons' options beside its scene: --photons, and with secondary direct light the map
+ * without the first hits the gather points' light samples stand for */
+static void photon_opts(const frames_t *F, cmd_t *c)
+{
+    opt(c, "--photons", F->v[F_PHOTONS]);
+    if (F->sec_direct)
+        add(c, "--indirect-only");
 }
 /* hilbert-sort on a stream of documents, stdin to stdout */
 static void sort_stream(const frames_t *F, cmd_t *h)
@@ -414,7 +428,7 @@ static int run_stream(frames_t *F)
         if (F->camera) {
             prog(F, &c[0], "trace-photons");
             add(&c[0], s0);
-            opt(&c[0], "--photons", F->v[F_PHOTONS]);
+            photon_opts(F, &c[0]);
             threads(F, &c[0]);
             add(&c[0], "-o");
             add(&c[0], "-");
@@ -492,7 +506,7 @@ static int run_stream(frames_t *F)
         cmd_t *t = &c[nc++];
         prog(F, t, "trace-photons");
         scenes(F, t);
-        opt(t, "--photons", F->v[F_PHOTONS]);
+        photon_opts(F, t);
         threads(F, t);
         add(t, "-o");
         add(t, "-");
@@ -613,7 +627,7 @@ static int run_per_frame(frames_t *F, json_t *per)
             }
             prog(F, &c[0], "trace-photons");
             add(&c[0], sc);
-            opt(&c[0], "--photons", F->v[F_PHOTONS]);
+            photon_opts(F, &c[0]);
             threads(F, &c[0]);
             add(&c[0], "-o");
             add(&c[0], "-");
@@ -836,12 +850,16 @@ static pm_result_t check(frames_t *F, int argc, char **argv)
         return pm_error_set(PM_ERR_USAGE, "bad value for MOVE '%s': expected camera or light", v[F_MOVE]);
     if (!one_of(v[F_ORDER], "hilbert", "morton", "none"))
         return pm_error_set(PM_ERR_USAGE, "bad value for ORDER '%s': expected hilbert, morton or none", v[F_ORDER]);
-    static const fparam_t bools[] = {F_QUIET, F_REUSE, F_STREAM, F_PNG, F_OVERLAP};
+    static const fparam_t bools[] = {F_QUIET, F_REUSE, F_STREAM, F_PNG, F_OVERLAP, F_SECONDARY_DIRECT};
     for (size_t i = 0; i < sizeof bools / sizeof bools[0]; i++)
         if (!one_of(v[bools[i]], "0", "1", NULL))
             return pm_error_set(PM_ERR_USAGE, "bad value for %s '%s': expected 0 or 1", fnames[bools[i]], v[bools[i]]);
     if (!one_of(v[F_MODE], "gather", "direct-vis", NULL))
         return pm_error_set(PM_ERR_USAGE, "bad value for MODE '%s': expected gather or direct-vis", v[F_MODE]);
+    if (!strcmp(v[F_SECONDARY_DIRECT], "1") && strcmp(v[F_MODE], "gather") != 0)
+        return pm_error_set(
+            PM_ERR_USAGE, "SECONDARY_DIRECT=1 needs MODE=gather: in direct-vis mode the queries are the primary hits, "
+                          "whose light samples the map's estimate replaces");
     if (v[F_PIXEL][0] && !one_of(v[F_PIXEL], "box", "center", NULL))
         return pm_error_set(PM_ERR_USAGE, "bad value for PIXEL '%s': expected box or center", v[F_PIXEL]);
     if (v[F_PRIMARY][0] && !is_count(v[F_PRIMARY]))
@@ -955,6 +973,9 @@ int pm_frames_run(const char *me, const char *scene_arg, const char *outdir, int
             goto done;
         }
         size_t points = json_array_size(json_object_get(scene, "point_lights"));
+        F->sec_direct = !strcmp(F->v[F_SECONDARY_DIRECT], "1") && pm_lights_count_at_gather(&sc) > 0;
+        if (!strcmp(F->v[F_SECONDARY_DIRECT], "1") && !F->sec_direct)
+            fsay(F, "skipped secondary direct light: scene '%s' has no light the gather points sample", scene_arg);
         pm_scene_free(&sc);
         if (!F->camera && points == 0) {
             fsay(F, "MOVE=light: scene '%s' has no point lights to move (its area lights are mesh triangles)",
@@ -1047,9 +1068,9 @@ int pm_frames_run(const char *me, const char *scene_arg, const char *outdir, int
     {
         double total = epoch_now() - F->t0, fps = total > 0 ? F->n / total : 0;
         printf("frames: %d frames in %.3f s: %.2f frames per second\n", F->n, total, fps);
-        json_t *root = json_pack("{s:s, s:i, s:s, s:b, s:f, s:f, s:O, s:O}", "scene", scene_arg, "frames", F->n, "move",
-                                 F->v[F_MOVE], "stream", F->stream, "total_s", total, "fps", fps, "per_frame", per,
-                                 "stages", stages);
+        json_t *root = json_pack("{s:s, s:i, s:s, s:b, s:b, s:f, s:f, s:O, s:O}", "scene", scene_arg, "frames", F->n,
+                                 "move", F->v[F_MOVE], "stream", F->stream, "secondary_direct", F->sec_direct,
+                                 "total_s", total, "fps", fps, "per_frame", per, "stages", stages);
         char tmpf[PATH_MAX + 64], dst[PATH_MAX + 64];
         snprintf(tmpf, sizeof tmpf, "%s/.frames.json.tmp", F->out);
         snprintf(dst, sizeof dst, "%s/frames.json", F->out);

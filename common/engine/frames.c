@@ -60,15 +60,17 @@ typedef enum {
     F_QUIET,
     F_STREAM,
     F_SECONDARY_DIRECT,
+    F_DIFFUSE_DEPTH,
     F_COUNT
 } fparam_t;
 
 static const char *const fnames[F_COUNT] = {
-    "FRAMES", "MOVE",    "DEGREES", "SHIFT",   "PHOTONS", "SPP",    "WIDTH",
-    "HEIGHT", "RADIUS",  "K",       "PRIMARY", "PIXEL",   "ORDER",  "THREADS",
-    "PNG",    "OVERLAP", "MODE",    "REUSE",   "QUIET",   "STREAM", "SECONDARY_DIRECT"};
-static const char *const fdefaults[F_COUNT] = {"8", "camera",  "30", "0.1", "",  "",       "",  "",  "",  "", "",
-                                               "",  "hilbert", "",   "1",   "1", "gather", "1", "0", "1", "0"};
+    "FRAMES",       "MOVE",    "DEGREES", "SHIFT",   "PHOTONS", "SPP",    "WIDTH",
+    "HEIGHT",       "RADIUS",  "K",       "PRIMARY", "PIXEL",   "ORDER",  "THREADS",
+    "PNG",          "OVERLAP", "MODE",    "REUSE",   "QUIET",   "STREAM", "SECONDARY_DIRECT",
+    "DIFFUSE_DEPTH"};
+static const char *const fdefaults[F_COUNT] = {"8", "camera",  "30", "0.1", "",  "",       "",  "",  "",  "",  "",
+                                               "",  "hilbert", "",   "1",   "1", "gather", "1", "0", "1", "0", "0"};
 
 #define MAXF 100000
 #define MAXA 48
@@ -140,6 +142,8 @@ static void eye_opts(const frames_t *F, cmd_t *c)
     }
     if (F->sec_direct) /* every eye stage's: the queries' header must say it to the gather too */
         add(c, "--secondary-direct");
+    if (strcmp(F->v[F_DIFFUSE_DEPTH], "0") != 0)
+        opt(c, "--diffuse-depth", F->v[F_DIFFUSE_DEPTH]);
 }
 /* trace-photons' options beside its scene: --photons, and with secondary direct light the map
  * without the first hits the gather points' light samples stand for */
@@ -856,6 +860,13 @@ static pm_result_t check(frames_t *F, int argc, char **argv)
             return pm_error_set(PM_ERR_USAGE, "bad value for %s '%s': expected 0 or 1", fnames[bools[i]], v[bools[i]]);
     if (!one_of(v[F_MODE], "gather", "direct-vis", NULL))
         return pm_error_set(PM_ERR_USAGE, "bad value for MODE '%s': expected gather or direct-vis", v[F_MODE]);
+    if (!one_of(v[F_DIFFUSE_DEPTH], "0", "1", "2"))
+        return pm_error_set(PM_ERR_USAGE, "bad value for DIFFUSE_DEPTH '%s': expected 0, 1 or 2", v[F_DIFFUSE_DEPTH]);
+    if (strcmp(v[F_DIFFUSE_DEPTH], "0") != 0 && strcmp(v[F_MODE], "gather") != 0)
+        return pm_error_set(PM_ERR_USAGE,
+                            "DIFFUSE_DEPTH=%s needs MODE=gather: diffuse bounces come before a gather point, and "
+                            "direct-vis has none",
+                            v[F_DIFFUSE_DEPTH]);
     if (!strcmp(v[F_SECONDARY_DIRECT], "1") && strcmp(v[F_MODE], "gather") != 0)
         return pm_error_set(
             PM_ERR_USAGE, "SECONDARY_DIRECT=1 needs MODE=gather: in direct-vis mode the queries are the primary hits, "
@@ -1068,9 +1079,10 @@ int pm_frames_run(const char *me, const char *scene_arg, const char *outdir, int
     {
         double total = epoch_now() - F->t0, fps = total > 0 ? F->n / total : 0;
         printf("frames: %d frames in %.3f s: %.2f frames per second\n", F->n, total, fps);
-        json_t *root = json_pack("{s:s, s:i, s:s, s:b, s:b, s:f, s:f, s:O, s:O}", "scene", scene_arg, "frames", F->n,
-                                 "move", F->v[F_MOVE], "stream", F->stream, "secondary_direct", F->sec_direct,
-                                 "total_s", total, "fps", fps, "per_frame", per, "stages", stages);
+        json_t *root =
+            json_pack("{s:s, s:i, s:s, s:b, s:b, s:i, s:f, s:f, s:O, s:O}", "scene", scene_arg, "frames", F->n, "move",
+                      F->v[F_MOVE], "stream", F->stream, "secondary_direct", F->sec_direct, "diffuse_depth",
+                      atoi(F->v[F_DIFFUSE_DEPTH]), "total_s", total, "fps", fps, "per_frame", per, "stages", stages);
         char tmpf[PATH_MAX + 64], dst[PATH_MAX + 64];
         snprintf(tmpf, sizeof tmpf, "%s/.frames.json.tmp", F->out);
         snprintf(dst, sizeof dst, "%s/frames.json", F->out);

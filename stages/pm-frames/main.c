@@ -33,6 +33,7 @@ static const char *const param_help =
     "  OVERLAP=1         STREAM=0: the photon side and the eye side at the same time (0: one after the other)\n"
     "  MODE=gather       direct-vis: the queries are the primary hits; the image is the map's estimate alone\n"
     "  SECONDARY_DIRECT=0  1: the gather points sample the lights, the map leaves out their first hits\n"
+    "  DIFFUSE_DEPTH=0   1 or 2: Lambertian bounces a secondary path takes before it gathers\n"
     "Prints one line per frame and the frames per second; writes OUTDIR/frames.json. One run at a time\n"
     "holds OUTDIR (OUTDIR/.lock). Exit status: 0 ok, 1 bad input or a stage failed on it (or OUTDIR is\n"
     "held), 2 bad usage, 3 I/O or out of memory, 4 internal.\n";

@@ -61,7 +61,8 @@ same_frames "... and the same on one thread" "$TMP/l1" "$TMP/l1t1" 3
 cmp -s <(dump "$TMP/l1/frame-0000.exr") <(dump "$TMP/l1/frame-0002.exr") &&
     fail "frames light" "frames 0 and 2 are the same: the light did not move" || pass "... and the frames differ"
 
-# ---- SECONDARY_DIRECT=1: light samples at the gather points, a map without their first hits ----
+# ---- SECONDARY_DIRECT=1: light samples at the gather points, a map without their first hits;
+# DIFFUSE_DEPTH=1: a bounce before the gather ----
 run_frames "$TMP/sd1" $CB $F SECONDARY_DIRECT=1 && run_frames "$TMP/sd0" $CB $F SECONDARY_DIRECT=1 STREAM=0 &&
     run_frames "$TMP/sdl" "$D/scene.json" $F MOVE=light SECONDARY_DIRECT=1 &&
     run_frames "$TMP/sdl0" "$D/scene.json" $F MOVE=light SECONDARY_DIRECT=1 STREAM=0
@@ -85,6 +86,25 @@ if awk -v m="$means" 'BEGIN { split(m, a, " "); r = a[1] / a[2]; exit !(r > 0.97
 else
     fail "frames secondary direct mean" "means $means"
 fi
+# DIFFUSE_DEPTH=1: a Lambertian bounce before the gather, on every frame
+run_frames "$TMP/dd1" $CB $F DIFFUSE_DEPTH=1 && run_frames "$TMP/dd0" $CB $F DIFFUSE_DEPTH=1 STREAM=0
+if jq -e '.diffuse_depth == 1' "$TMP/dd1/frames.json" >/dev/null &&
+    ! cmp -s <(dump "$TMP/dd1/frame-0001.exr") <(dump "$TMP/c1/frame-0001.exr"); then
+    pass "frames DIFFUSE_DEPTH=1: the secondary paths bounce before they gather (frames.json says so, the frames change)"
+else
+    fail "frames diffuse depth" "$(jq -c '{diffuse_depth}' "$TMP/dd1/frames.json" 2>&1 | head -c 200)"
+fi
+same_frames "... the streamed frames are the per-frame path's" "$TMP/dd1" "$TMP/dd0" 3
+run_frames "$TMP/dm1" $CB FRAMES=1 PHOTONS=200000 SPP=16 WIDTH=32 HEIGHT=24 DIFFUSE_DEPTH=1
+means=$("$BIN/measure-error" "$TMP/dm1/frame-0000.exr" "$TMP/sm0/frame-0000.exr" | jq -r '"\(.mean_test) \(.mean_reference)"')
+if awk -v m="$means" 'BEGIN { split(m, a, " "); r = a[1] / a[2]; exit !(r > 0.97 && r < 1.03) }'; then
+    pass "... and its frame's mean is the plain frame's within 3% ($means)"
+else
+    fail "frames diffuse depth mean" "means $means"
+fi
+expect_exit "frames DIFFUSE_DEPTH=3 is bad usage" 2 pipelines/frames $CB "$TMP/sdv" DIFFUSE_DEPTH=3
+expect_exit "frames DIFFUSE_DEPTH=1 MODE=direct-vis is bad usage" 2 \
+    pipelines/frames $CB "$TMP/sdv" DIFFUSE_DEPTH=1 MODE=direct-vis
 expect_exit "frames SECONDARY_DIRECT=1 MODE=direct-vis is bad usage" 2 \
     pipelines/frames $CB "$TMP/sdv" SECONDARY_DIRECT=1 MODE=direct-vis
 expect_exit "frames SECONDARY_DIRECT=2 is bad usage" 2 pipelines/frames $CB "$TMP/sdv" SECONDARY_DIRECT=2

@@ -59,7 +59,10 @@ pixel, 4 area-light samples per primary hit where the scene has area lights). Th
 \`scalar\` is single rays (\`rtcIntersect1\`/\`rtcOccluded1\`), the others Embree packets of the width in
 brackets. "secondary/s per core" is secondary rays over the CPU seconds of the tracing loop (generation,
 Embree, shading and query records; not the spool or file writing); "Embree secondary/s per core" counts
-only the time inside \`rtcIntersect*\` for secondary rays. Other processes on this machine make wall-time
+only the time inside \`rtcIntersect*\` for secondary rays. "all rays/s, wall" is over the tracing loop's wall
+time (\`trace_s\`): on two threads that includes the spooling of each band, which runs on one thread beside
+the tracing of the next (the default \`--schedule dynamic\`), so it is the loop's real rate, a little below
+the tracing's alone; on one thread the spooling is left out. Other processes on this machine make wall-time
 figures noisy. Goal (issue 4): 10 million secondary rays per second per core on the Cornell box, and
 packets no slower per ray than single rays.
 

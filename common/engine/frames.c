@@ -984,8 +984,9 @@ int pm_frames_run(const char *me, const char *scene_arg, const char *outdir, int
             goto done;
         }
         size_t points = json_array_size(json_object_get(scene, "point_lights"));
-        F->sec_direct = !strcmp(F->v[F_SECONDARY_DIRECT], "1") && pm_lights_count_at_gather(&sc) > 0;
-        if (!strcmp(F->v[F_SECONDARY_DIRECT], "1") && !F->sec_direct)
+        int sd_asked = !strcmp(F->v[F_SECONDARY_DIRECT], "1");
+        F->sec_direct = sd_asked && pm_lights_count_at_gather(&sc) > 0;
+        if (sd_asked && !F->sec_direct)
             fsay(F, "skipped secondary direct light: scene '%s' has no light the gather points sample", scene_arg);
         pm_scene_free(&sc);
         if (!F->camera && points == 0) {

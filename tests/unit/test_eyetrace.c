@@ -1,9 +1,10 @@
 /* test_eyetrace.c: the eye tracer of common/render/eyetrace.h through its API, on the closed
  * box of tests/scenes (8 x 8 pixels, no ray escapes): the sink gets every query in pixel
  * order and every row of direct light once, the same bytes for any thread count and
- * schedule; a sink's failure stops the trace with its message; a bad spp is refused. An image
- * of 80 rows (three bands of up to 32: one band's records go to the sink while the next is
- * traced) checks the same across bands, and a failure in the second band's records. */
+ * schedule; a sink's failure stops the trace with its message; a bad spp is refused. Images
+ * of 80 and 65 rows (three bands of up to 32: one band's records go to the sink on a worker
+ * while the next is traced) check the same across bands, and a failure in the first or the
+ * second band's records. */
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
@@ -106,13 +107,19 @@ static void trace(const pm_scene_t *s, const pm_rt_t *rt, int threads, int sched
         fail_msg("%s", pm_error_message());
 }
 
+/* The closed box and its Embree scene, for every test here. */
+static void load_box(pm_scene_t *s, pm_rt_t *rt)
+{
+    if (pm_scene_load(CLOSED_BOX, s) != PM_OK)
+        fail_msg("%s", pm_error_message());
+    assert_int_equal(pm_rt_create(s, 0, 2, rt), PM_OK);
+}
+
 static void test_eyetrace_closed_box(void **state)
 {
     pm_scene_t s;
     pm_rt_t rt;
-    if (pm_scene_load(CLOSED_BOX, &s) != PM_OK)
-        fail_msg("%s", pm_error_message());
-    assert_int_equal(pm_rt_create(&s, 0, 2, &rt), PM_OK);
+    load_box(&s, &rt);
     sink_t a, b;
     pm_eye_stats_t xa, xb;
     trace(&s, &rt, 1, PM_EYE_INTERLEAVE, &a, &xa);
@@ -142,9 +149,7 @@ static void test_eyetrace_failures(void **state)
 {
     pm_scene_t s;
     pm_rt_t rt;
-    if (pm_scene_load(CLOSED_BOX, &s) != PM_OK)
-        fail_msg("%s", pm_error_message());
-    assert_int_equal(pm_rt_create(&s, 0, 2, &rt), PM_OK);
+    load_box(&s, &rt);
     pm_eye_options_t o = {.mode = PM_EYE_GATHER, .primary = 1, .spp = 6, .isa = PM_ISA_SCALAR, .threads = 2};
     pm_eye_t *e = (pm_eye_t *)&o;
     assert_int_equal(pm_eye_create(&s, &rt, &o, &e), PM_ERR_USAGE);
@@ -172,9 +177,7 @@ static void test_eyetrace_bands(void **state)
 {
     pm_scene_t s;
     pm_rt_t rt;
-    if (pm_scene_load(CLOSED_BOX, &s) != PM_OK)
-        fail_msg("%s", pm_error_message());
-    assert_int_equal(pm_rt_create(&s, 0, 2, &rt), PM_OK);
+    load_box(&s, &rt);
     sink_t *a = calloc(1, sizeof *a), *b = calloc(1, sizeof *b);
     assert_non_null(a);
     assert_non_null(b);
